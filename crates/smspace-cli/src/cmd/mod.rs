@@ -1,0 +1,1 @@
+//! One module per subcommand: each has an `Args` struct (clap) and a `run` function.

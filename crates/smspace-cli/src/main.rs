@@ -1,0 +1,45 @@
+//! `smspace`: the command-line front end of the smspace library.
+//!
+//! This binary only parses arguments, calls the library and reports errors; every
+//! computation lives in the `smspace` crate.
+
+mod cmd;
+mod ui;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// A naive sensorimotor agent learns its own spatial configuration
+/// (Laflaquière et al. 2015).
+#[derive(Debug, Parser)]
+#[command(name = "smspace", version, about, long_about = None)]
+struct Cli {
+    /// Worker threads for parallel stages (default: all cores).
+    #[arg(long, global = true, value_name = "T")]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    ui::init_threads(cli.threads)?;
+    match cli.command {}
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            if ui::is_broken_pipe(&error) {
+                return ExitCode::SUCCESS;
+            }
+            eprintln!("error: {error:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,297 @@
+//! Reading and writing the interchange files: `.npy` arrays and JSON documents.
+//!
+//! Every array smspace writes is a little-endian `float64` (or `int64` for indices)
+//! `.npy` file in C order, so that `numpy.load` reads it as is. The shapes are:
+//!
+//! | file | shape | meaning |
+//! |---|---|---|
+//! | motors | `(M, N)` | explored motor configurations, radians |
+//! | poses | `(M, 3)` | observer's retina pose `(x, y, alpha)` |
+//! | kernel sets | `(M, P, N)` | `P` points of every set `M^i` |
+//! | distances | `(M, M)` | set metric |
+//! | embeddings | `(M, d)` | coordinates |
+//!
+//! Writes are atomic: the bytes go to a temporary file in the destination folder,
+//! which is then renamed over the destination, so an interrupted run never leaves a
+//! truncated file where a good one stood.
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use ndarray::{Array2, Array3, ArrayBase, ArrayD, Data, Dimension, Ix2, Ix3};
+use ndarray_npy::{ReadNpyError, ReadNpyExt, WritableElement, WriteNpyExt};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+
+/// Errors of reading and writing files.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum IoError {
+    /// The file could not be opened or read.
+    #[error("cannot read {path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// The file is not a `.npy` array of the expected element type.
+    #[error("{path} is not a readable .npy array of float64: {reason} (save it with numpy.save(path, array.astype(numpy.float64)))")]
+    Npy {
+        /// The file.
+        path: PathBuf,
+        /// What the reader found.
+        reason: String,
+    },
+    /// The array has the wrong number of dimensions or the wrong extent.
+    #[error("{path} has shape {found}, expected {expected}")]
+    Shape {
+        /// The file.
+        path: PathBuf,
+        /// The shape found, as `(a, b, c)`.
+        found: String,
+        /// The shape expected, with symbols, e.g. `(M, 4)`.
+        expected: String,
+    },
+    /// The array holds NaN or an infinity.
+    #[error("{path} holds a non-finite value ({value}) at index {index}; every entry must be a finite number")]
+    NonFinite {
+        /// The file.
+        path: PathBuf,
+        /// The offending multi-index, as `[i, j]`.
+        index: String,
+        /// The value found.
+        value: f64,
+    },
+    /// The file is not valid JSON for the expected document.
+    #[error("{path} is not a valid {what} file: {source}")]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// What the document should have been (e.g. "environment").
+        what: &'static str,
+        /// The parser's reason, with line and column.
+        source: serde_json::Error,
+    },
+    /// The file could not be written.
+    #[error("cannot write {path}: {source}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+}
+
+/// Formats a shape as `(a, b, c)`.
+pub fn shape_string(shape: &[usize]) -> String {
+    let parts: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+    if parts.len() == 1 {
+        format!("({},)", parts[0])
+    } else {
+        format!("({})", parts.join(", "))
+    }
+}
+
+fn open(path: &Path) -> Result<BufReader<File>, IoError> {
+    File::open(path)
+        .map(BufReader::new)
+        .map_err(|source| IoError::Read {
+            path: path.to_owned(),
+            source,
+        })
+}
+
+/// Reads a `float64` `.npy` array of any dimension, checking that every entry is finite.
+pub fn read_f64(path: &Path) -> Result<ArrayD<f64>, IoError> {
+    let reader = open(path)?;
+    let array = ArrayD::<f64>::read_npy(reader).map_err(|error| match error {
+        ReadNpyError::Io(source) => IoError::Read {
+            path: path.to_owned(),
+            source,
+        },
+        other => IoError::Npy {
+            path: path.to_owned(),
+            reason: other.to_string(),
+        },
+    })?;
+    check_finite(path, &array)?;
+    Ok(array)
+}
+
+/// Returns an error naming the first non-finite entry of `array`.
+pub fn check_finite<S: Data<Elem = f64>, D: Dimension>(
+    path: &Path,
+    array: &ArrayBase<S, D>,
+) -> Result<(), IoError> {
+    let view = array.view().into_dyn();
+    if let Some((index, value)) = view.indexed_iter().find(|(_, v)| !v.is_finite()) {
+        return Err(IoError::NonFinite {
+            path: path.to_owned(),
+            index: shape_string(index.slice()),
+            value: *value,
+        });
+    }
+    Ok(())
+}
+
+/// Reads a 2-D `float64` array; `columns`, when given, is the required second extent.
+///
+/// `expected` describes the shape for the error message, e.g. `"(M, 4)"`.
+pub fn read_matrix(
+    path: &Path,
+    columns: Option<usize>,
+    expected: &str,
+) -> Result<Array2<f64>, IoError> {
+    let array = read_f64(path)?;
+    let shape_error = |array: &ArrayD<f64>| IoError::Shape {
+        path: path.to_owned(),
+        found: shape_string(array.shape()),
+        expected: expected.to_owned(),
+    };
+    if array.ndim() != 2 || columns.is_some_and(|c| array.shape()[1] != c) {
+        return Err(shape_error(&array));
+    }
+    array
+        .into_dimensionality::<Ix2>()
+        .map_err(|_| IoError::Shape {
+            path: path.to_owned(),
+            found: "?".into(),
+            expected: expected.to_owned(),
+        })
+}
+
+/// Reads a 3-D `float64` array such as kernel sets `(M, P, N)`.
+pub fn read_cube(path: &Path, expected: &str) -> Result<Array3<f64>, IoError> {
+    let array = read_f64(path)?;
+    if array.ndim() != 3 {
+        return Err(IoError::Shape {
+            path: path.to_owned(),
+            found: shape_string(array.shape()),
+            expected: expected.to_owned(),
+        });
+    }
+    array
+        .into_dimensionality::<Ix3>()
+        .map_err(|_| IoError::Shape {
+            path: path.to_owned(),
+            found: "?".into(),
+            expected: expected.to_owned(),
+        })
+}
+
+/// Writes `path` atomically: `fill` writes into a temporary file in the same folder,
+/// which is renamed over `path` only once it is complete and flushed.
+pub fn write_atomic<F>(path: &Path, fill: F) -> Result<(), IoError>
+where
+    F: FnOnce(&mut BufWriter<&mut File>) -> std::io::Result<()>,
+{
+    let write_error = |source| IoError::Write {
+        path: path.to_owned(),
+        source,
+    };
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
+        _ => PathBuf::from("."),
+    };
+    let mut temp = tempfile::Builder::new()
+        .prefix(".smspace-")
+        .suffix(".part")
+        .tempfile_in(&folder)
+        .map_err(write_error)?;
+    {
+        let mut writer = BufWriter::new(temp.as_file_mut());
+        fill(&mut writer).map_err(write_error)?;
+        writer.flush().map_err(write_error)?;
+    }
+    temp.as_file().sync_all().map_err(write_error)?;
+    temp.persist(path).map_err(|e| write_error(e.error))?;
+    Ok(())
+}
+
+/// Writes an array as `.npy` (little-endian, C order), atomically.
+pub fn write_npy<A, S, D>(path: &Path, array: &ArrayBase<S, D>) -> Result<(), IoError>
+where
+    A: WritableElement,
+    S: Data<Elem = A>,
+    D: Dimension,
+{
+    write_atomic(path, |writer| {
+        array
+            .write_npy(writer)
+            .map_err(|e| std::io::Error::other(e.to_string()))
+    })
+}
+
+/// Writes a value as pretty-printed JSON, atomically.
+pub fn write_json<T: Serialize + ?Sized>(path: &Path, value: &T) -> Result<(), IoError> {
+    write_atomic(path, |writer| {
+        serde_json::to_writer_pretty(&mut *writer, value).map_err(std::io::Error::other)?;
+        writer.write_all(b"\n")
+    })
+}
+
+/// Reads a JSON document; `what` names it in error messages (e.g. "environment").
+pub fn read_json<T: DeserializeOwned>(path: &Path, what: &'static str) -> Result<T, IoError> {
+    let reader = open(path)?;
+    serde_json::from_reader(reader).map_err(|source| IoError::Json {
+        path: path.to_owned(),
+        what,
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ndarray::array;
+
+    #[test]
+    fn round_trip_and_shape_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.npy");
+        let a = array![[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]];
+        write_npy(&path, &a).unwrap();
+        assert_eq!(read_matrix(&path, Some(2), "(M, 2)").unwrap(), a);
+        let err = read_matrix(&path, Some(4), "(M, 4)").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            format!("{} has shape (3, 2), expected (M, 4)", path.display())
+        );
+        assert!(matches!(
+            read_cube(&path, "(M, P, N)"),
+            Err(IoError::Shape { .. })
+        ));
+    }
+
+    #[test]
+    fn nan_is_reported_with_its_index() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("nan.npy");
+        write_npy(&path, &array![[1.0, f64::NAN]]).unwrap();
+        let err = read_matrix(&path, None, "(M, N)").unwrap_err();
+        assert!(err.to_string().contains("(0, 1)"), "{err}");
+    }
+
+    #[test]
+    fn wrong_dtype_names_the_fix() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("int.npy");
+        write_npy(&path, &array![[1_i64, 2]]).unwrap();
+        let err = read_matrix(&path, None, "(M, N)").unwrap_err();
+        assert!(err.to_string().contains("astype(numpy.float64)"), "{err}");
+    }
+
+    #[test]
+    fn atomic_write_leaves_no_temporary_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.json");
+        write_json(&path, &vec![1, 2, 3]).unwrap();
+        write_json(&path, &vec![4]).unwrap();
+        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(names.len(), 1);
+        let back: Vec<i32> = read_json(&path, "test").unwrap();
+        assert_eq!(back, vec![4]);
+    }
+}

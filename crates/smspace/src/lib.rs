@@ -1,0 +1,31 @@
+//! # smspace
+//!
+//! A *naive* sensorimotor agent discovers its own spatial configuration from
+//! sensorimotor invariants, after Laflaquière, O'Regan, Argentieri, Gas & Terekhov,
+//! "Learning agent's spatial configuration from sensorimotor invariants" (Robotics and
+//! Autonomous Systems, 2015).
+//!
+//! The agent knows only motor commands `m ∈ ℝ^N` and raw sensor values
+//! `s = σ_E(m) ∈ ℝ^K` in an environment `E` (paper eq. 2). Motor configurations that
+//! give the same sensory input form the sets `M^s = { m | σ_E(m) = s }`, the kernels of
+//! `σ_E − s` (section 2.3). These sets do not depend on the environment; a metric
+//! between them gives a manifold that is, seen from outside, the configuration space of
+//! the agent's sensor.
+//!
+//! The modules follow the pipeline:
+//!
+//! 1. [`agent`]: agents and environments, the sensorimotor law `s = σ_E(m)`;
+//! 2. [`explore`]: motor babbling in a working space, and the probe grid;
+//! 3. [`kernel`]: tracing the sets `M^i` along the Jacobian's null space (appendix A);
+//!
+//! with [`config`] (parameter files), [`io`] (`.npy` and JSON interchange),
+//! [`progress`] (observers for long stages) and [`error`].
+//!
+//! The library never prints: progress goes through [`progress::Progress`], and every
+//! failure a user can cause is a [`Result`] carrying the offending file or value.
+
+pub mod error;
+pub mod io;
+pub mod progress;
+
+pub use error::{Error, Result};
