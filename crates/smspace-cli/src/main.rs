@@ -23,11 +23,25 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-enum Command {}
+enum Command {
+    /// Motor babbling in the working space (and the probe grid): motors.npy, poses.npy.
+    Explore(cmd::explore::Args),
+    /// Trace the kernel sets M^i through explored motor configurations: sets.npy.
+    Trace(cmd::trace::Args),
+    /// Draw an environment of point lights: env.json.
+    Env(cmd::env::Args),
+    /// Sensor values s = σ_E(m) of motor configurations: sensors.npy.
+    Sense(cmd::sense::Args),
+}
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     ui::init_threads(cli.threads)?;
-    match cli.command {}
+    match cli.command {
+        Command::Explore(args) => cmd::explore::run(args),
+        Command::Trace(args) => cmd::trace::run(args),
+        Command::Env(args) => cmd::env::run(args),
+        Command::Sense(args) => cmd::sense::run(args),
+    }
 }
 
 fn main() -> ExitCode {

@@ -2,7 +2,9 @@
 //! `thiserror` enum, so that a caller can handle "any smspace error" with one type and
 //! still match on the stage that failed.
 
-use crate::io::IoError;
+use crate::{
+    agent::AgentError, config::ConfigError, explore::ExploreError, io::IoError, kernel::KernelError,
+};
 
 /// Any error of the smspace library.
 #[derive(Debug, thiserror::Error)]
@@ -11,6 +13,18 @@ pub enum Error {
     /// Reading or writing a file failed.
     #[error(transparent)]
     Io(#[from] IoError),
+    /// A configuration file is invalid.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// An agent or environment is invalid.
+    #[error(transparent)]
+    Agent(#[from] AgentError),
+    /// Exploration failed.
+    #[error(transparent)]
+    Explore(#[from] ExploreError),
+    /// Tracing kernel sets failed.
+    #[error(transparent)]
+    Kernel(#[from] KernelError),
 }
 
 /// `Result` with the crate-wide [`Error`].

@@ -195,11 +195,15 @@ where
         Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
         _ => PathBuf::from("."),
     };
-    let mut temp = tempfile::Builder::new()
-        .prefix(".smspace-")
-        .suffix(".part")
-        .tempfile_in(&folder)
-        .map_err(write_error)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".smspace-").suffix(".part");
+    #[cfg(unix)]
+    {
+        // Outputs are ordinary files (rw-r--r--), not private temporaries.
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o644));
+    }
+    let mut temp = builder.tempfile_in(&folder).map_err(write_error)?;
     {
         let mut writer = BufWriter::new(temp.as_file_mut());
         fill(&mut writer).map_err(write_error)?;

@@ -24,8 +24,12 @@
 //! The library never prints: progress goes through [`progress::Progress`], and every
 //! failure a user can cause is a [`Result`] carrying the offending file or value.
 
+pub mod agent;
+pub mod config;
 pub mod error;
+pub mod explore;
 pub mod io;
+pub mod kernel;
 pub mod progress;
 
 pub use error::{Error, Result};

@@ -1,1 +1,7 @@
 //! One module per subcommand: each has an `Args` struct (clap) and a `run` function.
+
+pub mod common;
+pub mod env;
+pub mod explore;
+pub mod sense;
+pub mod trace;

@@ -1,0 +1,121 @@
+//! Arguments shared by several subcommands: the agent, the environment, the working space.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+use smspace::agent::{Agent, Environment, EnvironmentConfig};
+use smspace::config::{load_agent, AgentSpec};
+use smspace::explore::{default_workspace, Workspace};
+
+/// `--agent NAME|FILE`.
+#[derive(Debug, Clone, Args)]
+pub struct AgentArgs {
+    /// Agent: a preset (toy-line, toy-redundant, planar-arm) or a TOML file with an
+    /// [agent] table (and optionally an [environment] table).
+    #[arg(long, value_name = "NAME|FILE", default_value = "planar-arm")]
+    pub agent: String,
+}
+
+impl AgentArgs {
+    /// Resolves and builds the agent.
+    pub fn load(&self) -> anyhow::Result<(AgentSpec, Box<dyn Agent>)> {
+        let spec = load_agent(&self.agent)?;
+        let agent = spec
+            .agent
+            .build()
+            .with_context(|| format!("agent '{}'", self.agent))?;
+        Ok((spec, agent))
+    }
+}
+
+/// `--env FILE | --env-seed S [--lights L]`.
+#[derive(Debug, Clone, Args)]
+pub struct EnvArgs {
+    /// Environment file (JSON, as written by `smspace env`).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["env_seed", "lights"])]
+    pub env: Option<PathBuf>,
+    /// Draw a random environment from this seed.
+    #[arg(long, value_name = "S")]
+    pub env_seed: Option<u64>,
+    /// Number of random lights (default: the agent's, 10 for the arm, 5 for the toys).
+    #[arg(long, value_name = "L")]
+    pub lights: Option<usize>,
+}
+
+impl EnvArgs {
+    /// The environment asked for: a file, a seed, or the agent file's `[environment]`
+    /// table; `None` when nothing names one.
+    pub fn resolve(
+        &self,
+        spec: &AgentSpec,
+        agent: &dyn Agent,
+    ) -> anyhow::Result<Option<Environment>> {
+        if let Some(path) = &self.env {
+            return Ok(Some(Environment::load(path)?));
+        }
+        let table = spec.environment.clone();
+        if self.env_seed.is_none() && self.lights.is_none() && table.is_none() {
+            return Ok(None);
+        }
+        let mut config = table.unwrap_or_default();
+        if let Some(seed) = self.env_seed {
+            config.seed = seed;
+        }
+        if self.lights.is_some() {
+            config.lights = self.lights;
+        }
+        Ok(Some(config.build(agent)?))
+    }
+
+    /// Like [`resolve`](Self::resolve), but a default random environment (seed 1) when
+    /// nothing names one.
+    pub fn resolve_or_default(
+        &self,
+        spec: &AgentSpec,
+        agent: &dyn Agent,
+    ) -> anyhow::Result<Environment> {
+        match self.resolve(spec, agent)? {
+            Some(env) => Ok(env),
+            None => Ok(EnvironmentConfig::default().build(agent)?),
+        }
+    }
+}
+
+/// `--workspace default|none|CX,CY,DEPTH,WIDTH`.
+#[derive(Debug, Clone, Args)]
+pub struct WorkspaceArgs {
+    /// Working space: `default` (the paper's for the arm, none for the toys), `none`, or
+    /// `CX,CY,DEPTH,WIDTH` (centre and full extents along x and y).
+    #[arg(long, value_name = "SPEC", default_value = "default")]
+    pub workspace: String,
+}
+
+impl WorkspaceArgs {
+    /// Parses the specification.
+    pub fn resolve(&self, agent: &dyn Agent) -> anyhow::Result<Option<Workspace>> {
+        match self.workspace.as_str() {
+            "default" => Ok(default_workspace(agent)),
+            "none" => Ok(None),
+            spec => {
+                let values: Vec<f64> = spec
+                    .split(',')
+                    .map(|v| v.trim().parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .ok()
+                    .filter(|v: &Vec<f64>| v.len() == 4 && v.iter().all(|x| x.is_finite()))
+                    .with_context(|| {
+                        format!("--workspace '{spec}' must be default, none, or four numbers CX,CY,DEPTH,WIDTH")
+                    })?;
+                anyhow::ensure!(
+                    values[2] > 0.0 && values[3] > 0.0,
+                    "--workspace '{spec}': DEPTH and WIDTH must be greater than zero"
+                );
+                Ok(Some(Workspace {
+                    center: [values[0], values[1]],
+                    size: [values[2], values[3]],
+                }))
+            }
+        }
+    }
+}

@@ -1,0 +1,91 @@
+//! `smspace explore`: motor babbling in the working space, plus the probe grid.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args as ClapArgs;
+use serde_json::json;
+use smspace::explore::{explore_in, ExploreParams, Probes};
+use smspace::io;
+
+use super::common::{AgentArgs, WorkspaceArgs};
+
+/// Arguments of `smspace explore`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    #[command(flatten)]
+    agent: AgentArgs,
+    /// Number of configurations to keep in the working space.
+    #[arg(long, default_value_t = 2500)]
+    n: usize,
+    /// Seed of the babbling.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Append the probe grid (10 × 10 positions × 10 orientations by default).
+    #[arg(long)]
+    probes: bool,
+    /// Probe positions along each side of the working space.
+    #[arg(long, default_value_t = 10, requires = "probes")]
+    probe_positions: usize,
+    /// Probe orientations, evenly spaced from 0.
+    #[arg(long, default_value_t = 10, requires = "probes")]
+    probe_orientations: usize,
+    #[command(flatten)]
+    workspace: WorkspaceArgs,
+    /// Folder for motors.npy, poses.npy, probes.npy and exploration.json (created if needed).
+    #[arg(long, value_name = "DIR")]
+    out_dir: PathBuf,
+}
+
+/// Runs `smspace explore`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (spec, agent) = args.agent.load()?;
+    let workspace = args.workspace.resolve(agent.as_ref())?;
+    let params = ExploreParams {
+        n: args.n,
+        seed: args.seed,
+        workspace_center: workspace.map(|w| w.center),
+        workspace_size: workspace.map(|w| w.size),
+        probes: if args.probes {
+            Probes::Grid
+        } else {
+            Probes::None
+        },
+        probe_positions: args.probe_positions,
+        probe_orientations: args.probe_orientations,
+        ..ExploreParams::default()
+    };
+    let exploration = explore_in(agent.as_ref(), &params, workspace)?;
+    std::fs::create_dir_all(&args.out_dir)
+        .with_context(|| format!("cannot create {}", args.out_dir.display()))?;
+    let dir = &args.out_dir;
+    io::write_npy(&dir.join("motors.npy"), &exploration.motors)?;
+    io::write_npy(&dir.join("poses.npy"), &exploration.poses)?;
+    io::write_npy(&dir.join("probes.npy"), &exploration.probes)?;
+    let probe_count = exploration
+        .probes
+        .column(0)
+        .iter()
+        .filter(|&&o| o >= 0)
+        .count();
+    io::write_json(
+        &dir.join("exploration.json"),
+        &json!({
+            "agent": spec.agent,
+            "params": params,
+            "workspace": exploration.workspace,
+            "rows": exploration.motors.nrows(),
+            "babbled": exploration.motors.nrows() - probe_count,
+            "probes": probe_count,
+        }),
+    )?;
+    eprintln!(
+        "explored {} configurations ({} babbled, {} probes) of the {} agent into {}",
+        exploration.motors.nrows(),
+        exploration.motors.nrows() - probe_count,
+        probe_count,
+        agent.name(),
+        dir.display()
+    );
+    Ok(())
+}

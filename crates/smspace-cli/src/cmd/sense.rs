@@ -1,0 +1,47 @@
+//! `smspace sense`: the sensor values `s = σ_E(m)` of motor configurations.
+
+use std::path::PathBuf;
+
+use clap::Args as ClapArgs;
+use ndarray::{Array2, Axis};
+use smspace::io;
+
+use super::common::{AgentArgs, EnvArgs};
+
+/// Arguments of `smspace sense`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    #[command(flatten)]
+    agent: AgentArgs,
+    /// Motor configurations (M, N).
+    #[arg(long, value_name = "FILE")]
+    motors: PathBuf,
+    #[command(flatten)]
+    env: EnvArgs,
+    /// Output sensor values (M, K).
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+}
+
+/// Runs `smspace sense`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (spec, agent) = args.agent.load()?;
+    let environment = args.env.resolve_or_default(&spec, agent.as_ref())?;
+    let n = agent.motor_dim();
+    let motors = io::read_matrix(&args.motors, Some(n), &format!("(M, {n})"))?;
+    let mut sensors = Array2::zeros((motors.nrows(), agent.sensor_dim()));
+    for (m, mut s) in motors
+        .axis_iter(Axis(0))
+        .zip(sensors.axis_iter_mut(Axis(0)))
+    {
+        let m = m.to_vec();
+        agent.sense(&environment, &m, s.as_slice_mut().expect("C-order rows"));
+    }
+    io::write_npy(&args.out, &sensors)?;
+    eprintln!(
+        "wrote sensor values {:?} to {}",
+        sensors.dim(),
+        args.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,148 @@
+//! `smspace trace`: the kernel sets `M^i` through explored motor configurations.
+
+use std::path::{Path, PathBuf};
+
+use clap::Args as ClapArgs;
+use ndarray::Array1;
+use smspace::io;
+use smspace::kernel::{trace_sets, StepControl, TraceMethod, TraceParams};
+
+use super::common::{AgentArgs, EnvArgs, WorkspaceArgs};
+use crate::ui::Bar;
+
+/// Arguments of `smspace trace`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    #[command(flatten)]
+    agent: AgentArgs,
+    /// Motor configurations (M, N), as written by `smspace explore`.
+    #[arg(long, value_name = "FILE")]
+    motors: PathBuf,
+    /// Level set to follow: kinematic (observer's pose, the paper's) or sensory (the
+    /// agent's own sensor readings; needs an environment).
+    #[arg(long, default_value = "kinematic", value_parser = parse_method)]
+    method: TraceMethod,
+    /// Points per resampled set.
+    #[arg(long, default_value_t = 100)]
+    points: usize,
+    /// Step length (radians); the initial step when adaptive.
+    #[arg(long, default_value_t = 1e-3)]
+    step: f64,
+    /// Step control: auto (fixed for kinematic, adaptive for sensory), fixed or adaptive.
+    #[arg(long, default_value = "auto", value_parser = parse_step_control)]
+    step_control: StepControl,
+    /// Largest adaptive step.
+    #[arg(long, default_value_t = 0.05)]
+    max_step: f64,
+    /// Loop-closure tolerance (torus distance).
+    #[arg(long, default_value_t = 1e-2)]
+    closure_tolerance: f64,
+    #[command(flatten)]
+    env: EnvArgs,
+    #[command(flatten)]
+    workspace: WorkspaceArgs,
+    /// Output sets (M_kept, P, N); the report goes to `<stem>.trace.json` and, when
+    /// some sets failed, the kept motor rows to `<stem>.kept.npy`.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+}
+
+fn parse_method(s: &str) -> Result<TraceMethod, String> {
+    s.parse()
+}
+
+fn parse_step_control(s: &str) -> Result<StepControl, String> {
+    match s {
+        "auto" => Ok(StepControl::Auto),
+        "fixed" => Ok(StepControl::Fixed),
+        "adaptive" => Ok(StepControl::Adaptive),
+        other => Err(format!(
+            "unknown step control '{other}'; use auto, fixed or adaptive"
+        )),
+    }
+}
+
+/// `dir/stem.suffix` next to `out` (`sets.npy` → `sets.trace.json`).
+pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "sets".into());
+    out.with_file_name(format!("{stem}.{suffix}"))
+}
+
+/// Runs `smspace trace`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (spec, agent) = args.agent.load()?;
+    let params = TraceParams {
+        method: args.method,
+        points: args.points,
+        step: args.step,
+        step_control: args.step_control,
+        max_step: args.max_step,
+        closure_tolerance: args.closure_tolerance,
+        ..TraceParams::default()
+    }
+    .check()?;
+    let motors = io::read_matrix(
+        &args.motors,
+        Some(agent.motor_dim()),
+        &format!("(M, {})", agent.motor_dim()),
+    )?;
+    let environment = match args.method {
+        TraceMethod::Kinematic => args.env.resolve(&spec, agent.as_ref())?,
+        TraceMethod::Sensory => {
+            Some(args.env.resolve(&spec, agent.as_ref())?.ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--method sensory needs an environment: give --env FILE or --env-seed S"
+                )
+            })?)
+        }
+    };
+    let workspace = args.workspace.resolve(agent.as_ref())?;
+    let bar = Bar::new();
+    let traced = trace_sets(
+        agent.as_ref(),
+        environment.as_ref(),
+        motors.view(),
+        workspace.as_ref(),
+        &params,
+        &bar,
+    )?;
+    anyhow::ensure!(
+        !traced.kept.is_empty(),
+        "no set could be traced ({:?}); see the statuses above. Nothing was written.",
+        traced.report.summary.by_status
+    );
+    io::write_npy(&args.out, &traced.sets)?;
+    let report_path = sibling(&args.out, "trace.json");
+    io::write_json(&report_path, &traced.report)?;
+    let kept_path = sibling(&args.out, "kept.npy");
+    let summary = &traced.report.summary;
+    if summary.failed > 0 {
+        let kept: Array1<i64> = traced.kept.iter().map(|&i| i as i64).collect();
+        io::write_npy(&kept_path, &kept)?;
+    } else if kept_path.exists() {
+        // A stale index file from an earlier run would no longer describe these sets.
+        std::fs::remove_file(&kept_path)?;
+    }
+    eprintln!(
+        "traced {} of {} sets ({:?}, {:?} steps); {} failed{}",
+        summary.traced,
+        summary.total,
+        params.method(),
+        params.step_control(),
+        summary.failed,
+        if summary.failed > 0 {
+            format!(
+                " ({:?}; see {}; kept rows in {})",
+                summary.by_status,
+                report_path.display(),
+                kept_path.display()
+            )
+        } else {
+            String::new()
+        }
+    );
+    Ok(())
+}

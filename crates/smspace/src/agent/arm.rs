@@ -1,0 +1,378 @@
+//! The planar arm of paper section 3.1: serial hinge links ending in a pinhole retina.
+//!
+//! With `L` links and motors `m ∈ ℝ^{L+1}` (one hinge per link plus a last hinge that
+//! turns the retina), the cumulative link angles are `θ_k = Σ_{j≤k} m_j` and the
+//! retina's pose is
+//!
+//! ```text
+//! x = Σ_k L_k cos θ_k,   y = Σ_k L_k sin θ_k,   alpha = Σ_j m_j .
+//! ```
+//!
+//! The retina is a pinhole camera whose lens sits at `(x, y)` looking along `alpha`.
+//! A light at world position `q` has, in the retina's frame, a forward distance
+//! `u = (q − p)·(cos α, sin α)` and a lateral offset `v = (q − p)·(−sin α, cos α)`;
+//! if `u > 0` it projects through the lens onto the retina at `p_proj = −f v / u`
+//! (`f` the focal length; the image is inverted), otherwise it adds nothing. The
+//! `K` cells sit regularly on `[−w, w]` (`w` the retina's half width) and cell `i`
+//! is excited by (paper eq. for `s_{i,l}`)
+//!
+//! ```text
+//! s_i = Σ_l exp(−(p_cell_i − p_proj_l)²) / ‖(x, y) − q_l‖ .
+//! ```
+
+use serde::{Deserialize, Serialize};
+
+use super::{
+    check_positive, wrap_angle, Agent, AgentError, Environment, LightRegion, MotorTopology, Pose,
+};
+
+/// Parameters of the planar arm (`kind = "planar-arm"`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ArmParams {
+    /// Length of every link, from the base outwards. Default `[1.0, 1.0, 1.0]` (the paper's).
+    pub link_lengths: Vec<f64>,
+    /// Number of light-sensitive cells on the retina. Default 6.
+    pub retina_cells: usize,
+    /// Cells are spaced regularly on `[-retina_half_width, retina_half_width]`. Default 1.0.
+    pub retina_half_width: f64,
+    /// Distance from the lens to the retina. Default 1.0.
+    pub focal_length: f64,
+}
+
+impl Default for ArmParams {
+    fn default() -> Self {
+        Self {
+            link_lengths: vec![1.0, 1.0, 1.0],
+            retina_cells: 6,
+            retina_half_width: 1.0,
+            focal_length: 1.0,
+        }
+    }
+}
+
+/// The planar arm with a pinhole retina (paper section 3.1). See the module docs for
+/// the equations.
+#[derive(Debug, Clone)]
+pub struct PlanarArm {
+    link_lengths: Vec<f64>,
+    cell_positions: Vec<f64>,
+    focal_length: f64,
+}
+
+impl PlanarArm {
+    /// Validates `params` and builds the arm.
+    pub fn new(params: &ArmParams) -> Result<Self, AgentError> {
+        if params.link_lengths.is_empty() {
+            return Err(AgentError::InvalidParameter {
+                name: "link_lengths",
+                value: "[]".into(),
+                reason: "the arm needs at least one link",
+            });
+        }
+        for &length in &params.link_lengths {
+            check_positive("link_lengths", length)?;
+        }
+        if params.retina_cells == 0 {
+            return Err(AgentError::InvalidParameter {
+                name: "retina_cells",
+                value: "0".into(),
+                reason: "the retina needs at least one cell",
+            });
+        }
+        check_positive("retina_half_width", params.retina_half_width)?;
+        check_positive("focal_length", params.focal_length)?;
+        let k = params.retina_cells;
+        let w = params.retina_half_width;
+        let cell_positions = if k == 1 {
+            vec![0.0]
+        } else {
+            (0..k)
+                .map(|i| -w + 2.0 * w * i as f64 / (k - 1) as f64)
+                .collect()
+        };
+        Ok(Self {
+            link_lengths: params.link_lengths.clone(),
+            cell_positions,
+            focal_length: params.focal_length,
+        })
+    }
+
+    /// The links' lengths.
+    pub fn link_lengths(&self) -> &[f64] {
+        &self.link_lengths
+    }
+
+    /// Positions of the joints in the plane: the base `(0, 0)`, then the end of every
+    /// link (the last is the lens). Used to draw the arm.
+    pub fn joint_positions(&self, motors: &[f64]) -> Vec<[f64; 2]> {
+        let mut points = vec![[0.0, 0.0]];
+        let (mut x, mut y, mut theta) = (0.0, 0.0, 0.0);
+        for (length, m) in self.link_lengths.iter().zip(motors) {
+            theta += m;
+            x += length * theta.cos();
+            y += length * theta.sin();
+            points.push([x, y]);
+        }
+        points
+    }
+
+    /// The 2 × N Jacobian of the lens position, row-major, for manipulability.
+    fn position_manipulability(&self, motors: &[f64]) -> f64 {
+        let n = self.motor_dim();
+        let mut j = vec![0.0; 3 * n];
+        self.pose_jacobian(motors, &mut j);
+        // det(J_p J_pᵀ) for the 2 position rows.
+        let (mut a, mut b, mut c) = (0.0, 0.0, 0.0);
+        for k in 0..n {
+            a += j[k] * j[k];
+            b += j[k] * j[n + k];
+            c += j[n + k] * j[n + k];
+        }
+        (a * c - b * b).max(0.0).sqrt()
+    }
+}
+
+impl Agent for PlanarArm {
+    fn motor_dim(&self) -> usize {
+        self.link_lengths.len() + 1
+    }
+
+    fn sensor_dim(&self) -> usize {
+        self.cell_positions.len()
+    }
+
+    fn sense(&self, environment: &Environment, motors: &[f64], sensors: &mut [f64]) {
+        let pose = self.pose(motors);
+        let (sin_a, cos_a) = pose.alpha.sin_cos();
+        sensors.fill(0.0);
+        for light in &environment.lights {
+            let dx = light[0] - pose.x;
+            let dy = light[1] - pose.y;
+            let forward = cos_a * dx + sin_a * dy;
+            if forward <= 0.0 {
+                continue;
+            }
+            let lateral = -sin_a * dx + cos_a * dy;
+            let projection = -self.focal_length * lateral / forward;
+            let inverse_distance = 1.0 / (dx * dx + dy * dy).sqrt();
+            for (s, &cell) in sensors.iter_mut().zip(&self.cell_positions) {
+                let offset = cell - projection;
+                *s += (-offset * offset).exp() * inverse_distance;
+            }
+        }
+    }
+
+    fn pose(&self, motors: &[f64]) -> Pose {
+        let (mut x, mut y, mut theta) = (0.0, 0.0, 0.0);
+        for (length, m) in self.link_lengths.iter().zip(motors) {
+            theta += m;
+            let (s, c) = theta.sin_cos();
+            x += length * c;
+            y += length * s;
+        }
+        let alpha = wrap_angle(motors.iter().sum());
+        Pose { x, y, alpha }
+    }
+
+    /// Analytic Jacobian (paper appendix A): `∂x/∂m_j = −Σ_{k≥j} L_k sin θ_k`,
+    /// `∂y/∂m_j = Σ_{k≥j} L_k cos θ_k`, `∂alpha/∂m_j = 1`; the retina hinge moves only
+    /// `alpha`.
+    fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64]) -> Pose {
+        let n = self.motor_dim();
+        let links = self.link_lengths.len();
+        // Forward pass: the terms L_k sin θ_k and L_k cos θ_k, kept in the Jacobian rows.
+        let mut theta = 0.0;
+        for k in 0..links {
+            theta += motors[k];
+            let (s, c) = theta.sin_cos();
+            jacobian[k] = -self.link_lengths[k] * s;
+            jacobian[n + k] = self.link_lengths[k] * c;
+        }
+        // Backward pass: suffix sums.
+        for k in (0..links - 1).rev() {
+            jacobian[k] += jacobian[k + 1];
+            jacobian[n + k] += jacobian[n + k + 1];
+        }
+        jacobian[links] = 0.0;
+        jacobian[n + links] = 0.0;
+        for j in 0..n {
+            jacobian[2 * n + j] = 1.0;
+        }
+        Pose {
+            x: jacobian[n],
+            y: -jacobian[0],
+            alpha: wrap_angle(motors.iter().sum()),
+        }
+    }
+
+    /// Puts the lens at `(x, y)` with orientation `alpha`. The redundancy is resolved by
+    /// aligning the links after the second with one free angle `θ`, solving the two-link
+    /// problem for the rest (elbow `+`), and choosing, among 720 values of `θ`, the one of
+    /// greatest manipulability `sqrt(det(J_p J_pᵀ))`, which keeps the arm away from
+    /// singular (folded or stretched) postures. Deterministic.
+    fn inverse_kinematics(&self, pose: Pose) -> Option<Vec<f64>> {
+        let links = self.link_lengths.len();
+        let n = self.motor_dim();
+        let to_motors = |thetas: &[f64]| {
+            let mut motors = Vec::with_capacity(n);
+            let mut previous = 0.0;
+            for &t in thetas {
+                motors.push(wrap_angle(t - previous));
+                previous = t;
+            }
+            motors.push(wrap_angle(pose.alpha - previous));
+            motors
+        };
+        if links == 1 {
+            let r = pose.x.hypot(pose.y);
+            if (r - self.link_lengths[0]).abs() > 1e-12 {
+                return None;
+            }
+            return Some(to_motors(&[pose.y.atan2(pose.x)]));
+        }
+        let (l1, l2) = (self.link_lengths[0], self.link_lengths[1]);
+        let rest: f64 = self.link_lengths[2..].iter().sum();
+        let two_link = |wx: f64, wy: f64| -> Option<(f64, f64)> {
+            let d2 = wx * wx + wy * wy;
+            let c = (d2 - l1 * l1 - l2 * l2) / (2.0 * l1 * l2);
+            if !(-1.0..=1.0).contains(&c) {
+                return None;
+            }
+            let q2 = c.acos();
+            let t1 = wy.atan2(wx) - (l2 * q2.sin()).atan2(l1 + l2 * q2.cos());
+            Some((t1, t1 + q2))
+        };
+        let candidates = if links == 2 { 1 } else { 720 };
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for i in 0..candidates {
+            let theta = -std::f64::consts::PI + 2.0 * std::f64::consts::PI * i as f64 / 720.0;
+            let (wx, wy) = (pose.x - rest * theta.cos(), pose.y - rest * theta.sin());
+            let Some((t1, t2)) = two_link(wx, wy) else {
+                continue;
+            };
+            let mut thetas = vec![t1, t2];
+            thetas.extend(std::iter::repeat_n(theta, links - 2));
+            let motors = to_motors(&thetas);
+            let score = self.position_manipulability(&motors);
+            if best.as_ref().is_none_or(|(s, _)| score > *s) {
+                best = Some((score, motors));
+            }
+        }
+        best.map(|(_, motors)| motors)
+    }
+
+    fn name(&self) -> &'static str {
+        "planar-arm"
+    }
+
+    fn configuration_dim(&self) -> usize {
+        3
+    }
+
+    fn motor_topology(&self) -> MotorTopology {
+        MotorTopology::Periodic
+    }
+
+    /// Lights go around the paper's working space (centre 1.75 units in front of the
+    /// base), in a 6 × 6 square minus a margin of 0.5 around the working space, scaled
+    /// with the arm's reach (3 for the paper's arm): the retina sees lights from every
+    /// pose of the working space.
+    fn default_light_region(&self) -> LightRegion {
+        let scale = self.link_lengths.iter().sum::<f64>() / 3.0;
+        LightRegion {
+            center: [1.75 * scale, 0.0],
+            half_size: [3.0 * scale, 3.0 * scale],
+            exclusion_half_size: [1.25 * scale, 1.5 * scale],
+        }
+    }
+
+    fn default_light_count(&self) -> usize {
+        10
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_abs_diff_eq;
+    use std::f64::consts::{FRAC_PI_2, PI};
+
+    fn arm() -> PlanarArm {
+        PlanarArm::new(&ArmParams::default()).unwrap()
+    }
+
+    #[test]
+    fn stretched_arm_pose() {
+        let p = arm().pose(&[0.0, 0.0, 0.0, 0.0]);
+        assert_abs_diff_eq!(p.x, 3.0);
+        assert_abs_diff_eq!(p.y, 0.0);
+        let p = arm().pose(&[FRAC_PI_2, -FRAC_PI_2, 0.0, 0.5]);
+        assert_abs_diff_eq!(p.x, 2.0, epsilon = 1e-12);
+        assert_abs_diff_eq!(p.y, 1.0, epsilon = 1e-12);
+        assert_abs_diff_eq!(p.alpha, 0.5, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn light_straight_ahead_excites_the_middle_cells_and_lights_behind_nothing() {
+        let a = arm();
+        let m = [0.0; 4]; // lens at (3, 0) looking along +x
+        let ahead = Environment::from_lights(vec![[5.0, 0.0]]);
+        let mut s = vec![0.0; 6];
+        a.sense(&ahead, &m, &mut s);
+        // Projection at 0: cells at ±0.2 get exp(-0.04)/2.
+        assert_abs_diff_eq!(s[2], (-0.04f64).exp() / 2.0, epsilon = 1e-12);
+        assert_abs_diff_eq!(s[2], s[3], epsilon = 1e-12);
+        assert!(s[0] < s[2]);
+        let behind = Environment::from_lights(vec![[1.0, 0.5]]);
+        a.sense(&behind, &m, &mut s);
+        assert!(s.iter().all(|&v| v == 0.0));
+    }
+
+    #[test]
+    fn image_is_inverted() {
+        let a = arm();
+        let m = [0.0; 4];
+        // A light to the left (+y) projects on the negative side of the retina.
+        let env = Environment::from_lights(vec![[4.0, 0.5]]);
+        let mut s = vec![0.0; 6];
+        a.sense(&env, &m, &mut s);
+        assert!(s[0] + s[1] > s[4] + s[5]);
+    }
+
+    #[test]
+    fn inverse_kinematics_reaches_the_pose() {
+        let a = arm();
+        for &(x, y, alpha) in &[(1.1, -0.9, 0.0), (2.4, 0.9, 2.0), (1.75, 0.0, -PI + 0.1)] {
+            let m = a
+                .inverse_kinematics(Pose { x, y, alpha })
+                .expect("reachable");
+            let p = a.pose(&m);
+            assert_abs_diff_eq!(p.x, x, epsilon = 1e-10);
+            assert_abs_diff_eq!(p.y, y, epsilon = 1e-10);
+            assert_abs_diff_eq!(wrap_angle(p.alpha - alpha), 0.0, epsilon = 1e-10);
+        }
+        assert!(a
+            .inverse_kinematics(Pose {
+                x: 3.5,
+                y: 0.0,
+                alpha: 0.0
+            })
+            .is_none());
+    }
+
+    #[test]
+    fn invalid_parameters_are_rejected() {
+        let bad = ArmParams {
+            link_lengths: vec![1.0, -1.0],
+            ..ArmParams::default()
+        };
+        let err = PlanarArm::new(&bad).unwrap_err();
+        assert!(err.to_string().contains("link_lengths = -1"), "{err}");
+        let bad = ArmParams {
+            focal_length: f64::NAN,
+            ..ArmParams::default()
+        };
+        assert!(PlanarArm::new(&bad).is_err());
+    }
+}

@@ -1,0 +1,359 @@
+//! Agents and environments: the sensorimotor law `s = σ_E(m)` (paper section 2.1, eq. 2).
+//!
+//! An [`Agent`] maps motor commands `m ∈ ℝ^N` to raw sensor values `s ∈ ℝ^K` in an
+//! [`Environment`] of point lights. For evaluation only, it also exposes the observer's
+//! ground truth: the external configuration of its sensor, a [`Pose`] `(x, y, alpha)`.
+//! The agent itself never uses the pose; the `kinematic` tracing method does, as the
+//! paper's simulation does "only to accelerate the simulation" (section 3.2, step 2).
+//!
+//! Three agents are built in:
+//!
+//! | name | paper | motors `N` | sensors `K` | pose |
+//! |---|---|---|---|---|
+//! | [`ToyAgent`] `toy-line` | 2.2, agent 1 | 1 | 2 | `x = m1` |
+//! | [`ToyAgent`] `toy-redundant` | 2.3, agent 2 | 2 | 2 | `x = m1 + m2` |
+//! | [`PlanarArm`] `planar-arm` | 3.1 | links + 1 | `retina_cells` | retina `(x, y, alpha)` |
+//!
+//! Build one from its parameter table with [`AgentConfig::build`], or by name with
+//! [`AgentConfig::preset`].
+
+mod arm;
+mod environment;
+mod toy;
+
+use std::f64::consts::PI;
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+pub use arm::{ArmParams, PlanarArm};
+pub use environment::{Environment, EnvironmentConfig, LightRegion};
+pub use toy::{ToyAgent, ToyKind, ToyParams};
+
+/// Errors of building agents and environments.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum AgentError {
+    /// No built-in agent has this name.
+    #[error("unknown agent '{name}'; the built-in agents are toy-line, toy-redundant and planar-arm (or give a TOML file with an [agent] table)")]
+    UnknownAgent {
+        /// The name given.
+        name: String,
+    },
+    /// A parameter is out of its domain.
+    #[error("invalid agent parameter {name} = {value}: {reason}")]
+    InvalidParameter {
+        /// The parameter's name, as in the configuration file.
+        name: &'static str,
+        /// The value given, formatted.
+        value: String,
+        /// What a valid value looks like.
+        reason: &'static str,
+    },
+    /// An environment is invalid for this agent.
+    #[error("invalid environment: {reason}")]
+    InvalidEnvironment {
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+/// The observer's ground truth of the sensor's external configuration: position
+/// `(x, y)` in the plane (length units of the agent) and orientation `alpha` (radians).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// Position along the world's x axis.
+    pub x: f64,
+    /// Position along the world's y axis.
+    pub y: f64,
+    /// Orientation of the sensor's optical axis, radians from the x axis.
+    pub alpha: f64,
+}
+
+impl Pose {
+    /// The pose as `[x, y, alpha]`.
+    pub fn to_array(self) -> [f64; 3] {
+        [self.x, self.y, self.alpha]
+    }
+
+    /// The pose from `[x, y, alpha]`.
+    pub fn from_array(a: [f64; 3]) -> Self {
+        Self {
+            x: a[0],
+            y: a[1],
+            alpha: a[2],
+        }
+    }
+}
+
+/// How motor coordinates behave.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MotorTopology {
+    /// Every motor is a hinge angle: configurations live on the torus `[-π, π)^N` and
+    /// kernel sets are closed loops.
+    Periodic,
+    /// Every motor ranges over `[low, high]` without wrapping (a linear actuator): kernel
+    /// sets are segments ending on the boundary of the motor box.
+    Bounded {
+        /// Lower end of every motor's range.
+        low: f64,
+        /// Upper end of every motor's range.
+        high: f64,
+    },
+}
+
+impl MotorTopology {
+    /// The interval motor babbling draws each coordinate from.
+    pub fn range(self) -> (f64, f64) {
+        match self {
+            MotorTopology::Periodic => (-PI, PI),
+            MotorTopology::Bounded { low, high } => (low, high),
+        }
+    }
+
+    /// The difference `a − b` of one motor coordinate, wrapped into `[-π, π)` when periodic.
+    #[inline]
+    pub fn difference(self, a: f64, b: f64) -> f64 {
+        match self {
+            MotorTopology::Periodic => wrap_angle(a - b),
+            MotorTopology::Bounded { .. } => a - b,
+        }
+    }
+
+    /// Distance between two configurations: Euclidean, with every coordinate difference
+    /// wrapped into `[-π, π)` when periodic (the paper's `g`, section 3.2).
+    pub fn distance(self, a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(&x, &y)| {
+                let d = self.difference(x, y);
+                d * d
+            })
+            .sum::<f64>()
+            .sqrt()
+    }
+}
+
+/// Wraps an angle into `[-π, π)`.
+#[inline]
+pub fn wrap_angle(angle: f64) -> f64 {
+    if (-PI..PI).contains(&angle) {
+        return angle;
+    }
+    let wrapped = (angle + PI).rem_euclid(2.0 * PI) - PI;
+    // rem_euclid can round up to exactly 2π for tiny negative inputs.
+    if wrapped >= PI {
+        wrapped - 2.0 * PI
+    } else {
+        wrapped
+    }
+}
+
+/// A sensorimotor agent: the law `s = σ_E(m)` plus, for evaluation, the observer's pose.
+///
+/// Required: [`motor_dim`](Agent::motor_dim), [`sensor_dim`](Agent::sensor_dim),
+/// [`sense`](Agent::sense) and [`pose`](Agent::pose). The other methods have defaults.
+pub trait Agent: Send + Sync + fmt::Debug {
+    /// Number of motors `N`.
+    fn motor_dim(&self) -> usize;
+
+    /// Number of sensors `K`.
+    fn sensor_dim(&self) -> usize;
+
+    /// Writes the sensor values `s = σ_E(m)` for motors `m` (length `N`) into `sensors`
+    /// (length `K`).
+    fn sense(&self, environment: &Environment, motors: &[f64], sensors: &mut [f64]);
+
+    /// The observer's ground truth: the sensor's pose for motors `m`.
+    fn pose(&self, motors: &[f64]) -> Pose;
+
+    /// A short name, e.g. `planar-arm`.
+    fn name(&self) -> &'static str;
+
+    /// How many leading coordinates of the pose `(x, y, alpha)` the motors can change:
+    /// 1 for the toys (`x`), 3 for the arm. The kernel sets have dimension
+    /// `N − configuration_dim()` where the pose Jacobian has full rank.
+    fn configuration_dim(&self) -> usize {
+        3
+    }
+
+    /// Whether motors are hinge angles (periodic) or bounded linear actuators.
+    fn motor_topology(&self) -> MotorTopology {
+        MotorTopology::Periodic
+    }
+
+    /// Writes the pose Jacobian `∂(x, y, alpha)/∂m` (3 × N, row-major) into `jacobian`
+    /// and returns the pose. The default uses central differences of [`pose`](Agent::pose)
+    /// with step `1e-6`, wrapping the `alpha` difference.
+    fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64]) -> Pose {
+        let n = self.motor_dim();
+        let h = 1e-6;
+        let mut m = motors.to_vec();
+        for j in 0..n {
+            m[j] = motors[j] + h;
+            let plus = self.pose(&m);
+            m[j] = motors[j] - h;
+            let minus = self.pose(&m);
+            m[j] = motors[j];
+            jacobian[j] = (plus.x - minus.x) / (2.0 * h);
+            jacobian[n + j] = (plus.y - minus.y) / (2.0 * h);
+            jacobian[2 * n + j] = wrap_angle(plus.alpha - minus.alpha) / (2.0 * h);
+        }
+        self.pose(motors)
+    }
+
+    /// One motor configuration that puts the sensor at `pose`, if the agent can reach it
+    /// (used for the probe grid). The default knows no inverse kinematics.
+    fn inverse_kinematics(&self, _pose: Pose) -> Option<Vec<f64>> {
+        None
+    }
+
+    /// Where random lights go by default for this agent.
+    fn default_light_region(&self) -> LightRegion;
+
+    /// How many lights a random environment has by default (5 for the toys, 10 for the arm).
+    fn default_light_count(&self) -> usize;
+}
+
+/// Parameters of an agent, as the `[agent]` table of a TOML file: `kind` picks the agent
+/// and the other keys are that agent's parameters (unknown keys are errors).
+///
+/// ```
+/// use smspace::agent::AgentConfig;
+/// let config: AgentConfig = toml::from_str(r#"
+///     kind = "planar-arm"
+///     link_lengths = [1.0, 1.0, 1.0]
+///     retina_cells = 6
+/// "#).unwrap();
+/// let agent = config.build().unwrap();
+/// assert_eq!((agent.motor_dim(), agent.sensor_dim()), (4, 6));
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum AgentConfig {
+    /// Paper section 2.2: one motor moves the body along a line.
+    ToyLine(ToyParams),
+    /// Paper section 2.3: two redundant motors move the body along a line.
+    ToyRedundant(ToyParams),
+    /// Paper section 3.1: a planar arm with a pinhole retina at its end.
+    PlanarArm(ArmParams),
+}
+
+impl AgentConfig {
+    /// The built-in agent called `name` with default parameters.
+    pub fn preset(name: &str) -> Result<Self, AgentError> {
+        match name {
+            "toy-line" => Ok(AgentConfig::ToyLine(ToyParams::default())),
+            "toy-redundant" => Ok(AgentConfig::ToyRedundant(ToyParams::default())),
+            "planar-arm" => Ok(AgentConfig::PlanarArm(ArmParams::default())),
+            other => Err(AgentError::UnknownAgent {
+                name: other.to_owned(),
+            }),
+        }
+    }
+
+    /// The agent's name (`toy-line`, `toy-redundant`, `planar-arm`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            AgentConfig::ToyLine(_) => "toy-line",
+            AgentConfig::ToyRedundant(_) => "toy-redundant",
+            AgentConfig::PlanarArm(_) => "planar-arm",
+        }
+    }
+
+    /// Validates the parameters and builds the agent.
+    pub fn build(&self) -> Result<Box<dyn Agent>, AgentError> {
+        Ok(match self {
+            AgentConfig::ToyLine(p) => Box::new(ToyAgent::new(ToyKind::Line, p)?),
+            AgentConfig::ToyRedundant(p) => Box::new(ToyAgent::new(ToyKind::Redundant, p)?),
+            AgentConfig::PlanarArm(p) => Box::new(PlanarArm::new(p)?),
+        })
+    }
+}
+
+pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<(), AgentError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(AgentError::InvalidParameter {
+            name,
+            value: value.to_string(),
+            reason: "must be a finite number greater than zero",
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_abs_diff_eq;
+
+    #[test]
+    fn wrap_angle_maps_into_half_open_interval() {
+        assert_abs_diff_eq!(wrap_angle(PI), -PI);
+        assert_abs_diff_eq!(wrap_angle(-PI), -PI);
+        assert_abs_diff_eq!(wrap_angle(3.0 * PI + 0.5), -PI + 0.5, epsilon = 1e-12);
+        assert_abs_diff_eq!(wrap_angle(-0.25), -0.25);
+        assert!(wrap_angle(-1e-300) < PI);
+    }
+
+    #[test]
+    fn periodic_distance_wraps_each_coordinate() {
+        let d = MotorTopology::Periodic.distance(&[-PI + 0.1, 0.0], &[PI - 0.1, 0.0]);
+        assert_abs_diff_eq!(d, 0.2, epsilon = 1e-12);
+        let e = MotorTopology::Bounded {
+            low: -4.0,
+            high: 4.0,
+        }
+        .distance(&[-3.0, 0.0], &[3.0, 0.0]);
+        assert_abs_diff_eq!(e, 6.0);
+    }
+
+    #[test]
+    fn unknown_fields_and_names_are_errors() {
+        let err = toml::from_str::<AgentConfig>("kind = \"planar-arm\"\nlink_length = [1.0]")
+            .unwrap_err();
+        assert!(err.to_string().contains("link_length"), "{err}");
+        let err = AgentConfig::preset("octopus").unwrap_err();
+        assert!(err.to_string().contains("octopus"));
+    }
+
+    #[test]
+    fn finite_difference_pose_jacobian_matches_analytic_arm() {
+        #[derive(Debug)]
+        struct Wrapped(PlanarArm);
+        impl Agent for Wrapped {
+            fn motor_dim(&self) -> usize {
+                self.0.motor_dim()
+            }
+            fn sensor_dim(&self) -> usize {
+                self.0.sensor_dim()
+            }
+            fn sense(&self, e: &Environment, m: &[f64], s: &mut [f64]) {
+                self.0.sense(e, m, s)
+            }
+            fn pose(&self, m: &[f64]) -> Pose {
+                self.0.pose(m)
+            }
+            fn name(&self) -> &'static str {
+                "wrapped"
+            }
+            fn default_light_region(&self) -> LightRegion {
+                self.0.default_light_region()
+            }
+            fn default_light_count(&self) -> usize {
+                10
+            }
+        }
+        let arm = PlanarArm::new(&ArmParams::default()).unwrap();
+        let m = [0.3, -1.2, 2.0, 3.1];
+        let mut analytic = [0.0; 12];
+        let mut numeric = [0.0; 12];
+        arm.pose_jacobian(&m, &mut analytic);
+        Wrapped(arm).pose_jacobian(&m, &mut numeric);
+        for (a, b) in analytic.iter().zip(&numeric) {
+            assert_abs_diff_eq!(a, b, epsilon = 1e-8);
+        }
+    }
+}

@@ -1,0 +1,162 @@
+//! Configuration files: TOML tables for the pipeline's stages.
+//!
+//! An agent can be named by a preset (`toy-line`, `toy-redundant`, `planar-arm`) or by
+//! a TOML file whose `[agent]` table holds `kind` and the agent's parameters, with an
+//! optional `[environment]` table (`lights`, `seed`, `region`). Other tables of the
+//! file (an experiment's `[exploration]`, `[kernel]`, …) are left to their stages, so an
+//! experiment file can serve as an agent file. Unknown keys inside `[agent]` and
+//! `[environment]` are errors that name the key.
+//!
+//! ```toml
+//! [agent]
+//! kind = "planar-arm"
+//! link_lengths = [1.0, 1.0, 1.0]
+//! retina_cells = 6
+//! retina_half_width = 1.0
+//! focal_length = 1.0
+//!
+//! [environment]
+//! lights = 10
+//! seed = 1
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::de::DeserializeOwned;
+
+use crate::agent::{AgentConfig, AgentError, EnvironmentConfig};
+
+/// Errors of configuration files.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's reason.
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML, or a table has a wrong or unknown key.
+    #[error("{path}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message, with line, column and key.
+        message: String,
+    },
+    /// A required table is missing.
+    #[error("{path} has no [{table}] table")]
+    MissingTable {
+        /// The file.
+        path: PathBuf,
+        /// The table's name.
+        table: &'static str,
+    },
+    /// The name is neither a preset nor an existing file.
+    #[error(transparent)]
+    Agent(#[from] AgentError),
+}
+
+/// An agent and, optionally, how to make its environment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AgentSpec {
+    /// The agent's parameters.
+    pub agent: AgentConfig,
+    /// The `[environment]` table, when the file has one.
+    pub environment: Option<EnvironmentConfig>,
+}
+
+/// Reads a TOML file as a table.
+pub fn read_toml(path: &Path) -> Result<toml::Table, ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+        path: path.to_owned(),
+        source,
+    })?;
+    text.parse::<toml::Table>().map_err(|e| ConfigError::Parse {
+        path: path.to_owned(),
+        message: e.to_string().trim_end().to_owned(),
+    })
+}
+
+/// Deserialises the table `name` of a parsed file into `T`, naming the table in errors.
+pub fn table<T: DeserializeOwned>(
+    path: &Path,
+    file: &toml::Table,
+    name: &'static str,
+) -> Result<Option<T>, ConfigError> {
+    let Some(value) = file.get(name) else {
+        return Ok(None);
+    };
+    value
+        .clone()
+        .try_into::<T>()
+        .map(Some)
+        .map_err(|e| ConfigError::Parse {
+            path: path.to_owned(),
+            message: format!("in [{name}]: {}", e.to_string().trim_end()),
+        })
+}
+
+/// Resolves `--agent`: a preset name, or a TOML file with an `[agent]` table.
+pub fn load_agent(name_or_path: &str) -> Result<AgentSpec, ConfigError> {
+    let path = Path::new(name_or_path);
+    let looks_like_file = path.extension().is_some_and(|e| e == "toml") || path.exists();
+    if !looks_like_file {
+        return Ok(AgentSpec {
+            agent: AgentConfig::preset(name_or_path)?,
+            environment: None,
+        });
+    }
+    let file = read_toml(path)?;
+    let agent = table(path, &file, "agent")?.ok_or(ConfigError::MissingTable {
+        path: path.to_owned(),
+        table: "agent",
+    })?;
+    let environment = table(path, &file, "environment")?;
+    Ok(AgentSpec { agent, environment })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_and_files() {
+        assert_eq!(load_agent("toy-line").unwrap().agent.name(), "toy-line");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("arm.toml");
+        std::fs::write(
+            &path,
+            "[agent]\nkind = \"planar-arm\"\nretina_cells = 8\n[environment]\nlights = 4\nseed = 9\n[kernel]\npoints = 3\n",
+        )
+        .unwrap();
+        let spec = load_agent(path.to_str().unwrap()).unwrap();
+        let agent = spec.agent.build().unwrap();
+        assert_eq!(agent.sensor_dim(), 8);
+        assert_eq!(spec.environment.unwrap().lights, Some(4));
+    }
+
+    #[test]
+    fn errors_name_file_line_and_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.toml");
+        std::fs::write(&path, "[agent]\nkind = \"planar-arm\"\nfocal = 2.0\n").unwrap();
+        let err = load_agent(path.to_str().unwrap()).unwrap_err().to_string();
+        assert!(err.contains("bad.toml") && err.contains("focal"), "{err}");
+        std::fs::write(
+            &path,
+            "[agent]\nkind = \"planar-arm\"\nretina_cells = \"six\"\n",
+        )
+        .unwrap();
+        let err = load_agent(path.to_str().unwrap()).unwrap_err().to_string();
+        assert!(err.contains("retina_cells"), "{err}");
+        let err = load_agent("missing.toml").unwrap_err().to_string();
+        assert!(err.contains("missing.toml"), "{err}");
+        assert!(load_agent("snake")
+            .unwrap_err()
+            .to_string()
+            .contains("snake"));
+    }
+}

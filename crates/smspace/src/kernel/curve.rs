@@ -1,0 +1,498 @@
+//! Predictor–corrector continuation of a 1-D level set, closure, and arc-length
+//! resampling.
+
+use std::f64::consts::PI;
+
+use super::level_set::LevelSet;
+use super::{SetStatus, StepControl, TraceValidParams};
+use crate::agent::{wrap_angle, MotorTopology};
+
+/// Smallest step the adaptive control may take before it gives up.
+const MIN_ADAPTIVE_STEP: f64 = 1e-7;
+/// Segments longer than this are measured as Hermite arcs, shorter ones as chords.
+const ARC_SPACING: f64 = 1e-3;
+
+/// A traced branch: nodes on the set (unwrapped coordinates) and unit tangents.
+#[derive(Debug, Default)]
+pub(crate) struct Branch {
+    pub nodes: Vec<f64>,
+    pub tangents: Vec<f64>,
+    pub steps: usize,
+    /// For a closed loop: the image of the start the loop returns to (unwrapped).
+    pub closes_at: Option<Vec<f64>>,
+    pub max_residual: f64,
+}
+
+/// Result of one corrector run.
+struct Corrected {
+    first_step: f64,
+    residual: f64,
+    /// Whether the level set is linearised at the corrected point.
+    linearized: bool,
+}
+
+/// Scratch buffers for the tracer, reused from set to set by a worker thread (their
+/// contents never carry over: every use starts by clearing or overwriting them).
+#[derive(Debug, Default)]
+pub(crate) struct Scratch {
+    r: Vec<f64>,
+    delta: Vec<f64>,
+    /// Segment chords of the resampler and its cumulative arc length.
+    fine: Vec<f64>,
+    arc: Vec<f64>,
+    /// Node and tangent storage handed to branches.
+    pub(crate) spare: Vec<Vec<f64>>,
+}
+
+impl Scratch {
+    /// Sizes the small buffers for a level set with `rows` residuals and `n` motors.
+    pub(crate) fn prepare(&mut self, rows: usize, n: usize) {
+        self.r.clear();
+        self.r.resize(rows, 0.0);
+        self.delta.clear();
+        self.delta.resize(n, 0.0);
+    }
+
+    /// An empty vector, reusing storage from an earlier set when there is some.
+    pub(crate) fn take(&mut self) -> Vec<f64> {
+        let mut v = self.spare.pop().unwrap_or_default();
+        v.clear();
+        v
+    }
+
+    /// Returns storage for later sets.
+    pub(crate) fn give(&mut self, v: Vec<f64>) {
+        self.spare.push(v);
+    }
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// How the corrector may conclude.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Convergence {
+    /// Only a measured residual within the tolerance ends the iteration.
+    Measured,
+    /// A Newton step shorter than `0.1 √tol` also ends it, without a further
+    /// evaluation: Newton's quadratic remainder `½ |F''| |Δ|²` is then far below the
+    /// tolerance for second derivatives of order one (the arm's are bounded by its
+    /// reach). Used between traced nodes, never for the resampled output points.
+    NewtonStep,
+}
+
+/// Moves `m` back onto the level set. Newton level sets are linearised at every
+/// iterate (so on return they are linearised at, or within a negligible Newton step
+/// of, the final `m`); chord level sets reuse the current linearisation and
+/// re-linearise only when convergence stalls.
+fn correct(
+    set: &mut dyn LevelSet,
+    m: &mut [f64],
+    scratch: &mut Scratch,
+    max_iterations: usize,
+    convergence: Convergence,
+) -> Option<Corrected> {
+    let newton = set.newton();
+    if newton {
+        set.linearize(m, &mut scratch.r).ok()?;
+    } else {
+        set.residual(m, &mut scratch.r);
+    }
+    let mut first_step = 0.0;
+    let mut previous = f64::INFINITY;
+    for iteration in 0..=max_iterations {
+        let residual = set.residual_norm(&scratch.r);
+        if !residual.is_finite() {
+            return None;
+        }
+        if residual <= set.tolerance() {
+            return Some(Corrected {
+                first_step,
+                residual,
+                linearized: newton,
+            });
+        }
+        if iteration == max_iterations {
+            return None;
+        }
+        if !newton && iteration > 0 && residual > 0.25 * previous {
+            set.linearize(m, &mut scratch.r).ok()?;
+        }
+        previous = residual;
+        set.correction(&scratch.r, &mut scratch.delta);
+        let step = norm(&scratch.delta);
+        if iteration == 0 {
+            first_step = step;
+        }
+        for (x, d) in m.iter_mut().zip(&scratch.delta) {
+            *x -= d;
+        }
+        if newton && convergence == Convergence::NewtonStep && step <= 0.1 * set.tolerance().sqrt()
+        {
+            return Some(Corrected {
+                first_step,
+                residual: step * step,
+                linearized: true,
+            });
+        }
+        if newton {
+            set.linearize(m, &mut scratch.r).ok()?;
+        } else {
+            set.residual(m, &mut scratch.r);
+        }
+    }
+    None
+}
+
+/// The image of `start` nearest to `m` on the torus (or `start` itself when bounded).
+fn nearest_image(topology: MotorTopology, start: &[f64], m: &[f64], image: &mut [f64]) {
+    for ((out, s), x) in image.iter_mut().zip(start).zip(m) {
+        *out = match topology {
+            MotorTopology::Periodic => s + 2.0 * PI * ((x - s) / (2.0 * PI)).round(),
+            MotorTopology::Bounded { .. } => *s,
+        };
+    }
+}
+
+fn distance(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Closest approach of the segment `[a, b]` to `p`: `(parameter, distance)`.
+fn closest_on_segment(a: &[f64], b: &[f64], p: &[f64]) -> (f64, f64) {
+    let mut len2 = 0.0;
+    let mut dot = 0.0;
+    for ((x, y), q) in a.iter().zip(b).zip(p) {
+        len2 += (y - x) * (y - x);
+        dot += (q - x) * (y - x);
+    }
+    let tau = if len2 > 0.0 {
+        (dot / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let d = a
+        .iter()
+        .zip(b)
+        .zip(p)
+        .map(|((x, y), q)| (x + tau * (y - x) - q).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    (tau, d)
+}
+
+/// Traces from `start` along `direction` until the curve closes (back at the start),
+/// leaves the motor box (bounded topology), or fails. The level set must be
+/// linearised at `start`.
+pub(crate) fn trace_branch(
+    set: &mut dyn LevelSet,
+    start: &[f64],
+    direction: &[f64],
+    params: &TraceValidParams,
+    topology: MotorTopology,
+    scratch: &mut Scratch,
+) -> Result<Branch, SetStatus> {
+    let n = start.len();
+    let adaptive = params.step_control == StepControl::Adaptive;
+    let mut branch = Branch {
+        nodes: scratch.take(),
+        tangents: scratch.take(),
+        ..Branch::default()
+    };
+    branch.nodes.extend_from_slice(start);
+    branch.tangents.extend_from_slice(direction);
+    let mut m = start.to_vec();
+    let mut t = direction.to_vec();
+    let mut predicted = vec![0.0; n];
+    let mut previous = vec![0.0; n];
+    let mut image = vec![0.0; n];
+    let mut t_new = vec![0.0; n];
+    // Change of the unit tangent per unit length (curvature vector), for a second-order
+    // predictor m + h t + ½ h² k.
+    let mut bend = vec![0.0; n];
+    let mut h = params.step;
+    let cos_max_turn = params.max_turn.cos();
+    let mut farthest: f64 = 0.0;
+    loop {
+        if branch.steps >= params.max_steps {
+            return Err(SetStatus::NotClosed);
+        }
+        for j in 0..n {
+            predicted[j] = m[j] + h * t[j] + 0.5 * h * h * bend[j];
+        }
+        let outcome = correct(
+            set,
+            &mut predicted,
+            scratch,
+            params.max_corrector_iterations,
+            Convergence::NewtonStep,
+        )
+        .ok_or(SetStatus::CorrectorFailed)
+        .and_then(|c| {
+            if c.linearized {
+                return Ok(c);
+            }
+            match set.linearize(&predicted, &mut scratch.r) {
+                Ok(()) => Ok(c),
+                Err(_) => Err(SetStatus::Singular),
+            }
+        });
+        let corrected = match outcome {
+            Ok(c) => c,
+            Err(status) => {
+                if adaptive && h > MIN_ADAPTIVE_STEP {
+                    h /= 2.0;
+                    // Re-linearise where the predictor starts: the chord corrector needs it.
+                    set.linearize(&m, &mut scratch.r)
+                        .map_err(|_| SetStatus::Singular)?;
+                    continue;
+                }
+                return Err(status);
+            }
+        };
+        set.null_vector(&t, &mut t_new);
+        let cos_turn: f64 = t.iter().zip(&t_new).map(|(a, b)| a * b).sum();
+        let too_sharp = cos_turn < cos_max_turn;
+        if adaptive && h > MIN_ADAPTIVE_STEP && (too_sharp || corrected.first_step > 0.1 * h) {
+            h /= 2.0;
+            set.linearize(&m, &mut scratch.r)
+                .map_err(|_| SetStatus::Singular)?;
+            continue;
+        }
+        if too_sharp {
+            // The null direction jumps however short the step: two directions are
+            // (nearly) null, so the set is not a curve the tracer can follow here.
+            return Err(SetStatus::Singular);
+        }
+        branch.max_residual = branch.max_residual.max(corrected.residual);
+        std::mem::swap(&mut previous, &mut m);
+        m.copy_from_slice(&predicted);
+        let travelled = distance(&m, &previous);
+        for j in 0..n {
+            bend[j] = if travelled > 0.0 {
+                (t_new[j] - t[j]) / travelled
+            } else {
+                0.0
+            };
+        }
+        std::mem::swap(&mut t, &mut t_new);
+        branch.steps += 1;
+        branch.nodes.extend_from_slice(&m);
+        branch.tangents.extend_from_slice(&t);
+        if adaptive
+            && corrected.first_step < 0.025 * h
+            && cos_turn.clamp(-1.0, 1.0).acos() < params.max_turn / 4.0
+        {
+            h = (h * 1.5).min(params.max_step);
+        }
+
+        // Closure: the segment just travelled passes within the tolerance of the start.
+        nearest_image(topology, start, &m, &mut image);
+        let from_start = distance(&m, &image);
+        farthest = farthest.max(from_start);
+        let may_close = farthest > 2.0 * params.closure_tolerance
+            && (adaptive || branch.steps >= params.min_steps);
+        if may_close && from_start <= params.closure_tolerance + travelled {
+            let (tau, d) = closest_on_segment(&previous, &m, &image);
+            if d <= params.closure_tolerance {
+                if tau < 1.0 && branch.steps > 1 {
+                    // The start lies inside the last segment: close from its beginning.
+                    branch.nodes.truncate(branch.nodes.len() - n);
+                    branch.tangents.truncate(branch.tangents.len() - n);
+                }
+                branch.closes_at = Some(image.clone());
+                return Ok(branch);
+            }
+        }
+        if let MotorTopology::Bounded { low, high } = topology {
+            let mut tau: f64 = 1.0;
+            for j in 0..n {
+                let step = m[j] - previous[j];
+                if m[j] > high {
+                    tau = tau.min((high - previous[j]) / step);
+                } else if m[j] < low {
+                    tau = tau.min((low - previous[j]) / step);
+                }
+            }
+            if tau < 1.0 {
+                let len = branch.nodes.len();
+                for j in 0..n {
+                    let v = (previous[j] + tau * (m[j] - previous[j])).clamp(low, high);
+                    branch.nodes[len - n + j] = v;
+                }
+                return Ok(branch);
+            }
+        }
+    }
+}
+
+/// Cubic Hermite point on the segment from `a` to `b` with unit tangents `ta`, `tb`
+/// scaled by the chord `c`, at parameter `s ∈ [0, 1]`.
+fn hermite(a: &[f64], b: &[f64], ta: &[f64], tb: &[f64], c: f64, s: f64, out: &mut [f64]) {
+    let s2 = s * s;
+    let s3 = s2 * s;
+    let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
+    let h10 = s3 - 2.0 * s2 + s;
+    let h01 = -2.0 * s3 + 3.0 * s2;
+    let h11 = s3 - s2;
+    for j in 0..a.len() {
+        out[j] = h00 * a[j] + h10 * c * ta[j] + h01 * b[j] + h11 * c * tb[j];
+    }
+}
+
+/// Speed `|H'(s)|` of the Hermite segment.
+fn hermite_speed(a: &[f64], b: &[f64], ta: &[f64], tb: &[f64], c: f64, s: f64) -> f64 {
+    let s2 = s * s;
+    let d00 = 6.0 * s2 - 6.0 * s;
+    let d10 = 3.0 * s2 - 4.0 * s + 1.0;
+    let d11 = 3.0 * s2 - 2.0 * s;
+    let mut sum = 0.0;
+    for j in 0..a.len() {
+        let v = d00 * (a[j] - b[j]) + c * (d10 * ta[j] + d11 * tb[j]);
+        sum += v * v;
+    }
+    sum.sqrt()
+}
+
+/// Five-point Gauss–Legendre nodes and weights on `[0, 1]`.
+const GAUSS: [(f64, f64); 5] = [
+    (0.046_910_077_030_668_0, 0.118_463_442_528_094_5),
+    (0.230_765_344_947_158_4, 0.239_314_335_249_683_2),
+    (0.5, 0.284_444_444_444_444_4),
+    (0.769_234_655_052_841_6, 0.239_314_335_249_683_2),
+    (0.953_089_922_969_332_0, 0.118_463_442_528_094_5),
+];
+
+/// Arc length of the Hermite segment from parameter 0 to `s`.
+fn hermite_arc(a: &[f64], b: &[f64], ta: &[f64], tb: &[f64], c: f64, s: f64) -> f64 {
+    s * GAUSS
+        .iter()
+        .map(|&(x, w)| w * hermite_speed(a, b, ta, tb, c, s * x))
+        .sum::<f64>()
+}
+
+/// A curve ready for resampling: nodes with tangents, in traversal order, ending at
+/// the closing image of the start for a closed loop.
+pub(crate) struct Curve {
+    pub nodes: Vec<f64>,
+    pub tangents: Vec<f64>,
+    pub closed: bool,
+}
+
+/// Resamples `curve` to `points` points equally spaced in arc length (a closed loop
+/// gets `points` points without repeating the start; an open curve includes both
+/// ends), each projected back onto the level set. Between nodes the curve is the cubic
+/// Hermite segment through them with their tangents; a segment longer than about
+/// `10⁻³` has its arc length measured by five-point Gauss–Legendre quadrature of the
+/// segment's speed, and a point at a given arc length is found by Newton's method on
+/// that integral, so that large adaptive steps give the same points as small fixed ones
+/// (shorter segments are taken as straight chords). Returns the points (unwrapped), the
+/// curve length and the largest residual.
+pub(crate) fn resample(
+    set: &mut dyn LevelSet,
+    curve: &Curve,
+    points: usize,
+    max_iterations: usize,
+    scratch: &mut Scratch,
+) -> Result<(Vec<f64>, f64, f64), SetStatus> {
+    let n = set.motor_dim();
+    let count = curve.nodes.len() / n;
+    let node = |i: usize| &curve.nodes[i * n..(i + 1) * n];
+    let tangent = |i: usize| &curve.tangents[i * n..(i + 1) * n];
+    // Chord of every segment (0 marks a straight segment) and cumulative arc length.
+    let mut chords = std::mem::take(&mut scratch.fine);
+    let mut arc = std::mem::take(&mut scratch.arc);
+    chords.clear();
+    arc.clear();
+    arc.push(0.0);
+    for i in 0..count.saturating_sub(1) {
+        let chord = distance(node(i), node(i + 1));
+        let length = if chord > ARC_SPACING {
+            hermite_arc(node(i), node(i + 1), tangent(i), tangent(i + 1), chord, 1.0)
+        } else {
+            chord
+        };
+        chords.push(if chord > ARC_SPACING { chord } else { 0.0 });
+        arc.push(arc[i] + length);
+    }
+    let length = arc[arc.len() - 1];
+    let mut out = Vec::with_capacity(points * n);
+    let mut point = vec![0.0; n];
+    let mut max_residual: f64 = 0.0;
+    let mut segment = 0;
+    let mut status = None;
+    for k in 0..points {
+        let target = if curve.closed {
+            length * k as f64 / points as f64
+        } else if points > 1 {
+            length * k as f64 / (points - 1) as f64
+        } else {
+            0.0
+        };
+        while segment + 2 < arc.len() && arc[segment + 1] < target {
+            segment += 1;
+        }
+        if count < 2 {
+            point.copy_from_slice(node(0));
+        } else {
+            let (a, b) = (node(segment), node(segment + 1));
+            let span = arc[segment + 1] - arc[segment];
+            let local = (target - arc[segment]).clamp(0.0, span);
+            let mut s = if span > 0.0 { local / span } else { 0.0 };
+            let chord = chords[segment];
+            if chord > 0.0 {
+                let (ta, tb) = (tangent(segment), tangent(segment + 1));
+                for _ in 0..3 {
+                    let speed = hermite_speed(a, b, ta, tb, chord, s);
+                    if speed <= 0.0 {
+                        break;
+                    }
+                    s = (s - (hermite_arc(a, b, ta, tb, chord, s) - local) / speed).clamp(0.0, 1.0);
+                }
+                hermite(a, b, ta, tb, chord, s, &mut point);
+            } else {
+                for j in 0..n {
+                    point[j] = a[j] + s * (b[j] - a[j]);
+                }
+            }
+        }
+        if !set.newton() && set.linearize(&point, &mut scratch.r).is_err() {
+            status = Some(SetStatus::Singular);
+            break;
+        }
+        match correct(
+            set,
+            &mut point,
+            scratch,
+            max_iterations,
+            Convergence::Measured,
+        ) {
+            Some(corrected) => max_residual = max_residual.max(corrected.residual),
+            None => {
+                status = Some(SetStatus::CorrectorFailed);
+                break;
+            }
+        }
+        out.extend_from_slice(&point);
+    }
+    scratch.fine = chords;
+    scratch.arc = arc;
+    match status {
+        Some(status) => Err(status),
+        None => Ok((out, length, max_residual)),
+    }
+}
+
+/// Wraps every coordinate into `[-π, π)` for hinge motors.
+pub(crate) fn wrap_points(points: &mut [f64], topology: MotorTopology) {
+    if topology == MotorTopology::Periodic {
+        for x in points.iter_mut() {
+            *x = wrap_angle(*x);
+        }
+    }
+}

@@ -1,0 +1,454 @@
+//! The two level sets the tracer follows: the observer's pose (`kinematic`) and the
+//! agent's own sensor values (`sensory`). Each gives, at a motor configuration `m`, a
+//! residual `F(m) − F(m⁰)`, a local linearisation `J = ∂F/∂m`, the unit null vector of
+//! `J` (the tangent of the set) and the minimum-norm correction `Δ` with `J Δ = r`.
+
+use nalgebra::{DMatrix, SymmetricEigen};
+
+use crate::agent::{wrap_angle, Agent, Environment};
+
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The linearisation lost rank: the set is not a 1-D curve there.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Singular;
+
+/// What the tracer needs from a level set `{ m | F(m) = F(m⁰) }`.
+pub(crate) trait LevelSet {
+    /// Motor dimension `N`.
+    fn motor_dim(&self) -> usize;
+    /// Number of residual components.
+    fn rows(&self) -> usize;
+    /// `r = F(m) − F(m⁰)`.
+    fn residual(&mut self, m: &[f64], r: &mut [f64]);
+    /// Size of a residual, comparable with [`tolerance`](LevelSet::tolerance).
+    fn residual_norm(&self, r: &[f64]) -> f64;
+    /// A point is on the set when its residual norm is at most this.
+    fn tolerance(&self) -> f64;
+    /// Linearises `F` at `m` and writes the residual at `m` into `r`.
+    fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular>;
+    /// The unit null vector of the current linearisation, oriented so that
+    /// `t · reference ≥ 0`.
+    fn null_vector(&self, reference: &[f64], t: &mut [f64]);
+    /// The minimum-norm `Δ` with `J Δ = r` (so that `m − Δ` cancels `r` to first order).
+    fn correction(&self, r: &[f64], delta: &mut [f64]);
+    /// Whether the corrector should re-linearise at every iteration (Newton) rather
+    /// than reuse the current linearisation (chord method) while it converges.
+    fn newton(&self) -> bool;
+}
+
+/// The kinematic level set: the first `C` pose coordinates of the observer's pose (the
+/// paper's method, appendix A, where `J` is the pose Jacobian). `J` is `C × N` with
+/// `C = N − 1`; with `G = J Jᵀ` (Cholesky), the tangent is the projection
+/// `t ∝ (I − Jᵀ G⁻¹ J) t_prev`, which keeps the sign continuous, and the correction is
+/// `Δ = Jᵀ G⁻¹ r`.
+pub(crate) struct Kinematic<'a> {
+    agent: &'a dyn Agent,
+    n: usize,
+    c: usize,
+    target: [f64; 3],
+    tolerance: f64,
+    jacobian: Vec<f64>,
+    cholesky: [f64; 9],
+}
+
+impl<'a> Kinematic<'a> {
+    pub(crate) fn new(agent: &'a dyn Agent, start: &[f64], tolerance: f64) -> Self {
+        let n = agent.motor_dim();
+        Self {
+            agent,
+            n,
+            c: agent.configuration_dim(),
+            target: agent.pose(start).to_array(),
+            tolerance,
+            jacobian: vec![0.0; 3 * n],
+            cholesky: [0.0; 9],
+        }
+    }
+
+    /// Gram matrix `G = J Jᵀ` and its Cholesky factor, for `C` constraint rows.
+    fn factor<const C: usize>(&mut self) -> Result<(), Singular> {
+        let n = self.n;
+        let mut gram = [[0.0; C]; C];
+        for a in 0..C {
+            for b in 0..=a {
+                let ra = &self.jacobian[a * n..(a + 1) * n];
+                let rb = &self.jacobian[b * n..(b + 1) * n];
+                gram[a][b] = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+            }
+        }
+        let trace: f64 = (0..C).map(|a| gram[a][a]).sum();
+        let l = &mut self.cholesky;
+        for i in 0..C {
+            for j in 0..=i {
+                let mut s = gram[i][j];
+                for k in 0..j {
+                    s -= l[i * 3 + k] * l[j * 3 + k];
+                }
+                if i == j {
+                    if !(s > 1e-14 * trace) {
+                        return Err(Singular);
+                    }
+                    l[i * 3 + i] = s.sqrt();
+                } else {
+                    l[i * 3 + j] = s / l[j * 3 + j];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    #[inline]
+    /// `out = Jᵀ G⁻¹ J v` (the projection of `v` onto the row space of `J`) when
+    /// `apply_first`, else `out = Jᵀ G⁻¹ v` for `v` of length `C`.
+    fn row_space<const C: usize>(&self, v: &[f64], apply_first: bool, out: &mut [f64]) {
+        let n = self.n;
+        let mut y = [0.0; C];
+        for a in 0..C {
+            y[a] = if apply_first {
+                let row = &self.jacobian[a * n..(a + 1) * n];
+                row.iter().zip(v).map(|(j, x)| j * x).sum()
+            } else {
+                v[a]
+            };
+        }
+        let l = &self.cholesky;
+        for i in 0..C {
+            let mut s = y[i];
+            for k in 0..i {
+                s -= l[i * 3 + k] * y[k];
+            }
+            y[i] = s / l[i * 3 + i];
+        }
+        for i in (0..C).rev() {
+            let mut s = y[i];
+            for k in i + 1..C {
+                s -= l[k * 3 + i] * y[k];
+            }
+            y[i] = s / l[i * 3 + i];
+        }
+        for (j, o) in out.iter_mut().enumerate() {
+            *o = (0..C).map(|a| self.jacobian[a * n + j] * y[a]).sum();
+        }
+    }
+
+    #[inline]
+    fn project_row_space(&self, v: &[f64], apply_first: bool, out: &mut [f64]) {
+        match self.c {
+            1 => self.row_space::<1>(v, apply_first, out),
+            2 => self.row_space::<2>(v, apply_first, out),
+            _ => self.row_space_3(v, apply_first, out),
+        }
+    }
+
+    /// Straight-line [`row_space`](Self::row_space) for three rows (the arm's case).
+    #[inline]
+    fn row_space_3(&self, v: &[f64], apply_first: bool, out: &mut [f64]) {
+        let n = self.n;
+        let (r0, rest) = self.jacobian.split_at(n);
+        let (r1, r2) = rest.split_at(n);
+        let r2 = &r2[..n];
+        let (v0, v1, v2) = if apply_first {
+            (dot(r0, v), dot(r1, v), dot(r2, v))
+        } else {
+            (v[0], v[1], v[2])
+        };
+        let l = &self.cholesky;
+        let (l00, l10, l11, l20, l21, l22) = (l[0], l[3], l[4], l[6], l[7], l[8]);
+        let y0 = v0 / l00;
+        let y1 = (v1 - l10 * y0) / l11;
+        let y2 = (v2 - l20 * y0 - l21 * y1) / l22;
+        let z2 = y2 / l22;
+        let z1 = (y1 - l21 * z2) / l11;
+        let z0 = (y0 - l10 * z1 - l20 * z2) / l00;
+        for (((o, a), b), c) in out.iter_mut().zip(r0).zip(r1).zip(r2) {
+            *o = a * z0 + b * z1 + c * z2;
+        }
+    }
+
+    /// Straight-line [`factor`](Self::factor) for three rows.
+    #[inline]
+    fn factor_3(&mut self) -> Result<(), Singular> {
+        let n = self.n;
+        let (r0, rest) = self.jacobian.split_at(n);
+        let (r1, r2) = rest.split_at(n);
+        let r2 = &r2[..n];
+        let (g00, g10, g11) = (dot(r0, r0), dot(r1, r0), dot(r1, r1));
+        let (g20, g21, g22) = (dot(r2, r0), dot(r2, r1), dot(r2, r2));
+        let floor = 1e-14 * (g00 + g11 + g22);
+        if !(g00 > floor) {
+            return Err(Singular);
+        }
+        let l00 = g00.sqrt();
+        let l10 = g10 / l00;
+        let l20 = g20 / l00;
+        let d1 = g11 - l10 * l10;
+        if !(d1 > floor) {
+            return Err(Singular);
+        }
+        let l11 = d1.sqrt();
+        let l21 = (g21 - l20 * l10) / l11;
+        let d2 = g22 - l20 * l20 - l21 * l21;
+        if !(d2 > floor) {
+            return Err(Singular);
+        }
+        let l22 = d2.sqrt();
+        self.cholesky = [l00, 0.0, 0.0, l10, l11, 0.0, l20, l21, l22];
+        Ok(())
+    }
+}
+
+impl LevelSet for Kinematic<'_> {
+    fn motor_dim(&self) -> usize {
+        self.n
+    }
+
+    fn rows(&self) -> usize {
+        self.c
+    }
+
+    fn residual(&mut self, m: &[f64], r: &mut [f64]) {
+        let p = self.agent.pose(m).to_array();
+        for a in 0..self.c {
+            r[a] = if a == 2 {
+                wrap_angle(p[a] - self.target[a])
+            } else {
+                p[a] - self.target[a]
+            };
+        }
+    }
+
+    fn residual_norm(&self, r: &[f64]) -> f64 {
+        r.iter().fold(0.0, |acc: f64, v| acc.max(v.abs()))
+    }
+
+    fn tolerance(&self) -> f64 {
+        self.tolerance
+    }
+
+    fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
+        let pose = self.agent.pose_jacobian(m, &mut self.jacobian).to_array();
+        for a in 0..self.c {
+            r[a] = if a == 2 {
+                wrap_angle(pose[a] - self.target[a])
+            } else {
+                pose[a] - self.target[a]
+            };
+        }
+        match self.c {
+            1 => self.factor::<1>(),
+            2 => self.factor::<2>(),
+            _ => self.factor_3(),
+        }
+    }
+
+    fn null_vector(&self, reference: &[f64], t: &mut [f64]) {
+        let project = |v: &[f64], t: &mut [f64]| {
+            self.project_row_space(v, true, t);
+            for (tj, vj) in t.iter_mut().zip(v) {
+                *tj = vj - *tj;
+            }
+            t.iter().map(|x| x * x).sum::<f64>().sqrt()
+        };
+        let reference_norm = reference.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let mut norm = project(reference, t);
+        if norm < 1e-6 * reference_norm {
+            // The reference is (nearly) orthogonal to the null space: project the
+            // coordinate axis that keeps most of its length instead.
+            let mut best = (0.0, 0);
+            let mut e = vec![0.0; self.n];
+            for k in 0..self.n {
+                e.fill(0.0);
+                e[k] = 1.0;
+                let len = project(&e, t);
+                if len > best.0 {
+                    best = (len, k);
+                }
+            }
+            e.fill(0.0);
+            e[best.1] = 1.0;
+            norm = project(&e, t);
+        }
+        let sign = if t.iter().zip(reference).map(|(a, b)| a * b).sum::<f64>() < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        for x in t.iter_mut() {
+            *x *= sign / norm;
+        }
+    }
+
+    fn correction(&self, r: &[f64], delta: &mut [f64]) {
+        self.project_row_space(r, false, delta);
+    }
+
+    fn newton(&self) -> bool {
+        true
+    }
+}
+
+/// The sensory level set `{ m | σ_E(m) = σ_E(m⁰) }`, from what the agent measures
+/// alone: `J = ∂s/∂m` by central differences of sensor readings (`2N` readings), the
+/// eigen-decomposition `Jᵀ J = V Λ Vᵀ` (ascending `λ`), the tangent `t = v₀`, and the
+/// correction `Δ = Σ_{k≥1} v_k (v_kᵀ Jᵀ r) / λ_k` (Gauss–Newton on `‖s(m) − s⁰‖²`
+/// restricted to the rank `N − 1` part). The set is a curve only where `λ₁`, the
+/// smallest eigenvalue that should be nonzero, is not negligible: `√(λ₁/λ_max)` below
+/// the rank tolerance means the sensors cannot tell some pose change apart (too few
+/// lights in view) and the set is reported as singular instead of traced.
+pub(crate) struct Sensory<'a> {
+    agent: &'a dyn Agent,
+    environment: &'a Environment,
+    n: usize,
+    k: usize,
+    target: Vec<f64>,
+    scale: f64,
+    tolerance: f64,
+    step: f64,
+    rank_tolerance: f64,
+    jacobian: Vec<f64>,
+    eigenvalues: Vec<f64>,
+    eigenvectors: Vec<f64>,
+    plus: Vec<f64>,
+    minus: Vec<f64>,
+    probe: Vec<f64>,
+}
+
+impl<'a> Sensory<'a> {
+    pub(crate) fn new(
+        agent: &'a dyn Agent,
+        environment: &'a Environment,
+        start: &[f64],
+        relative_tolerance: f64,
+        finite_difference_step: f64,
+        rank_tolerance: f64,
+    ) -> Self {
+        let (n, k) = (agent.motor_dim(), agent.sensor_dim());
+        let mut target = vec![0.0; k];
+        agent.sense(environment, start, &mut target);
+        let scale = target.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+        Self {
+            agent,
+            environment,
+            n,
+            k,
+            target,
+            scale: if scale > 0.0 { scale } else { 1.0 },
+            tolerance: relative_tolerance,
+            step: finite_difference_step,
+            rank_tolerance,
+            jacobian: vec![0.0; k * n],
+            eigenvalues: vec![0.0; n],
+            eigenvectors: vec![0.0; n * n],
+            plus: vec![0.0; k],
+            minus: vec![0.0; k],
+            probe: vec![0.0; n],
+        }
+    }
+}
+
+impl LevelSet for Sensory<'_> {
+    fn motor_dim(&self) -> usize {
+        self.n
+    }
+
+    fn rows(&self) -> usize {
+        self.k
+    }
+
+    fn residual(&mut self, m: &[f64], r: &mut [f64]) {
+        self.agent.sense(self.environment, m, r);
+        for (ri, t) in r.iter_mut().zip(&self.target) {
+            *ri -= t;
+        }
+    }
+
+    fn residual_norm(&self, r: &[f64]) -> f64 {
+        r.iter().fold(0.0, |acc: f64, v| acc.max(v.abs())) / self.scale
+    }
+
+    fn tolerance(&self) -> f64 {
+        self.tolerance
+    }
+
+    fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
+        self.residual(m, r);
+        let (n, k, h) = (self.n, self.k, self.step);
+        self.probe.copy_from_slice(m);
+        for j in 0..n {
+            self.probe[j] = m[j] + h;
+            self.agent
+                .sense(self.environment, &self.probe, &mut self.plus);
+            self.probe[j] = m[j] - h;
+            self.agent
+                .sense(self.environment, &self.probe, &mut self.minus);
+            self.probe[j] = m[j];
+            for i in 0..k {
+                self.jacobian[i * n + j] = (self.plus[i] - self.minus[i]) / (2.0 * h);
+            }
+        }
+        let mut gram = DMatrix::<f64>::zeros(n, n);
+        for a in 0..n {
+            for b in 0..=a {
+                let s: f64 = (0..k)
+                    .map(|i| self.jacobian[i * n + a] * self.jacobian[i * n + b])
+                    .sum();
+                gram[(a, b)] = s;
+                gram[(b, a)] = s;
+            }
+        }
+        let eigen = SymmetricEigen::new(gram);
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+        for (dst, &src) in order.iter().enumerate() {
+            self.eigenvalues[dst] = eigen.eigenvalues[src];
+            for row in 0..n {
+                self.eigenvectors[dst * n + row] = eigen.eigenvectors[(row, src)];
+            }
+        }
+        let largest = self.eigenvalues[n - 1];
+        let second = if n >= 2 { self.eigenvalues[1] } else { largest };
+        let ratio = if largest > 0.0 {
+            (second.max(0.0) / largest).sqrt()
+        } else {
+            0.0
+        };
+        if !(ratio >= self.rank_tolerance) {
+            return Err(Singular);
+        }
+        Ok(())
+    }
+
+    fn null_vector(&self, reference: &[f64], t: &mut [f64]) {
+        let v0 = &self.eigenvectors[..self.n];
+        let dot: f64 = v0.iter().zip(reference).map(|(a, b)| a * b).sum();
+        let sign = if dot < 0.0 { -1.0 } else { 1.0 };
+        for (tj, v) in t.iter_mut().zip(v0) {
+            *tj = sign * v;
+        }
+    }
+
+    fn correction(&self, r: &[f64], delta: &mut [f64]) {
+        let n = self.n;
+        let mut g = vec![0.0; n];
+        for (j, gj) in g.iter_mut().enumerate() {
+            *gj = (0..self.k).map(|i| self.jacobian[i * n + j] * r[i]).sum();
+        }
+        delta.fill(0.0);
+        for e in 1..n {
+            let v = &self.eigenvectors[e * n..(e + 1) * n];
+            let coefficient =
+                v.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>() / self.eigenvalues[e];
+            for (d, vj) in delta.iter_mut().zip(v) {
+                *d += coefficient * vj;
+            }
+        }
+    }
+
+    fn newton(&self) -> bool {
+        false
+    }
+}

@@ -1,0 +1,710 @@
+//! Kernel sets `M^i`: the motor configurations that give the same sensory input as an
+//! explored configuration `m^i` (paper section 2.3 and appendix A).
+//!
+//! `M^i = { m | σ_E(m) = σ_E(m^i) }` is the kernel of `σ_E − s^i`. For the paper's arm
+//! (`N = 4` motors, a 3-D pose) it is a closed curve on the motor torus; for the
+//! redundant toy a segment `m1 + m2 = x` of the motor box; for the one-motor toy a
+//! single point.
+//!
+//! ## Tracing (appendix A)
+//!
+//! From `m[1] = m^i`, the paper steps along the null vector `v[j]` of the Jacobian,
+//! `m[j+1] = m[j] + μ ρ v[j]` with `μ = 10⁻³` and `ρ = ±1` keeping the direction
+//! continuous (`v[j]·v[j−1] ≥ 0`), until `‖m[j] − m[1]‖ ≤ 10⁻²` with `j ≥ 50`. Plain
+//! Euler steps drift off the set (by about `2·10⁻³` over a loop); here every step is a
+//! predictor–corrector step: after the predictor, a Newton (kinematic) or chord
+//! Gauss–Newton (sensory) corrector projects the point back onto the level set with
+//! minimum-norm updates `m ← m − Jᵀ(JJᵀ)⁻¹ r`, so every traced point keeps the start's
+//! pose to about `10⁻¹¹`.
+//!
+//! Two level sets can be followed ([`TraceMethod`]):
+//! - `kinematic`, the paper's: `F(m)` is the observer's pose, `J` the pose Jacobian;
+//! - `sensory`: `F(m) = σ_E(m)`, `J` from finite differences of sensor readings, i.e.
+//!   only what the agent can measure. In a rich environment it gives the same sets.
+//!
+//! With [`StepControl::Adaptive`] the step grows up to `max_step` while the tangent
+//! turns less than `max_turn` per step and the corrector has little to do, and shrinks
+//! otherwise. Closure is detected on segments (the travelled segment passes within
+//! `closure_tolerance` of the start, on the torus), after `min_steps` steps for fixed
+//! steps and in any case only once the trace has gone farther than twice the
+//! tolerance from the start.
+//!
+//! ## Resampling
+//!
+//! The traced nodes with their tangents define a piecewise cubic Hermite curve. Its
+//! arc length is measured on a fine subdivision (spacing `≈ 10⁻³`); `points` targets
+//! equally spaced in arc length (starting at `m^i` for closed loops) are interpolated and
+//! projected back onto the set with the corrector. Coordinates of hinge motors are
+//! finally wrapped into `[-π, π)`.
+
+mod curve;
+mod level_set;
+
+use ndarray::{Array3, ArrayView2};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::agent::{wrap_angle, Agent, Environment, MotorTopology};
+use crate::explore::Workspace;
+use crate::progress::Progress;
+use curve::{resample, trace_branch, wrap_points, Curve, Scratch};
+use level_set::{Kinematic, LevelSet, Sensory};
+
+/// Errors of tracing kernel sets (failures of single sets are statuses, not errors).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum KernelError {
+    /// A parameter is out of its domain.
+    #[error("invalid tracing parameter {name} = {value}: {reason}")]
+    InvalidParameter {
+        /// The parameter, as in the configuration file.
+        name: &'static str,
+        /// The value given.
+        value: String,
+        /// What a valid value looks like.
+        reason: &'static str,
+    },
+    /// The motor array does not fit the agent.
+    #[error(
+        "motor configurations have {found} columns but the {agent} agent has {expected} motors"
+    )]
+    MotorDimension {
+        /// The agent's name.
+        agent: &'static str,
+        /// Columns found.
+        found: usize,
+        /// Motors of the agent.
+        expected: usize,
+    },
+    /// Nothing to trace.
+    #[error("no motor configurations to trace (the motor array has 0 rows)")]
+    NoMotors,
+    /// The sensory method needs an environment.
+    #[error("the sensory method needs an environment (give --env FILE or --env-seed S)")]
+    MissingEnvironment,
+    /// The agent's kernel sets are not curves.
+    #[error("the {agent} agent has {motors} motors for {configuration} pose coordinates, so its kernel sets have dimension {dimension}; the tracer follows sets of dimension 0 or 1")]
+    UnsupportedDimension {
+        /// The agent's name.
+        agent: &'static str,
+        /// Motors `N`.
+        motors: usize,
+        /// Pose coordinates `C`.
+        configuration: usize,
+        /// `N − C`.
+        dimension: usize,
+    },
+}
+
+/// Which level set to follow.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TraceMethod {
+    /// The observer's pose and its analytic Jacobian (the paper's simulation).
+    #[default]
+    Kinematic,
+    /// The agent's sensor values and their finite-difference Jacobian.
+    Sensory,
+}
+
+impl std::str::FromStr for TraceMethod {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "kinematic" => Ok(TraceMethod::Kinematic),
+            "sensory" => Ok(TraceMethod::Sensory),
+            other => Err(format!(
+                "unknown tracing method '{other}'; use kinematic or sensory"
+            )),
+        }
+    }
+}
+
+/// How the step length is chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StepControl {
+    /// `fixed` for the kinematic method (the paper's), `adaptive` for the sensory one.
+    #[default]
+    Auto,
+    /// Every step has length `step`.
+    Fixed,
+    /// Steps from `step` up to `max_step`, shrunk where the curve bends.
+    Adaptive,
+}
+
+/// Parameters of kernel-set tracing (the `[kernel]` table).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TraceParams {
+    /// Level set to follow. Default `kinematic`.
+    pub method: TraceMethod,
+    /// Step length `μ` (radians of motor space); the initial step when adaptive.
+    /// Default `1e-3` (the paper's).
+    pub step: f64,
+    /// Fixed or adaptive steps. Default `auto` (fixed for kinematic, adaptive for sensory).
+    pub step_control: StepControl,
+    /// Largest adaptive step. Default `0.05`.
+    pub max_step: f64,
+    /// Largest turn of the tangent per adaptive step, radians. Default `0.1`.
+    pub max_turn: f64,
+    /// A loop is closed when it comes back within this distance of its start (torus
+    /// distance). Default `1e-2` (the paper's).
+    pub closure_tolerance: f64,
+    /// Fewest steps before a fixed-step loop may close. Default 50 (the paper's).
+    pub min_steps: usize,
+    /// Step budget of one set; a loop not closed by then fails. Default 200 000.
+    pub max_steps: usize,
+    /// Points per resampled set `P`. Default 100 (the paper's).
+    pub points: usize,
+    /// Kinematic corrector: largest pose residual accepted (length units and radians).
+    /// Default `1e-11`.
+    pub pose_tolerance: f64,
+    /// Sensory corrector: largest sensor residual accepted, relative to the largest
+    /// sensor value at the start. Default `1e-12`.
+    pub sensor_tolerance: f64,
+    /// Corrector iterations allowed per point. Default 12.
+    pub max_corrector_iterations: usize,
+    /// Sensory method: finite-difference step of the Jacobian, radians. Default `1e-6`.
+    pub finite_difference_step: f64,
+    /// Sensory method: a set is singular where `σ_{N−1}/σ_max` of the sensory Jacobian
+    /// falls below this (too few lights in view). Default `1e-4`.
+    pub rank_tolerance: f64,
+}
+
+impl Default for TraceParams {
+    fn default() -> Self {
+        Self {
+            method: TraceMethod::Kinematic,
+            step: 1e-3,
+            step_control: StepControl::Auto,
+            max_step: 0.05,
+            max_turn: 0.1,
+            closure_tolerance: 1e-2,
+            min_steps: 50,
+            max_steps: 200_000,
+            points: 100,
+            pose_tolerance: 1e-11,
+            sensor_tolerance: 1e-12,
+            max_corrector_iterations: 12,
+            finite_difference_step: 1e-6,
+            rank_tolerance: 1e-4,
+        }
+    }
+}
+
+/// Checked tracing parameters, the only form that runs. Built by [`TraceParams::check`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraceValidParams {
+    pub(crate) method: TraceMethod,
+    pub(crate) step: f64,
+    pub(crate) step_control: StepControl,
+    pub(crate) max_step: f64,
+    pub(crate) max_turn: f64,
+    pub(crate) closure_tolerance: f64,
+    pub(crate) min_steps: usize,
+    pub(crate) max_steps: usize,
+    pub(crate) points: usize,
+    pub(crate) pose_tolerance: f64,
+    pub(crate) sensor_tolerance: f64,
+    pub(crate) max_corrector_iterations: usize,
+    pub(crate) finite_difference_step: f64,
+    pub(crate) rank_tolerance: f64,
+}
+
+impl TraceValidParams {
+    /// The level set followed.
+    pub fn method(&self) -> TraceMethod {
+        self.method
+    }
+    /// The step control in force (`auto` resolved).
+    pub fn step_control(&self) -> StepControl {
+        self.step_control
+    }
+    /// Points per resampled set.
+    pub fn points(&self) -> usize {
+        self.points
+    }
+}
+
+fn positive(name: &'static str, value: f64) -> Result<(), KernelError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(KernelError::InvalidParameter {
+            name,
+            value: value.to_string(),
+            reason: "must be a finite number greater than zero",
+        })
+    }
+}
+
+impl TraceParams {
+    /// Validates the parameters and resolves `auto` step control.
+    pub fn check(&self) -> Result<TraceValidParams, KernelError> {
+        for (name, value) in [
+            ("step", self.step),
+            ("max_step", self.max_step),
+            ("max_turn", self.max_turn),
+            ("closure_tolerance", self.closure_tolerance),
+            ("pose_tolerance", self.pose_tolerance),
+            ("sensor_tolerance", self.sensor_tolerance),
+            ("finite_difference_step", self.finite_difference_step),
+        ] {
+            positive(name, value)?;
+        }
+        if !(self.rank_tolerance.is_finite() && (0.0..1.0).contains(&self.rank_tolerance)) {
+            return Err(KernelError::InvalidParameter {
+                name: "rank_tolerance",
+                value: self.rank_tolerance.to_string(),
+                reason: "must be in [0, 1)",
+            });
+        }
+        for (name, value) in [
+            ("points", self.points),
+            ("max_steps", self.max_steps),
+            ("max_corrector_iterations", self.max_corrector_iterations),
+        ] {
+            if value == 0 {
+                return Err(KernelError::InvalidParameter {
+                    name,
+                    value: "0".into(),
+                    reason: "must be at least 1",
+                });
+            }
+        }
+        let step_control = match (self.step_control, self.method) {
+            (StepControl::Auto, TraceMethod::Kinematic) => StepControl::Fixed,
+            (StepControl::Auto, TraceMethod::Sensory) => StepControl::Adaptive,
+            (other, _) => other,
+        };
+        if step_control == StepControl::Adaptive && self.max_step < self.step {
+            return Err(KernelError::InvalidParameter {
+                name: "max_step",
+                value: self.max_step.to_string(),
+                reason: "must be at least step when the step is adaptive",
+            });
+        }
+        if step_control == StepControl::Fixed && self.step >= self.closure_tolerance {
+            return Err(KernelError::InvalidParameter {
+                name: "step",
+                value: self.step.to_string(),
+                reason: "fixed steps must be shorter than closure_tolerance, or loops may step over their start",
+            });
+        }
+        Ok(TraceValidParams {
+            method: self.method,
+            step: self.step,
+            step_control,
+            max_step: self.max_step,
+            max_turn: self.max_turn,
+            closure_tolerance: self.closure_tolerance,
+            min_steps: self.min_steps,
+            max_steps: self.max_steps,
+            points: self.points,
+            pose_tolerance: self.pose_tolerance,
+            sensor_tolerance: self.sensor_tolerance,
+            max_corrector_iterations: self.max_corrector_iterations,
+            finite_difference_step: self.finite_difference_step,
+            rank_tolerance: self.rank_tolerance,
+        })
+    }
+}
+
+/// What became of one set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SetStatus {
+    /// A closed loop, traced and resampled.
+    Closed,
+    /// A segment between two faces of the motor box (bounded motors), traced and resampled.
+    Open,
+    /// The set is a single point (as many motors as pose coordinates).
+    Point,
+    /// The loop did not close within `max_steps`.
+    NotClosed,
+    /// The Jacobian lost rank (sensory: too few lights in view; kinematic: a singular
+    /// posture).
+    Singular,
+    /// The corrector did not bring a point back onto the set.
+    CorrectorFailed,
+    /// The start lies outside the working space.
+    OutsideWorkspace,
+}
+
+impl SetStatus {
+    /// Whether the set was traced and kept.
+    pub fn is_traced(self) -> bool {
+        matches!(self, SetStatus::Closed | SetStatus::Open | SetStatus::Point)
+    }
+}
+
+/// Per-set line of the trace report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SetReport {
+    /// Row of the motor array this set starts from.
+    pub index: usize,
+    /// What became of it.
+    pub status: SetStatus,
+    /// Predictor–corrector steps taken.
+    pub steps: usize,
+    /// Arc length of the set in motor space (radians), 0 when not traced.
+    pub length: f64,
+    /// Largest corrector residual over traced and resampled points (pose units for
+    /// kinematic, relative sensor units for sensory).
+    pub max_residual: f64,
+    /// Observer's check: largest deviation of a resampled point's pose from the start's
+    /// pose (largest of |Δx|, |Δy|, |Δalpha| over the agent's pose coordinates).
+    pub max_pose_deviation: f64,
+}
+
+/// Counts of sets by status.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TraceSummary {
+    /// Sets asked for.
+    pub total: usize,
+    /// Sets traced and kept.
+    pub traced: usize,
+    /// Sets that failed.
+    pub failed: usize,
+    /// Count for every status that occurred, by its name.
+    pub by_status: std::collections::BTreeMap<String, usize>,
+}
+
+/// The trace report, written as `sets.trace.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TraceReport {
+    /// Name of the agent.
+    pub agent: String,
+    /// Level set followed.
+    pub method: TraceMethod,
+    /// Step control in force.
+    pub step_control: StepControl,
+    /// Points per set.
+    pub points: usize,
+    /// Counts.
+    pub summary: TraceSummary,
+    /// One line per motor row, in order.
+    pub sets: Vec<SetReport>,
+}
+
+/// The traced sets.
+#[derive(Debug, Clone)]
+pub struct TracedSets {
+    /// `(M_kept, P, N)`: the kept sets in order of their motor rows.
+    pub sets: Array3<f64>,
+    /// Motor rows of the kept sets, increasing.
+    pub kept: Vec<usize>,
+    /// Per-set statuses and the summary.
+    pub report: TraceReport,
+}
+
+fn check_agent(agent: &dyn Agent) -> Result<(), KernelError> {
+    let (n, c) = (agent.motor_dim(), agent.configuration_dim());
+    if n < c || n - c > 1 {
+        return Err(KernelError::UnsupportedDimension {
+            agent: agent.name(),
+            motors: n,
+            configuration: c,
+            dimension: n.saturating_sub(c),
+        });
+    }
+    Ok(())
+}
+
+/// A fixed direction with no special relation to any axis; the first tangent of every
+/// set is oriented along it (`t·w > 0`), so both methods traverse a set the same way.
+fn orientation_reference(n: usize) -> Vec<f64> {
+    let golden = 0.5 * (1.0 + 5f64.sqrt());
+    (0..n).map(|k| golden.powi(-(k as i32))).collect()
+}
+
+/// Traces and resamples the kernel set through one start `m⁰`. Returns the points
+/// `(P × N, row-major)` when the set was traced, and its report line (`index` 0).
+pub fn trace_one(
+    agent: &dyn Agent,
+    environment: Option<&Environment>,
+    start: &[f64],
+    workspace: Option<&Workspace>,
+    params: &TraceValidParams,
+) -> Result<(Option<Vec<f64>>, SetReport), KernelError> {
+    trace_one_with(
+        agent,
+        environment,
+        start,
+        workspace,
+        params,
+        &mut Scratch::default(),
+    )
+}
+
+fn trace_one_with(
+    agent: &dyn Agent,
+    environment: Option<&Environment>,
+    start: &[f64],
+    workspace: Option<&Workspace>,
+    params: &TraceValidParams,
+    scratch: &mut Scratch,
+) -> Result<(Option<Vec<f64>>, SetReport), KernelError> {
+    check_agent(agent)?;
+    if start.len() != agent.motor_dim() {
+        return Err(KernelError::MotorDimension {
+            agent: agent.name(),
+            found: start.len(),
+            expected: agent.motor_dim(),
+        });
+    }
+    let mut report = SetReport {
+        index: 0,
+        status: SetStatus::Closed,
+        steps: 0,
+        length: 0.0,
+        max_residual: 0.0,
+        max_pose_deviation: 0.0,
+    };
+    let start_pose = agent.pose(start);
+    if workspace.is_some_and(|w| !w.contains(start_pose)) {
+        report.status = SetStatus::OutsideWorkspace;
+        return Ok((None, report));
+    }
+    let n = agent.motor_dim();
+    let topology = agent.motor_topology();
+    if n == agent.configuration_dim() {
+        report.status = SetStatus::Point;
+        let mut points: Vec<f64> = start.repeat(params.points);
+        wrap_points(&mut points, topology);
+        return Ok((Some(points), report));
+    }
+    let mut kinematic;
+    let mut sensory;
+    let set: &mut dyn LevelSet = match params.method {
+        TraceMethod::Kinematic => {
+            kinematic = Kinematic::new(agent, start, params.pose_tolerance);
+            &mut kinematic
+        }
+        TraceMethod::Sensory => {
+            let environment = environment.ok_or(KernelError::MissingEnvironment)?;
+            sensory = Sensory::new(
+                agent,
+                environment,
+                start,
+                params.sensor_tolerance,
+                params.finite_difference_step,
+                params.rank_tolerance,
+            );
+            &mut sensory
+        }
+    };
+    match trace_set(set, start, params, topology, scratch) {
+        Ok((mut points, length, steps, residual)) => {
+            let c = agent.configuration_dim();
+            let target = start_pose.to_array();
+            for p in points.chunks_exact(n) {
+                let pose = agent.pose(p).to_array();
+                for a in 0..c {
+                    let d = if a == 2 {
+                        wrap_angle(pose[a] - target[a])
+                    } else {
+                        pose[a] - target[a]
+                    };
+                    report.max_pose_deviation = report.max_pose_deviation.max(d.abs());
+                }
+            }
+            wrap_points(&mut points, topology);
+            report.status =
+                if topology == MotorTopology::Periodic || is_closed_open(&points, n, topology) {
+                    SetStatus::Closed
+                } else {
+                    SetStatus::Open
+                };
+            report.steps = steps;
+            report.length = length;
+            report.max_residual = residual;
+            Ok((Some(points), report))
+        }
+        Err((status, steps)) => {
+            report.status = status;
+            report.steps = steps;
+            Ok((None, report))
+        }
+    }
+}
+
+/// For bounded motors, a set is open when its ends lie on the faces of the motor box.
+fn is_closed_open(points: &[f64], n: usize, topology: MotorTopology) -> bool {
+    let MotorTopology::Bounded { low, high } = topology else {
+        return true;
+    };
+    let on_face = |p: &[f64]| p.iter().any(|&x| x <= low + 1e-12 || x >= high - 1e-12);
+    let last = &points[points.len() - n..];
+    !(on_face(&points[..n]) || on_face(last))
+}
+
+type Traced = (Vec<f64>, f64, usize, f64);
+
+fn trace_set(
+    set: &mut dyn LevelSet,
+    start: &[f64],
+    params: &TraceValidParams,
+    topology: MotorTopology,
+    scratch: &mut Scratch,
+) -> Result<Traced, (SetStatus, usize)> {
+    let n = start.len();
+    scratch.prepare(set.rows(), n);
+    let mut r = vec![0.0; set.rows()];
+    set.linearize(start, &mut r)
+        .map_err(|_| (SetStatus::Singular, 0))?;
+    let mut t0 = vec![0.0; n];
+    set.null_vector(&orientation_reference(n), &mut t0);
+    let forward =
+        trace_branch(set, start, &t0, params, topology, scratch).map_err(|status| (status, 0))?;
+    let mut steps = forward.steps;
+    let mut max_residual = forward.max_residual;
+    let curve = if let Some(image) = forward.closes_at {
+        let mut nodes = forward.nodes;
+        let mut tangents = forward.tangents;
+        nodes.extend_from_slice(&image);
+        tangents.extend_from_slice(&t0);
+        Curve {
+            nodes,
+            tangents,
+            closed: true,
+        }
+    } else {
+        // An open segment: trace the other way too and join the branches.
+        set.linearize(start, &mut r)
+            .map_err(|_| (SetStatus::Singular, steps))?;
+        let backward_direction: Vec<f64> = t0.iter().map(|x| -x).collect();
+        let backward = trace_branch(set, start, &backward_direction, params, topology, scratch)
+            .map_err(|status| (status, steps))?;
+        steps += backward.steps;
+        max_residual = max_residual.max(backward.max_residual);
+        let mut nodes = Vec::with_capacity(forward.nodes.len() + backward.nodes.len());
+        let mut tangents = Vec::with_capacity(nodes.capacity());
+        let back_count = backward.nodes.len() / n;
+        for i in (1..back_count).rev() {
+            nodes.extend_from_slice(&backward.nodes[i * n..(i + 1) * n]);
+            tangents.extend(backward.tangents[i * n..(i + 1) * n].iter().map(|x| -x));
+        }
+        nodes.extend_from_slice(&forward.nodes);
+        tangents.extend_from_slice(&forward.tangents);
+        for v in [
+            forward.nodes,
+            forward.tangents,
+            backward.nodes,
+            backward.tangents,
+        ] {
+            scratch.give(v);
+        }
+        Curve {
+            nodes,
+            tangents,
+            closed: false,
+        }
+    };
+    let resampled = resample(
+        set,
+        &curve,
+        params.points,
+        params.max_corrector_iterations,
+        scratch,
+    );
+    scratch.give(curve.nodes);
+    scratch.give(curve.tangents);
+    let (points, length, residual) = resampled.map_err(|status| (status, steps))?;
+    Ok((points, length, steps, max_residual.max(residual)))
+}
+
+/// Traces the kernel set of every motor row, in parallel. Sets are independent and
+/// deterministic, so the output is identical for any number of threads.
+///
+/// Rows whose set fails (see [`SetStatus`]) are left out of [`TracedSets::sets`] and
+/// listed in the report; [`TracedSets::kept`] maps kept sets back to motor rows.
+///
+/// ```
+/// use smspace::agent::AgentConfig;
+/// use smspace::kernel::{trace_sets, TraceParams};
+/// use smspace::progress::Silent;
+/// let agent = AgentConfig::preset("toy-redundant").unwrap().build().unwrap();
+/// let motors = ndarray::array![[0.5, 0.25], [-1.0, 0.5]];
+/// let params = TraceParams { points: 5, ..TraceParams::default() }.check().unwrap();
+/// let traced = trace_sets(agent.as_ref(), None, motors.view(), None, &params, &Silent).unwrap();
+/// // Every point of the first set keeps m1 + m2 = 0.75.
+/// for p in traced.sets.outer_iter().next().unwrap().outer_iter() {
+///     assert!((p[0] + p[1] - 0.75).abs() < 1e-9);
+/// }
+/// ```
+pub fn trace_sets(
+    agent: &dyn Agent,
+    environment: Option<&Environment>,
+    motors: ArrayView2<'_, f64>,
+    workspace: Option<&Workspace>,
+    params: &TraceValidParams,
+    progress: &dyn Progress,
+) -> Result<TracedSets, KernelError> {
+    check_agent(agent)?;
+    let n = agent.motor_dim();
+    if motors.ncols() != n {
+        return Err(KernelError::MotorDimension {
+            agent: agent.name(),
+            found: motors.ncols(),
+            expected: n,
+        });
+    }
+    if motors.nrows() == 0 {
+        return Err(KernelError::NoMotors);
+    }
+    if params.method == TraceMethod::Sensory && environment.is_none() {
+        return Err(KernelError::MissingEnvironment);
+    }
+    progress.start("trace", motors.nrows() as u64);
+    let rows: Vec<Vec<f64>> = motors.outer_iter().map(|r| r.to_vec()).collect();
+    let results: Vec<(Option<Vec<f64>>, SetReport)> = rows
+        .par_iter()
+        .enumerate()
+        .map_init(Scratch::default, |scratch, (index, start)| {
+            let (points, mut report) =
+                trace_one_with(agent, environment, start, workspace, params, scratch)?;
+            report.index = index;
+            progress.advance(1);
+            Ok((points, report))
+        })
+        .collect::<Result<_, KernelError>>()?;
+    progress.finish();
+    let p = params.points;
+    let mut data = Vec::new();
+    let mut kept = Vec::new();
+    let mut reports = Vec::with_capacity(results.len());
+    let mut summary = TraceSummary {
+        total: results.len(),
+        ..TraceSummary::default()
+    };
+    for (points, report) in results {
+        if let Some(points) = points {
+            data.extend_from_slice(&points);
+            kept.push(report.index);
+        }
+        let name = serde_json::to_value(report.status)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_owned))
+            .unwrap_or_default();
+        *summary.by_status.entry(name).or_default() += 1;
+        reports.push(report);
+    }
+    summary.traced = kept.len();
+    summary.failed = summary.total - summary.traced;
+    let sets =
+        Array3::from_shape_vec((kept.len(), p, n), data).expect("every kept set has P × N values");
+    Ok(TracedSets {
+        sets,
+        kept,
+        report: TraceReport {
+            agent: agent.name().to_owned(),
+            method: params.method,
+            step_control: params.step_control,
+            points: p,
+            summary,
+            sets: reports,
+        },
+    })
+}
