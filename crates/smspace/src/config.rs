@@ -23,6 +23,7 @@
 use std::path::{Path, PathBuf};
 
 use serde::de::DeserializeOwned;
+use serde::Deserialize;
 
 use crate::agent::{AgentConfig, AgentError, EnvironmentConfig};
 
@@ -68,35 +69,26 @@ pub struct AgentSpec {
     pub environment: Option<EnvironmentConfig>,
 }
 
-/// Reads a TOML file as a table.
-pub fn read_toml(path: &Path) -> Result<toml::Table, ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+fn read_text(path: &Path) -> Result<String, ConfigError> {
+    std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
         path: path.to_owned(),
         source,
-    })?;
-    text.parse::<toml::Table>().map_err(|e| ConfigError::Parse {
+    })
+}
+
+/// Parses TOML text into `T`; errors carry the file, line, column and key.
+pub fn parse_toml<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T, ConfigError> {
+    toml::from_str(text).map_err(|e| ConfigError::Parse {
         path: path.to_owned(),
         message: e.to_string().trim_end().to_owned(),
     })
 }
 
-/// Deserialises the table `name` of a parsed file into `T`, naming the table in errors.
-pub fn table<T: DeserializeOwned>(
-    path: &Path,
-    file: &toml::Table,
-    name: &'static str,
-) -> Result<Option<T>, ConfigError> {
-    let Some(value) = file.get(name) else {
-        return Ok(None);
-    };
-    value
-        .clone()
-        .try_into::<T>()
-        .map(Some)
-        .map_err(|e| ConfigError::Parse {
-            path: path.to_owned(),
-            message: format!("in [{name}]: {}", e.to_string().trim_end()),
-        })
+/// The tables of an agent file; other tables are left to their stages.
+#[derive(Debug, Deserialize)]
+struct AgentFile {
+    agent: Option<AgentConfig>,
+    environment: Option<EnvironmentConfig>,
 }
 
 /// Resolves `--agent`: a preset name, or a TOML file with an `[agent]` table.
@@ -109,13 +101,15 @@ pub fn load_agent(name_or_path: &str) -> Result<AgentSpec, ConfigError> {
             environment: None,
         });
     }
-    let file = read_toml(path)?;
-    let agent = table(path, &file, "agent")?.ok_or(ConfigError::MissingTable {
+    let file: AgentFile = parse_toml(path, &read_text(path)?)?;
+    let agent = file.agent.ok_or(ConfigError::MissingTable {
         path: path.to_owned(),
         table: "agent",
     })?;
-    let environment = table(path, &file, "environment")?;
-    Ok(AgentSpec { agent, environment })
+    Ok(AgentSpec {
+        agent,
+        environment: file.environment,
+    })
 }
 
 #[cfg(test)]

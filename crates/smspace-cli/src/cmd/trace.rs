@@ -26,16 +26,16 @@ pub struct Args {
     #[arg(long, default_value_t = 100)]
     points: usize,
     /// Step length (radians); the initial step when adaptive.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
     step: f64,
     /// Step control: auto (fixed for kinematic, adaptive for sensory), fixed or adaptive.
     #[arg(long, default_value = "auto", value_parser = parse_step_control)]
     step_control: StepControl,
     /// Largest adaptive step.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
     max_step: f64,
     /// Loop-closure tolerance (torus distance).
-    #[arg(long, default_value_t = 1e-2)]
+    #[arg(long, default_value_t = 1e-2, allow_negative_numbers = true)]
     closure_tolerance: f64,
     #[command(flatten)]
     env: EnvArgs,

@@ -230,7 +230,7 @@ pub trait Agent: Send + Sync + fmt::Debug {
 /// assert_eq!((agent.motor_dim(), agent.sensor_dim()), (4, 6));
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case")]
+#[serde(tag = "kind", rename_all = "kebab-case", try_from = "RawAgentConfig")]
 pub enum AgentConfig {
     /// Paper section 2.2: one motor moves the body along a line.
     ToyLine(ToyParams),
@@ -238,6 +238,84 @@ pub enum AgentConfig {
     ToyRedundant(ToyParams),
     /// Paper section 3.1: a planar arm with a pinhole retina at its end.
     PlanarArm(ArmParams),
+}
+
+/// Which agent an `[agent]` table describes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+enum AgentKind {
+    ToyLine,
+    ToyRedundant,
+    PlanarArm,
+}
+
+/// The `[agent]` table as written: one flat struct, so that the TOML reader reports the
+/// line and key of a wrong value; [`AgentConfig`] is built from it and rejects keys
+/// that belong to another kind of agent.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawAgentConfig {
+    kind: AgentKind,
+    link_lengths: Option<Vec<f64>>,
+    retina_cells: Option<usize>,
+    retina_half_width: Option<f64>,
+    focal_length: Option<f64>,
+    sensor_spacing: Option<f64>,
+    sensor_height: Option<f64>,
+    motor_range: Option<[f64; 2]>,
+}
+
+impl TryFrom<RawAgentConfig> for AgentConfig {
+    type Error = String;
+
+    fn try_from(raw: RawAgentConfig) -> Result<Self, String> {
+        let arm_keys = [
+            ("link_lengths", raw.link_lengths.is_some()),
+            ("retina_cells", raw.retina_cells.is_some()),
+            ("retina_half_width", raw.retina_half_width.is_some()),
+            ("focal_length", raw.focal_length.is_some()),
+        ];
+        let toy_keys = [
+            ("sensor_spacing", raw.sensor_spacing.is_some()),
+            ("sensor_height", raw.sensor_height.is_some()),
+            ("motor_range", raw.motor_range.is_some()),
+        ];
+        let foreign = match raw.kind {
+            AgentKind::PlanarArm => toy_keys.iter().find(|(_, set)| *set),
+            _ => arm_keys.iter().find(|(_, set)| *set),
+        };
+        let kind_name = match raw.kind {
+            AgentKind::ToyLine => "toy-line",
+            AgentKind::ToyRedundant => "toy-redundant",
+            AgentKind::PlanarArm => "planar-arm",
+        };
+        if let Some((key, _)) = foreign {
+            return Err(format!(
+                "`{key}` is not a parameter of the {kind_name} agent"
+            ));
+        }
+        let toy = || {
+            let d = ToyParams::default();
+            ToyParams {
+                sensor_spacing: raw.sensor_spacing.unwrap_or(d.sensor_spacing),
+                sensor_height: raw.sensor_height.unwrap_or(d.sensor_height),
+                motor_range: raw.motor_range.unwrap_or(d.motor_range),
+            }
+        };
+        Ok(match raw.kind {
+            AgentKind::ToyLine => AgentConfig::ToyLine(toy()),
+            AgentKind::ToyRedundant => AgentConfig::ToyRedundant(toy()),
+            AgentKind::PlanarArm => {
+                let d = ArmParams::default();
+                AgentConfig::PlanarArm(ArmParams {
+                    link_lengths: raw.link_lengths.clone().unwrap_or(d.link_lengths),
+                    retina_cells: raw.retina_cells.unwrap_or(d.retina_cells),
+                    retina_half_width: raw.retina_half_width.unwrap_or(d.retina_half_width),
+                    focal_length: raw.focal_length.unwrap_or(d.focal_length),
+                })
+            }
+        })
+    }
 }
 
 impl AgentConfig {
@@ -315,6 +393,17 @@ mod tests {
         let err = toml::from_str::<AgentConfig>("kind = \"planar-arm\"\nlink_length = [1.0]")
             .unwrap_err();
         assert!(err.to_string().contains("link_length"), "{err}");
+        let err = toml::from_str::<AgentConfig>("kind = \"planar-arm\"\nsensor_height = 1.0")
+            .unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("not a parameter of the planar-arm"),
+            "{err}"
+        );
+        let config: AgentConfig =
+            toml::from_str("kind = \"toy-line\"\nsensor_height = 2.0").unwrap();
+        let round = toml::to_string(&config).unwrap();
+        assert_eq!(toml::from_str::<AgentConfig>(&round).unwrap(), config);
         let err = AgentConfig::preset("octopus").unwrap_err();
         assert!(err.to_string().contains("octopus"));
     }

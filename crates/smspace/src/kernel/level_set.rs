@@ -7,6 +7,12 @@ use nalgebra::{DMatrix, SymmetricEigen};
 
 use crate::agent::{wrap_angle, Agent, Environment};
 
+/// `value > floor`, false for NaN (so a NaN pivot counts as singular).
+#[inline]
+fn exceeds(value: f64, floor: f64) -> bool {
+    value > floor
+}
+
 #[inline]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
@@ -89,7 +95,7 @@ impl<'a> Kinematic<'a> {
                     s -= l[i * 3 + k] * l[j * 3 + k];
                 }
                 if i == j {
-                    if !(s > 1e-14 * trace) {
+                    if !exceeds(s, 1e-14 * trace) {
                         return Err(Singular);
                     }
                     l[i * 3 + i] = s.sqrt();
@@ -179,20 +185,20 @@ impl<'a> Kinematic<'a> {
         let (g00, g10, g11) = (dot(r0, r0), dot(r1, r0), dot(r1, r1));
         let (g20, g21, g22) = (dot(r2, r0), dot(r2, r1), dot(r2, r2));
         let floor = 1e-14 * (g00 + g11 + g22);
-        if !(g00 > floor) {
+        if !exceeds(g00, floor) {
             return Err(Singular);
         }
         let l00 = g00.sqrt();
         let l10 = g10 / l00;
         let l20 = g20 / l00;
         let d1 = g11 - l10 * l10;
-        if !(d1 > floor) {
+        if !exceeds(d1, floor) {
             return Err(Singular);
         }
         let l11 = d1.sqrt();
         let l21 = (g21 - l20 * l10) / l11;
         let d2 = g22 - l20 * l20 - l21 * l21;
-        if !(d2 > floor) {
+        if !exceeds(d2, floor) {
             return Err(Singular);
         }
         let l22 = d2.sqrt();
@@ -416,7 +422,7 @@ impl LevelSet for Sensory<'_> {
         } else {
             0.0
         };
-        if !(ratio >= self.rank_tolerance) {
+        if !exceeds(ratio, self.rank_tolerance) {
             return Err(Singular);
         }
         Ok(())

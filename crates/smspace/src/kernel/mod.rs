@@ -511,12 +511,13 @@ fn trace_one_with(
                 }
             }
             wrap_points(&mut points, topology);
-            report.status =
-                if topology == MotorTopology::Periodic || is_closed_open(&points, n, topology) {
-                    SetStatus::Closed
-                } else {
-                    SetStatus::Open
-                };
+            report.status = if topology == MotorTopology::Periodic
+                || !ends_on_box_faces(&points, n, topology)
+            {
+                SetStatus::Closed
+            } else {
+                SetStatus::Open
+            };
             report.steps = steps;
             report.length = length;
             report.max_residual = residual;
@@ -531,13 +532,12 @@ fn trace_one_with(
 }
 
 /// For bounded motors, a set is open when its ends lie on the faces of the motor box.
-fn is_closed_open(points: &[f64], n: usize, topology: MotorTopology) -> bool {
+fn ends_on_box_faces(points: &[f64], n: usize, topology: MotorTopology) -> bool {
     let MotorTopology::Bounded { low, high } = topology else {
-        return true;
+        return false;
     };
-    let on_face = |p: &[f64]| p.iter().any(|&x| x <= low + 1e-12 || x >= high - 1e-12);
-    let last = &points[points.len() - n..];
-    !(on_face(&points[..n]) || on_face(last))
+    let on_face = |p: &[f64]| p.iter().any(|&x| x <= low + 1e-9 || x >= high - 1e-9);
+    on_face(&points[..n]) || on_face(&points[points.len() - n..])
 }
 
 type Traced = (Vec<f64>, f64, usize, f64);

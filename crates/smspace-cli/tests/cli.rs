@@ -1,0 +1,396 @@
+//! Runs the `smspace` binary on small inputs in a temporary folder, bad inputs included.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use ndarray::{Array1, Array2, Array3};
+use ndarray_npy::{read_npy, write_npy};
+
+fn smspace(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_smspace"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the binary runs")
+}
+
+/// Runs and expects success; returns stderr.
+fn ok(dir: &Path, args: &[&str]) -> String {
+    let out = smspace(dir, args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "smspace {args:?} failed: {stderr}");
+    stderr
+}
+
+/// Runs and expects a clean failure (non-zero exit, one error line, no panic);
+/// returns stderr.
+fn fails(dir: &Path, args: &[&str]) -> String {
+    let out = smspace(dir, args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(!out.status.success(), "smspace {args:?} should fail");
+    assert!(
+        !stderr.contains("panicked"),
+        "smspace {args:?} panicked: {stderr}"
+    );
+    assert!(!stderr.contains("RUST_BACKTRACE"), "{stderr}");
+    stderr
+}
+
+fn temp() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().to_owned();
+    (dir, path)
+}
+
+#[test]
+fn explore_then_trace_the_arm() {
+    let (_guard, dir) = temp();
+    ok(
+        &dir,
+        &[
+            "explore",
+            "--agent",
+            "planar-arm",
+            "--n",
+            "30",
+            "--seed",
+            "1",
+            "--out-dir",
+            "run",
+            "--probes",
+            "--probe-positions",
+            "2",
+            "--probe-orientations",
+            "3",
+        ],
+    );
+    let motors: Array2<f64> = read_npy(dir.join("run/motors.npy")).unwrap();
+    let poses: Array2<f64> = read_npy(dir.join("run/poses.npy")).unwrap();
+    let probes: Array2<i64> = read_npy(dir.join("run/probes.npy")).unwrap();
+    assert_eq!(motors.dim(), (30 + 12, 4));
+    assert_eq!(poses.dim(), (42, 3));
+    assert_eq!(probes.row(41).to_vec(), vec![2, 1, 1]);
+    assert_eq!(probes.row(0).to_vec(), vec![-1, -1, -1]);
+
+    let stderr = ok(
+        &dir,
+        &[
+            "--threads",
+            "2",
+            "trace",
+            "--agent",
+            "planar-arm",
+            "--motors",
+            "run/motors.npy",
+            "--method",
+            "kinematic",
+            "--points",
+            "20",
+            "--step-control",
+            "adaptive",
+            "--out",
+            "run/sets.npy",
+        ],
+    );
+    assert!(stderr.contains("traced 42 of 42 sets"), "{stderr}");
+    let sets: Array3<f64> = read_npy(dir.join("run/sets.npy")).unwrap();
+    assert_eq!(sets.dim(), (42, 20, 4));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("run/sets.trace.json")).unwrap()).unwrap();
+    assert_eq!(report["summary"]["traced"], 42);
+    assert_eq!(report["sets"][0]["status"], "closed");
+    assert!(!dir.join("run/sets.kept.npy").exists());
+}
+
+#[test]
+fn sensory_tracing_with_a_blind_environment_reports_failures() {
+    let (_guard, dir) = temp();
+    ok(&dir, &["explore", "--n", "6", "--out-dir", "."]);
+    // A rich random environment traces most sets.
+    let stderr = ok(
+        &dir,
+        &[
+            "trace",
+            "--motors",
+            "motors.npy",
+            "--method",
+            "sensory",
+            "--env-seed",
+            "2",
+            "--points",
+            "10",
+            "--out",
+            "sets.npy",
+        ],
+    );
+    assert!(stderr.contains("of 6 sets"), "{stderr}");
+    // One light behind the base: nothing can be traced; the command says why.
+    std::fs::write(dir.join("dark.json"), r#"{"lights": [[-3.0, 0.0]]}"#).unwrap();
+    let stderr = fails(
+        &dir,
+        &[
+            "trace",
+            "--motors",
+            "motors.npy",
+            "--method",
+            "sensory",
+            "--env",
+            "dark.json",
+            "--out",
+            "dark.npy",
+        ],
+    );
+    assert!(stderr.contains("singular"), "{stderr}");
+    assert!(!dir.join("dark.npy").exists());
+}
+
+#[test]
+fn failed_sets_are_left_out_and_indexed() {
+    let (_guard, dir) = temp();
+    // Row 1 is the stretched arm: outside the working space.
+    let motors = ndarray::array![
+        [0.3, -1.0, 0.9, 0.2],
+        [0.0, 0.0, 0.0, 0.0],
+        [0.5, -0.9, 0.3, 1.0]
+    ];
+    write_npy(dir.join("m.npy"), &motors).unwrap();
+    let stderr = ok(
+        &dir,
+        &[
+            "trace",
+            "--motors",
+            "m.npy",
+            "--points",
+            "8",
+            "--step-control",
+            "adaptive",
+            "--workspace",
+            "none",
+            "--out",
+            "s.npy",
+        ],
+    );
+    assert!(stderr.contains("1 failed"), "{stderr}");
+    let kept: Array1<i64> = read_npy(dir.join("s.kept.npy")).unwrap();
+    assert_eq!(kept.to_vec(), vec![0, 2]);
+    let sets: Array3<f64> = read_npy(dir.join("s.npy")).unwrap();
+    assert_eq!(sets.dim(), (2, 8, 4));
+}
+
+#[test]
+fn toy_agents_environments_and_sensing() {
+    let (_guard, dir) = temp();
+    ok(
+        &dir,
+        &[
+            "explore",
+            "--agent",
+            "toy-redundant",
+            "--n",
+            "5",
+            "--out-dir",
+            "toy",
+        ],
+    );
+    ok(
+        &dir,
+        &[
+            "trace",
+            "--agent",
+            "toy-redundant",
+            "--motors",
+            "toy/motors.npy",
+            "--points",
+            "7",
+            "--out",
+            "toy/sets.npy",
+        ],
+    );
+    let sets: Array3<f64> = read_npy(dir.join("toy/sets.npy")).unwrap();
+    let motors: Array2<f64> = read_npy(dir.join("toy/motors.npy")).unwrap();
+    for (set, m) in sets.outer_iter().zip(motors.outer_iter()) {
+        for p in set.outer_iter() {
+            assert!((p[0] + p[1] - m[0] - m[1]).abs() < 1e-9);
+        }
+    }
+    ok(
+        &dir,
+        &[
+            "env",
+            "--agent",
+            "toy-line",
+            "--env-seed",
+            "4",
+            "--out",
+            "e.json",
+        ],
+    );
+    let env: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("e.json")).unwrap()).unwrap();
+    assert_eq!(env["lights"].as_array().unwrap().len(), 5);
+    write_npy(dir.join("line.npy"), &ndarray::array![[0.0], [1.0]]).unwrap();
+    ok(
+        &dir,
+        &[
+            "sense", "--agent", "toy-line", "--motors", "line.npy", "--env", "e.json", "--out",
+            "s.npy",
+        ],
+    );
+    let s: Array2<f64> = read_npy(dir.join("s.npy")).unwrap();
+    assert_eq!(s.dim(), (2, 2));
+    assert!(s.iter().all(|v| v.is_finite() && *v > 0.0));
+}
+
+#[test]
+fn agent_from_a_toml_file() {
+    let (_guard, dir) = temp();
+    std::fs::write(
+        dir.join("arm.toml"),
+        "[agent]\nkind = \"planar-arm\"\nlink_lengths = [1.0, 1.0, 1.0]\nretina_cells = 8\n[environment]\nlights = 12\nseed = 5\n",
+    )
+    .unwrap();
+    ok(&dir, &["env", "--agent", "arm.toml", "--out", "e.json"]);
+    let env: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("e.json")).unwrap()).unwrap();
+    assert_eq!(env["lights"].as_array().unwrap().len(), 12);
+    assert_eq!(env["seed"], 5);
+}
+
+#[test]
+fn bad_inputs_give_clear_errors() {
+    let (_guard, dir) = temp();
+    let nan = ndarray::array![[0.1, 0.2, f64::NAN, 0.4]];
+    write_npy(dir.join("nan.npy"), &nan).unwrap();
+    write_npy(dir.join("three.npy"), &ndarray::array![[0.1, 0.2, 0.3]]).unwrap();
+    write_npy(dir.join("ints.npy"), &ndarray::array![[1_i64, 2, 3, 4]]).unwrap();
+    write_npy(
+        dir.join("good.npy"),
+        &ndarray::array![[0.3, -1.0, 0.9, 0.2]],
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("bad.toml"),
+        "[agent]\nkind = \"planar-arm\"\nlink_lengths = [1.0, -1.0]\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("typo.toml"),
+        "[agent]\nkind = \"planar-arm\"\nretina_cell = 6\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("env.json"), "{\"lights\": [[1.0]]}").unwrap();
+
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["trace", "--motors", "missing.npy", "--out", "s.npy"],
+            "cannot read missing.npy",
+        ),
+        (
+            vec!["trace", "--motors", "nan.npy", "--out", "s.npy"],
+            "non-finite value (NaN) at index (0, 2)",
+        ),
+        (
+            vec!["trace", "--motors", "three.npy", "--out", "s.npy"],
+            "three.npy has shape (1, 3), expected (M, 4)",
+        ),
+        (
+            vec!["trace", "--motors", "ints.npy", "--out", "s.npy"],
+            "astype(numpy.float64)",
+        ),
+        (
+            vec![
+                "trace", "--agent", "octopus", "--motors", "good.npy", "--out", "s.npy",
+            ],
+            "unknown agent 'octopus'",
+        ),
+        (
+            vec![
+                "trace",
+                "--method",
+                "telepathy",
+                "--motors",
+                "good.npy",
+                "--out",
+                "s.npy",
+            ],
+            "unknown tracing method 'telepathy'",
+        ),
+        (
+            vec![
+                "trace", "--points", "0", "--motors", "good.npy", "--out", "s.npy",
+            ],
+            "points = 0",
+        ),
+        (
+            vec![
+                "trace", "--step", "-0.1", "--motors", "good.npy", "--out", "s.npy",
+            ],
+            "step = -0.1",
+        ),
+        (
+            vec![
+                "trace", "--method", "sensory", "--motors", "good.npy", "--out", "s.npy",
+            ],
+            "needs an environment",
+        ),
+        (
+            vec![
+                "trace", "--method", "sensory", "--env", "env.json", "--motors", "good.npy",
+                "--out", "s.npy",
+            ],
+            "env.json is not a valid environment file",
+        ),
+        (
+            vec![
+                "trace", "--agent", "bad.toml", "--motors", "good.npy", "--out", "s.npy",
+            ],
+            "link_lengths = -1",
+        ),
+        (
+            vec![
+                "trace",
+                "--agent",
+                "typo.toml",
+                "--motors",
+                "good.npy",
+                "--out",
+                "s.npy",
+            ],
+            "retina_cell",
+        ),
+        (vec!["explore", "--n", "0", "--out-dir", "x"], "n = 0"),
+        (
+            vec!["explore", "--workspace", "1,2,3", "--out-dir", "x"],
+            "CX,CY,DEPTH,WIDTH",
+        ),
+        (
+            vec![
+                "explore",
+                "--workspace",
+                "9,0,1,1",
+                "--n",
+                "3",
+                "--out-dir",
+                "x",
+            ],
+            "working space",
+        ),
+        (
+            vec!["--threads", "0", "env", "--out", "e.json"],
+            "--threads must be at least 1",
+        ),
+    ];
+    for (args, expected) in cases {
+        let stderr = fails(&dir, &args);
+        assert!(
+            stderr.contains(expected),
+            "smspace {args:?}: expected '{expected}' in: {stderr}"
+        );
+        assert_eq!(
+            stderr.lines().filter(|l| l.starts_with("error")).count(),
+            1,
+            "{stderr}"
+        );
+    }
+    assert!(!dir.join("s.npy").exists(), "a failed run wrote output");
+}
