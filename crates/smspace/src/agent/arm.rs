@@ -181,28 +181,36 @@ impl Agent for PlanarArm {
     fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64]) -> Pose {
         let n = self.motor_dim();
         let links = self.link_lengths.len();
-        // Forward pass: the terms L_k sin θ_k and L_k cos θ_k, kept in the Jacobian rows.
+        let (dx, rest) = jacobian.split_at_mut(n);
+        let (dy, dalpha) = rest.split_at_mut(n);
+        // Forward pass: L_k sin θ_k and L_k cos θ_k; backward pass: suffix sums, so that
+        // dx[j] = −Σ_{k≥j} L_k sin θ_k and dy[j] = Σ_{k≥j} L_k cos θ_k.
         let mut theta = 0.0;
-        for k in 0..links {
-            theta += motors[k];
+        for ((length, m), (jx, jy)) in self
+            .link_lengths
+            .iter()
+            .zip(motors)
+            .zip(dx.iter_mut().zip(dy.iter_mut()))
+        {
+            theta += m;
             let (s, c) = theta.sin_cos();
-            jacobian[k] = -self.link_lengths[k] * s;
-            jacobian[n + k] = self.link_lengths[k] * c;
+            *jx = -length * s;
+            *jy = length * c;
         }
-        // Backward pass: suffix sums.
-        for k in (0..links - 1).rev() {
-            jacobian[k] += jacobian[k + 1];
-            jacobian[n + k] += jacobian[n + k + 1];
+        let (mut sx, mut sy) = (0.0, 0.0);
+        for (jx, jy) in dx[..links].iter_mut().zip(dy[..links].iter_mut()).rev() {
+            sx += *jx;
+            sy += *jy;
+            *jx = sx;
+            *jy = sy;
         }
-        jacobian[links] = 0.0;
-        jacobian[n + links] = 0.0;
-        for j in 0..n {
-            jacobian[2 * n + j] = 1.0;
-        }
+        dx[links] = 0.0;
+        dy[links] = 0.0;
+        dalpha[..n].fill(1.0);
         Pose {
-            x: jacobian[n],
-            y: -jacobian[0],
-            alpha: wrap_angle(motors.iter().sum()),
+            x: sy,
+            y: -sx,
+            alpha: wrap_angle(theta + motors[links]),
         }
     }
 

@@ -9,8 +9,10 @@ use crate::agent::{wrap_angle, MotorTopology};
 
 /// Smallest step the adaptive control may take before it gives up.
 const MIN_ADAPTIVE_STEP: f64 = 1e-7;
-/// Segments longer than this are measured as Hermite arcs, shorter ones as chords.
-const ARC_SPACING: f64 = 1e-3;
+/// Segments longer than this are measured as Hermite arcs, shorter ones as chords
+/// (an arc of length `h` and curvature `κ` exceeds its chord by `κ²h³/24`, below
+/// `10⁻⁹` here for the curvatures of the arm's sets).
+const ARC_SPACING: f64 = 2e-3;
 
 /// A traced branch: nodes on the set (unwrapped coordinates) and unit tangents.
 #[derive(Debug, Default)]
@@ -218,6 +220,7 @@ pub(crate) fn trace_branch(
     let mut h = params.step;
     let cos_max_turn = params.max_turn.cos();
     let mut farthest: f64 = 0.0;
+    let mut travel_to_check: f64 = 0.0;
     loop {
         if branch.steps >= params.max_steps {
             return Err(SetStatus::NotClosed);
@@ -292,21 +295,27 @@ pub(crate) fn trace_branch(
         }
 
         // Closure: the segment just travelled passes within the tolerance of the start.
-        nearest_image(topology, start, &m, &mut image);
-        let from_start = distance(&m, &image);
-        farthest = farthest.max(from_start);
-        let may_close = farthest > 2.0 * params.closure_tolerance
-            && (adaptive || branch.steps >= params.min_steps);
-        if may_close && from_start <= params.closure_tolerance + travelled {
-            let (tau, d) = closest_on_segment(&previous, &m, &image);
-            if d <= params.closure_tolerance {
-                if tau < 1.0 && branch.steps > 1 {
-                    // The start lies inside the last segment: close from its beginning.
-                    branch.nodes.truncate(branch.nodes.len() - n);
-                    branch.tangents.truncate(branch.tangents.len() - n);
+        // Far from the start the test is skipped until the trace has travelled the
+        // distance that separated it from the start's tolerance ball.
+        travel_to_check -= travelled;
+        if travel_to_check <= 0.0 {
+            nearest_image(topology, start, &m, &mut image);
+            let from_start = distance(&m, &image);
+            farthest = farthest.max(from_start);
+            travel_to_check = (from_start - 2.0 * params.closure_tolerance) / 2.0;
+            let may_close = farthest > 2.0 * params.closure_tolerance
+                && (adaptive || branch.steps >= params.min_steps);
+            if may_close && from_start <= params.closure_tolerance + travelled {
+                let (tau, d) = closest_on_segment(&previous, &m, &image);
+                if d <= params.closure_tolerance {
+                    if tau < 1.0 && branch.steps > 1 {
+                        // The start lies inside the last segment: close from its beginning.
+                        branch.nodes.truncate(branch.nodes.len() - n);
+                        branch.tangents.truncate(branch.tangents.len() - n);
+                    }
+                    branch.closes_at = Some(image.clone());
+                    return Ok(branch);
                 }
-                branch.closes_at = Some(image.clone());
-                return Ok(branch);
             }
         }
         if let MotorTopology::Bounded { low, high } = topology {
@@ -388,7 +397,7 @@ pub(crate) struct Curve {
 /// gets `points` points without repeating the start; an open curve includes both
 /// ends), each projected back onto the level set. Between nodes the curve is the cubic
 /// Hermite segment through them with their tangents; a segment longer than about
-/// `10⁻³` has its arc length measured by five-point Gauss–Legendre quadrature of the
+/// `2·10⁻³` has its arc length measured by five-point Gauss–Legendre quadrature of the
 /// segment's speed, and a point at a given arc length is found by Newton's method on
 /// that integral, so that large adaptive steps give the same points as small fixed ones
 /// (shorter segments are taken as straight chords). Returns the points (unwrapped), the
