@@ -76,6 +76,15 @@ impl Pose {
         [self.x, self.y, self.alpha]
     }
 
+    /// `self − other` as `[Δx, Δy, Δalpha]`, with `Δalpha` wrapped into `[-π, π)`.
+    pub fn difference(self, other: Pose) -> [f64; 3] {
+        [
+            self.x - other.x,
+            self.y - other.y,
+            wrap_angle(self.alpha - other.alpha),
+        ]
+    }
+
     /// The pose from `[x, y, alpha]`.
     pub fn from_array(a: [f64; 3]) -> Self {
         Self {

@@ -5,7 +5,7 @@
 
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use crate::agent::{wrap_angle, Agent, Environment};
+use crate::agent::{Agent, Environment, Pose};
 
 /// `value > floor`, false for NaN (so a NaN pivot counts as singular).
 #[inline]
@@ -55,7 +55,7 @@ pub(crate) struct Kinematic<'a> {
     agent: &'a dyn Agent,
     n: usize,
     c: usize,
-    target: [f64; 3],
+    target: Pose,
     tolerance: f64,
     jacobian: Vec<f64>,
     cholesky: [f64; 9],
@@ -68,7 +68,7 @@ impl<'a> Kinematic<'a> {
             agent,
             n,
             c: agent.configuration_dim(),
-            target: agent.pose(start).to_array(),
+            target: agent.pose(start),
             tolerance,
             jacobian: vec![0.0; 3 * n],
             cholesky: [0.0; 9],
@@ -217,14 +217,8 @@ impl LevelSet for Kinematic<'_> {
     }
 
     fn residual(&mut self, m: &[f64], r: &mut [f64]) {
-        let p = self.agent.pose(m).to_array();
-        for a in 0..self.c {
-            r[a] = if a == 2 {
-                wrap_angle(p[a] - self.target[a])
-            } else {
-                p[a] - self.target[a]
-            };
-        }
+        let d = self.agent.pose(m).difference(self.target);
+        r[..self.c].copy_from_slice(&d[..self.c]);
     }
 
     fn residual_norm(&self, r: &[f64]) -> f64 {
@@ -236,14 +230,11 @@ impl LevelSet for Kinematic<'_> {
     }
 
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
-        let pose = self.agent.pose_jacobian(m, &mut self.jacobian).to_array();
-        for a in 0..self.c {
-            r[a] = if a == 2 {
-                wrap_angle(pose[a] - self.target[a])
-            } else {
-                pose[a] - self.target[a]
-            };
-        }
+        let d = self
+            .agent
+            .pose_jacobian(m, &mut self.jacobian)
+            .difference(self.target);
+        r[..self.c].copy_from_slice(&d[..self.c]);
         match self.c {
             1 => self.factor::<1>(),
             2 => self.factor::<2>(),

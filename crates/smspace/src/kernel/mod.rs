@@ -44,7 +44,7 @@ use ndarray::{Array3, ArrayView2};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::agent::{wrap_angle, Agent, Environment, MotorTopology};
+use crate::agent::{Agent, Environment, MotorTopology};
 use crate::explore::Workspace;
 use crate::progress::Progress;
 use curve::{resample, trace_branch, wrap_points, Curve, Scratch};
@@ -498,16 +498,10 @@ fn trace_one_with(
     match trace_set(set, start, params, topology, scratch) {
         Ok((mut points, length, steps, residual)) => {
             let c = agent.configuration_dim();
-            let target = start_pose.to_array();
             for p in points.chunks_exact(n) {
-                let pose = agent.pose(p).to_array();
-                for a in 0..c {
-                    let d = if a == 2 {
-                        wrap_angle(pose[a] - target[a])
-                    } else {
-                        pose[a] - target[a]
-                    };
-                    report.max_pose_deviation = report.max_pose_deviation.max(d.abs());
+                let d = agent.pose(p).difference(start_pose);
+                for v in &d[..c] {
+                    report.max_pose_deviation = report.max_pose_deviation.max(v.abs());
                 }
             }
             wrap_points(&mut points, topology);
