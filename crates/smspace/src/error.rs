@@ -11,6 +11,9 @@ pub enum Error {
     /// Reading or writing a file failed.
     #[error(transparent)]
     Io(#[from] IoError),
+    /// An embedding failed.
+    #[error(transparent)]
+    Embed(#[from] crate::embed::EmbedError),
 }
 
 /// `Result` with the crate-wide [`Error`].

@@ -17,6 +17,8 @@
 //! 1. [`agent`]: agents and environments, the sensorimotor law `s = σ_E(m)`;
 //! 2. [`explore`]: motor babbling in a working space, and the probe grid;
 //! 3. [`kernel`]: tracing the sets `M^i` along the Jacobian's null space (appendix A);
+//! 5. [`embed`]: coordinates for the manifold of sets from its distance matrix (CCA,
+//!    Isomap, classical MDS; section 3.2);
 //!
 //! with [`config`] (parameter files), [`io`] (`.npy` and JSON interchange),
 //! [`progress`] (observers for long stages) and [`error`].
@@ -24,6 +26,7 @@
 //! The library never prints: progress goes through [`progress::Progress`], and every
 //! failure a user can cause is a [`Result`] carrying the offending file or value.
 
+pub mod embed;
 pub mod error;
 pub mod io;
 pub mod progress;
