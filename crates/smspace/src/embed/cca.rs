@@ -44,8 +44,17 @@ use crate::progress::Progress;
 /// Points per block in the inner loop.
 pub const LANES: usize = 8;
 
-/// Above this many points, each pivot step updates the points in parallel.
-const PARALLEL_MIN_POINTS: usize = 1 << 30;
+/// Above this many points, each pivot step updates the points in parallel (two fixed
+/// halves). `SMSPACE_CCA_PARALLEL_MIN` overrides it (for benchmarks).
+fn parallel_min_points() -> usize {
+    static MIN: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *MIN.get_or_init(|| {
+        std::env::var("SMSPACE_CCA_PARALLEL_MIN")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(usize::MAX)
+    })
+}
 
 /// Coordinate of padding points: far beyond any `λ`, so that `F = 0` for them.
 const FAR: f64 = 1e100;
@@ -386,6 +395,26 @@ trait PivotLayout: Send {
 /// [`FAR`], where `F = 0`.
 struct Blocks<const D: usize, const EXP: bool> {
     blocks: Vec<[[f64; LANES]; D]>,
+    arch: pulp::Arch,
+}
+
+/// One pivot step over some blocks, compiled for the best instruction set the CPU has
+/// (pulp's runtime dispatch; the arithmetic is the same IEEE operations on every path,
+/// no fused multiply–add, so results do not depend on the CPU either).
+struct Update<'a, const D: usize, const EXP: bool> {
+    blocks: &'a mut [[[f64; LANES]; D]],
+    x: &'a [f32],
+    yi: [f64; D],
+    alpha: f64,
+    lambda: f64,
+}
+
+impl<const D: usize, const EXP: bool> pulp::WithSimd for Update<'_, D, EXP> {
+    type Output = f64;
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> f64 {
+        block_update::<D, EXP>(self.blocks, self.x, &self.yi, self.alpha, self.lambda)
+    }
 }
 
 impl<const D: usize, const EXP: bool> Blocks<D, EXP> {
@@ -397,7 +426,10 @@ impl<const D: usize, const EXP: bool> Blocks<D, EXP> {
                 blocks[j / LANES][c][j % LANES] = initial[[j, c]];
             }
         }
-        Self { blocks }
+        Self {
+            blocks,
+            arch: pulp::Arch::new(),
+        }
     }
 }
 
@@ -408,16 +440,23 @@ impl<const D: usize, const EXP: bool> PivotLayout for Blocks<D, EXP> {
             *v = self.blocks[i / LANES][c][i % LANES];
         }
         let blocks = &mut self.blocks[..];
-        if blocks.len() * LANES < PARALLEL_MIN_POINTS {
-            block_update::<D, EXP>(blocks, x, &yi, alpha, lambda)
+        let arch = self.arch;
+        let run = |blocks, x| {
+            arch.dispatch(Update::<D, EXP> {
+                blocks,
+                x,
+                yi,
+                alpha,
+                lambda,
+            })
+        };
+        if blocks.len() * LANES < parallel_min_points() {
+            run(blocks, x)
         } else {
             let half = blocks.len() / 2;
             let (a, b) = blocks.split_at_mut(half);
             let (xa, xb) = x.split_at(half * LANES);
-            let (sa, sb) = rayon::join(
-                || block_update::<D, EXP>(a, xa, &yi, alpha, lambda),
-                || block_update::<D, EXP>(b, xb, &yi, alpha, lambda),
-            );
+            let (sa, sb) = rayon::join(|| run(a, xa), || run(b, xb));
             sa + sb
         }
     }

@@ -91,15 +91,10 @@ impl LinOp<f64> for SymOp<'_> {
     fn apply(&self, out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, _par: Par, _stack: &mut MemStack) {
         let mut out = out;
         let n = self.b.nrows();
+        let b = self.b.as_slice().expect("standard layout");
         for c in 0..rhs.ncols() {
             let x: Vec<f64> = (0..n).map(|j| rhs[(j, c)]).collect();
-            let y: Vec<f64> = self
-                .b
-                .as_slice()
-                .expect("standard layout")
-                .par_chunks(n)
-                .map(|row| dot(row, &x))
-                .collect();
+            let y = symmetric_product(b, n, &x);
             for (i, v) in y.into_iter().enumerate() {
                 out[(i, c)] = v;
             }
@@ -116,20 +111,80 @@ impl LinOp<f64> for SymOp<'_> {
     }
 }
 
-/// A dot product with four independent accumulators (vectorisable, fixed order).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut acc = [0.0; 4];
-    let chunks = a.len() / 4;
-    for c in 0..chunks {
-        for l in 0..4 {
-            acc[l] += a[4 * c + l] * b[4 * c + l];
+/// Row blocks of the symmetric product (fixed, so that sums do not depend on threads).
+const PRODUCT_BLOCKS: usize = 8;
+
+/// `y = B x` for a symmetric `B` (row-major, `n × n`) reading only its lower triangle:
+/// half the memory traffic of a full product. Rows are cut into [`PRODUCT_BLOCKS`]
+/// blocks of equal triangle area, each block scatters into its own buffer, and the
+/// buffers are summed in block order.
+fn symmetric_product(b: &[f64], n: usize, x: &[f64]) -> Vec<f64> {
+    let mut bounds = vec![0];
+    for k in 1..PRODUCT_BLOCKS {
+        let r = (n as f64 * (k as f64 / PRODUCT_BLOCKS as f64).sqrt()).round() as usize;
+        bounds.push(r.max(*bounds.last().expect("non-empty")));
+    }
+    bounds.push(n);
+    let arch = pulp::Arch::new();
+    let parts: Vec<Vec<f64>> = (0..PRODUCT_BLOCKS)
+        .into_par_iter()
+        .map(|k| {
+            arch.dispatch(LowerRows {
+                b,
+                n,
+                x,
+                rows: bounds[k]..bounds[k + 1],
+            })
+        })
+        .collect();
+    let mut y = vec![0.0; n];
+    for part in parts {
+        for (a, v) in y.iter_mut().zip(part) {
+            *a += v;
         }
     }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
-    for k in 4 * chunks..a.len() {
-        s += a[k] * b[k];
+    y
+}
+
+/// Rows `rows` of the lower-triangle product, vectorised for the CPU at hand (pulp).
+struct LowerRows<'a> {
+    b: &'a [f64],
+    n: usize,
+    x: &'a [f64],
+    rows: std::ops::Range<usize>,
+}
+
+impl pulp::WithSimd for LowerRows<'_> {
+    type Output = Vec<f64>;
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> Vec<f64> {
+        let Self { b, n, x, rows } = self;
+        {
+            let (r0, r1) = (rows.start, rows.end);
+            let mut y = vec![0.0; r1];
+            for i in r0..r1 {
+                let row = &b[i * n..i * n + i];
+                let xi = x[i];
+                let (head, _) = y.split_at_mut(i);
+                let mut acc = [0.0; 4];
+                let chunks = i / 4;
+                for q in 0..chunks {
+                    for l in 0..4 {
+                        let j = 4 * q + l;
+                        acc[l] += row[j] * x[j];
+                        head[j] += row[j] * xi;
+                    }
+                }
+                let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+                for j in 4 * chunks..i {
+                    s += row[j] * x[j];
+                    head[j] += row[j] * xi;
+                }
+                y[i] += s + b[i * n + i] * xi;
+            }
+            y
+        }
     }
-    s
 }
 
 /// Eigenpairs, decreasing by value: `(values, vectors (n, count))`.

@@ -359,18 +359,19 @@ impl Csr {
         out.fill(f64::INFINITY);
         heap.clear();
         out[source] = 0.0;
-        heap.push(Item(0.0, source as u32));
-        while let Some(Item(d, u)) = heap.pop() {
-            let u = u as usize;
+        heap.push(Item::new(0.0, source));
+        while let Some(item) = heap.pop() {
+            let (d, u) = item.get();
             if d > out[u] {
                 continue;
             }
-            for e in self.start[u]..self.start[u + 1] {
-                let v = self.target[e] as usize;
-                let nd = d + self.weight[e];
+            let (e0, e1) = (self.start[u], self.start[u + 1]);
+            for (&v, &w) in self.target[e0..e1].iter().zip(&self.weight[e0..e1]) {
+                let v = v as usize;
+                let nd = d + w;
                 if nd < out[v] {
                     out[v] = nd;
-                    heap.push(Item(nd, v as u32));
+                    heap.push(Item::new(nd, v));
                 }
             }
         }
@@ -396,16 +397,24 @@ impl Csr {
     }
 }
 
-/// A heap entry ordered by increasing distance (then index), for a max-heap.
-#[derive(Debug, Clone, Copy)]
-struct Item(f64, u32);
+/// A heap entry ordered by increasing distance (then index), for a max-heap. The
+/// distance (non-negative, so its bits order like the numbers) and the node share one
+/// `u128` key, compared in one instruction pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Item(u128);
 
-impl PartialEq for Item {
-    fn eq(&self, other: &Self) -> bool {
-        self.cmp(other) == Ordering::Equal
+impl Item {
+    fn new(distance: f64, node: usize) -> Self {
+        Self(u128::from(distance.to_bits()) << 32 | node as u128)
+    }
+    fn get(self) -> (f64, usize) {
+        (
+            f64::from_bits((self.0 >> 32) as u64),
+            (self.0 & 0xffff_ffff) as usize,
+        )
     }
 }
-impl Eq for Item {}
+
 impl PartialOrd for Item {
     fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
         Some(self.cmp(other))
@@ -413,7 +422,7 @@ impl PartialOrd for Item {
 }
 impl Ord for Item {
     fn cmp(&self, other: &Self) -> Ordering {
-        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
+        other.0.cmp(&self.0)
     }
 }
 
