@@ -23,11 +23,16 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-enum Command {}
+enum Command {
+    /// Embed a distance matrix in a few dimensions (CCA, Isomap or classical MDS).
+    Embed(cmd::embed::Args),
+}
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     ui::init_threads(cli.threads)?;
-    match cli.command {}
+    match cli.command {
+        Command::Embed(args) => cmd::embed::run(args),
+    }
 }
 
 fn main() -> ExitCode {

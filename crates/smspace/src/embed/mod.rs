@@ -78,7 +78,7 @@ pub enum EmbedError {
         value: f64,
     },
     /// The distance matrix is not symmetric.
-    #[error("the distance matrix is not symmetric: X[{i}, {j}] = {a} but X[{j}, {i}] = {b} (tolerance {tolerance:e}); symmetrise it, e.g. (X + X.T) / 2")]
+    #[error("the distance matrix is not symmetric: X[{i}, {j}] = {a} but X[{j}, {i}] = {b} (tolerance {tolerance:.1e}); symmetrise it, e.g. (X + X.T) / 2")]
     Asymmetric {
         /// Row.
         i: usize,
