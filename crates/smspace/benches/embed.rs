@@ -7,7 +7,10 @@
 //! variable `SMSPACE_ARM_D` names an `(M, M)` `.npy` distance matrix (e.g. the arm's
 //! `arm-D-2500.npy`), CCA and Isomap are also timed on it.
 
-#![allow(missing_docs, reason = "criterion_group! generates an undocumented function")]
+#![allow(
+    missing_docs,
+    reason = "criterion_group! generates an undocumented function"
+)]
 
 use std::hint::black_box;
 use std::time::Duration;

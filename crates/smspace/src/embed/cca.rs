@@ -516,7 +516,8 @@ fn block_update<const D: usize, const EXP: bool>(
 /// degree-11 Taylor polynomial, `2^k` assembled in the exponent bits.
 #[inline(always)]
 pub fn exp_neg(u: f64) -> f64 {
-    const SHIFTER: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52: rounds to an integer
+    // 1.5 · 2^52: adding it rounds to an integer held in the low mantissa bits.
+    const SHIFTER: f64 = 6_755_399_441_055_744.0;
     // ln 2 split as in fdlibm: LN2_HI has trailing zero bits, so k · LN2_HI is exact.
     const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
     const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
