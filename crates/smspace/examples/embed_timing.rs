@@ -32,6 +32,14 @@ fn main() {
     let methods: Vec<Box<dyn Embedding>> = vec![
         Box::new(MdsParams::default().check().unwrap()),
         Box::new(CcaParams::default().epochs(50).check().unwrap()),
+        Box::new(
+            CcaParams {
+                init_landmarks: None,
+                ..CcaParams::default()
+            }
+            .check()
+            .unwrap(),
+        ),
         Box::new(IsomapParams::default().k(10).check().unwrap()),
     ];
     let repeats: usize = std::env::args()
@@ -44,16 +52,21 @@ fn main() {
             continue;
         }
         let mut best = f64::INFINITY;
-        let mut first = 0.0;
+        let mut last = None;
         for _ in 0..repeats {
             let t = Instant::now();
             let e = m.fit(d.view(), &Silent).unwrap();
             best = best.min(t.elapsed().as_secs_f64());
-            first = e.coordinates[[0, 0]];
+            last = Some(e);
         }
+        let e = last.expect("at least one run");
+        let q = smspace::embed::quality::assess(d.view(), e.coordinates.view(), 10).unwrap();
         println!(
-            "{:>6} M={n}: best of {repeats}: {best:.3} s (first coordinate {first:.4})",
+            "{:>6} M={n}: best of {repeats}: {best:.3} s; T(10) = {:.4}, C(10) = {:.4}, stress-1 = {:.4}",
             m.name(),
+            q.trustworthiness,
+            q.continuity,
+            q.kruskal_stress,
         );
     }
 }

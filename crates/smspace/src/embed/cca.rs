@@ -17,7 +17,8 @@
 //! (defaults from the SOM Toolbox's `cca.m`: α from 0.5 to 0.005; λ from the largest input
 //! distance down to a low quantile of them). `F` is the step `F = [Y ≤ λ]` of the
 //! original paper or `F = exp(−Y/λ)` of the SOM Toolbox ([`Neighbourhood`]). The initial
-//! layout is classical MDS ([`super::mds`]).
+//! layout is classical MDS ([`super::mds`]) of up to 300 landmarks, the other points
+//! placed by triangulation (landmark MDS; `init_landmarks`).
 //!
 //! New points ([`super::Embedded::extend`]) are placed the same way with the old points
 //! fixed: each new point starts at the distance-weighted mean of its nearest old points
@@ -36,7 +37,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::eigen::{classical_mds, EigenSolver};
+use super::eigen::{classical_mds, landmark_mds, EigenSolver};
 use super::{check_dim, check_dim_param, check_distances, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
 use crate::progress::Progress;
@@ -94,7 +95,13 @@ pub struct CcaParams {
     pub neighbourhood: Neighbourhood,
     /// Epochs of the out-of-sample placement of each new point. Default 20.
     pub extend_epochs: usize,
-    /// Eigensolver of the MDS initial layout. Default `Auto`.
+    /// The initial layout is classical MDS of at most this many MaxMin landmarks, the
+    /// other points placed by triangulation (landmark MDS, de Silva & Tenenbaum 2003:
+    /// identical to classical MDS for Euclidean distances, and `O(M L)` instead of an
+    /// `M × M` eigenproblem); `None`: classical MDS of all points. Default 300.
+    pub init_landmarks: Option<usize>,
+    /// Eigensolver of the MDS initial layout when `init_landmarks` is `None`.
+    /// Default `Auto`.
     pub solver: EigenSolver,
     /// Seed of the pivot order (and of the eigensolver). Default 0.
     pub seed: u64,
@@ -112,6 +119,7 @@ impl Default for CcaParams {
             lambda_end_quantile: 0.01,
             neighbourhood: Neighbourhood::Step,
             extend_epochs: 20,
+            init_landmarks: Some(300),
             solver: EigenSolver::Auto,
             seed: 0,
         }
@@ -182,6 +190,15 @@ impl CcaParams {
                 if !(v > 0.0 && v.is_finite()) {
                     return bad(name, v.to_string(), "a positive distance");
                 }
+            }
+        }
+        if let Some(l) = self.init_landmarks {
+            if l <= self.dim {
+                return bad(
+                    "init_landmarks",
+                    l.to_string(),
+                    "more landmarks than output dimensions (or none for full MDS)",
+                );
             }
         }
         if !(self.lambda_end_quantile > 0.0 && self.lambda_end_quantile <= 1.0) {
@@ -303,8 +320,11 @@ impl Embedding for CcaValidParams {
         check_distances(distances)?;
         let n = distances.nrows();
         check_dim(self.0.dim, n)?;
-        let sq = distances.mapv(|x| x * x);
-        let mut init = classical_mds(sq, self.0.dim, self.0.solver, self.0.seed, true)?;
+        let p = &self.0;
+        let mut init = match p.init_landmarks {
+            Some(l) if l < n => landmark_mds(distances, p.dim, l, p.seed)?,
+            _ => classical_mds(distances.mapv(|x| x * x), p.dim, p.solver, p.seed, true)?,
+        };
         // Directions MDS could not fill (a metric of lower rank than `dim`) start with a
         // small seeded spread, so that CCA can use them.
         if init.used.len() < self.0.dim {
@@ -515,7 +535,7 @@ fn block_update<const D: usize, const EXP: bool>(
 /// 0 below `exp(−700)`): `2^k · p(r)` with `−u = k ln 2 + r`, `|r| ≤ ln 2 / 2`, `p` the
 /// degree-11 Taylor polynomial, `2^k` assembled in the exponent bits.
 #[inline(always)]
-pub fn exp_neg(u: f64) -> f64 {
+pub(crate) fn exp_neg(u: f64) -> f64 {
     // 1.5 · 2^52: adding it rounds to an integer held in the low mantissa bits.
     const SHIFTER: f64 = 6_755_399_441_055_744.0;
     // ln 2 split as in fdlibm: LN2_HI has trailing zero bits, so k · LN2_HI is exact.
@@ -678,6 +698,47 @@ impl CcaExtender {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The vectorised block layout is the scalar reference, operation for operation.
+    #[test]
+    fn blocks_match_the_scalar_reference_bit_for_bit() {
+        let n = 37; // not a multiple of LANES: padding is exercised
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let points = Array2::from_shape_fn((n, 5), |_| rng.gen::<f64>());
+        let x = Array2::from_shape_fn((n, n), |(i, j)| {
+            let d = &points.row(i) - &points.row(j);
+            d.dot(&d).sqrt()
+        });
+        let init = Array2::from_shape_fn((n, 3), |(i, c)| points[[i, c]]);
+        let rows = PaddedRows::new(x.view(), n.div_ceil(LANES) * LANES);
+        for f in [Neighbourhood::Step, Neighbourhood::Exp] {
+            let mut fast = make_layout(init.view(), f);
+            let mut slow = Flat {
+                dim: 3,
+                exp: f == Neighbourhood::Exp,
+                coords: init.iter().copied().collect(),
+            };
+            for step in 0..3 * n {
+                let i = (step * 7) % n;
+                let lambda = 1.5 / (1.0 + step as f64 / 20.0);
+                let a = fast.pivot(i, rows.row(i), 0.3, lambda);
+                let b = slow.pivot(i, rows.row(i), 0.3, lambda);
+                assert!(
+                    (a - b).abs() <= 1e-9 * b.abs().max(1.0),
+                    "{f:?}: stress {a} vs {b}"
+                );
+            }
+            let (fa, sa) = (fast.to_array(n), slow.to_array(n));
+            if f == Neighbourhood::Step {
+                assert_eq!(fa, sa);
+            } else {
+                // exp_neg vs f64::exp: equal to ~1e-14.
+                for (p, q) in fa.iter().zip(sa.iter()) {
+                    assert!((p - q).abs() < 1e-9, "{p} vs {q}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn exp_neg_matches_std() {

@@ -294,6 +294,65 @@ pub(crate) fn classical_mds(
     })
 }
 
+/// Landmark MDS (de Silva & Tenenbaum 2003) of a full distance matrix: classical MDS of
+/// `landmarks` MaxMin landmarks (the first drawn with `seed`, each next the farthest
+/// from those chosen), every other point placed by triangulation. Exact classical MDS
+/// (up to a rotation) for Euclidean distances; `O(M L)` work besides the `L × L`
+/// eigenproblem. Missing directions (fewer positive eigenvalues than `dim`) are 0.
+pub(crate) fn landmark_mds(
+    distances: ArrayView2<'_, f64>,
+    dim: usize,
+    landmarks: usize,
+    seed: u64,
+) -> Result<MdsFit, EmbedError> {
+    let n = distances.nrows();
+    let l = landmarks.min(n);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x1a4d_4a2c);
+    let mut chosen = Vec::with_capacity(l);
+    let mut nearest = vec![f64::INFINITY; n];
+    let mut next = rng.gen_range(0..n);
+    for _ in 0..l {
+        chosen.push(next);
+        let mut best = (f64::NEG_INFINITY, 0);
+        for (v, m) in nearest.iter_mut().enumerate() {
+            *m = m.min(distances[[next, v]]);
+            if *m > best.0 {
+                best = (*m, v);
+            }
+        }
+        next = best.1;
+    }
+    let sq = Array2::from_shape_fn((l, l), |(a, b)| {
+        let d = distances[[chosen[a], chosen[b]]];
+        d * d
+    });
+    let fit = classical_mds(sq, dim, EigenSolver::Dense, seed, true)?;
+    let used = fit.used.len();
+    let tri = Triangulation {
+        landmark_coordinates: fit
+            .coordinates
+            .slice_axis(Axis(1), (..used).into())
+            .to_owned(),
+        eigenvalues: fit.used.clone(),
+        mean_sq: fit.mean_sq.clone(),
+        landmarks: chosen.clone(),
+        geodesic: None,
+    };
+    let rows: Vec<Vec<f64>> = (0..n)
+        .into_par_iter()
+        .map(|a| {
+            let delta: Array1<f64> = chosen
+                .iter()
+                .map(|&c| distances[[c, a]] * distances[[c, a]])
+                .collect();
+            tri.place(delta.view())
+        })
+        .collect();
+    let coordinates =
+        Array2::from_shape_fn((n, dim), |(a, c)| if c < used { rows[a][c] } else { 0.0 });
+    Ok(MdsFit { coordinates, ..fit })
+}
+
 /// Fixes an eigenvector's sign: its largest-magnitude entry (first on ties) is positive.
 fn orient(v: &mut Array1<f64>) {
     let mut best = 0;

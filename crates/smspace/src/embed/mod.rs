@@ -261,7 +261,8 @@ pub struct EmbedReport {
     pub lambda_end: Option<f64>,
     /// Eigenvalues of the double-centred matrix `B` found by the solver, in decreasing
     /// order (all `M` for the dense solver, the largest in magnitude for the partial
-    /// one; negative ones included). For CCA: those of its MDS initial layout.
+    /// one; negative ones included). For CCA: those of its MDS initial layout (of the
+    /// landmark block when the layout came from landmark MDS).
     pub eigenvalues: Vec<f64>,
     /// `trace(B) = Σ` of all eigenvalues, so that `eigenvalues[..d].sum() / trace`
     /// is the share of the (signed) total that the embedding keeps.
