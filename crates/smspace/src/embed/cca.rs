@@ -27,8 +27,11 @@
 //! manifold that the paper sketches at the end of section 3.3.
 //!
 //! The inner loop runs over blocks of [`LANES`] points stored coordinate-major, which the
-//! compiler vectorises; for large `M` the points are updated in parallel, in fixed
-//! blocks, so that results do not depend on the thread count.
+//! compiler vectorises (AVX2 where the CPU has it, through pulp's runtime dispatch). The
+//! pivot loop is sequential, as in the original algorithm: splitting each pivot's
+//! `M` updates over threads was measured 2–4 times slower at `M = 2500` (a fork–join
+//! per pivot costs more than its few microseconds of work), so CCA uses one core; the
+//! MDS initial layout and the quality measures use all of them.
 
 use ndarray::{Array2, ArrayView1, ArrayView2};
 use rand::seq::SliceRandom;
@@ -44,18 +47,6 @@ use crate::progress::Progress;
 
 /// Points per block in the inner loop.
 pub const LANES: usize = 8;
-
-/// Above this many points, each pivot step updates the points in parallel (two fixed
-/// halves). `SMSPACE_CCA_PARALLEL_MIN` overrides it (for benchmarks).
-fn parallel_min_points() -> usize {
-    static MIN: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-    *MIN.get_or_init(|| {
-        std::env::var("SMSPACE_CCA_PARALLEL_MIN")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(usize::MAX)
-    })
-}
 
 /// Coordinate of padding points: far beyond any `λ`, so that `F = 0` for them.
 const FAR: f64 = 1e100;
@@ -459,26 +450,13 @@ impl<const D: usize, const EXP: bool> PivotLayout for Blocks<D, EXP> {
         for (c, v) in yi.iter_mut().enumerate() {
             *v = self.blocks[i / LANES][c][i % LANES];
         }
-        let blocks = &mut self.blocks[..];
-        let arch = self.arch;
-        let run = |blocks, x| {
-            arch.dispatch(Update::<D, EXP> {
-                blocks,
-                x,
-                yi,
-                alpha,
-                lambda,
-            })
-        };
-        if blocks.len() * LANES < parallel_min_points() {
-            run(blocks, x)
-        } else {
-            let half = blocks.len() / 2;
-            let (a, b) = blocks.split_at_mut(half);
-            let (xa, xb) = x.split_at(half * LANES);
-            let (sa, sb) = rayon::join(|| run(a, xa), || run(b, xb));
-            sa + sb
-        }
+        self.arch.dispatch(Update::<D, EXP> {
+            blocks: &mut self.blocks,
+            x,
+            yi,
+            alpha,
+            lambda,
+        })
     }
 
     fn to_array(&self, n: usize) -> Array2<f64> {

@@ -52,7 +52,8 @@ pub struct IsomapParams {
     pub dim: usize,
     /// Neighbours per point in the graph. Default 10.
     pub k: usize,
-    /// Number of landmarks; `None` (default) runs exact Isomap from every point.
+    /// Number of landmarks; `None` (default), or at least `M`, runs exact Isomap from
+    /// every point (which keeps the `M × M` geodesic matrix: use landmarks for large `M`).
     pub landmarks: Option<usize>,
     /// How landmarks are chosen. Default [`LandmarkChoice::MaxMin`].
     pub landmark_choice: LandmarkChoice,
