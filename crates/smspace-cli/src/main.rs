@@ -32,6 +32,8 @@ enum Command {
     Env(cmd::env::Args),
     /// Sensor values s = σ_E(m) of motor configurations: sensors.npy.
     Sense(cmd::sense::Args),
+    /// Embed a distance matrix in a few dimensions (CCA, Isomap or classical MDS).
+    Embed(cmd::embed::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -41,6 +43,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Trace(args) => cmd::trace::run(args),
         Command::Env(args) => cmd::env::run(args),
         Command::Sense(args) => cmd::sense::run(args),
+        Command::Embed(args) => cmd::embed::run(args),
     }
 }
 

@@ -25,6 +25,9 @@ pub enum Error {
     /// Tracing kernel sets failed.
     #[error(transparent)]
     Kernel(#[from] KernelError),
+    /// An embedding failed.
+    #[error(transparent)]
+    Embed(#[from] crate::embed::EmbedError),
 }
 
 /// `Result` with the crate-wide [`Error`].

@@ -29,12 +29,12 @@ use serde::Serialize;
 #[non_exhaustive]
 pub enum IoError {
     /// The file could not be opened or read.
-    #[error("cannot read {path}: {source}")]
+    #[error("cannot read {path}: {reason}")]
     Read {
         /// The file.
         path: PathBuf,
         /// The operating system's reason.
-        source: std::io::Error,
+        reason: std::io::Error,
     },
     /// The file is not a `.npy` array of the expected element type.
     #[error("{path} is not a readable .npy array of float64: {reason} (save it with numpy.save(path, array.astype(numpy.float64)))")]
@@ -65,22 +65,22 @@ pub enum IoError {
         value: f64,
     },
     /// The file is not valid JSON for the expected document.
-    #[error("{path} is not a valid {what} file: {source}")]
+    #[error("{path} is not a valid {what} file: {reason}")]
     Json {
         /// The file.
         path: PathBuf,
         /// What the document should have been (e.g. "environment").
         what: &'static str,
         /// The parser's reason, with line and column.
-        source: serde_json::Error,
+        reason: serde_json::Error,
     },
     /// The file could not be written.
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}: {reason}")]
     Write {
         /// The file.
         path: PathBuf,
         /// The operating system's reason.
-        source: std::io::Error,
+        reason: std::io::Error,
     },
 }
 
@@ -97,9 +97,9 @@ pub fn shape_string(shape: &[usize]) -> String {
 fn open(path: &Path) -> Result<BufReader<File>, IoError> {
     File::open(path)
         .map(BufReader::new)
-        .map_err(|source| IoError::Read {
+        .map_err(|reason| IoError::Read {
             path: path.to_owned(),
-            source,
+            reason,
         })
 }
 
@@ -107,9 +107,9 @@ fn open(path: &Path) -> Result<BufReader<File>, IoError> {
 pub fn read_f64(path: &Path) -> Result<ArrayD<f64>, IoError> {
     let reader = open(path)?;
     let array = ArrayD::<f64>::read_npy(reader).map_err(|error| match error {
-        ReadNpyError::Io(source) => IoError::Read {
+        ReadNpyError::Io(reason) => IoError::Read {
             path: path.to_owned(),
-            source,
+            reason,
         },
         other => IoError::Npy {
             path: path.to_owned(),
@@ -187,9 +187,9 @@ pub fn write_atomic<F>(path: &Path, fill: F) -> Result<(), IoError>
 where
     F: FnOnce(&mut BufWriter<&mut File>) -> std::io::Result<()>,
 {
-    let write_error = |source| IoError::Write {
+    let write_error = |reason| IoError::Write {
         path: path.to_owned(),
-        source,
+        reason,
     };
     let folder = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
@@ -239,10 +239,10 @@ pub fn write_json<T: Serialize + ?Sized>(path: &Path, value: &T) -> Result<(), I
 /// Reads a JSON document; `what` names it in error messages (e.g. "environment").
 pub fn read_json<T: DeserializeOwned>(path: &Path, what: &'static str) -> Result<T, IoError> {
     let reader = open(path)?;
-    serde_json::from_reader(reader).map_err(|source| IoError::Json {
+    serde_json::from_reader(reader).map_err(|reason| IoError::Json {
         path: path.to_owned(),
         what,
-        source,
+        reason,
     })
 }
 

@@ -17,6 +17,8 @@
 //! 1. [`agent`]: agents and environments, the sensorimotor law `s = σ_E(m)`;
 //! 2. [`explore`]: motor babbling in a working space, and the probe grid;
 //! 3. [`kernel`]: tracing the sets `M^i` along the Jacobian's null space (appendix A);
+//! 5. [`embed`]: coordinates for the manifold of sets from its distance matrix (CCA,
+//!    Isomap, classical MDS; section 3.2);
 //!
 //! with [`config`] (parameter files), [`io`] (`.npy` and JSON interchange),
 //! [`progress`] (observers for long stages) and [`error`].
@@ -26,6 +28,7 @@
 
 pub mod agent;
 pub mod config;
+pub mod embed;
 pub mod error;
 pub mod explore;
 pub mod io;

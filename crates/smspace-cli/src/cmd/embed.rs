@@ -1,0 +1,267 @@
+//! `smspace embed`: coordinates `(M, d)` for a distance matrix, by CCA (the paper's),
+//! Isomap or classical MDS.
+//!
+//! Writes, next to `--out Y.npy`:
+//!
+//! | file | content |
+//! |---|---|
+//! | `Y.npy` | `(M, d)` float64 coordinates |
+//! | `Y.embed.json` | parameters, stress trace (CCA), eigenvalues, trustworthiness, continuity, stress |
+//! | `Y.dydx.npy` | `(P, 2)` float64 Shepard sample: columns `dx = X_ij`, `dy = Y_ij` for `P` seeded random pairs `i < j` (all pairs when there are fewer than `--dydx-pairs`), for the `dy–dx` plot |
+//! | `Y.extended.npy` | with `--extend N.npy`: `(N, d)` coordinates of the new points |
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use clap::ValueEnum;
+use serde_json::json;
+use smspace::embed::quality::{assess, shepard_pairs};
+use smspace::embed::{
+    CcaParams, EmbedParams, Embedded, IsomapParams, KnnGraph, LandmarkChoice, MdsParams,
+    Neighbourhood,
+};
+use smspace::io::{read_matrix, write_json, write_npy};
+
+use crate::ui;
+
+/// The embedding method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Method {
+    /// Curvilinear Component Analysis (Demartines & Hérault 1997), the paper's.
+    Cca,
+    /// Isomap (exact, or landmark with --landmarks).
+    Isomap,
+    /// Classical (Torgerson) MDS.
+    Mds,
+}
+
+/// CCA's neighbourhood function.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum NeighbourhoodArg {
+    /// F = 1 if Y ≤ λ else 0 (the original paper).
+    Step,
+    /// F = exp(−Y/λ) (SOM Toolbox).
+    Exp,
+}
+
+/// Landmark choice of landmark Isomap.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum LandmarkArg {
+    /// Farthest-point (MaxMin) landmarks.
+    Maxmin,
+    /// Uniformly random landmarks.
+    Random,
+}
+
+/// Embed a distance matrix in `--dim` dimensions.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Distance matrix, (M, M) float64 .npy (symmetric, zero diagonal).
+    #[arg(long, value_name = "D.npy", required_unless_present = "knn_indices")]
+    pub distances: Option<PathBuf>,
+    /// Isomap from a kNN graph instead of a dense matrix: (M, K) int64 neighbour indices
+    /// (row i: the K nearest other sets of set i, nearest first).
+    #[arg(
+        long,
+        value_name = "knn_indices.npy",
+        requires = "knn_distances",
+        conflicts_with = "distances"
+    )]
+    pub knn_indices: Option<PathBuf>,
+    /// The matching (M, K) float64 neighbour distances.
+    #[arg(long, value_name = "knn_distances.npy", requires = "knn_indices")]
+    pub knn_distances: Option<PathBuf>,
+    /// Embedding method.
+    #[arg(long, value_enum, default_value_t = Method::Cca)]
+    pub method: Method,
+    /// Output dimension.
+    #[arg(long, default_value_t = 3)]
+    pub dim: usize,
+    /// Seed (CCA pivot order, landmarks, eigensolver start vector, dy–dx sample).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Output coordinates (M, dim) .npy; the report goes to <stem>.embed.json.
+    #[arg(long, value_name = "Y.npy")]
+    pub out: PathBuf,
+    /// New points to place without re-running the embedding: (N, M) float64 distances
+    /// from each new set to the M embedded ones; written to <stem>.extended.npy.
+    #[arg(long, value_name = "new_to_old.npy")]
+    pub extend: Option<PathBuf>,
+    /// CCA: epochs (default 50).
+    #[arg(long)]
+    pub epochs: Option<usize>,
+    /// CCA: neighbourhood function (default step).
+    #[arg(long, value_enum)]
+    pub neighbourhood: Option<NeighbourhoodArg>,
+    /// CCA: final neighbourhood width λ (default: the 1 % quantile of the distances).
+    #[arg(long, value_name = "LAMBDA")]
+    pub lambda_end: Option<f64>,
+    /// Isomap: neighbours per point (default 10).
+    #[arg(long)]
+    pub k: Option<usize>,
+    /// Isomap: use landmark Isomap with this many landmarks (default: exact Isomap).
+    #[arg(long, value_name = "L")]
+    pub landmarks: Option<usize>,
+    /// Isomap: how landmarks are chosen (default maxmin).
+    #[arg(long, value_enum)]
+    pub landmark_choice: Option<LandmarkArg>,
+    /// Neighbourhood size of trustworthiness and continuity (capped below M/2).
+    #[arg(long, default_value_t = 10)]
+    pub quality_k: usize,
+    /// Most (dx, dy) pairs written to <stem>.dydx.npy (0: none).
+    #[arg(long, default_value_t = 20_000)]
+    pub dydx_pairs: usize,
+}
+
+/// `Y.npy` → `Y.<suffix>`.
+fn sibling(out: &Path, suffix: &str) -> PathBuf {
+    out.with_extension(suffix)
+}
+
+impl Args {
+    /// The method's parameters, refusing options that belong to another method.
+    fn params(&self) -> anyhow::Result<EmbedParams> {
+        let cca_only =
+            self.epochs.is_some() || self.neighbourhood.is_some() || self.lambda_end.is_some();
+        let isomap_only =
+            self.k.is_some() || self.landmarks.is_some() || self.landmark_choice.is_some();
+        if cca_only && self.method != Method::Cca {
+            bail!("--epochs, --neighbourhood and --lambda-end apply to --method cca only");
+        }
+        if isomap_only && self.method != Method::Isomap {
+            bail!("--k, --landmarks and --landmark-choice apply to --method isomap only");
+        }
+        if self.knn_indices.is_some() && self.method != Method::Isomap {
+            bail!("a kNN graph (--knn-indices/--knn-distances) can only be embedded with --method isomap; give --distances for {:?}", self.method);
+        }
+        Ok(match self.method {
+            Method::Cca => {
+                let d = CcaParams::default();
+                EmbedParams::Cca(CcaParams {
+                    dim: self.dim,
+                    seed: self.seed,
+                    epochs: self.epochs.unwrap_or(d.epochs),
+                    neighbourhood: match self.neighbourhood {
+                        Some(NeighbourhoodArg::Exp) => Neighbourhood::Exp,
+                        Some(NeighbourhoodArg::Step) => Neighbourhood::Step,
+                        None => d.neighbourhood,
+                    },
+                    lambda_end: self.lambda_end,
+                    ..d
+                })
+            }
+            Method::Isomap => {
+                let d = IsomapParams::default();
+                EmbedParams::Isomap(IsomapParams {
+                    dim: self.dim,
+                    seed: self.seed,
+                    k: self.k.unwrap_or(d.k),
+                    landmarks: self.landmarks,
+                    landmark_choice: match self.landmark_choice {
+                        Some(LandmarkArg::Random) => LandmarkChoice::Random,
+                        Some(LandmarkArg::Maxmin) => LandmarkChoice::MaxMin,
+                        None => d.landmark_choice,
+                    },
+                    ..d
+                })
+            }
+            Method::Mds => EmbedParams::Mds(MdsParams {
+                dim: self.dim,
+                seed: self.seed,
+                ..MdsParams::default()
+            }),
+        })
+    }
+}
+
+/// Runs `smspace embed`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let params = args.params()?;
+    let params_json = serde_json::to_value(&params).context("cannot describe the parameters")?;
+    let bar = ui::Bar::new();
+    let (embedded, distances, input): (Embedded, Option<_>, _) =
+        match (&args.distances, &args.knn_indices, &args.knn_distances) {
+            (Some(path), _, _) => {
+                let d = read_matrix(path, None, "(M, M)")?;
+                let method = params.build()?;
+                let e = method
+                    .fit(d.view(), &bar)
+                    .with_context(|| format!("cannot embed {}", path.display()))?;
+                (e, Some(d), json!({ "distances": path }))
+            }
+            (None, Some(ip), Some(dp)) => {
+                let graph = KnnGraph::read(ip, dp)?;
+                let EmbedParams::Isomap(p) = params else {
+                    unreachable!("checked in Args::params")
+                };
+                let e = p
+                    .check()?
+                    .fit_knn(&graph, &bar)
+                    .with_context(|| format!("cannot embed the kNN graph {}", ip.display()))?;
+                (e, None, json!({ "knn_indices": ip, "knn_distances": dp }))
+            }
+            _ => bail!("give --distances D.npy, or --knn-indices and --knn-distances"),
+        };
+    write_npy(&args.out, &embedded.coordinates)?;
+
+    let m = embedded.points();
+    let mut quality = serde_json::Value::Null;
+    let mut dydx = serde_json::Value::Null;
+    if let Some(d) = &distances {
+        let k = args.quality_k.min(m.saturating_sub(1) / 2);
+        if k >= 1 {
+            quality = serde_json::to_value(assess(d.view(), embedded.coordinates.view(), k)?)?;
+        }
+        if args.dydx_pairs > 0 {
+            let pairs = shepard_pairs(
+                d.view(),
+                embedded.coordinates.view(),
+                args.dydx_pairs,
+                args.seed,
+            )?;
+            let path = sibling(&args.out, "dydx.npy");
+            write_npy(&path, &pairs)?;
+            dydx = json!({
+                "file": path,
+                "pairs": pairs.nrows(),
+                "columns": ["dx (input distance X_ij)", "dy (output distance Y_ij)"],
+                "sampling": if pairs.nrows() == m * (m - 1) / 2 { "all pairs i < j" } else { "uniform random pairs i != j, seeded by --seed" },
+            });
+        }
+    }
+
+    let mut extended = serde_json::Value::Null;
+    if let Some(path) = &args.extend {
+        let new_to_old = read_matrix(path, Some(m), &format!("(N, {m})"))?;
+        let placed = embedded
+            .extend(new_to_old.view())
+            .with_context(|| format!("cannot place the points of {}", path.display()))?;
+        let out = sibling(&args.out, "extended.npy");
+        write_npy(&out, &placed)?;
+        extended = json!({ "from": path, "file": out, "points": placed.nrows() });
+    }
+
+    let r = &embedded.report;
+    let report = json!({
+        "method": r.method,
+        "params": params_json,
+        "input": input,
+        "points": r.points,
+        "dim": r.dim,
+        "coordinates": args.out,
+        "stress_trace": r.stress_trace,
+        "lambda_end": r.lambda_end,
+        "eigenvalues": r.eigenvalues,
+        "eigenvalue_trace": r.eigenvalue_trace,
+        "k": r.k,
+        "landmarks": r.landmarks,
+        "quality": quality,
+        "dydx": dydx,
+        "extended": extended,
+        "seconds": started.elapsed().as_secs_f64(),
+    });
+    write_json(&sibling(&args.out, "embed.json"), &report)?;
+    Ok(())
+}

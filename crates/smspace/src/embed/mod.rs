@@ -1,0 +1,377 @@
+//! Embeddings of the learned metric: coordinates `Y` `(M, d)` for a distance matrix
+//! `X` `(M, M)` between the sets `M^i`.
+//!
+//! The paper (section 3.2, last paragraphs) projects the manifold of sets to 3-D with
+//! Curvilinear Component Analysis "for the reader to see it", and names Isomap as an
+//! alternative (section 3.3). Three methods are offered, all behind the object-safe
+//! [`Embedding`] trait so that a configuration picks one by name ([`EmbedParams`]):
+//!
+//! * [`cca`]: Curvilinear Component Analysis (Demartines & Hérault 1997), the paper's. For
+//!   a pivot `i`, every other point moves as
+//!   `y_j ← y_j + α(t) F(Y_ij, λ(t)) (X_ij − Y_ij) / Y_ij · (y_j − y_i)`,
+//!   where `Y_ij = ‖y_i − y_j‖`; it preserves small output distances first.
+//! * [`isomap`]: Isomap (Tenenbaum, de Silva & Langford 2000): shortest paths in the
+//!   `k`-nearest-neighbour graph approximate geodesic distances, which classical MDS then
+//!   embeds; landmark Isomap (de Silva & Tenenbaum 2003) for large `M`.
+//! * [`mds`]: classical (Torgerson 1952) multidimensional scaling:
+//!   `B = −½ J X^{∘2} J` with `J = I − 11ᵀ/M`, and `Y = U_d Λ_d^{1/2}` from the `d`
+//!   largest eigenpairs of `B`. Negative eigenvalues of `B` measure how far the metric is
+//!   from Euclidean.
+//!
+//! A fitted [`Embedded`] places new points from their distances to the embedded ones
+//! ([`Embedded::extend`]) without re-running the embedding: the paper's incremental
+//! extension of the internal manifold (end of section 3.3). [`quality`] measures an
+//! embedding against its input distances (trustworthiness, continuity, stress, a
+//! Shepard `dy–dx` sample).
+//!
+//! Every method is deterministic for its `seed`, whatever the number of threads: the
+//! parallel loops either fill independent rows or reduce in fixed chunks.
+
+pub mod cca;
+mod eigen;
+pub mod isomap;
+pub mod mds;
+pub mod quality;
+
+use ndarray::{Array2, ArrayView2};
+use serde::{Deserialize, Serialize};
+
+use crate::progress::Progress;
+
+pub use cca::{CcaParams, CcaValidParams, Neighbourhood};
+pub use eigen::EigenSolver;
+pub use isomap::{IsomapParams, IsomapValidParams, KnnGraph, LandmarkChoice};
+pub use mds::{MdsParams, MdsValidParams};
+
+/// Errors of the embedding stage.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum EmbedError {
+    /// The distance matrix is not square.
+    #[error("the distance matrix has shape ({rows}, {cols}); it must be square (M, M)")]
+    NotSquare {
+        /// Rows found.
+        rows: usize,
+        /// Columns found.
+        cols: usize,
+    },
+    /// The distance matrix holds a non-finite entry.
+    #[error(
+        "the distance matrix holds {value} at [{i}, {j}]; every distance must be a finite number"
+    )]
+    NonFinite {
+        /// Row.
+        i: usize,
+        /// Column.
+        j: usize,
+        /// The value.
+        value: f64,
+    },
+    /// The distance matrix holds a negative entry.
+    #[error("the distance matrix holds a negative distance {value} at [{i}, {j}]")]
+    Negative {
+        /// Row.
+        i: usize,
+        /// Column.
+        j: usize,
+        /// The value.
+        value: f64,
+    },
+    /// The distance matrix is not symmetric.
+    #[error("the distance matrix is not symmetric: X[{i}, {j}] = {a} but X[{j}, {i}] = {b} (tolerance {tolerance:.1e}); symmetrise it, e.g. (X + X.T) / 2")]
+    Asymmetric {
+        /// Row.
+        i: usize,
+        /// Column.
+        j: usize,
+        /// `X[i, j]`.
+        a: f64,
+        /// `X[j, i]`.
+        b: f64,
+        /// The tolerance used.
+        tolerance: f64,
+    },
+    /// The diagonal of the distance matrix is not zero.
+    #[error(
+        "the distance matrix has X[{i}, {i}] = {value}; the distance of a set to itself must be 0"
+    )]
+    NonZeroDiagonal {
+        /// Index.
+        i: usize,
+        /// The value.
+        value: f64,
+    },
+    /// Too few points for the requested output dimension.
+    #[error("cannot embed {points} points in {dim} dimensions; use a dimension between 1 and {}", points.saturating_sub(1).max(1))]
+    DimTooLarge {
+        /// Output dimension asked for.
+        dim: usize,
+        /// Number of points.
+        points: usize,
+    },
+    /// A parameter is out of its range.
+    #[error("invalid parameter {name} = {value}: {expected}")]
+    Parameter {
+        /// Parameter name.
+        name: &'static str,
+        /// The value given, formatted.
+        value: String,
+        /// What is allowed.
+        expected: &'static str,
+    },
+    /// The neighbour count is too large for the number of points.
+    #[error("k = {k} neighbours asked for {points} points; use k < {points}")]
+    KTooLarge {
+        /// Neighbours asked for.
+        k: usize,
+        /// Number of points.
+        points: usize,
+    },
+    /// The neighbour graph is disconnected.
+    #[error("the k={k} neighbour graph has {components} connected components (the largest holds {largest} of {points} points); use a larger --k")]
+    Disconnected {
+        /// Neighbours per point.
+        k: usize,
+        /// Number of connected components.
+        components: usize,
+        /// Size of the largest component.
+        largest: usize,
+        /// Number of points.
+        points: usize,
+    },
+    /// A supplied kNN graph is malformed.
+    #[error("invalid kNN graph: {0}")]
+    Knn(String),
+    /// The distance matrix has fewer positive eigenvalues than output dimensions.
+    #[error("classical MDS found only {positive} positive eigenvalue(s) of the centred matrix, fewer than the {dim} dimensions asked; use a smaller --dim")]
+    TooFewPositiveEigenvalues {
+        /// Positive eigenvalues found.
+        positive: usize,
+        /// Output dimension asked for.
+        dim: usize,
+    },
+    /// The eigensolver failed.
+    #[error("the eigensolver did not converge ({0}); the distance matrix may be degenerate")]
+    Eigen(String),
+    /// Out-of-sample distances do not match the embedding.
+    #[error("the new-to-old distances have shape ({rows}, {cols}) but the embedding has {points} points; expected (N, {points})")]
+    ExtendShape {
+        /// Rows found.
+        rows: usize,
+        /// Columns found.
+        cols: usize,
+        /// Points in the embedding.
+        points: usize,
+    },
+    /// Out-of-sample distances hold a negative or non-finite value.
+    #[error("the new-to-old distances hold {value} at [{i}, {j}]; every distance must be finite and non-negative")]
+    ExtendValue {
+        /// Row.
+        i: usize,
+        /// Column.
+        j: usize,
+        /// The value.
+        value: f64,
+    },
+    /// Reading a file failed.
+    #[error(transparent)]
+    Io(#[from] crate::io::IoError),
+}
+
+/// An embedding method: turns an `(M, M)` distance matrix into coordinates `(M, d)`.
+///
+/// Object-safe, so that a configuration can pick the method by name
+/// ([`EmbedParams::build`]).
+pub trait Embedding: Send + Sync + std::fmt::Debug {
+    /// The method's name (`"cca"`, `"isomap"`, `"mds"`).
+    fn name(&self) -> &'static str;
+
+    /// The output dimension `d`.
+    fn dim(&self) -> usize;
+
+    /// Embeds the points whose pairwise distances are `distances` `(M, M)`.
+    ///
+    /// The matrix is validated first ([`check_distances`]).
+    fn fit(
+        &self,
+        distances: ArrayView2<'_, f64>,
+        progress: &dyn Progress,
+    ) -> Result<Embedded, EmbedError>;
+
+    /// The checked parameters, as JSON, for reports.
+    fn params_json(&self) -> serde_json::Value;
+}
+
+/// Parameters of any method, tagged by `method` (for configuration files):
+/// `{"method": "cca", "dim": 3, "epochs": 50}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "method", rename_all = "lowercase")]
+pub enum EmbedParams {
+    /// Curvilinear Component Analysis.
+    Cca(CcaParams),
+    /// Isomap.
+    Isomap(IsomapParams),
+    /// Classical MDS.
+    Mds(MdsParams),
+}
+
+impl Default for EmbedParams {
+    /// CCA, the paper's method.
+    fn default() -> Self {
+        Self::Cca(CcaParams::default())
+    }
+}
+
+impl EmbedParams {
+    /// Checks the parameters and returns the method, ready to fit.
+    pub fn build(self) -> Result<Box<dyn Embedding>, EmbedError> {
+        Ok(match self {
+            Self::Cca(p) => Box::new(p.check()?),
+            Self::Isomap(p) => Box::new(p.check()?),
+            Self::Mds(p) => Box::new(p.check()?),
+        })
+    }
+}
+
+/// A fitted embedding: the coordinates, the method's diagnostics, and what is needed to
+/// place new points ([`Embedded::extend`]).
+#[derive(Debug, Clone)]
+pub struct Embedded {
+    /// Coordinates `(M, d)`.
+    pub coordinates: Array2<f64>,
+    /// The method's diagnostics.
+    pub report: EmbedReport,
+    pub(crate) extender: Extender,
+}
+
+/// Diagnostics of a fit, written to `*.embed.json` by the command-line tool.
+#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+pub struct EmbedReport {
+    /// The method's name.
+    pub method: String,
+    /// Number of points `M`.
+    pub points: usize,
+    /// Output dimension `d`.
+    pub dim: usize,
+    /// CCA: the stress `½ Σ_{i≠j} (X_ij − Y_ij)² F(Y_ij, λ)` accumulated during each epoch
+    /// (each pair measured when its pivot passes, before the move; λ of that step).
+    /// Empty for the other methods.
+    pub stress_trace: Vec<f64>,
+    /// CCA: the final neighbourhood width λ (used by the out-of-sample extension).
+    pub lambda_end: Option<f64>,
+    /// Eigenvalues of the double-centred matrix `B` found by the solver, in decreasing
+    /// order (all `M` for the dense solver, the largest in magnitude for the partial
+    /// one; negative ones included). For CCA: those of its MDS initial layout (of the
+    /// landmark block when the layout came from landmark MDS).
+    pub eigenvalues: Vec<f64>,
+    /// `trace(B) = Σ` of all eigenvalues, so that `eigenvalues[..d].sum() / trace`
+    /// is the share of the (signed) total that the embedding keeps.
+    pub eigenvalue_trace: Option<f64>,
+    /// Isomap: the landmark indices (empty for exact Isomap).
+    pub landmarks: Vec<usize>,
+    /// Isomap: neighbours per point in the graph.
+    pub k: Option<usize>,
+}
+
+/// What an [`Embedded`] keeps to place new points.
+#[derive(Debug, Clone)]
+pub(crate) enum Extender {
+    /// CCA: descend the stress of each new point against the fixed old ones.
+    Cca(cca::CcaExtender),
+    /// Distance-based triangulation (de Silva & Tenenbaum 2003) on landmarks, from
+    /// direct (MDS) or geodesic (Isomap) distances.
+    Triangulation(Box<eigen::Triangulation>),
+}
+
+impl Embedded {
+    /// Number of embedded points `M`.
+    pub fn points(&self) -> usize {
+        self.coordinates.nrows()
+    }
+
+    /// Places new points given their distances `new_to_old` `(N, M)` to the embedded
+    /// ones, without moving the embedded points. Returns `(N, d)` coordinates.
+    ///
+    /// CCA minimises each new point's CCA stress against the fixed layout, starting from
+    /// its nearest old points; MDS and Isomap use landmark triangulation (for Isomap on
+    /// geodesic distances through the new point's `k` nearest old points).
+    pub fn extend(&self, new_to_old: ArrayView2<'_, f64>) -> Result<Array2<f64>, EmbedError> {
+        let points = self.points();
+        if new_to_old.ncols() != points {
+            return Err(EmbedError::ExtendShape {
+                rows: new_to_old.nrows(),
+                cols: new_to_old.ncols(),
+                points,
+            });
+        }
+        if let Some(((i, j), &value)) = new_to_old
+            .indexed_iter()
+            .find(|(_, v)| !v.is_finite() || **v < 0.0)
+        {
+            return Err(EmbedError::ExtendValue { i, j, value });
+        }
+        Ok(match &self.extender {
+            Extender::Cca(e) => e.extend(self.coordinates.view(), new_to_old),
+            Extender::Triangulation(t) => t.extend(new_to_old),
+        })
+    }
+}
+
+/// Validates a distance matrix: square, finite, non-negative, zero diagonal and
+/// symmetric within `1e-9 · max(1, max X)`.
+pub fn check_distances(distances: ArrayView2<'_, f64>) -> Result<(), EmbedError> {
+    let (rows, cols) = distances.dim();
+    if rows != cols {
+        return Err(EmbedError::NotSquare { rows, cols });
+    }
+    let mut max = 0.0_f64;
+    for ((i, j), &value) in distances.indexed_iter() {
+        if !value.is_finite() {
+            return Err(EmbedError::NonFinite { i, j, value });
+        }
+        if value < 0.0 {
+            return Err(EmbedError::Negative { i, j, value });
+        }
+        max = max.max(value);
+    }
+    let tolerance = 1e-9 * max.max(1.0);
+    for i in 0..rows {
+        let value = distances[[i, i]];
+        if value > tolerance {
+            return Err(EmbedError::NonZeroDiagonal { i, value });
+        }
+        for j in 0..i {
+            let (a, b) = (distances[[i, j]], distances[[j, i]]);
+            if (a - b).abs() > tolerance {
+                return Err(EmbedError::Asymmetric {
+                    i,
+                    j,
+                    a,
+                    b,
+                    tolerance,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks `1 ≤ dim < points`.
+pub(crate) fn check_dim(dim: usize, points: usize) -> Result<(), EmbedError> {
+    if dim == 0 || dim >= points {
+        return Err(EmbedError::DimTooLarge { dim, points });
+    }
+    Ok(())
+}
+
+/// Checks `dim ≥ 1` at parameter-check time (before the size is known).
+pub(crate) fn check_dim_param(dim: usize) -> Result<(), EmbedError> {
+    if dim == 0 {
+        return Err(EmbedError::Parameter {
+            name: "dim",
+            value: "0".into(),
+            expected: "at least 1",
+        });
+    }
+    Ok(())
+}

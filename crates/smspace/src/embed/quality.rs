@@ -1,0 +1,195 @@
+//! Quality of an embedding `Y` against its input distances `X`.
+//!
+//! * Trustworthiness and continuity at `k` (Venna & Kaski 2001, 2006). With `r(i, j)` the
+//!   rank of `j` among the neighbours of `i` by input distance and `r̂(i, j)` by output
+//!   distance, `U_k(i)` the points among the `k` nearest of `i` in the output but not in
+//!   the input, and `V_k(i)` the converse,
+//!   `T(k) = 1 − 2/(M k (2M − 3k − 1)) Σ_i Σ_{j∈U_k(i)} (r(i, j) − k)` and
+//!   `C(k) = 1 − 2/(M k (2M − 3k − 1)) Σ_i Σ_{j∈V_k(i)} (r̂(i, j) − k)`.
+//!   Both are 1 when the `k`-neighbourhoods agree; `T` penalises false neighbours
+//!   (tears hidden by folds), `C` missing ones (tears). Ties are broken by index.
+//! * Kruskal's stress-1 `√(Σ_{i<j} (X_ij − Y_ij)² / Σ_{i<j} X_ij²)`, and the raw stress
+//!   `½ Σ_{i≠j} (X_ij − Y_ij)²`.
+//! * A Shepard (`dy–dx`) sample: pairs `(X_ij, Y_ij)` for a seeded random subset of the
+//!   pairs `i < j`, the data of the CCA diagnostic plot (Demartines & Hérault 1997, fig. 3):
+//!   a CCA embedding keeps `dy ≈ dx` for small `dy` and lets large distances stretch.
+
+use ndarray::{Array2, ArrayView2};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::EmbedError;
+
+/// Quality measures of an embedding.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Quality {
+    /// Neighbourhood size of trustworthiness and continuity.
+    pub k: usize,
+    /// Trustworthiness `T(k)`, in `[0, 1]`.
+    pub trustworthiness: f64,
+    /// Continuity `C(k)`, in `[0, 1]`.
+    pub continuity: f64,
+    /// Kruskal's stress-1 (0 for a perfect embedding).
+    pub kruskal_stress: f64,
+    /// Raw stress `½ Σ_{i≠j} (X_ij − Y_ij)²`.
+    pub raw_stress: f64,
+}
+
+/// Euclidean distance between rows `i` and `j` of `y`.
+fn out_distance(y: ArrayView2<'_, f64>, i: usize, j: usize) -> f64 {
+    y.row(i)
+        .iter()
+        .zip(y.row(j).iter())
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        .sqrt()
+}
+
+fn check_shapes(x: ArrayView2<'_, f64>, y: ArrayView2<'_, f64>) -> Result<(), EmbedError> {
+    if x.nrows() != x.ncols() || x.nrows() != y.nrows() {
+        return Err(EmbedError::Parameter {
+            name: "embedding",
+            value: format!("{} points for a {:?} distance matrix", y.nrows(), x.dim()),
+            expected: "one row per row of the distance matrix",
+        });
+    }
+    Ok(())
+}
+
+/// Trustworthiness and continuity at `k` of `y` `(M, d)` for distances `x` `(M, M)`:
+/// `(T, C)`. Requires `1 ≤ k < M/2` (the normalisation assumes it).
+pub fn trustworthiness_continuity(
+    x: ArrayView2<'_, f64>,
+    y: ArrayView2<'_, f64>,
+    k: usize,
+) -> Result<(f64, f64), EmbedError> {
+    check_shapes(x, y)?;
+    let m = x.nrows();
+    if k == 0 || 2 * k >= m {
+        return Err(EmbedError::Parameter {
+            name: "quality k",
+            value: k.to_string(),
+            expected: "at least 1 and less than half the number of points",
+        });
+    }
+    let per_row: Vec<(f64, f64)> = (0..m)
+        .into_par_iter()
+        .map(|i| {
+            let dy: Vec<f64> = (0..m).map(|j| out_distance(y, i, j)).collect();
+            let dx: Vec<f64> = x.row(i).to_vec();
+            let rank_in = ranks(&dx, i);
+            let rank_out = ranks(&dy, i);
+            let (mut t, mut c) = (0.0, 0.0);
+            for j in 0..m {
+                if j == i {
+                    continue;
+                }
+                let (ri, ro) = (rank_in[j], rank_out[j]);
+                if ro <= k && ri > k {
+                    t += (ri - k) as f64;
+                }
+                if ri <= k && ro > k {
+                    c += (ro - k) as f64;
+                }
+            }
+            (t, c)
+        })
+        .collect();
+    let (t, c) = per_row
+        .iter()
+        .fold((0.0, 0.0), |(a, b), &(t, c)| (a + t, b + c));
+    let (mf, kf) = (m as f64, k as f64);
+    let norm = 2.0 / (mf * kf * (2.0 * mf - 3.0 * kf - 1.0));
+    Ok((1.0 - norm * t, 1.0 - norm * c))
+}
+
+/// Ranks `1..M−1` of every `j ≠ i` by value (ties by index); `rank[i] = 0`.
+fn ranks(v: &[f64], i: usize) -> Vec<usize> {
+    let m = v.len();
+    let mut order: Vec<usize> = (0..m).filter(|&j| j != i).collect();
+    order.sort_unstable_by(|&a, &b| v[a].total_cmp(&v[b]).then(a.cmp(&b)));
+    let mut rank = vec![0; m];
+    for (r, &j) in order.iter().enumerate() {
+        rank[j] = r + 1;
+    }
+    rank
+}
+
+/// Kruskal's stress-1 and the raw stress `½ Σ_{i≠j} (X_ij − Y_ij)²`: `(stress-1, raw)`.
+pub fn stress(x: ArrayView2<'_, f64>, y: ArrayView2<'_, f64>) -> Result<(f64, f64), EmbedError> {
+    check_shapes(x, y)?;
+    let m = x.nrows();
+    let rows: Vec<(f64, f64)> = (0..m)
+        .into_par_iter()
+        .map(|i| {
+            let (mut num, mut den) = (0.0, 0.0);
+            for j in 0..i {
+                let d = x[[i, j]] - out_distance(y, i, j);
+                num += d * d;
+                den += x[[i, j]] * x[[i, j]];
+            }
+            (num, den)
+        })
+        .collect();
+    let (num, den) = rows
+        .iter()
+        .fold((0.0, 0.0), |(a, b), &(n, d)| (a + n, b + d));
+    let kruskal = if den > 0.0 { (num / den).sqrt() } else { 0.0 };
+    Ok((kruskal, num))
+}
+
+/// Every measure at once.
+pub fn assess(
+    x: ArrayView2<'_, f64>,
+    y: ArrayView2<'_, f64>,
+    k: usize,
+) -> Result<Quality, EmbedError> {
+    let (trustworthiness, continuity) = trustworthiness_continuity(x, y, k)?;
+    let (kruskal_stress, raw_stress) = stress(x, y)?;
+    Ok(Quality {
+        k,
+        trustworthiness,
+        continuity,
+        kruskal_stress,
+        raw_stress,
+    })
+}
+
+/// A Shepard (`dy–dx`) sample `(P, 2)`: columns `[X_ij, Y_ij]` for `P = min(max_pairs,
+/// M(M−1)/2)` pairs `i < j`: all of them in order when they fit, else drawn uniformly
+/// with replacement from a generator seeded by `seed`.
+pub fn shepard_pairs(
+    x: ArrayView2<'_, f64>,
+    y: ArrayView2<'_, f64>,
+    max_pairs: usize,
+    seed: u64,
+) -> Result<Array2<f64>, EmbedError> {
+    check_shapes(x, y)?;
+    let m = x.nrows();
+    let total = m * m.saturating_sub(1) / 2;
+    let pairs: Vec<(usize, usize)> = if total <= max_pairs {
+        (0..m).flat_map(|i| (0..i).map(move |j| (i, j))).collect()
+    } else {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        (0..max_pairs)
+            .map(|_| loop {
+                let (i, j) = (rng.gen_range(0..m), rng.gen_range(0..m));
+                if i != j {
+                    break (i.max(j), i.min(j));
+                }
+            })
+            .collect()
+    };
+    let mut out = Array2::zeros((pairs.len(), 2));
+    out.as_slice_mut()
+        .expect("standard layout")
+        .par_chunks_mut(2)
+        .zip(pairs.par_iter())
+        .for_each(|(row, &(i, j))| {
+            row[0] = x[[i, j]];
+            row[1] = out_distance(y, i, j);
+        });
+    Ok(out)
+}
