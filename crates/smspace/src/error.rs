@@ -3,6 +3,7 @@
 //! still match on the stage that failed.
 
 use crate::io::IoError;
+use crate::metric::MetricError;
 
 /// Any error of the smspace library.
 #[derive(Debug, thiserror::Error)]
@@ -11,6 +12,9 @@ pub enum Error {
     /// Reading or writing a file failed.
     #[error(transparent)]
     Io(#[from] IoError),
+    /// Computing distances between kernel sets failed.
+    #[error(transparent)]
+    Metric(#[from] MetricError),
 }
 
 /// `Result` with the crate-wide [`Error`].
