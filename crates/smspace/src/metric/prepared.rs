@@ -33,7 +33,9 @@ pub struct PreparedSets {
     period: f64,
     period_kind: Period,
     coords: Vec<f64>,
+    points_aos: Vec<f64>,
     centers: Vec<f64>,
+    centers_soa: Vec<f64>,
     radii: Vec<f64>,
 }
 
@@ -42,8 +44,14 @@ pub struct PreparedSets {
 pub(crate) struct SetRef<'a> {
     /// `[n][point]`, `dims_pad × points_pad`.
     pub coords: &'a [f64],
+    /// `[point][n]`, `points_pad × dims_pad`: the same coordinates point by point, for
+    /// broadcasting one point against a block.
+    pub points: &'a [f64],
     /// `[chunk][n]`, `chunks × dims_pad`: centres of the bounding balls.
     pub centers: &'a [f64],
+    /// `[n][chunk]`, `dims_pad × chunks_pad`: the same centres, eight chunks per vector
+    /// (padded with copies of the last centre).
+    pub centers_soa: &'a [f64],
     /// `[chunk]`: radii of the bounding balls (already enlarged by the margin).
     pub radii: &'a [f64],
 }
@@ -115,6 +123,9 @@ impl PreparedSets {
         let chunks = points_pad / LANES;
         let mut coords = vec![0.0; m * dims_pad * points_pad];
         let mut centers = vec![0.0; m * chunks * dims_pad];
+        let mut points_aos = vec![0.0; m * points_pad * dims_pad];
+        let chunks_pad = chunks.div_ceil(LANES) * LANES;
+        let mut centers_soa = vec![0.0; m * dims_pad * chunks_pad];
         let mut radii = vec![0.0; m * chunks];
         for (s, set) in sets.outer_iter().enumerate() {
             let block = &mut coords[s * dims_pad * points_pad..(s + 1) * dims_pad * points_pad];
@@ -146,6 +157,17 @@ impl PreparedSets {
                 }
                 radii[s * chunks + q] = radius2.sqrt() * (1.0 + BOUND_MARGIN);
             }
+            for j in 0..points_pad {
+                for k in 0..dims_pad {
+                    points_aos[(s * points_pad + j) * dims_pad + k] = block[k * points_pad + j];
+                }
+            }
+            for k in 0..dims_pad {
+                for q in 0..chunks_pad {
+                    centers_soa[(s * dims_pad + k) * chunks_pad + q] =
+                        centers[(s * chunks + q.min(chunks - 1)) * dims_pad + k];
+                }
+            }
         }
         Ok(Self {
             sets: m,
@@ -156,7 +178,9 @@ impl PreparedSets {
             period: period_value,
             period_kind: period,
             coords,
+            points_aos,
             centers,
+            centers_soa,
             radii,
         })
     }
@@ -188,7 +212,8 @@ impl PreparedSets {
 
     /// Bytes held by the layout.
     pub fn bytes(&self) -> u64 {
-        ((self.coords.len() + self.centers.len() + self.radii.len()) * 8) as u64
+        ((2 * self.coords.len() + self.centers.len() + self.centers_soa.len() + self.radii.len()) * 8)
+            as u64
     }
 
     pub(crate) fn period_value(&self) -> f64 {
@@ -207,12 +232,19 @@ impl PreparedSets {
         self.points_pad / LANES
     }
 
+    pub(crate) fn chunks_pad(&self) -> usize {
+        self.chunks().div_ceil(LANES) * LANES
+    }
+
     pub(crate) fn set(&self, s: usize) -> SetRef<'_> {
         let per = self.dims_pad * self.points_pad;
         let chunks = self.chunks();
+        let soa = self.dims_pad * self.chunks_pad();
         SetRef {
             coords: &self.coords[s * per..(s + 1) * per],
+            points: &self.points_aos[s * per..(s + 1) * per],
             centers: &self.centers[s * chunks * self.dims_pad..(s + 1) * chunks * self.dims_pad],
+            centers_soa: &self.centers_soa[s * soa..(s + 1) * soa],
             radii: &self.radii[s * chunks..(s + 1) * chunks],
         }
     }
@@ -222,7 +254,8 @@ impl PreparedSets {
         let dims_pad = dims.next_power_of_two().max(2);
         let points_pad = points.div_ceil(LANES) * LANES;
         let chunks = points_pad / LANES;
-        (sets as u64) * ((dims_pad * points_pad + chunks * dims_pad + chunks) as u64) * 8
+        let chunks_pad = chunks.div_ceil(LANES) * LANES;
+        (sets as u64) * ((dims_pad * (2 * points_pad + chunks + chunks_pad) + chunks) as u64) * 8
     }
 }
 
