@@ -23,11 +23,17 @@ struct Cli {
 }
 
 #[derive(Debug, Subcommand)]
-enum Command {}
+enum Command {
+    /// Distances between kernel sets: the (periodic) Hausdorff matrix, a block of its
+    /// rows, or the k nearest sets of every set.
+    Distances(cmd::distances::Args),
+}
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     ui::init_threads(cli.threads)?;
-    match cli.command {}
+    match cli.command {
+        Command::Distances(args) => cmd::distances::run(args),
+    }
 }
 
 fn main() -> ExitCode {

@@ -12,7 +12,10 @@
 //! synthetic ones (the first `M` sets of the file for each size; sizes above its `M`
 //! are skipped).
 
-#![allow(missing_docs, reason = "criterion's macros generate undocumented public functions")]
+#![allow(
+    missing_docs,
+    reason = "criterion's macros generate undocumented public functions"
+)]
 
 #[path = "../tests/common/arm_like.rs"]
 mod arm_like;
@@ -51,7 +54,9 @@ fn pairs(m: usize) -> u64 {
 
 fn matrix(c: &mut Criterion) {
     let mut group = c.benchmark_group("matrix");
-    group.sample_size(10).warm_up_time(Duration::from_millis(500));
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500));
     for m in sizes("SMSPACE_BENCH_SIZES", "500,1000,2500") {
         let Some(sets) = sets(m) else { continue };
         group.throughput(Throughput::Elements(pairs(m)));
@@ -66,7 +71,9 @@ fn versus_brute_force(c: &mut Criterion) {
     let m = 40;
     let Some(sets) = sets(m) else { return };
     let mut group = c.benchmark_group("versus_brute_force");
-    group.sample_size(10).throughput(Throughput::Elements(pairs(m)));
+    group
+        .sample_size(10)
+        .throughput(Throughput::Elements(pairs(m)));
     for kind in [MetricKind::Hausdorff, MetricKind::MeanHausdorff] {
         let params = DistanceParams::new().metric(kind);
         group.bench_function(format!("fast/{}", kind.name()), |b| {
@@ -81,14 +88,22 @@ fn versus_brute_force(c: &mut Criterion) {
 
 fn nearest(c: &mut Criterion) {
     let mut group = c.benchmark_group("knn");
-    group.sample_size(10).warm_up_time(Duration::from_millis(500));
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500));
     for m in sizes("SMSPACE_BENCH_KNN", "5000") {
         let Some(sets) = sets(m) else { continue };
         group.throughput(Throughput::Elements(m as u64));
         group.bench_with_input(BenchmarkId::from_parameter(m), &sets, |b, sets| {
             b.iter(|| {
-                knn(sets.view(), &DistanceParams::new(), &KnnParams::new().k(15), 0..m, &Silent)
-                    .unwrap()
+                knn(
+                    sets.view(),
+                    &DistanceParams::new(),
+                    &KnnParams::new().k(15),
+                    0..m,
+                    &Silent,
+                )
+                .unwrap()
             })
         });
     }

@@ -34,7 +34,10 @@ fn assert_matrix_eq(fast: &Array2<f64>, slow: &Array2<f64>, what: &str) {
     assert_eq!(fast.dim(), slow.dim(), "{what}");
     for ((i, j), &x) in fast.indexed_iter() {
         let y = slow[[i, j]];
-        assert!((x - y).abs() <= 1e-9, "{what}: D[{i}, {j}] = {x}, brute force {y}");
+        assert!(
+            (x - y).abs() <= 1e-9,
+            "{what}: D[{i}, {j}] = {x}, brute force {y}"
+        );
     }
 }
 
@@ -57,7 +60,11 @@ fn equals_brute_force_on_uniform_sets_of_many_shapes() {
             for period in PERIODS {
                 let fast = distance_matrix(sets.view(), &params(kind, period), &Silent).unwrap();
                 let slow = reference::distance_matrix(sets.view(), kind, period);
-                assert_matrix_eq(&fast, &slow, &format!("{kind:?} {period:?} ({m}, {p}, {n})"));
+                assert_matrix_eq(
+                    &fast,
+                    &slow,
+                    &format!("{kind:?} {period:?} ({m}, {p}, {n})"),
+                );
             }
         }
     }
@@ -85,7 +92,8 @@ fn equals_brute_force_on_close_and_shifted_sets() {
     let mut sets = Array3::zeros((12, 50, 4));
     let mut rng = ChaCha8Rng::seed_from_u64(12);
     for i in 0..6 {
-        sets.index_axis_mut(Axis(0), i).assign(&base.index_axis(Axis(0), i));
+        sets.index_axis_mut(Axis(0), i)
+            .assign(&base.index_axis(Axis(0), i));
         let mut shifted = base.index_axis(Axis(0), i).to_owned();
         shifted.mapv_inplace(|x| x + 1e-3 * (i as f64 + 1.0));
         shifted.as_slice_mut().unwrap().shuffle(&mut rng);
@@ -163,7 +171,11 @@ fn periodic_wrap_puts_the_seam_points_together() {
     let euclidean = Hausdorff {
         period: Period::None,
     };
-    assert_abs_diff_eq!(periodic.distance(a.view(), b.view()).unwrap(), 2.0 * eps, epsilon = 1e-12);
+    assert_abs_diff_eq!(
+        periodic.distance(a.view(), b.view()).unwrap(),
+        2.0 * eps,
+        epsilon = 1e-12
+    );
     assert_abs_diff_eq!(
         euclidean.distance(a.view(), b.view()).unwrap(),
         2.0 * PI - 2.0 * eps,
@@ -171,7 +183,11 @@ fn periodic_wrap_puts_the_seam_points_together() {
     );
     // Coordinates outside [-π, π) are taken modulo 2π.
     let c = array![[PI - eps + 4.0 * PI, 0.5 - 2.0 * PI]];
-    assert_abs_diff_eq!(periodic.distance(a.view(), c.view()).unwrap(), 2.0 * eps, epsilon = 1e-9);
+    assert_abs_diff_eq!(
+        periodic.distance(a.view(), c.view()).unwrap(),
+        2.0 * eps,
+        epsilon = 1e-9
+    );
     // The largest distance between two points is sqrt(N)·π.
     let far = array![[0.0, 0.0], [0.1, 0.1]];
     let opposite = array![[PI, -PI], [-PI, PI]];
@@ -186,7 +202,9 @@ fn periodic_wrap_puts_the_seam_points_together() {
 fn set_metric_accepts_different_point_counts() {
     let sets = arm_like_sets(2, 40, 9);
     let a = sets.index_axis(Axis(0), 0);
-    let b = sets.index_axis(Axis(0), 1).slice_axis_move(Axis(0), Slice::from(..25));
+    let b = sets
+        .index_axis(Axis(0), 1)
+        .slice_axis_move(Axis(0), Slice::from(..25));
     for kind in KINDS {
         let metric = kind.with_period(Period::TwoPi);
         let expected = match kind {
@@ -196,9 +214,16 @@ fn set_metric_accepts_different_point_counts() {
         assert_abs_diff_eq!(metric.distance(a, b).unwrap(), expected, epsilon = 1e-12);
     }
     let err = Hausdorff::default()
-        .distance(a, sets.index_axis(Axis(0), 1).slice_axis_move(Axis(1), Slice::from(..2)))
+        .distance(
+            a,
+            sets.index_axis(Axis(0), 1)
+                .slice_axis_move(Axis(1), Slice::from(..2)),
+        )
         .unwrap_err();
-    assert!(matches!(err, MetricError::DimensionMismatch { a: 4, b: 2 }), "{err}");
+    assert!(
+        matches!(err, MetricError::DimensionMismatch { a: 4, b: 2 }),
+        "{err}"
+    );
 }
 
 #[test]
@@ -207,7 +232,12 @@ fn row_blocks_stack_to_the_full_matrix() {
     for kind in KINDS {
         let p = params(kind, Period::TwoPi);
         let full = distance_matrix(sets.view(), &p, &Silent).unwrap();
-        for cuts in [vec![0, 23], vec![0, 1, 23], vec![0, 7, 8, 16, 23], vec![0, 22, 23]] {
+        for cuts in [
+            vec![0, 23],
+            vec![0, 1, 23],
+            vec![0, 7, 8, 16, 23],
+            vec![0, 22, 23],
+        ] {
             for w in cuts.windows(2) {
                 let block = distance_rows(sets.view(), &p, w[0]..w[1], &Silent).unwrap();
                 assert_eq!(block, rows(&full, w[0]..w[1]), "{kind:?} {w:?}");
@@ -231,8 +261,14 @@ fn identical_for_any_thread_count() {
             .unwrap()
             .install(|| {
                 let d = distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap();
-                let k = knn(sets.view(), &DistanceParams::new(), &KnnParams::new().k(5), 0..40, &Silent)
-                    .unwrap();
+                let k = knn(
+                    sets.view(),
+                    &DistanceParams::new(),
+                    &KnnParams::new().k(5),
+                    0..40,
+                    &Silent,
+                )
+                .unwrap();
                 (d, k)
             })
     };
@@ -248,7 +284,8 @@ fn top_k(d: &Array2<f64>, k: usize) -> (Array2<usize>, Array2<f64>) {
     let mut indices = Array2::zeros((m, k));
     let mut distances = Array2::zeros((m, k));
     for i in 0..m {
-        let mut row: Vec<(f64, usize)> = (0..m).filter(|&j| j != i).map(|j| (d[[i, j]], j)).collect();
+        let mut row: Vec<(f64, usize)> =
+            (0..m).filter(|&j| j != i).map(|j| (d[[i, j]], j)).collect();
         row.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
         for (e, &(v, j)) in row.iter().take(k).enumerate() {
             indices[[i, e]] = j;
@@ -271,12 +308,24 @@ fn knn_equals_the_top_k_of_the_full_matrix() {
         let full = distance_matrix(sets.view(), &p, &Silent).unwrap();
         for (k, pivots) in [(1, 4), (6, 16), (15, 0), (15, 120)] {
             let (indices, distances) = top_k(&full, k);
-            let found = knn(sets.view(), &p, &KnnParams::new().k(k).pivots(pivots), 0..120, &Silent)
-                .unwrap();
+            let found = knn(
+                sets.view(),
+                &p,
+                &KnnParams::new().k(k).pivots(pivots),
+                0..120,
+                &Silent,
+            )
+            .unwrap();
             assert_eq!(found.indices, indices, "{kind:?} k={k} pivots={pivots}");
             assert_eq!(found.distances, distances, "{kind:?} k={k} pivots={pivots}");
-            let block = knn(sets.view(), &p, &KnnParams::new().k(k).pivots(pivots), 30..47, &Silent)
-                .unwrap();
+            let block = knn(
+                sets.view(),
+                &p,
+                &KnnParams::new().k(k).pivots(pivots),
+                30..47,
+                &Silent,
+            )
+            .unwrap();
             assert_eq!(block.indices, rows(&indices, 30..47));
             assert_eq!(block.distances, rows(&distances, 30..47));
         }
@@ -287,14 +336,23 @@ fn knn_equals_the_top_k_of_the_full_matrix() {
 fn bad_input_is_reported() {
     let p = DistanceParams::new();
     let err = |sets: Array3<f64>| distance_matrix(sets.view(), &p, &Silent).unwrap_err();
-    assert!(matches!(err(Array3::zeros((0, 5, 4))), MetricError::TooFewSets { sets: 0 }));
-    assert!(matches!(err(Array3::zeros((1, 5, 4))), MetricError::TooFewSets { sets: 1 }));
+    assert!(matches!(
+        err(Array3::zeros((0, 5, 4))),
+        MetricError::TooFewSets { sets: 0 }
+    ));
+    assert!(matches!(
+        err(Array3::zeros((1, 5, 4))),
+        MetricError::TooFewSets { sets: 1 }
+    ));
     let e = err(Array3::zeros((3, 0, 4)));
     assert_eq!(
         e.to_string(),
         "kernel sets have shape (3, 0, 4), expected (M, P, N) with P >= 1 points and N >= 1 coordinates"
     );
-    assert!(matches!(err(Array3::zeros((3, 5, 0))), MetricError::EmptySets { .. }));
+    assert!(matches!(
+        err(Array3::zeros((3, 5, 0))),
+        MetricError::EmptySets { .. }
+    ));
     let mut nan = Array3::zeros((3, 5, 4));
     nan[[2, 1, 3]] = f64::NAN;
     assert_eq!(
@@ -303,7 +361,15 @@ fn bad_input_is_reported() {
     );
     let mut inf = Array3::zeros((3, 5, 4));
     inf[[0, 4, 0]] = f64::NEG_INFINITY;
-    assert!(matches!(err(inf), MetricError::NonFinite { set: 0, point: 4, coord: 0, .. }));
+    assert!(matches!(
+        err(inf),
+        MetricError::NonFinite {
+            set: 0,
+            point: 4,
+            coord: 0,
+            ..
+        }
+    ));
 
     let sets = arm_like_sets(4, 10, 1);
     for rows in [2..2, 3..5, 5..6] {
@@ -311,15 +377,37 @@ fn bad_input_is_reported() {
         assert!(matches!(e, MetricError::BadRows { .. }), "{rows:?}: {e}");
     }
     let e = distance_rows(sets.view(), &p, 3..5, &Silent).unwrap_err();
-    assert_eq!(e.to_string(), "row block 3:5 is not a non-empty range within 0:4");
+    assert_eq!(
+        e.to_string(),
+        "row block 3:5 is not a non-empty range within 0:4"
+    );
 
     let prepared = PreparedSets::new(sets.view(), Period::TwoPi).unwrap();
     let mut wrong = Array2::zeros((2, 3));
-    let e = fill_rows(&prepared, MetricKind::Hausdorff, 0..2, wrong.view_mut(), &Silent).unwrap_err();
-    assert!(matches!(e, MetricError::BadBuffer { found: (2, 3), expected: (2, 4) }));
+    let e = fill_rows(
+        &prepared,
+        MetricKind::Hausdorff,
+        0..2,
+        wrong.view_mut(),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(matches!(
+        e,
+        MetricError::BadBuffer {
+            found: (2, 3),
+            expected: (2, 4)
+        }
+    ));
     let mut transposed = Array2::zeros((4, 2));
-    let e = fill_rows(&prepared, MetricKind::Hausdorff, 0..2, transposed.view_mut().reversed_axes(), &Silent)
-        .unwrap_err();
+    let e = fill_rows(
+        &prepared,
+        MetricKind::Hausdorff,
+        0..2,
+        transposed.view_mut().reversed_axes(),
+        &Silent,
+    )
+    .unwrap_err();
     assert!(matches!(e, MetricError::BadBuffer { .. }));
 
     for k in [0, 4, 10] {
@@ -327,7 +415,10 @@ fn bad_input_is_reported() {
         assert!(matches!(e, MetricError::BadK { .. }), "k = {k}: {e}");
     }
     let e = knn(sets.view(), &p, &KnnParams::new().k(4), 0..4, &Silent).unwrap_err();
-    assert_eq!(e.to_string(), "k = 4 nearest sets requested, but it must be between 1 and M - 1 = 3");
+    assert_eq!(
+        e.to_string(),
+        "k = 4 nearest sets requested, but it must be between 1 and M - 1 = 3"
+    );
 }
 
 #[test]
@@ -335,10 +426,20 @@ fn refuses_a_matrix_larger_than_the_memory_limit() {
     let sets = arm_like_sets(50, 10, 2);
     let p = DistanceParams::new().memory_limit_bytes(Some(10_000));
     let e = distance_matrix(sets.view(), &p, &Silent).unwrap_err();
-    assert!(matches!(e, MetricError::OutOfMemory { sets: 50, available: 10_000, .. }));
+    assert!(matches!(
+        e,
+        MetricError::OutOfMemory {
+            sets: 50,
+            available: 10_000,
+            ..
+        }
+    ));
     let message = e.to_string();
     assert!(message.contains("--knn"), "{message}");
-    assert!(message.starts_with("the distance matrix of 50 sets needs "), "{message}");
+    assert!(
+        message.starts_with("the distance matrix of 50 sets needs "),
+        "{message}"
+    );
     // The matrix of the same sets fits under a generous limit.
     let p = DistanceParams::new().memory_limit_bytes(Some(1 << 30));
     assert!(distance_matrix(sets.view(), &p, &Silent).is_ok());

@@ -284,15 +284,14 @@ fn refine<const N: usize>(
 }
 
 /// `max(c, max_{a∈A} min_{b∈B} g²(a, b))`, or `None` as soon as it is proven to exceed
-/// `abort`. `key[α]`, `near[α]`: squared distance from the centre of block `α` of `A` to
-/// the nearest centre of `B`, and that chunk.
+/// `abort`. `(key[α], near[α])`: squared distance from the centre of block `α` of `A`
+/// to the nearest centre of `B`, and that chunk.
 #[inline(always)]
 fn directed_hausdorff<const N: usize>(
     a_set: SetRef<'_>,
     b_set: SetRef<'_>,
     shape: Shape,
-    key: &[f64],
-    near: &[f64],
+    (key, near): (&[f64], &[f64]),
     mut c: f64,
     abort: f64,
     scratch_order: &mut Vec<u32>,
@@ -374,8 +373,8 @@ pub(crate) fn hausdorff<const N: usize>(
         col_near,
         order,
     } = scratch;
-    let c = directed_hausdorff::<N>(a, b, shape, row_key, row_near, 0.0, abort, order)?;
-    let c = directed_hausdorff::<N>(b, a, shape, col_key, col_near, c, abort, order)?;
+    let c = directed_hausdorff::<N>(a, b, shape, (row_key, row_near), 0.0, abort, order)?;
+    let c = directed_hausdorff::<N>(b, a, shape, (col_key, col_near), c, abort, order)?;
     Some(c.sqrt())
 }
 

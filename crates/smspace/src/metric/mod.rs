@@ -469,10 +469,9 @@ pub fn fill_rows(
     let buffer = out
         .as_slice_mut()
         .expect("standard layout was checked above");
-    buffer
-        .par_chunks_mut(m)
-        .enumerate()
-        .for_each_init(kernel::Scratch::default, |scratch, (r, row)| {
+    buffer.par_chunks_mut(m).enumerate().for_each_init(
+        kernel::Scratch::default,
+        |scratch, (r, row)| {
             let i = i0 + r;
             row[i] = 0.0;
             let driver = RowDriver {
@@ -482,7 +481,8 @@ pub fn fill_rows(
             };
             kernel::dispatch(prepared, metric, scratch, driver);
             progress.advance((m - 1 - r) as u64);
-        });
+        },
+    );
     for i in rows.clone() {
         for j in i0..i {
             out[[i - i0, j]] = out[[j - i0, i]];

@@ -97,9 +97,7 @@ impl PreparedSets {
     pub fn new(sets: ArrayView3<'_, f64>, period: Period) -> Result<Self, MetricError> {
         let (m, p, n) = sets.dim();
         if p == 0 || n == 0 {
-            return Err(MetricError::EmptySets {
-                shape: (m, p, n),
-            });
+            return Err(MetricError::EmptySets { shape: (m, p, n) });
         }
         if let Some(((set, point, coord), value)) =
             sets.indexed_iter().find(|(_, v)| !v.is_finite())
@@ -150,7 +148,10 @@ impl PreparedSets {
                 for j in 0..LANES {
                     let mut d2 = 0.0;
                     for k in 0..dims_pad {
-                        let w = fold(block[k * points_pad + q * LANES + j] - center[k], period_value);
+                        let w = fold(
+                            block[k * points_pad + q * LANES + j] - center[k],
+                            period_value,
+                        );
                         d2 += w * w;
                     }
                     radius2 = radius2.max(d2);
@@ -212,8 +213,8 @@ impl PreparedSets {
 
     /// Bytes held by the layout.
     pub fn bytes(&self) -> u64 {
-        ((2 * self.coords.len() + self.centers.len() + self.centers_soa.len() + self.radii.len()) * 8)
-            as u64
+        ((2 * self.coords.len() + self.centers.len() + self.centers_soa.len() + self.radii.len())
+            * 8) as u64
     }
 
     pub(crate) fn period_value(&self) -> f64 {

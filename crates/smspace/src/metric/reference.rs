@@ -31,7 +31,11 @@ fn point_distance2(a: ArrayView1<'_, f64>, b: ArrayView1<'_, f64>, period: Perio
 }
 
 /// Every `min_b g²(a, b)` (one per row `a`) and every `min_a g²(a, b)` (one per `b`).
-fn nearest2(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, period: Period) -> (Vec<f64>, Vec<f64>) {
+fn nearest2(
+    a: ArrayView2<'_, f64>,
+    b: ArrayView2<'_, f64>,
+    period: Period,
+) -> (Vec<f64>, Vec<f64>) {
     let mut rows = vec![f64::INFINITY; a.nrows()];
     let mut cols = vec![f64::INFINITY; b.nrows()];
     for (i, x) in a.outer_iter().enumerate() {
@@ -48,7 +52,10 @@ fn nearest2(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, period: Period) -> (
 /// two sets of points (rows).
 pub fn hausdorff(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, period: Period) -> f64 {
     let (rows, cols) = nearest2(a, b, period);
-    let m = rows.iter().chain(cols.iter()).fold(0.0_f64, |m, &x| m.max(x));
+    let m = rows
+        .iter()
+        .chain(cols.iter())
+        .fold(0.0_f64, |m, &x| m.max(x));
     m.sqrt()
 }
 
