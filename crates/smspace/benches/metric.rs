@@ -11,6 +11,16 @@
 //! `SMSPACE_BENCH_SETS=/path/sets.npy` to use real `(M, P, N)` kernel sets instead of
 //! synthetic ones (the first `M` sets of the file for each size; sizes above its `M`
 //! are skipped).
+//!
+//! Criterion runs every case at least ten times; for the large sizes set
+//! `SMSPACE_BENCH_ONCE=1` to time each size once instead and print seconds and pairs per
+//! second (the growth table of the issue), e.g.
+//!
+//! ```text
+//! SMSPACE_BENCH_ONCE=1 SMSPACE_BENCH_SETS=/work/data/arm-sets-20000.npy \
+//!   SMSPACE_BENCH_SIZES=500,1000,2500,5000 SMSPACE_BENCH_KNN=20000 \
+//!   cargo bench -p smspace --bench metric
+//! ```
 
 #![allow(
     missing_docs,
@@ -20,9 +30,9 @@
 #[path = "../tests/common/arm_like.rs"]
 mod arm_like;
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use criterion::{criterion_group, BenchmarkId, Criterion, Throughput};
 use ndarray::{Array3, Axis, Slice};
 use smspace::metric::{distance_matrix, knn, reference, DistanceParams, KnnParams, MetricKind};
 use smspace::progress::Silent;
@@ -110,5 +120,48 @@ fn nearest(c: &mut Criterion) {
     group.finish();
 }
 
+/// One timed run per size, printed as a table.
+fn once() {
+    let threads = rayon::current_num_threads();
+    println!("threads {threads}");
+    println!(
+        "{:>7} {:>12} {:>9} {:>14}",
+        "M", "pairs", "seconds", "pairs/s"
+    );
+    for m in sizes("SMSPACE_BENCH_SIZES", "500,1000,2500") {
+        let Some(sets) = sets(m) else { continue };
+        let start = Instant::now();
+        distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap();
+        let seconds = start.elapsed().as_secs_f64();
+        let pairs = pairs(m);
+        println!(
+            "{m:>7} {pairs:>12} {seconds:>9.2} {:>14.0}",
+            pairs as f64 / seconds
+        );
+    }
+    println!("{:>7} {:>4} {:>9}", "kNN M", "k", "seconds");
+    for m in sizes("SMSPACE_BENCH_KNN", "5000") {
+        let Some(sets) = sets(m) else { continue };
+        let start = Instant::now();
+        knn(
+            sets.view(),
+            &DistanceParams::new(),
+            &KnnParams::new().k(15),
+            0..m,
+            &Silent,
+        )
+        .unwrap();
+        println!("{m:>7} {:>4} {:>9.2}", 15, start.elapsed().as_secs_f64());
+    }
+}
+
 criterion_group!(benches, versus_brute_force, matrix, nearest);
-criterion_main!(benches);
+
+fn main() {
+    if std::env::var_os("SMSPACE_BENCH_ONCE").is_some() {
+        once();
+        return;
+    }
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}

@@ -5,7 +5,7 @@
 //! `P × P` scan
 //!
 //! Both sets are cut into chunks of eight consecutive points, each with a bounding
-//! ball (centre, radius). The points of `A` are processed one chunk at a time as a
+//! ball (centre, radius) and a bounding box (centre, half-width per coordinate). The points of `A` are processed one chunk at a time as a
 //! SIMD block (lanes over `a`, one point `b` broadcast). A running lower bound `c` of
 //! the answer is kept: a point `a` only matters if its nearest distance exceeds `c`, so
 //! as soon as any `b` with `g²(a, b) ≤ c` is seen, `a` is settled (the early break of
@@ -21,9 +21,10 @@
 //! 3. *Window.* Otherwise a short window of `b` around the middle of chunk `β` is
 //!    scanned; it stops as soon as every lane is `≤ c`.
 //! 4. *Exact search.* Lanes still open get their exact nearest distance: chunks of `B`
-//!    are visited outward from `β`, and a chunk is scanned only if its ball can hold a
-//!    point closer than a lane's best so far (`g(a, b) ≥ g(a, centre) − radius`); the
-//!    search stops as soon as every lane is `≤ c`. The exact distances found raise `c`.
+//!    are visited outward from `β`, and a chunk is scanned only if its bounding box
+//!    (per-coordinate periodic interval around the centre) can hold a point closer than
+//!    a lane's best so far (`|h(a_n − b_n)| ≥ |h(a_n − centre_n)| − width_n`); the search
+//!    stops as soon as every lane is `≤ c`. The exact distances found raise `c`.
 //!
 //! The result is the maximum over `a` of exactly computed minima: the same number the
 //! brute force gives, for any order of work. The symmetric distance runs `B → A`
@@ -238,8 +239,8 @@ fn window<const N: usize>(
 
 /// Lowers `best` (per-lane `g²` upper bounds) to the exact nearest distances to `B`,
 /// except for lanes that reach `≤ settle`, which may stop there. Chunks of `B` are
-/// visited outward from `near`; a chunk is scanned only if its bounding ball can hold
-/// a point closer than the best so far for some open lane.
+/// visited outward from `near`; a chunk is scanned only if its bounding box can hold a
+/// point closer than the best so far for some open lane.
 #[inline(always)]
 fn refine<const N: usize>(
     a: &[[f64; LANES]; N],
@@ -250,7 +251,6 @@ fn refine<const N: usize>(
     near: usize,
 ) -> [f64; LANES] {
     let shrink = 1.0 - 4.0 * BOUND_MARGIN;
-    let mut root = best.map(f64::sqrt);
     for t in 0..shape.chunks {
         let q = around(near, t, shape.chunks);
         let mut open = false;
@@ -262,12 +262,21 @@ fn refine<const N: usize>(
         }
         let mut center = [0.0; N];
         center.copy_from_slice(&b.centers[q * N..(q + 1) * N]);
-        let d = dist2(a, &center, shape.period);
-        let radius = b.radii[q];
+        let mut width = [0.0; N];
+        width.copy_from_slice(&b.widths[q * N..(q + 1) * N]);
+        // Squared distance to the chunk's bounding box: a lower bound of `g²` to each of
+        // its points, coordinate by coordinate (`|h(a − b)| ≥ |h(a − centre)| − width`).
+        let mut lower = [0.0; LANES];
+        for k in 0..N {
+            for l in 0..LANES {
+                let gap = fold(a[k][l] - center[k], shape.period) - width[k];
+                let gap = if gap > 0.0 { gap } else { 0.0 };
+                lower[l] += gap * gap;
+            }
+        }
         let mut useful = false;
         for l in 0..LANES {
-            let reach = root[l] + radius;
-            useful |= best[l] > settle && d[l] * shrink < reach * reach;
+            useful |= best[l] > settle && lower[l] * shrink < best[l];
         }
         if !useful {
             continue;
@@ -278,7 +287,6 @@ fn refine<const N: usize>(
                 best[l] = min(best[l], d[l]);
             }
         }
-        root = best.map(f64::sqrt);
     }
     best
 }

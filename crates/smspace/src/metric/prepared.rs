@@ -1,5 +1,5 @@
 //! The kernel sets laid out for the fast kernels: structure of arrays, padded to whole
-//! SIMD blocks, with a bounding ball around every run of [`LANES`] consecutive points.
+//! SIMD blocks, with a bounding ball and box around every run of [`LANES`] consecutive points.
 
 use ndarray::ArrayView3;
 
@@ -36,6 +36,7 @@ pub struct PreparedSets {
     points_aos: Vec<f64>,
     centers: Vec<f64>,
     centers_soa: Vec<f64>,
+    widths: Vec<f64>,
     radii: Vec<f64>,
 }
 
@@ -47,11 +48,14 @@ pub(crate) struct SetRef<'a> {
     /// `[point][n]`, `points_pad × dims_pad`: the same coordinates point by point, for
     /// broadcasting one point against a block.
     pub points: &'a [f64],
-    /// `[chunk][n]`, `chunks × dims_pad`: centres of the bounding balls.
+    /// `[chunk][n]`, `chunks × dims_pad`: centres of the bounding balls and boxes.
     pub centers: &'a [f64],
     /// `[n][chunk]`, `dims_pad × chunks_pad`: the same centres, eight chunks per vector
     /// (padded with copies of the last centre).
     pub centers_soa: &'a [f64],
+    /// `[chunk][n]`: half-widths of the bounding boxes around the centres, per
+    /// coordinate (periodic intervals, already enlarged by the margin).
+    pub widths: &'a [f64],
     /// `[chunk]`: radii of the bounding balls (already enlarged by the margin).
     pub radii: &'a [f64],
 }
@@ -125,6 +129,7 @@ impl PreparedSets {
         let chunks_pad = chunks.div_ceil(LANES) * LANES;
         let mut centers_soa = vec![0.0; m * dims_pad * chunks_pad];
         let mut radii = vec![0.0; m * chunks];
+        let mut widths = vec![0.0; m * chunks * dims_pad];
         for (s, set) in sets.outer_iter().enumerate() {
             let block = &mut coords[s * dims_pad * points_pad..(s + 1) * dims_pad * points_pad];
             for k in 0..n {
@@ -157,6 +162,17 @@ impl PreparedSets {
                     radius2 = radius2.max(d2);
                 }
                 radii[s * chunks + q] = radius2.sqrt() * (1.0 + BOUND_MARGIN);
+                for k in 0..dims_pad {
+                    let mut width: f64 = 0.0;
+                    for j in 0..LANES {
+                        let u = fold(
+                            block[k * points_pad + q * LANES + j] - center[k],
+                            period_value,
+                        );
+                        width = width.max(u);
+                    }
+                    widths[(s * chunks + q) * dims_pad + k] = width * (1.0 + BOUND_MARGIN) + 1e-13;
+                }
             }
             for j in 0..points_pad {
                 for k in 0..dims_pad {
@@ -182,6 +198,7 @@ impl PreparedSets {
             points_aos,
             centers,
             centers_soa,
+            widths,
             radii,
         })
     }
@@ -213,7 +230,10 @@ impl PreparedSets {
 
     /// Bytes held by the layout.
     pub fn bytes(&self) -> u64 {
-        ((2 * self.coords.len() + self.centers.len() + self.centers_soa.len() + self.radii.len())
+        ((2 * self.coords.len()
+            + 2 * self.centers.len()
+            + self.centers_soa.len()
+            + self.radii.len())
             * 8) as u64
     }
 
@@ -246,6 +266,7 @@ impl PreparedSets {
             points: &self.points_aos[s * per..(s + 1) * per],
             centers: &self.centers[s * chunks * self.dims_pad..(s + 1) * chunks * self.dims_pad],
             centers_soa: &self.centers_soa[s * soa..(s + 1) * soa],
+            widths: &self.widths[s * chunks * self.dims_pad..(s + 1) * chunks * self.dims_pad],
             radii: &self.radii[s * chunks..(s + 1) * chunks],
         }
     }
@@ -256,7 +277,9 @@ impl PreparedSets {
         let points_pad = points.div_ceil(LANES) * LANES;
         let chunks = points_pad / LANES;
         let chunks_pad = chunks.div_ceil(LANES) * LANES;
-        (sets as u64) * ((dims_pad * (2 * points_pad + chunks + chunks_pad) + chunks) as u64) * 8
+        (sets as u64)
+            * ((dims_pad * (2 * points_pad + 2 * chunks + chunks_pad) + chunks) as u64)
+            * 8
     }
 }
 
