@@ -27,7 +27,7 @@
 //! # Exact and fast
 //!
 //! Every value equals the brute-force `max`/`min` over the whole `P × P` table of
-//! `g` (the functions in [`reference`]): the fast kernels only skip work that cannot
+//! `g` (the functions in [`mod@reference`]): the fast kernels only skip work that cannot
 //! change it. They combine an early-break scan (Taha & Hanbury 2015), warm starts from
 //! the nearest chunk of the other set (sets are ordered closed curves), bounding balls
 //! and boxes around runs of eight consecutive points, and a structure-of-arrays layout processed

@@ -17,7 +17,7 @@ pub(crate) const BOUND_MARGIN: f64 = 1e-12;
 ///
 /// Coordinates are stored set by set, coordinate by coordinate (`[set][n][point]`), so
 /// that eight consecutive points of one coordinate load as one vector. `P` is padded to
-/// a multiple of [`LANES`] by repeating the last point and `N` to 2, 4, 8 or 16 by
+/// a multiple of eight (one SIMD block) by repeating the last point and `N` to 2, 4, 8 or 16 by
 /// zero coordinates; neither changes any distance. With a periodic metric every
 /// coordinate is first wrapped into `[-T/2, T/2)` (values already there are kept
 /// bit for bit), so that a coordinate difference never exceeds one period.
