@@ -34,6 +34,9 @@ enum Command {
     Sense(cmd::sense::Args),
     /// Embed a distance matrix in a few dimensions (CCA, Isomap or classical MDS).
     Embed(cmd::embed::Args),
+    /// Distances between kernel sets: the (periodic) Hausdorff matrix, a block of its
+    /// rows, or the k nearest sets of every set.
+    Distances(cmd::distances::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -44,6 +47,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Env(args) => cmd::env::run(args),
         Command::Sense(args) => cmd::sense::run(args),
         Command::Embed(args) => cmd::embed::run(args),
+        Command::Distances(args) => cmd::distances::run(args),
     }
 }
 

@@ -2,6 +2,7 @@
 //! `thiserror` enum, so that a caller can handle "any smspace error" with one type and
 //! still match on the stage that failed.
 
+use crate::metric::MetricError;
 use crate::{
     agent::AgentError, config::ConfigError, explore::ExploreError, io::IoError, kernel::KernelError,
 };
@@ -28,6 +29,9 @@ pub enum Error {
     /// An embedding failed.
     #[error(transparent)]
     Embed(#[from] crate::embed::EmbedError),
+    /// Computing distances between kernel sets failed.
+    #[error(transparent)]
+    Metric(#[from] MetricError),
 }
 
 /// `Result` with the crate-wide [`Error`].

@@ -1,6 +1,7 @@
 //! One module per subcommand: each has an `Args` struct (clap) and a `run` function.
 
 pub mod common;
+pub mod distances;
 pub mod embed;
 pub mod env;
 pub mod explore;

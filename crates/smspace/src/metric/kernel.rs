@@ -1,0 +1,544 @@
+//! The fast pair kernels: exact Hausdorff and mean Hausdorff distances between two
+//! prepared sets.
+//!
+//! # How the directed Hausdorff part `max_a min_b g²(a, b)` is found without the full
+//! `P × P` scan
+//!
+//! Both sets are cut into chunks of eight consecutive points, each with a bounding
+//! ball (centre, radius) and a bounding box (centre, half-width per coordinate). The points of `A` are processed one chunk at a time as a
+//! SIMD block (lanes over `a`, one point `b` broadcast). A running lower bound `c` of
+//! the answer is kept: a point `a` only matters if its nearest distance exceeds `c`, so
+//! as soon as any `b` with `g²(a, b) ≤ c` is seen, `a` is settled (the early break of
+//! Taha & Hanbury 2015).
+//!
+//! 1. *Centre table.* The squared distances between all chunk centres of `A` and `B`
+//!    give, for every chunk of either set, the nearest chunk of the other (a warm
+//!    start: the sets are ordered curves, so a point's nearest neighbour lies near the
+//!    nearest chunk) and an ordering: blocks far from the other set first, so that `c`
+//!    reaches its final value early. One table serves both directions.
+//! 2. *Free settling.* Every point of block `α` is within `r_α + |c_α c_β| + r_β` of a
+//!    point of its nearest chunk `β`; when that is `≤ √c` the block is settled unseen.
+//! 3. *Window.* Otherwise a short window of `b` around the middle of chunk `β` is
+//!    scanned; it stops as soon as every lane is `≤ c`.
+//! 4. *Exact search.* Lanes still open get their exact nearest distance: chunks of `B`
+//!    are visited outward from `β`, and a chunk is scanned only if its bounding box
+//!    (per-coordinate periodic interval around the centre) can hold a point closer than
+//!    a lane's best so far (`|h(a_n − b_n)| ≥ |h(a_n − centre_n)| − width_n`); the search
+//!    stops as soon as every lane is `≤ c`. The exact distances found raise `c`.
+//!
+//! The result is the maximum over `a` of exactly computed minima: the same number the
+//! brute force gives, for any order of work. The symmetric distance runs `B → A`
+//! starting from `c = h(A, B)`, where most blocks settle at once. Bounds carry a
+//! relative margin ([`BOUND_MARGIN`]) so that rounding never prunes a winner.
+
+use super::prepared::{fold, PreparedSets, SetRef, BOUND_MARGIN, LANES};
+
+/// Window length of the warm-started scan (number of `b` tried per block).
+const WINDOW: usize = 9;
+
+/// Reusable buffers of one worker thread.
+#[derive(Debug, Default)]
+pub(crate) struct Scratch {
+    row_key: Vec<f64>,
+    row_near: Vec<f64>,
+    col_key: Vec<f64>,
+    col_near: Vec<f64>,
+    order: Vec<u32>,
+}
+
+/// Shape of the prepared sets, copied out for the kernels.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Shape {
+    points: usize,
+    points_pad: usize,
+    chunks: usize,
+    chunks_pad: usize,
+    period: f64,
+}
+
+impl Shape {
+    pub(crate) fn of(prepared: &PreparedSets) -> Self {
+        Self {
+            points: prepared.points(),
+            points_pad: prepared.points_pad(),
+            chunks: prepared.chunks(),
+            chunks_pad: prepared.chunks_pad(),
+            period: prepared.period_value(),
+        }
+    }
+}
+
+#[inline(always)]
+fn min(x: f64, y: f64) -> f64 {
+    if y < x {
+        y
+    } else {
+        x
+    }
+}
+
+#[inline(always)]
+fn max(x: f64, y: f64) -> f64 {
+    if y > x {
+        y
+    } else {
+        x
+    }
+}
+
+#[inline(always)]
+fn lanes_max(v: &[f64; LANES]) -> f64 {
+    let a = [
+        max(v[0], v[4]),
+        max(v[1], v[5]),
+        max(v[2], v[6]),
+        max(v[3], v[7]),
+    ];
+    max(max(a[0], a[2]), max(a[1], a[3]))
+}
+
+#[inline(always)]
+fn load_block<const N: usize>(rows: &[f64], stride: usize, block: usize) -> [[f64; LANES]; N] {
+    let mut a = [[0.0; LANES]; N];
+    for (k, lanes) in a.iter_mut().enumerate() {
+        lanes.copy_from_slice(&rows[k * stride + block * LANES..][..LANES]);
+    }
+    a
+}
+
+#[inline(always)]
+fn load_point<const N: usize>(set: SetRef<'_>, _shape: Shape, j: usize) -> [f64; N] {
+    let mut b = [0.0; N];
+    b.copy_from_slice(&set.points[j * N..(j + 1) * N]);
+    b
+}
+
+/// `g²(a_l, b)` for the eight lanes: `Σ_n h(a_n − b_n)²`, summed in coordinate order.
+#[inline(always)]
+fn dist2<const N: usize>(a: &[[f64; LANES]; N], b: &[f64; N], period: f64) -> [f64; LANES] {
+    let mut acc = [0.0; LANES];
+    for k in 0..N {
+        let bk = b[k];
+        for l in 0..LANES {
+            let w = fold(a[k][l] - bk, period);
+            acc[l] += w * w;
+        }
+    }
+    acc
+}
+
+/// The `t`-th index of a scan centred on `start`: `start, start+1, start−1, start+2, …`
+/// (modulo `len`).
+#[inline(always)]
+fn around(start: usize, t: usize, len: usize) -> usize {
+    // `t < 2·len`, so one subtraction brings the step into range.
+    let step = t.div_ceil(2);
+    let step = if step >= len { step - len } else { step };
+    if t % 2 == 1 {
+        let j = start + step;
+        if j >= len {
+            j - len
+        } else {
+            j
+        }
+    } else if start >= step {
+        start - step
+    } else {
+        start + len - step
+    }
+}
+
+/// For both directions, the nearest chunk of the other set to every chunk (by centre
+/// distance) and that squared distance: `row_*` for `A → B`, `col_*` for `B → A`.
+/// Indices are kept as `f64` (small exact integers) so that every lane is 64 bits wide
+/// and the updates vectorise.
+#[inline(always)]
+fn center_table<const N: usize>(a: SetRef<'_>, b: SetRef<'_>, shape: Shape, scratch: &mut Scratch) {
+    let Scratch {
+        row_key,
+        row_near,
+        col_key,
+        col_near,
+        ..
+    } = scratch;
+    row_key.clear();
+    row_near.clear();
+    col_key.clear();
+    col_key.resize(shape.chunks_pad, f64::INFINITY);
+    col_near.clear();
+    col_near.resize(shape.chunks_pad, 0.0);
+    for alpha in 0..shape.chunks {
+        let mut ca = [0.0; N];
+        ca.copy_from_slice(&a.centers[alpha * N..(alpha + 1) * N]);
+        let alpha_f = alpha as f64;
+        let mut key = [f64::INFINITY; LANES];
+        let mut near = [0.0; LANES];
+        for v in 0..shape.chunks_pad / LANES {
+            let cb = load_block::<N>(b.centers_soa, shape.chunks_pad, v);
+            let d = dist2(&cb, &ca, shape.period);
+            let base = (v * LANES) as f64;
+            // Work on local copies so that the selects compile to vector blends.
+            let lanes = v * LANES..(v + 1) * LANES;
+            let mut ck: [f64; LANES] = col_key[lanes.clone()].try_into().expect("whole vectors");
+            let mut cn: [f64; LANES] = col_near[lanes.clone()].try_into().expect("whole vectors");
+            for l in 0..LANES {
+                let closer = d[l] < ck[l];
+                ck[l] = if closer { d[l] } else { ck[l] };
+                cn[l] = if closer { alpha_f } else { cn[l] };
+                let closer = d[l] < key[l];
+                key[l] = if closer { d[l] } else { key[l] };
+                near[l] = if closer { base + l as f64 } else { near[l] };
+            }
+            col_key[lanes.clone()].copy_from_slice(&ck);
+            col_near[lanes].copy_from_slice(&cn);
+        }
+        let mut width = LANES / 2;
+        while width > 0 {
+            for l in 0..width {
+                let closer = key[l + width] < key[l];
+                key[l] = if closer { key[l + width] } else { key[l] };
+                near[l] = if closer { near[l + width] } else { near[l] };
+            }
+            width /= 2;
+        }
+        row_key.push(key[0]);
+        // Padding chunks repeat the last centre.
+        row_near.push(near[0].min((shape.chunks - 1) as f64));
+    }
+    col_key.truncate(shape.chunks);
+    col_near.truncate(shape.chunks);
+}
+
+/// Window scan of one block around `start`: per-lane smallest `g²` over the window.
+/// Stops early (and says so) once every lane is `≤ settle`.
+#[inline(always)]
+fn window<const N: usize>(
+    a: &[[f64; LANES]; N],
+    b: SetRef<'_>,
+    shape: Shape,
+    start: usize,
+    settle: f64,
+) -> ([f64; LANES], bool) {
+    let mut best = [f64::INFINITY; LANES];
+    for t in 0..WINDOW.min(shape.points) {
+        let j = around(start, t, shape.points);
+        let d = dist2(a, &load_point::<N>(b, shape, j), shape.period);
+        for l in 0..LANES {
+            best[l] = min(best[l], d[l]);
+        }
+        let mut settled = true;
+        for l in 0..LANES {
+            settled &= best[l] <= settle;
+        }
+        if settled {
+            return (best, true);
+        }
+    }
+    (best, false)
+}
+
+/// Lowers `best` (per-lane `g²` upper bounds) to the exact nearest distances to `B`,
+/// except for lanes that reach `≤ settle`, which may stop there. Chunks of `B` are
+/// visited outward from `near`; a chunk is scanned only if its bounding box can hold a
+/// point closer than the best so far for some open lane.
+#[inline(always)]
+fn refine<const N: usize>(
+    a: &[[f64; LANES]; N],
+    mut best: [f64; LANES],
+    settle: f64,
+    b: SetRef<'_>,
+    shape: Shape,
+    near: usize,
+) -> [f64; LANES] {
+    let shrink = 1.0 - 4.0 * BOUND_MARGIN;
+    for t in 0..shape.chunks {
+        let q = around(near, t, shape.chunks);
+        let mut open = false;
+        for l in 0..LANES {
+            open |= best[l] > settle;
+        }
+        if !open {
+            break;
+        }
+        let mut center = [0.0; N];
+        center.copy_from_slice(&b.centers[q * N..(q + 1) * N]);
+        let mut width = [0.0; N];
+        width.copy_from_slice(&b.widths[q * N..(q + 1) * N]);
+        // Squared distance to the chunk's bounding box: a lower bound of `g²` to each of
+        // its points, coordinate by coordinate (`|h(a − b)| ≥ |h(a − centre)| − width`).
+        let mut lower = [0.0; LANES];
+        for k in 0..N {
+            for l in 0..LANES {
+                let gap = fold(a[k][l] - center[k], shape.period) - width[k];
+                let gap = if gap > 0.0 { gap } else { 0.0 };
+                lower[l] += gap * gap;
+            }
+        }
+        let mut useful = false;
+        for l in 0..LANES {
+            useful |= best[l] > settle && lower[l] * shrink < best[l];
+        }
+        if !useful {
+            continue;
+        }
+        for j in q * LANES..(q + 1) * LANES {
+            let d = dist2(a, &load_point::<N>(b, shape, j), shape.period);
+            for l in 0..LANES {
+                best[l] = min(best[l], d[l]);
+            }
+        }
+    }
+    best
+}
+
+/// `max(c, max_{a∈A} min_{b∈B} g²(a, b))`, or `None` as soon as it is proven to exceed
+/// `abort`. `(key[α], near[α])`: squared distance from the centre of block `α` of `A`
+/// to the nearest centre of `B`, and that chunk.
+#[inline(always)]
+fn directed_hausdorff<const N: usize>(
+    a_set: SetRef<'_>,
+    b_set: SetRef<'_>,
+    shape: Shape,
+    (key, near): (&[f64], &[f64]),
+    mut c: f64,
+    abort: f64,
+    scratch_order: &mut Vec<u32>,
+) -> Option<f64> {
+    scratch_order.resize(shape.chunks.max(scratch_order.len()), 0);
+    // Blocks far from B first, so that `c` reaches its final value early.
+    let order = &mut scratch_order[..shape.chunks];
+    for (alpha, slot) in order.iter_mut().enumerate() {
+        *slot = alpha as u32;
+    }
+    order.sort_unstable_by(|&x, &y| key[y as usize].total_cmp(&key[x as usize]));
+    for &alpha in order.iter() {
+        let alpha = alpha as usize;
+        let near = near[alpha] as usize;
+        // Every point of block α is within r_α + g(centres) + r_β of some point of
+        // chunk β: when that is ≤ √c the whole block is settled without looking.
+        let reach = key[alpha].sqrt() + a_set.radii[alpha] + b_set.radii[near];
+        if reach * reach * (1.0 + 4.0 * BOUND_MARGIN) <= c {
+            continue;
+        }
+        let a = load_block::<N>(a_set.coords, shape.points_pad, alpha);
+        let start = (near * LANES + LANES / 2).min(shape.points - 1);
+        let (best, settled) = window(&a, b_set, shape, start, c);
+        if settled {
+            continue;
+        }
+        let best = refine(&a, best, c, b_set, shape, near);
+        c = max(c, lanes_max(&best));
+        if c > abort {
+            return None;
+        }
+    }
+    Some(c)
+}
+
+/// `Σ_{a∈A} min_{b∈B} g(a, b)`, summed in point order.
+#[inline(always)]
+fn directed_mean_sum<const N: usize>(
+    a_set: SetRef<'_>,
+    b_set: SetRef<'_>,
+    shape: Shape,
+    near: &[f64],
+) -> f64 {
+    let mut sum = 0.0;
+    for block in 0..shape.chunks {
+        let a = load_block::<N>(a_set.coords, shape.points_pad, block);
+        let near = near[block] as usize;
+        let start = (near * LANES + LANES / 2).min(shape.points - 1);
+        let (best, _) = window(&a, b_set, shape, start, f64::NEG_INFINITY);
+        let best = refine(&a, best, f64::NEG_INFINITY, b_set, shape, near);
+        for (l, d2) in best.iter().enumerate() {
+            if block * LANES + l < shape.points {
+                sum += d2.sqrt();
+            }
+        }
+    }
+    sum
+}
+
+/// Symmetric Hausdorff distance `ρ(A, B)`, or `None` once proven `> limit`.
+#[inline(always)]
+pub(crate) fn hausdorff<const N: usize>(
+    a: SetRef<'_>,
+    b: SetRef<'_>,
+    shape: Shape,
+    limit: f64,
+    scratch: &mut Scratch,
+) -> Option<f64> {
+    let abort = if limit.is_finite() {
+        limit * limit
+    } else {
+        f64::INFINITY
+    };
+    center_table::<N>(a, b, shape, scratch);
+    let Scratch {
+        row_key,
+        row_near,
+        col_key,
+        col_near,
+        order,
+    } = scratch;
+    let c = directed_hausdorff::<N>(a, b, shape, (row_key, row_near), 0.0, abort, order)?;
+    let c = directed_hausdorff::<N>(b, a, shape, (col_key, col_near), c, abort, order)?;
+    Some(c.sqrt())
+}
+
+/// Mean Hausdorff distance: the average of the two mean directed distances.
+#[inline(always)]
+pub(crate) fn mean_hausdorff<const N: usize>(
+    a: SetRef<'_>,
+    b: SetRef<'_>,
+    shape: Shape,
+    scratch: &mut Scratch,
+) -> f64 {
+    center_table::<N>(a, b, shape, scratch);
+    let p = shape.points as f64;
+    let ab = directed_mean_sum::<N>(a, b, shape, &scratch.row_near) / p;
+    let ba = directed_mean_sum::<N>(b, a, shape, &scratch.col_near) / p;
+    0.5 * (ab + ba)
+}
+
+/// Brute force over the prepared layout, for coordinate counts without a fixed kernel
+/// (`N > 16`): `(max_a min_b g², max_b min_a g², Σ_a min_b g, Σ_b min_a g)`.
+pub(crate) fn brute_pair(a: SetRef<'_>, b: SetRef<'_>, prepared: &PreparedSets) -> [f64; 4] {
+    let p = prepared.points();
+    let pp = prepared.points_pad();
+    let dims = prepared.dims_pad();
+    let period = prepared.period_value();
+    let mut row_min = vec![f64::INFINITY; p];
+    let mut col_min = vec![f64::INFINITY; p];
+    for i in 0..p {
+        for j in 0..p {
+            let mut d2 = 0.0;
+            for k in 0..dims {
+                let w = fold(a.coords[k * pp + i] - b.coords[k * pp + j], period);
+                d2 += w * w;
+            }
+            row_min[i] = min(row_min[i], d2);
+            col_min[j] = min(col_min[j], d2);
+        }
+    }
+    let fold_max = |v: &[f64]| v.iter().fold(0.0, |m: f64, &x| max(m, x));
+    let fold_sum = |v: &[f64]| v.iter().fold(0.0, |s: f64, &x| s + x.sqrt());
+    [
+        fold_max(&row_min),
+        fold_max(&col_min),
+        fold_sum(&row_min),
+        fold_sum(&col_min),
+    ]
+}
+
+/// Evaluates distances between prepared sets; implemented once per coordinate count so
+/// that the kernels inline with their fixed `N`.
+pub(crate) trait Eval {
+    /// `ρ(set i, set j)`, or `None` once it is proven to exceed `limit`.
+    fn distance(&mut self, i: usize, j: usize, limit: f64) -> Option<f64>;
+}
+
+/// Work run under runtime SIMD dispatch: it receives an [`Eval`] compiled for the
+/// machine's best instruction set.
+pub(crate) trait Driver {
+    /// What the work returns.
+    type Output;
+    /// Runs the work; must be `#[inline(always)]` so that it is compiled in the
+    /// dispatched context.
+    fn drive<E: Eval>(self, eval: &mut E) -> Self::Output;
+}
+
+struct Evaluator<'a, const N: usize> {
+    prepared: &'a PreparedSets,
+    kind: super::MetricKind,
+    shape: Shape,
+    scratch: &'a mut Scratch,
+}
+
+impl<const N: usize> Eval for Evaluator<'_, N> {
+    #[inline(always)]
+    fn distance(&mut self, i: usize, j: usize, limit: f64) -> Option<f64> {
+        let a = self.prepared.set(i);
+        let b = self.prepared.set(j);
+        match self.kind {
+            super::MetricKind::Hausdorff => hausdorff::<N>(a, b, self.shape, limit, self.scratch),
+            super::MetricKind::MeanHausdorff => {
+                Some(mean_hausdorff::<N>(a, b, self.shape, self.scratch))
+            }
+        }
+    }
+}
+
+struct BruteEvaluator<'a> {
+    prepared: &'a PreparedSets,
+    kind: super::MetricKind,
+}
+
+impl Eval for BruteEvaluator<'_> {
+    fn distance(&mut self, i: usize, j: usize, _limit: f64) -> Option<f64> {
+        let [ab, ba, sum_ab, sum_ba] =
+            brute_pair(self.prepared.set(i), self.prepared.set(j), self.prepared);
+        Some(match self.kind {
+            super::MetricKind::Hausdorff => max(ab, ba).sqrt(),
+            super::MetricKind::MeanHausdorff => {
+                let p = self.prepared.points() as f64;
+                0.5 * (sum_ab / p + sum_ba / p)
+            }
+        })
+    }
+}
+
+struct Job<'a, D> {
+    prepared: &'a PreparedSets,
+    kind: super::MetricKind,
+    scratch: &'a mut Scratch,
+    driver: D,
+}
+
+impl<D: Driver> pulp::WithSimd for Job<'_, D> {
+    type Output = D::Output;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> D::Output {
+        let Job {
+            prepared,
+            kind,
+            scratch,
+            driver,
+        } = self;
+        let shape = Shape::of(prepared);
+        macro_rules! fixed {
+            ($n:literal) => {
+                driver.drive(&mut Evaluator::<$n> {
+                    prepared,
+                    kind,
+                    shape,
+                    scratch,
+                })
+            };
+        }
+        match prepared.dims_pad() {
+            2 => fixed!(2),
+            4 => fixed!(4),
+            8 => fixed!(8),
+            16 => fixed!(16),
+            _ => driver.drive(&mut BruteEvaluator { prepared, kind }),
+        }
+    }
+}
+
+/// Runs `driver` with the kernels compiled for the best instruction set of this CPU
+/// (AVX-512, AVX2 + FMA, or plain code), chosen at run time.
+pub(crate) fn dispatch<D: Driver>(
+    prepared: &PreparedSets,
+    kind: super::MetricKind,
+    scratch: &mut Scratch,
+    driver: D,
+) -> D::Output {
+    pulp::Arch::new().dispatch(Job {
+        prepared,
+        kind,
+        scratch,
+        driver,
+    })
+}
