@@ -3,7 +3,8 @@
 //! still match on the stage that failed.
 
 use crate::{
-    agent::AgentError, config::ConfigError, explore::ExploreError, io::IoError, kernel::KernelError,
+    agent::AgentError, analysis::AnalysisError, config::ConfigError, explore::ExploreError,
+    io::IoError, kernel::KernelError,
 };
 
 /// Any error of the smspace library.
@@ -25,6 +26,9 @@ pub enum Error {
     /// Tracing kernel sets failed.
     #[error(transparent)]
     Kernel(#[from] KernelError),
+    /// Analysing a distance matrix failed.
+    #[error(transparent)]
+    Analysis(#[from] AnalysisError),
 }
 
 /// `Result` with the crate-wide [`Error`].

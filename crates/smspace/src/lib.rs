@@ -17,6 +17,8 @@
 //! 1. [`agent`]: agents and environments, the sensorimotor law `s = σ_E(m)`;
 //! 2. [`explore`]: motor babbling in a working space, and the probe grid;
 //! 3. [`kernel`]: tracing the sets `M^i` along the Jacobian's null space (appendix A);
+//! 4. [`analysis`]: topology, dimension, agreement with the poses and environment
+//!    invariance of the learned metric (section 3.3);
 //!
 //! with [`config`] (parameter files), [`io`] (`.npy` and JSON interchange),
 //! [`progress`] (observers for long stages) and [`error`].
@@ -25,6 +27,7 @@
 //! failure a user can cause is a [`Result`] carrying the offending file or value.
 
 pub mod agent;
+pub mod analysis;
 pub mod config;
 pub mod error;
 pub mod explore;
