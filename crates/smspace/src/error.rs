@@ -4,7 +4,7 @@
 
 use crate::{
     agent::AgentError, analysis::AnalysisError, config::ConfigError, explore::ExploreError,
-    io::IoError, kernel::KernelError,
+    io::IoError, kernel::KernelError, metric::MetricError,
 };
 
 /// Any error of the smspace library.
@@ -26,6 +26,9 @@ pub enum Error {
     /// Tracing kernel sets failed.
     #[error(transparent)]
     Kernel(#[from] KernelError),
+    /// Computing distances between kernel sets failed.
+    #[error(transparent)]
+    Metric(#[from] MetricError),
     /// Analysing a distance matrix failed.
     #[error(transparent)]
     Analysis(#[from] AnalysisError),

@@ -17,7 +17,9 @@
 //! 1. [`agent`]: agents and environments, the sensorimotor law `s = σ_E(m)`;
 //! 2. [`explore`]: motor babbling in a working space, and the probe grid;
 //! 3. [`kernel`]: tracing the sets `M^i` along the Jacobian's null space (appendix A);
-//! 4. [`analysis`]: topology, dimension, agreement with the poses and environment
+//! 4. [`metric`]: the periodic Hausdorff distance between sets, as a full matrix, a block
+//!    of rows, or the `k` nearest sets (section 3.2, step 3);
+//! 5. [`analysis`]: topology, dimension, agreement with the poses and environment
 //!    invariance of the learned metric (section 3.3);
 //!
 //! with [`config`] (parameter files), [`io`] (`.npy` and JSON interchange),
@@ -33,6 +35,7 @@ pub mod error;
 pub mod explore;
 pub mod io;
 pub mod kernel;
+pub mod metric;
 pub mod progress;
 
 pub use error::{Error, Result};

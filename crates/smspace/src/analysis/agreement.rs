@@ -52,17 +52,17 @@ pub struct Agreement {
 
 /// Ranks `1..=n` of `values`, ties sharing their average rank.
 pub fn average_ranks(values: &[f64]) -> Vec<f64> {
-    let mut order: Vec<usize> = (0..values.len()).collect();
-    order.par_sort_by(|&a, &b| values[a].total_cmp(&values[b]).then(a.cmp(&b)));
+    let mut order: Vec<(f64, usize)> = values.iter().copied().zip(0..).collect();
+    order.par_sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let mut ranks = vec![0.0; values.len()];
     let mut start = 0;
     while start < order.len() {
         let mut end = start + 1;
-        while end < order.len() && values[order[end]] == values[order[start]] {
+        while end < order.len() && order[end].0 == order[start].0 {
             end += 1;
         }
         let rank = 0.5 * ((start + 1) + end) as f64;
-        for &i in &order[start..end] {
+        for &(_, i) in &order[start..end] {
             ranks[i] = rank;
         }
         start = end;
@@ -123,13 +123,19 @@ pub fn trustworthiness_continuity(
         .into_par_iter()
         .map(|i| {
             let order = |m: ArrayView2<'_, f64>| {
-                let row = m.row(i);
-                let mut idx: Vec<usize> = (0..n).filter(|&j| j != i).collect();
-                idx.sort_by(|&a, &b| row[a].total_cmp(&row[b]).then(a.cmp(&b)));
+                let mut idx: Vec<(f64, usize)> = m
+                    .row(i)
+                    .iter()
+                    .copied()
+                    .zip(0..)
+                    .filter(|&(_, j)| j != i)
+                    .collect();
+                idx.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
                 let mut rank = vec![0usize; n];
-                for (r, &j) in idx.iter().enumerate() {
+                for (r, &(_, j)) in idx.iter().enumerate() {
                     rank[j] = r + 1;
                 }
+                let idx: Vec<usize> = idx.into_iter().map(|(_, j)| j).collect();
                 (idx, rank)
             };
             let (learned_order, learned_rank) = order(learned);

@@ -126,6 +126,14 @@ pub fn enclosing_radius(distances: ArrayView2<'_, f64>) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// The reduction's first band ends at this quantile of the edge lengths (see
+/// `Rips::reduce`)...
+const LEVEL_QUANTILE: f64 = 0.05;
+/// ...the next ones grow by this factor...
+const LEVEL_RATIO: f64 = 1.2;
+/// ...when there are at least this many edges.
+const LEVEL_MIN_EDGES: usize = 20_000;
+
 /// Largest number of triangles (`C(n, 3)`) the `H2` computation enumerates.
 const MAX_TRIANGLES: u64 = 100_000_000;
 
@@ -159,7 +167,7 @@ pub fn rips_persistence(
     };
     let mut diagrams = Vec::with_capacity(max_dim + 1);
     progress.start("homology", max_dim as u64 + 1);
-    let (h0, mut columns) = rips.dim_zero(max_dim > 0);
+    let (h0, mut columns, levels) = rips.dim_zero(max_dim > 0);
     diagrams.push(h0);
     progress.advance(1);
     let mut simplices: Vec<Entry> = Vec::new();
@@ -167,7 +175,7 @@ pub fn rips_persistence(
         simplices = rips.edges();
     }
     for dim in 1..=max_dim {
-        let (bars, pivots) = rips.reduce(dim, &columns);
+        let (bars, pivots) = rips.reduce(dim, &columns, &levels);
         diagrams.push(bars);
         if dim < max_dim {
             let (next_columns, next_simplices) =
@@ -337,9 +345,14 @@ impl Rips<'_> {
         dim: usize,
         vertices: &mut Vec<usize>,
         only_new: bool,
+        (lower, limit): (f64, f64),
         mut visit: impl FnMut(Entry) -> bool,
     ) {
         self.vertices(simplex.index, dim, vertices);
+        // From here on `vertices` holds the offsets of the vertices' rows.
+        for v in vertices.iter_mut() {
+            *v *= self.n;
+        }
         let b = &self.binomial;
         let mut below = simplex.index;
         let mut above = 0u64;
@@ -360,12 +373,12 @@ impl Rips<'_> {
                 return;
             }
             let ju = j as usize;
-            let row = &self.dist[ju * self.n..(ju + 1) * self.n];
+            // d(j, v) = d(v, j): walk the vertices' rows, which j sweeps in order.
             let mut diameter = simplex.diameter;
-            for &v in vertices.iter() {
-                diameter = diameter.max(row[v]);
+            for &row in vertices.iter() {
+                diameter = diameter.max(self.dist[row + ju]);
             }
-            if diameter <= self.threshold {
+            if diameter <= limit && diameter > lower {
                 let index = above + b.get(ju, k + 1) + below;
                 if !visit(Entry { diameter, index }) {
                     return;
@@ -383,7 +396,7 @@ impl Rips<'_> {
         vertices: &mut Vec<usize>,
     ) -> Option<Entry> {
         let mut found = None;
-        self.for_each_cofacet(simplex, dim, vertices, false, |c| {
+        self.for_each_cofacet(simplex, dim, vertices, false, (-1.0, self.threshold), |c| {
             if c.diameter == simplex.diameter {
                 found = Some(c);
                 false
@@ -451,12 +464,29 @@ impl Rips<'_> {
         (cofacet.index == simplex.index).then_some(facet)
     }
 
+    /// The band limits of the reduction (see [`Rips::reduce`]): the `LEVEL_QUANTILE`
+    /// quantile of the edge lengths (`edges` in filtration order), then steps of
+    /// `LEVEL_RATIO`, up to the threshold. A single band for small complexes.
+    fn levels(&self, edges: &[Entry]) -> Vec<f64> {
+        let mut levels = Vec::new();
+        if edges.len() >= LEVEL_MIN_EDGES {
+            let mut s = edges[(edges.len() as f64 * LEVEL_QUANTILE) as usize].diameter;
+            while s > 0.0 && s < self.threshold {
+                levels.push(s);
+                s *= LEVEL_RATIO;
+            }
+        }
+        levels.push(self.threshold);
+        levels
+    }
+
     /// `H0` by union–find over the edges, and the edge columns of `H1` (non-tree edges
     /// not in an apparent pair), in reverse filtration order.
-    fn dim_zero(&self, want_columns: bool) -> (Vec<Bar>, Vec<Entry>) {
+    fn dim_zero(&self, want_columns: bool) -> (Vec<Bar>, Vec<Entry>, Vec<f64>) {
         let mut edges = self.edges();
         // Filtration order: diameter up, then index down.
         edges.par_sort_unstable_by(|a, b| b.cmp(a));
+        let levels = self.levels(&edges);
         let apparent: Vec<bool> = if want_columns {
             edges
                 .par_iter()
@@ -513,20 +543,21 @@ impl Rips<'_> {
                 });
             }
         }
-        (bars, columns)
+        (bars, columns, levels)
     }
 
-    /// Pushes `simplex` into the reduction column and its coboundary into the heap.
+    /// Pushes `simplex` into the reduction column, and its cofacets with diameter in
+    /// `band = (lower, limit]` into the coboundary heap.
     fn add_simplex_coboundary(
         &self,
         simplex: Entry,
         dim: usize,
-        reduction: &mut BinaryHeap<Entry>,
-        coboundary: &mut BinaryHeap<Entry>,
-        vertices: &mut Vec<usize>,
+        band: (f64, f64),
+        work: &mut Working,
     ) {
-        reduction.push(simplex);
-        self.for_each_cofacet(simplex, dim, vertices, false, |c| {
+        work.reduction.push(simplex);
+        let coboundary = &mut work.coboundary;
+        self.for_each_cofacet(simplex, dim, &mut work.vertices, false, band, |c| {
             coboundary.push(c);
             true
         });
@@ -534,81 +565,133 @@ impl Rips<'_> {
 
     /// Reduces the coboundary columns of dimension `dim` (in reverse filtration order).
     /// Returns the bars and the pivots (cofacet index → column).
-    fn reduce(&self, dim: usize, columns: &[Entry]) -> (Vec<Bar>, PivotMap) {
+    ///
+    /// The reduction runs in passes over increasing diameter bands
+    /// `(s_{k−1}, s_k]` (`levels`, ending at the threshold). Cutting the rows after
+    /// `s_k` changes no pivot `≤ s_k` (an addition is decided by a pivot, and all
+    /// entries of an added column lie at or after its pivot), so pass `k` finishes
+    /// exactly every column whose pivot lies in the band, with heaps that hold only
+    /// the band. It takes, in column order, the columns of diameter in the band and
+    /// the columns the previous pass left without a pivot, continuing from their
+    /// partial reduction (whose coboundary is zero up to `s_{k−1}`); their pivots are
+    /// all in the band or later, so they only ever meet each other's pivots.
+    fn reduce(&self, dim: usize, columns: &[Entry], levels: &[f64]) -> (Vec<Bar>, PivotMap) {
         let mut pivots = PivotMap::default();
         pivots.reserve(columns.len());
-        // Reduction matrix V without its diagonal, in compressed columns.
-        let mut v_offsets: Vec<usize> = Vec::with_capacity(columns.len() + 1);
-        v_offsets.push(0);
-        let mut v_entries: Vec<Entry> = Vec::new();
         let mut bars = Vec::new();
-        let mut reduction = BinaryHeap::new();
-        let mut coboundary = BinaryHeap::new();
+        let mut left: Vec<(usize, Vec<Entry>)> = Vec::new();
+        let mut lower = f64::NEG_INFINITY;
+        for (k, &limit) in levels.iter().enumerate() {
+            let mut work: Vec<(usize, Vec<Entry>)> = (0..columns.len())
+                .filter(|&i| columns[i].diameter > lower && columns[i].diameter <= limit)
+                .map(|i| (i, Vec::new()))
+                .chain(std::mem::take(&mut left))
+                .collect();
+            work.sort_by_key(|w| w.0);
+            let last = k + 1 == levels.len();
+            left = self.reduce_pass(
+                dim,
+                columns,
+                work,
+                (lower, limit),
+                last,
+                &mut pivots,
+                &mut bars,
+            );
+            lower = limit;
+        }
+        (bars, pivots)
+    }
+
+    /// One reduction pass over `work` (column positions, in order, each with the
+    /// partial reduction column it starts from), with coboundaries cut to `band`.
+    /// Columns left without a pivot are essential bars when `last`, and are returned
+    /// with their partial reduction otherwise.
+    #[allow(clippy::too_many_arguments, reason = "one private pass of `reduce`")]
+    fn reduce_pass(
+        &self,
+        dim: usize,
+        columns: &[Entry],
+        work: Vec<(usize, Vec<Entry>)>,
+        band: (f64, f64),
+        last: bool,
+        pivots: &mut PivotMap,
+        bars: &mut Vec<Bar>,
+    ) -> Vec<(usize, Vec<Entry>)> {
+        // Reduction matrix V without its diagonal, in compressed columns, for the
+        // columns of this pass (the only ones its pivots can meet).
+        let mut v_range: Vec<(usize, usize)> = vec![(0, 0); columns.len()];
+        let mut v_entries: Vec<Entry> = Vec::new();
+        let mut left = Vec::new();
+        let mut w = Working::default();
         let mut cofacets: Vec<Entry> = Vec::new();
-        let mut vertices = Vec::with_capacity(dim + 2);
         let mut scratch = Vec::with_capacity(dim + 2);
-        for (position, &column) in columns.iter().enumerate() {
-            reduction.clear();
-            coboundary.clear();
-            cofacets.clear();
-            // Coboundary of the column, stopping at an emergent pair.
-            let mut check_emergent = true;
-            let mut emergent = None;
-            self.for_each_cofacet(column, dim, &mut vertices, false, |c| {
-                cofacets.push(c);
-                if check_emergent && c.diameter == column.diameter {
-                    if !pivots.contains_key(&c.index)
-                        && self.zero_apparent_facet(c, dim + 1, &mut scratch).is_none()
-                    {
-                        emergent = Some(c);
-                        return false;
+        for (position, partial) in work {
+            let column = columns[position];
+            w.reduction.clear();
+            w.coboundary.clear();
+            let mut pivot = if partial.is_empty() {
+                // Coboundary of the column, stopping at an emergent pair.
+                cofacets.clear();
+                let mut check_emergent = true;
+                let mut emergent = None;
+                self.for_each_cofacet(column, dim, &mut w.vertices, false, band, |c| {
+                    cofacets.push(c);
+                    if check_emergent && c.diameter == column.diameter {
+                        if !pivots.contains_key(&c.index)
+                            && self.zero_apparent_facet(c, dim + 1, &mut scratch).is_none()
+                        {
+                            emergent = Some(c);
+                            return false;
+                        }
+                        check_emergent = false;
                     }
-                    check_emergent = false;
+                    true
+                });
+                match emergent {
+                    Some(c) => Some(c),
+                    None => {
+                        w.coboundary.extend(cofacets.drain(..));
+                        top_pivot(&mut w.coboundary)
+                    }
                 }
-                true
-            });
-            let mut pivot = match emergent {
-                Some(c) => Some(c),
-                None => {
-                    coboundary.extend(cofacets.drain(..));
-                    top_pivot(&mut coboundary)
+            } else {
+                // `partial` is the column followed by its partial reduction; the
+                // column itself (V's diagonal) is dropped again when V is stored.
+                for e in partial {
+                    self.add_simplex_coboundary(e, dim, band, &mut w);
                 }
+                top_pivot(&mut w.coboundary)
             };
             loop {
                 let Some(p) = pivot else {
-                    bars.push(Bar {
-                        birth: column.diameter,
-                        death: None,
-                    });
+                    if last {
+                        bars.push(Bar {
+                            birth: column.diameter,
+                            death: None,
+                        });
+                    } else {
+                        let mut partial = vec![column];
+                        while let Some(e) = pop_pivot(&mut w.reduction) {
+                            if e.index != column.index {
+                                partial.push(e);
+                            }
+                        }
+                        left.push((position, partial));
+                    }
                     break;
                 };
                 if let Some(&other) = pivots.get(&p.index) {
-                    self.add_simplex_coboundary(
-                        columns[other],
-                        dim,
-                        &mut reduction,
-                        &mut coboundary,
-                        &mut vertices,
-                    );
-                    for &e in &v_entries[v_offsets[other]..v_offsets[other + 1]] {
-                        self.add_simplex_coboundary(
-                            e,
-                            dim,
-                            &mut reduction,
-                            &mut coboundary,
-                            &mut vertices,
-                        );
+                    let (start, end) = v_range[other];
+                    debug_assert!(other < position);
+                    self.add_simplex_coboundary(columns[other], dim, band, &mut w);
+                    for &e in &v_entries[start..end] {
+                        self.add_simplex_coboundary(e, dim, band, &mut w);
                     }
-                    pivot = top_pivot(&mut coboundary);
+                    pivot = top_pivot(&mut w.coboundary);
                 } else if let Some(e) = self.zero_apparent_facet(p, dim + 1, &mut scratch) {
-                    self.add_simplex_coboundary(
-                        e,
-                        dim,
-                        &mut reduction,
-                        &mut coboundary,
-                        &mut vertices,
-                    );
-                    pivot = top_pivot(&mut coboundary);
+                    self.add_simplex_coboundary(e, dim, band, &mut w);
+                    pivot = top_pivot(&mut w.coboundary);
                 } else {
                     if p.diameter > column.diameter {
                         bars.push(Bar {
@@ -617,15 +700,18 @@ impl Rips<'_> {
                         });
                     }
                     pivots.insert(p.index, position);
-                    while let Some(e) = pop_pivot(&mut reduction) {
-                        v_entries.push(e);
+                    let start = v_entries.len();
+                    while let Some(e) = pop_pivot(&mut w.reduction) {
+                        if e.index != column.index {
+                            v_entries.push(e);
+                        }
                     }
+                    v_range[position] = (start, v_entries.len());
                     break;
                 }
             }
-            v_offsets.push(v_entries.len());
         }
-        (bars, pivots)
+        left
     }
 
     /// Columns of dimension `dim` (cofacets of `simplices`, which have dimension
@@ -645,10 +731,17 @@ impl Rips<'_> {
         let mut scratch = Vec::new();
         for &simplex in simplices {
             let mut found = Vec::new();
-            self.for_each_cofacet(simplex, dim - 1, &mut vertices, true, |c| {
-                found.push(c);
-                true
-            });
+            self.for_each_cofacet(
+                simplex,
+                dim - 1,
+                &mut vertices,
+                true,
+                (-1.0, self.threshold),
+                |c| {
+                    found.push(c);
+                    true
+                },
+            );
             for c in found {
                 if keep_simplices {
                     next.push(c);
@@ -665,6 +758,17 @@ impl Rips<'_> {
         columns.par_sort_unstable();
         (columns, next)
     }
+}
+
+/// The working columns of one reduction.
+#[derive(Default)]
+struct Working {
+    /// The reduction column (simplices of the column's dimension).
+    reduction: BinaryHeap<Entry>,
+    /// Its coboundary (cofacets).
+    coboundary: BinaryHeap<Entry>,
+    /// Scratch for simplex vertices.
+    vertices: Vec<usize>,
 }
 
 /// Pops the pivot of a `Z/2` column held as a heap (equal entries cancel in pairs).

@@ -108,7 +108,7 @@ pub struct AnalysisParams {
     pub max_homology_dim: usize,
     /// Rips threshold; `None`: the enclosing radius (no bar is lost). Default `None`.
     pub threshold: Option<f64>,
-    /// Homology of more points runs on this many max–min landmarks. Default 1500.
+    /// Homology of more points runs on this many max–min landmarks. Default 800.
     pub max_points: usize,
     /// Betti rule: smallest ratio of a significant bar to the next. Default 3.
     pub gap_ratio: f64,
@@ -127,7 +127,7 @@ impl Default for AnalysisParams {
         Self {
             max_homology_dim: 1,
             threshold: None,
-            max_points: 1500,
+            max_points: 800,
             gap_ratio: 3.0,
             noise_fraction: 0.1,
             twonn_discard: 0.1,

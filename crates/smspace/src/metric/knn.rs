@@ -1,0 +1,382 @@
+//! The `k` nearest sets of every set, exact, without the `M × M` matrix.
+//!
+//! For a metric (the Hausdorff distance `ρ` satisfies the triangle inequality, since
+//! `g` does), `ρ(i, j) ≥ |ρ(i, p) − ρ(j, p)|` for every pivot set `p`. Pivots are
+//! chosen by farthest-first traversal (set 0, then the set farthest from all pivots so
+//! far), and their distances to every set are computed once (`pivots × M` pairs). For
+//! each query set `i`:
+//!
+//! 1. the lower bound `L(j) = max_p |ρ(i, p) − ρ(j, p)|` of every other set;
+//! 2. exact distances to the `k` sets of smallest `L`, giving a radius `τ` (the `k`-th
+//!    smallest distance so far);
+//! 3. the remaining sets with `L(j) ≤ τ`, by increasing `L`, each measured with an
+//!    early abort as soon as `ρ(i, j) > τ` is proven; `τ` shrinks as better sets come.
+//!
+//! Ties are broken by the smaller index, so the lists equal the first `k` entries of
+//! the sorted rows of the full matrix (diagonal excluded). Memory: `pivots × M` for the
+//! pivot table, `rows × k` for the output and `O(M)` per thread. Without the triangle
+//! inequality ([`MetricKind::MeanHausdorff`]) no pivots are used: every pair of a row is
+//! measured, still in `O(M)` memory per thread.
+
+use std::ops::Range;
+
+use ndarray::{Array2, ArrayView3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::kernel::{self, Driver, Eval, Scratch};
+use super::{check_memory, check_rows, DistanceParams, MetricError, MetricKind, PreparedSets};
+use crate::progress::Progress;
+
+/// Relative safety margin on the pivot lower bounds (rounding of the distances).
+const PIVOT_MARGIN: f64 = 1e-10;
+
+/// Parameters of the nearest-set search. Unchecked; [`KnnParams::check`] validates them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct KnnParams {
+    /// Number of nearest sets per set. Default: 15.
+    pub k: usize,
+    /// Number of pivot sets for the triangle-inequality bounds. Default: 24. Zero
+    /// measures every pair.
+    pub pivots: usize,
+}
+
+impl Default for KnnParams {
+    fn default() -> Self {
+        Self { k: 15, pivots: 24 }
+    }
+}
+
+/// Validated [`KnnParams`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidKnnParams(KnnParams);
+
+impl std::ops::Deref for ValidKnnParams {
+    type Target = KnnParams;
+    fn deref(&self) -> &KnnParams {
+        &self.0
+    }
+}
+
+impl KnnParams {
+    /// Default parameters.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Sets `k` (default 15).
+    pub fn k(mut self, k: usize) -> Self {
+        self.k = k;
+        self
+    }
+
+    /// Sets the number of pivots (default 24).
+    pub fn pivots(mut self, pivots: usize) -> Self {
+        self.pivots = pivots;
+        self
+    }
+
+    /// Checks that `k ≥ 1` (the bound `k < M` is checked against the data).
+    pub fn check(&self) -> Result<ValidKnnParams, MetricError> {
+        if self.k == 0 {
+            return Err(MetricError::BadK { k: 0, max: 0 });
+        }
+        Ok(ValidKnnParams(self.clone()))
+    }
+}
+
+/// Nearest sets of a block of rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Knn {
+    /// The query rows `[i0, i1)`.
+    pub rows: Range<usize>,
+    /// `(i1 − i0, k)`: indices of the nearest sets, nearest first (ties: smaller index).
+    pub indices: Array2<usize>,
+    /// `(i1 − i0, k)`: their distances.
+    pub distances: Array2<f64>,
+}
+
+/// The `k` nearest sets of each set in rows `rows` of `(M, P, N)` kernel sets.
+pub fn knn(
+    sets: ArrayView3<'_, f64>,
+    distance: &DistanceParams,
+    params: &KnnParams,
+    rows: Range<usize>,
+    progress: &dyn Progress,
+) -> Result<Knn, MetricError> {
+    let distance = distance.check()?;
+    let params = params.check()?;
+    let (m, p, n) = sets.dim();
+    if m < 2 {
+        return Err(MetricError::TooFewSets { sets: m });
+    }
+    check_rows(&rows, m)?;
+    let needed = knn_bytes(m, p, n, rows.len(), &params);
+    check_memory(distance.memory_limit_bytes, m, needed)?;
+    let prepared = PreparedSets::new(sets, distance.period)?;
+    knn_prepared(&prepared, distance.metric, &params, rows, progress)
+}
+
+/// Bytes [`knn`] needs: layout, pivot table, output and per-thread buffers.
+pub fn knn_bytes(sets: usize, points: usize, dims: usize, rows: usize, params: &KnnParams) -> u64 {
+    let threads = rayon::current_num_threads() as u64;
+    PreparedSets::estimate_bytes(sets, points, dims)
+        + (params.pivots as u64) * (sets as u64) * 8
+        + (rows as u64) * (params.k as u64) * 16
+        + threads * (sets as u64) * 24
+}
+
+/// [`knn`] on prepared sets (the point metric is the one they were prepared with).
+pub fn knn_prepared(
+    prepared: &PreparedSets,
+    metric: MetricKind,
+    params: &ValidKnnParams,
+    rows: Range<usize>,
+    progress: &dyn Progress,
+) -> Result<Knn, MetricError> {
+    let m = prepared.len();
+    if m < 2 {
+        return Err(MetricError::TooFewSets { sets: m });
+    }
+    check_rows(&rows, m)?;
+    let k = params.k;
+    if k == 0 || k >= m {
+        return Err(MetricError::BadK { k, max: m - 1 });
+    }
+    let pivots = if metric.is_metric() {
+        params.pivots.min(m)
+    } else {
+        0
+    };
+    let table = pivot_table(prepared, metric, pivots, progress);
+
+    progress.start("neighbours", rows.len() as u64);
+    let mut indices = Array2::zeros((rows.len(), k));
+    let mut distances = Array2::zeros((rows.len(), k));
+    let index_rows = indices
+        .as_slice_mut()
+        .expect("a new array is in standard layout");
+    let distance_rows = distances
+        .as_slice_mut()
+        .expect("a new array is in standard layout");
+    index_rows
+        .par_chunks_mut(k)
+        .zip(distance_rows.par_chunks_mut(k))
+        .enumerate()
+        .for_each_init(
+            || (Scratch::default(), Vec::new(), Vec::new()),
+            |(scratch, bounds, candidates), (r, (out_index, out_distance))| {
+                let driver = QueryDriver {
+                    query: rows.start + r,
+                    sets: m,
+                    k,
+                    pivots,
+                    table: &table,
+                    bounds,
+                    candidates,
+                    out_index,
+                    out_distance,
+                };
+                kernel::dispatch(prepared, metric, scratch, driver);
+                progress.advance(1);
+            },
+        );
+    progress.finish();
+    Ok(Knn {
+        rows,
+        indices,
+        distances,
+    })
+}
+
+/// `[t][j]`: distance from pivot `t` to set `j`, pivots by farthest-first traversal.
+fn pivot_table(
+    prepared: &PreparedSets,
+    metric: MetricKind,
+    pivots: usize,
+    progress: &dyn Progress,
+) -> Vec<f64> {
+    let m = prepared.len();
+    let mut table = vec![0.0; pivots * m];
+    if pivots == 0 {
+        return table;
+    }
+    progress.start("pivots", pivots as u64);
+    let mut nearest = vec![f64::INFINITY; m];
+    let mut pivot = 0;
+    for t in 0..pivots {
+        let row = &mut table[t * m..(t + 1) * m];
+        const COLUMNS: usize = 64;
+        row.par_chunks_mut(COLUMNS).enumerate().for_each_init(
+            Scratch::default,
+            |scratch, (c, out)| {
+                let driver = ColumnDriver {
+                    row: pivot,
+                    first: c * COLUMNS,
+                    out,
+                };
+                kernel::dispatch(prepared, metric, scratch, driver);
+            },
+        );
+        let mut farthest = (f64::NEG_INFINITY, 0);
+        for (j, (near, &d)) in nearest.iter_mut().zip(row.iter()).enumerate() {
+            *near = near.min(d);
+            if *near > farthest.0 {
+                farthest = (*near, j);
+            }
+        }
+        pivot = farthest.1;
+        progress.advance(1);
+    }
+    progress.finish();
+    table
+}
+
+struct ColumnDriver<'a> {
+    row: usize,
+    first: usize,
+    out: &'a mut [f64],
+}
+
+impl Driver for ColumnDriver<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn drive<E: Eval>(self, eval: &mut E) {
+        for (c, slot) in self.out.iter_mut().enumerate() {
+            let j = self.first + c;
+            *slot = if j == self.row {
+                0.0
+            } else {
+                eval.distance(self.row, j, f64::INFINITY)
+                    .unwrap_or(f64::INFINITY)
+            };
+        }
+    }
+}
+
+struct QueryDriver<'a> {
+    query: usize,
+    sets: usize,
+    k: usize,
+    pivots: usize,
+    table: &'a [f64],
+    bounds: &'a mut Vec<f64>,
+    candidates: &'a mut Vec<(f64, u32)>,
+    out_index: &'a mut [usize],
+    out_distance: &'a mut [f64],
+}
+
+/// The best `k` so far, sorted by `(distance, index)`.
+struct Best {
+    entries: Vec<(f64, usize)>,
+    k: usize,
+}
+
+impl Best {
+    /// The `k`-th distance (infinite until there are `k` entries).
+    fn radius(&self) -> f64 {
+        if self.entries.len() < self.k {
+            f64::INFINITY
+        } else {
+            self.entries[self.k - 1].0
+        }
+    }
+
+    fn offer(&mut self, d: f64, j: usize) {
+        let before = |e: &(f64, usize)| e.0 < d || (e.0 == d && e.1 < j);
+        if self.entries.len() == self.k {
+            let last = self.entries[self.k - 1];
+            if !(d < last.0 || (d == last.0 && j < last.1)) {
+                return;
+            }
+            self.entries.pop();
+        }
+        let at = self.entries.partition_point(before);
+        self.entries.insert(at, (d, j));
+    }
+}
+
+impl Driver for QueryDriver<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn drive<E: Eval>(self, eval: &mut E) {
+        let QueryDriver {
+            query,
+            sets,
+            k,
+            pivots,
+            table,
+            bounds,
+            candidates,
+            out_index,
+            out_distance,
+        } = self;
+        let mut best = Best {
+            entries: Vec::with_capacity(k + 1),
+            k,
+        };
+        if pivots == 0 {
+            for j in (0..sets).filter(|&j| j != query) {
+                let limit = best.radius();
+                if let Some(d) = eval.distance(query, j, limit) {
+                    best.offer(d, j);
+                }
+            }
+        } else {
+            bounds.clear();
+            bounds.resize(sets, 0.0);
+            for t in 0..pivots {
+                let column = &table[t * sets..(t + 1) * sets];
+                let x = column[query];
+                for (bound, &y) in bounds.iter_mut().zip(column.iter()) {
+                    let gap = (x - y).abs() - PIVOT_MARGIN * (x + y);
+                    if gap > *bound {
+                        *bound = gap;
+                    }
+                }
+            }
+            candidates.clear();
+            candidates.extend(
+                bounds
+                    .iter()
+                    .enumerate()
+                    .filter(|&(j, _)| j != query)
+                    .map(|(j, &b)| (b, j as u32)),
+            );
+            let order = |x: &(f64, u32), y: &(f64, u32)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
+            candidates.select_nth_unstable_by(k - 1, order);
+            for &(_, j) in &candidates[..k] {
+                let j = j as usize;
+                let d = eval
+                    .distance(query, j, f64::INFINITY)
+                    .unwrap_or(f64::INFINITY);
+                best.offer(d, j);
+            }
+            let radius = best.radius();
+            let rest = &mut candidates[k..];
+            let mut kept = 0;
+            for e in 0..rest.len() {
+                if rest[e].0 <= radius {
+                    rest.swap(kept, e);
+                    kept += 1;
+                }
+            }
+            let rest = &mut rest[..kept];
+            rest.sort_unstable_by(order);
+            for &(bound, j) in rest.iter() {
+                let radius = best.radius();
+                if bound > radius {
+                    break;
+                }
+                if let Some(d) = eval.distance(query, j as usize, radius) {
+                    best.offer(d, j as usize);
+                }
+            }
+        }
+        for (e, &(d, j)) in best.entries.iter().enumerate() {
+            out_index[e] = j;
+            out_distance[e] = d;
+        }
+    }
+}

@@ -1,0 +1,493 @@
+//! The metric on kernel sets (paper section 3.2, step 3): the matrix of distances
+//! between every pair of sets `M^i`, and the `k` nearest sets of every set.
+//!
+//! # Formulas
+//!
+//! Points are motor configurations `m ∈ ℝ^N`, angles in radians. Their distance wraps
+//! every coordinate difference to the nearest periodic image (paper eq. for `g`, `h`):
+//!
+//! ```text
+//! g(m, m') = sqrt( Σ_{n=1..N} h(m_n − m'_n)² ),   h(u) = u − 2π·round(u / 2π),
+//! ```
+//!
+//! so `|h(u)| ≤ π` (the paper writes `h(u) = 2π − u` for `u > π` and `−2π − u` for
+//! `u < −π`: the same up to sign, which the square removes). With
+//! [`Period::None`] `h(u) = u` and `g` is Euclidean.
+//!
+//! Between two sets `A = M^i`, `B = M^j` of `P` points each:
+//!
+//! * [`MetricKind::Hausdorff`], the paper's `ρ` (section 3.2):
+//!   `ρ(A, B) = max( max_a min_b g(a, b), max_b min_a g(a, b) )`;
+//! * [`MetricKind::MeanHausdorff`], less sensitive to one stray point (the paper notes
+//!   that any metric on the sets could serve):
+//!   `ρ̄(A, B) = ½ ( mean_a min_b g(a, b) + mean_b min_a g(a, b) )`.
+//!   It is symmetric and zero on equal sets, but not a metric (no triangle
+//!   inequality).
+//!
+//! # Exact and fast
+//!
+//! Every value equals the brute-force `max`/`min` over the whole `P × P` table of
+//! `g` (the functions in [`reference`]): the fast kernels only skip work that cannot
+//! change it. They combine an early-break scan (Taha & Hanbury 2015), warm starts from
+//! the previous block's nearest index (sets are ordered closed curves), bounding balls
+//! around runs of eight consecutive points, and a structure-of-arrays layout processed
+//! eight points at a time with runtime SIMD dispatch ([`PreparedSets`]; details in the
+//! `kernel` source). Results do not depend on the number of threads.
+//!
+//! # Entry points
+//!
+//! * [`distance_matrix`]: the full symmetric `(M, M)` matrix, for users;
+//! * [`distance_rows`] / [`fill_rows`]: any block of rows `[i0, i1)` on its own, into a
+//!   new array or a caller's buffer, so that the matrix can be spread over processes;
+//! * [`knn`]: the `k` nearest sets of every set (or of a block of rows) without the
+//!   matrix, in `O(M·k)` memory;
+//! * [`SetMetric`]: one distance between two point sets.
+
+mod kernel;
+mod knn;
+mod prepared;
+pub mod reference;
+
+use std::ops::Range;
+
+use ndarray::{Array2, Array3, ArrayView2, ArrayView3, ArrayViewMut2, Axis};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::progress::Progress;
+
+pub use knn::{knn, knn_prepared, Knn, KnnParams, ValidKnnParams};
+pub use prepared::PreparedSets;
+
+/// Errors of the metric stage.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum MetricError {
+    /// Fewer than two sets: there is no pair to measure.
+    #[error("need at least 2 kernel sets to compute distances, got {sets}")]
+    TooFewSets {
+        /// `M`.
+        sets: usize,
+    },
+    /// Sets without points or points without coordinates.
+    #[error("kernel sets have shape {shape:?}, expected (M, P, N) with P >= 1 points and N >= 1 coordinates")]
+    EmptySets {
+        /// `(M, P, N)`.
+        shape: (usize, usize, usize),
+    },
+    /// A coordinate is NaN or infinite.
+    #[error("kernel set {set} point {point} coordinate {coord} is {value}; every coordinate must be finite")]
+    NonFinite {
+        /// Set index.
+        set: usize,
+        /// Point index within the set.
+        point: usize,
+        /// Coordinate index.
+        coord: usize,
+        /// The value found.
+        value: f64,
+    },
+    /// Two sets given to [`SetMetric::distance`] have different coordinate counts.
+    #[error("point sets have {a} and {b} coordinates per point; they must match")]
+    DimensionMismatch {
+        /// Coordinates of the first set.
+        a: usize,
+        /// Coordinates of the second set.
+        b: usize,
+    },
+    /// A row block outside `[0, M)` or empty.
+    #[error("row block {start}:{end} is not a non-empty range within 0:{sets}")]
+    BadRows {
+        /// First row.
+        start: usize,
+        /// One past the last row.
+        end: usize,
+        /// `M`.
+        sets: usize,
+    },
+    /// The output buffer does not match the row block.
+    #[error("output buffer has shape {found:?}, expected {expected:?} in standard (C) layout")]
+    BadBuffer {
+        /// Shape given.
+        found: (usize, usize),
+        /// Shape expected.
+        expected: (usize, usize),
+    },
+    /// `k` is not within `1..M`.
+    #[error("k = {k} nearest sets requested, but it must be between 1 and M - 1 = {max}")]
+    BadK {
+        /// Requested `k`.
+        k: usize,
+        /// `M − 1`.
+        max: usize,
+    },
+    /// The output would not fit in the memory available.
+    #[error("the distance matrix of {sets} sets needs {} but only {} is available; compute the k nearest sets instead (knn, `--knn K` on the command line), or a block of rows", human_bytes(*needed), human_bytes(*available))]
+    OutOfMemory {
+        /// `M`.
+        sets: usize,
+        /// Bytes the output and working data need.
+        needed: u64,
+        /// Bytes available.
+        available: u64,
+    },
+}
+
+/// Formats a byte count as `12.3 GiB`.
+pub fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{value:.1} {}", UNITS[unit])
+    }
+}
+
+/// Period of every motor coordinate in the point metric `g`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Period {
+    /// Hinge joints: differences wrap with period `2π` (the paper's `h`). Default.
+    #[default]
+    #[serde(rename = "2pi")]
+    TwoPi,
+    /// No wrapping: plain Euclidean distance.
+    #[serde(rename = "none")]
+    None,
+}
+
+impl Period {
+    /// The period in radians (`f64::INFINITY` for [`Period::None`]).
+    pub fn radians(self) -> f64 {
+        match self {
+            Period::TwoPi => std::f64::consts::TAU,
+            Period::None => f64::INFINITY,
+        }
+    }
+}
+
+/// Which set metric to compute.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MetricKind {
+    /// The symmetric Hausdorff distance `ρ` of the paper. Default.
+    #[default]
+    Hausdorff,
+    /// The average of the two mean directed distances.
+    MeanHausdorff,
+}
+
+impl MetricKind {
+    /// The name used in files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            MetricKind::Hausdorff => "hausdorff",
+            MetricKind::MeanHausdorff => "mean-hausdorff",
+        }
+    }
+
+    /// True when the triangle inequality holds, which nearest-neighbour search uses to
+    /// prune.
+    pub fn is_metric(self) -> bool {
+        matches!(self, MetricKind::Hausdorff)
+    }
+
+    /// This metric as a [`SetMetric`] object under the point metric `period`.
+    pub fn with_period(self, period: Period) -> Box<dyn SetMetric> {
+        match self {
+            MetricKind::Hausdorff => Box::new(Hausdorff { period }),
+            MetricKind::MeanHausdorff => Box::new(MeanHausdorff { period }),
+        }
+    }
+}
+
+/// A distance between two point sets, each a `(P, N)` view (one point per row).
+pub trait SetMetric: Sync {
+    /// Short name, as on the command line.
+    fn name(&self) -> &'static str;
+
+    /// The distance between `a` and `b`. Errors on empty sets, non-finite coordinates
+    /// or different coordinate counts.
+    fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError>;
+
+    /// True when the triangle inequality holds. Defaults to `false`.
+    fn is_metric(&self) -> bool {
+        false
+    }
+}
+
+/// The paper's symmetric Hausdorff distance `ρ` under the point metric `g`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Hausdorff {
+    /// Period of the coordinates.
+    pub period: Period,
+}
+
+/// The mean Hausdorff distance `ρ̄` under the point metric `g`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MeanHausdorff {
+    /// Period of the coordinates.
+    pub period: Period,
+}
+
+fn pair_distance(
+    kind: MetricKind,
+    period: Period,
+    a: ArrayView2<'_, f64>,
+    b: ArrayView2<'_, f64>,
+) -> Result<f64, MetricError> {
+    if a.ncols() != b.ncols() {
+        return Err(MetricError::DimensionMismatch {
+            a: a.ncols(),
+            b: b.ncols(),
+        });
+    }
+    if a.nrows() != b.nrows() {
+        // Different point counts: no shared layout, use the reference (after the checks).
+        PreparedSets::new(a.insert_axis(Axis(0)), period)?;
+        PreparedSets::new(b.insert_axis(Axis(0)), period)?;
+        return Ok(match kind {
+            MetricKind::Hausdorff => reference::hausdorff(a, b, period),
+            MetricKind::MeanHausdorff => reference::mean_hausdorff(a, b, period),
+        });
+    }
+    let mut both = Array3::zeros((2, a.nrows(), a.ncols()));
+    both.index_axis_mut(Axis(0), 0).assign(&a);
+    both.index_axis_mut(Axis(0), 1).assign(&b);
+    let prepared = PreparedSets::new(both.view(), period)?;
+    let mut scratch = kernel::Scratch::default();
+    Ok(kernel::dispatch(&prepared, kind, &mut scratch, PairDriver))
+}
+
+struct PairDriver;
+
+impl kernel::Driver for PairDriver {
+    type Output = f64;
+    #[inline(always)]
+    fn drive<E: kernel::Eval>(self, eval: &mut E) -> f64 {
+        eval.distance(0, 1, f64::INFINITY).unwrap_or(f64::INFINITY)
+    }
+}
+
+impl SetMetric for Hausdorff {
+    fn name(&self) -> &'static str {
+        MetricKind::Hausdorff.name()
+    }
+    fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
+        pair_distance(MetricKind::Hausdorff, self.period, a, b)
+    }
+    fn is_metric(&self) -> bool {
+        true
+    }
+}
+
+impl SetMetric for MeanHausdorff {
+    fn name(&self) -> &'static str {
+        MetricKind::MeanHausdorff.name()
+    }
+    fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
+        pair_distance(MetricKind::MeanHausdorff, self.period, a, b)
+    }
+}
+
+/// Parameters of the distance matrix. Unchecked; [`DistanceParams::check`] validates them.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DistanceParams {
+    /// Set metric. Default: [`MetricKind::Hausdorff`].
+    pub metric: MetricKind,
+    /// Period of the motor coordinates. Default: [`Period::TwoPi`].
+    pub period: Period,
+    /// Refuse to start when the output needs more bytes than this. Default: `None`
+    /// (no limit; the command-line tool passes the memory available).
+    pub memory_limit_bytes: Option<u64>,
+}
+
+/// Validated [`DistanceParams`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValidDistanceParams(DistanceParams);
+
+impl DistanceParams {
+    /// Default parameters.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Sets the set metric (default Hausdorff).
+    pub fn metric(mut self, metric: MetricKind) -> Self {
+        self.metric = metric;
+        self
+    }
+
+    /// Sets the period of the coordinates (default `2π`).
+    pub fn period(mut self, period: Period) -> Self {
+        self.period = period;
+        self
+    }
+
+    /// Sets the memory limit in bytes (default none).
+    pub fn memory_limit_bytes(mut self, limit: Option<u64>) -> Self {
+        self.memory_limit_bytes = limit;
+        self
+    }
+
+    /// Validates the parameters. Every combination is valid today; the call keeps the
+    /// unchecked/checked pattern of the other stages.
+    pub fn check(&self) -> Result<ValidDistanceParams, MetricError> {
+        Ok(ValidDistanceParams(self.clone()))
+    }
+}
+
+impl std::ops::Deref for ValidDistanceParams {
+    type Target = DistanceParams;
+    fn deref(&self) -> &DistanceParams {
+        &self.0
+    }
+}
+
+/// Bytes needed to compute rows `rows` of the matrix of `sets` sets of `points` points
+/// with `dims` coordinates: the `(rows, M)` output plus the prepared layout.
+pub fn matrix_bytes(sets: usize, points: usize, dims: usize, rows: usize) -> u64 {
+    (rows as u64) * (sets as u64) * 8 + PreparedSets::estimate_bytes(sets, points, dims)
+}
+
+fn check_rows(rows: &Range<usize>, sets: usize) -> Result<(), MetricError> {
+    if rows.start >= rows.end || rows.end > sets {
+        return Err(MetricError::BadRows {
+            start: rows.start,
+            end: rows.end,
+            sets,
+        });
+    }
+    Ok(())
+}
+
+fn check_memory(limit: Option<u64>, sets: usize, needed: u64) -> Result<(), MetricError> {
+    match limit {
+        Some(available) if needed > available => Err(MetricError::OutOfMemory {
+            sets,
+            needed,
+            available,
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// The full symmetric distance matrix `(M, M)` of kernel sets `(M, P, N)`: zero
+/// diagonal, `D[i, j] = D[j, i] = ρ(M^i, M^j)`.
+///
+/// Errors before any work when `M < 2`, `P` or `N` is zero, a coordinate is not
+/// finite, or the matrix needs more than `params.memory_limit_bytes`.
+pub fn distance_matrix(
+    sets: ArrayView3<'_, f64>,
+    params: &DistanceParams,
+    progress: &dyn Progress,
+) -> Result<Array2<f64>, MetricError> {
+    let m = sets.dim().0;
+    distance_rows(sets, params, 0..m, progress)
+}
+
+/// Rows `[i0, i1)` of the distance matrix, as a `(i1 − i0, M)` array. Any split of
+/// `0..M` into blocks gives, stacked, exactly [`distance_matrix`].
+pub fn distance_rows(
+    sets: ArrayView3<'_, f64>,
+    params: &DistanceParams,
+    rows: Range<usize>,
+    progress: &dyn Progress,
+) -> Result<Array2<f64>, MetricError> {
+    let params = params.check()?;
+    let (m, p, n) = sets.dim();
+    if m < 2 {
+        return Err(MetricError::TooFewSets { sets: m });
+    }
+    check_rows(&rows, m)?;
+    check_memory(
+        params.memory_limit_bytes,
+        m,
+        matrix_bytes(m, p, n, rows.len()),
+    )?;
+    let prepared = PreparedSets::new(sets, params.period)?;
+    let mut out = Array2::zeros((rows.len(), m));
+    fill_rows(&prepared, params.metric, rows, out.view_mut(), progress)?;
+    Ok(out)
+}
+
+struct RowDriver<'a> {
+    row: usize,
+    /// Columns `skip.start..=row` are left alone (mirrored afterwards, or the diagonal).
+    skip_from: usize,
+    out: &'a mut [f64],
+}
+
+impl kernel::Driver for RowDriver<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn drive<E: kernel::Eval>(self, eval: &mut E) {
+        for j in 0..self.out.len() {
+            if j >= self.skip_from && j <= self.row {
+                continue;
+            }
+            self.out[j] = eval
+                .distance(self.row, j, f64::INFINITY)
+                .unwrap_or(f64::INFINITY);
+        }
+    }
+}
+
+/// Fills `out` (shape `(i1 − i0, M)`, standard layout) with rows `rows = [i0, i1)` of the
+/// distance matrix of `prepared` under `metric`, in parallel on rayon's current pool.
+///
+/// Pairs with both sets inside the block are computed once and mirrored. `progress`
+/// sees one stage, "distances", counted in pairs.
+pub fn fill_rows(
+    prepared: &PreparedSets,
+    metric: MetricKind,
+    rows: Range<usize>,
+    mut out: ArrayViewMut2<'_, f64>,
+    progress: &dyn Progress,
+) -> Result<(), MetricError> {
+    let m = prepared.len();
+    if m < 2 {
+        return Err(MetricError::TooFewSets { sets: m });
+    }
+    check_rows(&rows, m)?;
+    let expected = (rows.len(), m);
+    if out.dim() != expected || !out.is_standard_layout() {
+        return Err(MetricError::BadBuffer {
+            found: out.dim(),
+            expected,
+        });
+    }
+    let i0 = rows.start;
+    let total: u64 = rows.clone().map(|i| (m - 1 - (i - i0)) as u64).sum();
+    progress.start("distances", total);
+    let buffer = out
+        .as_slice_mut()
+        .expect("standard layout was checked above");
+    buffer.par_chunks_mut(m).enumerate().for_each_init(
+        kernel::Scratch::default,
+        |scratch, (r, row)| {
+            let i = i0 + r;
+            row[i] = 0.0;
+            let driver = RowDriver {
+                row: i,
+                skip_from: i0,
+                out: row,
+            };
+            kernel::dispatch(prepared, metric, scratch, driver);
+            progress.advance((m - 1 - r) as u64);
+        },
+    );
+    for i in rows.clone() {
+        for j in i0..i {
+            out[[i - i0, j]] = out[[j - i0, i]];
+        }
+    }
+    progress.finish();
+    Ok(())
+}

@@ -1,0 +1,471 @@
+//! Tests of the metric stage: exactness against the brute force, metric properties,
+//! periodic wrap, row blocks, thread-count independence, nearest sets and bad input.
+
+#[path = "common/arm_like.rs"]
+mod arm_like;
+
+use std::f64::consts::PI;
+
+use approx::assert_abs_diff_eq;
+use arm_like::{arm_like_sets, uniform_sets};
+use ndarray::{array, Array2, Array3, Axis, Slice};
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use smspace::metric::{
+    distance_matrix, distance_rows, fill_rows, knn, reference, DistanceParams, Hausdorff,
+    KnnParams, MeanHausdorff, MetricError, MetricKind, Period, PreparedSets, SetMetric,
+};
+use smspace::progress::Silent;
+
+const KINDS: [MetricKind; 2] = [MetricKind::Hausdorff, MetricKind::MeanHausdorff];
+const PERIODS: [Period; 2] = [Period::TwoPi, Period::None];
+
+fn params(kind: MetricKind, period: Period) -> DistanceParams {
+    DistanceParams::new().metric(kind).period(period)
+}
+
+/// Rows `range` of `a` (ndarray's `s!` macro is unavailable under `forbid(unsafe_code)`).
+fn rows<T>(a: &Array2<T>, range: std::ops::Range<usize>) -> ndarray::ArrayView2<'_, T> {
+    a.slice_axis(Axis(0), Slice::from(range))
+}
+
+fn assert_matrix_eq(fast: &Array2<f64>, slow: &Array2<f64>, what: &str) {
+    assert_eq!(fast.dim(), slow.dim(), "{what}");
+    for ((i, j), &x) in fast.indexed_iter() {
+        let y = slow[[i, j]];
+        assert!(
+            (x - y).abs() <= 1e-9,
+            "{what}: D[{i}, {j}] = {x}, brute force {y}"
+        );
+    }
+}
+
+#[test]
+fn equals_brute_force_on_uniform_sets_of_many_shapes() {
+    let mut seed = 0;
+    for &(m, p, n) in &[
+        (2, 1, 1),
+        (5, 3, 2),
+        (9, 8, 3),
+        (7, 9, 4),
+        (6, 13, 5),
+        (5, 17, 9),
+        (4, 10, 17),
+        (12, 40, 4),
+    ] {
+        seed += 1;
+        let sets = uniform_sets(m, p, n, seed);
+        for kind in KINDS {
+            for period in PERIODS {
+                let fast = distance_matrix(sets.view(), &params(kind, period), &Silent).unwrap();
+                let slow = reference::distance_matrix(sets.view(), kind, period);
+                assert_matrix_eq(
+                    &fast,
+                    &slow,
+                    &format!("{kind:?} {period:?} ({m}, {p}, {n})"),
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn equals_brute_force_on_arm_like_sets() {
+    for (m, p, seed) in [(24, 100, 7), (16, 37, 8)] {
+        let sets = arm_like_sets(m, p, seed);
+        for kind in KINDS {
+            for period in PERIODS {
+                let fast = distance_matrix(sets.view(), &params(kind, period), &Silent).unwrap();
+                let slow = reference::distance_matrix(sets.view(), kind, period);
+                assert_matrix_eq(&fast, &slow, &format!("arm-like {kind:?} {period:?}"));
+            }
+        }
+    }
+}
+
+#[test]
+fn equals_brute_force_on_close_and_shifted_sets() {
+    // Near-duplicate sets (tiny Hausdorff distances, where early breaks are rare) and
+    // sets shifted across the ±π seam.
+    let base = arm_like_sets(6, 50, 11);
+    let mut sets = Array3::zeros((12, 50, 4));
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    for i in 0..6 {
+        sets.index_axis_mut(Axis(0), i)
+            .assign(&base.index_axis(Axis(0), i));
+        let mut shifted = base.index_axis(Axis(0), i).to_owned();
+        shifted.mapv_inplace(|x| x + 1e-3 * (i as f64 + 1.0));
+        shifted.as_slice_mut().unwrap().shuffle(&mut rng);
+        sets.index_axis_mut(Axis(0), 6 + i).assign(&shifted);
+    }
+    for kind in KINDS {
+        let fast = distance_matrix(sets.view(), &params(kind, Period::TwoPi), &Silent).unwrap();
+        let slow = reference::distance_matrix(sets.view(), kind, Period::TwoPi);
+        assert_matrix_eq(&fast, &slow, &format!("close {kind:?}"));
+    }
+}
+
+#[test]
+fn symmetric_with_zero_diagonal() {
+    let sets = arm_like_sets(20, 30, 3);
+    for kind in KINDS {
+        let d = distance_matrix(sets.view(), &params(kind, Period::TwoPi), &Silent).unwrap();
+        for i in 0..20 {
+            assert_eq!(d[[i, i]], 0.0);
+            for j in 0..20 {
+                assert_eq!(d[[i, j]], d[[j, i]]);
+                if i != j {
+                    assert!(d[[i, j]] > 0.0);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn zero_between_a_set_and_its_permutation() {
+    let sets = arm_like_sets(3, 64, 5);
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    for i in 0..3 {
+        let a = sets.index_axis(Axis(0), i);
+        let mut order: Vec<usize> = (0..64).collect();
+        order.shuffle(&mut rng);
+        let b = a.select(Axis(0), &order);
+        for metric in [
+            Box::new(Hausdorff::default()) as Box<dyn SetMetric>,
+            Box::new(MeanHausdorff::default()),
+        ] {
+            assert_eq!(metric.distance(a, b.view()).unwrap(), 0.0);
+        }
+    }
+}
+
+#[test]
+fn triangle_inequality_on_random_sets() {
+    for (m, p, n, seed) in [(10, 5, 2, 21), (10, 20, 4, 22), (8, 60, 3, 23)] {
+        let sets = uniform_sets(m, p, n, seed);
+        for period in PERIODS {
+            let d = distance_matrix(sets.view(), &params(MetricKind::Hausdorff, period), &Silent)
+                .unwrap();
+            let tolerance = 1e-12 * (1.0 + d.iter().fold(0.0_f64, |a, &b| a.max(b)));
+            for i in 0..m {
+                for j in 0..m {
+                    for k in 0..m {
+                        assert!(d[[i, k]] <= d[[i, j]] + d[[j, k]] + tolerance);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn periodic_wrap_puts_the_seam_points_together() {
+    let eps = 1e-3;
+    let a = array![[-PI + eps, 0.5]];
+    let b = array![[PI - eps, 0.5]];
+    let periodic = Hausdorff {
+        period: Period::TwoPi,
+    };
+    let euclidean = Hausdorff {
+        period: Period::None,
+    };
+    assert_abs_diff_eq!(
+        periodic.distance(a.view(), b.view()).unwrap(),
+        2.0 * eps,
+        epsilon = 1e-12
+    );
+    assert_abs_diff_eq!(
+        euclidean.distance(a.view(), b.view()).unwrap(),
+        2.0 * PI - 2.0 * eps,
+        epsilon = 1e-12
+    );
+    // Coordinates outside [-π, π) are taken modulo 2π.
+    let c = array![[PI - eps + 4.0 * PI, 0.5 - 2.0 * PI]];
+    assert_abs_diff_eq!(
+        periodic.distance(a.view(), c.view()).unwrap(),
+        2.0 * eps,
+        epsilon = 1e-9
+    );
+    // The largest distance between two points is sqrt(N)·π.
+    let far = array![[0.0, 0.0], [0.1, 0.1]];
+    let opposite = array![[PI, -PI], [-PI, PI]];
+    assert_abs_diff_eq!(
+        periodic.distance(far.view(), opposite.view()).unwrap(),
+        (2.0_f64).sqrt() * PI,
+        epsilon = 1e-12
+    );
+}
+
+#[test]
+fn set_metric_accepts_different_point_counts() {
+    let sets = arm_like_sets(2, 40, 9);
+    let a = sets.index_axis(Axis(0), 0);
+    let b = sets
+        .index_axis(Axis(0), 1)
+        .slice_axis_move(Axis(0), Slice::from(..25));
+    for kind in KINDS {
+        let metric = kind.with_period(Period::TwoPi);
+        let expected = match kind {
+            MetricKind::Hausdorff => reference::hausdorff(a, b, Period::TwoPi),
+            MetricKind::MeanHausdorff => reference::mean_hausdorff(a, b, Period::TwoPi),
+        };
+        assert_abs_diff_eq!(metric.distance(a, b).unwrap(), expected, epsilon = 1e-12);
+    }
+    let err = Hausdorff::default()
+        .distance(
+            a,
+            sets.index_axis(Axis(0), 1)
+                .slice_axis_move(Axis(1), Slice::from(..2)),
+        )
+        .unwrap_err();
+    assert!(
+        matches!(err, MetricError::DimensionMismatch { a: 4, b: 2 }),
+        "{err}"
+    );
+}
+
+#[test]
+fn row_blocks_stack_to_the_full_matrix() {
+    let sets = arm_like_sets(23, 24, 31);
+    for kind in KINDS {
+        let p = params(kind, Period::TwoPi);
+        let full = distance_matrix(sets.view(), &p, &Silent).unwrap();
+        for cuts in [
+            vec![0, 23],
+            vec![0, 1, 23],
+            vec![0, 7, 8, 16, 23],
+            vec![0, 22, 23],
+        ] {
+            for w in cuts.windows(2) {
+                let block = distance_rows(sets.view(), &p, w[0]..w[1], &Silent).unwrap();
+                assert_eq!(block, rows(&full, w[0]..w[1]), "{kind:?} {w:?}");
+            }
+        }
+        // The low-level form, into a caller's buffer.
+        let prepared = PreparedSets::new(sets.view(), Period::TwoPi).unwrap();
+        let mut buffer = Array2::from_elem((5, 23), f64::NAN);
+        fill_rows(&prepared, kind, 10..15, buffer.view_mut(), &Silent).unwrap();
+        assert_eq!(buffer, rows(&full, 10..15));
+    }
+}
+
+#[test]
+fn identical_for_any_thread_count() {
+    let sets = arm_like_sets(40, 50, 41);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let d = distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap();
+                let k = knn(
+                    sets.view(),
+                    &DistanceParams::new(),
+                    &KnnParams::new().k(5),
+                    0..40,
+                    &Silent,
+                )
+                .unwrap();
+                (d, k)
+            })
+    };
+    let one = run(1);
+    for threads in [2, 3] {
+        assert_eq!(run(threads), one);
+    }
+}
+
+/// The first `k` entries of each row of `d` by (distance, index), diagonal excluded.
+fn top_k(d: &Array2<f64>, k: usize) -> (Array2<usize>, Array2<f64>) {
+    let m = d.nrows();
+    let mut indices = Array2::zeros((m, k));
+    let mut distances = Array2::zeros((m, k));
+    for i in 0..m {
+        let mut row: Vec<(f64, usize)> =
+            (0..m).filter(|&j| j != i).map(|j| (d[[i, j]], j)).collect();
+        row.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+        for (e, &(v, j)) in row.iter().take(k).enumerate() {
+            indices[[i, e]] = j;
+            distances[[i, e]] = v;
+        }
+    }
+    (indices, distances)
+}
+
+#[test]
+fn knn_equals_the_top_k_of_the_full_matrix() {
+    let mut sets = arm_like_sets(120, 40, 51);
+    // Exact duplicates make ties that must break by index.
+    for (dst, src) in [(100, 3), (101, 3), (102, 50)] {
+        let copy = sets.index_axis(Axis(0), src).to_owned();
+        sets.index_axis_mut(Axis(0), dst).assign(&copy);
+    }
+    for kind in KINDS {
+        let p = params(kind, Period::TwoPi);
+        let full = distance_matrix(sets.view(), &p, &Silent).unwrap();
+        for (k, pivots) in [(1, 4), (6, 16), (15, 0), (15, 120)] {
+            let (indices, distances) = top_k(&full, k);
+            let found = knn(
+                sets.view(),
+                &p,
+                &KnnParams::new().k(k).pivots(pivots),
+                0..120,
+                &Silent,
+            )
+            .unwrap();
+            assert_eq!(found.indices, indices, "{kind:?} k={k} pivots={pivots}");
+            assert_eq!(found.distances, distances, "{kind:?} k={k} pivots={pivots}");
+            let block = knn(
+                sets.view(),
+                &p,
+                &KnnParams::new().k(k).pivots(pivots),
+                30..47,
+                &Silent,
+            )
+            .unwrap();
+            assert_eq!(block.indices, rows(&indices, 30..47));
+            assert_eq!(block.distances, rows(&distances, 30..47));
+        }
+    }
+}
+
+#[test]
+fn bad_input_is_reported() {
+    let p = DistanceParams::new();
+    let err = |sets: Array3<f64>| distance_matrix(sets.view(), &p, &Silent).unwrap_err();
+    assert!(matches!(
+        err(Array3::zeros((0, 5, 4))),
+        MetricError::TooFewSets { sets: 0 }
+    ));
+    assert!(matches!(
+        err(Array3::zeros((1, 5, 4))),
+        MetricError::TooFewSets { sets: 1 }
+    ));
+    let e = err(Array3::zeros((3, 0, 4)));
+    assert_eq!(
+        e.to_string(),
+        "kernel sets have shape (3, 0, 4), expected (M, P, N) with P >= 1 points and N >= 1 coordinates"
+    );
+    assert!(matches!(
+        err(Array3::zeros((3, 5, 0))),
+        MetricError::EmptySets { .. }
+    ));
+    let mut nan = Array3::zeros((3, 5, 4));
+    nan[[2, 1, 3]] = f64::NAN;
+    assert_eq!(
+        err(nan).to_string(),
+        "kernel set 2 point 1 coordinate 3 is NaN; every coordinate must be finite"
+    );
+    let mut inf = Array3::zeros((3, 5, 4));
+    inf[[0, 4, 0]] = f64::NEG_INFINITY;
+    assert!(matches!(
+        err(inf),
+        MetricError::NonFinite {
+            set: 0,
+            point: 4,
+            coord: 0,
+            ..
+        }
+    ));
+
+    let sets = arm_like_sets(4, 10, 1);
+    for rows in [2..2, 3..5, 5..6] {
+        let e = distance_rows(sets.view(), &p, rows.clone(), &Silent).unwrap_err();
+        assert!(matches!(e, MetricError::BadRows { .. }), "{rows:?}: {e}");
+    }
+    let e = distance_rows(sets.view(), &p, 3..5, &Silent).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "row block 3:5 is not a non-empty range within 0:4"
+    );
+
+    let prepared = PreparedSets::new(sets.view(), Period::TwoPi).unwrap();
+    let mut wrong = Array2::zeros((2, 3));
+    let e = fill_rows(
+        &prepared,
+        MetricKind::Hausdorff,
+        0..2,
+        wrong.view_mut(),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(matches!(
+        e,
+        MetricError::BadBuffer {
+            found: (2, 3),
+            expected: (2, 4)
+        }
+    ));
+    let mut transposed = Array2::zeros((4, 2));
+    let e = fill_rows(
+        &prepared,
+        MetricKind::Hausdorff,
+        0..2,
+        transposed.view_mut().reversed_axes(),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(matches!(e, MetricError::BadBuffer { .. }));
+
+    for k in [0, 4, 10] {
+        let e = knn(sets.view(), &p, &KnnParams::new().k(k), 0..4, &Silent).unwrap_err();
+        assert!(matches!(e, MetricError::BadK { .. }), "k = {k}: {e}");
+    }
+    let e = knn(sets.view(), &p, &KnnParams::new().k(4), 0..4, &Silent).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "k = 4 nearest sets requested, but it must be between 1 and M - 1 = 3"
+    );
+}
+
+#[test]
+fn refuses_a_matrix_larger_than_the_memory_limit() {
+    let sets = arm_like_sets(50, 10, 2);
+    let p = DistanceParams::new().memory_limit_bytes(Some(10_000));
+    let e = distance_matrix(sets.view(), &p, &Silent).unwrap_err();
+    assert!(matches!(
+        e,
+        MetricError::OutOfMemory {
+            sets: 50,
+            available: 10_000,
+            ..
+        }
+    ));
+    let message = e.to_string();
+    assert!(message.contains("--knn"), "{message}");
+    assert!(
+        message.starts_with("the distance matrix of 50 sets needs "),
+        "{message}"
+    );
+    // The matrix of the same sets fits under a generous limit.
+    let p = DistanceParams::new().memory_limit_bytes(Some(1 << 30));
+    assert!(distance_matrix(sets.view(), &p, &Silent).is_ok());
+}
+
+#[test]
+fn progress_counts_every_pair() {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    #[derive(Default)]
+    struct Count {
+        total: AtomicU64,
+        done: AtomicU64,
+    }
+    impl smspace::progress::Progress for Count {
+        fn start(&self, _stage: &str, total: u64) {
+            self.total.store(total, Ordering::SeqCst);
+        }
+        fn advance(&self, done: u64) {
+            self.done.fetch_add(done, Ordering::SeqCst);
+        }
+    }
+    let sets = arm_like_sets(9, 10, 4);
+    let count = Count::default();
+    distance_rows(sets.view(), &DistanceParams::new(), 2..6, &count).unwrap();
+    let total = count.total.load(Ordering::SeqCst);
+    assert_eq!(total, count.done.load(Ordering::SeqCst));
+    // Rows 2..6 of 9 sets: 4·8 pairs, of which the 6 inside the block are shared.
+    assert_eq!(total, 4 * 8 - 6);
+}
