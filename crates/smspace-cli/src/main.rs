@@ -32,6 +32,10 @@ enum Command {
     Env(cmd::env::Args),
     /// Sensor values s = σ_E(m) of motor configurations: sensors.npy.
     Sense(cmd::sense::Args),
+    /// Topology, dimension and agreement with the poses of a distance matrix: report.json.
+    Analyze(cmd::analyze::Args),
+    /// The same starts traced in several environments, compared: invariance.json.
+    Invariance(cmd::invariance::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -41,6 +45,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Trace(args) => cmd::trace::run(args),
         Command::Env(args) => cmd::env::run(args),
         Command::Sense(args) => cmd::sense::run(args),
+        Command::Analyze(args) => cmd::analyze::run(args),
+        Command::Invariance(args) => cmd::invariance::run(args),
     }
 }
 

@@ -79,18 +79,25 @@ fn betti(d: &Array2<f64>, max_dim: usize) -> (Vec<usize>, Persistence) {
 }
 
 /// The diagrams of the `ripser` program, or `None` (with a note) when it is missing.
-fn ripser(d: ArrayView2<f64>, max_dim: usize) -> Option<Vec<Vec<(f64, Option<f64>)>>> {
+/// Persistence diagrams as `[birth, death]` pairs, by dimension.
+type Diagrams = Vec<Vec<(f64, Option<f64>)>>;
+
+fn ripser(d: ArrayView2<f64>, max_dim: usize) -> Option<Diagrams> {
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("d.ldm");
+    let path = dir.path().join("d.txt");
+    // The full matrix: unambiguous, where the lower-triangular reader is sensitive to
+    // the layout of its first rows.
     let mut text = String::new();
-    for i in 1..d.nrows() {
-        let row: Vec<String> = (0..i).map(|j| format!("{:.17e}", d[[i, j]])).collect();
+    for i in 0..d.nrows() {
+        let row: Vec<String> = (0..d.ncols())
+            .map(|j| format!("{:.17e}", d[[i, j]]))
+            .collect();
         text.push_str(&row.join(","));
         text.push('\n');
     }
     std::fs::write(&path, text).unwrap();
     let output = match Command::new("ripser")
-        .args(["--format", "lower-distance", "--dim", &max_dim.to_string()])
+        .args(["--format", "distance", "--dim", &max_dim.to_string()])
         .arg(Path::new(&path))
         .output()
     {
@@ -105,7 +112,7 @@ fn ripser(d: ArrayView2<f64>, max_dim: usize) -> Option<Vec<Vec<(f64, Option<f64
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    let mut diagrams: Vec<Vec<(f64, Option<f64>)>> = Vec::new();
+    let mut diagrams: Diagrams = Vec::new();
     for line in String::from_utf8(output.stdout).unwrap().lines() {
         if line.starts_with("persistence intervals in dim") {
             diagrams.push(Vec::new());
@@ -468,4 +475,117 @@ fn h2_of_too_many_points_is_refused() {
     let d = Array2::<f64>::zeros((1000, 1000));
     let err = rips_persistence(d.view(), 2, None, &Silent).unwrap_err();
     assert!(matches!(err, AnalysisError::TooLarge { .. }));
+}
+
+mod invariance {
+    use super::*;
+    use smspace::agent::{Agent, AgentConfig, Environment, EnvironmentConfig};
+    use smspace::analysis::invariance;
+    use smspace::explore::{explore, ExploreParams};
+    use smspace::kernel::{TraceMethod, TraceParams};
+
+    fn setup(name: &str, n: usize) -> (Box<dyn Agent>, Array2<f64>) {
+        let agent = AgentConfig::preset(name).unwrap().build().unwrap();
+        let params = ExploreParams {
+            n,
+            seed: 3,
+            ..ExploreParams::default()
+        };
+        let motors = explore(agent.as_ref(), &params).unwrap().motors;
+        (agent, motors)
+    }
+
+    fn env(agent: &dyn Agent, seed: u64, lights: Option<usize>) -> Environment {
+        EnvironmentConfig {
+            seed,
+            lights,
+            ..EnvironmentConfig::default()
+        }
+        .build(agent)
+        .unwrap()
+    }
+
+    fn sensory(points: usize) -> smspace::kernel::TraceValidParams {
+        TraceParams {
+            method: TraceMethod::Sensory,
+            points,
+            ..TraceParams::default()
+        }
+        .check()
+        .unwrap()
+    }
+
+    #[test]
+    fn the_same_environment_twice_gives_zero_differences() {
+        let (arm, motors) = setup("planar-arm", 6);
+        let e = env(arm.as_ref(), 1, None);
+        let report = invariance(
+            arm.as_ref(),
+            motors.view(),
+            &[e.clone(), e],
+            None,
+            &sensory(30),
+            &Silent,
+        )
+        .unwrap();
+        assert!(report.common_sets >= 2, "{report:?}");
+        assert_eq!(report.max_set_distance, 0.0);
+        assert_eq!(report.max_distance_difference, 0.0);
+        assert_abs_diff_eq!(report.min_mantel, 1.0);
+        assert_abs_diff_eq!(report.max_sensor_mantel, 1.0);
+        assert_eq!(report.min_sensor_difference_relative, 0.0);
+    }
+
+    #[test]
+    fn redundant_toy_sets_do_not_depend_on_the_lights_but_its_sensations_do() {
+        let (toy, motors) = setup("toy-redundant", 25);
+        let environments = [
+            env(toy.as_ref(), 1, None),
+            env(toy.as_ref(), 2, Some(8)),
+            env(toy.as_ref(), 3, Some(3)),
+        ];
+        let report = invariance(
+            toy.as_ref(),
+            motors.view(),
+            &environments,
+            None,
+            &sensory(20),
+            &Silent,
+        )
+        .unwrap();
+        assert_eq!(report.pairs.len(), 3);
+        assert!(report.common_sets >= 20, "{report:?}");
+        assert!(report.max_set_distance_relative < 1e-6, "{report:?}");
+        assert!(report.min_mantel > 1.0 - 1e-9, "{report:?}");
+        // The paper's section 2.2: the sensory manifold changes with the environment.
+        assert!(report.min_sensor_difference_relative > 0.1, "{report:?}");
+        assert!(report.max_sensor_mantel < 0.99, "{report:?}");
+    }
+
+    #[test]
+    fn kinematic_tracing_and_a_single_environment_are_refused() {
+        let (toy, motors) = setup("toy-redundant", 4);
+        let e = env(toy.as_ref(), 1, None);
+        let kinematic = TraceParams::default().check().unwrap();
+        let err = invariance(
+            toy.as_ref(),
+            motors.view(),
+            &[e.clone(), e.clone()],
+            None,
+            &kinematic,
+            &Silent,
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("sensory"), "{err}");
+        let err = invariance(
+            toy.as_ref(),
+            motors.view(),
+            &[e],
+            None,
+            &sensory(10),
+            &Silent,
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("at least 2"), "{err}");
+    }
 }

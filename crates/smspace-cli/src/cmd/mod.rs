@@ -1,7 +1,9 @@
 //! One module per subcommand: each has an `Args` struct (clap) and a `run` function.
 
+pub mod analyze;
 pub mod common;
 pub mod env;
 pub mod explore;
+pub mod invariance;
 pub mod sense;
 pub mod trace;

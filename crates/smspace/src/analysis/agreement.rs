@@ -168,7 +168,7 @@ pub fn agreement(
 ) -> Result<Agreement, AnalysisError> {
     let n = learned.nrows();
     let pairs = n * (n - 1) / 2;
-    let mut deltas: Vec<Vec<f64>> = vec![Vec::with_capacity(pairs); 3];
+    let mut deltas: Vec<Vec<f64>> = (0..3).map(|_| Vec::with_capacity(pairs)).collect();
     for i in 0..n {
         for j in i + 1..n {
             for (c, delta) in deltas.iter_mut().enumerate() {

@@ -12,7 +12,8 @@
 //!   read off by a stated gap rule ([`BettiRule`]); the arm should give `b = [1, 1]`;
 //! - [`dimension`]: TwoNN and Levina–Bickel estimates (the arm: 3, the redundant toy: 1);
 //! - [`agreement`]: Spearman, trustworthiness and continuity against the poses;
-//! - `invariance`: the same starts traced in several environments.
+//! - [`invariance`]: the same starts traced in several environments, against the
+//!   sensor values of the same motor configurations.
 //!
 //! [`analyze`] runs the first three and returns an [`AnalysisReport`], whose JSON keys
 //! (`betti`, `persistence`, `intrinsic_dimension.twonn`, `intrinsic_dimension.mle`,
@@ -27,6 +28,7 @@
 pub mod agreement;
 pub mod dimension;
 pub mod homology;
+pub mod invariance;
 
 use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
@@ -35,6 +37,7 @@ use crate::progress::Progress;
 pub use agreement::Agreement;
 pub use dimension::DimensionEstimate;
 pub use homology::{rips_persistence, Bar, BettiRule, Persistence};
+pub use invariance::{invariance, InvarianceReport};
 
 /// Errors of the analysis stage.
 #[derive(Debug, thiserror::Error)]
@@ -90,6 +93,12 @@ pub enum AnalysisError {
         /// Why.
         reason: String,
     },
+    /// Tracing the sets to compare failed.
+    #[error(transparent)]
+    Kernel(#[from] crate::kernel::KernelError),
+    /// Computing set distances failed.
+    #[error(transparent)]
+    Metric(#[from] crate::metric::MetricError),
     /// The computation would be too large.
     #[error("{what} is too large to compute: the limit is {limit}")]
     TooLarge {
