@@ -32,6 +32,9 @@ enum Command {
     Env(cmd::env::Args),
     /// Sensor values s = σ_E(m) of motor configurations: sensors.npy.
     Sense(cmd::sense::Args),
+    /// Distances between kernel sets: the (periodic) Hausdorff matrix, a block of its
+    /// rows, or the k nearest sets of every set.
+    Distances(cmd::distances::Args),
     /// Topology, dimension and agreement with the poses of a distance matrix: report.json.
     Analyze(cmd::analyze::Args),
     /// The same starts traced in several environments, compared: invariance.json.
@@ -45,6 +48,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Trace(args) => cmd::trace::run(args),
         Command::Env(args) => cmd::env::run(args),
         Command::Sense(args) => cmd::sense::run(args),
+        Command::Distances(args) => cmd::distances::run(args),
         Command::Analyze(args) => cmd::analyze::run(args),
         Command::Invariance(args) => cmd::invariance::run(args),
     }

@@ -1,1 +1,167 @@
-fn main() {}
+//! Benchmarks of the metric stage on seeded arm-like kernel sets `(M, 100, 4)`:
+//!
+//! * `matrix/M`: the full Hausdorff matrix for a sweep of `M` (throughput in pairs);
+//! * `versus_brute_force/*`: fast kernels against the brute-force reference on the same
+//!   sets, both metrics;
+//! * `knn/M`: the 15 nearest sets of every set.
+//!
+//! Run: `cargo bench -p smspace --bench metric`. Environment:
+//! `SMSPACE_BENCH_SIZES=500,1000,2500,5000` (matrix sweep, default `500,1000,2500`),
+//! `SMSPACE_BENCH_KNN=20000` (kNN size, default 5000), and
+//! `SMSPACE_BENCH_SETS=/path/sets.npy` to use real `(M, P, N)` kernel sets instead of
+//! synthetic ones (the first `M` sets of the file for each size; sizes above its `M`
+//! are skipped).
+//!
+//! Criterion runs every case at least ten times; for the large sizes set
+//! `SMSPACE_BENCH_ONCE=1` to time each size once instead and print seconds and pairs per
+//! second (the growth table of the issue), e.g.
+//!
+//! ```text
+//! SMSPACE_BENCH_ONCE=1 SMSPACE_BENCH_SETS=/work/data/arm-sets-20000.npy \
+//!   SMSPACE_BENCH_SIZES=500,1000,2500,5000 SMSPACE_BENCH_KNN=20000 \
+//!   cargo bench -p smspace --bench metric
+//! ```
+
+#![allow(
+    missing_docs,
+    reason = "criterion's macros generate undocumented public functions"
+)]
+
+#[path = "../tests/common/arm_like.rs"]
+mod arm_like;
+
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, BenchmarkId, Criterion, Throughput};
+use ndarray::{Array3, Axis, Slice};
+use smspace::metric::{distance_matrix, knn, reference, DistanceParams, KnnParams, MetricKind};
+use smspace::progress::Silent;
+
+const POINTS: usize = 100;
+
+fn sizes(var: &str, default: &str) -> Vec<usize> {
+    std::env::var(var)
+        .unwrap_or_else(|_| default.to_owned())
+        .split(',')
+        .filter_map(|s| s.trim().parse().ok())
+        .collect()
+}
+
+/// `m` kernel sets: the first `m` of `SMSPACE_BENCH_SETS` when given, else synthetic.
+fn sets(m: usize) -> Option<Array3<f64>> {
+    match std::env::var("SMSPACE_BENCH_SETS") {
+        Ok(path) => {
+            let all = smspace::io::read_cube(path.as_ref(), "(M, P, N)").expect("readable sets");
+            (all.dim().0 >= m).then(|| all.slice_axis(Axis(0), Slice::from(..m)).to_owned())
+        }
+        Err(_) => Some(arm_like::arm_like_sets(m, POINTS, 2015)),
+    }
+}
+
+fn pairs(m: usize) -> u64 {
+    (m * (m - 1) / 2) as u64
+}
+
+fn matrix(c: &mut Criterion) {
+    let mut group = c.benchmark_group("matrix");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500));
+    for m in sizes("SMSPACE_BENCH_SIZES", "500,1000,2500") {
+        let Some(sets) = sets(m) else { continue };
+        group.throughput(Throughput::Elements(pairs(m)));
+        group.bench_with_input(BenchmarkId::from_parameter(m), &sets, |b, sets| {
+            b.iter(|| distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap())
+        });
+    }
+    group.finish();
+}
+
+fn versus_brute_force(c: &mut Criterion) {
+    let m = 40;
+    let Some(sets) = sets(m) else { return };
+    let mut group = c.benchmark_group("versus_brute_force");
+    group
+        .sample_size(10)
+        .throughput(Throughput::Elements(pairs(m)));
+    for kind in [MetricKind::Hausdorff, MetricKind::MeanHausdorff] {
+        let params = DistanceParams::new().metric(kind);
+        group.bench_function(format!("fast/{}", kind.name()), |b| {
+            b.iter(|| distance_matrix(sets.view(), &params, &Silent).unwrap())
+        });
+        group.bench_function(format!("brute/{}", kind.name()), |b| {
+            b.iter(|| reference::distance_matrix(sets.view(), kind, params.period))
+        });
+    }
+    group.finish();
+}
+
+fn nearest(c: &mut Criterion) {
+    let mut group = c.benchmark_group("knn");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500));
+    for m in sizes("SMSPACE_BENCH_KNN", "5000") {
+        let Some(sets) = sets(m) else { continue };
+        group.throughput(Throughput::Elements(m as u64));
+        group.bench_with_input(BenchmarkId::from_parameter(m), &sets, |b, sets| {
+            b.iter(|| {
+                knn(
+                    sets.view(),
+                    &DistanceParams::new(),
+                    &KnnParams::new().k(15),
+                    0..m,
+                    &Silent,
+                )
+                .unwrap()
+            })
+        });
+    }
+    group.finish();
+}
+
+/// One timed run per size, printed as a table.
+fn once() {
+    let threads = rayon::current_num_threads();
+    println!("threads {threads}");
+    println!(
+        "{:>7} {:>12} {:>9} {:>14}",
+        "M", "pairs", "seconds", "pairs/s"
+    );
+    for m in sizes("SMSPACE_BENCH_SIZES", "500,1000,2500") {
+        let Some(sets) = sets(m) else { continue };
+        let start = Instant::now();
+        distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap();
+        let seconds = start.elapsed().as_secs_f64();
+        let pairs = pairs(m);
+        println!(
+            "{m:>7} {pairs:>12} {seconds:>9.2} {:>14.0}",
+            pairs as f64 / seconds
+        );
+    }
+    println!("{:>7} {:>4} {:>9}", "kNN M", "k", "seconds");
+    for m in sizes("SMSPACE_BENCH_KNN", "5000") {
+        let Some(sets) = sets(m) else { continue };
+        let start = Instant::now();
+        knn(
+            sets.view(),
+            &DistanceParams::new(),
+            &KnnParams::new().k(15),
+            0..m,
+            &Silent,
+        )
+        .unwrap();
+        println!("{m:>7} {:>4} {:>9.2}", 15, start.elapsed().as_secs_f64());
+    }
+}
+
+criterion_group!(benches, versus_brute_force, matrix, nearest);
+
+fn main() {
+    if std::env::var_os("SMSPACE_BENCH_ONCE").is_some() {
+        once();
+        return;
+    }
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}

@@ -2,6 +2,7 @@
 
 pub mod analyze;
 pub mod common;
+pub mod distances;
 pub mod env;
 pub mod explore;
 pub mod invariance;

@@ -4,45 +4,46 @@
 //! # How the directed Hausdorff part `max_a min_b g²(a, b)` is found without the full
 //! `P × P` scan
 //!
-//! The points of `A` are taken eight at a time (one SIMD block, lanes over `a`, one
-//! point `b` broadcast). A running lower bound `c` of the answer is kept: a point `a`
-//! only matters if its nearest distance exceeds `c`, so as soon as any `b` with
-//! `g²(a, b) ≤ c` is seen, `a` is settled (the early break of Taha & Hanbury 2015).
+//! Both sets are cut into chunks of eight consecutive points, each with a bounding
+//! ball (centre, radius) and a bounding box (centre, half-width per coordinate). The points of `A` are processed one chunk at a time as a
+//! SIMD block (lanes over `a`, one point `b` broadcast). A running lower bound `c` of
+//! the answer is kept: a point `a` only matters if its nearest distance exceeds `c`, so
+//! as soon as any `b` with `g²(a, b) ≤ c` is seen, `a` is settled (the early break of
+//! Taha & Hanbury 2015).
 //!
-//! 1. *Window pass.* Sets are ordered closed curves, so the nearest `b` of consecutive
-//!    points `a` moves little: each block scans a short window of `b` around the
-//!    position found for the previous block (warm start), keeping for every lane the
-//!    smallest distance seen, an upper bound of its nearest distance. A block whose
-//!    lanes are all `≤ c` is settled; the others wait, with their upper bounds.
-//! 2. *Exact pass.* Waiting blocks are taken by decreasing upper bound. A block whose
-//!    bound is `≤ c` is settled, and so are all after it. Otherwise its unsettled lanes
-//!    get their exact nearest distance by a best-first scan over the bounding balls
-//!    of `B` (runs of eight points: `g(a, b) ≥ g(a, centre) − radius`), skipping balls
-//!    that cannot beat the best so far and stopping as soon as every lane is `≤ c`;
-//!    the exact distances found raise `c`.
+//! 1. *Centre table.* The squared distances between all chunk centres of `A` and `B`
+//!    give, for every chunk of either set, the nearest chunk of the other (a warm
+//!    start: the sets are ordered curves, so a point's nearest neighbour lies near the
+//!    nearest chunk) and an ordering: blocks far from the other set first, so that `c`
+//!    reaches its final value early. One table serves both directions.
+//! 2. *Free settling.* Every point of block `α` is within `r_α + |c_α c_β| + r_β` of a
+//!    point of its nearest chunk `β`; when that is `≤ √c` the block is settled unseen.
+//! 3. *Window.* Otherwise a short window of `b` around the middle of chunk `β` is
+//!    scanned; it stops as soon as every lane is `≤ c`.
+//! 4. *Exact search.* Lanes still open get their exact nearest distance: chunks of `B`
+//!    are visited outward from `β`, and a chunk is scanned only if its bounding box
+//!    (per-coordinate periodic interval around the centre) can hold a point closer than
+//!    a lane's best so far (`|h(a_n − b_n)| ≥ |h(a_n − centre_n)| − width_n`); the search
+//!    stops as soon as every lane is `≤ c`. The exact distances found raise `c`.
 //!
 //! The result is the maximum over `a` of exactly computed minima: the same number the
 //! brute force gives, for any order of work. The symmetric distance runs `B → A`
-//! starting from `c = h(A, B)`, where most blocks settle in one step.
+//! starting from `c = h(A, B)`, where most blocks settle at once. Bounds carry a
+//! relative margin ([`BOUND_MARGIN`]) so that rounding never prunes a winner.
 
 use super::prepared::{fold, PreparedSets, SetRef, BOUND_MARGIN, LANES};
 
-/// Window length of the warm-started pass (number of `b` tried per block).
-const WINDOW: usize = 7;
+/// Window length of the warm-started scan (number of `b` tried per block).
+const WINDOW: usize = 9;
 
 /// Reusable buffers of one worker thread.
 #[derive(Debug, Default)]
 pub(crate) struct Scratch {
-    pending: Vec<Pending>,
-    bounds: Vec<[f64; LANES]>,
-    order: Vec<(f64, u32)>,
-}
-
-#[derive(Debug, Clone, Copy)]
-struct Pending {
-    upper: f64,
-    block: u32,
-    best: [f64; LANES],
+    row_key: Vec<f64>,
+    row_near: Vec<f64>,
+    col_key: Vec<f64>,
+    col_near: Vec<f64>,
+    order: Vec<u32>,
 }
 
 /// Shape of the prepared sets, copied out for the kernels.
@@ -51,6 +52,7 @@ pub(crate) struct Shape {
     points: usize,
     points_pad: usize,
     chunks: usize,
+    chunks_pad: usize,
     period: f64,
 }
 
@@ -60,6 +62,7 @@ impl Shape {
             points: prepared.points(),
             points_pad: prepared.points_pad(),
             chunks: prepared.chunks(),
+            chunks_pad: prepared.chunks_pad(),
             period: prepared.period_value(),
         }
     }
@@ -95,20 +98,18 @@ fn lanes_max(v: &[f64; LANES]) -> f64 {
 }
 
 #[inline(always)]
-fn load_block<const N: usize>(set: SetRef<'_>, shape: Shape, block: usize) -> [[f64; LANES]; N] {
+fn load_block<const N: usize>(rows: &[f64], stride: usize, block: usize) -> [[f64; LANES]; N] {
     let mut a = [[0.0; LANES]; N];
     for (k, lanes) in a.iter_mut().enumerate() {
-        lanes.copy_from_slice(&set.coords[k * shape.points_pad + block * LANES..][..LANES]);
+        lanes.copy_from_slice(&rows[k * stride + block * LANES..][..LANES]);
     }
     a
 }
 
 #[inline(always)]
-fn load_point<const N: usize>(set: SetRef<'_>, shape: Shape, j: usize) -> [f64; N] {
+fn load_point<const N: usize>(set: SetRef<'_>, _shape: Shape, j: usize) -> [f64; N] {
     let mut b = [0.0; N];
-    for (k, x) in b.iter_mut().enumerate() {
-        *x = set.coords[k * shape.points_pad + j];
-    }
+    b.copy_from_slice(&set.points[j * N..(j + 1) * N]);
     b
 }
 
@@ -126,26 +127,90 @@ fn dist2<const N: usize>(a: &[[f64; LANES]; N], b: &[f64; N], period: f64) -> [f
     acc
 }
 
-/// The `t`-th index of a scan centred on `start`: `start, start+1, start−1, start+2, …`.
+/// The `t`-th index of a scan centred on `start`: `start, start+1, start−1, start+2, …`
+/// (modulo `len`).
 #[inline(always)]
-fn around(start: usize, t: usize, points: usize) -> usize {
-    let step = t.div_ceil(2) % points;
+fn around(start: usize, t: usize, len: usize) -> usize {
+    // `t < 2·len`, so one subtraction brings the step into range.
+    let step = t.div_ceil(2);
+    let step = if step >= len { step - len } else { step };
     if t % 2 == 1 {
         let j = start + step;
-        if j >= points {
-            j - points
+        if j >= len {
+            j - len
         } else {
             j
         }
     } else if start >= step {
         start - step
     } else {
-        start + points - step
+        start + len - step
     }
 }
 
-/// Warm-started window scan of one block: per-lane smallest `g²` over the window, and
-/// the next block's starting index. Stops early once every lane is `≤ settle`.
+/// For both directions, the nearest chunk of the other set to every chunk (by centre
+/// distance) and that squared distance: `row_*` for `A → B`, `col_*` for `B → A`.
+/// Indices are kept as `f64` (small exact integers) so that every lane is 64 bits wide
+/// and the updates vectorise.
+#[inline(always)]
+fn center_table<const N: usize>(a: SetRef<'_>, b: SetRef<'_>, shape: Shape, scratch: &mut Scratch) {
+    let Scratch {
+        row_key,
+        row_near,
+        col_key,
+        col_near,
+        ..
+    } = scratch;
+    row_key.clear();
+    row_near.clear();
+    col_key.clear();
+    col_key.resize(shape.chunks_pad, f64::INFINITY);
+    col_near.clear();
+    col_near.resize(shape.chunks_pad, 0.0);
+    for alpha in 0..shape.chunks {
+        let mut ca = [0.0; N];
+        ca.copy_from_slice(&a.centers[alpha * N..(alpha + 1) * N]);
+        let alpha_f = alpha as f64;
+        let mut key = [f64::INFINITY; LANES];
+        let mut near = [0.0; LANES];
+        for v in 0..shape.chunks_pad / LANES {
+            let cb = load_block::<N>(b.centers_soa, shape.chunks_pad, v);
+            let d = dist2(&cb, &ca, shape.period);
+            let base = (v * LANES) as f64;
+            // Work on local copies so that the selects compile to vector blends.
+            let lanes = v * LANES..(v + 1) * LANES;
+            let mut ck: [f64; LANES] = col_key[lanes.clone()].try_into().expect("whole vectors");
+            let mut cn: [f64; LANES] = col_near[lanes.clone()].try_into().expect("whole vectors");
+            for l in 0..LANES {
+                let closer = d[l] < ck[l];
+                ck[l] = if closer { d[l] } else { ck[l] };
+                cn[l] = if closer { alpha_f } else { cn[l] };
+                let closer = d[l] < key[l];
+                key[l] = if closer { d[l] } else { key[l] };
+                near[l] = if closer { base + l as f64 } else { near[l] };
+            }
+            col_key[lanes.clone()].copy_from_slice(&ck);
+            col_near[lanes].copy_from_slice(&cn);
+        }
+        let mut width = LANES / 2;
+        while width > 0 {
+            for l in 0..width {
+                let closer = key[l + width] < key[l];
+                key[l] = if closer { key[l + width] } else { key[l] };
+                near[l] = if closer { near[l + width] } else { near[l] };
+            }
+            width /= 2;
+        }
+        row_key.push(key[0]);
+        // Padding chunks repeat the last centre.
+        row_near.push(near[0].min((shape.chunks - 1) as f64));
+    }
+    col_key.truncate(shape.chunks);
+    col_near.truncate(shape.chunks);
+}
+
+/// Window scan of one block around `start`: per-lane smallest `g²` over the window.
+/// Stops early (and says so) once every lane is `≤ settle`.
 #[inline(always)]
 fn window<const N: usize>(
     a: &[[f64; LANES]; N],
@@ -153,42 +218,29 @@ fn window<const N: usize>(
     shape: Shape,
     start: usize,
     settle: f64,
-) -> ([f64; LANES], usize, bool) {
+) -> ([f64; LANES], bool) {
     let mut best = [f64::INFINITY; LANES];
-    let mut first = (f64::INFINITY, start);
-    let mut last = (f64::INFINITY, start);
-    let steps = WINDOW.min(shape.points);
-    for t in 0..steps {
+    for t in 0..WINDOW.min(shape.points) {
         let j = around(start, t, shape.points);
         let d = dist2(a, &load_point::<N>(b, shape, j), shape.period);
         for l in 0..LANES {
             best[l] = min(best[l], d[l]);
         }
-        if d[0] < first.0 {
-            first = (d[0], j);
+        let mut settled = true;
+        for l in 0..LANES {
+            settled &= best[l] <= settle;
         }
-        if d[LANES - 1] < last.0 {
-            last = (d[LANES - 1], j);
-        }
-        if lanes_max(&best) <= settle {
-            return (best, last.1, true);
+        if settled {
+            return (best, true);
         }
     }
-    // Move on by half the drift seen across this block, in the direction it went.
-    let p = shape.points as isize;
-    let mut drift = last.1 as isize - first.1 as isize;
-    if drift > p / 2 {
-        drift -= p;
-    } else if drift < -p / 2 {
-        drift += p;
-    }
-    let next = (last.1 as isize + drift / 2).rem_euclid(p) as usize;
-    (best, next, false)
+    (best, false)
 }
 
 /// Lowers `best` (per-lane `g²` upper bounds) to the exact nearest distances to `B`,
-/// except that lanes already `≤ settle` may stop early, and the whole search stops as
-/// soon as every lane is `≤ settle`.
+/// except for lanes that reach `≤ settle`, which may stop there. Chunks of `B` are
+/// visited outward from `near`; a chunk is scanned only if its bounding box can hold a
+/// point closer than the best so far for some open lane.
 #[inline(always)]
 fn refine<const N: usize>(
     a: &[[f64; LANES]; N],
@@ -196,41 +248,35 @@ fn refine<const N: usize>(
     settle: f64,
     b: SetRef<'_>,
     shape: Shape,
-    scratch: &mut Scratch,
+    near: usize,
 ) -> [f64; LANES] {
-    let Scratch { bounds, order, .. } = scratch;
-    bounds.clear();
-    order.clear();
-    for q in 0..shape.chunks {
+    let shrink = 1.0 - 4.0 * BOUND_MARGIN;
+    for t in 0..shape.chunks {
+        let q = around(near, t, shape.chunks);
+        let mut open = false;
+        for l in 0..LANES {
+            open |= best[l] > settle;
+        }
+        if !open {
+            break;
+        }
         let mut center = [0.0; N];
         center.copy_from_slice(&b.centers[q * N..(q + 1) * N]);
-        let d = dist2(a, &center, shape.period);
-        let radius = b.radii[q];
+        let mut width = [0.0; N];
+        width.copy_from_slice(&b.widths[q * N..(q + 1) * N]);
+        // Squared distance to the chunk's bounding box: a lower bound of `g²` to each of
+        // its points, coordinate by coordinate (`|h(a − b)| ≥ |h(a − centre)| − width`).
         let mut lower = [0.0; LANES];
-        let mut key = f64::INFINITY;
-        for l in 0..LANES {
-            let gap = d[l].sqrt() * (1.0 - BOUND_MARGIN) - radius;
-            lower[l] = if gap > 0.0 { gap * gap } else { 0.0 };
-            if best[l] > settle {
-                key = min(key, lower[l]);
+        for k in 0..N {
+            for l in 0..LANES {
+                let gap = fold(a[k][l] - center[k], shape.period) - width[k];
+                let gap = if gap > 0.0 { gap } else { 0.0 };
+                lower[l] += gap * gap;
             }
         }
-        bounds.push(lower);
-        order.push((key, q as u32));
-    }
-    order.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-    for &(key, q) in order.iter() {
-        let q = q as usize;
-        let mut worst_open = f64::NEG_INFINITY;
         let mut useful = false;
         for l in 0..LANES {
-            if best[l] > settle {
-                worst_open = max(worst_open, best[l]);
-                useful |= bounds[q][l] < best[l];
-            }
-        }
-        if worst_open == f64::NEG_INFINITY || key >= worst_open {
-            break;
+            useful |= best[l] > settle && lower[l] * shrink < best[l];
         }
         if !useful {
             continue;
@@ -246,65 +292,64 @@ fn refine<const N: usize>(
 }
 
 /// `max(c, max_{a∈A} min_{b∈B} g²(a, b))`, or `None` as soon as it is proven to exceed
-/// `abort` (pass `f64::INFINITY` for no such limit).
+/// `abort`. `(key[α], near[α])`: squared distance from the centre of block `α` of `A`
+/// to the nearest centre of `B`, and that chunk.
 #[inline(always)]
-pub(crate) fn directed_hausdorff<const N: usize>(
+fn directed_hausdorff<const N: usize>(
     a_set: SetRef<'_>,
     b_set: SetRef<'_>,
     shape: Shape,
+    (key, near): (&[f64], &[f64]),
     mut c: f64,
     abort: f64,
-    scratch: &mut Scratch,
+    scratch_order: &mut Vec<u32>,
 ) -> Option<f64> {
-    let mut pending = std::mem::take(&mut scratch.pending);
-    pending.clear();
-    let mut start = 0;
-    for block in 0..shape.points_pad / LANES {
-        let a = load_block::<N>(a_set, shape, block);
-        let (best, next, settled) = window(&a, b_set, shape, start, c);
-        start = next;
-        if !settled {
-            pending.push(Pending {
-                upper: lanes_max(&best),
-                block: block as u32,
-                best,
-            });
-        }
+    scratch_order.resize(shape.chunks.max(scratch_order.len()), 0);
+    // Blocks far from B first, so that `c` reaches its final value early.
+    let order = &mut scratch_order[..shape.chunks];
+    for (alpha, slot) in order.iter_mut().enumerate() {
+        *slot = alpha as u32;
     }
-    pending.sort_unstable_by(|x, y| y.upper.total_cmp(&x.upper).then(x.block.cmp(&y.block)));
-    let mut result = Some(c);
-    for item in &pending {
-        if item.upper <= c {
-            break;
+    order.sort_unstable_by(|&x, &y| key[y as usize].total_cmp(&key[x as usize]));
+    for &alpha in order.iter() {
+        let alpha = alpha as usize;
+        let near = near[alpha] as usize;
+        // Every point of block α is within r_α + g(centres) + r_β of some point of
+        // chunk β: when that is ≤ √c the whole block is settled without looking.
+        let reach = key[alpha].sqrt() + a_set.radii[alpha] + b_set.radii[near];
+        if reach * reach * (1.0 + 4.0 * BOUND_MARGIN) <= c {
+            continue;
         }
-        let a = load_block::<N>(a_set, shape, item.block as usize);
-        let best = refine(&a, item.best, c, b_set, shape, scratch);
+        let a = load_block::<N>(a_set.coords, shape.points_pad, alpha);
+        let start = (near * LANES + LANES / 2).min(shape.points - 1);
+        let (best, settled) = window(&a, b_set, shape, start, c);
+        if settled {
+            continue;
+        }
+        let best = refine(&a, best, c, b_set, shape, near);
         c = max(c, lanes_max(&best));
         if c > abort {
-            result = None;
-            break;
+            return None;
         }
-        result = Some(c);
     }
-    scratch.pending = pending;
-    result
+    Some(c)
 }
 
 /// `Σ_{a∈A} min_{b∈B} g(a, b)`, summed in point order.
 #[inline(always)]
-pub(crate) fn directed_mean_sum<const N: usize>(
+fn directed_mean_sum<const N: usize>(
     a_set: SetRef<'_>,
     b_set: SetRef<'_>,
     shape: Shape,
-    scratch: &mut Scratch,
+    near: &[f64],
 ) -> f64 {
     let mut sum = 0.0;
-    let mut start = 0;
-    for block in 0..shape.points_pad / LANES {
-        let a = load_block::<N>(a_set, shape, block);
-        let (best, next, _) = window(&a, b_set, shape, start, f64::NEG_INFINITY);
-        start = next;
-        let best = refine(&a, best, f64::NEG_INFINITY, b_set, shape, scratch);
+    for block in 0..shape.chunks {
+        let a = load_block::<N>(a_set.coords, shape.points_pad, block);
+        let near = near[block] as usize;
+        let start = (near * LANES + LANES / 2).min(shape.points - 1);
+        let (best, _) = window(&a, b_set, shape, start, f64::NEG_INFINITY);
+        let best = refine(&a, best, f64::NEG_INFINITY, b_set, shape, near);
         for (l, d2) in best.iter().enumerate() {
             if block * LANES + l < shape.points {
                 sum += d2.sqrt();
@@ -328,8 +373,16 @@ pub(crate) fn hausdorff<const N: usize>(
     } else {
         f64::INFINITY
     };
-    let c = directed_hausdorff::<N>(a, b, shape, 0.0, abort, scratch)?;
-    let c = directed_hausdorff::<N>(b, a, shape, c, abort, scratch)?;
+    center_table::<N>(a, b, shape, scratch);
+    let Scratch {
+        row_key,
+        row_near,
+        col_key,
+        col_near,
+        order,
+    } = scratch;
+    let c = directed_hausdorff::<N>(a, b, shape, (row_key, row_near), 0.0, abort, order)?;
+    let c = directed_hausdorff::<N>(b, a, shape, (col_key, col_near), c, abort, order)?;
     Some(c.sqrt())
 }
 
@@ -341,9 +394,10 @@ pub(crate) fn mean_hausdorff<const N: usize>(
     shape: Shape,
     scratch: &mut Scratch,
 ) -> f64 {
+    center_table::<N>(a, b, shape, scratch);
     let p = shape.points as f64;
-    let ab = directed_mean_sum::<N>(a, b, shape, scratch) / p;
-    let ba = directed_mean_sum::<N>(b, a, shape, scratch) / p;
+    let ab = directed_mean_sum::<N>(a, b, shape, &scratch.row_near) / p;
+    let ba = directed_mean_sum::<N>(b, a, shape, &scratch.col_near) / p;
     0.5 * (ab + ba)
 }
 

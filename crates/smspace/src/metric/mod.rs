@@ -27,10 +27,10 @@
 //! # Exact and fast
 //!
 //! Every value equals the brute-force `max`/`min` over the whole `P × P` table of
-//! `g` (the functions in [`reference`]): the fast kernels only skip work that cannot
+//! `g` (the functions in [`mod@reference`]): the fast kernels only skip work that cannot
 //! change it. They combine an early-break scan (Taha & Hanbury 2015), warm starts from
-//! the previous block's nearest index (sets are ordered closed curves), bounding balls
-//! around runs of eight consecutive points, and a structure-of-arrays layout processed
+//! the nearest chunk of the other set (sets are ordered closed curves), bounding balls
+//! and boxes around runs of eight consecutive points, and a structure-of-arrays layout processed
 //! eight points at a time with runtime SIMD dispatch ([`PreparedSets`]; details in the
 //! `kernel` source). Results do not depend on the number of threads.
 //!

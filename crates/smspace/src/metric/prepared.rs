@@ -1,5 +1,5 @@
 //! The kernel sets laid out for the fast kernels: structure of arrays, padded to whole
-//! SIMD blocks, with a bounding ball around every run of [`LANES`] consecutive points.
+//! SIMD blocks, with a bounding ball and box around every run of [`LANES`] consecutive points.
 
 use ndarray::ArrayView3;
 
@@ -17,7 +17,7 @@ pub(crate) const BOUND_MARGIN: f64 = 1e-12;
 ///
 /// Coordinates are stored set by set, coordinate by coordinate (`[set][n][point]`), so
 /// that eight consecutive points of one coordinate load as one vector. `P` is padded to
-/// a multiple of [`LANES`] by repeating the last point and `N` to 2, 4, 8 or 16 by
+/// a multiple of eight (one SIMD block) by repeating the last point and `N` to 2, 4, 8 or 16 by
 /// zero coordinates; neither changes any distance. With a periodic metric every
 /// coordinate is first wrapped into `[-T/2, T/2)` (values already there are kept
 /// bit for bit), so that a coordinate difference never exceeds one period.
@@ -33,7 +33,10 @@ pub struct PreparedSets {
     period: f64,
     period_kind: Period,
     coords: Vec<f64>,
+    points_aos: Vec<f64>,
     centers: Vec<f64>,
+    centers_soa: Vec<f64>,
+    widths: Vec<f64>,
     radii: Vec<f64>,
 }
 
@@ -42,8 +45,17 @@ pub struct PreparedSets {
 pub(crate) struct SetRef<'a> {
     /// `[n][point]`, `dims_pad × points_pad`.
     pub coords: &'a [f64],
-    /// `[chunk][n]`, `chunks × dims_pad`: centres of the bounding balls.
+    /// `[point][n]`, `points_pad × dims_pad`: the same coordinates point by point, for
+    /// broadcasting one point against a block.
+    pub points: &'a [f64],
+    /// `[chunk][n]`, `chunks × dims_pad`: centres of the bounding balls and boxes.
     pub centers: &'a [f64],
+    /// `[n][chunk]`, `dims_pad × chunks_pad`: the same centres, eight chunks per vector
+    /// (padded with copies of the last centre).
+    pub centers_soa: &'a [f64],
+    /// `[chunk][n]`: half-widths of the bounding boxes around the centres, per
+    /// coordinate (periodic intervals, already enlarged by the margin).
+    pub widths: &'a [f64],
     /// `[chunk]`: radii of the bounding balls (already enlarged by the margin).
     pub radii: &'a [f64],
 }
@@ -113,7 +125,11 @@ impl PreparedSets {
         let chunks = points_pad / LANES;
         let mut coords = vec![0.0; m * dims_pad * points_pad];
         let mut centers = vec![0.0; m * chunks * dims_pad];
+        let mut points_aos = vec![0.0; m * points_pad * dims_pad];
+        let chunks_pad = chunks.div_ceil(LANES) * LANES;
+        let mut centers_soa = vec![0.0; m * dims_pad * chunks_pad];
         let mut radii = vec![0.0; m * chunks];
+        let mut widths = vec![0.0; m * chunks * dims_pad];
         for (s, set) in sets.outer_iter().enumerate() {
             let block = &mut coords[s * dims_pad * points_pad..(s + 1) * dims_pad * points_pad];
             for k in 0..n {
@@ -146,6 +162,28 @@ impl PreparedSets {
                     radius2 = radius2.max(d2);
                 }
                 radii[s * chunks + q] = radius2.sqrt() * (1.0 + BOUND_MARGIN);
+                for k in 0..dims_pad {
+                    let mut width: f64 = 0.0;
+                    for j in 0..LANES {
+                        let u = fold(
+                            block[k * points_pad + q * LANES + j] - center[k],
+                            period_value,
+                        );
+                        width = width.max(u);
+                    }
+                    widths[(s * chunks + q) * dims_pad + k] = width * (1.0 + BOUND_MARGIN) + 1e-13;
+                }
+            }
+            for j in 0..points_pad {
+                for k in 0..dims_pad {
+                    points_aos[(s * points_pad + j) * dims_pad + k] = block[k * points_pad + j];
+                }
+            }
+            for k in 0..dims_pad {
+                for q in 0..chunks_pad {
+                    centers_soa[(s * dims_pad + k) * chunks_pad + q] =
+                        centers[(s * chunks + q.min(chunks - 1)) * dims_pad + k];
+                }
             }
         }
         Ok(Self {
@@ -157,7 +195,10 @@ impl PreparedSets {
             period: period_value,
             period_kind: period,
             coords,
+            points_aos,
             centers,
+            centers_soa,
+            widths,
             radii,
         })
     }
@@ -189,7 +230,11 @@ impl PreparedSets {
 
     /// Bytes held by the layout.
     pub fn bytes(&self) -> u64 {
-        ((self.coords.len() + self.centers.len() + self.radii.len()) * 8) as u64
+        ((2 * self.coords.len()
+            + 2 * self.centers.len()
+            + self.centers_soa.len()
+            + self.radii.len())
+            * 8) as u64
     }
 
     pub(crate) fn period_value(&self) -> f64 {
@@ -208,12 +253,20 @@ impl PreparedSets {
         self.points_pad / LANES
     }
 
+    pub(crate) fn chunks_pad(&self) -> usize {
+        self.chunks().div_ceil(LANES) * LANES
+    }
+
     pub(crate) fn set(&self, s: usize) -> SetRef<'_> {
         let per = self.dims_pad * self.points_pad;
         let chunks = self.chunks();
+        let soa = self.dims_pad * self.chunks_pad();
         SetRef {
             coords: &self.coords[s * per..(s + 1) * per],
+            points: &self.points_aos[s * per..(s + 1) * per],
             centers: &self.centers[s * chunks * self.dims_pad..(s + 1) * chunks * self.dims_pad],
+            centers_soa: &self.centers_soa[s * soa..(s + 1) * soa],
+            widths: &self.widths[s * chunks * self.dims_pad..(s + 1) * chunks * self.dims_pad],
             radii: &self.radii[s * chunks..(s + 1) * chunks],
         }
     }
@@ -223,7 +276,10 @@ impl PreparedSets {
         let dims_pad = dims.next_power_of_two().max(2);
         let points_pad = points.div_ceil(LANES) * LANES;
         let chunks = points_pad / LANES;
-        (sets as u64) * ((dims_pad * points_pad + chunks * dims_pad + chunks) as u64) * 8
+        let chunks_pad = chunks.div_ceil(LANES) * LANES;
+        (sets as u64)
+            * ((dims_pad * (2 * points_pad + 2 * chunks + chunks_pad) + chunks) as u64)
+            * 8
     }
 }
 

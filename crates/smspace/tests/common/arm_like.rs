@@ -40,6 +40,7 @@ pub fn arm_like_sets(m: usize, p: usize, seed: u64) -> Array3<f64> {
     sets
 }
 
+#[allow(dead_code, reason = "used by the tests, not by the benchmarks")]
 /// `(m, p, n)` points uniform in `[-π, π)`.
 pub fn uniform_sets(m: usize, p: usize, n: usize, seed: u64) -> Array3<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

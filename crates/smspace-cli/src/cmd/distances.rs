@@ -1,0 +1,174 @@
+//! `smspace distances`: the metric between kernel sets (paper section 3.2, step 3).
+//!
+//! Reads kernel sets `(M, P, N)` and writes either the distance matrix `(M, M)` (or a
+//! block of its rows) or, with `--knn K`, the `K` nearest sets of every set.
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::ValueEnum;
+use smspace::metric::{self, DistanceParams, KnnParams, MetricKind, Period};
+
+use crate::ui;
+
+/// Arguments of `smspace distances`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Kernel sets: a float64 .npy array of shape (M, P, N), motor angles in radians.
+    #[arg(long, value_name = "FILE")]
+    sets: PathBuf,
+    /// Output: the distance matrix, float64 (M, M) (or (i1 - i0, M) with --rows). With
+    /// --knn this file is not written: knn_indices.npy and knn_distances.npy go into
+    /// the folder that holds it.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Distance between two sets.
+    #[arg(long, value_enum, default_value_t = MetricArg::Hausdorff)]
+    metric: MetricArg,
+    /// Period of every motor coordinate: 2pi (hinge joints, the paper's metric) or none
+    /// (plain Euclidean).
+    #[arg(long, value_enum, default_value_t = PeriodArg::TwoPi)]
+    period: PeriodArg,
+    /// Instead of the matrix, the K nearest sets of every set (self excluded, nearest
+    /// first, ties by index): knn_indices.npy (M, K) int64 and knn_distances.npy (M, K)
+    /// float64, next to --out. Memory O(M·K).
+    #[arg(long, value_name = "K")]
+    knn: Option<usize>,
+    /// Pivot sets for pruning the --knn search with the triangle inequality.
+    #[arg(long, value_name = "COUNT", default_value_t = 24)]
+    pivots: usize,
+    /// Compute only rows i0 (included) to i1 (excluded), e.g. 0:1000, so that the matrix
+    /// (or the --knn lists) can be split over processes. Blocks stack exactly into the
+    /// whole.
+    #[arg(long, value_name = "I0:I1", value_parser = parse_rows)]
+    rows: Option<Range<usize>>,
+    /// Refuse to start when the output needs more than this many bytes (default: the
+    /// memory available, MemAvailable in /proc/meminfo).
+    #[arg(long, value_name = "BYTES")]
+    max_memory: Option<u64>,
+}
+
+/// `--metric`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum MetricArg {
+    /// max of the two directed Hausdorff distances (the paper's)
+    Hausdorff,
+    /// average of the two mean directed distances
+    MeanHausdorff,
+}
+
+/// `--period`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum PeriodArg {
+    /// wrap coordinate differences into [-π, π]
+    #[value(name = "2pi")]
+    TwoPi,
+    /// no wrapping
+    None,
+}
+
+fn parse_rows(text: &str) -> Result<Range<usize>, String> {
+    let (start, end) = text
+        .split_once(':')
+        .ok_or_else(|| format!("expected I0:I1, e.g. 0:1000, got {text:?}"))?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<usize>()
+            .map_err(|e| format!("{s:?} in {text:?} is not a row index: {e}"))
+    };
+    Ok(parse(start)?..parse(end)?)
+}
+
+/// Bytes of memory available now (MemAvailable), when the system says.
+fn memory_available() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// The folder that holds `path` (`.` for a bare file name).
+fn folder_of(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Runs the subcommand.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let sets = smspace::io::read_cube(&args.sets, "(M, P, N)")?;
+    let (m, p, n) = sets.dim();
+    let params = DistanceParams::new()
+        .metric(match args.metric {
+            MetricArg::Hausdorff => MetricKind::Hausdorff,
+            MetricArg::MeanHausdorff => MetricKind::MeanHausdorff,
+        })
+        .period(match args.period {
+            PeriodArg::TwoPi => Period::TwoPi,
+            PeriodArg::None => Period::None,
+        })
+        .memory_limit_bytes(args.max_memory.or_else(memory_available));
+    let rows = args.rows.clone().unwrap_or(0..m);
+    let context = || {
+        format!(
+            "cannot compute distances between the sets of {}",
+            args.sets.display()
+        )
+    };
+    let bar = ui::Bar::new();
+    let started = Instant::now();
+    match args.knn {
+        None => {
+            let block = metric::distance_rows(sets.view(), &params, rows.clone(), &bar)
+                .with_context(context)?;
+            smspace::io::write_npy(&args.out, &block)?;
+            eprintln!(
+                "wrote {} ({} x {}, rows {}:{} of {m} sets of {p} points in {n}-D, {}) in {:.2} s",
+                args.out.display(),
+                block.nrows(),
+                block.ncols(),
+                rows.start,
+                rows.end,
+                params.metric.name(),
+                started.elapsed().as_secs_f64(),
+            );
+        }
+        Some(k) => {
+            let knn_params = KnnParams::new().k(k).pivots(args.pivots);
+            let found = metric::knn(sets.view(), &params, &knn_params, rows.clone(), &bar)
+                .with_context(context)?;
+            let folder = folder_of(&args.out);
+            let indices_path = folder.join("knn_indices.npy");
+            let distances_path = folder.join("knn_distances.npy");
+            let indices = found.indices.mapv(|j| j as i64);
+            smspace::io::write_npy(&indices_path, &indices)?;
+            smspace::io::write_npy(&distances_path, &found.distances)?;
+            eprintln!(
+                "wrote {} and {} ({} x {k}, rows {}:{} of {m} sets, {}) in {:.2} s",
+                indices_path.display(),
+                distances_path.display(),
+                rows.len(),
+                rows.start,
+                rows.end,
+                params.metric.name(),
+                started.elapsed().as_secs_f64(),
+            );
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_parse_and_reject_garbage() {
+        assert_eq!(parse_rows("3:10").unwrap(), 3..10);
+        assert!(parse_rows("3-10").unwrap_err().contains("expected I0:I1"));
+        assert!(parse_rows("a:10").unwrap_err().contains("not a row index"));
+    }
+}
