@@ -589,3 +589,77 @@ mod invariance {
         assert!(err.to_string().contains("at least 2"), "{err}");
     }
 }
+
+mod learned {
+    use super::*;
+    use smspace::agent::AgentConfig;
+    use smspace::analysis::{analyze, AnalysisParams};
+    use smspace::explore::{explore, ExploreParams};
+    use smspace::kernel::{trace_sets, StepControl, TraceParams};
+    use smspace::metric::{distance_matrix, DistanceParams, Period};
+
+    /// Traces `n` kernel sets of a preset agent and analyses their Hausdorff distances.
+    fn learned_report(name: &str, n: usize, period: Period) -> smspace::analysis::AnalysisReport {
+        let agent = AgentConfig::preset(name).unwrap().build().unwrap();
+        let exploration = explore(
+            agent.as_ref(),
+            &ExploreParams {
+                n,
+                seed: 5,
+                ..ExploreParams::default()
+            },
+        )
+        .unwrap();
+        let params = TraceParams {
+            points: 40,
+            step_control: StepControl::Adaptive,
+            ..TraceParams::default()
+        }
+        .check()
+        .unwrap();
+        let traced = trace_sets(
+            agent.as_ref(),
+            None,
+            exploration.motors.view(),
+            None,
+            &params,
+            &Silent,
+        )
+        .unwrap();
+        let d = distance_matrix(
+            traced.sets.view(),
+            &DistanceParams::new().period(period),
+            &Silent,
+        )
+        .unwrap();
+        let poses = exploration.poses.select(ndarray::Axis(0), &traced.kept);
+        let params = AnalysisParams::default().check().unwrap();
+        analyze(d.view(), Some(poses.view()), &params, &Silent).unwrap()
+    }
+
+    #[test]
+    fn redundant_toy_learns_a_segment() {
+        let report = learned_report("toy-redundant", 200, Period::None);
+        assert_eq!(report.betti, vec![1, 0]);
+        let dim = &report.intrinsic_dimension;
+        assert_abs_diff_eq!(dim.twonn, 1.0, epsilon = 0.2);
+        assert_abs_diff_eq!(dim.mle, 1.0, epsilon = 0.2);
+        let agreement = report.agreement.unwrap();
+        assert!(agreement.spearman > 0.9, "{agreement:?}");
+    }
+
+    #[test]
+    fn arm_learns_a_circle_times_a_plane() {
+        let report = learned_report("planar-arm", 600, Period::TwoPi);
+        assert_eq!(
+            report.betti,
+            vec![1, 1],
+            "{:?}",
+            report.homology.longest_bars
+        );
+        let dim = &report.intrinsic_dimension;
+        assert!((2.5..4.0).contains(&dim.mle), "{dim:?}");
+        let agreement = report.agreement.unwrap();
+        assert!(agreement.trustworthiness > 0.9, "{agreement:?}");
+    }
+}
