@@ -12,7 +12,7 @@
 //!   read off by a stated gap rule ([`BettiRule`]); the arm should give `b = [1, 1]`;
 //! - [`dimension`]: TwoNN and Levina–Bickel estimates (the arm: 3, the redundant toy: 1);
 //! - [`agreement`]: Spearman, trustworthiness and continuity against the poses;
-//! - [`invariance`]: the same starts traced in several environments, against the
+//! - [`invariance`](mod@invariance): the same starts traced in several environments, against the
 //!   sensor values of the same motor configurations.
 //!
 //! [`analyze`] runs the first three and returns an [`AnalysisReport`], whose JSON keys
@@ -23,7 +23,9 @@
 //! Homology of more than [`AnalysisParams::max_points`] points runs on max–min
 //! landmarks (a greedy farthest-point subsample starting at row 0); the report says
 //! so and gives the covering radius, the largest distance of a point to its nearest
-//! landmark: features shorter than about twice that radius are not resolved.
+//! landmark: features shorter than about twice that radius are not resolved. The default
+//! (800) keeps `H1` of the paper's 2500 arm sets within a few seconds; the long-lived
+//! classes of a sampled manifold cost time roughly like `M⁴`.
 
 pub mod agreement;
 pub mod dimension;
