@@ -26,8 +26,8 @@
 //! coboundaries cut at the band's end. Cutting the late rows changes no earlier pivot,
 //! so the result is exact, but the many short-lived classes of a sampled manifold are
 //! settled with small heaps, and only the few long-lived ones pay for large
-//! coboundaries (on the arm's 1500-point matrix, about half the time and a fifth of
-//! the memory of the `ripser` program, with the same diagrams).
+//! coboundaries (on the arm's 1500-point matrix: the same diagrams as the `ripser`
+//! program, in about the same time, about 20 s, and a fifth of its memory).
 //!
 //! The refined filtration orders simplices by diameter, then by decreasing
 //! combinatorial index (Ripser's order), so results match the `ripser` program's.
