@@ -32,11 +32,15 @@ enum Command {
     Env(cmd::env::Args),
     /// Sensor values s = σ_E(m) of motor configurations: sensors.npy.
     Sense(cmd::sense::Args),
-    /// Embed a distance matrix in a few dimensions (CCA, Isomap or classical MDS).
-    Embed(cmd::embed::Args),
     /// Distances between kernel sets: the (periodic) Hausdorff matrix, a block of its
     /// rows, or the k nearest sets of every set.
     Distances(cmd::distances::Args),
+    /// Embed a distance matrix in a few dimensions (CCA, Isomap or classical MDS).
+    Embed(cmd::embed::Args),
+    /// Topology, dimension and agreement with the poses of a distance matrix: report.json.
+    Analyze(cmd::analyze::Args),
+    /// The same starts traced in several environments, compared: invariance.json.
+    Invariance(cmd::invariance::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -46,8 +50,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Trace(args) => cmd::trace::run(args),
         Command::Env(args) => cmd::env::run(args),
         Command::Sense(args) => cmd::sense::run(args),
-        Command::Embed(args) => cmd::embed::run(args),
         Command::Distances(args) => cmd::distances::run(args),
+        Command::Embed(args) => cmd::embed::run(args),
+        Command::Analyze(args) => cmd::analyze::run(args),
+        Command::Invariance(args) => cmd::invariance::run(args),
     }
 }
 

@@ -2,9 +2,9 @@
 //! `thiserror` enum, so that a caller can handle "any smspace error" with one type and
 //! still match on the stage that failed.
 
-use crate::metric::MetricError;
 use crate::{
-    agent::AgentError, config::ConfigError, explore::ExploreError, io::IoError, kernel::KernelError,
+    agent::AgentError, analysis::AnalysisError, config::ConfigError, explore::ExploreError,
+    io::IoError, kernel::KernelError, metric::MetricError,
 };
 
 /// Any error of the smspace library.
@@ -26,12 +26,15 @@ pub enum Error {
     /// Tracing kernel sets failed.
     #[error(transparent)]
     Kernel(#[from] KernelError),
-    /// An embedding failed.
-    #[error(transparent)]
-    Embed(#[from] crate::embed::EmbedError),
     /// Computing distances between kernel sets failed.
     #[error(transparent)]
     Metric(#[from] MetricError),
+    /// An embedding failed.
+    #[error(transparent)]
+    Embed(#[from] crate::embed::EmbedError),
+    /// Analysing a distance matrix failed.
+    #[error(transparent)]
+    Analysis(#[from] AnalysisError),
 }
 
 /// `Result` with the crate-wide [`Error`].

@@ -21,6 +21,8 @@
 //!    of rows, or the `k` nearest sets (section 3.2, step 3);
 //! 5. [`embed`]: coordinates for the manifold of sets from its distance matrix (CCA,
 //!    Isomap, classical MDS; section 3.2);
+//! 6. [`analysis`]: topology, dimension, agreement with the poses and environment
+//!    invariance of the learned metric (section 3.3);
 //!
 //! with [`config`] (parameter files), [`io`] (`.npy` and JSON interchange),
 //! [`progress`] (observers for long stages) and [`error`].
@@ -29,6 +31,7 @@
 //! failure a user can cause is a [`Result`] carrying the offending file or value.
 
 pub mod agent;
+pub mod analysis;
 pub mod config;
 pub mod embed;
 pub mod error;

@@ -1,9 +1,11 @@
 //! One module per subcommand: each has an `Args` struct (clap) and a `run` function.
 
+pub mod analyze;
 pub mod common;
 pub mod distances;
 pub mod embed;
 pub mod env;
 pub mod explore;
+pub mod invariance;
 pub mod sense;
 pub mod trace;

@@ -1,0 +1,103 @@
+//! `smspace invariance`: the same starts traced with the sensory method in several
+//! environments, compared set by set and matrix by matrix, against the sensor values.
+
+use std::path::PathBuf;
+
+use clap::Args as ClapArgs;
+use smspace::agent::EnvironmentConfig;
+use smspace::analysis::invariance;
+use smspace::io;
+use smspace::kernel::{TraceMethod, TraceParams};
+
+use super::common::{AgentArgs, WorkspaceArgs};
+use crate::ui::Bar;
+
+/// Arguments of `smspace invariance`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    #[command(flatten)]
+    agent: AgentArgs,
+    /// Motor configurations (M, N) to trace in every environment.
+    #[arg(long, value_name = "FILE")]
+    motors: PathBuf,
+    /// Seeds of the random environments, comma-separated (at least two).
+    #[arg(long, value_name = "S1,S2,...", value_delimiter = ',', required = true)]
+    env_seeds: Vec<u64>,
+    /// Lights of the environments: one count for all, or one per seed
+    /// (default: the agent's).
+    #[arg(long, value_name = "L1,L2,...", value_delimiter = ',')]
+    lights: Vec<usize>,
+    /// Points per traced set.
+    #[arg(long, default_value_t = 100)]
+    points: usize,
+    #[command(flatten)]
+    workspace: WorkspaceArgs,
+    /// Report (JSON).
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+}
+
+/// Runs `smspace invariance`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (spec, agent) = args.agent.load()?;
+    anyhow::ensure!(
+        args.env_seeds.len() >= 2,
+        "--env-seeds {:?}: give at least two seeds to compare, e.g. --env-seeds 1,2,3",
+        args.env_seeds
+    );
+    anyhow::ensure!(
+        args.lights.len() <= 1 || args.lights.len() == args.env_seeds.len(),
+        "--lights has {} counts for {} seeds; give one count for all or one per seed",
+        args.lights.len(),
+        args.env_seeds.len()
+    );
+    let params = TraceParams {
+        method: TraceMethod::Sensory,
+        points: args.points,
+        ..TraceParams::default()
+    }
+    .check()?;
+    let n = agent.motor_dim();
+    let motors = io::read_matrix(&args.motors, Some(n), &format!("(M, {n})"))?;
+    let base = spec.environment.clone().unwrap_or_default();
+    let environments = args
+        .env_seeds
+        .iter()
+        .enumerate()
+        .map(|(i, &seed)| {
+            let lights = match args.lights.as_slice() {
+                [] => base.lights,
+                [all] => Some(*all),
+                each => Some(each[i]),
+            };
+            EnvironmentConfig {
+                seed,
+                lights,
+                ..base.clone()
+            }
+            .build(agent.as_ref())
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let workspace = args.workspace.resolve(agent.as_ref())?;
+    let bar = Bar::new();
+    let report = invariance(
+        agent.as_ref(),
+        motors.view(),
+        &environments,
+        workspace.as_ref(),
+        &params,
+        &bar,
+    )?;
+    io::write_json(&args.out, &report)?;
+    eprintln!(
+        "{} sets traced in all {} environments: sets differ by at most {:.3e} ({:.2e} of the median set distance), metric Mantel >= {:.6}; sensor values differ by >= {:.3} of their norm, sensor Mantel <= {:.3}",
+        report.common_sets,
+        report.environments.len(),
+        report.max_set_distance,
+        report.max_set_distance_relative,
+        report.min_mantel,
+        report.min_sensor_difference_relative,
+        report.max_sensor_mantel
+    );
+    Ok(())
+}

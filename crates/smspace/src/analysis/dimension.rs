@@ -1,0 +1,132 @@
+//! Intrinsic dimension from nearest-neighbour distances, read off a distance matrix.
+//!
+//! **TwoNN** (Facco, d'Errico, Rodriguez & Laio, Sci. Rep. 7, 2017). With `r₁ ≤ r₂`
+//! the distances of a point to its two nearest neighbours, `μ = r₂ / r₁` follows the
+//! Pareto law `F(μ) = 1 − μ^{−d}` on a `d`-manifold of locally uniform density. The
+//! `μ_i` are sorted, `F_emp(μ_(i)) = i / N`, the largest `discard` fraction (default
+//! 10 %) is dropped, and `d` is the least-squares slope through the origin of
+//! `−ln(1 − F_emp)` against `ln μ`.
+//!
+//! **MLE** (Levina & Bickel, NIPS 2004). With `T_1 ≤ … ≤ T_k` the distances of `x` to
+//! its `k` nearest neighbours (default `k = 20`),
+//! `m̂_k(x) = [ (k − 1)⁻¹ Σ_{j<k} ln(T_k / T_j) ]⁻¹`, and the estimate is the mean of
+//! `m̂_k(x)` over the points (Levina and Bickel's average).
+//!
+//! Points with a duplicate (a zero distance to another point) carry no scale and are
+//! skipped; the number skipped is reported.
+
+use ndarray::ArrayView2;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::AnalysisError;
+
+/// A dimension estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DimensionEstimate {
+    /// The estimated intrinsic dimension.
+    pub dimension: f64,
+    /// Points that entered the estimate.
+    pub points_used: usize,
+    /// Points skipped (a duplicate neighbour, or all `k` neighbours equally far).
+    pub points_skipped: usize,
+}
+
+/// The `k` smallest distances from row `i` to the other points, increasing.
+fn nearest(row: &[f64], i: usize, k: usize) -> Vec<f64> {
+    let mut others: Vec<f64> = row
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != i)
+        .map(|(_, &d)| d)
+        .collect();
+    if k < others.len() {
+        others.select_nth_unstable_by(k - 1, f64::total_cmp);
+        others.truncate(k);
+    }
+    others.sort_by(f64::total_cmp);
+    others
+}
+
+fn rows(distances: ArrayView2<'_, f64>) -> Vec<Vec<f64>> {
+    distances.outer_iter().map(|r| r.to_vec()).collect()
+}
+
+/// TwoNN estimate; `discard` is the fraction of largest ratios dropped, in `[0, 1)`.
+pub fn twonn(
+    distances: ArrayView2<'_, f64>,
+    discard: f64,
+) -> Result<DimensionEstimate, AnalysisError> {
+    let n = distances.nrows();
+    let ratios: Vec<Option<f64>> = rows(distances)
+        .par_iter()
+        .enumerate()
+        .map(|(i, row)| {
+            let near = nearest(row, i, 2);
+            (near[0] > 0.0).then(|| near[1] / near[0])
+        })
+        .collect();
+    let mut mu: Vec<f64> = ratios.iter().flatten().copied().collect();
+    let skipped = n - mu.len();
+    mu.sort_by(f64::total_cmp);
+    let total = mu.len();
+    let kept = ((total as f64) * (1.0 - discard)).floor() as usize;
+    let kept = kept.min(total.saturating_sub(1));
+    let (mut xy, mut xx) = (0.0, 0.0);
+    for (i, &m) in mu.iter().take(kept).enumerate() {
+        let x = m.ln();
+        let y = -(1.0 - (i + 1) as f64 / total as f64).ln();
+        xy += x * y;
+        xx += x * x;
+    }
+    if kept < 2 || xx <= 0.0 {
+        return Err(AnalysisError::Degenerate {
+            what: "TwoNN",
+            reason: format!(
+                "{total} usable points (of {n}) with distinct neighbour ratios are too few to fit a slope"
+            ),
+        });
+    }
+    Ok(DimensionEstimate {
+        dimension: xy / xx,
+        points_used: kept,
+        points_skipped: skipped,
+    })
+}
+
+/// Levina–Bickel maximum-likelihood estimate with `k ≥ 2` neighbours (`k < M`).
+pub fn mle(distances: ArrayView2<'_, f64>, k: usize) -> Result<DimensionEstimate, AnalysisError> {
+    let n = distances.nrows();
+    if k < 2 || k >= n {
+        return Err(AnalysisError::InvalidParameter {
+            name: "mle_neighbors",
+            value: k.to_string(),
+            reason: format!("must be at least 2 and less than the number of points ({n})"),
+        });
+    }
+    let local: Vec<Option<f64>> = rows(distances)
+        .par_iter()
+        .enumerate()
+        .map(|(i, row)| {
+            let near = nearest(row, i, k);
+            if near[0] <= 0.0 {
+                return None;
+            }
+            let tk = near[k - 1];
+            let sum: f64 = near[..k - 1].iter().map(|&t| (tk / t).ln()).sum();
+            (sum > 0.0).then(|| (k - 1) as f64 / sum)
+        })
+        .collect();
+    let used: Vec<f64> = local.iter().flatten().copied().collect();
+    if used.is_empty() {
+        return Err(AnalysisError::Degenerate {
+            what: "MLE",
+            reason: format!("no point of {n} has {k} neighbours at distinct positive distances"),
+        });
+    }
+    Ok(DimensionEstimate {
+        dimension: used.iter().sum::<f64>() / used.len() as f64,
+        points_used: used.len(),
+        points_skipped: n - used.len(),
+    })
+}

@@ -1,0 +1,296 @@
+//! Environment invariance (paper sections 2.2, 2.3 and 3.3): the kernel sets do not
+//! depend on the environment, while the sensory manifold does.
+//!
+//! The same motor starts `m^i` are traced with the `sensory` method (only what the
+//! agent measures) in environments `E_1, …, E_L` (different light seeds and counts).
+//! Rows traced in every environment are kept. For every pair `(a, b)`:
+//!
+//! - **sets**: `max_i ρ(M^i_a, M^i_b)` and its mean, the Hausdorff distance between
+//!   corresponding sets (0 if the sets do not depend on the environment), also relative
+//!   to the median distance between different sets of `E_a`;
+//! - **metric**: the Mantel correlation (Pearson over the pairs `i < j`) of the
+//!   distance matrices `D_a`, `D_b`, and `max_ij |D_a − D_b|`, also relative to
+//!   `max D_a`;
+//! - **the converse** (section 2.2, "the same exploratory movements performed in a
+//!   different environment will yield another sensory manifold"): the sensor values
+//!   `s^i_e = σ_{E_e}(m^i)` of the same rows, their Mantel correlation (Euclidean
+//!   distances between sensor vectors) and `max_i ‖s^i_a − s^i_b‖` relative to the
+//!   mean sensor norm.
+//!
+//! Near-zero set figures and a Mantel correlation near 1 for the sets, against large
+//! sensor differences, are the paper's claim in numbers.
+
+use ndarray::{Array2, ArrayView2, Axis};
+use serde::{Deserialize, Serialize};
+
+use super::agreement::{pearson, upper_triangle};
+use super::AnalysisError;
+use crate::agent::{Agent, Environment, MotorTopology};
+use crate::explore::Workspace;
+use crate::kernel::{trace_sets, TraceMethod, TraceValidParams};
+use crate::metric::{distance_matrix, DistanceParams, Hausdorff, Period, SetMetric};
+use crate::progress::Progress;
+
+/// One environment of the comparison.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EnvironmentSummary {
+    /// The seed the lights were drawn from, if drawn.
+    pub seed: Option<u64>,
+    /// Number of lights.
+    pub lights: usize,
+    /// Sets traced in this environment.
+    pub traced: usize,
+}
+
+/// Figures of one pair of environments.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PairInvariance {
+    /// Index of the first environment.
+    pub a: usize,
+    /// Index of the second environment.
+    pub b: usize,
+    /// Largest Hausdorff distance between corresponding sets.
+    pub max_set_distance: f64,
+    /// Mean Hausdorff distance between corresponding sets.
+    pub mean_set_distance: f64,
+    /// `max_set_distance` over the median distance between different sets of `a`.
+    pub max_set_distance_relative: f64,
+    /// Mantel correlation of the two distance matrices.
+    pub mantel: f64,
+    /// Largest entry of `|D_a − D_b|`.
+    pub max_distance_difference: f64,
+    /// `max_distance_difference / max D_a`.
+    pub max_distance_difference_relative: f64,
+    /// Mantel correlation of the sensor-space distance matrices of the same rows.
+    pub sensor_mantel: f64,
+    /// `max_i ‖s^i_a − s^i_b‖` over the mean sensor norm.
+    pub max_sensor_difference_relative: f64,
+}
+
+/// The report of [`invariance`], written by `smspace invariance`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InvarianceReport {
+    /// The agent's name.
+    pub agent: String,
+    /// The environments, in order.
+    pub environments: Vec<EnvironmentSummary>,
+    /// Motor rows asked for.
+    pub starts: usize,
+    /// Rows traced in every environment (the ones compared).
+    pub common_sets: usize,
+    /// Every pair of environments.
+    pub pairs: Vec<PairInvariance>,
+    /// Worst case over the pairs: largest set distance.
+    pub max_set_distance: f64,
+    /// Worst case over the pairs: largest relative set distance.
+    pub max_set_distance_relative: f64,
+    /// Worst case over the pairs: smallest Mantel correlation of the set metric.
+    pub min_mantel: f64,
+    /// Worst case over the pairs: largest distance-matrix difference.
+    pub max_distance_difference: f64,
+    /// Over the pairs: largest Mantel correlation of the sensor metric.
+    pub max_sensor_mantel: f64,
+    /// Over the pairs: smallest relative sensor difference.
+    pub min_sensor_difference_relative: f64,
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Traces `motors` in every environment with `params` (which must use the `sensory`
+/// method) and compares the results (see the module docs).
+pub fn invariance(
+    agent: &dyn Agent,
+    motors: ArrayView2<'_, f64>,
+    environments: &[Environment],
+    workspace: Option<&Workspace>,
+    params: &TraceValidParams,
+    progress: &dyn Progress,
+) -> Result<InvarianceReport, AnalysisError> {
+    if params.method() != TraceMethod::Sensory {
+        return Err(AnalysisError::InvalidParameter {
+            name: "method",
+            value: format!("{:?}", params.method()).to_lowercase(),
+            reason: "invariance traces with the sensory method, which sees the environment".into(),
+        });
+    }
+    if environments.len() < 2 {
+        return Err(AnalysisError::InvalidParameter {
+            name: "environments",
+            value: environments.len().to_string(),
+            reason: "give at least 2 environments to compare".into(),
+        });
+    }
+    let traced = environments
+        .iter()
+        .map(|env| trace_sets(agent, Some(env), motors, workspace, params, progress))
+        .collect::<Result<Vec<_>, _>>()?;
+    let common: Vec<usize> = traced[0]
+        .kept
+        .iter()
+        .copied()
+        .filter(|row| traced.iter().all(|t| t.kept.binary_search(row).is_ok()))
+        .collect();
+    if common.len() < 2 {
+        return Err(AnalysisError::Degenerate {
+            what: "invariance",
+            reason: format!(
+                "only {} of {} starts were traced in every environment (traced per environment: {:?}); at least 2 are needed",
+                common.len(),
+                motors.nrows(),
+                traced.iter().map(|t| t.kept.len()).collect::<Vec<_>>()
+            ),
+        });
+    }
+    let period = match agent.motor_topology() {
+        MotorTopology::Periodic => Period::TwoPi,
+        MotorTopology::Bounded { .. } => Period::None,
+    };
+    let sets: Vec<_> = traced
+        .iter()
+        .map(|t| {
+            let positions: Vec<usize> = common
+                .iter()
+                .map(|row| t.kept.binary_search(row).expect("common rows are kept"))
+                .collect();
+            t.sets.select(Axis(0), &positions)
+        })
+        .collect();
+    let metric = DistanceParams::new().period(period);
+    let matrices = sets
+        .iter()
+        .map(|s| distance_matrix(s.view(), &metric, progress))
+        .collect::<Result<Vec<_>, _>>()?;
+    let upper: Vec<Vec<f64>> = matrices.iter().map(|d| upper_triangle(d.view())).collect();
+    let rows = motors.select(Axis(0), &common);
+    let sensors: Vec<Array2<f64>> = environments
+        .iter()
+        .map(|env| {
+            let mut s = Array2::zeros((rows.nrows(), agent.sensor_dim()));
+            for (m, mut out) in rows.outer_iter().zip(s.outer_iter_mut()) {
+                agent.sense(
+                    env,
+                    m.as_slice().expect("rows of a standard array"),
+                    out.as_slice_mut().expect("rows of a standard array"),
+                );
+            }
+            s
+        })
+        .collect();
+    let sensor_upper: Vec<Vec<f64>> = sensors
+        .iter()
+        .map(|s| {
+            let n = s.nrows();
+            let mut out = Vec::with_capacity(n * (n - 1) / 2);
+            for i in 0..n {
+                for j in i + 1..n {
+                    out.push(distance(s.row(i).as_slice(), s.row(j).as_slice()));
+                }
+            }
+            out
+        })
+        .collect();
+    let hausdorff = Hausdorff { period };
+    let mut pairs = Vec::new();
+    for a in 0..environments.len() {
+        for b in a + 1..environments.len() {
+            let mut set_distances = Vec::with_capacity(common.len());
+            for (x, y) in sets[a].outer_iter().zip(sets[b].outer_iter()) {
+                set_distances.push(hausdorff.distance(x, y)?);
+            }
+            let max_set = set_distances.iter().copied().fold(0.0, f64::max);
+            let mean_set = set_distances.iter().sum::<f64>() / set_distances.len() as f64;
+            let typical = median(upper[a].clone());
+            let largest = upper[a].iter().copied().fold(0.0, f64::max);
+            let max_difference = upper[a]
+                .iter()
+                .zip(&upper[b])
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+            let sensor_norm = sensors[a]
+                .outer_iter()
+                .chain(sensors[b].outer_iter())
+                .map(|s| s.dot(&s).sqrt())
+                .sum::<f64>()
+                / (2 * common.len()) as f64;
+            let max_sensor = sensors[a]
+                .outer_iter()
+                .zip(sensors[b].outer_iter())
+                .map(|(x, y)| distance(x.as_slice(), y.as_slice()))
+                .fold(0.0, f64::max);
+            pairs.push(PairInvariance {
+                a,
+                b,
+                max_set_distance: max_set,
+                mean_set_distance: mean_set,
+                max_set_distance_relative: ratio(max_set, typical),
+                mantel: mantel(&upper[a], &upper[b]),
+                max_distance_difference: max_difference,
+                max_distance_difference_relative: ratio(max_difference, largest),
+                sensor_mantel: mantel(&sensor_upper[a], &sensor_upper[b]),
+                max_sensor_difference_relative: ratio(max_sensor, sensor_norm),
+            });
+        }
+    }
+    let fold = |f: fn(&PairInvariance) -> f64, init: f64, pick: fn(f64, f64) -> f64| {
+        pairs.iter().map(f).fold(init, pick)
+    };
+    Ok(InvarianceReport {
+        agent: agent.name().to_owned(),
+        environments: environments
+            .iter()
+            .zip(&traced)
+            .map(|(e, t)| EnvironmentSummary {
+                seed: e.seed,
+                lights: e.lights.len(),
+                traced: t.kept.len(),
+            })
+            .collect(),
+        starts: motors.nrows(),
+        common_sets: common.len(),
+        max_set_distance: fold(|p| p.max_set_distance, 0.0, f64::max),
+        max_set_distance_relative: fold(|p| p.max_set_distance_relative, 0.0, f64::max),
+        min_mantel: fold(|p| p.mantel, f64::INFINITY, f64::min),
+        max_distance_difference: fold(|p| p.max_distance_difference, 0.0, f64::max),
+        max_sensor_mantel: fold(|p| p.sensor_mantel, f64::NEG_INFINITY, f64::max),
+        min_sensor_difference_relative: fold(
+            |p| p.max_sensor_difference_relative,
+            f64::INFINITY,
+            f64::min,
+        ),
+        pairs,
+    })
+}
+
+fn distance(a: Option<&[f64]>, b: Option<&[f64]>) -> f64 {
+    let (a, b) = (
+        a.expect("rows of a standard array"),
+        b.expect("rows of a standard array"),
+    );
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// `x / y`, 0 when both are 0.
+fn ratio(x: f64, y: f64) -> f64 {
+    if x == 0.0 {
+        0.0
+    } else {
+        x / y
+    }
+}
+
+/// Pearson correlation of two distance lists; 1 when they are equal (constant lists
+/// included).
+fn mantel(a: &[f64], b: &[f64]) -> f64 {
+    if a == b {
+        1.0
+    } else {
+        pearson(a, b).unwrap_or(0.0)
+    }
+}
