@@ -303,14 +303,12 @@ impl Embedding for CcaValidParams {
     fn params_json(&self) -> serde_json::Value {
         serde_json::to_value(&self.0).expect("parameters serialise")
     }
-    fn fit(
+    fn fit_checked(
         &self,
         distances: ArrayView2<'_, f64>,
         progress: &dyn Progress,
     ) -> Result<Embedded, EmbedError> {
-        check_distances(distances)?;
         let n = distances.nrows();
-        check_dim(self.0.dim, n)?;
         let p = &self.0;
         let mut init = match p.init_landmarks {
             Some(l) if l < n => landmark_mds(distances, p.dim, l, p.seed)?,

@@ -28,7 +28,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::eigen::{classical_mds, EigenSolver, Triangulation};
-use super::{check_dim, check_dim_param, check_distances, EmbedError, EmbedReport, Embedded};
+use super::{check_dim, check_dim_param, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
 use crate::progress::Progress;
 
@@ -592,14 +592,11 @@ impl Embedding for IsomapValidParams {
     fn params_json(&self) -> serde_json::Value {
         serde_json::to_value(&self.0).expect("parameters serialise")
     }
-    fn fit(
+    fn fit_checked(
         &self,
         distances: ArrayView2<'_, f64>,
         progress: &dyn Progress,
     ) -> Result<Embedded, EmbedError> {
-        check_distances(distances)?;
-        let n = distances.nrows();
-        check_dim(self.0.dim, n)?;
         let graph = KnnGraph::from_distances(distances, self.0.k)?;
         self.fit_knn(&graph, progress)
     }

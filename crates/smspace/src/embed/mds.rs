@@ -13,7 +13,7 @@ use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
 
 use super::eigen::{classical_mds, EigenSolver, Triangulation};
-use super::{check_dim, check_dim_param, check_distances, EmbedError, EmbedReport, Embedded};
+use super::{check_dim_param, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
 use crate::progress::Progress;
 
@@ -83,14 +83,12 @@ impl Embedding for MdsValidParams {
     fn params_json(&self) -> serde_json::Value {
         serde_json::to_value(&self.0).expect("parameters serialise")
     }
-    fn fit(
+    fn fit_checked(
         &self,
         distances: ArrayView2<'_, f64>,
         _progress: &dyn Progress,
     ) -> Result<Embedded, EmbedError> {
-        check_distances(distances)?;
         let n = distances.nrows();
-        check_dim(self.0.dim, n)?;
         let sq: Array2<f64> = distances.mapv(|x| x * x);
         let fit = classical_mds(sq, self.0.dim, self.0.solver, self.0.seed, false)?;
         let report = EmbedReport {

@@ -191,8 +191,20 @@ pub trait Embedding: Send + Sync + std::fmt::Debug {
 
     /// Embeds the points whose pairwise distances are `distances` `(M, M)`.
     ///
-    /// The matrix is validated first ([`check_distances`]).
+    /// The matrix is validated first ([`check_distances`]), and the dimension against
+    /// its size; then [`fit_checked`](Embedding::fit_checked) runs.
     fn fit(
+        &self,
+        distances: ArrayView2<'_, f64>,
+        progress: &dyn Progress,
+    ) -> Result<Embedded, EmbedError> {
+        check_distances(distances)?;
+        check_dim(self.dim(), distances.nrows())?;
+        self.fit_checked(distances, progress)
+    }
+
+    /// The method itself, on a matrix that [`fit`](Embedding::fit) has validated.
+    fn fit_checked(
         &self,
         distances: ArrayView2<'_, f64>,
         progress: &dyn Progress,
