@@ -262,6 +262,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "extended": extended,
         "seconds": started.elapsed().as_secs_f64(),
     });
-    write_json(&sibling(&args.out, "embed.json"), &report)?;
+    let report_path = sibling(&args.out, "embed.json");
+    write_json(&report_path, &report)?;
+    let quality_line = match (quality.get("trustworthiness"), quality.get("continuity")) {
+        (Some(t), Some(c)) => format!(
+            "; trustworthiness {:.4}, continuity {:.4}",
+            t.as_f64().unwrap_or(f64::NAN),
+            c.as_f64().unwrap_or(f64::NAN)
+        ),
+        _ => String::new(),
+    };
+    eprintln!(
+        "embedded {} points in {} dimensions with {} into {} (report {}){quality_line}",
+        r.points,
+        r.dim,
+        r.method,
+        args.out.display(),
+        report_path.display()
+    );
     Ok(())
 }
