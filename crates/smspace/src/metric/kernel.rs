@@ -43,7 +43,7 @@ pub(crate) struct Scratch {
     row_near: Vec<f64>,
     col_key: Vec<f64>,
     col_near: Vec<f64>,
-    order: Vec<u32>,
+    order: Vec<u64>,
 }
 
 /// Shape of the prepared sets, copied out for the kernels.
@@ -302,15 +302,29 @@ fn directed_hausdorff<const N: usize>(
     (key, near): (&[f64], &[f64]),
     mut c: f64,
     abort: f64,
-    scratch_order: &mut Vec<u32>,
+    scratch_order: &mut Vec<u64>,
 ) -> Option<f64> {
     scratch_order.resize(shape.chunks.max(scratch_order.len()), 0);
-    // Blocks far from B first, so that `c` reaches its final value early.
+    // Blocks far from B first, so that `c` reaches its final value early. The order
+    // only decides how soon blocks can be settled, never the result, so the keys may
+    // be coarse: a non-negative f64 orders like its bits, and the block index takes the
+    // low bits (a plain integer sort, several times cheaper than comparing floats
+    // through the index; past 256 blocks the comparison sort is used).
     let order = &mut scratch_order[..shape.chunks];
-    for (alpha, slot) in order.iter_mut().enumerate() {
-        *slot = alpha as u32;
+    if shape.chunks <= 256 {
+        for (alpha, slot) in order.iter_mut().enumerate() {
+            *slot = (key[alpha].to_bits() & !0xff) | alpha as u64;
+        }
+        order.sort_unstable_by(|x, y| y.cmp(x));
+        for slot in order.iter_mut() {
+            *slot &= 0xff;
+        }
+    } else {
+        for (alpha, slot) in order.iter_mut().enumerate() {
+            *slot = alpha as u64;
+        }
+        order.sort_unstable_by(|&x, &y| key[y as usize].total_cmp(&key[x as usize]));
     }
-    order.sort_unstable_by(|&x, &y| key[y as usize].total_cmp(&key[x as usize]));
     for &alpha in order.iter() {
         let alpha = alpha as usize;
         let near = near[alpha] as usize;
