@@ -1,40 +1,14 @@
 //! Runs `smspace analyze` and `smspace invariance` in a temporary folder, bad input
 //! included.
 
+mod common;
+
 use std::f64::consts::TAU;
-use std::path::Path;
-use std::process::{Command, Output};
 
 use ndarray::{Array2, Array3};
 use ndarray_npy::write_npy;
 
-fn smspace(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smspace"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs")
-}
-
-fn ok(dir: &Path, args: &[&str]) -> Output {
-    let out = smspace(dir, args);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "smspace {args:?} failed: {stderr}");
-    out
-}
-
-/// Expects a clean failure (non-zero exit, no panic); returns stderr.
-fn fails(dir: &Path, args: &[&str]) -> String {
-    let out = smspace(dir, args);
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success(), "smspace {args:?} should fail");
-    assert!(
-        !stderr.contains("panicked"),
-        "smspace {args:?} panicked: {stderr}"
-    );
-    assert!(stderr.starts_with("error: "), "{stderr}");
-    stderr
-}
+use common::{fails, ok};
 
 /// `n` points on a circle (angles `alpha`, poses `(0, 0, alpha)`) and their chord
 /// distances.

@@ -1,40 +1,13 @@
 //! Runs the `smspace` binary on small inputs in a temporary folder, bad inputs included.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use std::path::PathBuf;
 
 use ndarray::{Array1, Array2, Array3};
 use ndarray_npy::{read_npy, write_npy};
 
-fn smspace(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smspace"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs")
-}
-
-/// Runs and expects success; returns stderr.
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let out = smspace(dir, args);
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(out.status.success(), "smspace {args:?} failed: {stderr}");
-    stderr
-}
-
-/// Runs and expects a clean failure (non-zero exit, one error line, no panic);
-/// returns stderr.
-fn fails(dir: &Path, args: &[&str]) -> String {
-    let out = smspace(dir, args);
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success(), "smspace {args:?} should fail");
-    assert!(
-        !stderr.contains("panicked"),
-        "smspace {args:?} panicked: {stderr}"
-    );
-    assert!(!stderr.contains("RUST_BACKTRACE"), "{stderr}");
-    stderr
-}
+use common::{fails, ok, stderr};
 
 fn temp() -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
@@ -72,7 +45,7 @@ fn explore_then_trace_the_arm() {
     assert_eq!(probes.row(41).to_vec(), vec![2, 1, 1]);
     assert_eq!(probes.row(0).to_vec(), vec![-1, -1, -1]);
 
-    let stderr = ok(
+    let stderr = stderr(&ok(
         &dir,
         &[
             "--threads",
@@ -91,7 +64,7 @@ fn explore_then_trace_the_arm() {
             "--out",
             "run/sets.npy",
         ],
-    );
+    ));
     assert!(stderr.contains("traced 42 of 42 sets"), "{stderr}");
     let sets: Array3<f64> = read_npy(dir.join("run/sets.npy")).unwrap();
     assert_eq!(sets.dim(), (42, 20, 4));
@@ -107,7 +80,7 @@ fn sensory_tracing_with_a_blind_environment_reports_failures() {
     let (_guard, dir) = temp();
     ok(&dir, &["explore", "--n", "6", "--out-dir", "."]);
     // A rich random environment traces most sets.
-    let stderr = ok(
+    let stderr = stderr(&ok(
         &dir,
         &[
             "trace",
@@ -122,7 +95,7 @@ fn sensory_tracing_with_a_blind_environment_reports_failures() {
             "--out",
             "sets.npy",
         ],
-    );
+    ));
     assert!(stderr.contains("of 6 sets"), "{stderr}");
     // One light behind the base: nothing can be traced; the command says why.
     std::fs::write(dir.join("dark.json"), r#"{"lights": [[-3.0, 0.0]]}"#).unwrap();
@@ -154,7 +127,7 @@ fn failed_sets_are_left_out_and_indexed() {
         [0.5, -0.9, 0.3, 1.0]
     ];
     write_npy(dir.join("m.npy"), &motors).unwrap();
-    let stderr = ok(
+    let stderr = stderr(&ok(
         &dir,
         &[
             "trace",
@@ -169,7 +142,7 @@ fn failed_sets_are_left_out_and_indexed() {
             "--out",
             "s.npy",
         ],
-    );
+    ));
     assert!(stderr.contains("1 failed"), "{stderr}");
     let kept: Array1<i64> = read_npy(dir.join("s.kept.npy")).unwrap();
     assert_eq!(kept.to_vec(), vec![0, 2]);

@@ -1,25 +1,14 @@
 //! Drives `smspace distances` in a temporary folder: matrix, row blocks, nearest sets
 //! and bad input.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
 use ndarray::{Array2, Array3, Axis, Slice};
 use ndarray_npy::{read_npy, write_npy};
 use smspace::metric::{distance_matrix, DistanceParams, MetricKind, Period};
 use smspace::progress::Silent;
 
-fn smspace(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smspace"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(output: &Output) -> String {
-    String::from_utf8_lossy(&output.stderr).into_owned()
-}
+use common::{fails, smspace, stderr};
 
 /// Deterministic closed curves on the torus, `(m, p, 4)`, wrapped into [-π, π).
 fn curves(m: usize, p: usize) -> Array3<f64> {
@@ -48,6 +37,7 @@ fn writes_the_matrix_equal_to_the_library() {
         ),
     ] {
         let out = smspace(
+            dir.path(),
             &[
                 "distances",
                 "--sets",
@@ -59,7 +49,6 @@ fn writes_the_matrix_equal_to_the_library() {
                 "--period",
                 period,
             ],
-            dir.path(),
         );
         assert!(out.status.success(), "{}", stderr(&out));
         let d: Array2<f64> = read_npy(dir.path().join("D.npy")).unwrap();
@@ -73,12 +62,13 @@ fn row_blocks_and_threads_give_the_same_numbers() {
     let dir = tempfile::tempdir().unwrap();
     write_npy(dir.path().join("sets.npy"), &curves(25, 16)).unwrap();
     let out = smspace(
-        &["distances", "--sets", "sets.npy", "--out", "D.npy"],
         dir.path(),
+        &["distances", "--sets", "sets.npy", "--out", "D.npy"],
     );
     assert!(out.status.success(), "{}", stderr(&out));
     let full: Array2<f64> = read_npy(dir.path().join("D.npy")).unwrap();
     let out = smspace(
+        dir.path(),
         &[
             "--threads",
             "1",
@@ -90,7 +80,6 @@ fn row_blocks_and_threads_give_the_same_numbers() {
             "--rows",
             "7:19",
         ],
-        dir.path(),
     );
     assert!(out.status.success(), "{}", stderr(&out));
     let block: Array2<f64> = read_npy(dir.path().join("B.npy")).unwrap();
@@ -104,6 +93,7 @@ fn knn_writes_indices_and_distances_next_to_out() {
     write_npy(dir.path().join("sets.npy"), &sets).unwrap();
     std::fs::create_dir(dir.path().join("graph")).unwrap();
     let out = smspace(
+        dir.path(),
         &[
             "distances",
             "--sets",
@@ -113,7 +103,6 @@ fn knn_writes_indices_and_distances_next_to_out() {
             "--knn",
             "5",
         ],
-        dir.path(),
     );
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(!dir.path().join("graph/D.npy").exists());
@@ -137,11 +126,7 @@ fn knn_writes_indices_and_distances_next_to_out() {
 #[test]
 fn bad_input_gets_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
-    let run = |args: &[&str]| {
-        let out = smspace(args, dir.path());
-        assert!(!out.status.success(), "{args:?} should fail");
-        stderr(&out)
-    };
+    let run = |args: &[&str]| fails(dir.path(), args);
     write_npy(dir.path().join("flat.npy"), &Array2::<f64>::zeros((10, 3))).unwrap();
     let e = run(&["distances", "--sets", "flat.npy", "--out", "D.npy"]);
     assert!(

@@ -1,37 +1,13 @@
 //! `smspace embed` end to end, in a temporary directory, bad input included.
 
+mod common;
+
 use std::path::Path;
-use std::process::{Command, Output};
 
 use ndarray::Array2;
 use ndarray_npy::{read_npy, write_npy};
 
-fn smspace(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_smspace"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn ok(dir: &Path, args: &[&str]) {
-    let out = smspace(dir, args);
-    assert!(
-        out.status.success(),
-        "{args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-fn fails_with(dir: &Path, args: &[&str], needle: &str) {
-    let out = smspace(dir, args);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{args:?} should fail");
-    assert!(
-        stderr.contains(needle),
-        "{args:?}: expected {needle:?} in {stderr}"
-    );
-}
+use common::{fails_with, ok};
 
 /// Chord distances of `n` evenly spaced points on the unit circle, with a wobble so
 /// that neighbours are not tied.
