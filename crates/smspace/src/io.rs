@@ -181,6 +181,14 @@ pub fn read_cube(path: &Path, expected: &str) -> Result<Array3<f64>, IoError> {
         })
 }
 
+/// The folder that holds `path` (`.` for a bare file name).
+pub fn folder_of(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
+        _ => PathBuf::from("."),
+    }
+}
+
 /// Writes `path` atomically: `fill` writes into a temporary file in the same folder,
 /// which is renamed over `path` only once it is complete and flushed.
 pub fn write_atomic<F>(path: &Path, fill: F) -> Result<(), IoError>
@@ -191,10 +199,7 @@ where
         path: path.to_owned(),
         reason,
     };
-    let folder = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
-        _ => PathBuf::from("."),
-    };
+    let folder = folder_of(path);
     let mut builder = tempfile::Builder::new();
     builder.prefix(".smspace-").suffix(".part");
     #[cfg(unix)]

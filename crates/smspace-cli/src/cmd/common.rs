@@ -1,6 +1,6 @@
 //! Arguments shared by several subcommands: the agent, the environment, the working space.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::Args;
@@ -118,4 +118,14 @@ impl WorkspaceArgs {
             }
         }
     }
+}
+
+/// The file beside `out` named `<stem>.<suffix>` (`sets.npy` → `sets.trace.json`), for
+/// the reports and side arrays a command writes next to its main output.
+pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    out.with_file_name(format!("{stem}.{suffix}"))
 }

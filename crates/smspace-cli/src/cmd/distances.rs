@@ -4,7 +4,7 @@
 //! block of its rows) or, with `--knn K`, the `K` nearest sets of every set.
 
 use std::ops::Range;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -89,14 +89,6 @@ fn memory_available() -> Option<u64> {
     Some(kib * 1024)
 }
 
-/// The folder that holds `path` (`.` for a bare file name).
-fn folder_of(path: &Path) -> PathBuf {
-    match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_owned(),
-        _ => PathBuf::from("."),
-    }
-}
-
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let sets = smspace::io::read_cube(&args.sets, "(M, P, N)")?;
@@ -140,7 +132,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let knn_params = KnnParams::new().k(k).pivots(args.pivots);
             let found = metric::knn(sets.view(), &params, &knn_params, rows.clone(), &bar)
                 .with_context(context)?;
-            let folder = folder_of(&args.out);
+            let folder = smspace::io::folder_of(&args.out);
             let indices_path = folder.join("knn_indices.npy");
             let distances_path = folder.join("knn_distances.npy");
             let indices = found.indices.mapv(|j| j as i64);

@@ -10,7 +10,7 @@
 //! | `Y.dydx.npy` | `(P, 2)` float64 Shepard sample: columns `dx = X_ij`, `dy = Y_ij` for `P` seeded random pairs `i < j` (all pairs when there are fewer than `--dydx-pairs`), for the `dy–dx` plot |
 //! | `Y.extended.npy` | with `--extend N.npy`: `(N, d)` coordinates of the new points |
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
@@ -23,6 +23,7 @@ use smspace::embed::{
 };
 use smspace::io::{read_matrix, write_json, write_npy};
 
+use super::common::sibling;
 use crate::ui;
 
 /// The embedding method.
@@ -112,11 +113,6 @@ pub struct Args {
     /// Most (dx, dy) pairs written to <stem>.dydx.npy (0: none).
     #[arg(long, default_value_t = 20_000)]
     pub dydx_pairs: usize,
-}
-
-/// `Y.npy` → `Y.<suffix>`.
-fn sibling(out: &Path, suffix: &str) -> PathBuf {
-    out.with_extension(suffix)
 }
 
 impl Args {

@@ -1,13 +1,13 @@
 //! `smspace trace`: the kernel sets `M^i` through explored motor configurations.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use ndarray::Array1;
 use smspace::io;
 use smspace::kernel::{trace_sets, StepControl, TraceMethod, TraceParams};
 
-use super::common::{AgentArgs, EnvArgs, WorkspaceArgs};
+use super::common::{sibling, AgentArgs, EnvArgs, WorkspaceArgs};
 use crate::ui::Bar;
 
 /// Arguments of `smspace trace`.
@@ -60,15 +60,6 @@ fn parse_step_control(s: &str) -> Result<StepControl, String> {
             "unknown step control '{other}'; use auto, fixed or adaptive"
         )),
     }
-}
-
-/// `dir/stem.suffix` next to `out` (`sets.npy` → `sets.trace.json`).
-pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
-    let stem = out
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "sets".into());
-    out.with_file_name(format!("{stem}.{suffix}"))
 }
 
 /// Runs `smspace trace`.
