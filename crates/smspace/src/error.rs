@@ -35,6 +35,9 @@ pub enum Error {
     /// Analysing a distance matrix failed.
     #[error(transparent)]
     Analysis(#[from] AnalysisError),
+    /// Writing the figures and report failed.
+    #[error(transparent)]
+    Report(#[from] crate::report::ReportError),
 }
 
 /// `Result` with the crate-wide [`Error`].

@@ -23,6 +23,7 @@
 //!    Isomap, classical MDS; section 3.2);
 //! 6. [`analysis`]: topology, dimension, agreement with the poses and environment
 //!    invariance of the learned metric (section 3.3);
+//! 7. [`report`]: the paper's figures, `report.html` with a 3-D view, `report.md`;
 //!
 //! with [`config`] (parameter files), [`io`] (`.npy` and JSON interchange),
 //! [`progress`] (observers for long stages) and [`error`].
@@ -40,5 +41,6 @@ pub mod io;
 pub mod kernel;
 pub mod metric;
 pub mod progress;
+pub mod report;
 
 pub use error::{Error, Result};
