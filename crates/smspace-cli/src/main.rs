@@ -24,6 +24,9 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Run a whole experiment (explore → trace → distances → embed → analyze → report)
+    /// from a TOML file, with a cache: runs/<name>/report.html.
+    Run(cmd::run::Args),
     /// Motor babbling in the working space (and the probe grid): motors.npy, poses.npy.
     Explore(cmd::explore::Args),
     /// Trace the kernel sets M^i through explored motor configurations: sets.npy.
@@ -46,6 +49,7 @@ enum Command {
 fn run(cli: Cli) -> anyhow::Result<()> {
     ui::init_threads(cli.threads)?;
     match cli.command {
+        Command::Run(args) => cmd::run::run(args),
         Command::Explore(args) => cmd::explore::run(args),
         Command::Trace(args) => cmd::trace::run(args),
         Command::Env(args) => cmd::env::run(args),

@@ -23,9 +23,15 @@
 use std::path::{Path, PathBuf};
 
 use serde::de::DeserializeOwned;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
-use crate::agent::{AgentConfig, AgentError, EnvironmentConfig};
+use crate::agent::{AgentConfig, AgentError, EnvironmentConfig, LightRegion};
+use crate::analysis::AnalysisParams;
+use crate::embed::EmbedParams;
+use crate::explore::ExploreParams;
+use crate::kernel::TraceParams;
+use crate::metric::DistanceParams;
+use crate::report::ReportParams;
 
 /// Errors of configuration files.
 #[derive(Debug, thiserror::Error)]
@@ -58,6 +64,27 @@ pub enum ConfigError {
     /// The name is neither a preset nor an existing file.
     #[error(transparent)]
     Agent(#[from] AgentError),
+    /// A `--set stage.key=value` override is malformed or gives a wrong value.
+    #[error("--set {assignment}: {reason}")]
+    Override {
+        /// The override as given.
+        assignment: String,
+        /// What is wrong, and how to write it.
+        reason: String,
+    },
+    /// A value parses but is impossible (checked before anything runs).
+    #[error("{path}{line}: [{table}] {reason}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// `", line N"` when the key is written in the file, `" (from --set)"` when an
+        /// override gave it, empty otherwise.
+        line: String,
+        /// The table (stage) whose parameter is wrong.
+        table: &'static str,
+        /// The stage's own message, naming the key and the value.
+        reason: String,
+    },
 }
 
 /// An agent and, optionally, how to make its environment.
@@ -112,6 +139,296 @@ pub fn load_agent(name_or_path: &str) -> Result<AgentSpec, ConfigError> {
     })
 }
 
+/// The `[environment]` table of an experiment: the environment the pipeline runs in and,
+/// optionally, further environments to compare with it (paper Fig. 1; environment
+/// invariance, section 3.3).
+///
+/// ```toml
+/// [environment]
+/// lights = 10
+/// seed = 1
+///
+/// [[environment.compare]]
+/// lights = 8
+/// seed = 2
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ExperimentEnvironment {
+    /// Number of random lights (default: the agent's, 5 for the toys and 10 for the arm).
+    pub lights: Option<usize>,
+    /// Seed of the random lights. Default 1.
+    pub seed: u64,
+    /// Where the lights are drawn (default: the agent's region).
+    pub region: Option<LightRegion>,
+    /// Further environments (`[[environment.compare]]` tables with `lights`, `seed`,
+    /// `region`). Default none.
+    pub compare: Vec<EnvironmentConfig>,
+}
+
+impl Default for ExperimentEnvironment {
+    fn default() -> Self {
+        let base = EnvironmentConfig::default();
+        Self {
+            lights: base.lights,
+            seed: base.seed,
+            region: base.region,
+            compare: Vec::new(),
+        }
+    }
+}
+
+impl ExperimentEnvironment {
+    /// Every environment's configuration, the main one first.
+    pub fn configs(&self) -> Vec<EnvironmentConfig> {
+        let main = EnvironmentConfig {
+            lights: self.lights,
+            seed: self.seed,
+            region: self.region,
+        };
+        std::iter::once(main)
+            .chain(self.compare.iter().cloned())
+            .collect()
+    }
+}
+
+/// An experiment file: one table per stage of the pipeline, run by `smspace run`.
+/// Every table but `[agent]` may be left out (its defaults are the paper's); unknown
+/// tables and keys are errors that name the key.
+///
+/// ```
+/// use smspace::config::Experiment;
+/// let experiment: Experiment = toml::from_str(r#"
+///     name = "small-arm"
+///     [agent]
+///     kind = "planar-arm"
+///     [exploration]
+///     n = 300
+///     [embedding]
+///     method = "cca"
+///     dim = 3
+/// "#).unwrap();
+/// assert_eq!(experiment.exploration.n, 300);
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Experiment {
+    /// The experiment's name, used for the default output folder `runs/<name>`.
+    /// Default: the file's stem.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// What the experiment shows (the report's first paragraph).
+    #[serde(default)]
+    pub description: String,
+    /// The agent (paper section 2.2, 2.3 or 3.1).
+    pub agent: AgentConfig,
+    /// The environments.
+    #[serde(default)]
+    pub environment: ExperimentEnvironment,
+    /// Motor babbling and the probe grid.
+    #[serde(default)]
+    pub exploration: ExploreParams,
+    /// Tracing of the kernel sets.
+    #[serde(default)]
+    pub kernel: TraceParams,
+    /// The metric between sets.
+    #[serde(default)]
+    pub metric: DistanceParams,
+    /// The embedding method, tagged by `method`.
+    #[serde(default)]
+    pub embedding: EmbedParams,
+    /// Topology, dimension, agreement and invariance.
+    #[serde(default)]
+    pub analysis: AnalysisParams,
+    /// Figures and report.
+    #[serde(default)]
+    pub report: ReportParams,
+}
+
+/// The tables of an experiment file, for error messages.
+pub const EXPERIMENT_TABLES: [&str; 8] = [
+    "agent",
+    "environment",
+    "exploration",
+    "kernel",
+    "metric",
+    "embedding",
+    "analysis",
+    "report",
+];
+
+/// An experiment read from its file, with the `--set` overrides applied.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadedExperiment {
+    /// The file.
+    pub path: PathBuf,
+    /// The experiment's name: its `name` key, else the file's stem.
+    pub name: String,
+    /// The parameters.
+    pub experiment: Experiment,
+    /// The file's text as written.
+    pub text: String,
+    /// The overrides applied, as given (`kernel.points=50`).
+    pub overrides: Vec<String>,
+}
+
+impl LoadedExperiment {
+    /// The resolved experiment as TOML: every parameter, defaults included.
+    pub fn resolved_toml(&self) -> String {
+        let mut experiment = self.experiment.clone();
+        experiment.name = Some(self.name.clone());
+        toml::to_string_pretty(&experiment)
+            .unwrap_or_else(|e| format!("# the experiment could not be written as TOML: {e}\n"))
+    }
+
+    /// An [`Invalid`](ConfigError::Invalid) error for `table`, located at the line of the
+    /// first of the table's keys that `message` names (or at the override that set it).
+    pub fn invalid(&self, table: &'static str, message: impl ToString) -> ConfigError {
+        let reason = message.to_string();
+        let overridden = self.overrides.iter().find(|o| {
+            o.split_once('=').is_some_and(|(path, _)| {
+                let path = path.trim();
+                path.split_once('.').is_some_and(|(t, key)| {
+                    t == table && mentions(&reason, key.rsplit('.').next().unwrap_or(key))
+                })
+            })
+        });
+        let line = match overridden {
+            Some(o) => format!(" (from --set {o})"),
+            None => key_line(&self.text, table, &reason)
+                .map(|n| format!(", line {n}"))
+                .unwrap_or_default(),
+        };
+        ConfigError::Invalid {
+            path: self.path.clone(),
+            line,
+            table,
+            reason,
+        }
+    }
+}
+
+/// Whether `message` names `key` as a word.
+fn mentions(message: &str, key: &str) -> bool {
+    message.match_indices(key).any(|(at, _)| {
+        let before = message[..at].chars().next_back();
+        let after = message[at + key.len()..].chars().next();
+        let word = |c: Option<char>| c.is_some_and(|c| c.is_alphanumeric() || c == '_');
+        !word(before) && !word(after)
+    })
+}
+
+/// The 1-based line of the first key of `[table]` in `text` that `message` names.
+fn key_line(text: &str, table: &str, message: &str) -> Option<usize> {
+    let mut in_table = false;
+    for (n, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if t.starts_with('[') {
+            let header = t
+                .trim_start_matches('[')
+                .split(']')
+                .next()
+                .unwrap_or("")
+                .trim();
+            in_table = header == table || header.starts_with(&format!("{table}."));
+            continue;
+        }
+        if !in_table {
+            continue;
+        }
+        if let Some((key, _)) = t.split_once('=') {
+            let key = key.trim().trim_matches('"');
+            if !key.is_empty() && mentions(message, key) {
+                return Some(n + 1);
+            }
+        }
+    }
+    None
+}
+
+/// Applies `stage.key=value` to a TOML table; `value` is read as TOML (`50`, `1e-3`,
+/// `"sensory"`, `[1.0, 2.0]`), and as a string when it is not valid TOML (`sensory`).
+fn apply_override(root: &mut toml::Table, assignment: &str) -> Result<(), ConfigError> {
+    let fail = |reason: String| ConfigError::Override {
+        assignment: assignment.to_owned(),
+        reason,
+    };
+    let (path, raw) = assignment
+        .split_once('=')
+        .ok_or_else(|| fail("write it as stage.key=value, e.g. --set kernel.points=50".into()))?;
+    let keys: Vec<&str> = path.trim().split('.').map(str::trim).collect();
+    if keys.len() < 2 || keys.iter().any(|k| k.is_empty()) {
+        return Err(fail(format!(
+            "`{}` is not stage.key; the stages are {}",
+            path.trim(),
+            EXPERIMENT_TABLES.join(", ")
+        )));
+    }
+    if !EXPERIMENT_TABLES.contains(&keys[0]) {
+        return Err(fail(format!(
+            "unknown stage `{}`; the stages are {}",
+            keys[0],
+            EXPERIMENT_TABLES.join(", ")
+        )));
+    }
+    let raw = raw.trim();
+    let value = toml::from_str::<toml::Table>(&format!("v = {raw}"))
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(raw.to_owned()));
+    let mut table = root;
+    for key in &keys[..keys.len() - 1] {
+        let entry = table
+            .entry(key.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        table = entry
+            .as_table_mut()
+            .ok_or_else(|| fail(format!("`{key}` is a value, not a table")))?;
+    }
+    table.insert(keys[keys.len() - 1].to_owned(), value);
+    Ok(())
+}
+
+/// Reads an experiment file and applies the overrides (`stage.key=value`). Syntax
+/// errors, unknown keys and wrong types name the file, line and key (or the override).
+/// Values are checked by each stage's `check` before anything runs (see the pipeline).
+pub fn load_experiment(path: &Path, overrides: &[String]) -> Result<LoadedExperiment, ConfigError> {
+    let text = read_text(path)?;
+    let mut experiment: Experiment = parse_toml(path, &text)?;
+    if !overrides.is_empty() {
+        let mut root: toml::Table = parse_toml(path, &text)?;
+        for o in overrides {
+            apply_override(&mut root, o)?;
+        }
+        experiment = Experiment::deserialize(toml::Value::Table(root)).map_err(|e| {
+            ConfigError::Override {
+                assignment: overrides.join(" "),
+                reason: e.to_string().trim_end().to_owned(),
+            }
+        })?;
+    }
+    let name = match &experiment.name {
+        Some(name) => name.clone(),
+        None => path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "experiment".to_owned()),
+    };
+    if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
+        return Err(ConfigError::Parse {
+            path: path.to_owned(),
+            message: format!("name = {name:?}: the name becomes the folder runs/<name>; use letters, digits and dashes"),
+        });
+    }
+    Ok(LoadedExperiment {
+        path: path.to_owned(),
+        name,
+        experiment,
+        text,
+        overrides: overrides.to_vec(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -152,5 +469,86 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("snake"));
+    }
+
+    fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> PathBuf {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    #[test]
+    fn experiments_read_overrides_and_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write(
+            &dir,
+            "small.toml",
+            "description = \"a test\"\n[agent]\nkind = \"toy-redundant\"\n[kernel]\npoints = 20\n[[environment.compare]]\nseed = 2\n",
+        );
+        let loaded = load_experiment(&path, &[]).unwrap();
+        assert_eq!(loaded.name, "small");
+        assert_eq!(loaded.experiment.kernel.points, 20);
+        assert_eq!(loaded.experiment.environment.configs().len(), 2);
+        let loaded = load_experiment(
+            &path,
+            &["kernel.points=30".into(), "kernel.method=sensory".into()],
+        )
+        .unwrap();
+        assert_eq!(loaded.experiment.kernel.points, 30);
+        assert_eq!(
+            loaded.experiment.kernel.method,
+            crate::kernel::TraceMethod::Sensory
+        );
+        // The resolved TOML reads back to the same experiment.
+        let again: Experiment = toml::from_str(&loaded.resolved_toml()).unwrap();
+        assert_eq!(again.kernel, loaded.experiment.kernel);
+        assert_eq!(again.name.as_deref(), Some("small"));
+    }
+
+    #[test]
+    fn experiment_errors_name_file_line_and_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write(
+            &dir,
+            "bad.toml",
+            "[agent]\nkind = \"planar-arm\"\n[kernel]\npoints = 20\nstpe = 0.1\n",
+        );
+        let err = load_experiment(&path, &[]).unwrap_err().to_string();
+        assert!(
+            err.contains("bad.toml") && err.contains("stpe") && err.contains("line 5"),
+            "{err}"
+        );
+        let path = write(
+            &dir,
+            "bad2.toml",
+            "[agent]\nkind = \"planar-arm\"\n[metrics]\n",
+        );
+        let err = load_experiment(&path, &[]).unwrap_err().to_string();
+        assert!(err.contains("metrics"), "{err}");
+        let path = write(
+            &dir,
+            "ok.toml",
+            "[agent]\nkind = \"planar-arm\"\n[kernel]\npoints = 0\n",
+        );
+        let loaded = load_experiment(&path, &[]).unwrap();
+        let err = loaded
+            .invalid("kernel", "points = 0: must be at least 2")
+            .to_string();
+        assert!(err.contains("ok.toml, line 4: [kernel] points"), "{err}");
+        for bad in ["kernel", "kernel.points", "kernal.points=3", ".x=1"] {
+            let err = load_experiment(&path, &[bad.into()])
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("--set"), "{bad}: {err}");
+        }
+        let err = load_experiment(&path, &["kernel.points=many".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("--set") && err.contains("many"), "{err}");
+        let loaded = load_experiment(&path, &["kernel.points=1".into()]).unwrap();
+        let err = loaded
+            .invalid("kernel", "points = 1: must be at least 2")
+            .to_string();
+        assert!(err.contains("(from --set kernel.points=1)"), "{err}");
     }
 }

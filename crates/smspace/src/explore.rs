@@ -173,6 +173,54 @@ impl ExploreParams {
         }
         Ok(workspace)
     }
+
+    /// Validates the parameters for `agent` before anything runs, and returns the
+    /// working space they name (see [`workspace`](Self::workspace)).
+    pub fn check(&self, agent: &dyn Agent) -> Result<Option<Workspace>, ExploreError> {
+        let workspace = self.workspace(agent)?;
+        self.check_counts(workspace.as_ref())?;
+        Ok(workspace)
+    }
+
+    /// The checks that do not depend on the agent: counts, and the probe grid's need of
+    /// a working space.
+    fn check_counts(&self, workspace: Option<&Workspace>) -> Result<(), ExploreError> {
+        if let Some(w) = workspace {
+            w.check()?;
+        }
+        if self.n == 0 && self.probes == Probes::None {
+            return Err(ExploreError::InvalidParameter {
+                name: "n",
+                value: "0".into(),
+                reason: "explore at least one configuration (or ask for probes)",
+            });
+        }
+        if self.max_draws_per_kept == 0 {
+            return Err(ExploreError::InvalidParameter {
+                name: "max_draws_per_kept",
+                value: "0".into(),
+                reason: "must be at least 1",
+            });
+        }
+        if self.probes == Probes::Grid {
+            if workspace.is_none() {
+                return Err(ExploreError::ProbesWithoutWorkspace);
+            }
+            for (name, value) in [
+                ("probe_positions", self.probe_positions),
+                ("probe_orientations", self.probe_orientations),
+            ] {
+                if value == 0 {
+                    return Err(ExploreError::InvalidParameter {
+                        name,
+                        value: "0".into(),
+                        reason: "must be at least 1",
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The working space an agent explores by default: the paper's for the arm, none for
@@ -219,23 +267,7 @@ pub fn explore_in(
     params: &ExploreParams,
     workspace: Option<Workspace>,
 ) -> Result<Exploration, ExploreError> {
-    if let Some(w) = &workspace {
-        w.check()?;
-    }
-    if params.n == 0 && params.probes == Probes::None {
-        return Err(ExploreError::InvalidParameter {
-            name: "n",
-            value: "0".into(),
-            reason: "explore at least one configuration (or ask for probes)",
-        });
-    }
-    if params.max_draws_per_kept == 0 {
-        return Err(ExploreError::InvalidParameter {
-            name: "max_draws_per_kept",
-            value: "0".into(),
-            reason: "must be at least 1",
-        });
-    }
+    params.check_counts(workspace.as_ref())?;
     let n_motors = agent.motor_dim();
     let (low, high) = agent.motor_topology().range();
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
@@ -268,18 +300,6 @@ pub fn explore_in(
     let mut probes = vec![-1_i64; params.n * 3];
     if params.probes == Probes::Grid {
         let w = workspace.ok_or(ExploreError::ProbesWithoutWorkspace)?;
-        for (name, value) in [
-            ("probe_positions", params.probe_positions),
-            ("probe_orientations", params.probe_orientations),
-        ] {
-            if value == 0 {
-                return Err(ExploreError::InvalidParameter {
-                    name,
-                    value: "0".into(),
-                    reason: "must be at least 1",
-                });
-            }
-        }
         let k = params.probe_positions;
         for o in 0..params.probe_orientations {
             let alpha = crate::agent::wrap_angle(

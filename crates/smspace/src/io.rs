@@ -120,6 +120,21 @@ pub fn read_f64(path: &Path) -> Result<ArrayD<f64>, IoError> {
     Ok(array)
 }
 
+/// Reads an `int64` `.npy` array of any dimension (probe labels, kept rows).
+pub fn read_i64(path: &Path) -> Result<ArrayD<i64>, IoError> {
+    let reader = open(path)?;
+    ArrayD::<i64>::read_npy(reader).map_err(|error| match error {
+        ReadNpyError::Io(reason) => IoError::Read {
+            path: path.to_owned(),
+            reason,
+        },
+        other => IoError::Npy {
+            path: path.to_owned(),
+            reason: other.to_string(),
+        },
+    })
+}
+
 /// Returns an error naming the first non-finite entry of `array`.
 pub fn check_finite<S: Data<Elem = f64>, D: Dimension>(
     path: &Path,

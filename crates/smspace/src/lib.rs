@@ -25,7 +25,8 @@
 //!    invariance of the learned metric (section 3.3);
 //! 7. [`report`]: the paper's figures, `report.html` with a 3-D view, `report.md`;
 //!
-//! with [`config`] (parameter files), [`io`] (`.npy` and JSON interchange),
+//! [`pipeline`] runs them all from an experiment file, with a cache; with [`config`]
+//! (parameter and experiment files), [`io`] (`.npy` and JSON interchange),
 //! [`progress`] (observers for long stages) and [`error`].
 //!
 //! The library never prints: progress goes through [`progress::Progress`], and every
@@ -40,6 +41,7 @@ pub mod explore;
 pub mod io;
 pub mod kernel;
 pub mod metric;
+pub mod pipeline;
 pub mod progress;
 pub mod report;
 

@@ -129,3 +129,11 @@ pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
         .unwrap_or_default();
     out.with_file_name(format!("{stem}.{suffix}"))
 }
+
+/// Bytes of memory available now (MemAvailable), when the system says.
+pub fn memory_available() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}

@@ -81,14 +81,6 @@ fn parse_rows(text: &str) -> Result<Range<usize>, String> {
     Ok(parse(start)?..parse(end)?)
 }
 
-/// Bytes of memory available now (MemAvailable), when the system says.
-fn memory_available() -> Option<u64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
-}
-
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let sets = smspace::io::read_cube(&args.sets, "(M, P, N)")?;
@@ -102,7 +94,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             PeriodArg::TwoPi => Period::TwoPi,
             PeriodArg::None => Period::None,
         })
-        .memory_limit_bytes(args.max_memory.or_else(memory_available));
+        .memory_limit_bytes(args.max_memory.or_else(super::common::memory_available));
     let rows = args.rows.clone().unwrap_or(0..m);
     let context = || {
         format!(

@@ -7,5 +7,6 @@ pub mod embed;
 pub mod env;
 pub mod explore;
 pub mod invariance;
+pub mod run;
 pub mod sense;
 pub mod trace;

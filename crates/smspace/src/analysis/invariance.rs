@@ -109,6 +109,32 @@ pub fn invariance(
     params: &TraceValidParams,
     progress: &dyn Progress,
 ) -> Result<InvarianceReport, AnalysisError> {
+    invariance_measured(agent, motors, environments, workspace, params, progress).map(|m| m.report)
+}
+
+/// What [`invariance_measured`] compares, besides the numbers: the per-environment
+/// distance matrices and sensor values (for figures).
+#[derive(Debug, Clone)]
+pub struct InvarianceMeasured {
+    /// The numbers.
+    pub report: InvarianceReport,
+    /// The rows of `motors` traced in every environment (`C` of them, increasing).
+    pub common_rows: Vec<usize>,
+    /// One `(C, C)` Hausdorff matrix per environment between the sets of those rows.
+    pub set_distances: Vec<Array2<f64>>,
+    /// One `(C, K)` array per environment: the sensor values `σ_E(m)` of those rows.
+    pub sensors: Vec<Array2<f64>>,
+}
+
+/// Like [`invariance`], also returning the matrices and sensor values compared.
+pub fn invariance_measured(
+    agent: &dyn Agent,
+    motors: ArrayView2<'_, f64>,
+    environments: &[Environment],
+    workspace: Option<&Workspace>,
+    params: &TraceValidParams,
+    progress: &dyn Progress,
+) -> Result<InvarianceMeasured, AnalysisError> {
     if params.method() != TraceMethod::Sensory {
         return Err(AnalysisError::InvalidParameter {
             name: "method",
@@ -237,7 +263,7 @@ pub fn invariance(
     let fold = |f: fn(&PairInvariance) -> f64, init: f64, pick: fn(f64, f64) -> f64| {
         pairs.iter().map(f).fold(init, pick)
     };
-    Ok(InvarianceReport {
+    let report = InvarianceReport {
         agent: agent.name().to_owned(),
         environments: environments
             .iter()
@@ -261,6 +287,12 @@ pub fn invariance(
             f64::min,
         ),
         pairs,
+    };
+    Ok(InvarianceMeasured {
+        report,
+        common_rows: common,
+        set_distances: matrices,
+        sensors,
     })
 }
 

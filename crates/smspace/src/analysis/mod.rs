@@ -39,7 +39,7 @@ use crate::progress::Progress;
 pub use agreement::Agreement;
 pub use dimension::DimensionEstimate;
 pub use homology::{rips_persistence, Bar, BettiRule, Persistence};
-pub use invariance::{invariance, InvarianceReport};
+pub use invariance::{invariance, invariance_measured, InvarianceMeasured, InvarianceReport};
 
 /// Errors of the analysis stage.
 #[derive(Debug, thiserror::Error)]
@@ -131,6 +131,10 @@ pub struct AnalysisParams {
     pub mle_neighbors: usize,
     /// Trustworthiness and continuity: neighbours `k`. Default 10.
     pub neighbors: usize,
+    /// Environment invariance (`smspace run`, when the experiment has more than one
+    /// environment): how many babbled starts are traced with the `sensory` method in
+    /// every environment and compared ([`invariance`]). `0` turns it off. Default 300.
+    pub invariance_starts: usize,
 }
 
 impl Default for AnalysisParams {
@@ -144,6 +148,7 @@ impl Default for AnalysisParams {
             twonn_discard: 0.1,
             mle_neighbors: 20,
             neighbors: 10,
+            invariance_starts: 300,
         }
     }
 }

@@ -257,7 +257,7 @@ pub struct Embedded {
 }
 
 /// Diagnostics of a fit, written to `*.embed.json` by the command-line tool.
-#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct EmbedReport {
     /// The method's name.
     pub method: String,

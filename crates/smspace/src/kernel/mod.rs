@@ -82,6 +82,16 @@ pub enum KernelError {
     /// The sensory method needs an environment.
     #[error("the sensory method needs an environment (give --env FILE or --env-seed S)")]
     MissingEnvironment,
+    /// Too few sets were traced for the later stages (a distance matrix needs two).
+    #[error("only {traced} of {total} sets could be traced (statuses: {by_status}); check the working space, the environment (sensory method) and the tolerances")]
+    NothingTraced {
+        /// Sets traced.
+        traced: usize,
+        /// Sets attempted.
+        total: usize,
+        /// Count per status.
+        by_status: String,
+    },
     /// The agent's kernel sets are not curves.
     #[error("the {agent} agent has {motors} motors for {configuration} pose coordinates, so its kernel sets have dimension {dimension}; the tracer follows sets of dimension 0 or 1")]
     UnsupportedDimension {

@@ -1,0 +1,98 @@
+//! `smspace run`: a whole experiment from its TOML file, with a cache.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+use clap::Args as ClapArgs;
+use smspace::config::load_experiment;
+use smspace::pipeline::{self, manifest::StageRecord, Recompute, RunObserver, RunOptions, Stage};
+use smspace::progress::Progress;
+
+use super::common::memory_available;
+use crate::ui::Bar;
+
+/// Arguments of `smspace run`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    /// The experiment file (TOML), e.g. experiments/paper-arm.toml.
+    #[arg(value_name = "EXPERIMENT")]
+    experiment: PathBuf,
+    /// Run folder (default: runs/<experiment name>).
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Override a parameter: stage.key=value, e.g. --set kernel.points=50
+    /// --set embedding.method=isomap (repeatable).
+    #[arg(long = "set", value_name = "STAGE.KEY=VALUE")]
+    overrides: Vec<String>,
+    /// Recompute every stage, even those whose inputs and parameters did not change.
+    #[arg(long)]
+    force: bool,
+}
+
+/// Prints one line per stage on stderr, with progress bars when it is a terminal.
+struct StageLog {
+    bar: Bar,
+    terminal: bool,
+}
+
+impl RunObserver for StageLog {
+    fn progress(&self) -> &dyn Progress {
+        &self.bar
+    }
+
+    fn stage_started(&self, stage: Stage) {
+        if !self.terminal {
+            eprintln!("[smspace] {}: started", stage.name());
+        }
+    }
+
+    fn stage_finished(&self, stage: Stage, record: &StageRecord, summary: &str) {
+        let how = if record.cached {
+            format!("reused (computed in {:.2} s)", record.compute_seconds)
+        } else {
+            format!("{:.2} s", record.seconds)
+        };
+        eprintln!("[smspace] {:<10} {how}: {summary}", stage.name());
+    }
+
+    fn stage_skipped(&self, stage: Stage, why: &str) {
+        eprintln!("[smspace] {:<10} skipped: {why}", stage.name());
+    }
+}
+
+/// Runs `smspace run`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let loaded = load_experiment(&args.experiment, &args.overrides)?;
+    let plan = pipeline::check(&loaded)?;
+    let out_dir = args
+        .out
+        .unwrap_or_else(|| PathBuf::from("runs").join(&loaded.name));
+    let options = RunOptions {
+        out_dir,
+        recompute: if args.force {
+            Recompute::All
+        } else {
+            Recompute::Changed
+        },
+        memory_limit_bytes: memory_available(),
+    };
+    let log = StageLog {
+        bar: Bar::new(),
+        terminal: std::io::stderr().is_terminal(),
+    };
+    eprintln!(
+        "[smspace] experiment {} ({}) into {}",
+        loaded.name,
+        args.experiment.display(),
+        options.out_dir.display()
+    );
+    let summary = pipeline::run(&plan, &options, &log)?;
+    let computed = summary.manifest.stages.iter().filter(|s| !s.cached).count();
+    eprintln!(
+        "[smspace] done in {:.2} s ({computed} of {} stages computed): {}",
+        summary.manifest.total_seconds,
+        summary.manifest.stages.len(),
+        summary.dir.join("report.html").display()
+    );
+    Ok(())
+}

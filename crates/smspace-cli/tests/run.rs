@@ -1,0 +1,366 @@
+//! `smspace run`: a small experiment end to end, the cache, and bad experiment files.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{fails_with, ok, smspace, stderr};
+use ndarray::{Array2, Array3};
+use ndarray_npy::read_npy;
+use serde_json::Value;
+
+/// A small arm experiment: 150 babbled configurations and a 3 × 3 × 3 probe grid.
+const SMALL_ARM: &str = r#"
+name = "small-arm"
+description = "A small arm run for the tests."
+
+[agent]
+kind = "planar-arm"
+
+[environment]
+seed = 1
+
+[[environment.compare]]
+seed = 2
+lights = 8
+
+[exploration]
+n = 150
+seed = 3
+probes = "grid"
+probe_positions = 3
+probe_orientations = 3
+
+[kernel]
+points = 30
+
+[embedding]
+method = "cca"
+dim = 3
+epochs = 10
+
+[analysis]
+max_points = 200
+invariance_starts = 40
+
+[report]
+sample_configurations = 10
+sample_sets = 5
+formats = "png"
+"#;
+
+fn write_experiment(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn stage<'a>(manifest: &'a Value, name: &str) -> &'a Value {
+    manifest["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["stage"] == name)
+        .unwrap_or_else(|| panic!("no stage {name} in {manifest}"))
+}
+
+fn in_range(value: &Value, low: f64, high: f64, what: &str) {
+    let v = value
+        .as_f64()
+        .unwrap_or_else(|| panic!("{what} is {value}"));
+    assert!(
+        (low..=high).contains(&v),
+        "{what} = {v} not in [{low}, {high}]"
+    );
+}
+
+#[test]
+fn a_small_experiment_runs_end_to_end_and_is_cached() {
+    let dir = tempfile::tempdir().unwrap();
+    write_experiment(dir.path(), "small.toml", SMALL_ARM);
+    let out = ok(dir.path(), &["run", "small.toml", "--threads", "2"]);
+    let log = stderr(&out);
+    let run = dir.path().join("runs/small-arm");
+
+    // Every output exists, with the contract's shapes.
+    let motors: Array2<f64> = read_npy(run.join("motors.npy")).unwrap();
+    assert_eq!(motors.dim(), (150 + 27, 4));
+    let poses: Array2<f64> = read_npy(run.join("poses.npy")).unwrap();
+    assert_eq!(poses.dim(), (177, 3));
+    let probes: Array2<i64> = read_npy(run.join("probes.npy")).unwrap();
+    assert_eq!(probes.iter().filter(|&&p| p >= 0).count(), 27 * 3);
+    let sets: Array3<f64> = read_npy(run.join("sets.npy")).unwrap();
+    let m = sets.dim().0;
+    assert!(
+        m > 150 && sets.dim().1 == 30 && sets.dim().2 == 4,
+        "{:?}",
+        sets.dim()
+    );
+    let d: Array2<f64> = read_npy(run.join("D.npy")).unwrap();
+    assert_eq!(d.dim(), (m, m));
+    let y: Array2<f64> = read_npy(run.join("Y.npy")).unwrap();
+    assert_eq!(y.dim(), (m, 3));
+    let dydx: Array2<f64> = read_npy(run.join("Y.dydx.npy")).unwrap();
+    assert_eq!(dydx.ncols(), 2);
+    for file in [
+        "exploration.json",
+        "environment.json",
+        "environment-2.json",
+        "sets.kept.npy",
+        "sets.trace.json",
+        "Y.embed.json",
+        "invariance.json",
+        "invariance-D-1.npy",
+        "invariance-D-2.npy",
+        "config.resolved.toml",
+        "report.html",
+        "report.md",
+        "report.json",
+    ] {
+        assert!(run.join(file).is_file(), "{file} missing; log: {log}");
+    }
+    let figures = std::fs::read_dir(run.join("figures")).unwrap().count();
+    assert!(figures >= 5, "only {figures} figures");
+
+    // The report's numbers are in range.
+    let analysis = json(&run.join("analysis.json"));
+    assert_eq!(analysis["betti"][0], 1, "{}", analysis["betti"]);
+    in_range(&analysis["intrinsic_dimension"]["twonn"], 1.5, 5.0, "TwoNN");
+    in_range(&analysis["intrinsic_dimension"]["mle"], 1.5, 5.0, "MLE");
+    in_range(&analysis["agreement"]["spearman"], 0.3, 1.0, "Spearman");
+    in_range(&analysis["agreement"]["trustworthiness"], 0.7, 1.0, "T");
+    let invariance = json(&run.join("invariance.json"));
+    in_range(&invariance["max_set_distance"], 0.0, 1e-3, "set difference");
+    in_range(&invariance["min_mantel"], 0.999, 1.0, "Mantel");
+    let markdown = std::fs::read_to_string(run.join("report.md")).unwrap();
+    assert!(markdown.contains("small-arm"), "{markdown}");
+
+    // The manifest: version, seeds, hash, every stage computed once.
+    let manifest = json(&run.join("manifest.json"));
+    assert_eq!(manifest["status"]["state"], "complete");
+    assert_eq!(manifest["seeds"]["exploration"], 3);
+    assert_eq!(manifest["config_hash"].as_str().unwrap().len(), 64);
+    for name in [
+        "explore",
+        "trace",
+        "distances",
+        "embed",
+        "analyze",
+        "invariance",
+        "report",
+    ] {
+        assert_eq!(stage(&manifest, name)["cached"], false, "{name}");
+    }
+
+    // A second run reuses every stage and changes nothing.
+    let before = std::fs::read(run.join("D.npy")).unwrap();
+    let out = ok(dir.path(), &["run", "small.toml"]);
+    let log = stderr(&out);
+    assert!(log.contains("0 of 7 stages computed"), "{log}");
+    let manifest = json(&run.join("manifest.json"));
+    for name in [
+        "explore",
+        "trace",
+        "distances",
+        "embed",
+        "analyze",
+        "report",
+    ] {
+        assert_eq!(stage(&manifest, name)["cached"], true, "{name}: {log}");
+    }
+    assert_eq!(std::fs::read(run.join("D.npy")).unwrap(), before);
+
+    // A changed embedding parameter recomputes the embedding and what depends on it.
+    ok(
+        dir.path(),
+        &["run", "small.toml", "--set", "embedding.epochs=5"],
+    );
+    let manifest = json(&run.join("manifest.json"));
+    for (name, cached) in [
+        ("explore", true),
+        ("trace", true),
+        ("distances", true),
+        ("embed", false),
+        ("analyze", true),
+        ("report", false),
+    ] {
+        assert_eq!(stage(&manifest, name)["cached"], cached, "{name}");
+    }
+
+    // A modified output is noticed and recomputed; --force recomputes everything.
+    std::fs::write(run.join("D.npy"), b"not a matrix").unwrap();
+    ok(
+        dir.path(),
+        &["run", "small.toml", "--set", "embedding.epochs=5"],
+    );
+    let manifest = json(&run.join("manifest.json"));
+    assert_eq!(stage(&manifest, "trace")["cached"], true);
+    assert_eq!(stage(&manifest, "distances")["cached"], false);
+    assert_eq!(std::fs::read(run.join("D.npy")).unwrap(), before);
+    ok(
+        dir.path(),
+        &["run", "small.toml", "--force", "--out", "again"],
+    );
+    let manifest = json(&dir.path().join("again/manifest.json"));
+    assert!(manifest["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|s| s["cached"] == false));
+    // The same experiment gives the same arrays in another folder.
+    assert_eq!(
+        std::fs::read(dir.path().join("again/D.npy")).unwrap(),
+        before
+    );
+}
+
+#[test]
+fn bad_experiment_files_are_refused_before_anything_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let unknown = SMALL_ARM.replace("points = 30", "points = 30\npoints_per_set = 4");
+    write_experiment(d, "unknown.toml", &unknown);
+    let err = fails_with(d, &["run", "unknown.toml"], "points_per_set");
+    assert!(
+        err.contains("unknown.toml") && err.contains("line"),
+        "{err}"
+    );
+
+    let wrong_type = SMALL_ARM.replace("points = 30", "points = \"thirty\"");
+    write_experiment(d, "type.toml", &wrong_type);
+    let err = fails_with(d, &["run", "type.toml"], "points");
+    assert!(err.contains("type.toml") && err.contains("line"), "{err}");
+
+    let impossible = SMALL_ARM.replace("points = 30", "points = 1");
+    write_experiment(d, "impossible.toml", &impossible);
+    let line = impossible
+        .lines()
+        .position(|l| l.trim() == "points = 1")
+        .unwrap()
+        + 1;
+    fails_with(
+        d,
+        &["run", "impossible.toml"],
+        &format!("impossible.toml, line {line}: [kernel]"),
+    );
+    fails_with(d, &["run", "unknown-table.toml"], "unknown-table.toml");
+    write_experiment(
+        d,
+        "table.toml",
+        "[agent]\nkind = \"planar-arm\"\n[embeding]\ndim = 3\n",
+    );
+    fails_with(d, &["run", "table.toml"], "embeding");
+    write_experiment(d, "ok.toml", SMALL_ARM);
+    fails_with(
+        d,
+        &["run", "ok.toml", "--set", "kernel.points=0"],
+        "--set kernel.points=0",
+    );
+    fails_with(d, &["run", "ok.toml", "--set", "kernl.points=3"], "kernl");
+    fails_with(
+        d,
+        &["run", "ok.toml", "--set", "kernel.points"],
+        "stage.key=value",
+    );
+    fails_with(
+        d,
+        &["run", "ok.toml", "--set", "embedding.method=tsne"],
+        "tsne",
+    );
+    // Nothing ran, so nothing was written.
+    assert!(!d.join("runs").exists());
+}
+
+#[test]
+fn a_failing_stage_keeps_the_earlier_outputs_and_names_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // MDS to more dimensions than there are sets fails in the embed stage.
+    let text = SMALL_ARM
+        .replace("n = 150", "n = 20")
+        .replace("probes = \"grid\"", "probes = \"none\"")
+        .replace("method = \"cca\"", "method = \"mds\"")
+        .replace("epochs = 10\n", "")
+        .replace("dim = 3", "dim = 40");
+    write_experiment(d, "fail.toml", &text);
+    let out = smspace(d, &["run", "fail.toml"]);
+    let log = stderr(&out);
+    assert!(!out.status.success());
+    assert!(!log.contains("panicked"), "{log}");
+    assert!(log.contains("stage `embed` failed"), "{log}");
+    let run = d.join("runs/small-arm");
+    assert!(run.join("D.npy").is_file() && run.join("sets.npy").is_file());
+    assert!(!run.join("Y.npy").exists());
+    let manifest = json(&run.join("manifest.json"));
+    assert_eq!(manifest["status"]["state"], "failed");
+    assert_eq!(manifest["status"]["stage"], "embed");
+    assert_eq!(stage(&manifest, "distances")["cached"], false);
+    // Fixing the parameter reuses what was done.
+    let out = ok(d, &["run", "fail.toml", "--set", "embedding.dim=2"]);
+    let log = stderr(&out);
+    assert!(log.contains("distances") && log.contains("reused"), "{log}");
+}
+
+#[test]
+fn the_toy_experiments_run() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../experiments");
+    let dir = tempfile::tempdir().unwrap();
+    for (file, n) in [
+        ("paper-toy-line.toml", "60"),
+        ("paper-toy-redundant.toml", "60"),
+    ] {
+        let path = root.join(file);
+        let out_dir = dir.path().join(file);
+        ok(
+            dir.path(),
+            &[
+                "run",
+                path.to_str().unwrap(),
+                "--out",
+                out_dir.to_str().unwrap(),
+                "--set",
+                &format!("exploration.n={n}"),
+                "--set",
+                "analysis.invariance_starts=30",
+            ],
+        );
+        let analysis = json(&out_dir.join("analysis.json"));
+        assert_eq!(analysis["betti"][0], 1, "{file}: {analysis}");
+        if file == "paper-toy-redundant.toml" {
+            // Kernel lines m1 + m2 = x: a 1-D manifold without holes.
+            assert_eq!(analysis["betti"], serde_json::json!([1, 0]), "{analysis}");
+            in_range(&analysis["intrinsic_dimension"]["twonn"], 0.7, 1.4, "TwoNN");
+            in_range(&analysis["agreement"]["spearman"], 0.95, 1.0, "Spearman");
+        } else {
+            let invariance = json(&out_dir.join("invariance.json"));
+            // The sensory manifolds differ between the environments.
+            in_range(
+                &invariance["min_sensor_difference_relative"],
+                0.05,
+                100.0,
+                "sensor difference",
+            );
+        }
+        assert!(out_dir.join("report.html").is_file());
+    }
+}
+
+#[test]
+fn the_shipped_experiments_are_valid() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../experiments");
+    let mut found = 0;
+    for entry in std::fs::read_dir(&root).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let loaded = smspace::config::load_experiment(&path, &[])
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            smspace::pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"));
+            found += 1;
+        }
+    }
+    assert!(found >= 4, "{found} experiments in {}", root.display());
+}
