@@ -235,11 +235,11 @@ fn bad_experiment_files_are_refused_before_anything_runs() {
     let err = fails_with(d, &["run", "type.toml"], "points");
     assert!(err.contains("type.toml") && err.contains("line"), "{err}");
 
-    let impossible = SMALL_ARM.replace("points = 30", "points = 1");
+    let impossible = SMALL_ARM.replace("points = 30", "points = 0");
     write_experiment(d, "impossible.toml", &impossible);
     let line = impossible
         .lines()
-        .position(|l| l.trim() == "points = 1")
+        .position(|l| l.trim() == "points = 0")
         .unwrap()
         + 1;
     fails_with(

@@ -389,12 +389,52 @@ fn apply_override(root: &mut toml::Table, assignment: &str) -> Result<(), Config
     Ok(())
 }
 
+/// The `[embedding]` table is tagged by `method`, so the TOML reader reports a wrong
+/// value inside it at the table's header, without the key. This reads the table again
+/// as the named method's own parameters, with the `method` line blanked (lines keep
+/// their numbers), to give the line and key; `None` when that finds nothing wrong.
+fn embedding_detail(path: &Path, text: &str) -> Option<ConfigError> {
+    use crate::embed::{CcaParams, IsomapParams, MdsParams};
+    #[derive(Deserialize)]
+    struct Probe<T> {
+        embedding: T,
+    }
+    let table: toml::Table = toml::from_str(text).ok()?;
+    let method = table.get("embedding")?.get("method")?.as_str()?.to_owned();
+    let mut in_embedding = false;
+    let blanked: String = text
+        .lines()
+        .map(|line| {
+            let t = line.trim();
+            if t.starts_with('[') {
+                in_embedding =
+                    t.trim_start_matches('[').split(']').next().map(str::trim) == Some("embedding");
+            }
+            let key = t.split_once('=').map(|(k, _)| k.trim());
+            if in_embedding && key == Some("method") {
+                ""
+            } else {
+                line
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let result = match method.as_str() {
+        "cca" => parse_toml::<Probe<CcaParams>>(path, &blanked).map(drop),
+        "isomap" => parse_toml::<Probe<IsomapParams>>(path, &blanked).map(drop),
+        "mds" => parse_toml::<Probe<MdsParams>>(path, &blanked).map(drop),
+        _ => return None,
+    };
+    result.err()
+}
+
 /// Reads an experiment file and applies the overrides (`stage.key=value`). Syntax
 /// errors, unknown keys and wrong types name the file, line and key (or the override).
 /// Values are checked by each stage's `check` before anything runs (see the pipeline).
 pub fn load_experiment(path: &Path, overrides: &[String]) -> Result<LoadedExperiment, ConfigError> {
     let text = read_text(path)?;
-    let mut experiment: Experiment = parse_toml(path, &text)?;
+    let mut experiment: Experiment =
+        parse_toml(path, &text).map_err(|error| embedding_detail(path, &text).unwrap_or(error))?;
     if !overrides.is_empty() {
         let mut root: toml::Table = parse_toml(path, &text)?;
         for o in overrides {

@@ -270,6 +270,14 @@ pub fn check(experiment: &LoadedExperiment) -> Result<Plan, ConfigError> {
     })
 }
 
+/// The name a configuration file uses for an enum value (`"2pi"`, `"kinematic"`).
+fn label<T: Serialize + std::fmt::Debug>(value: &T) -> String {
+    match serde_json::to_value(value) {
+        Ok(serde_json::Value::String(s)) => s,
+        _ => format!("{value:?}"),
+    }
+}
+
 /// JSON text of a parameter struct, for stage keys.
 fn json<T: Serialize>(value: &T) -> String {
     serde_json::to_string(value).unwrap_or_default()
@@ -620,10 +628,10 @@ pub fn run(
         |t| {
             let s = &t.report.summary;
             format!(
-                "{} of {} sets traced ({:?}), {} points each",
+                "{} of {} sets traced ({}), {} points each",
                 s.traced,
                 s.total,
-                plan.trace.method(),
+                label(&plan.trace.method()),
                 t.sets.dim().1
             )
         },
@@ -652,10 +660,10 @@ pub fn run(
         },
         |d| {
             format!(
-                "{0} × {0} matrix ({1:?}, period {2:?})",
+                "{0} × {0} matrix ({1}, period {2})",
                 d.nrows(),
-                e.metric.metric,
-                e.metric.period
+                label(&e.metric.metric),
+                label(&e.metric.period)
             )
         },
     )?;
