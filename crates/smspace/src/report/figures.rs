@@ -599,7 +599,9 @@ pub(super) fn probe_surfaces(
     kept: &[usize],
     set_poses: &Array2<f64>,
 ) -> Vec<ProbeSurface> {
-    let mut by: BTreeMap<i64, (BTreeMap<(i64, i64), usize>, f64, f64)> = BTreeMap::new();
+    /// Cells, and the sums of `sin alpha` and `cos alpha`.
+    type Accumulated = (BTreeMap<(i64, i64), usize>, f64, f64);
+    let mut by: BTreeMap<i64, Accumulated> = BTreeMap::new();
     for (set, &row) in kept.iter().enumerate() {
         let label = probes.row(row);
         if label[0] < 0 {

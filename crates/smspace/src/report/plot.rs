@@ -436,7 +436,7 @@ mod tests {
     fn tick_labels_are_short() {
         assert_eq!(tick_label(0.0), "0");
         assert_eq!(tick_label(1.5), "1.5");
-        assert_eq!(tick_label(-3.14159), "-3.142");
+        assert_eq!(tick_label(-1.23456), "-1.235");
         assert_eq!(tick_label(1234.0), "1234");
         assert_eq!(tick_label(2.0e-5), "2.0e-5");
     }

@@ -367,7 +367,7 @@ mod tests {
         assert_eq!(
             t.rows,
             vec![
-                vec!["a.b".to_owned(), "1.5".to_owned()],
+                vec!["a.b".to_owned(), "1.500".to_owned()],
                 vec!["a.c".to_owned(), "[1, 2]".to_owned()],
                 vec!["d".to_owned(), "x".to_owned()],
             ]
