@@ -274,6 +274,10 @@ impl Agent for PlanarArm {
         "planar-arm"
     }
 
+    fn skeleton(&self, motors: &[f64]) -> Vec<[f64; 2]> {
+        self.joint_positions(motors)
+    }
+
     fn configuration_dim(&self) -> usize {
         3
     }

@@ -218,6 +218,13 @@ pub trait Agent: Send + Sync + fmt::Debug {
         None
     }
 
+    /// The body drawn for motors `m`: joint positions in the plane, from the base to the
+    /// sensor, for figures only (paper Fig. 5a). The default is empty: the agent has no
+    /// body to draw.
+    fn skeleton(&self, _motors: &[f64]) -> Vec<[f64; 2]> {
+        Vec::new()
+    }
+
     /// Where random lights go by default for this agent.
     fn default_light_region(&self) -> LightRegion;
 

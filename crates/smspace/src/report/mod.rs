@@ -13,12 +13,21 @@
 //! This module is the only one that knows every stage: it reads their outputs and
 //! never runs them.
 
+mod figures;
+mod html;
+mod markdown;
+mod plot;
+mod tables;
+
 use std::path::{Path, PathBuf};
 
 use ndarray::{Array2, ArrayView2, ArrayView3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::agent::{Agent, Environment};
+use crate::agent::{Agent, Environment, MotorTopology};
 use crate::analysis::{AnalysisReport, InvarianceReport};
 use crate::embed::EmbedReport;
 use crate::explore::Workspace;
@@ -211,13 +220,606 @@ pub struct ReportSummary {
     pub markdown: PathBuf,
 }
 
+/// Largest panel side accepted, in pixels.
+const MAX_PANEL_PIXELS: u32 = 4000;
+
+impl ReportParams {
+    /// Checks the parameters.
+    pub fn check(&self) -> Result<(), ReportError> {
+        for (name, value, least) in [
+            ("panel_width", self.panel_width, 320),
+            ("panel_height", self.panel_height, 240),
+        ] {
+            if !(least..=MAX_PANEL_PIXELS).contains(&value) {
+                return Err(ReportError::InvalidParameter {
+                    name,
+                    value: value.to_string(),
+                    reason: format!("must be between {least} and {MAX_PANEL_PIXELS} pixels"),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+fn input_error(what: &'static str, reason: String) -> ReportError {
+    ReportError::Input { what, reason }
+}
+
+/// Checks that the inputs fit together.
+fn check_inputs(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
+    let rows = inputs.motors.nrows();
+    let n = inputs.agent.motor_dim();
+    if inputs.motors.ncols() != n {
+        return Err(input_error(
+            "motors",
+            format!(
+                "has shape ({rows}, {}), expected (M0, {n}) for the agent {}",
+                inputs.motors.ncols(),
+                inputs.agent.name()
+            ),
+        ));
+    }
+    if inputs.poses.dim() != (rows, 3) {
+        return Err(input_error(
+            "poses",
+            format!(
+                "has shape ({}, {}), expected ({rows}, 3) to match the motors",
+                inputs.poses.nrows(),
+                inputs.poses.ncols()
+            ),
+        ));
+    }
+    if inputs.probes.dim() != (rows, 3) {
+        return Err(input_error(
+            "probes",
+            format!(
+                "has shape ({}, {}), expected ({rows}, 3) to match the motors",
+                inputs.probes.nrows(),
+                inputs.probes.ncols()
+            ),
+        ));
+    }
+    let (m, p, sn) = inputs.sets.dim();
+    if m > 0 && (sn != n || p == 0) {
+        return Err(input_error(
+            "sets",
+            format!("has shape ({m}, {p}, {sn}), expected (M, P, {n}) with P > 0"),
+        ));
+    }
+    if inputs.kept.len() != m {
+        return Err(input_error(
+            "kept",
+            format!(
+                "has {} rows for {m} sets; give the exploration row of every set",
+                inputs.kept.len()
+            ),
+        ));
+    }
+    if let Some(w) = inputs.kept.windows(2).find(|w| w[0] >= w[1]) {
+        return Err(input_error(
+            "kept",
+            format!("is not increasing ({} then {})", w[0], w[1]),
+        ));
+    }
+    if let Some(&row) = inputs.kept.iter().find(|&&r| r >= rows) {
+        return Err(input_error(
+            "kept",
+            format!("names exploration row {row} but there are {rows} rows"),
+        ));
+    }
+    if inputs.embedding.nrows() != m {
+        return Err(input_error(
+            "embedding",
+            format!(
+                "has {} rows, expected one per set ({m})",
+                inputs.embedding.nrows()
+            ),
+        ));
+    }
+    if let Some(((i, j), v)) = inputs
+        .embedding
+        .indexed_iter()
+        .find(|(_, v)| !v.is_finite())
+    {
+        return Err(input_error(
+            "embedding",
+            format!("holds {v} at ({i}, {j}); every coordinate must be finite"),
+        ));
+    }
+    if let Some(dydx) = inputs.dydx {
+        if dydx.ncols() != 2 {
+            return Err(input_error(
+                "dydx",
+                format!("has {} columns, expected (P, 2): dx, dy", dydx.ncols()),
+            ));
+        }
+    }
+    for s in inputs.sensory_manifolds {
+        if s.motors.nrows() != s.sensors.nrows() || s.sensors.ncols() == 0 || s.motors.ncols() == 0
+        {
+            return Err(input_error(
+                "sensory_manifolds",
+                format!(
+                    "'{}' has motors {:?} and sensors {:?}, expected (T, N) and (T, K) with the same T",
+                    s.label,
+                    s.motors.dim(),
+                    s.sensors.dim()
+                ),
+            ));
+        }
+    }
+    if let Some(inv) = inputs.invariance {
+        if inv.set_distances.len() != inv.sensors.len() {
+            return Err(input_error(
+                "invariance",
+                format!(
+                    "has {} distance matrices but {} sensor arrays; give one of each per environment",
+                    inv.set_distances.len(),
+                    inv.sensors.len()
+                ),
+            ));
+        }
+        for (k, (d, s)) in inv.set_distances.iter().zip(&inv.sensors).enumerate() {
+            let c = d.nrows();
+            if d.ncols() != c || s.nrows() != c {
+                return Err(input_error(
+                    "invariance",
+                    format!(
+                        "environment {}: distances {:?} and sensors {:?}, expected (C, C) and (C, K)",
+                        k + 1,
+                        d.dim(),
+                        s.dim()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// What every figure needs besides the inputs.
+struct Derived {
+    /// `(M, 3)`: the pose of every set's exploration row.
+    set_poses: Array2<f64>,
+    /// Unit of motor coordinates and of set distances.
+    motor_unit: &'static str,
+    topology: MotorTopology,
+}
+
+fn derive(inputs: &ReportInputs<'_>) -> Derived {
+    let m = inputs.kept.len();
+    let mut set_poses = Array2::zeros((m, 3));
+    for (i, &row) in inputs.kept.iter().enumerate() {
+        set_poses.row_mut(i).assign(&inputs.poses.row(row));
+    }
+    let topology = inputs.agent.motor_topology();
+    let motor_unit = match topology {
+        MotorTopology::Periodic => "rad",
+        MotorTopology::Bounded { .. } => "m",
+    };
+    Derived {
+        set_poses,
+        motor_unit,
+        topology,
+    }
+}
+
+/// A seeded sample of `k` of `0..n` (all when `k ≥ n`), sorted; `stream` separates the
+/// samples of different figures.
+fn sample(n: usize, k: usize, seed: u64, stream: u64) -> Vec<usize> {
+    if k >= n {
+        return (0..n).collect();
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(stream);
+    let mut picked = rand::seq::index::sample(&mut rng, n, k).into_vec();
+    picked.sort_unstable();
+    picked
+}
+
+/// A figure ready to draw, or why it is skipped.
+enum Planned<'a> {
+    Skip(String),
+    SensoryManifolds(figures::SensoryManifolds<'a>),
+    KernelLines(figures::KernelLines<'a>),
+    LearnedManifold(figures::LearnedManifold<'a>),
+    Configurations(figures::Configurations),
+    KernelSets3d(figures::KernelSets3d<'a>),
+    EmbeddingProbes(figures::EmbeddingProbes<'a>),
+    EmbeddingPose(figures::EmbeddingPose<'a>),
+    Persistence(figures::PersistenceDiagram<'a>),
+    DyDx(figures::DyDx<'a>),
+    Invariance(figures::Invariance),
+    Stress(figures::StressTrace<'a>),
+}
+
+impl Planned<'_> {
+    fn render(
+        &self,
+        name: &str,
+        formats: FigureFormats,
+        dir: &Path,
+    ) -> Result<plot::Rendered, ReportError> {
+        use plot::render;
+        match self {
+            Planned::Skip(_) => Ok(plot::Rendered::default()),
+            Planned::SensoryManifolds(f) => render(f, name, formats, dir),
+            Planned::KernelLines(f) => render(f, name, formats, dir),
+            Planned::LearnedManifold(f) => render(f, name, formats, dir),
+            Planned::Configurations(f) => render(f, name, formats, dir),
+            Planned::KernelSets3d(f) => render(f, name, formats, dir),
+            Planned::EmbeddingProbes(f) => render(f, name, formats, dir),
+            Planned::EmbeddingPose(f) => render(f, name, formats, dir),
+            Planned::Persistence(f) => render(f, name, formats, dir),
+            Planned::DyDx(f) => render(f, name, formats, dir),
+            Planned::Invariance(f) => render(f, name, formats, dir),
+            Planned::Stress(f) => render(f, name, formats, dir),
+        }
+    }
+}
+
+/// The figures of the report in order: `(name, caption, plan)`.
+fn plan<'a: 'b, 'b>(
+    inputs: &ReportInputs<'a>,
+    params: &ReportParams,
+    derived: &'b Derived,
+    surfaces: &'b [figures::ProbeSurface],
+) -> Vec<(&'static str, String, Planned<'b>)> {
+    let panel = (params.panel_width, params.panel_height);
+    let agent = inputs.agent;
+    let n = agent.motor_dim();
+    let m = inputs.kept.len();
+    let d = inputs.embedding.ncols();
+    let set_x: Vec<f64> = derived.set_poses.column(0).to_vec();
+    let unit = derived.motor_unit;
+    let mut out = Vec::new();
+
+    // Fig. 1
+    let caption = "Paper Fig. 1 (section 2.2): the sensory manifold S traced by the sensors as the motors sweep their range, in each environment; it depends on the environment.".to_owned();
+    let planned = if inputs.sensory_manifolds.is_empty() {
+        Planned::Skip(
+            "no sensory manifolds were given (they are computed for the toy agents)".to_owned(),
+        )
+    } else {
+        Planned::SensoryManifolds(figures::SensoryManifolds {
+            manifolds: inputs.sensory_manifolds,
+            agent: agent.name(),
+            motor_unit: unit,
+            size: panel,
+        })
+    };
+    out.push(("fig1-sensory-manifolds", caption, planned));
+
+    // Fig. 2, kernel lines.
+    let sets_sample = sample(m, params.sample_sets, params.seed, 2);
+    let caption = format!(
+        "Paper Fig. 2 right (section 2.3): {} kernel sets M^i in the motor plane, each the motor configurations that give the same sensation as its start (black dot); coloured by the observer's x.",
+        sets_sample.len()
+    );
+    let planned = if n != 2 {
+        Planned::Skip(format!(
+            "the agent has N = {n} motors; kernel lines in the motor plane are drawn for N = 2 (see fig5b-kernel-sets-3d for N >= 3)"
+        ))
+    } else if sets_sample.is_empty() {
+        Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
+    } else {
+        Planned::KernelLines(figures::KernelLines {
+            sets: inputs.sets.reborrow(),
+            starts: sets_sample
+                .iter()
+                .map(|&i| {
+                    let row = inputs.motors.row(inputs.kept[i]);
+                    (row[0], row[1])
+                })
+                .collect(),
+            sample: sets_sample.clone(),
+            set_x: set_x.clone(),
+            topology: derived.topology,
+            motor_unit: unit,
+            total: m,
+            size: panel,
+        })
+    };
+    out.push(("fig2-kernel-lines", caption, planned));
+
+    // Fig. 2, learned manifold.
+    let caption = if d == 1 {
+        "Paper Fig. 2 left (section 2.3): the learned 1-D manifold, the embedding coordinate q1 of every set against the observer's x: a monotonic curve means the agent has captured x.".to_owned()
+    } else {
+        "Paper Fig. 2 (section 2.3): the learned manifold, the first two embedding coordinates of every set, coloured by the observer's x.".to_owned()
+    };
+    let planned = if m == 0 {
+        Planned::Skip("no kernel sets were embedded".to_owned())
+    } else if d == 1 || (d >= 2 && n == 2) {
+        Planned::LearnedManifold(figures::LearnedManifold {
+            embedding: inputs.embedding.reborrow(),
+            set_x: set_x.clone(),
+            size: panel,
+        })
+    } else {
+        Planned::Skip(format!(
+            "the embedding has d = {d} and the agent N = {n} motors; see embedding-pose and fig5d-embedding-probes"
+        ))
+    };
+    out.push(("fig2-learned-manifold", caption, planned));
+
+    // Fig. 5a
+    let babbled: Vec<usize> = (0..inputs.motors.nrows())
+        .filter(|&r| inputs.probes[[r, 0]] < 0)
+        .collect();
+    let picked = sample(babbled.len(), params.sample_configurations, params.seed, 1);
+    let skeletons: Vec<Vec<[f64; 2]>> = picked
+        .iter()
+        .map(|&k| agent.skeleton(&inputs.motors.row(babbled[k]).to_vec()))
+        .collect();
+    let caption = format!(
+        "Paper Fig. 5a (section 3.3): {} of the {} explored (babbled) configurations of the arm, the sensor's orientation alpha as a red tick, the working space and the lights of environment 1.",
+        picked.len(),
+        babbled.len()
+    );
+    let planned = if picked.is_empty() {
+        Planned::Skip("no babbled configurations to draw (or sample_configurations = 0)".to_owned())
+    } else if skeletons.iter().all(Vec::is_empty) {
+        Planned::Skip(format!(
+            "the agent {} has no body to draw (Agent::skeleton is empty)",
+            agent.name()
+        ))
+    } else {
+        Planned::Configurations(figures::Configurations {
+            alphas: picked
+                .iter()
+                .map(|&k| inputs.poses[[babbled[k], 2]])
+                .collect(),
+            skeletons,
+            workspace: inputs.workspace,
+            environment: inputs.environments.first().cloned(),
+            agent: agent.name().to_owned(),
+            explored: babbled.len(),
+            size: panel,
+        })
+    };
+    out.push(("fig5a-configurations", caption, planned));
+
+    // Fig. 5b
+    let caption = format!(
+        "Paper Fig. 5b (section 3.3): {} kernel sets M^i in motor space, two 3-D projections; each closed curve is one set, coordinates wrapped into [-pi, pi).",
+        sets_sample.len()
+    );
+    let planned = if n < 3 {
+        Planned::Skip(format!(
+            "the agent has N = {n} motors; the 3-D view of kernel sets needs N >= 3"
+        ))
+    } else if sets_sample.is_empty() {
+        Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
+    } else {
+        Planned::KernelSets3d(figures::KernelSets3d {
+            sets: inputs.sets.reborrow(),
+            sample: sets_sample,
+            topology: derived.topology,
+            motor_unit: unit,
+            panel,
+        })
+    };
+    out.push(("fig5b-kernel-sets-3d", caption, planned));
+
+    // Fig. 5d
+    let caption = format!(
+        "Paper Fig. 5d (section 3.3): the embedding of the {m} kernel sets (grey) and, for each probe orientation ({}), the surface of the probe sets connected to their grid neighbours, coloured by the probe's x: translations of the sensor at a fixed orientation form a sheet, one per orientation.",
+        surfaces
+            .iter()
+            .map(|s| format!("{:.0} deg", s.alpha.to_degrees()))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let planned = if d < 2 {
+        Planned::Skip(format!(
+            "the embedding has d = {d}; probe surfaces need d >= 2"
+        ))
+    } else if surfaces.is_empty() {
+        Planned::Skip(
+            "no probe rows among the kept sets (explore with probes = \"grid\")".to_owned(),
+        )
+    } else {
+        Planned::EmbeddingProbes(figures::EmbeddingProbes {
+            embedding: inputs.embedding.reborrow(),
+            set_poses: &derived.set_poses,
+            surfaces,
+            size: panel,
+        })
+    };
+    out.push(("fig5d-embedding-probes", caption, planned));
+
+    // Embedding coloured by the pose.
+    let varying: Vec<usize> = (0..3)
+        .filter(|&c| {
+            figures_extent(derived.set_poses.column(c).iter().copied())
+                .is_some_and(|(lo, hi)| hi - lo > 1e-9)
+        })
+        .collect();
+    let caption = format!(
+        "The embedding of the {m} kernel sets coloured by each varying coordinate of the observer's pose ({}); alpha uses a circular colour map. Smooth colour gradients mean the learned manifold is organised like the sensor's configuration.",
+        varying
+            .iter()
+            .map(|&c| ["x", "y", "alpha"][c])
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let planned = if m == 0 || d == 0 {
+        Planned::Skip("no kernel sets were embedded".to_owned())
+    } else if varying.is_empty() {
+        Planned::Skip("every pose coordinate is constant over the sets".to_owned())
+    } else {
+        Planned::EmbeddingPose(figures::EmbeddingPose {
+            embedding: inputs.embedding.reborrow(),
+            set_poses: &derived.set_poses,
+            coordinates: varying,
+            panel,
+        })
+    };
+    out.push(("embedding-pose", caption, planned));
+
+    // Persistence.
+    let caption = "Vietoris-Rips persistence diagram of the set metric rho (Hausdorff distances between kernel sets): points far above the diagonal are robust features; the Betti numbers read off by the gap rule are in the title (the arm's manifold, a circle of orientations times a disc of positions, gives b = [1, 1]).".to_owned();
+    let planned = match inputs.analysis {
+        None => Planned::Skip("no analysis was run".to_owned()),
+        Some(a) if a.persistence.iter().all(Vec::is_empty) => {
+            Planned::Skip("the analysis has no persistence bars".to_owned())
+        }
+        Some(a) => Planned::Persistence(figures::PersistenceDiagram {
+            analysis: a,
+            distance_unit: unit,
+            size: panel,
+        }),
+    };
+    out.push(("persistence-diagram", caption, planned));
+
+    // dy–dx
+    let caption = "CCA's dy-dx plot: the distance of two sets in the embedding (dy) against their learned distance (dx); points on the diagonal are preserved, CCA favours the small distances (lower left).".to_owned();
+    let planned = match inputs.dydx {
+        Some(p) if p.nrows() > 0 => Planned::DyDx(figures::DyDx {
+            pairs: p.reborrow(),
+            distance_unit: unit,
+            size: panel,
+        }),
+        _ => Planned::Skip(
+            "no dy-dx sample was given (the embedding method is not CCA, or it was not computed)"
+                .to_owned(),
+        ),
+    };
+    out.push(("dydx", caption, planned));
+
+    // Invariance
+    let caption = "Environment invariance (section 2.3): for the rows traced in two environments, the learned distances between their kernel sets (left) agree across environments, while the distances between their raw sensor values (right) do not.".to_owned();
+    let planned = match inputs.invariance {
+        None => Planned::Skip("no invariance comparison was run".to_owned()),
+        Some(inv) if inv.set_distances.len() < 2 => {
+            Planned::Skip("the invariance comparison has fewer than two environments".to_owned())
+        }
+        Some(inv) => {
+            let pair = inv
+                .report
+                .pairs
+                .iter()
+                .find(|p| p.a == 0 && p.b == 1)
+                .or(inv.report.pairs.first());
+            let c = inv.set_distances[0].nrows();
+            let all: Vec<(usize, usize)> = (0..c)
+                .flat_map(|i| (i + 1..c).map(move |j| (i, j)))
+                .collect();
+            let drawn: Vec<(usize, usize)> =
+                plot::stride_sample(all.len(), figures::MAX_SCATTER_POINTS)
+                    .into_iter()
+                    .map(|k| all[k])
+                    .collect();
+            let sensor_distance = |s: &Array2<f64>, i: usize, j: usize| {
+                s.row(i)
+                    .iter()
+                    .zip(s.row(j))
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+                    .sqrt()
+            };
+            let (d0, d1) = (&inv.set_distances[0], &inv.set_distances[1]);
+            let (s0, s1) = (&inv.sensors[0], &inv.sensors[1]);
+            Planned::Invariance(figures::Invariance {
+                set_pairs: drawn
+                    .iter()
+                    .map(|&(i, j)| (d0[[i, j]], d1[[i, j]]))
+                    .collect(),
+                sensor_pairs: drawn
+                    .iter()
+                    .map(|&(i, j)| (sensor_distance(s0, i, j), sensor_distance(s1, i, j)))
+                    .collect(),
+                mantel: pair.map_or(f64::NAN, |p| p.mantel),
+                sensor_mantel: pair.map_or(f64::NAN, |p| p.sensor_mantel),
+                environments: (0, 1),
+                distance_unit: unit,
+                panel,
+            })
+        }
+    };
+    out.push(("invariance", caption, planned));
+
+    // CCA stress
+    let trace = &inputs.embed_report.stress_trace;
+    let caption =
+        "CCA's stress, accumulated over each epoch, as the neighbourhood width lambda shrinks."
+            .to_owned();
+    let planned = if trace.is_empty() {
+        Planned::Skip(format!(
+            "the embedding method {} records no stress per epoch",
+            inputs.embed_report.method
+        ))
+    } else {
+        Planned::Stress(figures::StressTrace {
+            stress: trace,
+            size: panel,
+        })
+    };
+    out.push(("cca-stress", caption, planned));
+    out
+}
+
+fn figures_extent(values: impl IntoIterator<Item = f64>) -> Option<(f64, f64)> {
+    plot::finite_extent(values)
+}
+
 /// Draws every figure into `dir/figures/` and writes `dir/report.html` and
 /// `dir/report.md`, atomically.
+///
+/// Figures whose inputs are absent are skipped, with the reason in their
+/// [`FigureRecord`]. Figures are drawn in parallel; the output is the same for any
+/// number of threads.
 pub fn write_report(
     inputs: &ReportInputs<'_>,
     params: &ReportParams,
     dir: &Path,
 ) -> Result<ReportSummary, ReportError> {
-    let _ = (inputs, params, dir);
-    todo!("the report helper implements this")
+    params.check()?;
+    check_inputs(inputs)?;
+    let figures_dir = dir.join("figures");
+    std::fs::create_dir_all(&figures_dir).map_err(|reason| {
+        ReportError::Io(crate::io::IoError::Write {
+            path: figures_dir.clone(),
+            reason,
+        })
+    })?;
+    let derived = derive(inputs);
+    let surfaces = figures::probe_surfaces(inputs.probes, inputs.kept, &derived.set_poses);
+    let planned = plan(inputs, params, &derived, &surfaces);
+    let rendered: Vec<Result<plot::Rendered, ReportError>> = planned
+        .par_iter()
+        .map(|(name, _, p)| p.render(name, params.formats, dir))
+        .collect();
+    let mut figures = Vec::with_capacity(planned.len());
+    for ((name, caption, p), r) in planned.into_iter().zip(rendered) {
+        let r = r?;
+        let skipped = match p {
+            Planned::Skip(reason) => Some(reason),
+            _ => None,
+        };
+        figures.push((
+            FigureRecord {
+                name: name.to_owned(),
+                caption,
+                files: r.files.clone(),
+                skipped,
+            },
+            r,
+        ));
+    }
+    let tables = tables::tables(inputs);
+    let html_text = html::html(inputs, &tables, &figures);
+    let html_path = PathBuf::from("report.html");
+    plot::write_bytes(&dir.join(&html_path), html_text.as_bytes())?;
+    let records: Vec<FigureRecord> = figures.into_iter().map(|(f, _)| f).collect();
+    let md_text = markdown::markdown(inputs, &tables, &records);
+    let md_path = PathBuf::from("report.md");
+    plot::write_bytes(&dir.join(&md_path), md_text.as_bytes())?;
+    Ok(ReportSummary {
+        figures: records,
+        html: html_path,
+        markdown: md_path,
+    })
 }

@@ -1,0 +1,376 @@
+//! The report's numbers as tables, built once and written both as HTML and Markdown.
+
+use serde_json::Value;
+
+use super::ReportInputs;
+use crate::analysis::AnalysisReport;
+use crate::embed::EmbedReport;
+use crate::kernel::TraceSummary;
+
+/// A table: a title, a header row and body rows of plain text.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Table {
+    /// Section title.
+    pub(super) title: String,
+    /// Column names.
+    pub(super) header: Vec<String>,
+    /// Rows, each as long as the header.
+    pub(super) rows: Vec<Vec<String>>,
+    /// A sentence under the table.
+    pub(super) note: Option<String>,
+}
+
+impl Table {
+    fn key_value(title: &str) -> Self {
+        Self {
+            title: title.to_owned(),
+            header: vec!["quantity".to_owned(), "value".to_owned()],
+            rows: Vec::new(),
+            note: None,
+        }
+    }
+
+    fn push(&mut self, key: impl Into<String>, value: impl Into<String>) {
+        self.rows.push(vec![key.into(), value.into()]);
+    }
+}
+
+/// A number with 4 significant digits (integers as they are, `inf`, `NaN`).
+pub(super) fn num(v: f64) -> String {
+    if v.is_nan() {
+        return "NaN".to_owned();
+    }
+    if v.is_infinite() {
+        return if v > 0.0 { "inf" } else { "-inf" }.to_owned();
+    }
+    if v == v.trunc() && v.abs() < 1e9 {
+        return format!("{v:.0}");
+    }
+    let a = v.abs();
+    if !(1e-3..1e6).contains(&a) {
+        return format!("{v:.3e}");
+    }
+    let digits = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+    format!("{v:.digits$}")
+}
+
+fn list(values: impl IntoIterator<Item = String>) -> String {
+    format!("[{}]", values.into_iter().collect::<Vec<_>>().join(", "))
+}
+
+/// All tables of the report, in order.
+pub(super) fn tables(inputs: &ReportInputs<'_>) -> Vec<Table> {
+    let mut out = Vec::new();
+    if !inputs.stages.is_empty() {
+        out.push(stage_table(inputs));
+    }
+    out.push(trace_table(inputs.trace));
+    out.push(embed_table(inputs.embed_report));
+    if let Some(quality) = inputs.embed_quality {
+        let mut t = Table::key_value("Embedding quality");
+        flatten(quality, "", &mut t);
+        if !t.rows.is_empty() {
+            out.push(t);
+        }
+    }
+    if let Some(analysis) = inputs.analysis {
+        out.extend(analysis_tables(analysis));
+    }
+    if let Some(inv) = inputs.invariance {
+        out.extend(invariance_tables(&inv.report));
+    }
+    out
+}
+
+fn stage_table(inputs: &ReportInputs<'_>) -> Table {
+    let mut t = Table {
+        title: "Stage times".to_owned(),
+        header: vec![
+            "stage".to_owned(),
+            "seconds".to_owned(),
+            "outputs".to_owned(),
+        ],
+        rows: Vec::new(),
+        note: None,
+    };
+    for s in inputs.stages {
+        t.rows.push(vec![
+            s.stage.clone(),
+            format!("{:.3}", s.seconds),
+            if s.cached { "reused" } else { "computed" }.to_owned(),
+        ]);
+    }
+    let total: f64 = inputs.stages.iter().map(|s| s.seconds).sum();
+    t.rows.push(vec![
+        "total".to_owned(),
+        format!("{total:.3}"),
+        String::new(),
+    ]);
+    t
+}
+
+fn trace_table(trace: &TraceSummary) -> Table {
+    let mut t = Table::key_value("Tracing of the kernel sets");
+    t.push("sets asked for", trace.total.to_string());
+    t.push("sets traced and kept", trace.traced.to_string());
+    t.push("sets failed", trace.failed.to_string());
+    for (status, count) in &trace.by_status {
+        t.push(format!("status {status}"), count.to_string());
+    }
+    t
+}
+
+fn embed_table(e: &EmbedReport) -> Table {
+    let mut t = Table::key_value("Embedding");
+    t.push("method", e.method.clone());
+    t.push("points M", e.points.to_string());
+    t.push("dimension d", e.dim.to_string());
+    if !e.stress_trace.is_empty() {
+        t.push("epochs", e.stress_trace.len().to_string());
+        t.push("stress, first epoch", num(e.stress_trace[0]));
+        t.push(
+            "stress, last epoch",
+            num(*e.stress_trace.last().unwrap_or(&f64::NAN)),
+        );
+    }
+    if let Some(l) = e.lambda_end {
+        t.push("final neighbourhood width lambda", num(l));
+    }
+    if !e.eigenvalues.is_empty() {
+        t.push(
+            "largest eigenvalues of B",
+            list(e.eigenvalues.iter().take(5).map(|&v| num(v))),
+        );
+        if let Some(trace) = e.eigenvalue_trace {
+            if trace.abs() > 0.0 {
+                let kept: f64 = e.eigenvalues.iter().take(e.dim).sum();
+                t.push("share of trace(B) kept by d eigenvalues", num(kept / trace));
+            }
+        }
+    }
+    if let Some(k) = e.k {
+        t.push("graph neighbours k", k.to_string());
+    }
+    if !e.landmarks.is_empty() {
+        t.push("landmarks", e.landmarks.len().to_string());
+    }
+    t
+}
+
+/// Flattens a JSON document into `key.path → value` rows.
+fn flatten(value: &Value, prefix: &str, t: &mut Table) {
+    match value {
+        Value::Object(map) => {
+            for (k, v) in map {
+                let key = if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                };
+                flatten(v, &key, t);
+            }
+        }
+        Value::Array(items) if items.iter().all(|v| !v.is_object() && !v.is_array()) => {
+            t.push(prefix, list(items.iter().map(scalar)));
+        }
+        Value::Array(items) => {
+            for (i, v) in items.iter().enumerate() {
+                flatten(v, &format!("{prefix}[{i}]"), t);
+            }
+        }
+        other => t.push(prefix, scalar(other)),
+    }
+}
+
+fn scalar(v: &Value) -> String {
+    match v {
+        Value::Number(n) => n.as_f64().map_or_else(|| n.to_string(), num),
+        Value::String(s) => s.clone(),
+        Value::Null => "null".to_owned(),
+        other => other.to_string(),
+    }
+}
+
+fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
+    let mut topo = Table::key_value("Topology (Vietoris-Rips persistence of the set metric)");
+    topo.push("points M", a.points.to_string());
+    topo.push("Betti numbers", list(a.betti.iter().map(|b| b.to_string())));
+    let h = &a.homology;
+    topo.push(
+        "Rips threshold",
+        format!("{} ({})", num(h.threshold), h.threshold_rule),
+    );
+    topo.push(
+        "points used",
+        format!(
+            "{} ({}, covering radius {})",
+            h.subsampling.points,
+            h.subsampling.method,
+            num(h.subsampling.covering_radius)
+        ),
+    );
+    topo.push(
+        "Betti rule",
+        format!(
+            "gap ratio {}, noise fraction {}",
+            num(h.rule.gap_ratio),
+            num(h.rule.noise_fraction)
+        ),
+    );
+    for (dim, bars) in a.persistence.iter().enumerate() {
+        let infinite = bars.iter().filter(|b| b.1.is_none()).count();
+        topo.push(
+            format!("H{dim} bars"),
+            format!("{} ({infinite} infinite)", bars.len()),
+        );
+    }
+    for (dim, longest) in h.longest_bars.iter().enumerate() {
+        topo.push(
+            format!("H{dim} longest bars"),
+            list(longest.iter().map(|&v| num(v))),
+        );
+    }
+    let d = &a.intrinsic_dimension;
+    let mut dim = Table::key_value("Intrinsic dimension");
+    dim.push(
+        "TwoNN",
+        format!(
+            "{} ({} points, {} discarded as the largest ratios)",
+            num(d.twonn),
+            d.twonn_detail.points_used,
+            num(d.twonn_discard)
+        ),
+    );
+    dim.push(
+        "Levina-Bickel MLE",
+        format!(
+            "{} (k = {}, {} points)",
+            num(d.mle),
+            d.mle_neighbors,
+            d.mle_detail.points_used
+        ),
+    );
+    let mut out = vec![topo, dim];
+    if let Some(g) = &a.agreement {
+        let mut t = Table::key_value("Agreement with the observer's poses");
+        t.push("Spearman (learned vs pose distances)", num(g.spearman));
+        t.push(
+            format!("trustworthiness (k = {})", g.neighbors),
+            num(g.trustworthiness),
+        );
+        t.push(
+            format!("continuity (k = {})", g.neighbors),
+            num(g.continuity),
+        );
+        for (c, v) in &g.coordinates {
+            t.push(
+                format!("Spearman with |delta {c}|"),
+                v.map_or_else(|| "constant coordinate".to_owned(), num),
+            );
+        }
+        for (c, v) in &g.pose_scales {
+            t.push(format!("spread of {c}"), num(*v));
+        }
+        out.push(t);
+    }
+    out
+}
+
+fn invariance_tables(r: &crate::analysis::InvarianceReport) -> Vec<Table> {
+    let mut summary = Table::key_value("Invariance across environments");
+    summary.push("agent", r.agent.clone());
+    for (i, e) in r.environments.iter().enumerate() {
+        summary.push(
+            format!("environment {}", i + 1),
+            format!(
+                "{} lights{}, {} sets traced",
+                e.lights,
+                e.seed.map_or_else(String::new, |s| format!(" (seed {s})")),
+                e.traced
+            ),
+        );
+    }
+    summary.push("rows asked for", r.starts.to_string());
+    summary.push(
+        "rows traced in every environment",
+        r.common_sets.to_string(),
+    );
+    summary.push("worst Mantel r of the set metric", num(r.min_mantel));
+    summary.push(
+        "best Mantel r of the sensor metric",
+        num(r.max_sensor_mantel),
+    );
+    summary.push("largest set distance", num(r.max_set_distance));
+    summary.push(
+        "largest relative set distance",
+        num(r.max_set_distance_relative),
+    );
+    summary.push(
+        "largest distance-matrix difference",
+        num(r.max_distance_difference),
+    );
+    summary.push(
+        "smallest relative sensor difference",
+        num(r.min_sensor_difference_relative),
+    );
+    let mut pairs = Table {
+        title: "Invariance per pair of environments".to_owned(),
+        header: [
+            "pair",
+            "Mantel r (sets)",
+            "Mantel r (sensors)",
+            "max set distance",
+            "mean set distance",
+            "max |D_a - D_b|",
+            "max relative sensor difference",
+        ]
+        .map(str::to_owned)
+        .to_vec(),
+        rows: Vec::new(),
+        note: Some(
+            "The learned metric is the same in every environment (Mantel r near 1) while the raw sensor values differ."
+                .to_owned(),
+        ),
+    };
+    for p in &r.pairs {
+        pairs.rows.push(vec![
+            format!("{} - {}", p.a + 1, p.b + 1),
+            num(p.mantel),
+            num(p.sensor_mantel),
+            num(p.max_set_distance),
+            num(p.mean_set_distance),
+            num(p.max_distance_difference),
+            num(p.max_sensor_difference_relative),
+        ]);
+    }
+    vec![summary, pairs]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_have_four_significant_digits() {
+        assert_eq!(num(3.0), "3");
+        assert_eq!(num(0.987654), "0.9877");
+        assert_eq!(num(123.456), "123.5");
+        assert_eq!(num(1.0e-5), "1.000e-5");
+        assert_eq!(num(f64::INFINITY), "inf");
+    }
+
+    #[test]
+    fn json_flattens_to_dotted_keys() {
+        let v: Value = serde_json::json!({"a": {"b": 1.5, "c": [1, 2]}, "d": "x"});
+        let mut t = Table::key_value("t");
+        flatten(&v, "", &mut t);
+        assert_eq!(
+            t.rows,
+            vec![
+                vec!["a.b".to_owned(), "1.500".to_owned()],
+                vec!["a.c".to_owned(), "[1, 2]".to_owned()],
+                vec!["d".to_owned(), "x".to_owned()],
+            ]
+        );
+    }
+}

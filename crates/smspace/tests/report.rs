@@ -1,0 +1,444 @@
+//! The report stage on small real runs: every figure file is a valid PNG/SVG, the HTML is
+//! self-contained and carries the figures and numbers, the Markdown has the numbers,
+//! figures without inputs are skipped with a reason, and bad inputs are errors. When
+//! `chromium` is on PATH, the HTML is also opened headless by `.ci/browser-check`.
+
+use std::path::Path;
+use std::process::Command;
+
+use ndarray::{Array2, Array3, Axis};
+use smspace::agent::{Agent, AgentConfig, Environment, MotorTopology};
+use smspace::analysis::{analyze, invariance, AnalysisParams, AnalysisReport};
+use smspace::embed::quality::shepard_pairs;
+use smspace::embed::{CcaParams, EmbedReport, Embedding};
+use smspace::explore::{explore, Exploration, ExploreParams, Probes};
+use smspace::kernel::{trace_sets, TraceMethod, TraceParams, TraceSummary};
+use smspace::metric::{distance_matrix, DistanceParams, Period};
+use smspace::progress::Silent;
+use smspace::report::{
+    write_report, FigureFormats, InvarianceData, ReportError, ReportInputs, ReportParams,
+    ReportSummary, SensoryManifold, StageTiming,
+};
+
+/// The outputs of a small run of every stage.
+struct Run {
+    agent: Box<dyn Agent>,
+    environments: Vec<Environment>,
+    exploration: Exploration,
+    sets: Array3<f64>,
+    kept: Vec<usize>,
+    trace: TraceSummary,
+    embedding: Array2<f64>,
+    embed_report: EmbedReport,
+    quality: serde_json::Value,
+    dydx: Array2<f64>,
+    analysis: AnalysisReport,
+    invariance: Option<InvarianceData>,
+    manifolds: Vec<SensoryManifold>,
+    stages: Vec<StageTiming>,
+}
+
+fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: usize) -> Run {
+    let agent = AgentConfig::preset(agent).unwrap().build().unwrap();
+    let environments: Vec<Environment> = (1..=2)
+        .map(|seed| {
+            Environment::random(
+                agent.default_light_count(),
+                seed,
+                &agent.default_light_region(),
+            )
+            .unwrap()
+        })
+        .collect();
+    let exploration = explore(
+        agent.as_ref(),
+        &ExploreParams {
+            n: babbled,
+            probes: if probes { Probes::Grid } else { Probes::None },
+            probe_positions: 3,
+            probe_orientations: 4,
+            ..ExploreParams::default()
+        },
+    )
+    .unwrap();
+    let traced = trace_sets(
+        agent.as_ref(),
+        Some(&environments[0]),
+        exploration.motors.view(),
+        exploration.workspace.as_ref(),
+        &TraceParams::default().check().unwrap(),
+        &Silent,
+    )
+    .unwrap();
+    let period = match agent.motor_topology() {
+        MotorTopology::Periodic => Period::TwoPi,
+        MotorTopology::Bounded { .. } => Period::None,
+    };
+    let metric = DistanceParams::new().period(period);
+    let distances = distance_matrix(traced.sets.view(), &metric, &Silent).unwrap();
+    let embedded = CcaParams::default()
+        .dim(dim)
+        .epochs(20)
+        .seed(1)
+        .check()
+        .unwrap()
+        .fit(distances.view(), &Silent)
+        .unwrap();
+    let dydx = shepard_pairs(distances.view(), embedded.coordinates.view(), 5000, 1).unwrap();
+    let set_poses = exploration.poses.select(Axis(0), &traced.kept);
+    let analysis = analyze(
+        distances.view(),
+        Some(set_poses.view()),
+        &AnalysisParams::default().check().unwrap(),
+        &Silent,
+    )
+    .unwrap();
+    let invariance = (invariance_rows > 0).then(|| {
+        let starts = exploration
+            .motors
+            .slice_axis(Axis(0), (0..invariance_rows).into());
+        let sensory = TraceParams {
+            method: TraceMethod::Sensory,
+            ..TraceParams::default()
+        }
+        .check()
+        .unwrap();
+        let report = invariance(
+            agent.as_ref(),
+            starts,
+            &environments,
+            exploration.workspace.as_ref(),
+            &sensory,
+            &Silent,
+        )
+        .unwrap();
+        // The figure's data: the common rows' sets traced with the kinematic method
+        // (identical in every environment by construction) and their sensor values.
+        let c = report.common_sets.min(invariance_rows);
+        let rows: Vec<usize> = (0..c).collect();
+        let d =
+            distance_matrix(traced.sets.select(Axis(0), &rows).view(), &metric, &Silent).unwrap();
+        let sensors = environments
+            .iter()
+            .map(|env| {
+                let mut s = Array2::zeros((c, agent.sensor_dim()));
+                for (k, &r) in rows.iter().enumerate() {
+                    let mut out = vec![0.0; agent.sensor_dim()];
+                    agent.sense(env, &exploration.motors.row(r).to_vec(), &mut out);
+                    s.row_mut(k).assign(&ndarray::ArrayView1::from(&out));
+                }
+                s
+            })
+            .collect();
+        InvarianceData {
+            report,
+            set_distances: vec![d.clone(), d],
+            sensors,
+        }
+    });
+    let stages = ["explore", "trace", "distances", "embed", "analyze"]
+        .iter()
+        .enumerate()
+        .map(|(k, s)| StageTiming {
+            stage: (*s).to_owned(),
+            seconds: 0.25 * k as f64,
+            cached: k == 0,
+        })
+        .collect();
+    Run {
+        agent,
+        environments,
+        exploration,
+        sets: traced.sets,
+        kept: traced.kept,
+        trace: traced.report.summary,
+        embedding: embedded.coordinates,
+        embed_report: embedded.report,
+        quality: serde_json::json!({"trustworthiness": 0.987654, "continuity": 0.912345}),
+        dydx,
+        analysis,
+        invariance,
+        manifolds: Vec::new(),
+        stages,
+    }
+}
+
+fn inputs(run: &Run) -> ReportInputs<'_> {
+    ReportInputs {
+        name: "test <report> & co",
+        description: "A small run for the tests.",
+        config_toml: "[agent]\nkind = \"planar-arm\"\n# </script> <b>escaped</b>\n",
+        agent: run.agent.as_ref(),
+        environments: &run.environments,
+        workspace: run.exploration.workspace,
+        motors: run.exploration.motors.view(),
+        poses: run.exploration.poses.view(),
+        probes: run.exploration.probes.view(),
+        sets: run.sets.view(),
+        kept: &run.kept,
+        trace: &run.trace,
+        embedding: run.embedding.view(),
+        embed_report: &run.embed_report,
+        embed_quality: Some(&run.quality),
+        dydx: Some(run.dydx.view()),
+        analysis: Some(&run.analysis),
+        invariance: run.invariance.as_ref(),
+        sensory_manifolds: &run.manifolds,
+        stages: &run.stages,
+    }
+}
+
+/// Checks that every file of every drawn figure is a valid PNG or SVG.
+fn check_figure_files(dir: &Path, summary: &ReportSummary) {
+    for f in &summary.figures {
+        if f.skipped.is_some() {
+            assert!(f.files.is_empty(), "{} skipped but has files", f.name);
+            continue;
+        }
+        assert!(!f.files.is_empty(), "{} drawn without files", f.name);
+        for file in &f.files {
+            let bytes = std::fs::read(dir.join(file)).unwrap();
+            match file.extension().and_then(|e| e.to_str()) {
+                Some("png") => {
+                    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{file:?}");
+                    assert_eq!(&bytes[12..16], b"IHDR", "{file:?}");
+                    let width = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
+                    let height = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+                    assert!(width >= 320 && height >= 240, "{file:?}: {width}x{height}");
+                    assert!(bytes.len() > 5000, "{file:?} is nearly empty");
+                }
+                Some("svg") => {
+                    let text = String::from_utf8(bytes).unwrap();
+                    assert!(text.contains("<svg") && text.trim_end().ends_with("</svg>"));
+                    assert!(text.contains("<text"), "{file:?} has no text");
+                }
+                other => panic!("unexpected figure file {file:?} ({other:?})"),
+            }
+        }
+    }
+}
+
+/// The page without the text inside its `<script>` elements (plotly.js mentions URLs in
+/// its strings, which the page never loads).
+fn without_script_bodies(html: &str) -> String {
+    let mut out = String::new();
+    let mut rest = html;
+    while let Some(start) = rest.find("<script") {
+        let open_end = start + rest[start..].find('>').unwrap() + 1;
+        out.push_str(&rest[..open_end]);
+        let close = open_end + rest[open_end..].find("</script>").unwrap();
+        rest = &rest[close..];
+    }
+    out.push_str(rest);
+    out
+}
+
+fn figure<'a>(summary: &'a ReportSummary, name: &str) -> &'a smspace::report::FigureRecord {
+    summary
+        .figures
+        .iter()
+        .find(|f| f.name == name)
+        .unwrap_or_else(|| panic!("no figure {name}"))
+}
+
+fn chromium() -> bool {
+    Command::new("sh")
+        .args(["-c", "command -v chromium || command -v chromium-browser"])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+#[test]
+fn arm_report_has_every_figure_the_numbers_and_an_interactive_view() {
+    let run = run("planar-arm", 40, true, 3, 12);
+    let inputs = inputs(&run);
+    let dir = tempfile::tempdir().unwrap();
+    let summary = write_report(&inputs, &ReportParams::default(), dir.path()).unwrap();
+    check_figure_files(dir.path(), &summary);
+    for name in [
+        "fig5a-configurations",
+        "fig5b-kernel-sets-3d",
+        "fig5d-embedding-probes",
+        "embedding-pose",
+        "persistence-diagram",
+        "dydx",
+        "invariance",
+        "cca-stress",
+    ] {
+        let f = figure(&summary, name);
+        assert_eq!(f.skipped, None, "{name}");
+        assert_eq!(f.files.len(), 2, "{name}: PNG and SVG");
+    }
+    for name in [
+        "fig1-sensory-manifolds",
+        "fig2-kernel-lines",
+        "fig2-learned-manifold",
+    ] {
+        assert!(figure(&summary, name).skipped.is_some(), "{name}");
+    }
+
+    let html = std::fs::read_to_string(dir.path().join(&summary.html)).unwrap();
+    let markup = without_script_bodies(&html).to_lowercase();
+    for external in [
+        "src=\"http",
+        "src='http",
+        "href=\"http",
+        "href='http",
+        "<link",
+        "url(",
+    ] {
+        assert!(!markup.contains(external), "report.html loads {external}");
+    }
+    for tag in markup.match_indices("<script").map(|(i, _)| &markup[i..]) {
+        let open = &tag[..tag.find('>').unwrap()];
+        assert!(!open.contains("src"), "a script loads a file: {open}");
+    }
+    let drawn = summary
+        .figures
+        .iter()
+        .filter(|f| f.skipped.is_none())
+        .count();
+    assert_eq!(markup.matches("data:image/png;base64,").count(), drawn);
+    assert!(html.contains("Plotly.newPlot") && html.contains("plotly.js v2.12.1"));
+    assert!(html.contains("<title>test &lt;report&gt; &amp; co</title>"));
+    assert!(html.contains("# &lt;/script&gt; &lt;b&gt;escaped&lt;/b&gt;"));
+    let betti = format!(
+        "[{}]",
+        run.analysis
+            .betti
+            .iter()
+            .map(|b| b.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    assert!(html.contains(&betti), "betti {betti} missing");
+    assert!(html.contains("0.9877"), "trustworthiness missing");
+    assert!(html.contains("skipped"));
+
+    let md = std::fs::read_to_string(dir.path().join(&summary.markdown)).unwrap();
+    assert!(md.contains("](figures/fig5d-embedding-probes.png)"));
+    assert!(md.contains("| Betti numbers"));
+    assert!(md.contains(&betti));
+    assert!(md.contains("Stage times") && md.contains("| total"));
+    assert!(md.contains("Mantel r (sets)"));
+
+    // The same inputs give the same files.
+    let again = tempfile::tempdir().unwrap();
+    let summary2 = write_report(&inputs, &ReportParams::default(), again.path()).unwrap();
+    assert_eq!(summary, summary2);
+    for f in summary.figures.iter().flat_map(|f| &f.files) {
+        let a = std::fs::read(dir.path().join(f)).unwrap();
+        let b = std::fs::read(again.path().join(f)).unwrap();
+        assert!(a == b, "{f:?} differs between two runs");
+    }
+
+    if chromium() {
+        let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.ci/browser-check");
+        let out = Command::new("bash")
+            .arg(script)
+            .arg(dir.path().join(&summary.html))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "browser check failed:\n{}\n{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    } else {
+        eprintln!("chromium is not on PATH: skipped the browser check of report.html");
+    }
+}
+
+#[test]
+fn figures_without_their_inputs_are_skipped_with_a_reason() {
+    let run = run("planar-arm", 30, false, 2, 0);
+    let mut inputs = inputs(&run);
+    inputs.analysis = None;
+    inputs.dydx = None;
+    let dir = tempfile::tempdir().unwrap();
+    let params = ReportParams {
+        formats: FigureFormats::Png,
+        ..ReportParams::default()
+    };
+    let summary = write_report(&inputs, &params, dir.path()).unwrap();
+    check_figure_files(dir.path(), &summary);
+    let reason = |name: &str| figure(&summary, name).skipped.clone().unwrap_or_default();
+    assert!(reason("fig5d-embedding-probes").contains("no probe rows"));
+    assert!(reason("persistence-diagram").contains("no analysis"));
+    assert!(reason("dydx").contains("no dy-dx"));
+    assert!(reason("invariance").contains("no invariance"));
+    let pose = figure(&summary, "embedding-pose");
+    assert_eq!(pose.files.len(), 1, "PNG only");
+    let md = std::fs::read_to_string(dir.path().join(&summary.markdown)).unwrap();
+    assert!(md.contains("`fig5d-embedding-probes` skipped: no probe rows"));
+}
+
+#[test]
+fn toy_report_draws_the_sensory_manifolds_and_the_kernel_lines() {
+    let mut run = run("toy-redundant", 30, false, 1, 0);
+    let t = 50;
+    let motors = Array2::from_shape_fn((t, 2), |(i, _)| -1.0 + 2.0 * i as f64 / (t - 1) as f64);
+    run.manifolds = run
+        .environments
+        .iter()
+        .enumerate()
+        .map(|(k, env)| {
+            let mut sensors = Array2::zeros((t, 2));
+            for i in 0..t {
+                let mut out = [0.0; 2];
+                run.agent.sense(env, &motors.row(i).to_vec(), &mut out);
+                sensors[[i, 0]] = out[0];
+                sensors[[i, 1]] = out[1];
+            }
+            SensoryManifold {
+                label: format!("environment {}", k + 1),
+                motors: motors.clone(),
+                sensors,
+            }
+        })
+        .collect();
+    let inputs = inputs(&run);
+    let dir = tempfile::tempdir().unwrap();
+    let params = ReportParams {
+        formats: FigureFormats::Svg,
+        ..ReportParams::default()
+    };
+    let summary = write_report(&inputs, &params, dir.path()).unwrap();
+    check_figure_files(dir.path(), &summary);
+    for name in [
+        "fig1-sensory-manifolds",
+        "fig2-kernel-lines",
+        "fig2-learned-manifold",
+    ] {
+        assert_eq!(figure(&summary, name).skipped, None, "{name}");
+    }
+    assert!(figure(&summary, "fig5a-configurations")
+        .skipped
+        .as_deref()
+        .is_some_and(|r| r.contains("no body")));
+    let html = std::fs::read_to_string(dir.path().join(&summary.html)).unwrap();
+    assert!(html.contains("<svg"), "SVG figures are inlined");
+    assert!(html.contains("\"scattergl\""));
+}
+
+#[test]
+fn inputs_that_do_not_fit_are_errors() {
+    let run = run("planar-arm", 30, false, 3, 0);
+    let dir = tempfile::tempdir().unwrap();
+    let mut inputs = inputs(&run);
+    let short = &run.kept[..run.kept.len() - 1];
+    inputs.kept = short;
+    let err = write_report(&inputs, &ReportParams::default(), dir.path()).unwrap_err();
+    assert!(
+        matches!(err, ReportError::Input { what: "kept", .. }),
+        "{err}"
+    );
+    let inputs = self::inputs(&run);
+    let params = ReportParams {
+        panel_width: 10,
+        ..ReportParams::default()
+    };
+    let err = write_report(&inputs, &params, dir.path()).unwrap_err();
+    assert!(err.to_string().contains("panel_width = 10"), "{err}");
+}
