@@ -281,11 +281,11 @@ fn a_failing_stage_keeps_the_earlier_outputs_and_names_itself() {
     let d = dir.path();
     // MDS to more dimensions than there are sets fails in the embed stage.
     let text = SMALL_ARM
-        .replace("n = 150", "n = 20")
+        .replace("n = 150", "n = 40")
         .replace("probes = \"grid\"", "probes = \"none\"")
         .replace("method = \"cca\"", "method = \"mds\"")
         .replace("epochs = 10\n", "")
-        .replace("dim = 3", "dim = 40");
+        .replace("dim = 3", "dim = 60");
     write_experiment(d, "fail.toml", &text);
     let out = smspace(d, &["run", "fail.toml"]);
     let log = stderr(&out);

@@ -397,6 +397,7 @@ fn embedding_detail(path: &Path, text: &str) -> Option<ConfigError> {
     use crate::embed::{CcaParams, IsomapParams, MdsParams};
     #[derive(Deserialize)]
     struct Probe<T> {
+        #[allow(dead_code, reason = "read only to find the error")]
         embedding: T,
     }
     let table: toml::Table = toml::from_str(text).ok()?;

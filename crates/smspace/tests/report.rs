@@ -346,6 +346,12 @@ fn arm_report_has_every_figure_the_numbers_and_an_interactive_view() {
             String::from_utf8_lossy(&out.stderr)
         );
     } else {
+        // CI installs chromium and sets this, so that a missing browser fails there
+        // instead of skipping.
+        assert!(
+            std::env::var_os("SMSPACE_REQUIRE_BROWSER").is_none(),
+            "SMSPACE_REQUIRE_BROWSER is set but chromium is not on PATH"
+        );
         eprintln!("chromium is not on PATH: skipped the browser check of report.html");
     }
 }

@@ -256,6 +256,9 @@ pub fn check(experiment: &LoadedExperiment) -> Result<Plan, ConfigError> {
         .analysis
         .check()
         .map_err(|err| experiment.invalid("analysis", err))?;
+    e.report
+        .check()
+        .map_err(|err| experiment.invalid("report", err))?;
     Ok(Plan {
         experiment: experiment.clone(),
         agent,
