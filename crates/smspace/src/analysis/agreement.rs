@@ -52,8 +52,7 @@ pub struct Agreement {
 
 /// Ranks `1..=n` of `values`, ties sharing their average rank.
 pub fn average_ranks(values: &[f64]) -> Vec<f64> {
-    let mut order: Vec<(f64, usize)> = values.iter().copied().zip(0..).collect();
-    order.par_sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let order = sorted_order(values);
     let mut ranks = vec![0.0; values.len()];
     let mut start = 0;
     while start < order.len() {
@@ -68,6 +67,47 @@ pub fn average_ranks(values: &[f64]) -> Vec<f64> {
         start = end;
     }
     ranks
+}
+
+/// `(key, index)` of `values` in increasing order of value, ties by index: a stable
+/// least-significant-digit radix sort over the bytes of an order-preserving `u64` key
+/// of each `f64` (`-0.0` and `0.0` get different keys, so they are not tied). Bytes
+/// that every key shares are skipped. Linear in `n`; the Spearman correlation of
+/// 3500 sets sorts 6.1 M pair distances several times.
+fn sorted_order(values: &[f64]) -> Vec<(u64, usize)> {
+    let key = |v: f64| {
+        let bits = v.to_bits();
+        if bits >> 63 == 1 {
+            !bits
+        } else {
+            bits | (1 << 63)
+        }
+    };
+    let n = values.len();
+    let mut order: Vec<(u64, usize)> = values.iter().map(|&v| key(v)).zip(0..).collect();
+    let mut spare = vec![(0_u64, 0_usize); n];
+    for shift in (0..64).step_by(8) {
+        let mut counts = [0_usize; 256];
+        for &(k, _) in &order {
+            counts[((k >> shift) & 0xff) as usize] += 1;
+        }
+        if counts.contains(&n) {
+            continue;
+        }
+        let mut next = 0;
+        for c in counts.iter_mut() {
+            let here = *c;
+            *c = next;
+            next += here;
+        }
+        for &(k, i) in &order {
+            let digit = ((k >> shift) & 0xff) as usize;
+            spare[counts[digit]] = (k, i);
+            counts[digit] += 1;
+        }
+        std::mem::swap(&mut order, &mut spare);
+    }
+    order
 }
 
 /// Pearson correlation; `None` when either side is constant.
@@ -197,22 +237,27 @@ pub fn agreement(
     }
     pose_pairs.iter_mut().for_each(|p| *p = p.sqrt());
     let learned_pairs = upper_triangle(learned);
-    let learned_ranks = average_ranks(&learned_pairs);
-    let spearman_all = pearson(&learned_ranks, &average_ranks(&pose_pairs)).ok_or_else(|| {
-        AnalysisError::Degenerate {
+    let (learned_ranks, pose_ranks) = rayon::join(
+        || average_ranks(&learned_pairs),
+        || average_ranks(&pose_pairs),
+    );
+    let spearman_all =
+        pearson(&learned_ranks, &pose_ranks).ok_or_else(|| AnalysisError::Degenerate {
             what: "agreement",
             reason: "the learned distances are all equal".into(),
-        }
-    })?;
+        })?;
+    let per_coordinate: Vec<Option<f64>> = (0..POSE_COORDINATES.len())
+        .into_par_iter()
+        .map(|c| {
+            (scales[c] > 0.0)
+                .then(|| pearson(&learned_ranks, &average_ranks(&deltas[c])))
+                .flatten()
+        })
+        .collect();
     let mut coordinates = BTreeMap::new();
     let mut pose_scales = BTreeMap::new();
     for (c, name) in POSE_COORDINATES.iter().enumerate() {
-        let rho = if scales[c] > 0.0 {
-            pearson(&learned_ranks, &average_ranks(&deltas[c]))
-        } else {
-            None
-        };
-        coordinates.insert((*name).to_owned(), rho);
+        coordinates.insert((*name).to_owned(), per_coordinate[c]);
         pose_scales.insert((*name).to_owned(), scales[c]);
     }
     let mut truth = ndarray::Array2::<f64>::zeros((n, n));
@@ -233,4 +278,34 @@ pub fn agreement(
         coordinates,
         pose_scales,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    #[test]
+    fn radix_order_equals_a_comparison_sort() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut values: Vec<f64> = (0..5000)
+            .map(|_| match rng.gen_range(0..4) {
+                0 => rng.gen_range(-1e3..1e3),
+                1 => rng.gen_range(0.0..1e-300),
+                2 => f64::from(rng.gen_range(-3_i32..3)),
+                _ => rng.gen_range(0.0..10.0),
+            })
+            .collect();
+        values.extend([f64::MAX, f64::MIN, 0.0, 1.0, 1.0]);
+        let mut expected: Vec<(f64, usize)> = values.iter().copied().zip(0..).collect();
+        expected.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let found: Vec<usize> = sorted_order(&values).into_iter().map(|(_, i)| i).collect();
+        let expected: Vec<usize> = expected.into_iter().map(|(_, i)| i).collect();
+        assert_eq!(found, expected);
+        assert_eq!(
+            average_ranks(&[3.0, 1.0, 3.0, 2.0]),
+            vec![3.5, 1.0, 3.5, 2.0]
+        );
+        assert!(average_ranks(&[]).is_empty());
+    }
 }
