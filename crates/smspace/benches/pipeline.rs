@@ -1,0 +1,76 @@
+//! The whole pipeline of an experiment, end to end: `cargo bench -p smspace --bench
+//! pipeline` runs `experiments/paper-arm.toml` (3500 sets: 2500 babbled + the probe
+//! grid; figures and report included) `SMSPACE_BENCH_RUNS` times (default 3) with every
+//! stage recomputed, into a temporary folder, and prints the time of each stage and of
+//! the whole run (best and median). `SMSPACE_BENCH_EXPERIMENT=path.toml` times another
+//! experiment. The target for paper-arm is 15 s on 2 cores.
+
+use std::path::PathBuf;
+
+use smspace::config::load_experiment;
+use smspace::pipeline::{self, Recompute, RunObserver, RunOptions};
+use smspace::progress::{Progress, Silent};
+
+struct Quiet;
+
+impl RunObserver for Quiet {
+    fn progress(&self) -> &dyn Progress {
+        &Silent
+    }
+}
+
+fn main() {
+    // `cargo bench` passes `--bench`; a filter argument that names nothing here skips.
+    if std::env::args()
+        .skip(1)
+        .any(|a| !a.starts_with('-') && a != "pipeline")
+    {
+        return;
+    }
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let experiment = std::env::var("SMSPACE_BENCH_EXPERIMENT")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| root.join("experiments/paper-arm.toml"));
+    let runs: usize = std::env::var("SMSPACE_BENCH_RUNS")
+        .ok()
+        .and_then(|r| r.parse().ok())
+        .unwrap_or(3);
+    let loaded = load_experiment(&experiment, &[]).expect("the experiment loads");
+    let plan = pipeline::check(&loaded).expect("the experiment is valid");
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    println!(
+        "pipeline of {} ({} threads), {runs} runs, every stage recomputed",
+        experiment.display(),
+        rayon::current_num_threads()
+    );
+    let mut totals = Vec::new();
+    let mut per_stage: Vec<(String, Vec<f64>)> = Vec::new();
+    for _ in 0..runs {
+        let options = RunOptions {
+            out_dir: dir.path().join("run"),
+            recompute: Recompute::All,
+            memory_limit_bytes: None,
+        };
+        let summary = pipeline::run(&plan, &options, &Quiet).expect("the pipeline runs");
+        totals.push(summary.manifest.total_seconds);
+        for record in &summary.manifest.stages {
+            match per_stage.iter_mut().find(|(s, _)| *s == record.stage) {
+                Some((_, times)) => times.push(record.seconds),
+                None => per_stage.push((record.stage.clone(), vec![record.seconds])),
+            }
+        }
+    }
+    let stats = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        (v[0], v[v.len() / 2])
+    };
+    for (stage, times) in &mut per_stage {
+        let (best, median) = stats(times);
+        println!("  {stage:<11} best {best:7.3} s   median {median:7.3} s");
+    }
+    let (best, median) = stats(&mut totals);
+    println!(
+        "  {:<11} best {best:7.3} s   median {median:7.3} s",
+        "total"
+    );
+}
