@@ -41,6 +41,7 @@ use ndarray::ArrayView2;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::collapse::collapse_edges;
 use super::AnalysisError;
 use crate::progress::Progress;
 
@@ -126,6 +127,18 @@ impl BettiRule {
     }
 }
 
+/// Whether the Rips filtration is edge-collapsed before its reduction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Collapse {
+    /// Collapse dominated edges (Glisse & Pritam 2022): the same diagrams, from a
+    /// sparser graph.
+    Edges,
+    /// Reduce the full Rips filtration. The default.
+    #[default]
+    None,
+}
+
 /// `min_i max_j d(i, j)`: from this diameter on the Rips complex is a cone.
 pub fn enclosing_radius(distances: ArrayView2<'_, f64>) -> f64 {
     distances
@@ -138,7 +151,7 @@ pub fn enclosing_radius(distances: ArrayView2<'_, f64>) -> f64 {
 /// `Rips::reduce`)...
 const LEVEL_QUANTILE: f64 = 0.05;
 /// ...the next ones grow by this factor...
-const LEVEL_RATIO: f64 = 1.2;
+const LEVEL_RATIO: f64 = 1.1;
 /// ...when there are at least this many edges.
 const LEVEL_MIN_EDGES: usize = 20_000;
 
@@ -157,6 +170,17 @@ pub fn rips_persistence(
     threshold: Option<f64>,
     progress: &dyn Progress,
 ) -> Result<Persistence, AnalysisError> {
+    rips_persistence_with(distances, max_dim, threshold, Collapse::default(), progress)
+}
+
+/// [`rips_persistence`], with the edge collapse chosen.
+pub fn rips_persistence_with(
+    distances: ArrayView2<'_, f64>,
+    max_dim: usize,
+    threshold: Option<f64>,
+    collapse: Collapse,
+    progress: &dyn Progress,
+) -> Result<Persistence, AnalysisError> {
     let n = distances.nrows();
     let threshold = threshold.unwrap_or_else(|| enclosing_radius(distances));
     let binomial = Binomial::new(n, max_dim + 2);
@@ -167,11 +191,37 @@ pub fn rips_persistence(
         });
     }
     let dist: Vec<f64> = distances.iter().copied().collect();
-    let rips = Rips {
-        n,
-        dist: &dist,
-        threshold,
-        binomial,
+    let collapsed = match collapse {
+        Collapse::Edges => {
+            // Beyond the enclosing radius the complex is a cone: no bar lives there,
+            // so the whole filtration (ending on the complete graph, which
+            // collapses best) has the same diagrams as the one cut at the radius.
+            let radius = enclosing_radius(distances);
+            let whole = if threshold >= radius {
+                f64::INFINITY
+            } else {
+                threshold
+            };
+            let g = collapse_edges(n, &dist, whole, threshold);
+            Some(g)
+        }
+        Collapse::None => None,
+    };
+    let rips = match &collapsed {
+        Some(graph) => Rips {
+            n,
+            dist: &graph.values,
+            neighbors: Some(&graph.neighbors),
+            threshold,
+            binomial,
+        },
+        None => Rips {
+            n,
+            dist: &dist,
+            neighbors: None,
+            threshold,
+            binomial,
+        },
     };
     let mut diagrams = Vec::with_capacity(max_dim + 1);
     progress.start("homology", max_dim as u64 + 1);
@@ -290,7 +340,10 @@ type PivotMap = HashMap<u64, usize, BuildHasherDefault<IndexHasher>>;
 
 struct Rips<'a> {
     n: usize,
+    /// Edge values, row-major; `∞` where an edge was collapsed.
     dist: &'a [f64],
+    /// With a collapsed graph: the neighbours of every vertex, decreasing.
+    neighbors: Option<&'a [Vec<u32>]>,
     threshold: f64,
     binomial: Binomial,
 }
@@ -331,6 +384,17 @@ impl Rips<'_> {
     /// Every edge within the threshold, in increasing index order.
     fn edges(&self) -> Vec<Entry> {
         let mut edges = Vec::new();
+        if let Some(neighbors) = self.neighbors {
+            for (j, list) in neighbors.iter().enumerate() {
+                for &i in list.iter().rev().filter(|&&i| (i as usize) < j) {
+                    edges.push(Entry {
+                        diameter: self.d(i as usize, j),
+                        index: self.binomial.get(j, 2) + u64::from(i),
+                    });
+                }
+            }
+            return edges;
+        }
         for j in 1..self.n {
             for i in 0..j {
                 let diameter = self.d(i, j);
@@ -357,6 +421,17 @@ impl Rips<'_> {
         mut visit: impl FnMut(Entry) -> bool,
     ) {
         self.vertices(simplex.index, dim, vertices);
+        if let Some(neighbors) = self.neighbors {
+            self.for_each_sparse_cofacet(
+                neighbors,
+                simplex,
+                vertices,
+                only_new,
+                (lower, limit),
+                visit,
+            );
+            return;
+        }
         // From here on `vertices` holds the offsets of the vertices' rows.
         for v in vertices.iter_mut() {
             *v *= self.n;
@@ -393,6 +468,54 @@ impl Rips<'_> {
                 }
             }
             j -= 1;
+        }
+    }
+
+    /// [`Rips::for_each_cofacet`] of a collapsed graph, `vertices` holding the
+    /// simplex's vertices (decreasing): the candidate vertices are the neighbours of
+    /// the simplex's vertex of least degree.
+    fn for_each_sparse_cofacet(
+        &self,
+        neighbors: &[Vec<u32>],
+        simplex: Entry,
+        vertices: &[usize],
+        only_new: bool,
+        (lower, limit): (f64, f64),
+        mut visit: impl FnMut(Entry) -> bool,
+    ) {
+        let b = &self.binomial;
+        let size = vertices.len();
+        let Some(&sparsest) = vertices.iter().min_by_key(|&&v| neighbors[v].len()) else {
+            return;
+        };
+        // With `t` vertices above `j`, the cofacet's index is
+        // above + C(j, size + 1 − t) + below.
+        let mut t = 0;
+        let mut below = simplex.index;
+        let mut above = 0u64;
+        for &j in &neighbors[sparsest] {
+            let j = j as usize;
+            if only_new && j < vertices[0] {
+                return;
+            }
+            while t < size && vertices[t] > j {
+                below -= b.get(vertices[t], size - t);
+                above += b.get(vertices[t], size + 1 - t);
+                t += 1;
+            }
+            if t < size && vertices[t] == j {
+                continue;
+            }
+            let mut diameter = simplex.diameter;
+            for &v in vertices {
+                diameter = diameter.max(self.dist[v * self.n + j]);
+            }
+            if diameter <= limit && diameter > lower {
+                let index = above + b.get(j, size + 1 - t) + below;
+                if !visit(Entry { diameter, index }) {
+                    return;
+                }
+            }
         }
     }
 
@@ -571,6 +694,47 @@ impl Rips<'_> {
         });
     }
 
+    /// Starts the working column from `partial` (a column followed by its partial
+    /// reduction): the reduction column holds `partial`, and the sorted part of the
+    /// coboundary its cofacets in `band`, summed (enumerated and sorted in
+    /// parallel: a long-lived column carries tens of thousands of simplices).
+    fn rebuild(&self, dim: usize, band: (f64, f64), partial: Vec<Entry>, w: &mut Working) {
+        let chunks: Vec<Vec<Entry>> = partial
+            .par_chunks(256)
+            .map(|chunk| {
+                let mut vertices = Vec::with_capacity(dim + 1);
+                let mut out = Vec::new();
+                for &e in chunk {
+                    self.for_each_cofacet(e, dim, &mut vertices, false, band, |c| {
+                        out.push(c);
+                        true
+                    });
+                }
+                out
+            })
+            .collect();
+        let mut all = Vec::with_capacity(chunks.iter().map(Vec::len).sum());
+        for chunk in chunks {
+            all.extend(chunk);
+        }
+        // Filtration order (earliest first); equal entries are adjacent and cancel.
+        all.par_sort_unstable_by(|a, b| b.cmp(a));
+        let sorted = &mut w.sorted;
+        sorted.clear();
+        for e in all {
+            if sorted
+                .last()
+                .is_some_and(|last: &Entry| last.index == e.index)
+            {
+                sorted.pop();
+            } else {
+                sorted.push(e);
+            }
+        }
+        w.next = 0;
+        w.reduction.extend(partial);
+    }
+
     /// Reduces the coboundary columns of dimension `dim` (in reverse filtration order).
     /// Returns the bars and the pivots (cofacet index → column).
     ///
@@ -636,8 +800,7 @@ impl Rips<'_> {
         let mut scratch = Vec::with_capacity(dim + 2);
         for (position, partial) in work {
             let column = columns[position];
-            w.reduction.clear();
-            w.coboundary.clear();
+            w.clear();
             let mut pivot = if partial.is_empty() {
                 // Coboundary of the column, stopping at an emergent pair.
                 cofacets.clear();
@@ -660,16 +823,14 @@ impl Rips<'_> {
                     Some(c) => Some(c),
                     None => {
                         w.coboundary.extend(cofacets.drain(..));
-                        top_pivot(&mut w.coboundary)
+                        w.top_pivot()
                     }
                 }
             } else {
                 // `partial` is the column followed by its partial reduction; the
                 // column itself (V's diagonal) is dropped again when V is stored.
-                for e in partial {
-                    self.add_simplex_coboundary(e, dim, band, &mut w);
-                }
-                top_pivot(&mut w.coboundary)
+                self.rebuild(dim, band, partial, &mut w);
+                w.top_pivot()
             };
             loop {
                 let Some(p) = pivot else {
@@ -696,10 +857,10 @@ impl Rips<'_> {
                     for &e in &v_entries[start..end] {
                         self.add_simplex_coboundary(e, dim, band, &mut w);
                     }
-                    pivot = top_pivot(&mut w.coboundary);
+                    pivot = w.top_pivot();
                 } else if let Some(e) = self.zero_apparent_facet(p, dim + 1, &mut scratch) {
                     self.add_simplex_coboundary(e, dim, band, &mut w);
-                    pivot = top_pivot(&mut w.coboundary);
+                    pivot = w.top_pivot();
                 } else {
                     if p.diameter > column.diameter {
                         bars.push(Bar {
@@ -773,10 +934,43 @@ impl Rips<'_> {
 struct Working {
     /// The reduction column (simplices of the column's dimension).
     reduction: BinaryHeap<Entry>,
-    /// Its coboundary (cofacets).
+    /// Its coboundary (cofacets): the sum of `coboundary` and `sorted[next..]`.
     coboundary: BinaryHeap<Entry>,
+    /// Part of the coboundary, in filtration order, without repeated entries.
+    sorted: Vec<Entry>,
+    /// The first entry of `sorted` still in the coboundary.
+    next: usize,
     /// Scratch for simplex vertices.
     vertices: Vec<usize>,
+}
+
+impl Working {
+    fn clear(&mut self) {
+        self.reduction.clear();
+        self.coboundary.clear();
+        self.sorted.clear();
+        self.next = 0;
+    }
+
+    /// The pivot of the coboundary, left in it.
+    fn top_pivot(&mut self) -> Option<Entry> {
+        loop {
+            let heap = pop_pivot(&mut self.coboundary);
+            let sorted = self.sorted.get(self.next).copied();
+            match (heap, sorted) {
+                (Some(h), Some(s)) if h.index == s.index => self.next += 1,
+                (Some(h), Some(s)) => {
+                    self.coboundary.push(h);
+                    return Some(if h > s { h } else { s });
+                }
+                (Some(h), None) => {
+                    self.coboundary.push(h);
+                    return Some(h);
+                }
+                (None, s) => return s,
+            }
+        }
+    }
 }
 
 /// Pops the pivot of a `Z/2` column held as a heap (equal entries cancel in pairs).
@@ -790,13 +984,4 @@ fn pop_pivot(heap: &mut BinaryHeap<Entry>) -> Option<Entry> {
             _ => return Some(top),
         }
     }
-}
-
-/// The pivot of a `Z/2` column held as a heap, left in the heap.
-fn top_pivot(heap: &mut BinaryHeap<Entry>) -> Option<Entry> {
-    let pivot = pop_pivot(heap);
-    if let Some(p) = pivot {
-        heap.push(p);
-    }
-    pivot
 }
