@@ -28,7 +28,6 @@
 //! classes of a sampled manifold cost time roughly like `M⁴`.
 
 pub mod agreement;
-mod collapse;
 pub mod dimension;
 pub mod homology;
 pub mod invariance;
@@ -39,9 +38,7 @@ use serde::{Deserialize, Serialize};
 use crate::progress::Progress;
 pub use agreement::Agreement;
 pub use dimension::DimensionEstimate;
-pub use homology::{
-    rips_persistence, rips_persistence_with, Bar, BettiRule, Collapse, Persistence,
-};
+pub use homology::{rips_persistence, Bar, BettiRule, Persistence};
 pub use invariance::{invariance, InvarianceReport};
 
 /// Errors of the analysis stage.
