@@ -82,7 +82,7 @@ fn betti(d: &Array2<f64>, max_dim: usize) -> (Vec<usize>, Persistence) {
 /// Persistence diagrams as `[birth, death]` pairs, by dimension.
 type Diagrams = Vec<Vec<(f64, Option<f64>)>>;
 
-fn ripser(d: ArrayView2<f64>, max_dim: usize) -> Option<Diagrams> {
+fn ripser(d: ArrayView2<f64>, max_dim: usize, threshold: Option<f64>) -> Option<Diagrams> {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("d.txt");
     // The full matrix: unambiguous, where the lower-triangular reader is sensitive to
@@ -96,11 +96,12 @@ fn ripser(d: ArrayView2<f64>, max_dim: usize) -> Option<Diagrams> {
         text.push('\n');
     }
     std::fs::write(&path, text).unwrap();
-    let output = match Command::new("ripser")
-        .args(["--format", "distance", "--dim", &max_dim.to_string()])
-        .arg(Path::new(&path))
-        .output()
-    {
+    let mut command = Command::new("ripser");
+    command.args(["--format", "distance", "--dim", &max_dim.to_string()]);
+    if let Some(t) = threshold {
+        command.args(["--threshold", &format!("{t:.17e}")]);
+    }
+    let output = match command.arg(Path::new(&path)).output() {
         Ok(o) => o,
         Err(e) => {
             eprintln!("note: skipping the comparison with Ripser: cannot run `ripser` ({e}); install it with `apt-get install ripser`");
@@ -132,7 +133,18 @@ fn ripser(d: ArrayView2<f64>, max_dim: usize) -> Option<Diagrams> {
 /// Our diagrams equal Ripser's up to its single-precision output: same number of bars
 /// longer than `tol` in every dimension, with matching endpoints.
 fn assert_matches_ripser(d: &Array2<f64>, ours: &Persistence, max_dim: usize) {
-    let Some(theirs) = ripser(d.view(), max_dim) else {
+    assert_matches_ripser_up_to(d, ours, max_dim, None);
+}
+
+/// [`assert_matches_ripser`] with Ripser run up to `threshold` (`None`: its default,
+/// the enclosing radius).
+fn assert_matches_ripser_up_to(
+    d: &Array2<f64>,
+    ours: &Persistence,
+    max_dim: usize,
+    threshold: Option<f64>,
+) {
+    let Some(theirs) = ripser(d.view(), max_dim, threshold) else {
         return;
     };
     let tol = 1e-4 * ours.threshold;
@@ -254,6 +266,29 @@ fn ties_in_distances_do_not_break_the_reduction() {
     let d = euclidean(&Array2::from_shape_vec((64, 2), data).unwrap());
     let persistence = rips_persistence(d.view(), 2, None, &Silent).unwrap();
     assert_matches_ripser(&d, &persistence, 2);
+}
+
+/// A noisy circle times a short segment in ℝ³: enough edges for the reduction's
+/// diameter bands, and a loop that lives through most of them.
+fn thick_circle(n: usize, seed: u64) -> Array2<f64> {
+    points(n, seed, |rng| {
+        let a = rng.gen_range(0.0..TAU);
+        let r = 1.0 + rng.gen_range(-0.15..0.15);
+        [r * a.cos(), r * a.sin(), rng.gen_range(0.0..0.4)]
+    })
+}
+
+#[test]
+fn banded_reduction_matches_ripser_with_a_long_lived_loop() {
+    // 500 points: ~10⁵ edges, so the reduction runs in dozens of bands and the
+    // loop's column is restarted from its partial reduction in each.
+    let d = euclidean(&thick_circle(500, 21));
+    let (betti, persistence) = betti(&d, 1);
+    assert_eq!(betti, vec![1, 1]);
+    assert_matches_ripser(&d, &persistence, 1);
+    // Below the enclosing radius too (the bands end at the given threshold).
+    let persistence = rips_persistence(d.view(), 1, Some(1.2), &Silent).unwrap();
+    assert_matches_ripser_up_to(&d, &persistence, 1, Some(1.2));
 }
 
 #[test]

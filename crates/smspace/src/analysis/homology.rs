@@ -22,17 +22,22 @@
 //!   and only the reduction matrix `V` is stored.
 //!
 //! One addition to Ripser: the reduction runs in passes over diameter bands (the first
-//! ending at the 5 % quantile of the edge lengths, then growing by 1.2), with
+//! ending at the 5 % quantile of the edge lengths, then growing by 2.5 %), with
 //! coboundaries cut at the band's end. Cutting the late rows changes no earlier pivot,
 //! so the result is exact, but the many short-lived classes of a sampled manifold are
 //! settled with small heaps, and only the few long-lived ones pay for large
-//! coboundaries (on the arm's 1500-point matrix: the same diagrams as the `ripser`
-//! program, in about the same time, about 20 s, and a fifth of its memory).
+//! coboundaries. Such a column (on the arm's 1500 max–min landmarks, the one of the
+//! loop, which carries about 70 000 edges at its death) restarts every band from its
+//! partial reduction: the cofacets of its edges in the band are enumerated from the
+//! matrix rows sorted by distance (a cost that follows the band, not `n`), in
+//! parallel, and summed by a sort rather than pushed on a heap. On that matrix: the
+//! same diagrams as the `ripser` program, in about 4.5 s of CPU instead of its 26 s,
+//! and a tenth of its memory.
 //!
 //! The refined filtration orders simplices by diameter, then by decreasing
 //! combinatorial index (Ripser's order), so results match the `ripser` program's.
-//! The apparent-pair test of the edges runs in parallel; the reduction itself is
-//! sequential and deterministic.
+//! The apparent-pair test of the edges and the restart of a column run in parallel;
+//! the reduction itself is sequential, and the result deterministic.
 
 use std::collections::{BinaryHeap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
@@ -138,9 +143,80 @@ pub fn enclosing_radius(distances: ArrayView2<'_, f64>) -> f64 {
 /// `Rips::reduce`)...
 const LEVEL_QUANTILE: f64 = 0.05;
 /// ...the next ones grow by this factor...
-const LEVEL_RATIO: f64 = 1.2;
+const LEVEL_RATIO: f64 = 1.025;
 /// ...when there are at least this many edges.
 const LEVEL_MIN_EDGES: usize = 20_000;
+
+/// The rows of a distance matrix sorted by distance, to enumerate an edge's
+/// cofacets in a diameter band (see [`Rips::for_each_cofacet_in_band`]).
+struct SortedRows {
+    /// Every row of the `n × n` matrix as `(distance, column)` pairs sorted by
+    /// distance (then column).
+    rows: Vec<(f64, u32)>,
+    /// The band limits of the reduction, increasing.
+    levels: Vec<f64>,
+    /// `positions[i · (L + 1) + k]`: how many entries of row `i` are at most
+    /// `levels[k − 1]` (0 for `k = 0`), with `L` levels.
+    positions: Vec<u32>,
+}
+
+impl SortedRows {
+    fn new(n: usize, dist: &[f64], levels: &[f64]) -> Self {
+        let mut rows: Vec<(f64, u32)> = dist
+            .iter()
+            .enumerate()
+            .map(|(k, &d)| (d, (k % n) as u32))
+            .collect();
+        rows.par_chunks_mut(n).for_each(|row| {
+            row.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        });
+        let mut positions = Vec::with_capacity(n * (levels.len() + 1));
+        for row in rows.chunks(n) {
+            positions.push(0);
+            positions.extend(
+                levels
+                    .iter()
+                    .map(|&l| row.partition_point(|&(d, _)| d <= l) as u32),
+            );
+        }
+        Self {
+            rows,
+            levels: levels.to_vec(),
+            positions,
+        }
+    }
+
+    /// The entries of row `i` (of `n`) with distance in `(lower, limit]`, where the
+    /// band is one of the reduction's.
+    #[inline]
+    fn band(&self, i: usize, n: usize, (lower, limit): (f64, f64)) -> &[(f64, u32)] {
+        let row = &self.rows[i * n..(i + 1) * n];
+        let width = self.levels.len() + 1;
+        let k = self.levels.partition_point(|&l| l < limit);
+        if self.levels.get(k) == Some(&limit)
+            && (k == 0 && lower == f64::NEG_INFINITY || k > 0 && self.levels[k - 1] == lower)
+        {
+            let p = &self.positions[i * width..(i + 1) * width];
+            &row[p[k] as usize..p[k + 1] as usize]
+        } else {
+            let from = row.partition_point(|&(d, _)| d <= lower);
+            let to = row.partition_point(|&(d, _)| d <= limit);
+            &row[from..to]
+        }
+    }
+
+    /// The entries of row `i` (of `n`) at most `limit`, a band's end.
+    #[inline]
+    fn within(&self, i: usize, n: usize, limit: f64) -> &[(f64, u32)] {
+        let row = &self.rows[i * n..(i + 1) * n];
+        let k = self.levels.partition_point(|&l| l < limit);
+        if self.levels.get(k) == Some(&limit) {
+            &row[..self.positions[i * (self.levels.len() + 1) + k + 1] as usize]
+        } else {
+            &row[..row.partition_point(|&(d, _)| d <= limit)]
+        }
+    }
+}
 
 /// Largest number of triangles (`C(n, 3)`) the `H2` computation enumerates.
 const MAX_TRIANGLES: u64 = 100_000_000;
@@ -167,15 +243,19 @@ pub fn rips_persistence(
         });
     }
     let dist: Vec<f64> = distances.iter().copied().collect();
-    let rips = Rips {
+    let mut rips = Rips {
         n,
         dist: &dist,
+        sorted_rows: None,
         threshold,
         binomial,
     };
     let mut diagrams = Vec::with_capacity(max_dim + 1);
     progress.start("homology", max_dim as u64 + 1);
     let (h0, mut columns, levels) = rips.dim_zero(max_dim > 0);
+    if max_dim >= 1 {
+        rips.sorted_rows = Some(SortedRows::new(n, rips.dist, &levels));
+    }
     diagrams.push(h0);
     progress.advance(1);
     let mut simplices: Vec<Entry> = Vec::new();
@@ -291,6 +371,9 @@ type PivotMap = HashMap<u64, usize, BuildHasherDefault<IndexHasher>>;
 struct Rips<'a> {
     n: usize,
     dist: &'a [f64],
+    /// With `H1`: every row of `dist` as `(distance, column)` sorted by distance, to
+    /// enumerate an edge's cofacets in a diameter band.
+    sorted_rows: Option<SortedRows>,
     threshold: f64,
     binomial: Binomial,
 }
@@ -319,6 +402,22 @@ impl Rips<'_> {
     /// Vertices of simplex `index` of dimension `dim`, decreasing.
     fn vertices(&self, mut index: u64, dim: usize, out: &mut Vec<usize>) {
         out.clear();
+        if dim == 1 {
+            // An edge: u(u − 1)/2 ≤ index < (u + 1)u/2, from a square root corrected
+            // by one step either way.
+            let b = &self.binomial;
+            let mut u = (((8 * index + 1) as f64).sqrt() as usize).div_ceil(2);
+            u = u.min(self.n - 1);
+            while b.get(u, 2) > index {
+                u -= 1;
+            }
+            while u + 1 < self.n && b.get(u + 1, 2) <= index {
+                u += 1;
+            }
+            out.push(u);
+            out.push((index - b.get(u, 2)) as usize);
+            return;
+        }
         let mut top = self.n - 1;
         for k in (1..=dim + 1).rev() {
             let v = self.max_vertex(index, k, top);
@@ -393,6 +492,79 @@ impl Rips<'_> {
                 }
             }
             j -= 1;
+        }
+    }
+
+    /// The cofacets of `simplex` (dimension `dim`) with diameter in `band =
+    /// (lower, limit]`, in no particular order. An edge `uv` of the full matrix takes
+    /// its candidates from the rows of `u` and `v` sorted by distance: with
+    /// `d(u, v) > lower`, the `j` within `limit` of both; otherwise the `j` in the
+    /// band from `u` and within `limit` of `v`, and the `j` in the band from `v` and
+    /// within `lower` of `u`. Its cost follows the band's size, not `n`.
+    fn for_each_cofacet_in_band(
+        &self,
+        simplex: Entry,
+        dim: usize,
+        vertices: &mut Vec<usize>,
+        (lower, limit): (f64, f64),
+        mut visit: impl FnMut(Entry),
+    ) {
+        let Some(sorted) = self.sorted_rows.as_ref().filter(|_| dim == 1) else {
+            self.for_each_cofacet(simplex, dim, vertices, false, (lower, limit), |c| {
+                visit(c);
+                true
+            });
+            return;
+        };
+        let n = self.n;
+        self.vertices(simplex.index, 1, vertices);
+        let (u, v) = (vertices[0], vertices[1]);
+        let b = &self.binomial;
+        let index = |j: usize| -> u64 {
+            if j > u {
+                b.get(j, 3) + b.get(u, 2) + v as u64
+            } else if j > v {
+                b.get(u, 3) + b.get(j, 2) + v as u64
+            } else {
+                b.get(u, 3) + b.get(v, 2) + j as u64
+            }
+        };
+        let (dist_u, dist_v) = (
+            &self.dist[u * n..(u + 1) * n],
+            &self.dist[v * n..(v + 1) * n],
+        );
+        if simplex.diameter > lower {
+            let (near_u, near_v) = (sorted.within(u, n, limit), sorted.within(v, n, limit));
+            let (row, other) = if near_u.len() <= near_v.len() {
+                (near_u, dist_v)
+            } else {
+                (near_v, dist_u)
+            };
+            for &(d, j) in row {
+                let j = j as usize;
+                let o = other[j];
+                if o <= limit && j != u && j != v {
+                    let diameter = simplex.diameter.max(d).max(o);
+                    visit(Entry {
+                        diameter,
+                        index: index(j),
+                    });
+                }
+            }
+        } else {
+            for (i, other, bound) in [(u, dist_v, limit), (v, dist_u, lower)] {
+                for &(d, j) in sorted.band(i, n, (lower, limit)) {
+                    let j = j as usize;
+                    let o = other[j];
+                    // `d > lower ≥ d(u, v)`: `j` is neither `u` nor `v`.
+                    if o <= bound {
+                        visit(Entry {
+                            diameter: d.max(o),
+                            index: index(j),
+                        });
+                    }
+                }
+            }
         }
     }
 
@@ -565,10 +737,47 @@ impl Rips<'_> {
     ) {
         work.reduction.push(simplex);
         let coboundary = &mut work.coboundary;
-        self.for_each_cofacet(simplex, dim, &mut work.vertices, false, band, |c| {
+        self.for_each_cofacet_in_band(simplex, dim, &mut work.vertices, band, |c| {
             coboundary.push(c);
-            true
         });
+    }
+
+    /// Starts the working column from `partial` (a column followed by its partial
+    /// reduction): the reduction column holds `partial`, and the sorted part of the
+    /// coboundary its cofacets in `band`, summed (enumerated and sorted in
+    /// parallel: a long-lived column carries tens of thousands of simplices).
+    fn rebuild(&self, dim: usize, band: (f64, f64), partial: Vec<Entry>, w: &mut Working) {
+        let chunks: Vec<Vec<Entry>> = partial
+            .par_chunks(256)
+            .map(|chunk| {
+                let mut vertices = Vec::with_capacity(dim + 1);
+                let mut out = Vec::new();
+                for &e in chunk {
+                    self.for_each_cofacet_in_band(e, dim, &mut vertices, band, |c| out.push(c));
+                }
+                out
+            })
+            .collect();
+        let mut all = Vec::with_capacity(chunks.iter().map(Vec::len).sum());
+        for chunk in chunks {
+            all.extend(chunk);
+        }
+        // Filtration order (earliest first); equal entries are adjacent and cancel.
+        all.par_sort_unstable_by(|a, b| b.cmp(a));
+        let sorted = &mut w.sorted;
+        sorted.clear();
+        for e in all {
+            if sorted
+                .last()
+                .is_some_and(|last: &Entry| last.index == e.index)
+            {
+                sorted.pop();
+            } else {
+                sorted.push(e);
+            }
+        }
+        w.next = 0;
+        w.reduction.extend(partial);
     }
 
     /// Reduces the coboundary columns of dimension `dim` (in reverse filtration order).
@@ -636,8 +845,7 @@ impl Rips<'_> {
         let mut scratch = Vec::with_capacity(dim + 2);
         for (position, partial) in work {
             let column = columns[position];
-            w.reduction.clear();
-            w.coboundary.clear();
+            w.clear();
             let mut pivot = if partial.is_empty() {
                 // Coboundary of the column, stopping at an emergent pair.
                 cofacets.clear();
@@ -660,16 +868,14 @@ impl Rips<'_> {
                     Some(c) => Some(c),
                     None => {
                         w.coboundary.extend(cofacets.drain(..));
-                        top_pivot(&mut w.coboundary)
+                        w.top_pivot()
                     }
                 }
             } else {
                 // `partial` is the column followed by its partial reduction; the
                 // column itself (V's diagonal) is dropped again when V is stored.
-                for e in partial {
-                    self.add_simplex_coboundary(e, dim, band, &mut w);
-                }
-                top_pivot(&mut w.coboundary)
+                self.rebuild(dim, band, partial, &mut w);
+                w.top_pivot()
             };
             loop {
                 let Some(p) = pivot else {
@@ -696,10 +902,10 @@ impl Rips<'_> {
                     for &e in &v_entries[start..end] {
                         self.add_simplex_coboundary(e, dim, band, &mut w);
                     }
-                    pivot = top_pivot(&mut w.coboundary);
+                    pivot = w.top_pivot();
                 } else if let Some(e) = self.zero_apparent_facet(p, dim + 1, &mut scratch) {
                     self.add_simplex_coboundary(e, dim, band, &mut w);
-                    pivot = top_pivot(&mut w.coboundary);
+                    pivot = w.top_pivot();
                 } else {
                     if p.diameter > column.diameter {
                         bars.push(Bar {
@@ -773,10 +979,43 @@ impl Rips<'_> {
 struct Working {
     /// The reduction column (simplices of the column's dimension).
     reduction: BinaryHeap<Entry>,
-    /// Its coboundary (cofacets).
+    /// Its coboundary (cofacets): the sum of `coboundary` and `sorted[next..]`.
     coboundary: BinaryHeap<Entry>,
+    /// Part of the coboundary, in filtration order, without repeated entries.
+    sorted: Vec<Entry>,
+    /// The first entry of `sorted` still in the coboundary.
+    next: usize,
     /// Scratch for simplex vertices.
     vertices: Vec<usize>,
+}
+
+impl Working {
+    fn clear(&mut self) {
+        self.reduction.clear();
+        self.coboundary.clear();
+        self.sorted.clear();
+        self.next = 0;
+    }
+
+    /// The pivot of the coboundary, left in it.
+    fn top_pivot(&mut self) -> Option<Entry> {
+        loop {
+            let heap = pop_pivot(&mut self.coboundary);
+            let sorted = self.sorted.get(self.next).copied();
+            match (heap, sorted) {
+                (Some(h), Some(s)) if h.index == s.index => self.next += 1,
+                (Some(h), Some(s)) => {
+                    self.coboundary.push(h);
+                    return Some(if h > s { h } else { s });
+                }
+                (Some(h), None) => {
+                    self.coboundary.push(h);
+                    return Some(h);
+                }
+                (None, s) => return s,
+            }
+        }
+    }
 }
 
 /// Pops the pivot of a `Z/2` column held as a heap (equal entries cancel in pairs).
@@ -792,11 +1031,61 @@ fn pop_pivot(heap: &mut BinaryHeap<Entry>) -> Option<Entry> {
     }
 }
 
-/// The pivot of a `Z/2` column held as a heap, left in the heap.
-fn top_pivot(heap: &mut BinaryHeap<Entry>) -> Option<Entry> {
-    let pivot = pop_pivot(heap);
-    if let Some(p) = pivot {
-        heap.push(p);
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// `H1` bars of `dist` (`n × n`) reduced over `levels` (the default bands when
+    /// `None`), sorted.
+    fn h1(n: usize, dist: &[f64], levels: Option<Vec<f64>>) -> (usize, Vec<Bar>) {
+        let threshold = enclosing_radius(ArrayView2::from_shape((n, n), dist).unwrap());
+        let mut rips = Rips {
+            n,
+            dist,
+            sorted_rows: None,
+            threshold,
+            binomial: Binomial::new(n, 3),
+        };
+        let (_, columns, default_levels) = rips.dim_zero(true);
+        let levels = levels.unwrap_or(default_levels);
+        rips.sorted_rows = Some(SortedRows::new(n, dist, &levels));
+        let (mut bars, _) = rips.reduce(1, &columns, &levels);
+        bars.sort_by(|a, b| {
+            a.birth.total_cmp(&b.birth).then(
+                a.death
+                    .unwrap_or(f64::INFINITY)
+                    .total_cmp(&b.death.unwrap_or(f64::INFINITY)),
+            )
+        });
+        (levels.len(), bars)
     }
-    pivot
+
+    #[test]
+    fn bands_give_exactly_the_bars_of_a_single_pass() {
+        // A noisy annulus in the plane: a loop living through most bands.
+        let n = 400;
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let p: Vec<[f64; 2]> = (0..n)
+            .map(|_| {
+                let a = rng.gen_range(0.0..std::f64::consts::TAU);
+                let r = rng.gen_range(0.8..1.2);
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect();
+        let dist: Vec<f64> = (0..n * n)
+            .map(|k| {
+                let (i, j) = (k / n, k % n);
+                ((p[i][0] - p[j][0]).powi(2) + (p[i][1] - p[j][1]).powi(2)).sqrt()
+            })
+            .collect();
+        let (bands, banded) = h1(n, &dist, None);
+        assert!(bands > 20, "{bands} bands");
+        let threshold = enclosing_radius(ArrayView2::from_shape((n, n), &dist[..]).unwrap());
+        let (_, single) = h1(n, &dist, Some(vec![threshold]));
+        // Exact equality: every endpoint is a distance of the matrix.
+        assert_eq!(banded, single);
+        assert!(banded.iter().any(|b| b.length(threshold) > 0.5));
+    }
 }

@@ -23,9 +23,9 @@
 //! Homology of more than [`AnalysisParams::max_points`] points runs on max–min
 //! landmarks (a greedy farthest-point subsample starting at row 0); the report says
 //! so and gives the covering radius, the largest distance of a point to its nearest
-//! landmark: features shorter than about twice that radius are not resolved. The default
-//! (800) keeps `H1` of the paper's 2500 arm sets within a few seconds; the long-lived
-//! classes of a sampled manifold cost time roughly like `M⁴`.
+//! landmark: features shorter than about twice that radius are not resolved. `H1` of the
+//! paper's arm sets takes about 0.6 s on the default 800 landmarks and 4.5 s on 1500
+//! (2 cores); the long-lived classes of a sampled manifold cost time roughly like `M⁴`.
 
 pub mod agreement;
 pub mod dimension;
