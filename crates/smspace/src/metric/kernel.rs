@@ -311,8 +311,9 @@ fn directed_hausdorff<const N: usize>(
     // Blocks far from B first, so that `c` reaches its final value early. The order
     // only decides how soon blocks can be settled, never the result, so the keys may
     // be coarse: a non-negative f64 orders like its bits, and the block index takes the
-    // low bits (a plain integer sort, several times cheaper than comparing floats
-    // through the index; past 256 blocks the comparison sort is used).
+    // low bits, which makes the keys distinct integers. Up to RANK_SORT_MAX blocks they
+    // are ranked without branches (the insertion and generic sorts mispredicted);
+    // past that the comparison sort is used.
     let order = &mut scratch_order[..shape.chunks];
     if shape.chunks <= RANK_SORT_MAX {
         // Rank sort without branches: the keys are distinct (the block index is in the
