@@ -466,6 +466,10 @@ pub(crate) fn brute_pair(a: SetRef<'_>, b: SetRef<'_>, prepared: &PreparedSets) 
 pub(crate) trait Eval {
     /// `ρ(set i, set j)`, or `None` once it is proven to exceed `limit`.
     fn distance(&mut self, i: usize, j: usize, limit: f64) -> Option<f64>;
+
+    /// Reads one value per cache line of set `j`, so that its data is on its way to the
+    /// cache while another pair is computed (a software prefetch without `unsafe`).
+    fn touch(&mut self, _j: usize) {}
 }
 
 /// Work run under runtime SIMD dispatch: it receives an [`Eval`] compiled for the
@@ -496,6 +500,24 @@ impl<const N: usize> Eval for Evaluator<'_, N> {
                 Some(mean_hausdorff::<N>(a, b, self.shape, self.scratch))
             }
         }
+    }
+
+    #[inline(always)]
+    fn touch(&mut self, j: usize) {
+        let set = self.prepared.set(j);
+        let mut sum = 0.0;
+        for part in [
+            set.coords,
+            set.points,
+            set.centers,
+            set.centers_soa,
+            set.widths,
+        ] {
+            for x in part.iter().step_by(8) {
+                sum += x;
+            }
+        }
+        std::hint::black_box(sum);
     }
 }
 
