@@ -72,7 +72,9 @@ fn equals_brute_force_on_uniform_sets_of_many_shapes() {
 
 #[test]
 fn equals_brute_force_on_arm_like_sets() {
-    for (m, p, seed) in [(24, 100, 7), (16, 37, 8)] {
+    // 128 points: 16 blocks of 8, the largest count ordered by the rank sort; 200
+    // points: 25 blocks, ordered by the comparison sort.
+    for (m, p, seed) in [(24, 100, 7), (16, 37, 8), (10, 128, 12), (8, 200, 13)] {
         let sets = arm_like_sets(m, p, seed);
         for kind in KINDS {
             for period in PERIODS {

@@ -36,6 +36,9 @@ use super::prepared::{fold, PreparedSets, SetRef, BOUND_MARGIN, LANES};
 /// Window length of the warm-started scan (number of `b` tried per block).
 const WINDOW: usize = 9;
 
+/// Largest block count ordered by the branch-free rank sort.
+const RANK_SORT_MAX: usize = 16;
+
 /// Reusable buffers of one worker thread.
 #[derive(Debug, Default)]
 pub(crate) struct Scratch {
@@ -308,16 +311,23 @@ fn directed_hausdorff<const N: usize>(
     // Blocks far from B first, so that `c` reaches its final value early. The order
     // only decides how soon blocks can be settled, never the result, so the keys may
     // be coarse: a non-negative f64 orders like its bits, and the block index takes the
-    // low bits (a plain integer sort, several times cheaper than comparing floats
-    // through the index; past 256 blocks the comparison sort is used).
+    // low bits, which makes the keys distinct integers. Up to RANK_SORT_MAX blocks they
+    // are ranked without branches (the insertion and generic sorts mispredicted);
+    // past that the comparison sort is used.
     let order = &mut scratch_order[..shape.chunks];
-    if shape.chunks <= 256 {
-        for (alpha, slot) in order.iter_mut().enumerate() {
+    if shape.chunks <= RANK_SORT_MAX {
+        // Rank sort without branches: the keys are distinct (the block index is in the
+        // low bits), so the rank of a key is the number of larger keys.
+        let mut packed = [0u64; RANK_SORT_MAX];
+        for (alpha, slot) in packed.iter_mut().enumerate().take(shape.chunks) {
             *slot = (key[alpha].to_bits() & !0xff) | alpha as u64;
         }
-        order.sort_unstable_by(|x, y| y.cmp(x));
-        for slot in order.iter_mut() {
-            *slot &= 0xff;
+        for (alpha, &x) in packed.iter().enumerate().take(shape.chunks) {
+            let mut rank = 0u64;
+            for &y in &packed {
+                rank += u64::from(y > x);
+            }
+            order[rank as usize] = alpha as u64;
         }
     } else {
         for (alpha, slot) in order.iter_mut().enumerate() {
@@ -336,7 +346,13 @@ fn directed_hausdorff<const N: usize>(
         }
         let a = load_block::<N>(a_set.coords, shape.points_pad, alpha);
         let start = (near * LANES + LANES / 2).min(shape.points - 1);
-        let (best, settled) = window(&a, b_set, shape, start, c);
+        // With nothing found yet (c = 0) no window can settle the block: go straight to
+        // the exact search, which scans the nearest chunk first anyway.
+        let (best, settled) = if c > 0.0 {
+            window(&a, b_set, shape, start, c)
+        } else {
+            ([f64::INFINITY; LANES], false)
+        };
         if settled {
             continue;
         }
@@ -450,6 +466,10 @@ pub(crate) fn brute_pair(a: SetRef<'_>, b: SetRef<'_>, prepared: &PreparedSets) 
 pub(crate) trait Eval {
     /// `ρ(set i, set j)`, or `None` once it is proven to exceed `limit`.
     fn distance(&mut self, i: usize, j: usize, limit: f64) -> Option<f64>;
+
+    /// Reads one value per cache line of set `j`, so that its data is on its way to the
+    /// cache while another pair is computed (a software prefetch without `unsafe`).
+    fn touch(&mut self, _j: usize) {}
 }
 
 /// Work run under runtime SIMD dispatch: it receives an [`Eval`] compiled for the
@@ -480,6 +500,24 @@ impl<const N: usize> Eval for Evaluator<'_, N> {
                 Some(mean_hausdorff::<N>(a, b, self.shape, self.scratch))
             }
         }
+    }
+
+    #[inline(always)]
+    fn touch(&mut self, j: usize) {
+        let set = self.prepared.set(j);
+        let mut sum = 0.0;
+        for part in [
+            set.coords,
+            set.points,
+            set.centers,
+            set.centers_soa,
+            set.widths,
+        ] {
+            for x in part.iter().step_by(8) {
+                sum += x;
+            }
+        }
+        std::hint::black_box(sum);
     }
 }
 
