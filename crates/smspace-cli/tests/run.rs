@@ -211,11 +211,26 @@ fn a_small_experiment_runs_end_to_end_and_is_cached() {
         .unwrap()
         .iter()
         .all(|s| s["cached"] == false));
-    // The same experiment gives the same arrays in another folder.
+    // The same experiment gives the same arrays in another folder, and with one thread.
     assert_eq!(
         std::fs::read(dir.path().join("again/D.npy")).unwrap(),
         before
     );
+    ok(
+        dir.path(),
+        &["run", "small.toml", "--out", "one-thread", "--threads", "1"],
+    );
+    for file in [
+        "sets.npy",
+        "D.npy",
+        "Y.npy",
+        "analysis.json",
+        "invariance.json",
+    ] {
+        let one = std::fs::read(dir.path().join("one-thread").join(file)).unwrap();
+        let many = std::fs::read(dir.path().join("again").join(file)).unwrap();
+        assert!(one == many, "{file} differs between 1 thread and 2");
+    }
 }
 
 #[test]
