@@ -17,7 +17,8 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::agent::{Agent, Pose};
+use crate::agent::{Agent, AgentConfig, Pose};
+use crate::io::{self, IoError};
 
 /// Errors of exploration.
 #[derive(Debug, thiserror::Error)]
@@ -241,6 +242,72 @@ pub struct Exploration {
     pub probes: Array2<i64>,
     /// The working space used.
     pub workspace: Option<Workspace>,
+}
+
+/// The files [`Exploration::save`] writes, in a folder.
+pub const EXPLORATION_FILES: [&str; 4] =
+    ["motors.npy", "poses.npy", "probes.npy", "exploration.json"];
+
+impl Exploration {
+    /// How many rows are probe grid cells.
+    pub fn probe_count(&self) -> usize {
+        self.probes.column(0).iter().filter(|&&o| o >= 0).count()
+    }
+
+    /// Writes [`EXPLORATION_FILES`] into `dir`: the three arrays, and
+    /// `exploration.json` with the agent, the parameters and the row counts.
+    pub fn save(
+        &self,
+        dir: &std::path::Path,
+        agent: &AgentConfig,
+        params: &ExploreParams,
+    ) -> Result<(), IoError> {
+        let [motors, poses, probes, summary] = EXPLORATION_FILES.map(|f| dir.join(f));
+        io::write_npy(&motors, &self.motors)?;
+        io::write_npy(&poses, &self.poses)?;
+        io::write_npy(&probes, &self.probes)?;
+        let probe_rows = self.probe_count();
+        io::write_json(
+            &summary,
+            &serde_json::json!({
+                "agent": agent,
+                "params": params,
+                "workspace": self.workspace,
+                "rows": self.motors.nrows(),
+                "babbled": self.motors.nrows() - probe_rows,
+                "probes": probe_rows,
+            }),
+        )
+    }
+
+    /// Reads the arrays [`save`](Self::save) wrote for an agent with `motor_dim`
+    /// motors, explored in `workspace`.
+    pub fn load(
+        dir: &std::path::Path,
+        motor_dim: usize,
+        workspace: Option<Workspace>,
+    ) -> Result<Self, IoError> {
+        let [motors, poses, probes, _] = EXPLORATION_FILES.map(|f| dir.join(f));
+        let motors = io::read_matrix(&motors, Some(motor_dim), &format!("(M, {motor_dim})"))?;
+        let poses = io::read_matrix(&poses, Some(3), "(M, 3)")?;
+        let labels = io::read_i64(&probes)?;
+        let shape = labels.shape().to_vec();
+        let probes = labels
+            .into_dimensionality()
+            .ok()
+            .filter(|p: &Array2<i64>| p.dim() == (motors.nrows(), 3))
+            .ok_or_else(|| IoError::Shape {
+                path: probes.clone(),
+                found: io::shape_string(&shape),
+                expected: format!("({}, 3)", motors.nrows()),
+            })?;
+        Ok(Self {
+            motors,
+            poses,
+            probes,
+            workspace,
+        })
+    }
 }
 
 /// Babbles `params.n` motor configurations inside the working space, and appends the

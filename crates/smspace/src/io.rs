@@ -20,7 +20,7 @@ use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use ndarray::{Array2, Array3, ArrayBase, ArrayD, Data, Dimension, Ix2, Ix3};
-use ndarray_npy::{ReadNpyError, ReadNpyExt, WritableElement, WriteNpyExt};
+use ndarray_npy::{ReadNpyError, ReadNpyExt, ReadableElement, WritableElement, WriteNpyExt};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
@@ -103,27 +103,10 @@ fn open(path: &Path) -> Result<BufReader<File>, IoError> {
         })
 }
 
-/// Reads a `float64` `.npy` array of any dimension, checking that every entry is finite.
-pub fn read_f64(path: &Path) -> Result<ArrayD<f64>, IoError> {
+/// Reads a `.npy` array of any dimension whose elements are `A`.
+fn read_any<A: ReadableElement>(path: &Path) -> Result<ArrayD<A>, IoError> {
     let reader = open(path)?;
-    let array = ArrayD::<f64>::read_npy(reader).map_err(|error| match error {
-        ReadNpyError::Io(reason) => IoError::Read {
-            path: path.to_owned(),
-            reason,
-        },
-        other => IoError::Npy {
-            path: path.to_owned(),
-            reason: other.to_string(),
-        },
-    })?;
-    check_finite(path, &array)?;
-    Ok(array)
-}
-
-/// Reads an `int64` `.npy` array of any dimension (probe labels, kept rows).
-pub fn read_i64(path: &Path) -> Result<ArrayD<i64>, IoError> {
-    let reader = open(path)?;
-    ArrayD::<i64>::read_npy(reader).map_err(|error| match error {
+    ArrayD::<A>::read_npy(reader).map_err(|error| match error {
         ReadNpyError::Io(reason) => IoError::Read {
             path: path.to_owned(),
             reason,
@@ -133,6 +116,18 @@ pub fn read_i64(path: &Path) -> Result<ArrayD<i64>, IoError> {
             reason: other.to_string(),
         },
     })
+}
+
+/// Reads a `float64` `.npy` array of any dimension, checking that every entry is finite.
+pub fn read_f64(path: &Path) -> Result<ArrayD<f64>, IoError> {
+    let array = read_any::<f64>(path)?;
+    check_finite(path, &array)?;
+    Ok(array)
+}
+
+/// Reads an `int64` `.npy` array of any dimension (probe labels, kept rows).
+pub fn read_i64(path: &Path) -> Result<ArrayD<i64>, IoError> {
+    read_any(path)
 }
 
 /// Returns an error naming the first non-finite entry of `array`.

@@ -4,9 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
-use serde_json::json;
 use smspace::explore::{explore_in, ExploreParams, Probes};
-use smspace::io;
 
 use super::common::{AgentArgs, WorkspaceArgs};
 
@@ -59,26 +57,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create {}", args.out_dir.display()))?;
     let dir = &args.out_dir;
-    io::write_npy(&dir.join("motors.npy"), &exploration.motors)?;
-    io::write_npy(&dir.join("poses.npy"), &exploration.poses)?;
-    io::write_npy(&dir.join("probes.npy"), &exploration.probes)?;
-    let probe_count = exploration
-        .probes
-        .column(0)
-        .iter()
-        .filter(|&&o| o >= 0)
-        .count();
-    io::write_json(
-        &dir.join("exploration.json"),
-        &json!({
-            "agent": spec.agent,
-            "params": params,
-            "workspace": exploration.workspace,
-            "rows": exploration.motors.nrows(),
-            "babbled": exploration.motors.nrows() - probe_count,
-            "probes": probe_count,
-        }),
-    )?;
+    exploration.save(dir, &spec.agent, &params)?;
+    let probe_count = exploration.probe_count();
     eprintln!(
         "explored {} configurations ({} babbled, {} probes) of the {} agent into {}",
         exploration.motors.nrows(),

@@ -38,7 +38,7 @@ use crate::analysis::{analyze, invariance_measured, AnalysisReport, AnalysisVali
 use crate::config::{ConfigError, LoadedExperiment};
 use crate::embed::quality::{assess, shepard_pairs, Quality};
 use crate::embed::{EmbedReport, Embedding};
-use crate::explore::{explore_in, Exploration, Workspace};
+use crate::explore::{explore_in, Exploration, Workspace, EXPLORATION_FILES};
 use crate::io::{self, IoError};
 use crate::kernel::{trace_sets, TraceMethod, TraceParams, TraceReport, TraceValidParams};
 use crate::metric::{distance_matrix, ValidDistanceParams};
@@ -514,48 +514,11 @@ pub fn run(
     let exploration = runner.stage(
         Stage::Explore,
         &[explore_key.as_bytes()],
-        |dir| {
-            let motors =
-                io::read_matrix(&dir.join("motors.npy"), Some(agent.motor_dim()), "(M, N)")?;
-            let poses = io::read_matrix(&dir.join("poses.npy"), Some(3), "(M, 3)")?;
-            let probes = io::read_i64(&dir.join("probes.npy"))?
-                .into_dimensionality()
-                .map_err(|err| IoError::Npy {
-                    path: dir.join("probes.npy"),
-                    reason: err.to_string(),
-                })?;
-            Ok(Exploration {
-                motors,
-                poses,
-                probes,
-                workspace: plan.workspace,
-            })
-        },
+        |dir| Ok(Exploration::load(dir, agent.motor_dim(), plan.workspace)?),
         |dir, _| {
             let exploration = explore_in(agent, &e.exploration, plan.workspace)?;
-            io::write_npy(&dir.join("motors.npy"), &exploration.motors)?;
-            io::write_npy(&dir.join("poses.npy"), &exploration.poses)?;
-            io::write_npy(&dir.join("probes.npy"), &exploration.probes)?;
-            let probes = exploration
-                .probes
-                .column(0)
-                .iter()
-                .filter(|&&o| o >= 0)
-                .count();
-            io::write_json(
-                &dir.join("exploration.json"),
-                &serde_json::json!({
-                    "agent": e.agent,
-                    "params": e.exploration,
-                    "workspace": exploration.workspace,
-                    "rows": exploration.motors.nrows(),
-                    "babbled": exploration.motors.nrows() - probes,
-                    "probes": probes,
-                }),
-            )?;
-            let mut files: Outputs = ["motors.npy", "poses.npy", "probes.npy", "exploration.json"]
-                .map(String::from)
-                .to_vec();
+            exploration.save(dir, &e.agent, &e.exploration)?;
+            let mut files: Outputs = EXPLORATION_FILES.map(String::from).to_vec();
             for (i, env) in environments.iter().enumerate() {
                 let file = if i == 0 {
                     "environment.json".to_owned()
@@ -568,7 +531,7 @@ pub fn run(
             Ok((exploration, files))
         },
         |x| {
-            let probes = x.probes.column(0).iter().filter(|&&o| o >= 0).count();
+            let probes = x.probe_count();
             format!(
                 "{} configurations ({} babbled, {probes} probes), {} environment(s)",
                 x.motors.nrows(),
