@@ -229,6 +229,23 @@ fn set_metric_accepts_different_point_counts() {
 }
 
 #[test]
+fn tiles_of_rows_and_columns_give_the_brute_force_matrix() {
+    // More sets than one tile of 32 rows × 32 columns, and row blocks that start and end
+    // inside tiles.
+    let sets = arm_like_sets(100, 12, 61);
+    for kind in KINDS {
+        let p = params(kind, Period::TwoPi);
+        let full = distance_matrix(sets.view(), &p, &Silent).unwrap();
+        let slow = reference::distance_matrix(sets.view(), kind, Period::TwoPi);
+        assert_matrix_eq(&full, &slow, &format!("tiled {kind:?}"));
+        for range in [30..70, 0..33, 64..100, 31..32] {
+            let block = distance_rows(sets.view(), &p, range.clone(), &Silent).unwrap();
+            assert_eq!(block, rows(&full, range.clone()), "{kind:?} {range:?}");
+        }
+    }
+}
+
+#[test]
 fn row_blocks_stack_to_the_full_matrix() {
     let sets = arm_like_sets(23, 24, 31);
     for kind in KINDS {

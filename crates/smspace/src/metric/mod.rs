@@ -32,7 +32,10 @@
 //! the nearest chunk of the other set (sets are ordered closed curves), bounding balls
 //! and boxes around runs of eight consecutive points, and a structure-of-arrays layout processed
 //! eight points at a time with runtime SIMD dispatch ([`PreparedSets`]; details in the
-//! `kernel` source). Results do not depend on the number of threads.
+//! `kernel` source). The matrix is computed in tiles of 32 rows × 32 columns, so that
+//! the sets of a column block stay in the L2 cache while every row of the tile uses
+//! them (about 18 % less CPU at M = 2500, where the sets do not fit in cache). Results
+//! do not depend on the number of threads or on the tiles.
 //!
 //! # Entry points
 //!
@@ -417,29 +420,48 @@ pub fn distance_rows(
     Ok(out)
 }
 
-struct RowDriver<'a> {
-    row: usize,
-    /// Columns `skip.start..=row` are left alone (mirrored afterwards, or the diagonal).
+/// Rows of a tile share a pass over each block of this many columns, so that the
+/// block's sets stay in the core's L2 cache while every row of the tile uses them.
+const TILE_COLUMNS: usize = 32;
+/// Rows computed together (one parallel task).
+const TILE_ROWS: usize = 32;
+
+/// Computes a tile of rows `[row0, row0 + out.len() / m)` of the matrix, column block by
+/// column block (cache blocking: each column set is read from memory once per tile
+/// instead of once per row). Every entry is the same `distance(i, j)` call as without
+/// tiling, so the result does not depend on the tile sizes.
+struct TileDriver<'a> {
+    row0: usize,
+    m: usize,
+    /// Columns `skip_from..=row` of a row are left alone (mirrored afterwards, or the
+    /// diagonal).
     skip_from: usize,
     out: &'a mut [f64],
 }
 
-impl kernel::Driver for RowDriver<'_> {
+impl kernel::Driver for TileDriver<'_> {
     type Output = ();
     #[inline(always)]
     fn drive<E: kernel::Eval>(self, eval: &mut E) {
-        for j in 0..self.out.len() {
-            if j >= self.skip_from && j <= self.row {
-                continue;
+        let m = self.m;
+        let rows = self.out.len() / m;
+        for block in (0..m).step_by(TILE_COLUMNS) {
+            let columns = block..(block + TILE_COLUMNS).min(m);
+            for r in 0..rows {
+                let i = self.row0 + r;
+                let out = &mut self.out[r * m..(r + 1) * m];
+                for j in columns.clone() {
+                    if j >= self.skip_from && j <= i {
+                        continue;
+                    }
+                    // The first row of the tile brings the block's sets from memory:
+                    // start loading the one after next while this pair is computed.
+                    if r == 0 && j + 2 < columns.end {
+                        eval.touch(j + 2);
+                    }
+                    out[j] = eval.distance(i, j, f64::INFINITY).unwrap_or(f64::INFINITY);
+                }
             }
-            // Sets of the other side come from memory (the 2500-set matrix does not fit
-            // in L2): start loading the one after next (about 7% less CPU at M = 2500).
-            if j + 2 < self.out.len() {
-                eval.touch(j + 2);
-            }
-            self.out[j] = eval
-                .distance(self.row, j, f64::INFINITY)
-                .unwrap_or(f64::INFINITY);
         }
     }
 }
@@ -474,20 +496,25 @@ pub fn fill_rows(
     let buffer = out
         .as_slice_mut()
         .expect("standard layout was checked above");
-    buffer.par_chunks_mut(m).enumerate().for_each_init(
-        kernel::Scratch::default,
-        |scratch, (r, row)| {
-            let i = i0 + r;
-            row[i] = 0.0;
-            let driver = RowDriver {
-                row: i,
+    buffer
+        .par_chunks_mut(m * TILE_ROWS)
+        .enumerate()
+        .for_each_init(kernel::Scratch::default, |scratch, (t, tile)| {
+            let row0 = i0 + t * TILE_ROWS;
+            let tile_rows = tile.len() / m;
+            for r in 0..tile_rows {
+                tile[r * m + row0 + r] = 0.0;
+            }
+            let driver = TileDriver {
+                row0,
+                m,
                 skip_from: i0,
-                out: row,
+                out: tile,
             };
             kernel::dispatch(prepared, metric, scratch, driver);
-            progress.advance((m - 1 - r) as u64);
-        },
-    );
+            let done: usize = (0..tile_rows).map(|r| m - 1 - (row0 + r - i0)).sum();
+            progress.advance(done as u64);
+        });
     for i in rows.clone() {
         for j in i0..i {
             out[[i - i0, j]] = out[[j - i0, i]];
