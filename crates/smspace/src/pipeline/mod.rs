@@ -307,6 +307,7 @@ impl Runner<'_> {
 
     /// Runs one stage: reuses it when the previous manifest has its key and intact
     /// outputs (`load`), computes it otherwise (`compute`); records it either way.
+    /// Returns the stage's value and its key (for the keys of the stages after it).
     fn stage<T>(
         &mut self,
         stage: Stage,
@@ -314,7 +315,7 @@ impl Runner<'_> {
         load: impl FnOnce(&Path) -> crate::Result<T>,
         compute: impl FnOnce(&Path, &dyn Progress) -> crate::Result<(T, Outputs)>,
         summary: impl FnOnce(&T) -> String,
-    ) -> Result<T, PipelineError> {
+    ) -> Result<(T, String), PipelineError> {
         let name = stage.name();
         let mut parts: Vec<&[u8]> = vec![SMSPACE_VERSION.as_bytes(), name.as_bytes()];
         parts.extend_from_slice(key_parts);
@@ -365,7 +366,7 @@ impl Runner<'_> {
                 self.manifest.stages.retain(|r| r.stage != name);
                 self.manifest.stages.push(record);
                 self.write_manifest()?;
-                Ok(value)
+                Ok((value, key))
             }
             Err(reason) => {
                 self.manifest.status = RunStatus::Failed {
@@ -511,7 +512,7 @@ pub fn run(
 
     // 1. Exploration (and the environments it runs in).
     let explore_key = json(&(&e.agent, &e.environment, &e.exploration));
-    let exploration = runner.stage(
+    let (exploration, explore_record) = runner.stage(
         Stage::Explore,
         &[explore_key.as_bytes()],
         |dir| Ok(Exploration::load(dir, agent.motor_dim(), plan.workspace)?),
@@ -540,16 +541,10 @@ pub fn run(
             )
         },
     )?;
-    let explore_record = runner
-        .manifest
-        .stages
-        .last()
-        .map(|r| r.key.clone())
-        .unwrap_or_default();
 
     // 2. Kernel sets.
     let trace_key = json(&e.kernel);
-    let traced = runner.stage(
+    let (traced, trace_record) = runner.stage(
         Stage::Trace,
         &[explore_record.as_bytes(), trace_key.as_bytes()],
         |dir| {
@@ -602,17 +597,11 @@ pub fn run(
             )
         },
     )?;
-    let trace_record = runner
-        .manifest
-        .stages
-        .last()
-        .map(|r| r.key.clone())
-        .unwrap_or_default();
     let kept_poses = exploration.poses.select(Axis(0), &traced.kept);
 
     // 3. Distances between sets.
     let metric_key = json(&(e.metric.metric, e.metric.period));
-    let distances = runner.stage(
+    let (distances, distance_record) = runner.stage(
         Stage::Distances,
         &[trace_record.as_bytes(), metric_key.as_bytes()],
         |dir| Ok(io::read_matrix(&dir.join("D.npy"), None, "(M, M)")?),
@@ -647,16 +636,10 @@ pub fn run(
             ),
         });
     }
-    let distance_record = runner
-        .manifest
-        .stages
-        .last()
-        .map(|r| r.key.clone())
-        .unwrap_or_default();
 
     // 4. Embedding.
     let embed_key = json(&(&e.embedding, DYDX_PAIRS, QUALITY_NEIGHBOURS));
-    let embedded = runner.stage(
+    let (embedded, embed_record) = runner.stage(
         Stage::Embed,
         &[distance_record.as_bytes(), embed_key.as_bytes()],
         |dir| {
@@ -723,16 +706,10 @@ pub fn run(
             )
         },
     )?;
-    let embed_record = runner
-        .manifest
-        .stages
-        .last()
-        .map(|r| r.key.clone())
-        .unwrap_or_default();
 
     // 5. Analysis.
     let analysis_key = json(&e.analysis);
-    let analysis = runner.stage(
+    let (analysis, analysis_record) = runner.stage(
         Stage::Analyze,
         &[
             distance_record.as_bytes(),
@@ -767,15 +744,9 @@ pub fn run(
             )
         },
     )?;
-    let analysis_record = runner
-        .manifest
-        .stages
-        .last()
-        .map(|r| r.key.clone())
-        .unwrap_or_default();
 
     // 6. Invariance across environments.
-    let invariance = match &plan.invariance_trace {
+    let (invariance, invariance_record) = match &plan.invariance_trace {
         None => {
             observer.stage_skipped(
                 Stage::Invariance,
@@ -785,7 +756,7 @@ pub fn run(
                     "analysis.invariance_starts = 0"
                 },
             );
-            None
+            (None, String::new())
         }
         Some(params) => {
             let babbled: Vec<usize> = exploration
@@ -798,11 +769,11 @@ pub fn run(
                 .take(e.analysis.invariance_starts)
                 .collect();
             let starts = exploration.motors.select(Axis(0), &babbled);
-            let key = json(&(&e.kernel, e.analysis.invariance_starts));
+            let invariance_params = json(&(&e.kernel, e.analysis.invariance_starts));
             let count = environments.len();
-            Some(runner.stage(
+            let (data, key) = runner.stage(
                 Stage::Invariance,
-                &[explore_record.as_bytes(), key.as_bytes()],
+                &[explore_record.as_bytes(), invariance_params.as_bytes()],
                 |dir| {
                     let report = io::read_json(&dir.join("invariance.json"), "invariance report")?;
                     let mut set_distances = Vec::new();
@@ -855,16 +826,10 @@ pub fn run(
                         r.max_sensor_mantel
                     )
                 },
-            )?)
+            )?;
+            (Some(data), key)
         }
     };
-    let invariance_record = runner
-        .manifest
-        .stages
-        .iter()
-        .find(|r| r.stage == Stage::Invariance.name())
-        .map(|r| r.key.clone())
-        .unwrap_or_default();
 
     // 7. Figures and report.
     let report_key = json(&(&loaded.name, &e.description, &e.report));
