@@ -34,7 +34,20 @@
 use super::prepared::{fold, PreparedSets, SetRef, BOUND_MARGIN, LANES};
 
 /// Window length of the warm-started scan (number of `b` tried per block).
+///
+/// A window centred on the middle of chunk `β` that runs to its end covers every point of
+/// that chunk (`start − 4 ..= start + 4`), so the exact search can skip `β`.
 const WINDOW: usize = 9;
+const _: () = assert!(WINDOW > LANES);
+
+/// Whether the window scan already went through every point of the nearest chunk.
+#[derive(Debug, Clone, Copy)]
+enum Scanned {
+    /// The window ran to its end: chunk `β` is covered.
+    Yes,
+    /// No window ran.
+    No,
+}
 
 /// Largest block count ordered by the branch-free rank sort.
 const RANK_SORT_MAX: usize = 16;
@@ -124,7 +137,7 @@ fn dist2<const N: usize>(a: &[[f64; LANES]; N], b: &[f64; N], period: f64) -> [f
         let bk = b[k];
         for l in 0..LANES {
             let w = fold(a[k][l] - bk, period);
-            acc[l] += w * w;
+            acc[l] = w.mul_add(w, acc[l]);
         }
     }
     acc
@@ -151,65 +164,51 @@ fn around(start: usize, t: usize, len: usize) -> usize {
     }
 }
 
+/// For every chunk of `a`, the nearest chunk of `b` by centre distance and that squared
+/// distance, written to `key` and `near` (one entry per chunk of `a`).
+///
+/// Lanes run over eight chunks of `a` while the centres of `b` are broadcast one by one,
+/// so the running minimum stays in registers and needs no horizontal reduction. Indices
+/// are kept as `f64` (small exact integers) so that every lane is 64 bits wide and the
+/// selects compile to vector blends. Ties keep the lower index.
+#[inline(always)]
+fn nearest_chunks<const N: usize>(
+    a: SetRef<'_>,
+    b: SetRef<'_>,
+    shape: Shape,
+    key: &mut Vec<f64>,
+    near: &mut Vec<f64>,
+) {
+    key.clear();
+    near.clear();
+    for v in 0..shape.chunks_pad / LANES {
+        let ca = load_block::<N>(a.centers_soa, shape.chunks_pad, v);
+        let mut best = [f64::INFINITY; LANES];
+        let mut best_at = [0.0; LANES];
+        for beta in 0..shape.chunks {
+            let mut cb = [0.0; N];
+            cb.copy_from_slice(&b.centers[beta * N..(beta + 1) * N]);
+            let d = dist2(&ca, &cb, shape.period);
+            let beta_f = beta as f64;
+            for l in 0..LANES {
+                let closer = d[l] < best[l];
+                best[l] = if closer { d[l] } else { best[l] };
+                best_at[l] = if closer { beta_f } else { best_at[l] };
+            }
+        }
+        key.extend_from_slice(&best);
+        near.extend_from_slice(&best_at);
+    }
+    key.truncate(shape.chunks);
+    near.truncate(shape.chunks);
+}
+
 /// For both directions, the nearest chunk of the other set to every chunk (by centre
 /// distance) and that squared distance: `row_*` for `A → B`, `col_*` for `B → A`.
-/// Indices are kept as `f64` (small exact integers) so that every lane is 64 bits wide
-/// and the updates vectorise.
 #[inline(always)]
 fn center_table<const N: usize>(a: SetRef<'_>, b: SetRef<'_>, shape: Shape, scratch: &mut Scratch) {
-    let Scratch {
-        row_key,
-        row_near,
-        col_key,
-        col_near,
-        ..
-    } = scratch;
-    row_key.clear();
-    row_near.clear();
-    col_key.clear();
-    col_key.resize(shape.chunks_pad, f64::INFINITY);
-    col_near.clear();
-    col_near.resize(shape.chunks_pad, 0.0);
-    for alpha in 0..shape.chunks {
-        let mut ca = [0.0; N];
-        ca.copy_from_slice(&a.centers[alpha * N..(alpha + 1) * N]);
-        let alpha_f = alpha as f64;
-        let mut key = [f64::INFINITY; LANES];
-        let mut near = [0.0; LANES];
-        for v in 0..shape.chunks_pad / LANES {
-            let cb = load_block::<N>(b.centers_soa, shape.chunks_pad, v);
-            let d = dist2(&cb, &ca, shape.period);
-            let base = (v * LANES) as f64;
-            // Work on local copies so that the selects compile to vector blends.
-            let lanes = v * LANES..(v + 1) * LANES;
-            let mut ck: [f64; LANES] = col_key[lanes.clone()].try_into().expect("whole vectors");
-            let mut cn: [f64; LANES] = col_near[lanes.clone()].try_into().expect("whole vectors");
-            for l in 0..LANES {
-                let closer = d[l] < ck[l];
-                ck[l] = if closer { d[l] } else { ck[l] };
-                cn[l] = if closer { alpha_f } else { cn[l] };
-                let closer = d[l] < key[l];
-                key[l] = if closer { d[l] } else { key[l] };
-                near[l] = if closer { base + l as f64 } else { near[l] };
-            }
-            col_key[lanes.clone()].copy_from_slice(&ck);
-            col_near[lanes].copy_from_slice(&cn);
-        }
-        let mut width = LANES / 2;
-        while width > 0 {
-            for l in 0..width {
-                let closer = key[l + width] < key[l];
-                key[l] = if closer { key[l + width] } else { key[l] };
-                near[l] = if closer { near[l + width] } else { near[l] };
-            }
-            width /= 2;
-        }
-        row_key.push(key[0]);
-        // Padding chunks repeat the last centre.
-        row_near.push(near[0].min((shape.chunks - 1) as f64));
-    }
-    col_key.truncate(shape.chunks);
-    col_near.truncate(shape.chunks);
+    nearest_chunks::<N>(a, b, shape, &mut scratch.row_key, &mut scratch.row_near);
+    nearest_chunks::<N>(b, a, shape, &mut scratch.col_key, &mut scratch.col_near);
 }
 
 /// Window scan of one block around `start`: per-lane smallest `g²` over the window.
@@ -252,9 +251,14 @@ fn refine<const N: usize>(
     b: SetRef<'_>,
     shape: Shape,
     near: usize,
+    near_scanned: Scanned,
 ) -> [f64; LANES] {
     let shrink = 1.0 - 4.0 * BOUND_MARGIN;
-    for t in 0..shape.chunks {
+    let first = match near_scanned {
+        Scanned::Yes => 1,
+        Scanned::No => 0,
+    };
+    for t in first..shape.chunks {
         let q = around(near, t, shape.chunks);
         let mut open = false;
         for l in 0..LANES {
@@ -356,7 +360,8 @@ fn directed_hausdorff<const N: usize>(
         if settled {
             continue;
         }
-        let best = refine(&a, best, c, b_set, shape, near);
+        let scanned = if c > 0.0 { Scanned::Yes } else { Scanned::No };
+        let best = refine(&a, best, c, b_set, shape, near, scanned);
         c = max(c, lanes_max(&best));
         if c > abort {
             return None;
@@ -379,7 +384,15 @@ fn directed_mean_sum<const N: usize>(
         let near = near[block] as usize;
         let start = (near * LANES + LANES / 2).min(shape.points - 1);
         let (best, _) = window(&a, b_set, shape, start, f64::NEG_INFINITY);
-        let best = refine(&a, best, f64::NEG_INFINITY, b_set, shape, near);
+        let best = refine(
+            &a,
+            best,
+            f64::NEG_INFINITY,
+            b_set,
+            shape,
+            near,
+            Scanned::Yes,
+        );
         for (l, d2) in best.iter().enumerate() {
             if block * LANES + l < shape.points {
                 sum += d2.sqrt();
