@@ -109,6 +109,27 @@ fn equals_brute_force_on_close_and_shifted_sets() {
 }
 
 #[test]
+fn equals_brute_force_when_the_centre_table_overflows_f32() {
+    // The centre table that orders the work is kept in f32. Without a period,
+    // coordinates of 1e30 overflow its squared distances (and 1e40 the f32 range); the
+    // distances, computed in f64, must not change.
+    for scale in [1e30, 1e40] {
+        let sets = uniform_sets(6, 20, 3, 21).mapv(|x| x * scale);
+        for kind in KINDS {
+            let fast = distance_matrix(sets.view(), &params(kind, Period::None), &Silent).unwrap();
+            let slow = reference::distance_matrix(sets.view(), kind, Period::None);
+            for ((i, j), &x) in fast.indexed_iter() {
+                let y = slow[[i, j]];
+                assert!(
+                    (x - y).abs() <= 1e-12 * y.abs(),
+                    "{kind:?} scale {scale}: D[{i}, {j}] = {x}, brute force {y}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn symmetric_with_zero_diagonal() {
     let sets = arm_like_sets(20, 30, 3);
     for kind in KINDS {

@@ -4,34 +4,37 @@
 //! # How the directed Hausdorff part `max_a min_b g²(a, b)` is found without the full
 //! `P × P` scan
 //!
-//! Both sets are cut into chunks of eight consecutive points, each with a bounding
-//! ball (centre, radius) and a bounding box (centre, half-width per coordinate). The points of `A` are processed one chunk at a time as a
-//! SIMD block (lanes over `a`, one point `b` broadcast). A running lower bound `c` of
-//! the answer is kept: a point `a` only matters if its nearest distance exceeds `c`, so
-//! as soon as any `b` with `g²(a, b) ≤ c` is seen, `a` is settled (the early break of
-//! Taha & Hanbury 2015).
+//! Both sets are cut into chunks of eight consecutive points, each with a bounding box
+//! (centre, half-width per coordinate). The points of `A` are processed one chunk at a
+//! time as a SIMD block (lanes over `a`, one point `b` broadcast). A running lower
+//! bound `c` of the answer is kept: a point `a` only matters if its nearest distance
+//! exceeds `c`, so as soon as any `b` with `g²(a, b) ≤ c` is seen, `a` is settled (the
+//! early break of Taha & Hanbury 2015).
 //!
 //! 1. *Centre table.* The squared distances between all chunk centres of `A` and `B`
 //!    give, for every chunk of either set, the nearest chunk of the other (a warm
 //!    start: the sets are ordered curves, so a point's nearest neighbour lies near the
 //!    nearest chunk) and an ordering: blocks far from the other set first, so that `c`
-//!    reaches its final value early. One table serves both directions.
-//! 2. *Free settling.* Every point of block `α` is within `r_α + |c_α c_β| + r_β` of a
-//!    point of its nearest chunk `β`; when that is `≤ √c` the block is settled unseen.
-//! 3. *Window.* Otherwise a short window of `b` around the middle of chunk `β` is
-//!    scanned; it stops as soon as every lane is `≤ c`.
-//! 4. *Exact search.* Lanes still open get their exact nearest distance: chunks of `B`
-//!    are visited outward from `β`, and a chunk is scanned only if its bounding box
-//!    (per-coordinate periodic interval around the centre) can hold a point closer than
-//!    a lane's best so far (`|h(a_n − b_n)| ≥ |h(a_n − centre_n)| − width_n`); the search
-//!    stops as soon as every lane is `≤ c`. The exact distances found raise `c`.
+//!    reaches its final value early. Without that order the matrix of 2500 arm sets
+//!    takes 30 % longer. The table only steers the work, so it is computed in `f32`,
+//!    sixteen chunks per vector (about 10 % less time than in `f64`).
+//! 2. *Window.* The points of chunk `β` nearest to block `α` are scanned from the
+//!    middle of the chunk outward (one more point past it); the scan stops as soon as
+//!    every lane is `≤ c`.
+//! 3. *Exact search.* Lanes still open get their exact nearest distance: the other
+//!    chunks of `B` are visited outward from `β` (`β` itself was covered by the
+//!    window), and a chunk is scanned only if its bounding box (per-coordinate periodic
+//!    interval around the centre) can hold a point closer than a lane's best so far
+//!    (`|h(a_n − b_n)| ≥ |h(a_n − centre_n)| − width_n`); the search stops as soon as
+//!    every lane is `≤ c`. The exact distances found raise `c`.
 //!
 //! The result is the maximum over `a` of exactly computed minima: the same number the
-//! brute force gives, for any order of work. The symmetric distance runs `B → A`
-//! starting from `c = h(A, B)`, where most blocks settle at once. Bounds carry a
+//! brute force gives, for any order of work (up to rounding: the sums of squares use fused
+//! multiply-adds; on the arm sets the largest difference is 9e-16). The symmetric
+//! distance runs `B → A` starting from `c = h(A, B)`, where most blocks settle at once. Bounds carry a
 //! relative margin ([`BOUND_MARGIN`]) so that rounding never prunes a winner.
 
-use super::prepared::{fold, PreparedSets, SetRef, BOUND_MARGIN, LANES};
+use super::prepared::{fold, PreparedSets, SetRef, BOUND_MARGIN, LANES, WIDE};
 
 /// Window length of the warm-started scan (number of `b` tried per block).
 ///
@@ -55,10 +58,10 @@ const RANK_SORT_MAX: usize = 16;
 /// Reusable buffers of one worker thread.
 #[derive(Debug, Default)]
 pub(crate) struct Scratch {
-    row_key: Vec<f64>,
-    row_near: Vec<f64>,
-    col_key: Vec<f64>,
-    col_near: Vec<f64>,
+    row_key: Vec<f32>,
+    row_near: Vec<u32>,
+    col_key: Vec<f32>,
+    col_near: Vec<u32>,
     order: Vec<u64>,
 }
 
@@ -68,7 +71,7 @@ pub(crate) struct Shape {
     points: usize,
     points_pad: usize,
     chunks: usize,
-    chunks_pad: usize,
+    chunks_wide: usize,
     period: f64,
 }
 
@@ -78,7 +81,7 @@ impl Shape {
             points: prepared.points(),
             points_pad: prepared.points_pad(),
             chunks: prepared.chunks(),
-            chunks_pad: prepared.chunks_pad(),
+            chunks_wide: prepared.chunks_wide(),
             period: prepared.period_value(),
         }
     }
@@ -167,37 +170,50 @@ fn around(start: usize, t: usize, len: usize) -> usize {
 /// For every chunk of `a`, the nearest chunk of `b` by centre distance and that squared
 /// distance, written to `key` and `near` (one entry per chunk of `a`).
 ///
-/// Lanes run over eight chunks of `a` while the centres of `b` are broadcast one by one,
-/// so the running minimum stays in registers and needs no horizontal reduction. Indices
-/// are kept as `f64` (small exact integers) so that every lane is 64 bits wide and the
-/// selects compile to vector blends. Ties keep the lower index.
+/// The table only orders the work and picks where each scan starts; no distance depends
+/// on it. It is therefore computed in `f32`, sixteen chunks of `a` per vector, while the
+/// centres of `b` are broadcast one by one: the running minimum stays in registers and
+/// needs no horizontal reduction. Indices are kept as `f32` (small exact integers) so
+/// that the selects compile to vector blends. Ties keep the lower index.
 #[inline(always)]
 fn nearest_chunks<const N: usize>(
     a: SetRef<'_>,
     b: SetRef<'_>,
     shape: Shape,
-    key: &mut Vec<f64>,
-    near: &mut Vec<f64>,
+    key: &mut Vec<f32>,
+    near: &mut Vec<u32>,
 ) {
     key.clear();
     near.clear();
-    for v in 0..shape.chunks_pad / LANES {
-        let ca = load_block::<N>(a.centers_soa, shape.chunks_pad, v);
-        let mut best = [f64::INFINITY; LANES];
-        let mut best_at = [0.0; LANES];
+    let period = shape.period as f32;
+    for v in 0..shape.chunks_wide / WIDE {
+        let mut ca = [[0.0f32; WIDE]; N];
+        for (k, lanes) in ca.iter_mut().enumerate() {
+            lanes.copy_from_slice(&a.centers_wide[k * shape.chunks_wide + v * WIDE..][..WIDE]);
+        }
+        let mut best = [f32::INFINITY; WIDE];
+        let mut best_at = [0.0f32; WIDE];
         for beta in 0..shape.chunks {
-            let mut cb = [0.0; N];
-            cb.copy_from_slice(&b.centers[beta * N..(beta + 1) * N]);
-            let d = dist2(&ca, &cb, shape.period);
-            let beta_f = beta as f64;
-            for l in 0..LANES {
+            let mut cb = [0.0f32; N];
+            cb.copy_from_slice(&b.centers_narrow[beta * N..(beta + 1) * N]);
+            let mut d = [0.0f32; WIDE];
+            for k in 0..N {
+                for l in 0..WIDE {
+                    let u = (ca[k][l] - cb[k]).abs();
+                    let v = period - u;
+                    let w = if v < u { v } else { u };
+                    d[l] = w.mul_add(w, d[l]);
+                }
+            }
+            let beta_f = beta as f32;
+            for l in 0..WIDE {
                 let closer = d[l] < best[l];
                 best[l] = if closer { d[l] } else { best[l] };
                 best_at[l] = if closer { beta_f } else { best_at[l] };
             }
         }
         key.extend_from_slice(&best);
-        near.extend_from_slice(&best_at);
+        near.extend(best_at.iter().map(|&x| x as u32));
     }
     key.truncate(shape.chunks);
     near.truncate(shape.chunks);
@@ -306,7 +322,7 @@ fn directed_hausdorff<const N: usize>(
     a_set: SetRef<'_>,
     b_set: SetRef<'_>,
     shape: Shape,
-    (key, near): (&[f64], &[f64]),
+    (key, near): (&[f32], &[u32]),
     mut c: f64,
     abort: f64,
     scratch_order: &mut Vec<u64>,
@@ -314,7 +330,7 @@ fn directed_hausdorff<const N: usize>(
     scratch_order.resize(shape.chunks.max(scratch_order.len()), 0);
     // Blocks far from B first, so that `c` reaches its final value early. The order
     // only decides how soon blocks can be settled, never the result, so the keys may
-    // be coarse: a non-negative f64 orders like its bits, and the block index takes the
+    // be coarse: a non-negative f32 orders like its bits, and the block index takes the
     // low bits, which makes the keys distinct integers. Up to RANK_SORT_MAX blocks they
     // are ranked without branches (the insertion and generic sorts mispredicted);
     // past that the comparison sort is used.
@@ -324,7 +340,7 @@ fn directed_hausdorff<const N: usize>(
         // low bits), so the rank of a key is the number of larger keys.
         let mut packed = [0u64; RANK_SORT_MAX];
         for (alpha, slot) in packed.iter_mut().enumerate().take(shape.chunks) {
-            *slot = (key[alpha].to_bits() & !0xff) | alpha as u64;
+            *slot = (u64::from(key[alpha].to_bits()) << 8) | alpha as u64;
         }
         for (alpha, &x) in packed.iter().enumerate().take(shape.chunks) {
             let mut rank = 0u64;
@@ -342,12 +358,6 @@ fn directed_hausdorff<const N: usize>(
     for &alpha in order.iter() {
         let alpha = alpha as usize;
         let near = near[alpha] as usize;
-        // Every point of block α is within r_α + g(centres) + r_β of some point of
-        // chunk β: when that is ≤ √c the whole block is settled without looking.
-        let reach = key[alpha].sqrt() + a_set.radii[alpha] + b_set.radii[near];
-        if reach * reach * (1.0 + 4.0 * BOUND_MARGIN) <= c {
-            continue;
-        }
         let a = load_block::<N>(a_set.coords, shape.points_pad, alpha);
         let start = (near * LANES + LANES / 2).min(shape.points - 1);
         // With nothing found yet (c = 0) no window can settle the block: go straight to
@@ -376,7 +386,7 @@ fn directed_mean_sum<const N: usize>(
     a_set: SetRef<'_>,
     b_set: SetRef<'_>,
     shape: Shape,
-    near: &[f64],
+    near: &[u32],
 ) -> f64 {
     let mut sum = 0.0;
     for block in 0..shape.chunks {
@@ -519,15 +529,14 @@ impl<const N: usize> Eval for Evaluator<'_, N> {
     fn touch(&mut self, j: usize) {
         let set = self.prepared.set(j);
         let mut sum = 0.0;
-        for part in [
-            set.coords,
-            set.points,
-            set.centers,
-            set.centers_soa,
-            set.widths,
-        ] {
+        for part in [set.coords, set.points, set.centers, set.widths] {
             for x in part.iter().step_by(8) {
                 sum += x;
+            }
+        }
+        for part in [set.centers_narrow, set.centers_wide] {
+            for &x in part.iter().step_by(16) {
+                sum += f64::from(x);
             }
         }
         std::hint::black_box(sum);

@@ -29,8 +29,8 @@
 //! Every value equals the brute-force `max`/`min` over the whole `P × P` table of
 //! `g` (the functions in [`mod@reference`]): the fast kernels only skip work that cannot
 //! change it. They combine an early-break scan (Taha & Hanbury 2015), warm starts from
-//! the nearest chunk of the other set (sets are ordered closed curves), bounding balls
-//! and boxes around runs of eight consecutive points, and a structure-of-arrays layout processed
+//! the nearest chunk of the other set (sets are ordered closed curves), bounding boxes
+//! around runs of eight consecutive points, and a structure-of-arrays layout processed
 //! eight points at a time with runtime SIMD dispatch ([`PreparedSets`]; details in the
 //! `kernel` source). The matrix is computed in tiles of 32 rows × 32 columns, so that
 //! the sets of a column block stay in the L2 cache while every row of the tile uses

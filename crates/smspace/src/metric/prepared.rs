@@ -1,16 +1,20 @@
 //! The kernel sets laid out for the fast kernels: structure of arrays, padded to whole
-//! SIMD blocks, with a bounding ball and box around every run of [`LANES`] consecutive points.
+//! SIMD blocks, with a bounding box around every run of [`LANES`] consecutive points.
 
 use ndarray::ArrayView3;
 
 use super::{MetricError, Period};
 
-/// Points per SIMD block (and per bounding ball). Eight `f64` fill one AVX-512 register
+/// Points per SIMD block (and per bounding box). Eight `f64` fill one AVX-512 register
 /// or two AVX2 registers.
 pub(crate) const LANES: usize = 8;
 
-/// Relative safety margin applied to the bounding-ball radii and to the lower bounds
-/// derived from them, so that rounding never prunes a point that could win.
+/// Chunks per `f32` vector of the centre table: sixteen `f32` fill one AVX-512
+/// register.
+pub(crate) const WIDE: usize = 16;
+
+/// Relative safety margin applied to the bounding boxes and to the lower bounds derived
+/// from them, so that rounding never prunes a point that could win.
 pub(crate) const BOUND_MARGIN: f64 = 1e-12;
 
 /// Kernel sets `(M, P, N)` laid out for the fast metric kernels.
@@ -35,9 +39,9 @@ pub struct PreparedSets {
     coords: Vec<f64>,
     points_aos: Vec<f64>,
     centers: Vec<f64>,
-    centers_soa: Vec<f64>,
+    centers_narrow: Vec<f32>,
+    centers_wide: Vec<f32>,
     widths: Vec<f64>,
-    radii: Vec<f64>,
 }
 
 /// One prepared set, as the kernels see it.
@@ -48,16 +52,18 @@ pub(crate) struct SetRef<'a> {
     /// `[point][n]`, `points_pad × dims_pad`: the same coordinates point by point, for
     /// broadcasting one point against a block.
     pub points: &'a [f64],
-    /// `[chunk][n]`, `chunks × dims_pad`: centres of the bounding balls and boxes.
+    /// `[chunk][n]`, `chunks × dims_pad`: centres of the bounding boxes.
     pub centers: &'a [f64],
-    /// `[n][chunk]`, `dims_pad × chunks_pad`: the same centres, eight chunks per vector
-    /// (padded with copies of the last centre).
-    pub centers_soa: &'a [f64],
+    /// `[chunk][n]`: the centres rounded to `f32`, for the centre table (which only
+    /// orders the work and picks starting points, so its precision never changes a
+    /// distance).
+    pub centers_narrow: &'a [f32],
+    /// `[n][chunk]`, `dims_pad × chunks_wide`: the same `f32` centres, sixteen chunks per
+    /// vector (padded with copies of the last centre).
+    pub centers_wide: &'a [f32],
     /// `[chunk][n]`: half-widths of the bounding boxes around the centres, per
     /// coordinate (periodic intervals, already enlarged by the margin).
     pub widths: &'a [f64],
-    /// `[chunk]`: radii of the bounding balls (already enlarged by the margin).
-    pub radii: &'a [f64],
 }
 
 /// Wraps `u` into `[-T/2, T/2)`, leaving values already there untouched.
@@ -126,9 +132,8 @@ impl PreparedSets {
         let mut coords = vec![0.0; m * dims_pad * points_pad];
         let mut centers = vec![0.0; m * chunks * dims_pad];
         let mut points_aos = vec![0.0; m * points_pad * dims_pad];
-        let chunks_pad = chunks.div_ceil(LANES) * LANES;
-        let mut centers_soa = vec![0.0; m * dims_pad * chunks_pad];
-        let mut radii = vec![0.0; m * chunks];
+        let chunks_wide = chunks.div_ceil(WIDE) * WIDE;
+        let mut centers_wide = vec![0.0; m * dims_pad * chunks_wide];
         let mut widths = vec![0.0; m * chunks * dims_pad];
         for (s, set) in sets.outer_iter().enumerate() {
             let block = &mut coords[s * dims_pad * points_pad..(s + 1) * dims_pad * points_pad];
@@ -149,19 +154,6 @@ impl PreparedSets {
                     }
                     center[k] = wrap(anchor + shift / LANES as f64, period_value);
                 }
-                let mut radius2: f64 = 0.0;
-                for j in 0..LANES {
-                    let mut d2 = 0.0;
-                    for k in 0..dims_pad {
-                        let w = fold(
-                            block[k * points_pad + q * LANES + j] - center[k],
-                            period_value,
-                        );
-                        d2 += w * w;
-                    }
-                    radius2 = radius2.max(d2);
-                }
-                radii[s * chunks + q] = radius2.sqrt() * (1.0 + BOUND_MARGIN);
                 for k in 0..dims_pad {
                     let mut width: f64 = 0.0;
                     for j in 0..LANES {
@@ -180,9 +172,9 @@ impl PreparedSets {
                 }
             }
             for k in 0..dims_pad {
-                for q in 0..chunks_pad {
-                    centers_soa[(s * dims_pad + k) * chunks_pad + q] =
-                        centers[(s * chunks + q.min(chunks - 1)) * dims_pad + k];
+                for q in 0..chunks_wide {
+                    centers_wide[(s * dims_pad + k) * chunks_wide + q] =
+                        centers[(s * chunks + q.min(chunks - 1)) * dims_pad + k] as f32;
                 }
             }
         }
@@ -196,10 +188,10 @@ impl PreparedSets {
             period_kind: period,
             coords,
             points_aos,
+            centers_narrow: centers.iter().map(|&x| x as f32).collect(),
             centers,
-            centers_soa,
+            centers_wide,
             widths,
-            radii,
         })
     }
 
@@ -230,11 +222,8 @@ impl PreparedSets {
 
     /// Bytes held by the layout.
     pub fn bytes(&self) -> u64 {
-        ((2 * self.coords.len()
-            + 2 * self.centers.len()
-            + self.centers_soa.len()
-            + self.radii.len())
-            * 8) as u64
+        ((2 * self.coords.len() + 2 * self.centers.len()) * 8
+            + (self.centers_narrow.len() + self.centers_wide.len()) * 4) as u64
     }
 
     pub(crate) fn period_value(&self) -> f64 {
@@ -253,21 +242,22 @@ impl PreparedSets {
         self.points_pad / LANES
     }
 
-    pub(crate) fn chunks_pad(&self) -> usize {
-        self.chunks().div_ceil(LANES) * LANES
+    pub(crate) fn chunks_wide(&self) -> usize {
+        self.chunks().div_ceil(WIDE) * WIDE
     }
 
     pub(crate) fn set(&self, s: usize) -> SetRef<'_> {
         let per = self.dims_pad * self.points_pad;
         let chunks = self.chunks();
-        let soa = self.dims_pad * self.chunks_pad();
+        let wide = self.dims_pad * self.chunks_wide();
         SetRef {
             coords: &self.coords[s * per..(s + 1) * per],
             points: &self.points_aos[s * per..(s + 1) * per],
             centers: &self.centers[s * chunks * self.dims_pad..(s + 1) * chunks * self.dims_pad],
-            centers_soa: &self.centers_soa[s * soa..(s + 1) * soa],
+            centers_narrow: &self.centers_narrow
+                [s * chunks * self.dims_pad..(s + 1) * chunks * self.dims_pad],
+            centers_wide: &self.centers_wide[s * wide..(s + 1) * wide],
             widths: &self.widths[s * chunks * self.dims_pad..(s + 1) * chunks * self.dims_pad],
-            radii: &self.radii[s * chunks..(s + 1) * chunks],
         }
     }
 
@@ -276,10 +266,10 @@ impl PreparedSets {
         let dims_pad = dims.next_power_of_two().max(2);
         let points_pad = points.div_ceil(LANES) * LANES;
         let chunks = points_pad / LANES;
-        let chunks_pad = chunks.div_ceil(LANES) * LANES;
-        (sets as u64)
-            * ((dims_pad * (2 * points_pad + 2 * chunks + chunks_pad) + chunks) as u64)
-            * 8
+        let chunks_wide = chunks.div_ceil(WIDE) * WIDE;
+        let per_set =
+            dims_pad * (2 * points_pad + 2 * chunks) * 8 + dims_pad * (chunks + chunks_wide) * 4;
+        (sets as u64) * per_set as u64
     }
 }
 
