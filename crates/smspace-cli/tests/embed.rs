@@ -19,8 +19,14 @@ fn circle(n: usize) -> Array2<f64> {
     })
 }
 
+/// The report as JSON, after checking that it reads as the library's `EmbedFile` (the
+/// format `smspace run` writes too).
 fn report(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+    let text = std::fs::read_to_string(path).unwrap();
+    let file: smspace::embed::EmbedFile = serde_json::from_str(&text)
+        .unwrap_or_else(|e| panic!("{} is not an EmbedFile: {e}", path.display()));
+    assert!(file.seconds.is_some());
+    serde_json::from_str(&text).unwrap()
 }
 
 #[test]

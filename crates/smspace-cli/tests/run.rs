@@ -123,6 +123,13 @@ fn a_small_experiment_runs_end_to_end_and_is_cached() {
     ] {
         assert!(run.join(file).is_file(), "{file} missing; log: {log}");
     }
+    // The embedding report has the format `smspace embed` writes.
+    let embed: smspace::embed::EmbedFile =
+        serde_json::from_str(&std::fs::read_to_string(run.join("Y.embed.json")).unwrap())
+            .expect("Y.embed.json reads as an EmbedFile");
+    assert_eq!(embed.report.points, m);
+    assert_eq!(embed.dydx.as_ref().map(|s| s.pairs), Some(dydx.nrows()));
+    assert!(embed.quality.is_some() && embed.seconds.is_none());
     let figures = std::fs::read_dir(run.join("figures")).unwrap().count();
     assert!(figures >= 5, "only {figures} figures");
 
@@ -211,6 +218,33 @@ fn a_small_experiment_runs_end_to_end_and_is_cached() {
         .unwrap()
         .iter()
         .all(|s| s["cached"] == false));
+    // An output in a format this version no longer reads (the hash still matching) is
+    // recomputed instead of failing the run.
+    let again = dir.path().join("again");
+    std::fs::write(
+        again.join("Y.embed.json"),
+        br#"{"report": {}, "dydx_pairs": 1}"#,
+    )
+    .unwrap();
+    let mut manifest = json(&again.join("manifest.json"));
+    let hash = smspace::pipeline::manifest::hash_file(&again.join("Y.embed.json")).unwrap();
+    for record in manifest["stages"].as_array_mut().unwrap() {
+        if record["stage"] == "embed" {
+            record["outputs"]["Y.embed.json"] = serde_json::Value::String(hash.clone());
+        }
+    }
+    std::fs::write(
+        again.join("manifest.json"),
+        serde_json::to_string(&manifest).unwrap(),
+    )
+    .unwrap();
+    ok(dir.path(), &["run", "small.toml", "--out", "again"]);
+    let manifest = json(&again.join("manifest.json"));
+    assert_eq!(stage(&manifest, "distances")["cached"], true);
+    assert_eq!(stage(&manifest, "embed")["cached"], false);
+    let _: smspace::embed::EmbedFile =
+        serde_json::from_str(&std::fs::read_to_string(again.join("Y.embed.json")).unwrap())
+            .unwrap();
     // The same experiment gives the same arrays in another folder, and with one thread.
     assert_eq!(
         std::fs::read(dir.path().join("again/D.npy")).unwrap(),

@@ -6,7 +6,7 @@
 //! | file | content |
 //! |---|---|
 //! | `Y.npy` | `(M, d)` float64 coordinates |
-//! | `Y.embed.json` | parameters, stress trace (CCA), eigenvalues, trustworthiness, continuity, stress |
+//! | `Y.embed.json` | [`smspace::embed::EmbedFile`], the same fields as `smspace run` writes: the fit report (method, stress trace, eigenvalues, …), parameters, input, quality (trustworthiness, continuity, stress), the dy–dx and extension files, seconds |
 //! | `Y.dydx.npy` | `(P, 2)` float64 Shepard sample: columns `dx = X_ij`, `dy = Y_ij` for `P` seeded random pairs `i < j` (all pairs when there are fewer than `--dydx-pairs`), for the `dy–dx` plot |
 //! | `Y.extended.npy` | with `--extend N.npy`: `(N, d)` coordinates of the new points |
 
@@ -18,8 +18,8 @@ use clap::ValueEnum;
 use serde_json::json;
 use smspace::embed::quality::{assess, shepard_pairs};
 use smspace::embed::{
-    CcaParams, EmbedParams, Embedded, IsomapParams, KnnGraph, LandmarkChoice, MdsParams,
-    Neighbourhood,
+    CcaParams, DydxSample, EmbedFile, EmbedParams, Embedded, ExtendedPoints, IsomapParams,
+    KnnGraph, LandmarkChoice, MdsParams, Neighbourhood,
 };
 use smspace::io::{read_matrix, write_json, write_npy};
 
@@ -203,12 +203,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     write_npy(&args.out, &embedded.coordinates)?;
 
     let m = embedded.points();
-    let mut quality = serde_json::Value::Null;
-    let mut dydx = serde_json::Value::Null;
+    let mut quality = None;
+    let mut dydx = None;
     if let Some(d) = &distances {
         let k = args.quality_k.min(m.saturating_sub(1) / 2);
         if k >= 1 {
-            quality = serde_json::to_value(assess(d.view(), embedded.coordinates.view(), k)?)?;
+            quality = Some(assess(d.view(), embedded.coordinates.view(), k)?);
         }
         if args.dydx_pairs > 0 {
             let pairs = shepard_pairs(
@@ -219,16 +219,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )?;
             let path = sibling(&args.out, "dydx.npy");
             write_npy(&path, &pairs)?;
-            dydx = json!({
-                "file": path,
-                "pairs": pairs.nrows(),
-                "columns": ["dx (input distance X_ij)", "dy (output distance Y_ij)"],
-                "sampling": if pairs.nrows() == m * (m - 1) / 2 { "all pairs i < j" } else { "uniform random pairs i != j, seeded by --seed" },
-            });
+            dydx = Some(DydxSample::new(path, pairs.nrows(), m));
         }
     }
 
-    let mut extended = serde_json::Value::Null;
+    let mut extended = None;
     if let Some(path) = &args.extend {
         let new_to_old = read_matrix(path, Some(m), &format!("(N, {m})"))?;
         let placed = embedded
@@ -236,43 +231,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("cannot place the points of {}", path.display()))?;
         let out = sibling(&args.out, "extended.npy");
         write_npy(&out, &placed)?;
-        extended = json!({ "from": path, "file": out, "points": placed.nrows() });
+        extended = Some(ExtendedPoints {
+            from: path.clone(),
+            file: out,
+            points: placed.nrows(),
+        });
     }
 
-    let r = &embedded.report;
-    let report = json!({
-        "method": r.method,
-        "params": params_json,
-        "input": input,
-        "points": r.points,
-        "dim": r.dim,
-        "coordinates": args.out,
-        "stress_trace": r.stress_trace,
-        "lambda_end": r.lambda_end,
-        "eigenvalues": r.eigenvalues,
-        "eigenvalue_trace": r.eigenvalue_trace,
-        "k": r.k,
-        "landmarks": r.landmarks,
-        "quality": quality,
-        "dydx": dydx,
-        "extended": extended,
-        "seconds": started.elapsed().as_secs_f64(),
-    });
+    let report = EmbedFile {
+        report: embedded.report,
+        params: params_json,
+        input,
+        quality,
+        dydx,
+        extended,
+        seconds: Some(started.elapsed().as_secs_f64()),
+    };
     let report_path = sibling(&args.out, "embed.json");
     write_json(&report_path, &report)?;
-    let quality_line = match (quality.get("trustworthiness"), quality.get("continuity")) {
-        (Some(t), Some(c)) => format!(
+    let quality_line = match &report.quality {
+        Some(q) => format!(
             "; trustworthiness {:.4}, continuity {:.4}",
-            t.as_f64().unwrap_or(f64::NAN),
-            c.as_f64().unwrap_or(f64::NAN)
+            q.trustworthiness, q.continuity
         ),
-        _ => String::new(),
+        None => String::new(),
     };
     eprintln!(
         "embedded {} points in {} dimensions with {} into {} (report {}){quality_line}",
-        r.points,
-        r.dim,
-        r.method,
+        report.report.points,
+        report.report.dim,
+        report.report.method,
         args.out.display(),
         report_path.display()
     );

@@ -256,7 +256,7 @@ pub struct Embedded {
     pub(crate) extender: Extender,
 }
 
-/// Diagnostics of a fit, written to `*.embed.json` by the command-line tool.
+/// Diagnostics of a fit, written to `*.embed.json` (inside an [`EmbedFile`]).
 #[derive(Debug, Clone, Default, Serialize, Deserialize, PartialEq)]
 pub struct EmbedReport {
     /// The method's name.
@@ -283,6 +283,79 @@ pub struct EmbedReport {
     pub landmarks: Vec<usize>,
     /// Isomap: neighbours per point in the graph.
     pub k: Option<usize>,
+}
+
+/// The embedding report written next to the coordinates (`<stem>.embed.json`): the same
+/// fields whether `smspace embed` or `smspace run` wrote it.
+///
+/// The [`EmbedReport`] fields (`method`, `points`, `dim`, `stress_trace`, `eigenvalues`,
+/// …) sit at the top level of the JSON object, beside the others.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct EmbedFile {
+    /// What the method reports.
+    #[serde(flatten)]
+    pub report: EmbedReport,
+    /// The method's parameters, defaults included (`method` names the method).
+    pub params: serde_json::Value,
+    /// Where the input came from: `{"distances": path}` or
+    /// `{"knn_indices": path, "knn_distances": path}`.
+    pub input: serde_json::Value,
+    /// Trustworthiness, continuity and stress ([`quality::assess`]); `null` without a
+    /// distance matrix or with too few points.
+    pub quality: Option<quality::Quality>,
+    /// The dy–dx sample ([`quality::shepard_pairs`]), if one was written.
+    pub dydx: Option<DydxSample>,
+    /// Points placed out of sample ([`Embedded::extend`]), if any.
+    pub extended: Option<ExtendedPoints>,
+    /// Wall-clock seconds of the command (`smspace embed` only; the pipeline keeps its
+    /// timings in `manifest.json`, so that its outputs do not change between runs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seconds: Option<f64>,
+}
+
+/// The dy–dx sample file, as described in [`EmbedFile`].
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct DydxSample {
+    /// The `.npy` file of shape `(pairs, 2)`.
+    pub file: std::path::PathBuf,
+    /// Number of pairs.
+    pub pairs: usize,
+    /// What the two columns hold.
+    pub columns: [String; 2],
+    /// How the pairs were chosen.
+    pub sampling: String,
+}
+
+impl DydxSample {
+    /// Describes `pairs` rows written to `file` out of the `points (points − 1) / 2`
+    /// pairs of an embedding of `points` points (all of them, or a seeded uniform sample).
+    pub fn new(file: impl Into<std::path::PathBuf>, pairs: usize, points: usize) -> Self {
+        let all = pairs == points * points.saturating_sub(1) / 2;
+        Self {
+            file: file.into(),
+            pairs,
+            columns: [
+                "dx (input distance X_ij)".to_owned(),
+                "dy (output distance Y_ij)".to_owned(),
+            ],
+            sampling: if all {
+                "all pairs i < j".to_owned()
+            } else {
+                "uniform random pairs i != j, seeded".to_owned()
+            },
+        }
+    }
+}
+
+/// Points placed out of sample, as described in [`EmbedFile`].
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct ExtendedPoints {
+    /// The `(N, M)` distances from the new points to the embedded ones.
+    pub from: std::path::PathBuf,
+    /// The `(N, d)` coordinates written.
+    pub file: std::path::PathBuf,
+    /// Number of points placed `N`.
+    pub points: usize,
 }
 
 /// What an [`Embedded`] keeps to place new points.

@@ -37,7 +37,7 @@ use crate::agent::{Agent, Environment, MotorTopology};
 use crate::analysis::{analyze, invariance_measured, AnalysisReport, AnalysisValidParams};
 use crate::config::{ConfigError, LoadedExperiment};
 use crate::embed::quality::{assess, shepard_pairs, Quality};
-use crate::embed::{EmbedReport, Embedding};
+use crate::embed::{DydxSample, EmbedFile, EmbedReport, Embedding};
 use crate::explore::{explore_in, Exploration, Workspace, EXPLORATION_FILES};
 use crate::io::{self, IoError};
 use crate::kernel::{trace_sets, TraceMethod, TraceParams, TraceReport, TraceValidParams};
@@ -328,17 +328,18 @@ impl Runner<'_> {
             }
             _ => None,
         };
-        let result = match reusable {
-            Some(old) => load(&self.dir).map(|value| {
-                (
-                    value,
-                    StageRecord {
-                        seconds: start.elapsed().as_secs_f64(),
-                        cached: true,
-                        ..old
-                    },
-                )
-            }),
+        // Outputs that no longer read (an older format, say) are recomputed like
+        // changed ones.
+        let loaded = reusable.and_then(|old| load(&self.dir).ok().map(|value| (value, old)));
+        let result = match loaded {
+            Some((value, old)) => Ok((
+                value,
+                StageRecord {
+                    seconds: start.elapsed().as_secs_f64(),
+                    cached: true,
+                    ..old
+                },
+            )),
             None => compute(&self.dir, self.observer.progress()).and_then(|(value, files)| {
                 let seconds = start.elapsed().as_secs_f64();
                 let mut outputs = BTreeMap::new();
@@ -399,15 +400,6 @@ struct EmbedOutputs {
     report: EmbedReport,
     quality: Option<Quality>,
     dydx: Array2<f64>,
-}
-
-/// `Y.embed.json`.
-#[derive(Serialize, Deserialize)]
-struct EmbedFile {
-    report: EmbedReport,
-    params: serde_json::Value,
-    quality: Option<Quality>,
-    dydx_pairs: usize,
 }
 
 fn read_kept(path: &Path) -> crate::Result<Vec<usize>> {
@@ -674,8 +666,11 @@ pub fn run(
                 &EmbedFile {
                     report: fitted.report.clone(),
                     params: plan.embedding.params_json(),
+                    input: serde_json::json!({ "distances": "D.npy" }),
                     quality,
-                    dydx_pairs: dydx.nrows(),
+                    dydx: Some(DydxSample::new("Y.dydx.npy", dydx.nrows(), m)),
+                    extended: None,
+                    seconds: None,
                 },
             )?;
             Ok((
