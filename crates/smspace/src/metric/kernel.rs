@@ -29,10 +29,11 @@
 //!    every lane is `≤ c`. The exact distances found raise `c`.
 //!
 //! The result is the maximum over `a` of exactly computed minima: the same number the
-//! brute force gives, for any order of work (up to rounding: the sums of squares use fused
-//! multiply-adds; on the arm sets the largest difference is 9e-16). The symmetric
-//! distance runs `B → A` starting from `c = h(A, B)`, where most blocks settle at once. Bounds carry a
-//! relative margin ([`BOUND_MARGIN`]) so that rounding never prunes a winner.
+//! brute force gives, for any order of work (up to rounding: the sums of squares use
+//! fused multiply-adds; on the arm sets the largest difference is 9e-16). The symmetric
+//! distance runs `B → A` starting from `c = h(A, B)`, where most blocks settle at once.
+//! Bounds carry a relative margin ([`BOUND_MARGIN`]) so that rounding never prunes a
+//! winner.
 
 use super::prepared::{fold, PreparedSets, SetRef, BOUND_MARGIN, LANES, WIDE};
 
