@@ -200,3 +200,271 @@ fn bad_input_gets_a_clear_error() {
     let e = run(&["distances", "--sets", "missing.npy", "--out", "D.npy"]);
     assert!(e.contains("cannot read missing.npy"), "{e}");
 }
+
+#[test]
+fn curve_metric_reads_the_closed_record_or_the_flag() {
+    use smspace::metric::{Closure, SetsView};
+    let dir = tempfile::tempdir().unwrap();
+    let sets = curves(12, 10);
+    write_npy(dir.path().join("sets.npy"), &sets).unwrap();
+    // A bare .npy: the metric must be told how the points are joined.
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--metric",
+            "curve",
+        ],
+    );
+    assert!(!out.status.success());
+    let message = stderr(&out);
+    assert!(
+        message.contains("sets.closed.npy") && message.contains("--curve closed"),
+        "{message}"
+    );
+    // --curve closed: every set a loop.
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--metric",
+            "curve",
+            "--curve",
+            "closed",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let d: Array2<f64> = read_npy(dir.path().join("D.npy")).unwrap();
+    let closed = vec![Closure::Closed; 12];
+    let params = DistanceParams::new().metric(MetricKind::Curve);
+    let expected = distance_matrix(
+        SetsView::new(sets.view()).with_closure(&closed),
+        &params,
+        &Silent,
+    )
+    .unwrap();
+    assert_eq!(d, expected);
+    // The record next to the sets (as `smspace trace` writes it): mixed closures.
+    let record: ndarray::Array1<i64> = (0..12).map(|i| i64::from(i % 2 == 0)).collect();
+    write_npy(dir.path().join("sets.closed.npy"), &record).unwrap();
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--metric",
+            "curve",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let d: Array2<f64> = read_npy(dir.path().join("D.npy")).unwrap();
+    let mixed: Vec<Closure> = (0..12)
+        .map(|i| {
+            if i % 2 == 0 {
+                Closure::Closed
+            } else {
+                Closure::Open
+            }
+        })
+        .collect();
+    let expected = distance_matrix(
+        SetsView::new(sets.view()).with_closure(&mixed),
+        &params,
+        &Silent,
+    )
+    .unwrap();
+    assert_eq!(d, expected);
+    assert_ne!(
+        d,
+        distance_matrix(
+            SetsView::new(sets.view()).with_closure(&closed),
+            &params,
+            &Silent
+        )
+        .unwrap()
+    );
+    // kNN with the record equals the top of the matrix rows.
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--metric",
+            "curve",
+            "--knn",
+            "3",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let knn: Array2<f64> = read_npy(dir.path().join("knn_distances.npy")).unwrap();
+    for i in 0..12 {
+        let mut row: Vec<f64> = (0..12)
+            .filter(|&j| j != i)
+            .map(|j| expected[[i, j]])
+            .collect();
+        row.sort_by(f64::total_cmp);
+        assert_eq!(knn.row(i).to_vec(), row[..3].to_vec());
+    }
+    // A record of the wrong length, or with a code other than 0/1.
+    write_npy(
+        dir.path().join("sets.closed.npy"),
+        &ndarray::Array1::<i64>::ones(5),
+    )
+    .unwrap();
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--metric",
+            "curve",
+        ],
+    );
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("sets.closed.npy has shape (5,), expected (12,)"),
+        "{}",
+        stderr(&out)
+    );
+    write_npy(dir.path().join("sets.closed.npy"), &(&record * 2)).unwrap();
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--metric",
+            "curve",
+        ],
+    );
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("entry 0 is 2"), "{}", stderr(&out));
+    // --curve with a point metric is a mistake, said so.
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--curve",
+            "open",
+        ],
+    );
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("--curve only applies to --metric curve"),
+        "{}",
+        stderr(&out)
+    );
+    // One point per set cannot make a polyline.
+    write_npy(dir.path().join("one.npy"), &curves(4, 1)).unwrap();
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "one.npy",
+            "--out",
+            "D.npy",
+            "--metric",
+            "curve",
+            "--curve",
+            "open",
+        ],
+    );
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("at least 2 points per set"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn trace_records_which_sets_are_closed() {
+    let dir = tempfile::tempdir().unwrap();
+    let motors = ndarray::array![
+        [0.3, 0.5, -0.4, 0.2],
+        [0.1, 0.9, -0.8, 0.5],
+        [-0.2, 0.7, -0.2, 0.1]
+    ];
+    write_npy(dir.path().join("motors.npy"), &motors).unwrap();
+    let out = smspace(
+        dir.path(),
+        &[
+            "trace",
+            "--agent",
+            "planar-arm",
+            "--motors",
+            "motors.npy",
+            "--points",
+            "30",
+            "--step-control",
+            "adaptive",
+            "--out",
+            "sets.npy",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let closed: ndarray::Array1<i64> = read_npy(dir.path().join("sets.closed.npy")).unwrap();
+    let sets: Array3<f64> = read_npy(dir.path().join("sets.npy")).unwrap();
+    assert_eq!(closed.len(), sets.dim().0);
+    assert!(
+        closed.iter().all(|&c| c == 1),
+        "the arm's sets are loops: {closed}"
+    );
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--metric",
+            "curve",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    // The redundant toy's sets are open segments.
+    let toy = ndarray::array![[0.2, 0.1], [-0.5, 0.3]];
+    write_npy(dir.path().join("toy.npy"), &toy).unwrap();
+    let out = smspace(
+        dir.path(),
+        &[
+            "trace",
+            "--agent",
+            "toy-redundant",
+            "--motors",
+            "toy.npy",
+            "--points",
+            "10",
+            "--out",
+            "toy-sets.npy",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let closed: ndarray::Array1<i64> = read_npy(dir.path().join("toy-sets.closed.npy")).unwrap();
+    assert!(closed.iter().all(|&c| c == 0), "{closed}");
+}

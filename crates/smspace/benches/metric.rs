@@ -1,6 +1,7 @@
 //! Benchmarks of the metric stage on seeded arm-like kernel sets `(M, 100, 4)`:
 //!
-//! * `matrix/M`: the full Hausdorff matrix for a sweep of `M` (throughput in pairs);
+//! * `matrix/METRIC/M`: the full matrix for a sweep of `M` (throughput in pairs), for
+//!   the point metric `hausdorff` and the polyline metric `curve`;
 //! * `versus_brute_force/*`: fast kernels against the brute-force reference on the same
 //!   sets, both metrics;
 //! * `knn/M`: the 15 nearest sets of every set.
@@ -10,7 +11,9 @@
 //! `SMSPACE_BENCH_KNN=20000` (kNN size, default 5000), and
 //! `SMSPACE_BENCH_SETS=/path/sets.npy` to use real `(M, P, N)` kernel sets instead of
 //! synthetic ones (the first `M` sets of the file for each size; sizes above its `M`
-//! are skipped).
+//! are skipped; their closures from `/path/sets.closed.npy`, else all closed loops),
+//! `SMSPACE_BENCH_METRICS=hausdorff,curve` (default both). The SIMD level the kernels
+//! ran with is printed first.
 //!
 //! Criterion runs every case at least ten times; for the large sizes set
 //! `SMSPACE_BENCH_ONCE=1` to time each size once instead and print seconds and pairs per
@@ -34,7 +37,9 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, BenchmarkId, Criterion, Throughput};
 use ndarray::{Array3, Axis, Slice};
-use smspace::metric::{distance_matrix, knn, reference, DistanceParams, KnnParams, MetricKind};
+use smspace::metric::{
+    distance_matrix, knn, reference, Closure, DistanceParams, KnnParams, MetricKind, SetsView,
+};
 use smspace::progress::Silent;
 
 const POINTS: usize = 100;
@@ -58,6 +63,50 @@ fn sets(m: usize) -> Option<Array3<f64>> {
     }
 }
 
+/// The closures of the first `m` sets: `SETS.closed.npy` next to `SMSPACE_BENCH_SETS`
+/// when it exists, else closed loops (the synthetic sets are loops).
+fn closures(m: usize) -> Vec<Closure> {
+    if let Ok(path) = std::env::var("SMSPACE_BENCH_SETS") {
+        let record = std::path::Path::new(&path).with_extension("closed.npy");
+        if record.exists() {
+            let all = smspace::io::read_i64(&record).expect("readable closures");
+            return all
+                .iter()
+                .take(m)
+                .map(|&c| Closure::from_code(c).expect("codes 0 or 1"))
+                .collect();
+        }
+    }
+    vec![Closure::Closed; m]
+}
+
+fn metrics() -> Vec<MetricKind> {
+    std::env::var("SMSPACE_BENCH_METRICS")
+        .unwrap_or_else(|_| "hausdorff,curve".to_owned())
+        .split(',')
+        .map(|name| match name.trim() {
+            "hausdorff" => MetricKind::Hausdorff,
+            "mean-hausdorff" => MetricKind::MeanHausdorff,
+            "curve" => MetricKind::Curve,
+            other => panic!("unknown metric {other} in SMSPACE_BENCH_METRICS"),
+        })
+        .collect()
+}
+
+/// The instruction set the runtime dispatch picks on this CPU.
+fn simd_level() -> &'static str {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if is_x86_feature_detected!("avx512f") {
+            return "AVX-512 (x86-v4)";
+        }
+        if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+            return "AVX2 + FMA (x86-v3), no AVX-512";
+        }
+    }
+    "scalar (no AVX2)"
+}
+
 fn pairs(m: usize) -> u64 {
     (m * (m - 1) / 2) as u64
 }
@@ -69,10 +118,15 @@ fn matrix(c: &mut Criterion) {
         .warm_up_time(Duration::from_millis(500));
     for m in sizes("SMSPACE_BENCH_SIZES", "500,1000,2500") {
         let Some(sets) = sets(m) else { continue };
+        let closure = closures(m);
         group.throughput(Throughput::Elements(pairs(m)));
-        group.bench_with_input(BenchmarkId::from_parameter(m), &sets, |b, sets| {
-            b.iter(|| distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap())
-        });
+        for kind in metrics() {
+            let params = DistanceParams::new().metric(kind);
+            let view = SetsView::new(sets.view()).with_closure(&closure);
+            group.bench_with_input(BenchmarkId::new(kind.name(), m), &view, |b, view| {
+                b.iter(|| distance_matrix(*view, &params, &Silent).unwrap())
+            });
+        }
     }
     group.finish();
 }
@@ -103,55 +157,68 @@ fn nearest(c: &mut Criterion) {
         .warm_up_time(Duration::from_millis(500));
     for m in sizes("SMSPACE_BENCH_KNN", "5000") {
         let Some(sets) = sets(m) else { continue };
+        let closure = closures(m);
         group.throughput(Throughput::Elements(m as u64));
-        group.bench_with_input(BenchmarkId::from_parameter(m), &sets, |b, sets| {
-            b.iter(|| {
-                knn(
-                    sets.view(),
-                    &DistanceParams::new(),
-                    &KnnParams::new().k(15),
-                    0..m,
-                    &Silent,
-                )
-                .unwrap()
-            })
-        });
+        for kind in metrics() {
+            let params = DistanceParams::new().metric(kind);
+            let view = SetsView::new(sets.view()).with_closure(&closure);
+            group.bench_with_input(BenchmarkId::new(kind.name(), m), &view, |b, view| {
+                b.iter(|| knn(*view, &params, &KnnParams::new().k(15), 0..m, &Silent).unwrap())
+            });
+        }
     }
     group.finish();
 }
 
-/// One timed run per size, printed as a table.
+/// One timed run per size and metric, printed as a table.
 fn once() {
     let threads = rayon::current_num_threads();
-    println!("threads {threads}");
+    println!("threads {threads}, SIMD {}", simd_level());
     println!(
-        "{:>7} {:>12} {:>9} {:>14}",
-        "M", "pairs", "seconds", "pairs/s"
+        "{:>14} {:>7} {:>12} {:>9} {:>14}",
+        "metric", "M", "pairs", "seconds", "pairs/s"
     );
     for m in sizes("SMSPACE_BENCH_SIZES", "500,1000,2500") {
         let Some(sets) = sets(m) else { continue };
-        let start = Instant::now();
-        distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap();
-        let seconds = start.elapsed().as_secs_f64();
-        let pairs = pairs(m);
-        println!(
-            "{m:>7} {pairs:>12} {seconds:>9.2} {:>14.0}",
-            pairs as f64 / seconds
-        );
+        let closure = closures(m);
+        for kind in metrics() {
+            let view = SetsView::new(sets.view()).with_closure(&closure);
+            let start = Instant::now();
+            distance_matrix(view, &DistanceParams::new().metric(kind), &Silent).unwrap();
+            let seconds = start.elapsed().as_secs_f64();
+            let pairs = pairs(m);
+            println!(
+                "{:>14} {m:>7} {pairs:>12} {seconds:>9.2} {:>14.0}",
+                kind.name(),
+                pairs as f64 / seconds
+            );
+        }
     }
-    println!("{:>7} {:>4} {:>9}", "kNN M", "k", "seconds");
+    println!(
+        "{:>14} {:>7} {:>4} {:>9}",
+        "metric", "kNN M", "k", "seconds"
+    );
     for m in sizes("SMSPACE_BENCH_KNN", "5000") {
         let Some(sets) = sets(m) else { continue };
-        let start = Instant::now();
-        knn(
-            sets.view(),
-            &DistanceParams::new(),
-            &KnnParams::new().k(15),
-            0..m,
-            &Silent,
-        )
-        .unwrap();
-        println!("{m:>7} {:>4} {:>9.2}", 15, start.elapsed().as_secs_f64());
+        let closure = closures(m);
+        for kind in metrics() {
+            let view = SetsView::new(sets.view()).with_closure(&closure);
+            let start = Instant::now();
+            knn(
+                view,
+                &DistanceParams::new().metric(kind),
+                &KnnParams::new().k(15),
+                0..m,
+                &Silent,
+            )
+            .unwrap();
+            println!(
+                "{:>14} {m:>7} {:>4} {:>9.2}",
+                kind.name(),
+                15,
+                start.elapsed().as_secs_f64()
+            );
+        }
     }
 }
 

@@ -123,6 +123,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &environments,
         exploration.workspace.as_ref(),
         &sensory,
+        smspace::metric::MetricKind::Hausdorff,
         &Silent,
     )?;
     let per_env = environments

@@ -74,6 +74,16 @@ pub enum IoError {
         /// The parser's reason, with line and column.
         reason: serde_json::Error,
     },
+    /// An entry of the array is not one of the values it may hold.
+    #[error("{path} is not a valid {what} file: {reason}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What the array should have been (e.g. "closed/open record").
+        what: &'static str,
+        /// Which entry, its value and the values allowed.
+        reason: String,
+    },
     /// The file could not be written.
     #[error("cannot write {path}: {reason}")]
     Write {

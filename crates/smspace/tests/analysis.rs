@@ -560,6 +560,7 @@ mod invariance {
             &[e.clone(), e],
             None,
             &sensory(30),
+            smspace::metric::MetricKind::Hausdorff,
             &Silent,
         )
         .unwrap();
@@ -585,6 +586,7 @@ mod invariance {
             &environments,
             None,
             &sensory(20),
+            smspace::metric::MetricKind::Hausdorff,
             &Silent,
         )
         .unwrap();
@@ -608,6 +610,7 @@ mod invariance {
             &[e.clone(), e.clone()],
             None,
             &kinematic,
+            smspace::metric::MetricKind::Hausdorff,
             &Silent,
         )
         .unwrap_err();
@@ -618,6 +621,7 @@ mod invariance {
             &[e],
             None,
             &sensory(10),
+            smspace::metric::MetricKind::Hausdorff,
             &Silent,
         )
         .unwrap_err();

@@ -109,6 +109,7 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
             &environments,
             exploration.workspace.as_ref(),
             &sensory,
+            smspace::metric::MetricKind::Hausdorff,
             &Silent,
         )
         .unwrap();

@@ -137,3 +137,25 @@ pub fn memory_available() -> Option<u64> {
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024)
 }
+
+/// `--metric`: the distance between two kernel sets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum MetricArg {
+    /// max of the two directed Hausdorff distances between the sampled points (the paper's)
+    Hausdorff,
+    /// average of the two mean directed distances between the sampled points
+    MeanHausdorff,
+    /// Hausdorff distance between the sets read as polylines (closed loops or open), exact to 1e-10
+    Curve,
+}
+
+impl MetricArg {
+    /// The library's metric.
+    pub fn kind(self) -> smspace::metric::MetricKind {
+        match self {
+            MetricArg::Hausdorff => smspace::metric::MetricKind::Hausdorff,
+            MetricArg::MeanHausdorff => smspace::metric::MetricKind::MeanHausdorff,
+            MetricArg::Curve => smspace::metric::MetricKind::Curve,
+        }
+    }
+}

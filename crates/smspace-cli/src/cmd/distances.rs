@@ -9,7 +9,9 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::ValueEnum;
-use smspace::metric::{self, DistanceParams, KnnParams, MetricKind, Period};
+use smspace::metric::{self, Closure, DistanceParams, KnnParams, Period, SetsView};
+
+use super::common::{sibling, MetricArg};
 
 use crate::ui;
 
@@ -24,9 +26,15 @@ pub struct Args {
     /// the folder that holds it.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
-    /// Distance between two sets.
+    /// Distance between two sets. `curve` reads every set as a polyline: closed or open
+    /// as recorded by `smspace trace` in SETS.closed.npy next to the sets, or as --curve
+    /// says.
     #[arg(long, value_enum, default_value_t = MetricArg::Hausdorff)]
     metric: MetricArg,
+    /// For --metric curve: join every set's points into a closed loop or an open
+    /// polyline, instead of reading SETS.closed.npy (1 closed, 0 open per set).
+    #[arg(long, value_enum, value_name = "closed|open")]
+    curve: Option<CurveArg>,
     /// Period of every motor coordinate: 2pi (hinge joints, the paper's metric) or none
     /// (plain Euclidean).
     #[arg(long, value_enum, default_value_t = PeriodArg::TwoPi)]
@@ -50,13 +58,13 @@ pub struct Args {
     max_memory: Option<u64>,
 }
 
-/// `--metric`.
+/// `--curve`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum MetricArg {
-    /// max of the two directed Hausdorff distances (the paper's)
-    Hausdorff,
-    /// average of the two mean directed distances
-    MeanHausdorff,
+enum CurveArg {
+    /// every set is a closed loop (the last point joined to the first)
+    Closed,
+    /// every set is an open polyline
+    Open,
 }
 
 /// `--period`.
@@ -81,15 +89,45 @@ fn parse_rows(text: &str) -> Result<Range<usize>, String> {
     Ok(parse(start)?..parse(end)?)
 }
 
+/// The closures of the sets for `--metric curve`: `--curve`, else `SETS.closed.npy`
+/// next to the sets; `None` for the point metrics.
+fn closure(args: &Args, sets: usize) -> anyhow::Result<Option<Vec<Closure>>> {
+    if args.metric != MetricArg::Curve {
+        anyhow::ensure!(
+            args.curve.is_none(),
+            "--curve only applies to --metric curve (the point metrics do not join the points)"
+        );
+        return Ok(None);
+    }
+    if let Some(curve) = args.curve {
+        let closure = match curve {
+            CurveArg::Closed => Closure::Closed,
+            CurveArg::Open => Closure::Open,
+        };
+        return Ok(Some(vec![closure; sets]));
+    }
+    let record = sibling(&args.sets, "closed.npy");
+    if !record.exists() {
+        anyhow::bail!(
+            "--metric curve needs to know which sets are closed loops: {} is missing (smspace trace writes it next to the sets); for sets from elsewhere give --curve closed or --curve open",
+            record.display()
+        );
+    }
+    Ok(Some(smspace::kernel::read_closure(&record, sets)?))
+}
+
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let sets = smspace::io::read_cube(&args.sets, "(M, P, N)")?;
     let (m, p, n) = sets.dim();
+    let kind = args.metric.kind();
+    let closure = closure(&args, m)?;
+    let view = match &closure {
+        Some(c) => SetsView::new(sets.view()).with_closure(c),
+        None => SetsView::new(sets.view()),
+    };
     let params = DistanceParams::new()
-        .metric(match args.metric {
-            MetricArg::Hausdorff => MetricKind::Hausdorff,
-            MetricArg::MeanHausdorff => MetricKind::MeanHausdorff,
-        })
+        .metric(kind)
         .period(match args.period {
             PeriodArg::TwoPi => Period::TwoPi,
             PeriodArg::None => Period::None,
@@ -106,8 +144,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
     match args.knn {
         None => {
-            let block = metric::distance_rows(sets.view(), &params, rows.clone(), &bar)
-                .with_context(context)?;
+            let block =
+                metric::distance_rows(view, &params, rows.clone(), &bar).with_context(context)?;
             smspace::io::write_npy(&args.out, &block)?;
             eprintln!(
                 "wrote {} ({} x {}, rows {}:{} of {m} sets of {p} points in {n}-D, {}) in {:.2} s",
@@ -122,7 +160,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         Some(k) => {
             let knn_params = KnnParams::new().k(k).pivots(args.pivots);
-            let found = metric::knn(sets.view(), &params, &knn_params, rows.clone(), &bar)
+            let found = metric::knn(view, &params, &knn_params, rows.clone(), &bar)
                 .with_context(context)?;
             let folder = smspace::io::folder_of(&args.out);
             let indices_path = folder.join("knn_indices.npy");

@@ -9,7 +9,7 @@ use smspace::analysis::invariance;
 use smspace::io;
 use smspace::kernel::{TraceMethod, TraceParams};
 
-use super::common::{AgentArgs, WorkspaceArgs};
+use super::common::{AgentArgs, MetricArg, WorkspaceArgs};
 use crate::ui::Bar;
 
 /// Arguments of `smspace invariance`.
@@ -30,6 +30,9 @@ pub struct Args {
     /// Points per traced set.
     #[arg(long, default_value_t = 100)]
     points: usize,
+    /// Distance between two sets (curve: the traced loops and segments as polylines).
+    #[arg(long, value_enum, default_value_t = MetricArg::Hausdorff)]
+    metric: MetricArg,
     #[command(flatten)]
     workspace: WorkspaceArgs,
     /// Report (JSON).
@@ -86,6 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &environments,
         workspace.as_ref(),
         &params,
+        args.metric.kind(),
         &bar,
     )?;
     io::write_json(&args.out, &report)?;

@@ -108,6 +108,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     io::write_npy(&args.out, &traced.sets)?;
     let report_path = sibling(&args.out, "trace.json");
     io::write_json(&report_path, &traced.report)?;
+    // Which sets are closed loops, for the curve metric (`smspace distances` finds it
+    // next to the sets).
+    smspace::kernel::write_closure(&sibling(&args.out, "closed.npy"), &traced.closure)?;
     let kept_path = sibling(&args.out, "kept.npy");
     let summary = &traced.report.summary;
     if summary.failed > 0 {

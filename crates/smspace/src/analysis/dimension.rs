@@ -57,14 +57,65 @@ pub fn twonn(
     distances: ArrayView2<'_, f64>,
     discard: f64,
 ) -> Result<DimensionEstimate, AnalysisError> {
-    let n = distances.nrows();
-    let ratios: Vec<Option<f64>> = rows(distances)
+    let near: Vec<Vec<f64>> = rows(distances)
         .par_iter()
         .enumerate()
-        .map(|(i, row)| {
-            let near = nearest(row, i, 2);
-            (near[0] > 0.0).then(|| near[1] / near[0])
-        })
+        .map(|(i, row)| nearest(row, i, 2))
+        .collect();
+    twonn_sorted(&near, discard)
+}
+
+/// The rows of a `(M, k)` array of each point's nearest distances, checked increasing
+/// with at least `k_min` columns.
+fn neighbour_rows(
+    neighbours: ArrayView2<'_, f64>,
+    k_min: usize,
+) -> Result<Vec<Vec<f64>>, AnalysisError> {
+    if neighbours.ncols() < k_min {
+        return Err(AnalysisError::InvalidParameter {
+            name: "neighbours",
+            value: neighbours.ncols().to_string(),
+            reason: format!("the estimate needs at least {k_min} nearest distances per point"),
+        });
+    }
+    let out: Vec<Vec<f64>> = neighbours.outer_iter().map(|r| r.to_vec()).collect();
+    if let Some(i) = out
+        .iter()
+        .position(|r| r.iter().any(|x| !x.is_finite()) || r.windows(2).any(|w| w[0] > w[1]))
+    {
+        return Err(AnalysisError::InvalidParameter {
+            name: "neighbours",
+            value: format!("row {i}"),
+            reason:
+                "every row must hold finite distances sorted nearest first (as knn_distances.npy)"
+                    .into(),
+        });
+    }
+    Ok(out)
+}
+
+/// TwoNN from each point's nearest distances, `(M, k)` with `k ≥ 2`, sorted nearest
+/// first (e.g. `knn_distances.npy` of `smspace distances --knn K`): the same estimate
+/// as [`twonn`] without the `M × M` matrix.
+pub fn twonn_neighbours(
+    neighbours: ArrayView2<'_, f64>,
+    discard: f64,
+) -> Result<DimensionEstimate, AnalysisError> {
+    twonn_sorted(&neighbour_rows(neighbours, 2)?, discard)
+}
+
+/// Levina–Bickel from each point's `k` nearest distances, `(M, k)` sorted nearest
+/// first: the same estimate as [`mle`] with that `k`, without the matrix.
+pub fn mle_neighbours(neighbours: ArrayView2<'_, f64>) -> Result<DimensionEstimate, AnalysisError> {
+    let k = neighbours.ncols();
+    mle_sorted(&neighbour_rows(neighbours, 2)?, k)
+}
+
+fn twonn_sorted(near: &[Vec<f64>], discard: f64) -> Result<DimensionEstimate, AnalysisError> {
+    let n = near.len();
+    let ratios: Vec<Option<f64>> = near
+        .iter()
+        .map(|near| (near[0] > 0.0).then(|| near[1] / near[0]))
         .collect();
     let mut mu: Vec<f64> = ratios.iter().flatten().copied().collect();
     let skipped = n - mu.len();
@@ -104,11 +155,19 @@ pub fn mle(distances: ArrayView2<'_, f64>, k: usize) -> Result<DimensionEstimate
             reason: format!("must be at least 2 and less than the number of points ({n})"),
         });
     }
-    let local: Vec<Option<f64>> = rows(distances)
+    let near: Vec<Vec<f64>> = rows(distances)
         .par_iter()
         .enumerate()
-        .map(|(i, row)| {
-            let near = nearest(row, i, k);
+        .map(|(i, row)| nearest(row, i, k))
+        .collect();
+    mle_sorted(&near, k)
+}
+
+fn mle_sorted(near: &[Vec<f64>], k: usize) -> Result<DimensionEstimate, AnalysisError> {
+    let n = near.len();
+    let local: Vec<Option<f64>> = near
+        .iter()
+        .map(|near| {
             if near[0] <= 0.0 {
                 return None;
             }

@@ -28,7 +28,7 @@ use super::AnalysisError;
 use crate::agent::{Agent, Environment, MotorTopology};
 use crate::explore::Workspace;
 use crate::kernel::{trace_sets, TraceMethod, TraceValidParams};
-use crate::metric::{distance_matrix, DistanceParams, Hausdorff, Period, SetMetric};
+use crate::metric::{distance_matrix, Closure, DistanceParams, MetricKind, Period, SetsView};
 use crate::progress::Progress;
 
 /// One environment of the comparison.
@@ -101,15 +101,28 @@ fn median(mut values: Vec<f64>) -> f64 {
 
 /// Traces `motors` in every environment with `params` (which must use the `sensory`
 /// method) and compares the results (see the module docs).
+///
+/// `metric` measures the sets (the paper's [`MetricKind::Hausdorff`] or the polyline
+/// [`MetricKind::Curve`]); the point metric's period follows the agent's motors.
 pub fn invariance(
     agent: &dyn Agent,
     motors: ArrayView2<'_, f64>,
     environments: &[Environment],
     workspace: Option<&Workspace>,
     params: &TraceValidParams,
+    metric: MetricKind,
     progress: &dyn Progress,
 ) -> Result<InvarianceReport, AnalysisError> {
-    invariance_measured(agent, motors, environments, workspace, params, progress).map(|m| m.report)
+    invariance_measured(
+        agent,
+        motors,
+        environments,
+        workspace,
+        params,
+        metric,
+        progress,
+    )
+    .map(|m| m.report)
 }
 
 /// What [`invariance_measured`] compares, besides the numbers: the per-environment
@@ -133,6 +146,7 @@ pub fn invariance_measured(
     environments: &[Environment],
     workspace: Option<&Workspace>,
     params: &TraceValidParams,
+    metric: MetricKind,
     progress: &dyn Progress,
 ) -> Result<InvarianceMeasured, AnalysisError> {
     if params.method() != TraceMethod::Sensory {
@@ -174,20 +188,22 @@ pub fn invariance_measured(
         MotorTopology::Periodic => Period::TwoPi,
         MotorTopology::Bounded { .. } => Period::None,
     };
-    let sets: Vec<_> = traced
+    let (sets, closures): (Vec<_>, Vec<Vec<Closure>>) = traced
         .iter()
         .map(|t| {
             let positions: Vec<usize> = common
                 .iter()
                 .map(|row| t.kept.binary_search(row).expect("common rows are kept"))
                 .collect();
-            t.sets.select(Axis(0), &positions)
+            let closure = positions.iter().map(|&p| t.closure[p]).collect();
+            (t.sets.select(Axis(0), &positions), closure)
         })
-        .collect();
-    let metric = DistanceParams::new().period(period);
+        .unzip();
+    let params = DistanceParams::new().metric(metric).period(period);
     let matrices = sets
         .iter()
-        .map(|s| distance_matrix(s.view(), &metric, progress))
+        .zip(&closures)
+        .map(|(s, c)| distance_matrix(SetsView::new(s.view()).with_closure(c), &params, progress))
         .collect::<Result<Vec<_>, _>>()?;
     let upper: Vec<Vec<f64>> = matrices.iter().map(|d| upper_triangle(d.view())).collect();
     let rows = motors.select(Axis(0), &common);
@@ -218,13 +234,23 @@ pub fn invariance_measured(
             out
         })
         .collect();
-    let hausdorff = Hausdorff { period };
     let mut pairs = Vec::new();
     for a in 0..environments.len() {
         for b in a + 1..environments.len() {
             let mut set_distances = Vec::with_capacity(common.len());
-            for (x, y) in sets[a].outer_iter().zip(sets[b].outer_iter()) {
-                set_distances.push(hausdorff.distance(x, y)?);
+            for (s, (x, y)) in sets[a].outer_iter().zip(sets[b].outer_iter()).enumerate() {
+                // The same start traced in two environments, measured as a pair of sets
+                // (each with its own closure).
+                let mut both = ndarray::Array3::zeros((2, x.nrows(), x.ncols()));
+                both.index_axis_mut(Axis(0), 0).assign(&x);
+                both.index_axis_mut(Axis(0), 1).assign(&y);
+                let closure = [closures[a][s], closures[b][s]];
+                let d = distance_matrix(
+                    SetsView::new(both.view()).with_closure(&closure),
+                    &params,
+                    &crate::progress::Silent,
+                )?;
+                set_distances.push(d[[0, 1]]);
             }
             let max_set = set_distances.iter().copied().fold(0.0, f64::max);
             let mean_set = set_distances.iter().sum::<f64>() / set_distances.len() as f64;

@@ -361,6 +361,18 @@ pub struct IntrinsicDimension {
     pub twonn_discard: f64,
     /// `k` of the Levina–Bickel estimate.
     pub mle_neighbors: usize,
+    /// The sets both estimates were computed on: `all` the sets of the matrix, or the
+    /// `babbled` ones only (the pipeline leaves out the probe grid, whose regular
+    /// spacing biases nearest-neighbour ratios).
+    #[serde(default = "all_sets")]
+    pub sets: String,
+    /// How many sets that is.
+    #[serde(default)]
+    pub sets_used: usize,
+}
+
+fn all_sets() -> String {
+    "all".to_owned()
 }
 
 /// The report of [`analyze`], written by `smspace analyze`.
@@ -386,6 +398,28 @@ pub struct AnalysisReport {
 pub fn analyze(
     distances: ArrayView2<'_, f64>,
     poses: Option<ArrayView2<'_, f64>>,
+    params: &AnalysisValidParams,
+    progress: &dyn Progress,
+) -> Result<AnalysisReport, AnalysisError> {
+    analyze_on(distances, poses, None, params, progress)
+}
+
+/// The sets an intrinsic dimension is estimated on.
+#[derive(Debug, Clone, Copy)]
+pub struct DimensionSets<'a> {
+    /// Rows of the distance matrix.
+    pub rows: &'a [usize],
+    /// What they are, for the report (e.g. `babbled`).
+    pub name: &'a str,
+}
+
+/// [`analyze`], with the intrinsic dimension estimated on the sets `dimension_sets`
+/// only (e.g. the babbled configurations without the regular probe grid; `None`: all
+/// sets). Topology and agreement always use every set.
+pub fn analyze_on(
+    distances: ArrayView2<'_, f64>,
+    poses: Option<ArrayView2<'_, f64>>,
+    dimension_sets: Option<DimensionSets<'_>>,
     params: &AnalysisValidParams,
     progress: &dyn Progress,
 ) -> Result<AnalysisReport, AnalysisError> {
@@ -448,9 +482,27 @@ pub fn analyze(
         })
         .collect();
     progress.start("dimension", 2);
-    let twonn = dimension::twonn(distances.view(), p.twonn_discard)?;
+    let subset = dimension_sets.filter(|s| s.rows.len() > p.mle_neighbors && s.rows.len() < n);
+    let sub;
+    let (on, sets_name) = match subset {
+        Some(s) => {
+            if let Some(&bad) = s.rows.iter().find(|&&r| r >= n) {
+                return Err(AnalysisError::InvalidParameter {
+                    name: "dimension_sets",
+                    value: bad.to_string(),
+                    reason: format!("a row of the {n} x {n} distance matrix"),
+                });
+            }
+            sub = distances
+                .select(ndarray::Axis(0), s.rows)
+                .select(ndarray::Axis(1), s.rows);
+            (sub.view(), s.name.to_owned())
+        }
+        None => (distances.view(), all_sets()),
+    };
+    let twonn = dimension::twonn(on, p.twonn_discard)?;
     progress.advance(1);
-    let mle = dimension::mle(distances.view(), p.mle_neighbors)?;
+    let mle = dimension::mle(on, p.mle_neighbors)?;
     progress.advance(1);
     progress.finish();
     let agreement = match poses {
@@ -483,6 +535,8 @@ pub fn analyze(
             mle: mle.dimension,
             twonn_detail: twonn,
             mle_detail: mle,
+            sets: sets_name,
+            sets_used: on.nrows(),
             twonn_discard: p.twonn_discard,
             mle_neighbors: p.mle_neighbors,
         },

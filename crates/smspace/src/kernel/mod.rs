@@ -349,6 +349,97 @@ impl SetStatus {
     }
 }
 
+/// How the points of a traced set are joined into a curve: a closed loop (status
+/// `closed`) or an open polyline (status `open`, and the single points of `point`). The
+/// `curve` metric reads the sets as these polylines; `sets.closed.npy` records it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Closure {
+    /// A closed loop: `P` segments, the last one from `x_{P−1}` back to `x_0`.
+    Closed,
+    /// An open polyline: `P − 1` segments.
+    Open,
+}
+
+impl Closure {
+    /// The name used in files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Closure::Closed => "closed",
+            Closure::Open => "open",
+        }
+    }
+
+    /// The code stored in `sets.closed.npy`: 1 for closed, 0 for open.
+    pub fn code(self) -> i64 {
+        match self {
+            Closure::Closed => 1,
+            Closure::Open => 0,
+        }
+    }
+
+    /// The closure of a code of `sets.closed.npy` (1 closed, 0 open), `None` otherwise.
+    pub fn from_code(code: i64) -> Option<Self> {
+        match code {
+            1 => Some(Closure::Closed),
+            0 => Some(Closure::Open),
+            _ => None,
+        }
+    }
+}
+
+impl SetStatus {
+    /// How a traced set's points are joined: loops are closed; segments between faces
+    /// of the motor box and single points (their `P` equal points) are open. `None`
+    /// for the statuses of sets that were not traced.
+    pub fn closure(self) -> Option<Closure> {
+        match self {
+            SetStatus::Closed => Some(Closure::Closed),
+            SetStatus::Open | SetStatus::Point => Some(Closure::Open),
+            _ => None,
+        }
+    }
+}
+
+/// Writes the closures of kernel sets as `(M,)` int64 codes (1 closed, 0 open): the
+/// file `sets.closed.npy` next to `sets.npy`.
+pub fn write_closure(
+    path: &std::path::Path,
+    closure: &[Closure],
+) -> Result<(), crate::io::IoError> {
+    let codes: ndarray::Array1<i64> = closure.iter().map(|c| c.code()).collect();
+    crate::io::write_npy(path, &codes)
+}
+
+/// Reads `sets.closed.npy` (see [`write_closure`]), checking that it holds one code,
+/// 0 or 1, for each of `sets` sets.
+pub fn read_closure(
+    path: &std::path::Path,
+    sets: usize,
+) -> Result<Vec<Closure>, crate::io::IoError> {
+    let codes = crate::io::read_i64(path)?;
+    if codes.ndim() != 1 || codes.len() != sets {
+        return Err(crate::io::IoError::Shape {
+            path: path.to_path_buf(),
+            found: crate::io::shape_string(codes.shape()),
+            expected: format!("({sets},), one code per set of the sets file"),
+        });
+    }
+    codes
+        .iter()
+        .enumerate()
+        .map(|(i, &code)| {
+            Closure::from_code(code).ok_or_else(|| crate::io::IoError::Invalid {
+                path: path.to_path_buf(),
+                what: "closed/open record",
+                reason: format!(
+                    "entry {i} is {code}; use 1 for a closed loop and 0 for an open polyline"
+                ),
+            })
+        })
+        .collect()
+}
+
 /// Per-set line of the trace report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SetReport {
@@ -405,6 +496,8 @@ pub struct TracedSets {
     pub sets: Array3<f64>,
     /// Motor rows of the kept sets, increasing.
     pub kept: Vec<usize>,
+    /// How the points of every kept set are joined (closed loops, open polylines).
+    pub closure: Vec<Closure>,
     /// Per-set statuses and the summary.
     pub report: TraceReport,
 }
@@ -678,6 +771,7 @@ pub fn trace_sets(
     let p = params.points;
     let mut data = Vec::new();
     let mut kept = Vec::new();
+    let mut closure = Vec::new();
     let mut reports = Vec::with_capacity(results.len());
     let mut summary = TraceSummary {
         total: results.len(),
@@ -687,6 +781,7 @@ pub fn trace_sets(
         if let Some(points) = points {
             data.extend_from_slice(&points);
             kept.push(report.index);
+            closure.push(report.status.closure().expect("a kept set was traced"));
         }
         let name = serde_json::to_value(report.status)
             .ok()
@@ -702,6 +797,7 @@ pub fn trace_sets(
     Ok(TracedSets {
         sets,
         kept,
+        closure,
         report: TraceReport {
             agent: agent.name().to_owned(),
             method: params.method,

@@ -64,6 +64,31 @@ pub(crate) struct Scratch {
     col_key: Vec<f32>,
     col_near: Vec<u32>,
     order: Vec<u64>,
+    curve: super::curve::CurveScratch,
+}
+
+/// The centre tables of both directions, the order buffer and the curve buffers.
+type ScratchParts<'a> = (
+    &'a [f32],
+    &'a [u32],
+    &'a [f32],
+    &'a [u32],
+    &'a mut Vec<u64>,
+    &'a mut super::curve::CurveScratch,
+);
+
+impl Scratch {
+    /// Borrows the centre tables (filled by [`center_table`]) and the work buffers.
+    pub(crate) fn parts(&mut self) -> ScratchParts<'_> {
+        (
+            &self.row_key,
+            &self.row_near,
+            &self.col_key,
+            &self.col_near,
+            &mut self.order,
+            &mut self.curve,
+        )
+    }
 }
 
 /// Shape of the prepared sets, copied out for the kernels.
@@ -118,7 +143,11 @@ fn lanes_max(v: &[f64; LANES]) -> f64 {
 }
 
 #[inline(always)]
-fn load_block<const N: usize>(rows: &[f64], stride: usize, block: usize) -> [[f64; LANES]; N] {
+pub(crate) fn load_block<const N: usize>(
+    rows: &[f64],
+    stride: usize,
+    block: usize,
+) -> [[f64; LANES]; N] {
     let mut a = [[0.0; LANES]; N];
     for (k, lanes) in a.iter_mut().enumerate() {
         lanes.copy_from_slice(&rows[k * stride + block * LANES..][..LANES]);
@@ -223,7 +252,12 @@ fn nearest_chunks<const N: usize>(
 /// For both directions, the nearest chunk of the other set to every chunk (by centre
 /// distance) and that squared distance: `row_*` for `A → B`, `col_*` for `B → A`.
 #[inline(always)]
-fn center_table<const N: usize>(a: SetRef<'_>, b: SetRef<'_>, shape: Shape, scratch: &mut Scratch) {
+pub(crate) fn center_table<const N: usize>(
+    a: SetRef<'_>,
+    b: SetRef<'_>,
+    shape: Shape,
+    scratch: &mut Scratch,
+) {
     nearest_chunks::<N>(a, b, shape, &mut scratch.row_key, &mut scratch.row_near);
     nearest_chunks::<N>(b, a, shape, &mut scratch.col_key, &mut scratch.col_near);
 }
@@ -315,6 +349,40 @@ fn refine<const N: usize>(
     best
 }
 
+/// Fills `scratch_order[..chunks]` with the blocks of a set ordered far from the other
+/// set first (by `key`, the squared distance from a block's centre to the other set's
+/// nearest centre), so that the running lower bound reaches its final value early.
+#[inline(always)]
+pub(crate) fn far_first(key: &[f32], chunks: usize, scratch_order: &mut Vec<u64>) {
+    scratch_order.resize(chunks.max(scratch_order.len()), 0);
+    // The order only decides how soon blocks can be settled, never the result, so the
+    // keys may be coarse: a non-negative f32 orders like its bits, and the block index
+    // takes the low bits, which makes the keys distinct integers. Up to RANK_SORT_MAX
+    // blocks they are ranked without branches (the insertion and generic sorts
+    // mispredicted); past that the comparison sort is used.
+    let order = &mut scratch_order[..chunks];
+    if chunks <= RANK_SORT_MAX {
+        // Rank sort without branches: the keys are distinct (the block index is in the
+        // low bits), so the rank of a key is the number of larger keys.
+        let mut packed = [0u64; RANK_SORT_MAX];
+        for (alpha, slot) in packed.iter_mut().enumerate().take(chunks) {
+            *slot = (u64::from(key[alpha].to_bits()) << 8) | alpha as u64;
+        }
+        for (alpha, &x) in packed.iter().enumerate().take(chunks) {
+            let mut rank = 0u64;
+            for &y in &packed {
+                rank += u64::from(y > x);
+            }
+            order[rank as usize] = alpha as u64;
+        }
+    } else {
+        for (alpha, slot) in order.iter_mut().enumerate() {
+            *slot = alpha as u64;
+        }
+        order.sort_unstable_by(|&x, &y| key[y as usize].total_cmp(&key[x as usize]));
+    }
+}
+
 /// `max(c, max_{a∈A} min_{b∈B} g²(a, b))`, or `None` as soon as it is proven to exceed
 /// `abort`. `(key[α], near[α])`: squared distance from the centre of block `α` of `A`
 /// to the nearest centre of `B`, and that chunk.
@@ -328,34 +396,8 @@ fn directed_hausdorff<const N: usize>(
     abort: f64,
     scratch_order: &mut Vec<u64>,
 ) -> Option<f64> {
-    scratch_order.resize(shape.chunks.max(scratch_order.len()), 0);
-    // Blocks far from B first, so that `c` reaches its final value early. The order
-    // only decides how soon blocks can be settled, never the result, so the keys may
-    // be coarse: a non-negative f32 orders like its bits, and the block index takes the
-    // low bits, which makes the keys distinct integers. Up to RANK_SORT_MAX blocks they
-    // are ranked without branches (the insertion and generic sorts mispredicted);
-    // past that the comparison sort is used.
-    let order = &mut scratch_order[..shape.chunks];
-    if shape.chunks <= RANK_SORT_MAX {
-        // Rank sort without branches: the keys are distinct (the block index is in the
-        // low bits), so the rank of a key is the number of larger keys.
-        let mut packed = [0u64; RANK_SORT_MAX];
-        for (alpha, slot) in packed.iter_mut().enumerate().take(shape.chunks) {
-            *slot = (u64::from(key[alpha].to_bits()) << 8) | alpha as u64;
-        }
-        for (alpha, &x) in packed.iter().enumerate().take(shape.chunks) {
-            let mut rank = 0u64;
-            for &y in &packed {
-                rank += u64::from(y > x);
-            }
-            order[rank as usize] = alpha as u64;
-        }
-    } else {
-        for (alpha, slot) in order.iter_mut().enumerate() {
-            *slot = alpha as u64;
-        }
-        order.sort_unstable_by(|&x, &y| key[y as usize].total_cmp(&key[x as usize]));
-    }
+    far_first(key, shape.chunks, scratch_order);
+    let order = &scratch_order[..shape.chunks];
     for &alpha in order.iter() {
         let alpha = alpha as usize;
         let near = near[alpha] as usize;
@@ -434,6 +476,7 @@ pub(crate) fn hausdorff<const N: usize>(
         col_key,
         col_near,
         order,
+        ..
     } = scratch;
     let c = directed_hausdorff::<N>(a, b, shape, (row_key, row_near), 0.0, abort, order)?;
     let c = directed_hausdorff::<N>(b, a, shape, (col_key, col_near), c, abort, order)?;
@@ -523,6 +566,12 @@ impl<const N: usize> Eval for Evaluator<'_, N> {
             super::MetricKind::MeanHausdorff => {
                 Some(mean_hausdorff::<N>(a, b, self.shape, self.scratch))
             }
+            // Its own runtime dispatch (one per pair, negligible next to the pair), so
+            // that the curve kernel is compiled once per SIMD level and coordinate
+            // count instead of once per driver as well.
+            super::MetricKind::Curve => {
+                super::curve::curve_pair(self.prepared, i, j, limit, self.scratch)
+            }
         }
     }
 
@@ -558,6 +607,11 @@ impl Eval for BruteEvaluator<'_> {
             super::MetricKind::MeanHausdorff => {
                 let p = self.prepared.points() as f64;
                 0.5 * (sum_ab / p + sum_ba / p)
+            }
+            super::MetricKind::Curve => {
+                unreachable!(
+                    "the curve metric is compiled for up to 16 coordinates, checked before"
+                )
             }
         })
     }

@@ -20,12 +20,15 @@
 
 use std::ops::Range;
 
-use ndarray::{Array2, ArrayView3};
+use ndarray::Array2;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::kernel::{self, Driver, Eval, Scratch};
-use super::{check_memory, check_rows, DistanceParams, MetricError, MetricKind, PreparedSets};
+use super::{
+    check_memory, check_metric, check_rows, closure_for, DistanceParams, MetricError, MetricKind,
+    PreparedSets, SetsView,
+};
 use crate::progress::Progress;
 
 /// Relative safety margin on the pivot lower bounds (rounding of the distances).
@@ -98,8 +101,8 @@ pub struct Knn {
 }
 
 /// The `k` nearest sets of each set in rows `rows` of `(M, P, N)` kernel sets.
-pub fn knn(
-    sets: ArrayView3<'_, f64>,
+pub fn knn<'a>(
+    sets: impl Into<SetsView<'a>>,
     distance: &DistanceParams,
     params: &KnnParams,
     rows: Range<usize>,
@@ -107,7 +110,8 @@ pub fn knn(
 ) -> Result<Knn, MetricError> {
     let distance = distance.check()?;
     let params = params.check()?;
-    let (m, p, n) = sets.dim();
+    let sets = closure_for(sets.into(), distance.metric)?;
+    let (m, p, n) = sets.points().dim();
     if m < 2 {
         return Err(MetricError::TooFewSets { sets: m });
     }
@@ -115,13 +119,14 @@ pub fn knn(
     let needed = knn_bytes(m, p, n, rows.len(), &params);
     check_memory(distance.memory_limit_bytes, m, needed)?;
     let prepared = PreparedSets::new(sets, distance.period)?;
+    check_metric(&prepared, distance.metric)?;
     knn_prepared(&prepared, distance.metric, &params, rows, progress)
 }
 
 /// Bytes [`knn`] needs: layout, pivot table, output and per-thread buffers.
 pub fn knn_bytes(sets: usize, points: usize, dims: usize, rows: usize, params: &KnnParams) -> u64 {
     let threads = rayon::current_num_threads() as u64;
-    PreparedSets::estimate_bytes(sets, points, dims)
+    PreparedSets::estimate_bytes_with_curves(sets, points, dims)
         + (params.pivots as u64) * (sets as u64) * 8
         + (rows as u64) * (params.k as u64) * 16
         + threads * (sets as u64) * 24
@@ -140,6 +145,7 @@ pub fn knn_prepared(
         return Err(MetricError::TooFewSets { sets: m });
     }
     check_rows(&rows, m)?;
+    check_metric(prepared, metric)?;
     let k = params.k;
     if k == 0 || k >= m {
         return Err(MetricError::BadK { k, max: m - 1 });
@@ -168,6 +174,7 @@ pub fn knn_prepared(
             || (Scratch::default(), Vec::new(), Vec::new()),
             |(scratch, bounds, candidates), (r, (out_index, out_distance))| {
                 let driver = QueryDriver {
+                    margin: 3.0 * metric.tolerance(),
                     query: rows.start + r,
                     sets: m,
                     k,
@@ -256,6 +263,10 @@ impl Driver for ColumnDriver<'_> {
 }
 
 struct QueryDriver<'a> {
+    /// Absolute widening of the pivot bounds: the computed distances may lie this much
+    /// below the exact ones (three times the metric's tolerance covers the three
+    /// distances of a triangle).
+    margin: f64,
     query: usize,
     sets: usize,
     k: usize,
@@ -302,6 +313,7 @@ impl Driver for QueryDriver<'_> {
     #[inline(always)]
     fn drive<E: Eval>(self, eval: &mut E) {
         let QueryDriver {
+            margin,
             query,
             sets,
             k,
@@ -330,7 +342,7 @@ impl Driver for QueryDriver<'_> {
                 let column = &table[t * sets..(t + 1) * sets];
                 let x = column[query];
                 for (bound, &y) in bounds.iter_mut().zip(column.iter()) {
-                    let gap = (x - y).abs() - PIVOT_MARGIN * (x + y);
+                    let gap = (x - y).abs() - PIVOT_MARGIN * (x + y) - margin;
                     if gap > *bound {
                         *bound = gap;
                     }

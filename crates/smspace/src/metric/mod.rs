@@ -16,8 +16,15 @@
 //!
 //! Between two sets `A = M^i`, `B = M^j` of `P` points each:
 //!
-//! * [`MetricKind::Hausdorff`], the paper's `ρ` (section 3.2):
+//! * [`MetricKind::Hausdorff`], the paper's `ρ` (section 3.2), on the sampled points:
 //!   `ρ(A, B) = max( max_a min_b g(a, b), max_b min_a g(a, b) )`;
+//! * [`MetricKind::Curve`], the Hausdorff distance between the sets read as closed or
+//!   open **polylines** (the continuous curves the `P` points sample), exact to
+//!   [`CURVE_TOLERANCE`]; definitions, algorithm and bounds in [`mod@curve`]. With `P`
+//!   points per loop the point metric `ρ` sees where the samples fall as much as where
+//!   the curves are (on the paper's arm the spacing along a loop is as large as the
+//!   distance to the nearest set), which biases the learned manifold's dimension; `ρ_c`
+//!   measures the curves;
 //! * [`MetricKind::MeanHausdorff`], less sensitive to one stray point (the paper notes
 //!   that any metric on the sets could serve):
 //!   `ρ̄(A, B) = ½ ( mean_a min_b g(a, b) + mean_b min_a g(a, b) )`.
@@ -46,6 +53,7 @@
 //!   matrix, in `O(M·k)` memory;
 //! * [`SetMetric`]: one distance between two point sets.
 
+pub mod curve;
 mod kernel;
 mod knn;
 mod prepared;
@@ -59,8 +67,63 @@ use serde::{Deserialize, Serialize};
 
 use crate::progress::Progress;
 
+pub use curve::{Closure, CURVE_TOLERANCE};
 pub use knn::{knn, knn_prepared, Knn, KnnParams, ValidKnnParams};
 pub use prepared::PreparedSets;
+
+/// Kernel sets as the metric reads them: the points `(M, P, N)` and, for the `curve`
+/// metric, how each set's points are joined ([`Closure`]).
+///
+/// An `ArrayView3` converts into a view without closures, so every function that takes
+/// `impl Into<SetsView>` also takes the plain points.
+///
+/// ```
+/// use smspace::metric::{distance_matrix, Closure, DistanceParams, MetricKind, Period, SetsView};
+/// use smspace::progress::Silent;
+/// // Two open segments on the line y = 0 and y = 1 (no period): distance 1.
+/// let sets = ndarray::array![[[0.0, 0.0], [2.0, 0.0]], [[0.0, 1.0], [2.0, 1.0]]];
+/// let closure = [Closure::Open, Closure::Open];
+/// let params = DistanceParams::new().metric(MetricKind::Curve).period(Period::None);
+/// let d = distance_matrix(SetsView::new(sets.view()).with_closure(&closure), &params, &Silent).unwrap();
+/// assert!((d[[0, 1]] - 1.0).abs() < 1e-9);
+/// ```
+#[derive(Debug, Clone, Copy)]
+pub struct SetsView<'a> {
+    points: ArrayView3<'a, f64>,
+    closure: Option<&'a [Closure]>,
+}
+
+impl<'a> SetsView<'a> {
+    /// The sets `(M, P, N)` without closures (enough for the point metrics).
+    pub fn new(points: ArrayView3<'a, f64>) -> Self {
+        Self {
+            points,
+            closure: None,
+        }
+    }
+
+    /// The same sets with one [`Closure`] per set (checked when the sets are prepared).
+    pub fn with_closure(mut self, closure: &'a [Closure]) -> Self {
+        self.closure = Some(closure);
+        self
+    }
+
+    /// The points `(M, P, N)`.
+    pub fn points(&self) -> ArrayView3<'a, f64> {
+        self.points
+    }
+
+    /// The closures, if given.
+    pub fn closure(&self) -> Option<&'a [Closure]> {
+        self.closure
+    }
+}
+
+impl<'a> From<ArrayView3<'a, f64>> for SetsView<'a> {
+    fn from(points: ArrayView3<'a, f64>) -> Self {
+        Self::new(points)
+    }
+}
 
 /// Errors of the metric stage.
 #[derive(Debug, thiserror::Error)]
@@ -124,6 +187,29 @@ pub enum MetricError {
         /// `M − 1`.
         max: usize,
     },
+    /// The `curve` metric was asked for sets whose closures are unknown.
+    #[error("the curve metric needs to know which sets are closed loops and which are open polylines: the trace stage records it in sets.closed.npy next to sets.npy; for a bare .npy say it with --curve closed or --curve open")]
+    MissingClosure,
+    /// The closures do not match the sets.
+    #[error("{found} closed/open records were given for {sets} sets; there must be one per set (sets.closed.npy has shape (M,))")]
+    ClosureLength {
+        /// Records given.
+        found: usize,
+        /// `M`.
+        sets: usize,
+    },
+    /// A polyline needs two points.
+    #[error("the curve metric joins the points of a set into a polyline, which needs at least 2 points per set, but the sets have P = {points}")]
+    TooFewPoints {
+        /// `P`.
+        points: usize,
+    },
+    /// The curve kernels are compiled for up to 16 coordinates.
+    #[error("the curve metric supports up to 16 coordinates (motors) per point, the sets have {dims}; use --metric hausdorff")]
+    TooManyCoordinates {
+        /// `N`.
+        dims: usize,
+    },
     /// The output would not fit in the memory available.
     #[error("the distance matrix of {sets} sets needs {} but only {} is available; compute the k nearest sets instead (knn, `--knn K` on the command line), or a block of rows", human_bytes(*needed), human_bytes(*available))]
     OutOfMemory {
@@ -183,6 +269,8 @@ pub enum MetricKind {
     Hausdorff,
     /// The average of the two mean directed distances.
     MeanHausdorff,
+    /// The Hausdorff distance between the sets read as closed or open polylines.
+    Curve,
 }
 
 impl MetricKind {
@@ -191,20 +279,38 @@ impl MetricKind {
         match self {
             MetricKind::Hausdorff => "hausdorff",
             MetricKind::MeanHausdorff => "mean-hausdorff",
+            MetricKind::Curve => "curve",
         }
     }
 
     /// True when the triangle inequality holds, which nearest-neighbour search uses to
     /// prune.
     pub fn is_metric(self) -> bool {
-        matches!(self, MetricKind::Hausdorff)
+        matches!(self, MetricKind::Hausdorff | MetricKind::Curve)
     }
 
-    /// This metric as a [`SetMetric`] object under the point metric `period`.
-    pub fn with_period(self, period: Period) -> Box<dyn SetMetric> {
+    /// Absolute error of the computed values (0 for the point metrics, which are exact
+    /// up to rounding; [`CURVE_TOLERANCE`] for `curve`). Nearest-neighbour pruning
+    /// widens its bounds by it.
+    pub fn tolerance(self) -> f64 {
+        match self {
+            MetricKind::Curve => CURVE_TOLERANCE,
+            _ => 0.0,
+        }
+    }
+
+    /// True when the metric needs each set's [`Closure`].
+    pub fn needs_closure(self) -> bool {
+        matches!(self, MetricKind::Curve)
+    }
+
+    /// This metric as a [`SetMetric`] object under the point metric `period`. The
+    /// `curve` metric reads both sets as `closure` polylines.
+    pub fn with_period(self, period: Period, closure: Closure) -> Box<dyn SetMetric> {
         match self {
             MetricKind::Hausdorff => Box::new(Hausdorff { period }),
             MetricKind::MeanHausdorff => Box::new(MeanHausdorff { period }),
+            MetricKind::Curve => Box::new(Curve { period, closure }),
         }
     }
 }
@@ -238,17 +344,54 @@ pub struct MeanHausdorff {
     pub period: Period,
 }
 
+/// The Hausdorff distance `ρ_c` between two sets read as polylines (see [`mod@curve`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Curve {
+    /// Period of the coordinates.
+    pub period: Period,
+    /// How the points of both sets are joined.
+    pub closure: Closure,
+}
+
 fn pair_distance(
     kind: MetricKind,
     period: Period,
     a: ArrayView2<'_, f64>,
     b: ArrayView2<'_, f64>,
 ) -> Result<f64, MetricError> {
+    pair_distance_closed(kind, period, a, b, Closure::Open)
+}
+
+fn pair_distance_closed(
+    kind: MetricKind,
+    period: Period,
+    a: ArrayView2<'_, f64>,
+    b: ArrayView2<'_, f64>,
+    closure: Closure,
+) -> Result<f64, MetricError> {
     if a.ncols() != b.ncols() {
         return Err(MetricError::DimensionMismatch {
             a: a.ncols(),
             b: b.ncols(),
         });
+    }
+    if kind == MetricKind::Curve && a.nrows() != b.nrows() {
+        // Repeating the last point adds segments of length 0, which leave the polyline
+        // (as a set of points) unchanged, closed or open: pad the shorter set.
+        let p = a.nrows().max(b.nrows());
+        let pad = |x: ArrayView2<'_, f64>| {
+            let mut out = Array2::zeros((p, x.ncols()));
+            for (i, mut row) in out.outer_iter_mut().enumerate() {
+                row.assign(&x.row(i.min(x.nrows().saturating_sub(1))));
+            }
+            out
+        };
+        if a.nrows() == 0 || b.nrows() == 0 {
+            return Err(MetricError::EmptySets {
+                shape: (2, a.nrows().min(b.nrows()), a.ncols()),
+            });
+        }
+        return pair_distance_closed(kind, period, pad(a).view(), pad(b).view(), closure);
     }
     if a.nrows() != b.nrows() {
         // Different point counts: no shared layout, use the reference (after the checks).
@@ -257,12 +400,21 @@ fn pair_distance(
         return Ok(match kind {
             MetricKind::Hausdorff => reference::hausdorff(a, b, period),
             MetricKind::MeanHausdorff => reference::mean_hausdorff(a, b, period),
+            MetricKind::Curve => unreachable!("curve sets of different sizes are padded above"),
         });
     }
     let mut both = Array3::zeros((2, a.nrows(), a.ncols()));
     both.index_axis_mut(Axis(0), 0).assign(&a);
     both.index_axis_mut(Axis(0), 1).assign(&b);
-    let prepared = PreparedSets::new(both.view(), period)?;
+    let closures = [closure; 2];
+    let view = SetsView::new(both.view());
+    let view = if kind.needs_closure() {
+        view.with_closure(&closures)
+    } else {
+        view
+    };
+    let prepared = PreparedSets::new(view, period)?;
+    check_metric(&prepared, kind)?;
     let mut scratch = kernel::Scratch::default();
     Ok(kernel::dispatch(&prepared, kind, &mut scratch, PairDriver))
 }
@@ -283,6 +435,18 @@ impl SetMetric for Hausdorff {
     }
     fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
         pair_distance(MetricKind::Hausdorff, self.period, a, b)
+    }
+    fn is_metric(&self) -> bool {
+        true
+    }
+}
+
+impl SetMetric for Curve {
+    fn name(&self) -> &'static str {
+        MetricKind::Curve.name()
+    }
+    fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
+        pair_distance_closed(MetricKind::Curve, self.period, a, b, self.closure)
     }
     fn is_metric(&self) -> bool {
         true
@@ -354,9 +518,10 @@ impl std::ops::Deref for ValidDistanceParams {
 }
 
 /// Bytes needed to compute rows `rows` of the matrix of `sets` sets of `points` points
-/// with `dims` coordinates: the `(rows, M)` output plus the prepared layout.
+/// with `dims` coordinates: the `(rows, M)` output plus the prepared layout (with the
+/// segments of the `curve` metric).
 pub fn matrix_bytes(sets: usize, points: usize, dims: usize, rows: usize) -> u64 {
-    (rows as u64) * (sets as u64) * 8 + PreparedSets::estimate_bytes(sets, points, dims)
+    (rows as u64) * (sets as u64) * 8 + PreparedSets::estimate_bytes_with_curves(sets, points, dims)
 }
 
 fn check_rows(rows: &Range<usize>, sets: usize) -> Result<(), MetricError> {
@@ -366,6 +531,22 @@ fn check_rows(rows: &Range<usize>, sets: usize) -> Result<(), MetricError> {
             end: rows.end,
             sets,
         });
+    }
+    Ok(())
+}
+
+/// Checks that `prepared` can be measured with `metric`: the `curve` metric needs the
+/// closures and at most 16 coordinates.
+pub(crate) fn check_metric(prepared: &PreparedSets, metric: MetricKind) -> Result<(), MetricError> {
+    if metric.needs_closure() {
+        if !prepared.has_closure() {
+            return Err(MetricError::MissingClosure);
+        }
+        if prepared.dims() > 16 {
+            return Err(MetricError::TooManyCoordinates {
+                dims: prepared.dims(),
+            });
+        }
     }
     Ok(())
 }
@@ -386,25 +567,29 @@ fn check_memory(limit: Option<u64>, sets: usize, needed: u64) -> Result<(), Metr
 ///
 /// Errors before any work when `M < 2`, `P` or `N` is zero, a coordinate is not
 /// finite, or the matrix needs more than `params.memory_limit_bytes`.
-pub fn distance_matrix(
-    sets: ArrayView3<'_, f64>,
+///
+/// The `curve` metric needs the sets' closures ([`SetsView::with_closure`]).
+pub fn distance_matrix<'a>(
+    sets: impl Into<SetsView<'a>>,
     params: &DistanceParams,
     progress: &dyn Progress,
 ) -> Result<Array2<f64>, MetricError> {
-    let m = sets.dim().0;
+    let sets = sets.into();
+    let m = sets.points().dim().0;
     distance_rows(sets, params, 0..m, progress)
 }
 
 /// Rows `[i0, i1)` of the distance matrix, as a `(i1 − i0, M)` array. Any split of
 /// `0..M` into blocks gives, stacked, exactly [`distance_matrix`].
-pub fn distance_rows(
-    sets: ArrayView3<'_, f64>,
+pub fn distance_rows<'a>(
+    sets: impl Into<SetsView<'a>>,
     params: &DistanceParams,
     rows: Range<usize>,
     progress: &dyn Progress,
 ) -> Result<Array2<f64>, MetricError> {
     let params = params.check()?;
-    let (m, p, n) = sets.dim();
+    let sets = closure_for(sets.into(), params.metric)?;
+    let (m, p, n) = sets.points().dim();
     if m < 2 {
         return Err(MetricError::TooFewSets { sets: m });
     }
@@ -415,9 +600,26 @@ pub fn distance_rows(
         matrix_bytes(m, p, n, rows.len()),
     )?;
     let prepared = PreparedSets::new(sets, params.period)?;
+    check_metric(&prepared, params.metric)?;
     let mut out = Array2::zeros((rows.len(), m));
     fill_rows(&prepared, params.metric, rows, out.view_mut(), progress)?;
     Ok(out)
+}
+
+/// The view to prepare for `metric`: closures dropped when the metric does not read
+/// them (no segment layout to build), required when it does.
+pub(crate) fn closure_for(
+    sets: SetsView<'_>,
+    metric: MetricKind,
+) -> Result<SetsView<'_>, MetricError> {
+    if metric.needs_closure() {
+        if sets.closure().is_none() {
+            return Err(MetricError::MissingClosure);
+        }
+        Ok(sets)
+    } else {
+        Ok(SetsView::new(sets.points()))
+    }
 }
 
 /// Rows of a tile share a pass over each block of this many columns, so that the
@@ -483,6 +685,7 @@ pub fn fill_rows(
         return Err(MetricError::TooFewSets { sets: m });
     }
     check_rows(&rows, m)?;
+    check_metric(prepared, metric)?;
     let expected = (rows.len(), m);
     if out.dim() != expected || !out.is_standard_layout() {
         return Err(MetricError::BadBuffer {

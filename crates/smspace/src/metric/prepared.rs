@@ -1,9 +1,8 @@
 //! The kernel sets laid out for the fast kernels: structure of arrays, padded to whole
 //! SIMD blocks, with a bounding box around every run of [`LANES`] consecutive points.
 
-use ndarray::ArrayView3;
-
-use super::{MetricError, Period};
+use super::curve::CurveLayout;
+use super::{MetricError, Period, SetsView};
 
 /// Points per SIMD block (and per bounding box). Eight `f64` fill one AVX-512 register
 /// or two AVX2 registers.
@@ -42,6 +41,7 @@ pub struct PreparedSets {
     centers_narrow: Vec<f32>,
     centers_wide: Vec<f32>,
     widths: Vec<f64>,
+    curves: Option<CurveLayout>,
 }
 
 /// One prepared set, as the kernels see it.
@@ -64,6 +64,16 @@ pub(crate) struct SetRef<'a> {
     /// `[chunk][n]`: half-widths of the bounding boxes around the centres, per
     /// coordinate (periodic intervals, already enlarged by the margin).
     pub widths: &'a [f64],
+}
+
+/// Coordinates per point after padding with zeros: the next of 2, 4, 8, …, 64 (the
+/// coordinate counts the kernels are compiled for), or `N` itself above 64.
+pub(crate) fn pad_dims(n: usize) -> usize {
+    if n <= 64 {
+        n.next_power_of_two().max(2)
+    } else {
+        n
+    }
 }
 
 /// Wraps `u` into `[-T/2, T/2)`, leaving values already there untouched.
@@ -100,11 +110,16 @@ pub(crate) fn fold(u: f64, period: f64) -> f64 {
 
 impl PreparedSets {
     /// Lays out `sets` (`(M, P, N)`: `M` sets of `P` points with `N` coordinates) for the
-    /// fast kernels, under the point metric `period`.
+    /// fast kernels, under the point metric `period`. When the sets come with their
+    /// [`Closure`](super::Closure) ([`SetsView::with_closure`]) their segments are laid
+    /// out too, for the `curve` metric.
     ///
-    /// Errors when `P` or `N` is zero or a coordinate is not finite. `M` may be any
+    /// Errors when `P` or `N` is zero, a coordinate is not finite, or the closures do
+    /// not match the sets (one per set; at least 2 points per set). `M` may be any
     /// number here; the matrix functions ask for at least two sets.
-    pub fn new(sets: ArrayView3<'_, f64>, period: Period) -> Result<Self, MetricError> {
+    pub fn new<'a>(sets: impl Into<SetsView<'a>>, period: Period) -> Result<Self, MetricError> {
+        let view: SetsView<'a> = sets.into();
+        let sets = view.points();
         let (m, p, n) = sets.dim();
         if p == 0 || n == 0 {
             return Err(MetricError::EmptySets { shape: (m, p, n) });
@@ -120,13 +135,7 @@ impl PreparedSets {
             });
         }
         let period_value = period.radians();
-        let dims_pad = match n {
-            1..=2 => 2,
-            3..=4 => 4,
-            5..=8 => 8,
-            9..=16 => 16,
-            _ => n,
-        };
+        let dims_pad = pad_dims(n);
         let points_pad = p.div_ceil(LANES) * LANES;
         let chunks = points_pad / LANES;
         let mut coords = vec![0.0; m * dims_pad * points_pad];
@@ -178,7 +187,32 @@ impl PreparedSets {
                 }
             }
         }
+        let curves = match view.closure() {
+            None => None,
+            Some(closure) => {
+                if closure.len() != m {
+                    return Err(MetricError::ClosureLength {
+                        found: closure.len(),
+                        sets: m,
+                    });
+                }
+                if p < 2 {
+                    return Err(MetricError::TooFewPoints { points: p });
+                }
+                Some(CurveLayout::new(
+                    &coords,
+                    m,
+                    p,
+                    points_pad,
+                    n,
+                    dims_pad,
+                    period_value,
+                    closure,
+                ))
+            }
+        };
         Ok(Self {
+            curves,
             sets: m,
             points: p,
             dims: n,
@@ -224,6 +258,22 @@ impl PreparedSets {
     pub fn bytes(&self) -> u64 {
         ((2 * self.coords.len() + 2 * self.centers.len()) * 8
             + (self.centers_narrow.len() + self.centers_wide.len()) * 4) as u64
+            + self.curves.as_ref().map_or(0, CurveLayout::bytes)
+    }
+
+    /// True when the sets were prepared with their closures, as the `curve` metric
+    /// needs.
+    pub fn has_closure(&self) -> bool {
+        self.curves.is_some()
+    }
+
+    /// The closure of every set, when it was given.
+    pub fn closure(&self) -> Option<&[super::Closure]> {
+        self.curves.as_ref().map(|c| c.closure.as_slice())
+    }
+
+    pub(crate) fn curves(&self) -> Option<&CurveLayout> {
+        self.curves.as_ref()
     }
 
     pub(crate) fn period_value(&self) -> f64 {
@@ -261,9 +311,18 @@ impl PreparedSets {
         }
     }
 
+    /// Estimated bytes a [`PreparedSets`] of this shape holds, with the segment layout of
+    /// the `curve` metric.
+    pub fn estimate_bytes_with_curves(sets: usize, points: usize, dims: usize) -> u64 {
+        let dims_pad = pad_dims(dims);
+        let points_pad = points.div_ceil(LANES) * LANES;
+        Self::estimate_bytes(sets, points, dims)
+            + CurveLayout::estimate_bytes(sets, points_pad, dims_pad)
+    }
+
     /// Estimated bytes a [`PreparedSets`] of this shape holds.
     pub fn estimate_bytes(sets: usize, points: usize, dims: usize) -> u64 {
-        let dims_pad = dims.next_power_of_two().max(2);
+        let dims_pad = pad_dims(dims);
         let points_pad = points.div_ceil(LANES) * LANES;
         let chunks = points_pad / LANES;
         let chunks_wide = chunks.div_ceil(WIDE) * WIDE;

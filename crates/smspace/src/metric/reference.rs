@@ -67,7 +67,9 @@ pub fn mean_hausdorff(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, period: Pe
     0.5 * (mean(&rows) + mean(&cols))
 }
 
-/// Brute-force distance matrix `(M, M)` between all sets of `(M, P, N)`, single-threaded.
+/// Brute-force distance matrix `(M, M)` between all sets of `(M, P, N)`, single-threaded,
+/// for the point metrics. The curve metric has no finite brute force: its reference is
+/// [`curve_bounds`], and asking this function for it is a bug (it panics).
 pub fn distance_matrix(sets: ArrayView3<'_, f64>, kind: MetricKind, period: Period) -> Array2<f64> {
     let m = sets.dim().0;
     let mut out = Array2::zeros((m, m));
@@ -78,10 +80,161 @@ pub fn distance_matrix(sets: ArrayView3<'_, f64>, kind: MetricKind, period: Peri
             let d = match kind {
                 MetricKind::Hausdorff => hausdorff(a, b, period),
                 MetricKind::MeanHausdorff => mean_hausdorff(a, b, period),
+                MetricKind::Curve => {
+                    panic!("reference::distance_matrix is for the point metrics; use curve_bounds")
+                }
             };
             out[[i, j]] = d;
             out[[j, i]] = d;
         }
     }
     out
+}
+
+/// `δ(a, s)`: the periodic distance from point `a` to the segment from `start` along
+/// `v` (`s(t) = start + t·v`, `t ∈ [0, 1]`), by brute force over periodic images: the
+/// Euclidean distance from `a` to every translate `s + T·k` of the segment with
+/// `k ∈ {−1, 0, 1}^N` (enough when every coordinate of `a`, `start` and `v` lies in
+/// `[−T/2, T/2]`), the smallest one kept. Independent of the fast kernel's pieces;
+/// `3^N` images, meant for `N ≤ 8`.
+pub fn segment_distance(
+    a: ArrayView1<'_, f64>,
+    start: ArrayView1<'_, f64>,
+    v: ArrayView1<'_, f64>,
+    period: Period,
+) -> f64 {
+    let t = period.radians();
+    let n = a.len();
+    let images: usize = if t.is_finite() {
+        3usize.pow(n as u32)
+    } else {
+        1
+    };
+    let len2: f64 = v.iter().map(|x| x * x).sum();
+    let mut best = f64::INFINITY;
+    for code in 0..images {
+        let mut rest = code;
+        let mut u = vec![0.0; n];
+        for k in 0..n {
+            let shift = if t.is_finite() {
+                let digit = rest % 3;
+                rest /= 3;
+                (digit as f64 - 1.0) * t
+            } else {
+                0.0
+            };
+            // Bring a and start to their representatives first.
+            let wrap = |x: f64| {
+                if t.is_finite() {
+                    x - t * (x / t).round()
+                } else {
+                    x
+                }
+            };
+            u[k] = wrap(a[k]) - (wrap(start[k]) + shift);
+        }
+        let dot: f64 = u.iter().zip(v.iter()).map(|(x, y)| x * y).sum();
+        let s = if len2 > 0.0 {
+            (dot / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let d2: f64 = u
+            .iter()
+            .zip(v.iter())
+            .map(|(x, y)| (x - s * y).powi(2))
+            .sum();
+        best = best.min(d2);
+    }
+    best.sqrt()
+}
+
+/// The segments `(start, v)` of a polyline through the rows of `x`: `P` of them when
+/// `closed`, `P − 1` otherwise, with `v = h(x_{i+1} − x_i)`.
+pub fn polyline_segments(
+    x: ArrayView2<'_, f64>,
+    closed: bool,
+    period: Period,
+) -> Vec<(Vec<f64>, Vec<f64>)> {
+    let t = period.radians();
+    let signed = |u: f64| {
+        if t.is_finite() {
+            u - t * (u / t).round()
+        } else {
+            u
+        }
+    };
+    let p = x.nrows();
+    let count = if closed { p } else { p.saturating_sub(1) };
+    (0..count)
+        .map(|i| {
+            let next = x.row((i + 1) % p);
+            let start: Vec<f64> = x.row(i).iter().map(|&z| signed(z)).collect();
+            let v: Vec<f64> = x
+                .row(i)
+                .iter()
+                .zip(next.iter())
+                .map(|(a, b)| signed(b - a))
+                .collect();
+            (start, v)
+        })
+        .collect()
+}
+
+/// `d_B(a) = min_j δ(a, s_j)` over the segments of polyline `B`, by brute force.
+pub fn polyline_distance(
+    a: ArrayView1<'_, f64>,
+    segments: &[(Vec<f64>, Vec<f64>)],
+    period: Period,
+) -> f64 {
+    segments
+        .iter()
+        .map(|(s, v)| {
+            segment_distance(
+                a,
+                ArrayView1::from(s.as_slice()),
+                ArrayView1::from(v.as_slice()),
+                period,
+            )
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Bounds of the curve distance `ρ_c(A, B)` between the polylines through the rows of
+/// `a` and `b` by dense sampling: every segment of each polyline is cut into `pieces`
+/// equal parts, the distance from every cut point to the other polyline is computed
+/// exactly ([`polyline_distance`]), and the largest of them is a lower bound. Since
+/// `d_B` is 1-Lipschitz along a segment, the exact value is at most that plus half the
+/// longest piece: the pair `(lower, upper)` brackets `ρ_c`.
+pub fn curve_bounds(
+    a: ArrayView2<'_, f64>,
+    a_closed: bool,
+    b: ArrayView2<'_, f64>,
+    b_closed: bool,
+    period: Period,
+    pieces: usize,
+) -> (f64, f64) {
+    let sa = polyline_segments(a, a_closed, period);
+    let sb = polyline_segments(b, b_closed, period);
+    let directed = |from: &[(Vec<f64>, Vec<f64>)], to: &[(Vec<f64>, Vec<f64>)]| {
+        let mut lower: f64 = 0.0;
+        let mut longest: f64 = 0.0;
+        for (s, v) in from {
+            let length = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            longest = longest.max(length / pieces as f64);
+            for step in 0..=pieces {
+                let t = step as f64 / pieces as f64;
+                let x: Vec<f64> = s.iter().zip(v).map(|(p, w)| p + t * w).collect();
+                lower = lower.max(polyline_distance(
+                    ArrayView1::from(x.as_slice()),
+                    to,
+                    period,
+                ));
+            }
+        }
+        (lower, lower + 0.5 * longest)
+    };
+    let (l1, u1) = directed(&sa, &sb);
+    let (l2, u2) = directed(&sb, &sa);
+    (l1.max(l2), u1.max(u2))
 }

@@ -9,7 +9,7 @@
 //! | stage | outputs |
 //! |---|---|
 //! | `explore` | `motors.npy` (M0, N), `poses.npy` (M0, 3), `probes.npy` (M0, 3) int64, `exploration.json`, `environment.json` (+ `environment-2.json`, … for compared environments) |
-//! | `trace` | `sets.npy` (M, P, N), `sets.kept.npy` (M,) int64 (row of `motors.npy` of each set), `sets.trace.json` |
+//! | `trace` | `sets.npy` (M, P, N), `sets.kept.npy` (M,) int64 (row of `motors.npy` of each set), `sets.closed.npy` (M,) int64 (1: a closed loop, 0: an open polyline), `sets.trace.json` |
 //! | `distances` | `D.npy` (M, M) |
 //! | `embed` | `Y.npy` (M, d), `Y.embed.json`, `Y.dydx.npy` (pairs, 2) |
 //! | `analyze` | `analysis.json` |
@@ -34,14 +34,16 @@ use ndarray::{Array1, Array2, Array3, Axis};
 use serde::{Deserialize, Serialize};
 
 use crate::agent::{Agent, Environment, MotorTopology};
-use crate::analysis::{analyze, invariance_measured, AnalysisReport, AnalysisValidParams};
+use crate::analysis::{
+    analyze_on, invariance_measured, AnalysisReport, AnalysisValidParams, DimensionSets,
+};
 use crate::config::{ConfigError, LoadedExperiment};
 use crate::embed::quality::{assess, shepard_pairs, Quality};
 use crate::embed::{DydxSample, EmbedFile, EmbedReport, Embedding};
 use crate::explore::{explore_in, Exploration, Workspace, EXPLORATION_FILES};
 use crate::io::{self, IoError};
 use crate::kernel::{trace_sets, TraceMethod, TraceParams, TraceReport, TraceValidParams};
-use crate::metric::{distance_matrix, ValidDistanceParams};
+use crate::metric::{distance_matrix, SetsView, ValidDistanceParams};
 use crate::progress::Progress;
 use crate::report::{
     write_report, InvarianceData, ReportInputs, ReportParams, SensoryManifold, StageTiming,
@@ -391,6 +393,7 @@ impl Runner<'_> {
 struct Traced {
     sets: Array3<f64>,
     kept: Vec<usize>,
+    closure: Vec<crate::metric::Closure>,
     report: TraceReport,
 }
 
@@ -540,8 +543,10 @@ pub fn run(
         Stage::Trace,
         &[explore_record.as_bytes(), trace_key.as_bytes()],
         |dir| {
+            let sets = io::read_cube(&dir.join("sets.npy"), "(M, P, N)")?;
             Ok(Traced {
-                sets: io::read_cube(&dir.join("sets.npy"), "(M, P, N)")?,
+                closure: crate::kernel::read_closure(&dir.join("sets.closed.npy"), sets.dim().0)?,
+                sets,
                 kept: read_kept(&dir.join("sets.kept.npy"))?,
                 report: io::read_json(&dir.join("sets.trace.json"), "trace report")?,
             })
@@ -567,15 +572,22 @@ pub fn run(
             let kept: Array1<i64> = traced.kept.iter().map(|&k| k as i64).collect();
             io::write_npy(&dir.join("sets.kept.npy"), &kept)?;
             io::write_json(&dir.join("sets.trace.json"), &traced.report)?;
+            crate::kernel::write_closure(&dir.join("sets.closed.npy"), &traced.closure)?;
             Ok((
                 Traced {
                     sets: traced.sets,
                     kept: traced.kept,
+                    closure: traced.closure,
                     report: traced.report,
                 },
-                ["sets.npy", "sets.kept.npy", "sets.trace.json"]
-                    .map(String::from)
-                    .to_vec(),
+                [
+                    "sets.npy",
+                    "sets.kept.npy",
+                    "sets.trace.json",
+                    "sets.closed.npy",
+                ]
+                .map(String::from)
+                .to_vec(),
             ))
         },
         |t| {
@@ -601,7 +613,8 @@ pub fn run(
             let params = (*plan.distances)
                 .clone()
                 .memory_limit_bytes(options.memory_limit_bytes);
-            let d = distance_matrix(traced.sets.view(), &params, progress)?;
+            let sets = SetsView::new(traced.sets.view()).with_closure(&traced.closure);
+            let d = distance_matrix(sets, &params, progress)?;
             io::write_npy(&dir.join("D.npy"), &d)?;
             Ok((d, vec!["D.npy".to_owned()]))
         },
@@ -718,9 +731,22 @@ pub fn run(
             )?)
         },
         |dir, progress| {
-            let report = analyze(
+            // The dimension on the babbled sets: the probe grid's regular spacing biases
+            // nearest-neighbour ratios.
+            let babbled: Vec<usize> = traced
+                .kept
+                .iter()
+                .enumerate()
+                .filter(|&(_, &row)| exploration.probes[[row, 0]] < 0)
+                .map(|(i, _)| i)
+                .collect();
+            let report = analyze_on(
                 distances.view(),
                 Some(kept_poses.view()),
+                Some(DimensionSets {
+                    rows: &babbled,
+                    name: "babbled",
+                }),
                 &plan.analysis,
                 progress,
             )?;
@@ -764,7 +790,8 @@ pub fn run(
                 .take(e.analysis.invariance_starts)
                 .collect();
             let starts = exploration.motors.select(Axis(0), &babbled);
-            let invariance_params = json(&(&e.kernel, e.analysis.invariance_starts));
+            let invariance_params =
+                json(&(&e.kernel, e.analysis.invariance_starts, e.metric.metric));
             let count = environments.len();
             let (data, key) = runner.stage(
                 Stage::Invariance,
@@ -790,6 +817,7 @@ pub fn run(
                         environments,
                         plan.workspace.as_ref(),
                         params,
+                        e.metric.metric,
                         progress,
                     )?;
                     io::write_json(&dir.join("invariance.json"), &measured.report)?;

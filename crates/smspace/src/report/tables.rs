@@ -232,6 +232,15 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
     }
     let d = &a.intrinsic_dimension;
     let mut dim = Table::key_value("Intrinsic dimension");
+    if d.sets != "all" {
+        dim.push(
+            "computed on",
+            format!(
+                "the {} {} sets only (the probe grid's regular spacing biases nearest-neighbour ratios)",
+                d.sets_used, d.sets
+            ),
+        );
+    }
     dim.push(
         "TwoNN",
         format!(

@@ -1,0 +1,436 @@
+//! Tests of the `curve` metric (the Hausdorff distance between polylines): cases with
+//! known answers, the dense-sampling reference, metric properties, seams, open vs
+//! closed, row blocks, thread counts, nearest sets and bad input.
+
+#[path = "common/arm_like.rs"]
+mod arm_like;
+
+use std::f64::consts::PI;
+
+use arm_like::{arm_like_sets, uniform_sets};
+use ndarray::{array, Array2, Array3, Axis};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use smspace::metric::{
+    distance_matrix, distance_rows, knn, reference, Closure, Curve, DistanceParams, KnnParams,
+    MetricError, MetricKind, Period, SetMetric, SetsView, CURVE_TOLERANCE,
+};
+use smspace::progress::Silent;
+
+fn curve(period: Period) -> DistanceParams {
+    DistanceParams::new()
+        .metric(MetricKind::Curve)
+        .period(period)
+}
+
+/// The curve distance between two sets given with their closures, through the matrix
+/// path (the fast kernel) and through [`SetMetric`].
+fn pair(a: &Array2<f64>, ca: Closure, b: &Array2<f64>, cb: Closure, period: Period) -> f64 {
+    let p = a.nrows().max(b.nrows());
+    assert_eq!(a.nrows(), b.nrows(), "use sets of one size here ({p})");
+    let mut sets = Array3::zeros((2, a.nrows(), a.ncols()));
+    sets.index_axis_mut(Axis(0), 0).assign(a);
+    sets.index_axis_mut(Axis(0), 1).assign(b);
+    let closure = [ca, cb];
+    let d = distance_matrix(
+        SetsView::new(sets.view()).with_closure(&closure),
+        &curve(period),
+        &Silent,
+    )
+    .unwrap();
+    assert_eq!(d[[0, 1]], d[[1, 0]]);
+    d[[0, 1]]
+}
+
+fn wrapped(x: f64) -> f64 {
+    (x + PI).rem_euclid(2.0 * PI) - PI
+}
+
+#[test]
+fn parallel_segments_are_their_gap_apart() {
+    // Open segments on y = 0 and y = 1 (no period): every point is 1 from the other.
+    let a = array![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]];
+    let b = array![[0.0, 1.0], [1.0, 1.0], [2.0, 1.0]];
+    assert!((pair(&a, Closure::Open, &b, Closure::Open, Period::None) - 1.0).abs() < 1e-12);
+    // Shifted along x by 1: the ends see the other segment's end at distance sqrt(2).
+    let b = array![[1.0, 1.0], [2.0, 1.0], [3.0, 1.0]];
+    let d = pair(&a, Closure::Open, &b, Closure::Open, Period::None);
+    assert!((d - 2f64.sqrt()).abs() < 1e-12, "{d}");
+    // The point metric on two samples per unit length: the same answer only at the ends.
+    let a = array![[0.0, 0.0], [2.0, 0.0]];
+    let b = array![[0.5, 0.3], [1.5, 0.3]];
+    // From A's ends (0,0) and (2,0) to B's segment: sqrt(0.25 + 0.09).
+    let d = pair(&a, Closure::Open, &b, Closure::Open, Period::None);
+    assert!((d - (0.25f64 + 0.09).sqrt()).abs() < 1e-12, "{d}");
+}
+
+#[test]
+fn a_point_set_lies_on_its_own_polyline() {
+    // A unit square: B closed, A the same points open. A ⊂ B, so h(A, B) = 0, while
+    // B's closing edge (0,1) → (0,0) is farthest from A at its middle: 0.5.
+    let square = array![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    let d = pair(
+        &square,
+        Closure::Open,
+        &square,
+        Closure::Closed,
+        Period::None,
+    );
+    assert!((d - 0.5).abs() < 1e-12, "{d}");
+    let d = pair(
+        &square,
+        Closure::Closed,
+        &square,
+        Closure::Closed,
+        Period::None,
+    );
+    assert_eq!(d, 0.0);
+    // The point metric gives 0 for both: it cannot see the closing edge.
+    let mut sets = Array3::zeros((2, 4, 2));
+    sets.index_axis_mut(Axis(0), 0).assign(&square);
+    sets.index_axis_mut(Axis(0), 1).assign(&square);
+    let d = distance_matrix(
+        sets.view(),
+        &DistanceParams::new().period(Period::None),
+        &Silent,
+    )
+    .unwrap();
+    assert_eq!(d[[0, 1]], 0.0);
+}
+
+#[test]
+fn a_loop_against_itself_sampled_half_a_step_later() {
+    // Two inscribed regular P-gons of a circle of radius r, rotated by half a step: the
+    // curve distance is r (1 − cos(π/P)) (a vertex of one against the facing edge of
+    // the other), the point distance 2 r sin(π / 2P).
+    let (r, p) = (0.7, 24);
+    let polygon = |phase: f64| {
+        Array2::from_shape_fn((p, 2), |(k, n)| {
+            let angle = 2.0 * PI * (k as f64 + phase) / p as f64;
+            if n == 0 {
+                r * angle.cos()
+            } else {
+                r * angle.sin()
+            }
+        })
+    };
+    let (a, b) = (polygon(0.0), polygon(0.5));
+    for period in [Period::None, Period::TwoPi] {
+        let d = pair(&a, Closure::Closed, &b, Closure::Closed, period);
+        let expected = r * (1.0 - (PI / p as f64).cos());
+        assert!(
+            (d - expected).abs() < 1e-10,
+            "{period:?}: {d} vs {expected}"
+        );
+        let points = Hausdorff(period).distance(a.view(), b.view()).unwrap();
+        assert!((points - 2.0 * r * (PI / (2.0 * p as f64)).sin()).abs() < 1e-12);
+    }
+}
+
+/// The point metric for comparisons.
+#[allow(non_snake_case)]
+fn Hausdorff(period: Period) -> smspace::metric::Hausdorff {
+    smspace::metric::Hausdorff { period }
+}
+
+#[test]
+fn a_loop_across_the_seam_against_its_translate() {
+    // A square loop of side 0.5 centred on (π − 0.1, 0.4, 1, −2) in 4-D crosses the seam
+    // x = ±π; its translate by 0.1 along x is centred on ±π. The curve distance of a
+    // square and its translate along an edge direction is the translation.
+    let square = |cx: f64| {
+        let corners = [(-0.25, -0.25), (0.25, -0.25), (0.25, 0.25), (-0.25, 0.25)];
+        let mut x = Array2::zeros((8, 4));
+        for k in 0..8 {
+            // Corners and edge midpoints, in order.
+            let (a, b) = corners[k / 2];
+            let (c, d) = corners[(k / 2 + 1) % 4];
+            let t = if k % 2 == 0 { 0.0 } else { 0.5 };
+            x[[k, 0]] = wrapped(cx + a + t * (c - a));
+            x[[k, 1]] = 0.4 + b + t * (d - b);
+            x[[k, 2]] = 1.0;
+            x[[k, 3]] = -2.0;
+        }
+        x
+    };
+    let a = square(PI - 0.1);
+    let b = square(PI);
+    assert!(a.iter().all(|v| (-PI..PI).contains(v)));
+    let d = pair(&a, Closure::Closed, &b, Closure::Closed, Period::TwoPi);
+    assert!((d - 0.1).abs() < 1e-10, "{d}");
+    // Without the period the loops are cut at the seam into different shapes, farther
+    // apart than their translation.
+    let flat = pair(&a, Closure::Closed, &b, Closure::Closed, Period::None);
+    assert!(flat > d + 0.01, "{flat}");
+}
+
+#[test]
+fn a_segment_crossing_the_seam_is_measured_through_it() {
+    // A: the open segment from x = π − 0.1 to x = −π + 0.1 (through the seam, length
+    // 0.2). A point set at (π, 0.3) (two equal points) is 0.3 from its middle; a point
+    // at (0, 0.3) is π − 0.1 away in x from the nearest end.
+    let a = array![[PI - 0.1, 0.0], [-PI + 0.1, 0.0]];
+    let b = array![[-PI, 0.3], [-PI, 0.3]];
+    let d = pair(&a, Closure::Open, &b, Closure::Open, Period::TwoPi);
+    // From A to B: the ends of A are sqrt(0.01 + 0.09) from B; from B to A: 0.3.
+    assert!((d - (0.1f64).sqrt()).abs() < 1e-12, "{d}");
+    let b = array![[0.0, 0.3], [0.0, 0.3]];
+    let d = pair(&a, Closure::Open, &b, Closure::Open, Period::TwoPi);
+    // Farthest point of A from (0, 0.3): its middle (π, 0), at sqrt(π² + 0.09).
+    assert!((d - (PI * PI + 0.09).sqrt()).abs() < 1e-12, "{d}");
+}
+
+/// Random polylines: `m` sets of `p` points near a random walk (so that the segments
+/// are of every length, some crossing the seam).
+fn random_polylines(m: usize, p: usize, n: usize, step: f64, seed: u64) -> Array3<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut sets = Array3::zeros((m, p, n));
+    for i in 0..m {
+        let mut x: Vec<f64> = (0..n).map(|_| rng.gen_range(-PI..PI)).collect();
+        for j in 0..p {
+            for k in 0..n {
+                x[k] += rng.gen_range(-step..step);
+                sets[[i, j, k]] = wrapped(x[k]);
+            }
+        }
+    }
+    sets
+}
+
+#[test]
+fn within_the_dense_sampling_bounds_on_random_polylines() {
+    for (seed, &(m, p, n, step, period)) in [
+        (6, 7, 2, 0.9, Period::TwoPi),
+        (5, 9, 3, 0.5, Period::TwoPi),
+        (5, 12, 4, 0.3, Period::TwoPi),
+        (5, 10, 3, 0.4, Period::None),
+        (3, 17, 5, 0.3, Period::TwoPi),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let sets = random_polylines(m, p, n, step, 100 + seed as u64);
+        for closure in [Closure::Closed, Closure::Open] {
+            let closures = vec![closure; m];
+            let d = distance_matrix(
+                SetsView::new(sets.view()).with_closure(&closures),
+                &curve(period),
+                &Silent,
+            )
+            .unwrap();
+            for i in 0..m {
+                for j in i + 1..m {
+                    let closed = closure == Closure::Closed;
+                    let a = sets.index_axis(Axis(0), i);
+                    let b = sets.index_axis(Axis(0), j);
+                    let pieces = if n > 4 { 40 } else { 150 };
+                    let (lo, hi) = reference::curve_bounds(a, closed, b, closed, period, pieces);
+                    let x = d[[i, j]];
+                    assert!(
+                        x >= lo - 1e-9 && x <= hi + 1e-9,
+                        "seed {seed} {closure:?} {period:?} ({i}, {j}): {lo} <= {x} <= {hi}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn within_the_dense_sampling_bounds_on_arm_like_sets() {
+    let sets = arm_like_sets(5, 24, 3);
+    let closures = vec![Closure::Closed; 5];
+    let d = distance_matrix(
+        SetsView::new(sets.view()).with_closure(&closures),
+        &curve(Period::TwoPi),
+        &Silent,
+    )
+    .unwrap();
+    for i in 0..5 {
+        for j in i + 1..5 {
+            let a = sets.index_axis(Axis(0), i);
+            let b = sets.index_axis(Axis(0), j);
+            let (lo, hi) = reference::curve_bounds(a, true, b, true, Period::TwoPi, 16);
+            assert!(
+                d[[i, j]] >= lo - 1e-9 && d[[i, j]] <= hi + 1e-9,
+                "({i}, {j}): {lo} <= {} <= {hi}",
+                d[[i, j]]
+            );
+        }
+    }
+}
+
+#[test]
+fn symmetric_zero_diagonal_and_triangle_inequality() {
+    let sets = random_polylines(14, 9, 3, 0.6, 9);
+    let closures: Vec<Closure> = (0..14)
+        .map(|i| {
+            if i % 3 == 0 {
+                Closure::Open
+            } else {
+                Closure::Closed
+            }
+        })
+        .collect();
+    let d = distance_matrix(
+        SetsView::new(sets.view()).with_closure(&closures),
+        &curve(Period::TwoPi),
+        &Silent,
+    )
+    .unwrap();
+    for i in 0..14 {
+        assert_eq!(d[[i, i]], 0.0);
+        for j in 0..14 {
+            assert_eq!(d[[i, j]], d[[j, i]]);
+            for k in 0..14 {
+                assert!(
+                    d[[i, k]] <= d[[i, j]] + d[[j, k]] + 3.0 * CURVE_TOLERANCE,
+                    "({i}, {j}, {k})"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn rows_threads_and_nearest_sets_agree_with_the_matrix() {
+    let mut sets = arm_like_sets(70, 30, 21);
+    for (dst, src) in [(60, 3), (61, 3)] {
+        let copy = sets.index_axis(Axis(0), src).to_owned();
+        sets.index_axis_mut(Axis(0), dst).assign(&copy);
+    }
+    let closures = vec![Closure::Closed; 70];
+    let view = SetsView::new(sets.view()).with_closure(&closures);
+    let params = curve(Period::TwoPi);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| distance_matrix(view, &params, &Silent).unwrap())
+    };
+    let full = run(1);
+    assert_eq!(run(2), full);
+    assert_eq!(run(3), full);
+    let block = distance_rows(view, &params, 20..45, &Silent).unwrap();
+    for i in 20..45 {
+        for j in 0..70 {
+            assert_eq!(block[[i - 20, j]], full[[i, j]]);
+        }
+    }
+    for (k, pivots) in [(1, 4), (7, 16), (10, 0)] {
+        let found = knn(
+            view,
+            &params,
+            &KnnParams::new().k(k).pivots(pivots),
+            0..70,
+            &Silent,
+        )
+        .unwrap();
+        for i in 0..70 {
+            let mut row: Vec<(f64, usize)> = (0..70)
+                .filter(|&j| j != i)
+                .map(|j| (full[[i, j]], j))
+                .collect();
+            row.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            for e in 0..k {
+                assert_eq!(
+                    found.indices[[i, e]],
+                    row[e].1,
+                    "k={k} pivots={pivots} row {i}"
+                );
+                assert_eq!(found.distances[[i, e]], row[e].0);
+            }
+        }
+    }
+}
+
+#[test]
+fn set_metric_pads_sets_of_different_sizes() {
+    let square = array![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    let fine = array![[0.0, 0.0], [0.5, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    for closure in [Closure::Closed, Closure::Open] {
+        let metric = Curve {
+            period: Period::None,
+            closure,
+        };
+        assert_eq!(metric.distance(square.view(), fine.view()).unwrap(), 0.0);
+        assert!(metric.is_metric());
+    }
+}
+
+#[test]
+fn bad_input_is_reported() {
+    let sets = uniform_sets(4, 5, 3, 1);
+    // No closures.
+    let err = distance_matrix(sets.view(), &curve(Period::TwoPi), &Silent).unwrap_err();
+    assert!(matches!(err, MetricError::MissingClosure));
+    assert!(err.to_string().contains("--curve closed"), "{err}");
+    let err = knn(
+        sets.view(),
+        &curve(Period::TwoPi),
+        &KnnParams::new().k(2),
+        0..4,
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(matches!(err, MetricError::MissingClosure));
+    // Wrong number of closures.
+    let three = [Closure::Closed; 3];
+    let err = distance_matrix(
+        SetsView::new(sets.view()).with_closure(&three),
+        &curve(Period::TwoPi),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("3 closed/open records were given for 4 sets"),
+        "{err}"
+    );
+    // One point per set.
+    let single = uniform_sets(4, 1, 3, 1);
+    let four = [Closure::Open; 4];
+    let err = distance_matrix(
+        SetsView::new(single.view()).with_closure(&four),
+        &curve(Period::TwoPi),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, MetricError::TooFewPoints { points: 1 }),
+        "{err}"
+    );
+    // NaN.
+    let mut bad = sets.clone();
+    bad[[2, 1, 0]] = f64::NAN;
+    let err = distance_matrix(
+        SetsView::new(bad.view()).with_closure(&four),
+        &curve(Period::TwoPi),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            MetricError::NonFinite {
+                set: 2,
+                point: 1,
+                coord: 0,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    // The point metrics ignore closures.
+    let d = distance_matrix(
+        SetsView::new(sets.view()).with_closure(&four),
+        &DistanceParams::new(),
+        &Silent,
+    )
+    .unwrap();
+    assert_eq!(
+        d,
+        distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap()
+    );
+}
