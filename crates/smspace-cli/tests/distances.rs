@@ -422,6 +422,8 @@ fn trace_records_which_sets_are_closed() {
             "30",
             "--step-control",
             "adaptive",
+            "--workspace",
+            "none",
             "--out",
             "sets.npy",
         ],
