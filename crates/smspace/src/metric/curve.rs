@@ -61,7 +61,7 @@
 //! evaluated in the order (smaller index, larger index), so the value does not depend
 //! on which of the two sets is the query.
 
-use super::kernel::Scratch;
+use super::kernel::{around, Scratch};
 use super::prepared::{fold, wrap, PreparedSets, SetRef, BOUND_MARGIN, LANES};
 
 /// Absolute accuracy of the `curve` metric: every value is within this much below the
@@ -248,82 +248,6 @@ impl PreparedSets {
     }
 }
 
-/// Exact `δ(a, s)²` from a point `a` (wrapped) to the segment from `b` (wrapped) along
-/// `v`, under the periodic metric (see the module docs).
-#[inline]
-pub(crate) fn segment_distance2(
-    a: &[f64],
-    b: &[f64],
-    v: &[f64],
-    inv_len2: f64,
-    period: f64,
-) -> f64 {
-    let half = 0.5 * period;
-    let n = a.len();
-    let mut u = [0.0f64; 64];
-    let u = &mut u[..n.min(64)];
-    if n > 64 {
-        return segment_distance2_long(a, b, v, inv_len2, period);
-    }
-    let mut dot = 0.0;
-    let mut crosses = false;
-    for k in 0..n {
-        u[k] = swrap(a[k] - b[k], period, half);
-        dot += u[k] * v[k];
-        crosses |= (u[k] - v[k]).abs() > half;
-    }
-    if !crosses {
-        let t = (dot * inv_len2).clamp(0.0, 1.0);
-        let mut d2 = 0.0;
-        for k in 0..n {
-            let w = u[k] - t * v[k];
-            d2 += w * w;
-        }
-        return d2;
-    }
-    // Breakpoints: where `u_n − t v_n` leaves [−T/2, T/2] (once per coordinate at most,
-    // since |v_n| ≤ T/2).
-    let mut cuts = [0.0f64; 66];
-    let mut count = 0;
-    cuts[count] = 0.0;
-    count += 1;
-    for k in 0..n {
-        let end = u[k] - v[k];
-        if end > half {
-            cuts[count] = (u[k] - half) / v[k];
-            count += 1;
-        } else if end < -half {
-            cuts[count] = (u[k] + half) / v[k];
-            count += 1;
-        }
-    }
-    cuts[count] = 1.0;
-    count += 1;
-    let cuts = &mut cuts[..count];
-    cuts.sort_unstable_by(f64::total_cmp);
-    let mut best = f64::INFINITY;
-    for w in cuts.windows(2) {
-        let (t0, t1) = (w[0].clamp(0.0, 1.0), w[1].clamp(0.0, 1.0));
-        let mid = 0.5 * (t0 + t1);
-        // On this piece every coordinate keeps one image: c_n = u_n + T·k_n.
-        let mut dot = 0.0;
-        let mut c = [0.0f64; 64];
-        for k in 0..n {
-            let at_mid = u[k] - mid * v[k];
-            c[k] = u[k] + (swrap(at_mid, period, half) - at_mid);
-            dot += c[k] * v[k];
-        }
-        let t = (dot * inv_len2).clamp(t0, t1);
-        let mut d2 = 0.0;
-        for k in 0..n {
-            let w = swrap(u[k] - t * v[k], period, half);
-            d2 += w * w;
-        }
-        best = best.min(d2);
-    }
-    best
-}
-
 /// [`segment_distance2`] for `N` coordinates with the fast single-image path inline.
 #[inline(always)]
 fn segment_distance2_n<const N: usize>(
@@ -354,9 +278,18 @@ fn segment_distance2_n<const N: usize>(
     d2
 }
 
-/// [`segment_distance2`] for more than 64 coordinates: the same pieces, with heap
-/// buffers.
-fn segment_distance2_long(a: &[f64], b: &[f64], v: &[f64], inv_len2: f64, period: f64) -> f64 {
+/// Exact `δ(a, s)²` from a point `a` (wrapped) to the segment from `b` (wrapped) along
+/// `v`, under the periodic metric: the convex quadratic of every piece between the
+/// values of `t` where some `u_n − t v_n` crosses `±T/2` (once per coordinate at most,
+/// since `|v_n| ≤ T/2`), minimised in closed form (see the module docs). The kernels
+/// take the single-piece path inline and call this only when a coordinate crosses.
+pub(crate) fn segment_distance2(
+    a: &[f64],
+    b: &[f64],
+    v: &[f64],
+    inv_len2: f64,
+    period: f64,
+) -> f64 {
     let half = 0.5 * period;
     let u: Vec<f64> = a
         .iter()
@@ -468,16 +401,6 @@ fn segment_lanes<const N: usize>(
         }
     }
     d2
-}
-
-#[inline(always)]
-fn around(start: usize, t: usize, len: usize) -> usize {
-    let step = t.div_ceil(2) % len;
-    if t % 2 == 1 {
-        (start + step) % len
-    } else {
-        (start + len - step) % len
-    }
 }
 
 /// Window of `B`'s segments around `start`: per-lane smallest `δ²` and its segment.
@@ -1118,9 +1041,6 @@ mod tests {
                 .map(|(x, y)| swrap(x - y, period, PI))
                 .collect();
             crossing += usize::from(u.iter().zip(&v).any(|(x, y)| (x - y).abs() > PI));
-            // The heap version for many coordinates agrees too.
-            let long = segment_distance2_long(&a, &start, &v, inv, period).sqrt();
-            assert!((long - slow).abs() < 1e-12);
         }
         // The piecewise path was exercised.
         assert!(crossing > 500, "{crossing}");

@@ -179,7 +179,7 @@ fn dist2<const N: usize>(a: &[[f64; LANES]; N], b: &[f64; N], period: f64) -> [f
 /// The `t`-th index of a scan centred on `start`: `start, start+1, start−1, start+2, …`
 /// (modulo `len`).
 #[inline(always)]
-fn around(start: usize, t: usize, len: usize) -> usize {
+pub(crate) fn around(start: usize, t: usize, len: usize) -> usize {
     // `t < 2·len`, so one subtraction brings the step into range.
     let step = t.div_ceil(2);
     let step = if step >= len { step - len } else { step };
