@@ -434,3 +434,37 @@ fn bad_input_is_reported() {
         distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap()
     );
 }
+
+#[test]
+fn the_inradius_of_a_polygon_from_a_spoke_through_its_centre() {
+    // B: the regular 64-gon of radius 1. A: a 56-gon of radius 1 and a spoke from (1, 0)
+    // through the centre, closed back to (1, 0). The point of A farthest from B's
+    // polyline is the centre, in the middle of a segment, at the inradius cos(π/64);
+    // every edge of B is that far from it, so the exact envelope has too many segments
+    // and the branch and bound settles it.
+    let p = 64;
+    let b = Array2::from_shape_fn((p, 2), |(k, n)| {
+        let angle = 2.0 * PI * k as f64 / p as f64;
+        if n == 0 {
+            angle.cos()
+        } else {
+            angle.sin()
+        }
+    });
+    let mut a = Array2::zeros((p, 2));
+    for k in 0..56 {
+        let angle = 2.0 * PI * k as f64 / 56.0;
+        a[[k, 0]] = angle.cos();
+        a[[k, 1]] = angle.sin();
+    }
+    for (k, x) in [0.85, 0.7, 0.55, 0.4, 0.25, 0.1, -0.03, 0.5]
+        .into_iter()
+        .enumerate()
+    {
+        a[[56 + k, 0]] = x;
+    }
+    let inradius = (PI / p as f64).cos();
+    let d = pair(&a, Closure::Closed, &b, Closure::Closed, Period::None);
+    assert!(d <= inradius + 1e-12, "{d} > {inradius}");
+    assert!(inradius - d < 1e-10, "{d} vs {inradius}");
+}

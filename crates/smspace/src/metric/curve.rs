@@ -31,35 +31,44 @@
 //!
 //! # Algorithm and bound
 //!
-//! `d_B(a) = min_j δ(a, s_j)` is evaluated exactly at any point. The maximum of `d_B`
-//! over a segment of `A` is bracketed:
+//! `d_B(a) = min_j δ(a, s_j)` is evaluated exactly at any point. The work goes in
+//! three passes over `A`, keeping a running maximum `c` of exactly evaluated `d_B`
+//! (a lower bound of `h(A, B)`):
 //!
-//! * from below by `d_B` at the points evaluated (vertices first): the running maximum
-//!   `c` is a lower bound of `h(A, B)`;
-//! * from above, on a piece `[t₀, t₁]` of a segment `a(t) = a_i + t·v_i` of `A`, by two
-//!   bounds. For any segment `s_j` of `B` and one fixed periodic image of it,
-//!   `d_B(a(t)) ≤ E_j(t) = |ã(t) − s̃_j|` (Euclidean distance between lifts), and `E_j`
-//!   is convex in `t` (the distance from a moving point to a convex set), so it lies
-//!   below its chord: `d_B(a(t)) ≤ min_j chord_j(t)`, whose maximum over the piece is
-//!   found exactly (the upper envelope of the lower envelope of a few lines). And
-//!   `d_B` is 1-Lipschitz along the segment (`g` is at most the length travelled), so
-//!   `max d_B ≤ (d_B(a(t₀)) + d_B(a(t₁)) + |v_i|·(t₁ − t₀)) / 2`.
+//! 1. **Vertices**, eight at a time, far blocks first (as in the point metric). A
+//!    vertex of `B` within `c` settles a lane (`d_B ≤ g(a, b_j)`), else a segment of
+//!    `B` within `c` (a window of segments around the nearest chunk), else the lane's
+//!    exact `d_B` is found and raises `c`. Every vertex ends with an upper bound `u_i`
+//!    of `d_B(a_i)` and a segment of `B` that reached it.
+//! 2. **Segments, quick tests.** `d_B` is 1-Lipschitz along a segment (`g` is at most
+//!    the length travelled), so `max_t d_B(a_i + t v_i) ≤ (u_i + u_{i+1} + |v_i|)/2`:
+//!    at most `c` settles the segment (eight at a time). Else, for one segment `s_j`
+//!    of `B` and one periodic image of it, `d_B(a(t)) ≤ E_j(t) = |ã(t) − s̃_j|`
+//!    (Euclidean distance between lifts), convex in `t` (distance from a moving point
+//!    to a convex set): `E_j ≤ c` at both ends, for the segment that reached either
+//!    end, settles it. Else the **chord bound** `U = max_τ min_j chord_j(τ)` over that
+//!    segment, the one that reached the other end and their neighbours (the maximum
+//!    of the lower envelope of a few lines, found exactly) settles it when `U ≤ c`.
+//! 3. **The envelope**, exact, for the few segments left (those near the maximiser).
+//!    Only images of segments of `B` whose (lifted) segment-to-segment distance to
+//!    `[a_i, a_{i+1}]` is at most `U` can be nearest anywhere on it (boxes prune whole
+//!    chunks first). An image of `s_j` is needed when a coordinate of `a(t) − s_j(s)`
+//!    leaves `[−π, π]` for some `t, s ∈ [0, 1]` (it is linear in both, so the four
+//!    corners tell). On each, `E(t)² = |p + t q|²` piecewise in `t`, with at most three
+//!    pieces (the foot `s*(t)` is linear in `t`, clamped to 0 or 1), so on the segment
+//!    `d_B² = min E²` is a lower envelope of convex quadratics. Between two points where
+//!    the minimising image changes, `d_B²` is one convex function, at most its end
+//!    values; so the maximum is at `t = 0, 1` (vertices, already in `c`) or at a root of
+//!    `E_x² − E_y²` on a common piece: every such root where both exceed `c` is
+//!    evaluated exactly. With more than 32 images (never seen on the arm) the segment
+//!    goes to a branch and bound instead: a piece whose chord or Lipschitz bound
+//!    `(d_B(a(t₀)) + d_B(a(t₁)) + |v_i|(t₁ − t₀))/2` is at most `c +`
+//!    [`CURVE_TOLERANCE`] is dropped, else split at the bound's maximiser.
 //!
-//! A piece whose upper bound is at most `c +` [`CURVE_TOLERANCE`] cannot raise the
-//! answer by more than the tolerance and is dropped; otherwise `d_B` is evaluated at
-//! the bound's maximiser (kept within the middle of the piece) and both halves are
-//! examined. The Lipschitz bound guarantees termination (a piece shorter than twice the
-//! tolerance is always dropped); the chord bound, tight to second order, makes it fast.
-//! The result is the maximum of exactly evaluated distances, hence at most the true
-//! `h(A, B)` and at least `h(A, B) − 10⁻¹⁰`.
-//!
-//! Most segments are settled without refinement: the vertices are processed as in the
-//! point metric (eight at a time, far blocks first, the nearest segment of `B`
-//! remembered), and a segment `[a_i, a_{i+1}]` of `A` is settled as soon as one segment
-//! `s_j` (the one nearest to either end) has `E_j ≤ c` at both ends (convexity). Only
-//! the few segments near the maximiser go through the refinement. Pairs are always
-//! evaluated in the order (smaller index, larger index), so the value does not depend
-//! on which of the two sets is the query.
+//! The result is the maximum of exactly evaluated distances: the exact `h(A, B)` up to
+//! rounding (and within [`CURVE_TOLERANCE`] below it on the branch-and-bound path).
+//! Pairs are always evaluated in the order (smaller index, larger index), so the value
+//! does not depend on which of the two sets is the query.
 
 use super::kernel::{around, Scratch};
 use super::prepared::{fold, wrap, PreparedSets, SetRef, BOUND_MARGIN, LANES};
@@ -248,36 +257,6 @@ impl PreparedSets {
     }
 }
 
-/// [`segment_distance2`] for `N` coordinates with the fast single-image path inline.
-#[inline(always)]
-fn segment_distance2_n<const N: usize>(
-    a: &[f64; N],
-    b: &[f64; N],
-    v: &[f64; N],
-    inv_len2: f64,
-    period: f64,
-) -> f64 {
-    let half = 0.5 * period;
-    let mut u = [0.0; N];
-    let mut dot = 0.0;
-    let mut crosses = false;
-    for k in 0..N {
-        u[k] = swrap(a[k] - b[k], period, half);
-        dot += u[k] * v[k];
-        crosses |= (u[k] - v[k]).abs() > half;
-    }
-    if crosses {
-        return segment_distance2(a, b, v, inv_len2, period);
-    }
-    let t = (dot * inv_len2).clamp(0.0, 1.0);
-    let mut d2 = 0.0;
-    for k in 0..N {
-        let w = u[k] - t * v[k];
-        d2 += w * w;
-    }
-    d2
-}
-
 /// Exact `δ(a, s)²` from a point `a` (wrapped) to the segment from `b` (wrapped) along
 /// `v`, under the periodic metric: the convex quadratic of every piece between the
 /// values of `t` where some `u_n − t v_n` crosses `±T/2` (once per coordinate at most,
@@ -290,38 +269,84 @@ pub(crate) fn segment_distance2(
     inv_len2: f64,
     period: f64,
 ) -> f64 {
+    const MAX: usize = 16;
+    let n = a.len();
+    assert!(n <= MAX, "at most {MAX} coordinates");
     let half = 0.5 * period;
-    let u: Vec<f64> = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| swrap(x - y, period, half))
-        .collect();
-    let mut cuts = vec![0.0, 1.0];
-    for k in 0..u.len() {
+    let mut u = [0.0; MAX];
+    for k in 0..n {
+        u[k] = swrap(a[k] - b[k], period, half);
+    }
+    let mut cuts = [0.0; MAX + 2];
+    cuts[1] = 1.0;
+    let mut count = 2;
+    for k in 0..n {
         let end = u[k] - v[k];
         if end > half {
-            cuts.push((u[k] - half) / v[k]);
+            cuts[count] = (u[k] - half) / v[k];
+            count += 1;
         } else if end < -half {
-            cuts.push((u[k] + half) / v[k]);
+            cuts[count] = (u[k] + half) / v[k];
+            count += 1;
         }
     }
+    let cuts = &mut cuts[..count];
     cuts.sort_unstable_by(f64::total_cmp);
     let mut best = f64::INFINITY;
     for w in cuts.windows(2) {
         let (t0, t1) = (w[0].clamp(0.0, 1.0), w[1].clamp(0.0, 1.0));
         let mid = 0.5 * (t0 + t1);
         let mut dot = 0.0;
-        for k in 0..u.len() {
+        for k in 0..n {
             let at_mid = u[k] - mid * v[k];
             dot += (u[k] + (swrap(at_mid, period, half) - at_mid)) * v[k];
         }
         let t = (dot * inv_len2).clamp(t0, t1);
-        let d2: f64 = (0..u.len())
-            .map(|k| swrap(u[k] - t * v[k], period, half).powi(2))
-            .sum();
+        let mut d2 = 0.0;
+        for k in 0..n {
+            d2 += swrap(u[k] - t * v[k], period, half).powi(2);
+        }
         best = best.min(d2);
     }
     best
+}
+
+/// Per-lane `δ²` from points to segments given `u = h(a − start)` and the directions
+/// `v`: the lifted distance `|u − t* v|²`, exact unless the segment crosses the seam
+/// relative to the point (`|u_n − v_n| > T/2` in some coordinate `n`). Those lanes are
+/// flagged (`true`) for the exact piecewise [`segment_distance2`].
+#[inline(always)]
+fn lanes_distance2<const N: usize>(
+    u: &[[f64; LANES]; N],
+    v: &[[f64; LANES]; N],
+    inv: &[f64; LANES],
+    period: f64,
+) -> ([f64; LANES], [bool; LANES]) {
+    let half = 0.5 * period;
+    let mut dot = [0.0; LANES];
+    let mut crossings = [0u32; LANES];
+    for k in 0..N {
+        for l in 0..LANES {
+            dot[l] = u[k][l].mul_add(v[k][l], dot[l]);
+            crossings[l] += u32::from((u[k][l] - v[k][l]).abs() > half);
+        }
+    }
+    let mut t = [0.0; LANES];
+    for l in 0..LANES {
+        t[l] = (dot[l] * inv[l]).clamp(0.0, 1.0);
+    }
+    let mut d2 = [0.0; LANES];
+    for k in 0..N {
+        for l in 0..LANES {
+            let w = u[k][l] - t[l] * v[k][l];
+            d2[l] = w.mul_add(w, d2[l]);
+        }
+    }
+    let mut crossing = [false; LANES];
+    for l in 0..LANES {
+        crossing[l] = crossings[l] > 0;
+    }
+    (d2, crossing)
 }
 
 /// `|u − t* v|²` in one fixed image (`u` given relative to the segment's start), the
@@ -360,71 +385,53 @@ fn segment_lanes<const N: usize>(
 ) -> [f64; LANES] {
     let half = 0.5 * period;
     let start = load::<N>(b.set.points, j);
-    let v = load::<N>(b.dirs, j);
+    let dir = load::<N>(b.dirs, j);
     let inv = b.inv_len2[j];
     let mut u = [[0.0; LANES]; N];
-    let mut dot = [0.0; LANES];
-    let mut worst = [0.0f64; LANES];
+    let mut v = [[0.0; LANES]; N];
     for k in 0..N {
         for l in 0..LANES {
-            let w = swrap(a[k][l] - start[k], period, half);
-            u[k][l] = w;
-            dot[l] = w.mul_add(v[k], dot[l]);
-            let e = (w - v[k]).abs();
-            worst[l] = if e > worst[l] { e } else { worst[l] };
+            u[k][l] = swrap(a[k][l] - start[k], period, half);
+            v[k][l] = dir[k];
         }
     }
-    let mut t = [0.0; LANES];
+    let (mut d2, crossing) = lanes_distance2::<N>(&u, &v, &[inv; LANES], period);
     for l in 0..LANES {
-        t[l] = (dot[l] * inv).clamp(0.0, 1.0);
-    }
-    let mut d2 = [0.0; LANES];
-    for k in 0..N {
-        for l in 0..LANES {
-            let w = u[k][l] - t[l] * v[k];
-            d2[l] = w.mul_add(w, d2[l]);
-        }
-    }
-    let mut crosses = false;
-    for l in 0..LANES {
-        crosses |= worst[l] > half;
-    }
-    if crosses {
-        for l in 0..LANES {
-            if worst[l] > half {
-                let mut x = [0.0; N];
-                for k in 0..N {
-                    x[k] = a[k][l];
-                }
-                d2[l] = segment_distance2(&x, &start, &v, inv, period);
+        if crossing[l] {
+            let mut x = [0.0; N];
+            for k in 0..N {
+                x[k] = a[k][l];
             }
+            d2[l] = segment_distance2(&x, &start, &dir, inv, period);
         }
     }
     d2
 }
 
-/// Window of `B`'s segments around `start`: per-lane smallest `δ²` and its segment.
-/// Stops once every lane is `≤ settle`.
+/// Window of `B`'s vertices around vertex `start`: per-lane smallest `g²` to a vertex
+/// (an upper bound of `d_B²`) and a segment through that vertex. Stops once every lane
+/// is `≤ settle`, and says whether it got there.
 #[inline(always)]
-fn window<const N: usize>(
+fn vertex_window<const N: usize>(
     a: &[[f64; LANES]; N],
     b: CurveRef<'_>,
     period: f64,
+    points: usize,
     start: usize,
     settle: f64,
 ) -> ([f64; LANES], [u32; LANES], bool) {
     let mut best = [f64::INFINITY; LANES];
     let mut arg = [0u32; LANES];
-    for t in 0..9.min(b.segments) {
-        let j = around(start, t, b.segments);
-        let d = segment_lanes(a, b, j, period);
+    for t in 0..9.min(points) {
+        let j = around(start, t, points);
+        let d = super::kernel::dist2::<N>(a, &load::<N>(b.set.points, j), period);
+        // Segment j starts at vertex j; the last vertex of an open set ends segment j − 1.
+        let segment = j.min(b.segments - 1) as u32;
+        let mut settled = true;
         for l in 0..LANES {
             let closer = d[l] < best[l];
             best[l] = if closer { d[l] } else { best[l] };
-            arg[l] = if closer { j as u32 } else { arg[l] };
-        }
-        let mut settled = true;
-        for l in 0..LANES {
+            arg[l] = if closer { segment } else { arg[l] };
             settled &= best[l] <= settle;
         }
         if settled {
@@ -432,6 +439,62 @@ fn window<const N: usize>(
         }
     }
     (best, arg, false)
+}
+
+/// Window of `B`'s segments around segment `start`, lowering `best` (per-lane `δ²` upper
+/// bounds) and `arg` (their segments). Stops once every lane is `≤ settle`, and says
+/// whether it got there.
+#[inline(always)]
+fn window<const N: usize>(
+    a: &[[f64; LANES]; N],
+    b: CurveRef<'_>,
+    period: f64,
+    start: usize,
+    settle: f64,
+    best: &mut [f64; LANES],
+    arg: &mut [u32; LANES],
+) -> bool {
+    for t in 0..9.min(b.segments) {
+        let j = around(start, t, b.segments);
+        let d = segment_lanes(a, b, j, period);
+        let mut settled = true;
+        for l in 0..LANES {
+            let closer = d[l] < best[l];
+            best[l] = if closer { d[l] } else { best[l] };
+            arg[l] = if closer { j as u32 } else { arg[l] };
+            settled &= best[l] <= settle;
+        }
+        if settled {
+            return true;
+        }
+    }
+    false
+}
+
+/// Whether segment `i` of `A` lies within `√c2` of segment `j` of `B` all along: the
+/// Euclidean distance to one lifted image of `s_j` is convex along the segment, so it
+/// is enough that both ends are within `√c2` of that image.
+#[inline(always)]
+fn within_along<const N: usize>(
+    a: CurveRef<'_>,
+    b: CurveRef<'_>,
+    i: usize,
+    j: usize,
+    c2: f64,
+    period: f64,
+) -> bool {
+    let half = 0.5 * period;
+    let p = load::<N>(a.set.points, i);
+    let v = load::<N>(a.dirs, i);
+    let bs = load::<N>(b.set.points, j);
+    let w = load::<N>(b.dirs, j);
+    let mut u0 = [0.0; N];
+    let mut u1 = [0.0; N];
+    for k in 0..N {
+        u0[k] = swrap(p[k] - bs[k], period, half);
+        u1[k] = u0[k] + v[k];
+    }
+    lifted_distance2(&u0, &w, b.inv_len2[j]) <= c2 && lifted_distance2(&u1, &w, b.inv_len2[j]) <= c2
 }
 
 /// Lowers `best` to the exact `d_B²` of every lane still `> settle`: the chunks of
@@ -485,54 +548,93 @@ fn refine_lanes<const N: usize>(
     }
 }
 
-/// Exact `d_B(x)²` at one (wrapped) point and the segment where it is reached,
-/// scanning outward from segment `hint`.
+/// `δ²` from one (wrapped) point `x` to the eight segments of chunk `q` of `b` (lanes
+/// over segments), exact: the lifted distance, recomputed piece by piece for the (rare)
+/// lanes whose segment crosses the seam relative to `x`. Lanes past the last segment
+/// are `+∞`. `stride` is the padded point count of the layout.
+#[inline(always)]
+fn chunk_lanes<const N: usize>(
+    x: &[f64; N],
+    b: CurveRef<'_>,
+    q: usize,
+    stride: usize,
+    period: f64,
+) -> [f64; LANES] {
+    let half = 0.5 * period;
+    let start = super::kernel::load_block::<N>(b.set.coords, stride, q);
+    let dir = super::kernel::load_block::<N>(b.dirs_soa, stride, q);
+    let mut inv = [0.0; LANES];
+    inv.copy_from_slice(&b.inv_len2[q * LANES..][..LANES]);
+    let mut u = [[0.0; LANES]; N];
+    for k in 0..N {
+        for l in 0..LANES {
+            u[k][l] = swrap(x[k] - start[k][l], period, half);
+        }
+    }
+    let (mut d2, crossing) = lanes_distance2::<N>(&u, &dir, &inv, period);
+    let live = b.segments.saturating_sub(q * LANES).min(LANES);
+    for l in 0..live {
+        if crossing[l] {
+            let mut bs = [0.0; N];
+            let mut v = [0.0; N];
+            for k in 0..N {
+                bs[k] = start[k][l];
+                v[k] = dir[k][l];
+            }
+            d2[l] = segment_distance2(x, &bs, &v, inv[l], period);
+        }
+    }
+    for lane in d2.iter_mut().skip(live) {
+        *lane = f64::INFINITY;
+    }
+    d2
+}
+
+/// Squared lower bound of the distance from any point within `reach[n]` of `x` (per
+/// coordinate, periodic) to the segments of chunk `q` of `b`: the gap between boxes.
+#[inline(always)]
+fn chunk_gap2<const N: usize>(
+    x: &[f64; N],
+    reach: &[f64; N],
+    b: CurveRef<'_>,
+    q: usize,
+    period: f64,
+) -> f64 {
+    let center = load::<N>(b.centers, q);
+    let width = load::<N>(b.widths, q);
+    let mut lower = 0.0;
+    for k in 0..N {
+        let gap = fold(x[k] - center[k], period) - width[k] - reach[k];
+        if gap > 0.0 {
+            lower += gap * gap;
+        }
+    }
+    lower
+}
+
+/// Exact `d_B(x)²` at one (wrapped) point and the segment where it is reached (the
+/// lowest index among ties), scanning the chunks of `B` outward from the one of
+/// segment `hint` and skipping those whose box cannot hold a closer point.
 fn nearest<const N: usize>(
     x: &[f64; N],
     b: CurveRef<'_>,
     period: f64,
+    stride: usize,
     hint: usize,
 ) -> (f64, usize) {
-    let mut best = f64::INFINITY;
-    let mut arg = hint;
-    let segments = b.segments;
-    for t in 0..9.min(segments) {
-        let j = around(hint, t, segments);
-        let d = segment_distance2_n::<N>(
-            x,
-            &load::<N>(b.set.points, j),
-            &load::<N>(b.dirs, j),
-            b.inv_len2[j],
-            period,
-        );
-        if d < best {
-            best = d;
-            arg = j;
-        }
-    }
-    let chunks = segments.div_ceil(LANES);
+    let chunks = b.segments.div_ceil(LANES);
+    let first = (hint / LANES).min(chunks - 1);
     let shrink = 1.0 - 4.0 * BOUND_MARGIN;
-    for q in 0..chunks {
-        let center = load::<N>(b.centers, q);
-        let width = load::<N>(b.widths, q);
-        let mut lower = 0.0;
-        for k in 0..N {
-            let gap = fold(x[k] - center[k], period) - width[k];
-            if gap > 0.0 {
-                lower += gap * gap;
-            }
-        }
-        if lower * shrink >= best {
+    let mut best = f64::INFINITY;
+    let mut arg = usize::MAX;
+    for t in 0..chunks {
+        let q = around(first, t, chunks);
+        if chunk_gap2::<N>(x, &[0.0; N], b, q, period) * shrink >= best {
             continue;
         }
-        for j in q * LANES..((q + 1) * LANES).min(segments) {
-            let d = segment_distance2_n::<N>(
-                x,
-                &load::<N>(b.set.points, j),
-                &load::<N>(b.dirs, j),
-                b.inv_len2[j],
-                period,
-            );
+        let d = chunk_lanes::<N>(x, b, q, stride, period);
+        for (l, &d) in d.iter().enumerate() {
+            let j = q * LANES + l;
             if d < best || (d == best && j < arg) {
                 best = d;
                 arg = j;
@@ -540,6 +642,419 @@ fn nearest<const N: usize>(
         }
     }
     (best, arg)
+}
+
+/// Largest number of segments of `B` that [`segment_max`] puts in one envelope; past
+/// it the segment goes to the branch and bound.
+/// Largest number of periodic images of those segments in one envelope.
+const MAX_IMAGES: usize = 32;
+
+/// Largest number of periodic images of one segment of `B` examined.
+const MAX_SHIFTS: usize = 16;
+
+/// One piece of `E_j(t)²` on `[t0, t1]`: `|p + t·q|² = α t² + β t + γ`.
+#[derive(Debug, Clone, Copy, Default)]
+struct Quad {
+    t0: f64,
+    t1: f64,
+    alpha: f64,
+    beta: f64,
+    gamma: f64,
+    /// Which candidate segment of `B` it belongs to.
+    owner: u32,
+}
+
+impl Quad {
+    fn new<const N: usize>(range: (f64, f64), p: &[f64; N], q: &[f64; N], owner: usize) -> Self {
+        let (mut alpha, mut beta, mut gamma) = (0.0, 0.0, 0.0);
+        for k in 0..N {
+            alpha += q[k] * q[k];
+            beta += 2.0 * p[k] * q[k];
+            gamma += p[k] * p[k];
+        }
+        Self {
+            t0: range.0,
+            t1: range.1,
+            alpha,
+            beta,
+            gamma,
+            owner: owner as u32,
+        }
+    }
+
+    fn at(&self, t: f64) -> f64 {
+        (self.alpha * t + self.beta) * t + self.gamma
+    }
+}
+
+/// The roots in `[lo, hi]` of `a t² + b t + c` (and, when the discriminant is slightly
+/// negative, the vertex: two nearly equal roots that rounding merged), at most two.
+fn roots_in(a: f64, b: f64, c: f64, lo: f64, hi: f64) -> ([f64; 2], usize) {
+    let mut out = [0.0; 2];
+    let mut count = 0;
+    let slack = 1e-12;
+    let mut push = |t: f64| {
+        if t.is_finite() && t >= lo - slack && t <= hi + slack && count < 2 {
+            out[count] = t.clamp(lo, hi);
+            count += 1;
+        }
+    };
+    if a == 0.0 {
+        if b != 0.0 {
+            push(-c / b);
+        }
+    } else {
+        let disc = b * b - 4.0 * a * c;
+        if disc < 0.0 {
+            push(-b / (2.0 * a));
+        } else {
+            let q = -0.5 * (b + disc.sqrt().copysign(b));
+            push(q / a);
+            if q != 0.0 {
+                push(c / q);
+            }
+        }
+    }
+    (out, count)
+}
+
+/// Per lane (the segments of chunk `q` of `b`): the squared distance between segment
+/// `(p, v)` of `A` and the image of segment `j` of `B` nearest to `p` (lifted, as in
+/// [`segment_gap2`]), and whether that image is the only one any pair of their points
+/// reaches (`true` when every coordinate difference at the four corners `t, s ∈ {0, 1}`
+/// is within `[−π, π]`). Lanes past the last segment are `(+∞, true)`.
+#[inline(always)]
+fn chunk_segment_gaps<const N: usize>(
+    p: &[f64; N],
+    v: &[f64; N],
+    b: CurveRef<'_>,
+    q: usize,
+    stride: usize,
+    period: f64,
+) -> ([f64; LANES], [bool; LANES]) {
+    let half = 0.5 * period;
+    let start = super::kernel::load_block::<N>(b.set.coords, stride, q);
+    let dir = super::kernel::load_block::<N>(b.dirs_soa, stride, q);
+    let mut inv_e = [0.0; LANES];
+    inv_e.copy_from_slice(&b.inv_len2[q * LANES..][..LANES]);
+    let mut a = 0.0;
+    for k in 0..N {
+        a += v[k] * v[k];
+    }
+    let inv_a = if a > 0.0 { 1.0 / a } else { 0.0 };
+    let mut r = [[0.0; LANES]; N];
+    let mut single = [true; LANES];
+    let (mut e, mut f, mut c, mut bb) = ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+    for k in 0..N {
+        for l in 0..LANES {
+            let x = swrap(p[k] - start[k][l], period, half);
+            let w = dir[k][l];
+            r[k][l] = x;
+            single[l] &=
+                (x + v[k]).abs() <= half && (x - w).abs() <= half && (x + v[k] - w).abs() <= half;
+            e[l] = w.mul_add(w, e[l]);
+            f[l] = w.mul_add(x, f[l]);
+            c[l] = v[k].mul_add(x, c[l]);
+            bb[l] = v[k].mul_add(w, bb[l]);
+        }
+    }
+    let mut t = [0.0; LANES];
+    let mut s = [0.0; LANES];
+    for l in 0..LANES {
+        let denom = a * e[l] - bb[l] * bb[l];
+        let free = if denom > 0.0 {
+            ((bb[l] * f[l] - c[l] * e[l]) / denom).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let foot = (bb[l] * free + f[l]) * inv_e[l];
+        let (tt, ss) = if foot < 0.0 || inv_e[l] == 0.0 {
+            ((-c[l] * inv_a).clamp(0.0, 1.0), 0.0)
+        } else if foot > 1.0 {
+            (((bb[l] - c[l]) * inv_a).clamp(0.0, 1.0), 1.0)
+        } else {
+            (free, foot)
+        };
+        t[l] = tt;
+        s[l] = ss;
+    }
+    let mut gap2 = [0.0; LANES];
+    for k in 0..N {
+        for l in 0..LANES {
+            let x = r[k][l] + t[l] * v[k] - s[l] * dir[k][l];
+            gap2[l] = x.mul_add(x, gap2[l]);
+        }
+    }
+    let live = b.segments.saturating_sub(q * LANES).min(LANES);
+    for l in live..LANES {
+        gap2[l] = f64::INFINITY;
+        single[l] = true;
+    }
+    (gap2, single)
+}
+
+/// `min_{t,s∈[0,1]} |r + t·d1 − s·d2|²`: the squared distance between two lifted
+/// segments (the first from `r` along `d1`, the second from the origin along `d2`),
+/// after Ericson, *Real-Time Collision Detection* (2005), §5.1.9.
+fn segment_gap2<const N: usize>(r: &[f64; N], d1: &[f64; N], d2: &[f64; N]) -> f64 {
+    let (mut a, mut e, mut f, mut c, mut b) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for k in 0..N {
+        a += d1[k] * d1[k];
+        e += d2[k] * d2[k];
+        f += d2[k] * r[k];
+        c += d1[k] * r[k];
+        b += d1[k] * d2[k];
+    }
+    let (t, s) = if a == 0.0 && e == 0.0 {
+        (0.0, 0.0)
+    } else if a == 0.0 {
+        (0.0, (f / e).clamp(0.0, 1.0))
+    } else if e == 0.0 {
+        ((-c / a).clamp(0.0, 1.0), 0.0)
+    } else {
+        let denom = a * e - b * b;
+        let t = if denom > 0.0 {
+            ((b * f - c * e) / denom).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let s = (b * t + f) / e;
+        if s < 0.0 {
+            ((-c / a).clamp(0.0, 1.0), 0.0)
+        } else if s > 1.0 {
+            (((b - c) / a).clamp(0.0, 1.0), 1.0)
+        } else {
+            (t, s)
+        }
+    };
+    let mut d2sum = 0.0;
+    for k in 0..N {
+        let x = r[k] + t * d1[k] - s * d2[k];
+        d2sum += x * x;
+    }
+    d2sum
+}
+
+/// What [`segment_max`] found on one segment of `A`.
+enum SegmentMax {
+    /// `max(c, max_t d_B(a(t)))`, exact.
+    Done(f64),
+    /// The maximum exceeds `abort`.
+    Abort,
+    /// Too many segments of `B` (or periodic images of them) come near: left to the
+    /// branch and bound.
+    Fallback,
+}
+
+/// `max(c, max_{t∈[0,1]} d_B(a_i + t v_i))` exactly, given an upper bound `upper` of that
+/// maximum (the chord bound).
+///
+/// Only segments `j` of `B` with `min_t δ_j ≤ upper` can be nearest anywhere on the
+/// segment; since `δ_j` is `|v_i|`-Lipschitz in `t`, `min_t δ_j ≥ (δ_j(0) + δ_j(1) −
+/// |v_i|)/2`, and boxes prune whole chunks first. When every candidate stays in one
+/// periodic image along the segment (every coordinate of `a(t) − s_j(s)` within
+/// `[−π, π]` at the four corners `t, s ∈ {0, 1}`, hence everywhere), `δ_j(a(t))² =
+/// |p + t q|²` piecewise, with at most three pieces (the foot `s*(t)` linear in `t`,
+/// clamped to `0` or `1`), so `d_B² = min_j δ_j²` is a lower envelope of convex
+/// quadratics. Its maximum is at an end or where the minimising segment changes, a
+/// root of `δ_j² − δ_k²` on a common piece: all those roots are tried.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn segment_max<const N: usize>(
+    a: CurveRef<'_>,
+    b: CurveRef<'_>,
+    i: usize,
+    upper: f64,
+    c: f64,
+    abort: f64,
+    period: f64,
+    stride: usize,
+) -> SegmentMax {
+    let half = 0.5 * period;
+    let p = load::<N>(a.set.points, i);
+    let v = load::<N>(a.dirs, i);
+    let mut mid = [0.0; N];
+    let mut spread = [0.0; N];
+    for k in 0..N {
+        mid[k] = wrap(p[k] + 0.5 * v[k], period);
+        spread[k] = 0.5 * v[k].abs() * (1.0 + BOUND_MARGIN);
+    }
+    let reach = upper * (1.0 + 4.0 * BOUND_MARGIN) + 1e-12;
+    let reach2 = reach * reach;
+    // Every periodic image of a segment of B that comes within `upper` of the segment
+    // (only those can be nearest on it). Per coordinate, the lifted difference
+    // `a(t) − s_j(s)` runs between its values at the four corners `t, s ∈ {0, 1}` (it
+    // is linear in both); when every coordinate stays within `[−π, π]` the image
+    // nearest to `a_i` is the only one, else the images shifted by one period on the
+    // side where the range leaves it join.
+    let mut images = [(0u32, [0.0; N]); MAX_IMAGES];
+    let mut image_count = 0;
+    for q in 0..b.segments.div_ceil(LANES) {
+        if chunk_gap2::<N>(&mid, &spread, b, q, period) > reach2 {
+            continue;
+        }
+        let (gap2, single) = chunk_segment_gaps::<N>(&p, &v, b, q, stride, period);
+        for l in 0..LANES.min(b.segments - q * LANES) {
+            if single[l] && gap2[l] > reach2 {
+                continue;
+            }
+            let j = q * LANES + l;
+            let bs = load::<N>(b.set.points, j);
+            let w = load::<N>(b.dirs, j);
+            let mut shifted = [[0.0; N]; MAX_SHIFTS];
+            let mut shifts = 1;
+            for k in 0..N {
+                shifted[0][k] = swrap(p[k] - bs[k], period, half);
+            }
+            if !single[l] {
+                for k in 0..N {
+                    let u = shifted[0][k];
+                    let corners = [u, u + v[k], u - w[k], u + v[k] - w[k]];
+                    let lo = corners.iter().fold(f64::INFINITY, |m, &x| m.min(x));
+                    let hi = corners.iter().fold(f64::NEG_INFINITY, |m, &x| m.max(x));
+                    let last = shifts;
+                    for (shift, needed) in [(-period, hi > half), (period, lo < -half)] {
+                        if !needed {
+                            continue;
+                        }
+                        for e in 0..last {
+                            if shifts == MAX_SHIFTS {
+                                return SegmentMax::Fallback;
+                            }
+                            shifted[shifts] = shifted[e];
+                            shifted[shifts][k] += shift;
+                            shifts += 1;
+                        }
+                    }
+                }
+            }
+            for u0 in &shifted[..shifts] {
+                if single[l] || segment_gap2::<N>(u0, &v, &w) <= reach2 {
+                    if image_count == MAX_IMAGES {
+                        return SegmentMax::Fallback;
+                    }
+                    images[image_count] = (j as u32, *u0);
+                    image_count += 1;
+                }
+            }
+        }
+    }
+    // The pieces of every image.
+    let mut quads = [Quad::default(); 3 * MAX_IMAGES];
+    let mut pieces = 0;
+    for (m, (j, u0)) in images[..image_count].iter().enumerate() {
+        let j = *j as usize;
+        let w = load::<N>(b.dirs, j);
+        let inv = b.inv_len2[j];
+        let (mut uw, mut vw) = (0.0, 0.0);
+        for k in 0..N {
+            uw += u0[k] * w[k];
+            vw += v[k] * w[k];
+        }
+        // The foot s*(t) = s0 + s1·t before clamping.
+        let (s0, s1) = (uw * inv, vw * inv);
+        let mut at_end = [0.0; N];
+        let mut foot_p = [0.0; N];
+        let mut foot_q = [0.0; N];
+        for k in 0..N {
+            at_end[k] = u0[k] - w[k];
+            foot_p[k] = u0[k] - s0 * w[k];
+            foot_q[k] = v[k] - s1 * w[k];
+        }
+        let mut push = |range: (f64, f64), p: &[f64; N], q: &[f64; N]| {
+            let (t0, t1) = (range.0.max(0.0), range.1.min(1.0));
+            if t0 <= t1 {
+                quads[pieces] = Quad::new::<N>((t0, t1), p, q, m);
+                pieces += 1;
+            }
+        };
+        if inv == 0.0 || s1 == 0.0 {
+            let s = if inv == 0.0 { 0.0 } else { s0 };
+            if s <= 0.0 {
+                push((0.0, 1.0), u0, &v);
+            } else if s >= 1.0 {
+                push((0.0, 1.0), &at_end, &v);
+            } else {
+                push((0.0, 1.0), &foot_p, &foot_q);
+            }
+        } else {
+            let (ta, tb) = (-s0 / s1, (1.0 - s0) / s1);
+            let (lo, hi) = if ta < tb { (ta, tb) } else { (tb, ta) };
+            let (before, after) = if s1 > 0.0 {
+                (u0, &at_end)
+            } else {
+                (&at_end, u0)
+            };
+            push((f64::NEG_INFINITY, lo), before, &v);
+            push((lo, hi), &foot_p, &foot_q);
+            push((hi, f64::INFINITY), after, &v);
+        }
+    }
+    let quads = &quads[..pieces];
+    // d_B² at a(t), exactly: the lifted distances to every image.
+    let envelope = |t: f64| {
+        let mut best = f64::INFINITY;
+        for (j, u0) in &images[..image_count] {
+            let j = *j as usize;
+            let mut u = [0.0; N];
+            for k in 0..N {
+                u[k] = u0[k] + t * v[k];
+            }
+            let d = lifted_distance2(&u, &load::<N>(b.dirs, j), b.inv_len2[j]);
+            best = if d < best { d } else { best };
+        }
+        best
+    };
+    // The same from the expanded quadratics (rounding ~1e-14, far below SLACK): a filter.
+    let quick = |t: f64| {
+        quads
+            .iter()
+            .filter(|f| f.t0 <= t && t <= f.t1)
+            .fold(f64::INFINITY, |m, f| m.min(f.at(t)))
+    };
+    const SLACK: f64 = 1e-12;
+    let mut c2 = c * c;
+    let abort2 = abort * abort;
+    for (x, f) in quads.iter().enumerate() {
+        // A crossing on f is at most f's larger end value (f is convex).
+        if f.at(f.t0).max(f.at(f.t1)) + SLACK <= c2 {
+            continue;
+        }
+        for g in &quads[x + 1..] {
+            if f.owner == g.owner {
+                continue;
+            }
+            let (lo, hi) = (f.t0.max(g.t0), f.t1.min(g.t1));
+            // At a crossing both are equal, and a convex function is at most its
+            // larger end value on the common range.
+            if lo > hi
+                || f.at(lo).max(f.at(hi)) + SLACK <= c2
+                || g.at(lo).max(g.at(hi)) + SLACK <= c2
+            {
+                continue;
+            }
+            let (roots, found) = roots_in(
+                f.alpha - g.alpha,
+                f.beta - g.beta,
+                f.gamma - g.gamma,
+                lo,
+                hi,
+            );
+            for &t in &roots[..found] {
+                if quick(t) + SLACK <= c2 {
+                    continue;
+                }
+                let value = envelope(t);
+                if value > c2 {
+                    c2 = value;
+                    if c2 > abort2 {
+                        return SegmentMax::Abort;
+                    }
+                }
+            }
+        }
+    }
+    SegmentMax::Done(c2.sqrt().max(c))
 }
 
 /// A piece `[t0, t1]` of a segment of `A` still to examine, with `d_B` (not squared)
@@ -663,6 +1178,7 @@ fn refine_segment<const N: usize>(
     period: f64,
     mut c: f64,
     abort: f64,
+    stride: usize,
     stack: &mut Vec<Piece>,
 ) -> Option<f64> {
     let length = a.lengths[i];
@@ -700,7 +1216,7 @@ fn refine_segment<const N: usize>(
         let t = piece.t0 + tau * span;
         let x = point_on::<N>(a, i, t, period);
         let hint = if tau < 0.5 { piece.j0 } else { piece.j1 } as usize;
-        let (d2, j) = nearest::<N>(&x, b, period, hint);
+        let (d2, j) = nearest::<N>(&x, b, period, stride, hint);
         let d = d2.sqrt();
         if d > c {
             c = d;
@@ -736,7 +1252,9 @@ fn refine_segment<const N: usize>(
 pub(crate) struct CurveScratch {
     /// Per vertex of `A`: the segment of `B` that settled it (or its nearest).
     arg: Vec<u32>,
-    /// Segments of `A` that the quick test did not settle.
+    /// Per vertex of `A` (and vertex 0 again after the last): an upper bound of `d_B²`.
+    upper: Vec<f64>,
+    /// Segments of `A` that the quick tests did not settle.
     open: Vec<u32>,
     stack: Vec<Piece>,
 }
@@ -767,19 +1285,33 @@ fn directed<const N: usize>(
     super::kernel::far_first(key, chunks, order);
     scratch.arg.clear();
     scratch.arg.resize(points_pad, 0);
-    // 1. Vertices, eight at a time, far blocks first: exact d_B for the lanes that
-    //    raise c, the segment that settled them for the others.
+    scratch.upper.clear();
+    scratch.upper.resize(points_pad + LANES, 0.0);
+    // 1. Vertices, eight at a time, far blocks first: a vertex of B within c settles a
+    //    lane, else a segment of B within c, else the lane's exact d_B raises c.
     for &alpha in order.iter().take(chunks) {
         let alpha = alpha as usize;
         let block = super::kernel::load_block::<N>(a.set.coords, points_pad, alpha);
-        let start = (near[alpha] as usize * LANES + LANES / 2).min(b.segments - 1);
-        let (mut best, mut arg, settled) = if c2 > 0.0 {
-            window(&block, b, period, start, c2)
+        let start = (near[alpha] as usize * LANES + LANES / 2).min(points - 1);
+        let (mut best, mut arg, mut settled) = if c2 > 0.0 {
+            vertex_window(&block, b, period, points, start, c2)
         } else {
             ([f64::INFINITY; LANES], [0; LANES], false)
         };
+        if !settled && c2 > 0.0 {
+            let start = start.min(b.segments - 1);
+            settled = window(&block, b, period, start, c2, &mut best, &mut arg);
+        }
         if !settled {
-            refine_lanes(&block, &mut best, &mut arg, c2, b, period, start / LANES);
+            refine_lanes(
+                &block,
+                &mut best,
+                &mut arg,
+                c2,
+                b,
+                period,
+                start.min(b.segments - 1) / LANES,
+            );
             for l in 0..LANES {
                 if alpha * LANES + l < points && best[l] > c2 {
                     c2 = best[l];
@@ -790,92 +1322,52 @@ fn directed<const N: usize>(
             }
         }
         scratch.arg[alpha * LANES..(alpha + 1) * LANES].copy_from_slice(&arg);
+        scratch.upper[alpha * LANES..(alpha + 1) * LANES].copy_from_slice(&best);
     }
-    // 2. Segments, eight at a time: settled when one segment of B (nearest to either
-    //    end) is within c of both ends in one image (the distance to it is convex).
-    let half = 0.5 * period;
+    scratch.upper[points] = scratch.upper[0];
+    // 2. Segments: settled when `(u_i + u_{i+1} + |v_i|)/2 ≤ c` (d_B is 1-Lipschitz along
+    //    the segment, `u` the upper bounds at the ends), eight at a time; else when the
+    //    segment of B that settled either end is within c of both ends in one image
+    //    (the distance to it is convex).
+    let c = c2.sqrt();
+    let limit = 2.0 * c * (1.0 - 1e-12);
     scratch.open.clear();
     for block in 0..a.segments.div_ceil(LANES) {
-        let p = super::kernel::load_block::<N>(a.set.coords, points_pad, block);
-        let mut v = [[0.0; LANES]; N];
-        for (k, lanes) in v.iter_mut().enumerate() {
-            lanes.copy_from_slice(&a.dirs_soa[k * points_pad + block * LANES..][..LANES]);
+        let mut bound = [0.0; LANES];
+        let here = &scratch.upper[block * LANES..][..LANES];
+        let after = &scratch.upper[block * LANES + 1..][..LANES];
+        let length = &a.lengths[block * LANES..][..LANES];
+        let mut all = true;
+        for l in 0..LANES {
+            bound[l] = here[l].sqrt() + after[l].sqrt() + length[l];
+            all &= bound[l] <= limit || block * LANES + l >= a.segments;
         }
-        let mut settled = [false; LANES];
-        for side in 0..2 {
-            let mut bs = [[0.0; LANES]; N];
-            let mut w = [[0.0; LANES]; N];
-            let mut inv = [0.0; LANES];
-            for l in 0..LANES {
-                let i = (block * LANES + l).min(a.segments - 1);
-                let vertex = if side == 0 {
-                    i
-                } else if i + 1 == points {
-                    0
-                } else {
-                    i + 1
-                };
-                let j = scratch.arg[vertex] as usize;
-                let start = load::<N>(b.set.points, j);
-                let dir = load::<N>(b.dirs, j);
-                for k in 0..N {
-                    bs[k][l] = start[k];
-                    w[k][l] = dir[k];
-                }
-                inv[l] = b.inv_len2[j];
-            }
-            let mut dot0 = [0.0; LANES];
-            let mut dot1 = [0.0; LANES];
-            let mut u0 = [[0.0; LANES]; N];
-            for k in 0..N {
-                for l in 0..LANES {
-                    let u = swrap(p[k][l] - bs[k][l], period, half);
-                    u0[k][l] = u;
-                    dot0[l] = u.mul_add(w[k][l], dot0[l]);
-                    dot1[l] = (u + v[k][l]).mul_add(w[k][l], dot1[l]);
-                }
-            }
-            let mut t0 = [0.0; LANES];
-            let mut t1 = [0.0; LANES];
-            for l in 0..LANES {
-                t0[l] = (dot0[l] * inv[l]).clamp(0.0, 1.0);
-                t1[l] = (dot1[l] * inv[l]).clamp(0.0, 1.0);
-            }
-            let mut e0 = [0.0; LANES];
-            let mut e1 = [0.0; LANES];
-            for k in 0..N {
-                for l in 0..LANES {
-                    let x = u0[k][l] - t0[l] * w[k][l];
-                    e0[l] = x.mul_add(x, e0[l]);
-                    let y = u0[k][l] + v[k][l] - t1[l] * w[k][l];
-                    e1[l] = y.mul_add(y, e1[l]);
-                }
-            }
-            let mut all = true;
-            for l in 0..LANES {
-                settled[l] |= e0[l] <= c2 && e1[l] <= c2;
-                all &= settled[l];
-            }
-            if all {
-                break;
-            }
+        if all {
+            continue;
         }
-        for (l, &done) in settled.iter().enumerate() {
+        for (l, &bound) in bound.iter().enumerate() {
             let i = block * LANES + l;
-            if !done && i < a.segments {
-                scratch.open.push(i as u32);
+            if i >= a.segments || bound <= limit {
+                continue;
             }
+            let next = if i + 1 == points { 0 } else { i + 1 };
+            if within_along::<N>(a, b, i, scratch.arg[i] as usize, c2, period)
+                || within_along::<N>(a, b, i, scratch.arg[next] as usize, c2, period)
+            {
+                continue;
+            }
+            scratch.open.push(i as u32);
         }
     }
-    // 3. The rest by branch and bound on the chord and Lipschitz bounds.
-    let mut c = c2.sqrt();
+    // 3. The rest exactly: the chord bound, then the envelope (or the branch and bound).
+    let mut c = c;
     for e in 0..scratch.open.len() {
         let i = scratch.open[e] as usize;
         let next = if i + 1 == points { 0 } else { i + 1 };
         // The chord envelope of the segments that settled either end and their
         // neighbours, without any exact search: settles most segments where the
         // nearest segment of B switches along the way.
-        if chord_bound::<N>(
+        let (upper, _) = chord_bound::<N>(
             a,
             b,
             i,
@@ -883,22 +1375,26 @@ fn directed<const N: usize>(
             1.0,
             [scratch.arg[i], scratch.arg[next]],
             period,
-        )
-        .0 <= c + 0.5 * CURVE_TOLERANCE
-        {
+        );
+        if upper <= c + 0.5 * CURVE_TOLERANCE {
             continue;
         }
-        let p = load::<N>(a.set.points, i);
-        let q = load::<N>(a.set.points, next);
-        let (dp, jp) = nearest::<N>(&p, b, period, scratch.arg[i] as usize);
-        let (dq, jq) = nearest::<N>(&q, b, period, scratch.arg[next] as usize);
-        let ends = [(dp.sqrt(), jp as u32), (dq.sqrt(), jq as u32)];
-        c = c.max(ends[0].0).max(ends[1].0);
-        if c > abort {
-            return None;
-        }
+        let ends = match segment_max::<N>(a, b, i, upper, c, abort, period, points_pad) {
+            SegmentMax::Done(value) => {
+                c = value;
+                continue;
+            }
+            SegmentMax::Abort => return None,
+            SegmentMax::Fallback => {
+                [(i, scratch.arg[i]), (next, scratch.arg[next])].map(|(x, hint)| {
+                    let x = load::<N>(a.set.points, x);
+                    let (d2, j) = nearest::<N>(&x, b, period, points_pad, hint as usize);
+                    (d2.sqrt(), j as u32)
+                })
+            }
+        };
         let mut stack = std::mem::take(&mut scratch.stack);
-        let result = refine_segment::<N>(a, b, i, ends, period, c, abort, &mut stack);
+        let result = refine_segment::<N>(a, b, i, ends, period, c, abort, points_pad, &mut stack);
         scratch.stack = stack;
         c = result?;
     }
@@ -1044,6 +1540,61 @@ mod tests {
         }
         // The piecewise path was exercised.
         assert!(crossing > 500, "{crossing}");
+    }
+
+    #[test]
+    fn segment_gap_is_the_minimum_over_both_segments() {
+        // Against a 201 × 201 grid of (t, s) refined by the exact point-to-segment
+        // distance at every t: the closed form is never above and within rounding of it.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for trial in 0..300 {
+            let mut r = [0.0; 4];
+            let mut d1 = [0.0; 4];
+            let mut d2 = [0.0; 4];
+            for k in 0..4 {
+                r[k] = rng.gen_range(-1.0..1.0);
+                d1[k] = rng.gen_range(-0.5..0.5);
+                // Parallel and degenerate segments now and then.
+                d2[k] = match trial % 5 {
+                    0 => 0.0,
+                    1 => 2.0 * d1[k],
+                    _ => rng.gen_range(-0.5..0.5),
+                };
+            }
+            let e: f64 = d2.iter().map(|x| x * x).sum();
+            let inv = if e > 0.0 { 1.0 / e } else { 0.0 };
+            let mut brute = f64::INFINITY;
+            for step in 0..=2000 {
+                let t = f64::from(step) / 2000.0;
+                let mut u = [0.0; 4];
+                for k in 0..4 {
+                    u[k] = r[k] + t * d1[k];
+                }
+                brute = brute.min(lifted_distance2(&u, &d2, inv));
+            }
+            let fast = segment_gap2(&r, &d1, &d2);
+            assert!(fast <= brute + 1e-12, "trial {trial}: {fast} > {brute}");
+            // The grid in t is 1/2000 apart and the distance is at most 2-Lipschitz in t.
+            assert!(
+                brute.sqrt() - fast.sqrt() < 2e-3,
+                "trial {trial}: {fast} vs {brute}"
+            );
+        }
+    }
+
+    #[test]
+    fn roots_of_quadratics_in_a_range() {
+        // (t − 0.25)(t − 0.75) = t² − t + 3/16.
+        let (roots, count) = roots_in(1.0, -1.0, 0.1875, 0.0, 1.0);
+        let mut found = roots[..count].to_vec();
+        found.sort_by(f64::total_cmp);
+        assert_eq!(count, 2);
+        assert!((found[0] - 0.25).abs() < 1e-15 && (found[1] - 0.75).abs() < 1e-15);
+        // Only one in [0.5, 1]; a linear one; none outside the range.
+        assert_eq!(roots_in(1.0, -1.0, 0.1875, 0.5, 1.0).1, 1);
+        let (roots, count) = roots_in(0.0, 2.0, -1.0, 0.0, 1.0);
+        assert!(count == 1 && (roots[0] - 0.5).abs() < 1e-15);
+        assert_eq!(roots_in(0.0, 2.0, 1.0, 0.0, 1.0).1, 0);
     }
 
     #[test]

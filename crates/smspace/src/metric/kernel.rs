@@ -164,7 +164,11 @@ fn load_point<const N: usize>(set: SetRef<'_>, _shape: Shape, j: usize) -> [f64;
 
 /// `g²(a_l, b)` for the eight lanes: `Σ_n h(a_n − b_n)²`, summed in coordinate order.
 #[inline(always)]
-fn dist2<const N: usize>(a: &[[f64; LANES]; N], b: &[f64; N], period: f64) -> [f64; LANES] {
+pub(crate) fn dist2<const N: usize>(
+    a: &[[f64; LANES]; N],
+    b: &[f64; N],
+    period: f64,
+) -> [f64; LANES] {
     let mut acc = [0.0; LANES];
     for k in 0..N {
         let bk = b[k];
