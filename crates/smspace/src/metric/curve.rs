@@ -846,30 +846,21 @@ enum SegmentMax {
     Fallback,
 }
 
-/// `max(c, max_{t∈[0,1]} d_B(a_i + t v_i))` exactly, given an upper bound `upper` of that
-/// maximum (the chord bound).
-///
-/// Only segments `j` of `B` with `min_t δ_j ≤ upper` can be nearest anywhere on the
-/// segment; since `δ_j` is `|v_i|`-Lipschitz in `t`, `min_t δ_j ≥ (δ_j(0) + δ_j(1) −
-/// |v_i|)/2`, and boxes prune whole chunks first. When every candidate stays in one
-/// periodic image along the segment (every coordinate of `a(t) − s_j(s)` within
-/// `[−π, π]` at the four corners `t, s ∈ {0, 1}`, hence everywhere), `δ_j(a(t))² =
-/// |p + t q|²` piecewise, with at most three pieces (the foot `s*(t)` linear in `t`,
-/// clamped to `0` or `1`), so `d_B² = min_j δ_j²` is a lower envelope of convex
-/// quadratics. Its maximum is at an end or where the minimising segment changes, a
-/// root of `δ_j² − δ_k²` on a common piece: all those roots are tried.
-#[allow(clippy::too_many_arguments)]
+/// The periodic images of segments of `B` that come within `upper` of segment `i` of
+/// `A` (only those can be nearest on it), written to `images` as (segment, start
+/// relative to `a_i`); their count, or `None` past [`MAX_IMAGES`] (or [`MAX_SHIFTS`]
+/// images of one segment).
 #[inline(always)]
-fn segment_max<const N: usize>(
+#[allow(clippy::too_many_arguments)]
+fn near_images<const N: usize>(
     a: CurveRef<'_>,
     b: CurveRef<'_>,
     i: usize,
     upper: f64,
-    c: f64,
-    abort: f64,
     period: f64,
     stride: usize,
-) -> SegmentMax {
+    images: &mut [(u32, [f64; N]); MAX_IMAGES],
+) -> Option<usize> {
     let half = 0.5 * period;
     let p = load::<N>(a.set.points, i);
     let v = load::<N>(a.dirs, i);
@@ -887,7 +878,6 @@ fn segment_max<const N: usize>(
     // is linear in both); when every coordinate stays within `[−π, π]` the image
     // nearest to `a_i` is the only one, else the images shifted by one period on the
     // side where the range leaves it join.
-    let mut images = [(0u32, [0.0; N]); MAX_IMAGES];
     let mut image_count = 0;
     for q in 0..b.segments.div_ceil(LANES) {
         if chunk_gap2::<N>(&mid, &spread, b, q, period) > reach2 {
@@ -919,7 +909,7 @@ fn segment_max<const N: usize>(
                         }
                         for e in 0..last {
                             if shifts == MAX_SHIFTS {
-                                return SegmentMax::Fallback;
+                                return None;
                             }
                             shifted[shifts] = shifted[e];
                             shifted[shifts][k] += shift;
@@ -931,7 +921,7 @@ fn segment_max<const N: usize>(
             for u0 in &shifted[..shifts] {
                 if single[l] || segment_gap2::<N>(u0, &v, &w) <= reach2 {
                     if image_count == MAX_IMAGES {
-                        return SegmentMax::Fallback;
+                        return None;
                     }
                     images[image_count] = (j as u32, *u0);
                     image_count += 1;
@@ -939,6 +929,38 @@ fn segment_max<const N: usize>(
             }
         }
     }
+    Some(image_count)
+}
+
+/// `max(c, max_{t∈[0,1]} d_B(a_i + t v_i))` exactly, given an upper bound `upper` of that
+/// maximum (the chord bound).
+///
+/// Only segments `j` of `B` with `min_t δ_j ≤ upper` can be nearest anywhere on the
+/// segment; since `δ_j` is `|v_i|`-Lipschitz in `t`, `min_t δ_j ≥ (δ_j(0) + δ_j(1) −
+/// |v_i|)/2`, and boxes prune whole chunks first. When every candidate stays in one
+/// periodic image along the segment (every coordinate of `a(t) − s_j(s)` within
+/// `[−π, π]` at the four corners `t, s ∈ {0, 1}`, hence everywhere), `δ_j(a(t))² =
+/// |p + t q|²` piecewise, with at most three pieces (the foot `s*(t)` linear in `t`,
+/// clamped to `0` or `1`), so `d_B² = min_j δ_j²` is a lower envelope of convex
+/// quadratics. Its maximum is at an end or where the minimising segment changes, a
+/// root of `δ_j² − δ_k²` on a common piece: all those roots are tried.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn segment_max<const N: usize>(
+    a: CurveRef<'_>,
+    b: CurveRef<'_>,
+    i: usize,
+    upper: f64,
+    c: f64,
+    abort: f64,
+    period: f64,
+    stride: usize,
+) -> SegmentMax {
+    let v = load::<N>(a.dirs, i);
+    let mut images = [(0u32, [0.0; N]); MAX_IMAGES];
+    let Some(image_count) = near_images::<N>(a, b, i, upper, period, stride, &mut images) else {
+        return SegmentMax::Fallback;
+    };
     // The pieces of every image.
     let mut quads = [Quad::default(); 3 * MAX_IMAGES];
     let mut pieces = 0;
