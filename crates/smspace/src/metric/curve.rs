@@ -935,15 +935,12 @@ fn near_images<const N: usize>(
 /// `max(c, max_{t∈[0,1]} d_B(a_i + t v_i))` exactly, given an upper bound `upper` of that
 /// maximum (the chord bound).
 ///
-/// Only segments `j` of `B` with `min_t δ_j ≤ upper` can be nearest anywhere on the
-/// segment; since `δ_j` is `|v_i|`-Lipschitz in `t`, `min_t δ_j ≥ (δ_j(0) + δ_j(1) −
-/// |v_i|)/2`, and boxes prune whole chunks first. When every candidate stays in one
-/// periodic image along the segment (every coordinate of `a(t) − s_j(s)` within
-/// `[−π, π]` at the four corners `t, s ∈ {0, 1}`, hence everywhere), `δ_j(a(t))² =
-/// |p + t q|²` piecewise, with at most three pieces (the foot `s*(t)` linear in `t`,
-/// clamped to `0` or `1`), so `d_B² = min_j δ_j²` is a lower envelope of convex
-/// quadratics. Its maximum is at an end or where the minimising segment changes, a
-/// root of `δ_j² − δ_k²` on a common piece: all those roots are tried.
+/// Only the images of segments of `B` that come within `upper` of the segment can be
+/// nearest anywhere on it ([`near_images`]). On each image, `E(t)² = |p + t q|²`
+/// piecewise, with at most three pieces (the foot `s*(t)` linear in `t`, clamped to
+/// `0` or `1`), so `d_B² = min E²` is a lower envelope of convex quadratics. Its
+/// maximum is at an end (a vertex, already in `c`) or where the minimising image
+/// changes, a root of `E_x² − E_y²` on a common piece: all those roots are tried.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn segment_max<const N: usize>(
