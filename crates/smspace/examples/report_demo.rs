@@ -10,10 +10,11 @@ use std::time::Instant;
 
 use ndarray::{Array2, Axis};
 use smspace::agent::{Agent, AgentConfig, Environment, MotorTopology};
-use smspace::analysis::{analyze, invariance, AnalysisParams};
+use smspace::analysis::{analyze, AnalysisParams};
 use smspace::embed::quality::{shepard_pairs, stress, trustworthiness_continuity};
 use smspace::embed::{CcaParams, Embedding};
 use smspace::explore::{explore, ExploreParams, Probes};
+use smspace::invariance::invariance;
 use smspace::kernel::{trace_sets, TraceMethod, TraceParams};
 use smspace::metric::{distance_matrix, DistanceParams, Period};
 use smspace::progress::Silent;

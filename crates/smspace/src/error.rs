@@ -35,6 +35,9 @@ pub enum Error {
     /// Analysing a distance matrix failed.
     #[error(transparent)]
     Analysis(#[from] AnalysisError),
+    /// The environment-invariance experiment failed.
+    #[error(transparent)]
+    Invariance(#[from] crate::invariance::InvarianceError),
     /// Writing the figures and report failed.
     #[error(transparent)]
     Report(#[from] crate::report::ReportError),

@@ -113,10 +113,13 @@ fn open(path: &Path) -> Result<BufReader<File>, IoError> {
         })
 }
 
-/// Reads a `.npy` array of any dimension whose elements are `A`.
-fn read_any<A: ReadableElement>(path: &Path) -> Result<ArrayD<A>, IoError> {
+/// Reads a `.npy` array of any dimension whose elements are `A`, in standard (C)
+/// layout whatever the file's order: NumPy writes `fortran_order: True` for an
+/// F-contiguous array (`np.save(p, np.asfortranarray(a))`, a transposed view), and
+/// every reader downstream may then take rows as contiguous slices.
+fn read_any<A: ReadableElement + Clone>(path: &Path) -> Result<ArrayD<A>, IoError> {
     let reader = open(path)?;
-    ArrayD::<A>::read_npy(reader).map_err(|error| match error {
+    let array = ArrayD::<A>::read_npy(reader).map_err(|error| match error {
         ReadNpyError::Io(reason) => IoError::Read {
             path: path.to_owned(),
             reason,
@@ -125,6 +128,11 @@ fn read_any<A: ReadableElement>(path: &Path) -> Result<ArrayD<A>, IoError> {
             path: path.to_owned(),
             reason: other.to_string(),
         },
+    })?;
+    Ok(if array.is_standard_layout() {
+        array
+    } else {
+        array.as_standard_layout().into_owned()
     })
 }
 
@@ -199,6 +207,24 @@ pub fn read_cube(path: &Path, expected: &str) -> Result<Array3<f64>, IoError> {
             found: "?".into(),
             expected: expected.to_owned(),
         })
+}
+
+/// The file next to `path` that shares its stem: `sibling("run/sets.npy", "kept.npy")`
+/// is `run/sets.kept.npy`. Companion files (reports, records) are named this way.
+///
+/// ```
+/// use std::path::Path;
+/// assert_eq!(
+///     smspace::io::sibling(Path::new("run/sets.npy"), "kept.npy"),
+///     Path::new("run/sets.kept.npy")
+/// );
+/// ```
+pub fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!("{stem}.{suffix}"))
 }
 
 /// The folder that holds `path` (`.` for a bare file name).
@@ -292,6 +318,45 @@ mod tests {
             read_cube(&path, "(M, P, N)"),
             Err(IoError::Shape { .. })
         ));
+    }
+
+    /// A `.npy` file as NumPy writes a Fortran-ordered array (`np.save(p,
+    /// np.asfortranarray(a))`): the flag in the header, the first index fastest.
+    fn fortran_npy<D: Dimension>(a: &ndarray::Array<f64, D>) -> Vec<u8> {
+        let shape: Vec<String> = a.shape().iter().map(|n| format!("{n}, ")).collect();
+        let mut header = format!(
+            "{{'descr': '<f8', 'fortran_order': True, 'shape': ({}), }}",
+            shape.concat().trim_end()
+        );
+        while (10 + header.len() + 1) % 64 != 0 {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+        bytes.extend_from_slice(header.as_bytes());
+        for x in a.view().reversed_axes().iter() {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+        bytes
+    }
+
+    #[test]
+    fn fortran_order_files_read_in_standard_layout() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("f.npy");
+        let a = array![[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]];
+        std::fs::write(&path, fortran_npy(&a)).unwrap();
+        let back = read_matrix(&path, Some(2), "(M, 2)").unwrap();
+        assert!(back.is_standard_layout());
+        assert_eq!(back, a);
+        assert_eq!(back.row(2).as_slice().unwrap(), &[5.0, 6.0]);
+        let cube =
+            ndarray::Array3::from_shape_fn((2, 3, 4), |(i, j, k)| (i * 12 + j * 4 + k) as f64);
+        std::fs::write(&path, fortran_npy(&cube)).unwrap();
+        let back = read_cube(&path, "(M, P, N)").unwrap();
+        assert!(back.is_standard_layout());
+        assert_eq!(back, cube);
     }
 
     #[test]

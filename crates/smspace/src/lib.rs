@@ -21,8 +21,9 @@
 //!    of rows, or the `k` nearest sets (section 3.2, step 3);
 //! 5. [`embed`]: coordinates for the manifold of sets from its distance matrix (CCA,
 //!    Isomap, classical MDS; section 3.2);
-//! 6. [`analysis`]: topology, dimension, agreement with the poses and environment
-//!    invariance of the learned metric (section 3.3);
+//! 6. [`analysis`]: topology, dimension and agreement with the poses of the learned
+//!    metric (section 3.3), and [`invariance`], the experiment that traces the same
+//!    starts in several environments (sections 2.2, 2.3, 3.3);
 //! 7. [`report`]: the paper's figures, `report.html` with a 3-D view, `report.md`;
 //!
 //! [`pipeline`] runs them all from an experiment file, with a cache; with [`config`]
@@ -38,6 +39,7 @@ pub mod config;
 pub mod embed;
 pub mod error;
 pub mod explore;
+pub mod invariance;
 pub mod io;
 pub mod kernel;
 pub mod metric;

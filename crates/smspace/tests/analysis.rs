@@ -515,8 +515,8 @@ fn h2_of_too_many_points_is_refused() {
 mod invariance {
     use super::*;
     use smspace::agent::{Agent, AgentConfig, Environment, EnvironmentConfig};
-    use smspace::analysis::invariance;
     use smspace::explore::{explore, ExploreParams};
+    use smspace::invariance::invariance;
     use smspace::kernel::{TraceMethod, TraceParams};
 
     fn setup(name: &str, n: usize) -> (Box<dyn Agent>, Array2<f64>) {

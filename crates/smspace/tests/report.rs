@@ -8,10 +8,11 @@ use std::process::Command;
 
 use ndarray::{Array2, Array3, Axis};
 use smspace::agent::{Agent, AgentConfig, Environment, MotorTopology};
-use smspace::analysis::{analyze, invariance, AnalysisParams, AnalysisReport};
+use smspace::analysis::{analyze, AnalysisParams, AnalysisReport};
 use smspace::embed::quality::shepard_pairs;
 use smspace::embed::{CcaParams, EmbedReport, Embedding};
 use smspace::explore::{explore, Exploration, ExploreParams, Probes};
+use smspace::invariance::invariance;
 use smspace::kernel::{trace_sets, TraceMethod, TraceParams, TraceSummary};
 use smspace::metric::{distance_matrix, DistanceParams, Period};
 use smspace::progress::Silent;

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use smspace::agent::EnvironmentConfig;
-use smspace::analysis::invariance;
+use smspace::invariance::invariance;
 use smspace::io;
 use smspace::kernel::{TraceMethod, TraceParams};
 

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use smspace::config::load_experiment;
-use smspace::pipeline::{self, manifest::StageRecord, Recompute, RunObserver, RunOptions, Stage};
+use smspace::pipeline::{self, manifest::StageRecord, Recompute, RunObserver, RunOptions, StageId};
 use smspace::progress::Progress;
 
 use super::common::memory_available;
@@ -40,13 +40,13 @@ impl RunObserver for StageLog {
         &self.bar
     }
 
-    fn stage_started(&self, stage: Stage) {
+    fn stage_started(&self, stage: StageId) {
         if !self.terminal {
             eprintln!("[smspace] {}: started", stage.name());
         }
     }
 
-    fn stage_finished(&self, stage: Stage, record: &StageRecord, summary: &str) {
+    fn stage_finished(&self, stage: StageId, record: &StageRecord, summary: &str) {
         let how = if record.cached {
             format!("reused (computed in {:.2} s)", record.compute_seconds)
         } else {
@@ -55,7 +55,7 @@ impl RunObserver for StageLog {
         eprintln!("[smspace] {:<10} {how}: {summary}", stage.name());
     }
 
-    fn stage_skipped(&self, stage: Stage, why: &str) {
+    fn stage_skipped(&self, stage: StageId, why: &str) {
         eprintln!("[smspace] {:<10} skipped: {why}", stage.name());
     }
 }

@@ -3,11 +3,10 @@
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
-use ndarray::Array1;
 use smspace::io;
 use smspace::kernel::{trace_sets, StepControl, TraceMethod, TraceParams};
 
-use super::common::{sibling, AgentArgs, EnvArgs, WorkspaceArgs};
+use super::common::{AgentArgs, EnvArgs, WorkspaceArgs};
 use crate::ui::Bar;
 
 /// Arguments of `smspace trace`.
@@ -41,8 +40,8 @@ pub struct Args {
     env: EnvArgs,
     #[command(flatten)]
     workspace: WorkspaceArgs,
-    /// Output sets (M_kept, P, N); the report goes to `<stem>.trace.json` and, when
-    /// some sets failed, the kept motor rows to `<stem>.kept.npy`.
+    /// Output sets (M_kept, P, N); next to it `<stem>.kept.npy` (the motor row of each
+    /// set), `<stem>.closed.npy` (1: closed loop, 0: open) and `<stem>.trace.json`.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
 }
@@ -105,21 +104,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "no set could be traced ({:?}); see the statuses above. Nothing was written.",
         traced.report.summary.by_status
     );
-    io::write_npy(&args.out, &traced.sets)?;
-    let report_path = sibling(&args.out, "trace.json");
-    io::write_json(&report_path, &traced.report)?;
-    // Which sets are closed loops, for the curve metric (`smspace distances` finds it
-    // next to the sets).
-    smspace::kernel::write_closure(&sibling(&args.out, "closed.npy"), &traced.closure)?;
-    let kept_path = sibling(&args.out, "kept.npy");
+    // The same writer as the pipeline's trace stage: the sets, the kept motor rows, which
+    // sets are closed loops (for the curve metric) and the report.
+    let [_, kept_path, _, report_path] = traced.save(&args.out)?;
     let summary = &traced.report.summary;
-    if summary.failed > 0 {
-        let kept: Array1<i64> = traced.kept.iter().map(|&i| i as i64).collect();
-        io::write_npy(&kept_path, &kept)?;
-    } else if kept_path.exists() {
-        // A stale index file from an earlier run would no longer describe these sets.
-        std::fs::remove_file(&kept_path)?;
-    }
     eprintln!(
         "traced {} of {} sets ({:?}, {:?} steps); {} failed{}",
         summary.traced,

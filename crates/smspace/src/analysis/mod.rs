@@ -1,6 +1,6 @@
 //! Measuring what the agent learned (paper section 3.3): the topology and dimension of
-//! the manifold of kernel sets, its agreement with the observer's ground truth, and
-//! its independence of the environment.
+//! the manifold of kernel sets and its agreement with the observer's ground truth (its
+//! independence of the environment is the experiment [`crate::invariance`]).
 //!
 //! The paper judges its result by eye ("the resultant manifold has the topology of
 //! `T × ℝ²`", a circle of orientations times a plane of positions) and states that "the
@@ -11,9 +11,7 @@
 //! - [`homology`]: Vietoris–Rips persistence `H0`, `H1` (and `H2`), and Betti numbers
 //!   read off by a stated gap rule ([`BettiRule`]); the arm should give `b = [1, 1]`;
 //! - [`dimension`]: TwoNN and Levina–Bickel estimates (the arm: 3, the redundant toy: 1);
-//! - [`agreement`]: Spearman, trustworthiness and continuity against the poses;
-//! - [`invariance`](mod@invariance): the same starts traced in several environments, against the
-//!   sensor values of the same motor configurations.
+//! - [`agreement`]: Spearman, trustworthiness and continuity against the poses.
 //!
 //! [`analyze`] runs the first three and returns an [`AnalysisReport`], whose JSON keys
 //! (`betti`, `persistence`, `intrinsic_dimension.twonn`, `intrinsic_dimension.mle`,
@@ -30,7 +28,6 @@
 pub mod agreement;
 pub mod dimension;
 pub mod homology;
-pub mod invariance;
 
 use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
@@ -39,7 +36,6 @@ use crate::progress::Progress;
 pub use agreement::Agreement;
 pub use dimension::DimensionEstimate;
 pub use homology::{rips_persistence, Bar, BettiRule, Persistence};
-pub use invariance::{invariance, invariance_measured, InvarianceMeasured, InvarianceReport};
 
 /// Errors of the analysis stage.
 #[derive(Debug, thiserror::Error)]
@@ -95,12 +91,6 @@ pub enum AnalysisError {
         /// Why.
         reason: String,
     },
-    /// Tracing the sets to compare failed.
-    #[error(transparent)]
-    Kernel(#[from] crate::kernel::KernelError),
-    /// Computing set distances failed.
-    #[error(transparent)]
-    Metric(#[from] crate::metric::MetricError),
     /// The computation would be too large.
     #[error("{what} is too large to compute: the limit is {limit}")]
     TooLarge {
@@ -133,7 +123,7 @@ pub struct AnalysisParams {
     pub neighbors: usize,
     /// Environment invariance (`smspace run`, when the experiment has more than one
     /// environment): how many babbled starts are traced with the `sensory` method in
-    /// every environment and compared ([`invariance`]). `0` turns it off. Default 300.
+    /// every environment and compared ([`crate::invariance`]). `0` turns it off. Default 300.
     pub invariance_starts: usize,
 }
 

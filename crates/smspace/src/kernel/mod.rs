@@ -40,6 +40,8 @@
 mod curve;
 mod level_set;
 
+use std::path::{Path, PathBuf};
+
 use ndarray::{Array3, ArrayView2};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -500,6 +502,59 @@ pub struct TracedSets {
     pub closure: Vec<Closure>,
     /// Per-set statuses and the summary.
     pub report: TraceReport,
+}
+
+impl TracedSets {
+    /// Writes the sets to `sets_path` (`(M, P, N)` float64) and, next to it (see
+    /// [`crate::io::sibling`]), `<stem>.kept.npy` (`(M,)` int64 motor rows),
+    /// `<stem>.closed.npy` ([`write_closure`]) and `<stem>.trace.json` (the report).
+    /// Returns the four paths. `smspace trace` and the pipeline's trace stage both
+    /// write through here.
+    pub fn save(&self, sets_path: &Path) -> Result<[PathBuf; 4], crate::io::IoError> {
+        let files = Self::files(sets_path);
+        let [sets, kept, closed, report] = &files;
+        crate::io::write_npy(sets, &self.sets)?;
+        let rows: ndarray::Array1<i64> = self.kept.iter().map(|&k| k as i64).collect();
+        crate::io::write_npy(kept, &rows)?;
+        write_closure(closed, &self.closure)?;
+        crate::io::write_json(report, &self.report)?;
+        Ok(files)
+    }
+
+    /// Reads what [`TracedSets::save`] wrote, checking that the records match the sets.
+    pub fn load(sets_path: &Path) -> Result<Self, crate::io::IoError> {
+        let [sets_file, kept_file, closed_file, report_file] = Self::files(sets_path);
+        let sets = crate::io::read_cube(&sets_file, "(M, P, N)")?;
+        let m = sets.dim().0;
+        let codes = crate::io::read_i64(&kept_file)?;
+        let kept = codes
+            .iter()
+            .map(|&k| usize::try_from(k).ok())
+            .collect::<Option<Vec<usize>>>()
+            .filter(|k| codes.ndim() == 1 && k.len() == m)
+            .ok_or_else(|| crate::io::IoError::Shape {
+                path: kept_file.clone(),
+                found: crate::io::shape_string(codes.shape()),
+                expected: format!("({m},) int64 motor rows ≥ 0, one per set"),
+            })?;
+        Ok(Self {
+            closure: read_closure(&closed_file, m)?,
+            sets,
+            kept,
+            report: crate::io::read_json(&report_file, "trace report")?,
+        })
+    }
+
+    /// The sets file and its three companions.
+    fn files(sets_path: &Path) -> [PathBuf; 4] {
+        let sibling = |suffix| crate::io::sibling(sets_path, suffix);
+        [
+            sets_path.to_owned(),
+            sibling("kept.npy"),
+            sibling("closed.npy"),
+            sibling("trace.json"),
+        ]
+    }
 }
 
 fn check_agent(agent: &dyn Agent) -> Result<(), KernelError> {

@@ -28,9 +28,10 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::agent::{Agent, Environment, MotorTopology};
-use crate::analysis::{AnalysisReport, InvarianceReport};
+use crate::analysis::AnalysisReport;
 use crate::embed::EmbedReport;
 use crate::explore::Workspace;
+use crate::invariance::InvarianceReport;
 use crate::kernel::TraceSummary;
 
 /// Errors of the report stage.

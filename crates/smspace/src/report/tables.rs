@@ -285,7 +285,7 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
     out
 }
 
-fn invariance_tables(r: &crate::analysis::InvarianceReport) -> Vec<Table> {
+fn invariance_tables(r: &crate::invariance::InvarianceReport) -> Vec<Table> {
     let mut summary = Table::key_value("Invariance across environments");
     summary.push("agent", r.agent.clone());
     for (i, e) in r.environments.iter().enumerate() {

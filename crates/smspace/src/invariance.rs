@@ -19,17 +19,48 @@
 //!
 //! Near-zero set figures and a Mantel correlation near 1 for the sets, against large
 //! sensor differences, are the paper's claim in numbers.
+//!
+//! This is an experiment of its own, not an analysis of one distance matrix: it traces
+//! and measures again, once per environment. It uses the statistics of
+//! [`analysis::agreement`](crate::analysis::agreement).
 
 use ndarray::{Array2, ArrayView2, Axis};
 use serde::{Deserialize, Serialize};
 
-use super::agreement::{pearson, upper_triangle};
-use super::AnalysisError;
 use crate::agent::{Agent, Environment, MotorTopology};
+use crate::analysis::agreement::{pearson, upper_triangle};
 use crate::explore::Workspace;
 use crate::kernel::{trace_sets, TraceMethod, TraceValidParams};
 use crate::metric::{distance_matrix, Closure, DistanceParams, MetricKind, Period, SetsView};
 use crate::progress::Progress;
+
+/// Errors of the invariance experiment.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum InvarianceError {
+    /// A parameter is out of its domain.
+    #[error("invalid invariance parameter {name} = {value}: {reason}")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// The value given.
+        value: String,
+        /// What a valid value looks like.
+        reason: String,
+    },
+    /// Too few starts were traced in every environment.
+    #[error("invariance is undefined for these starts: {reason}")]
+    TooFewCommon {
+        /// How many were traced where.
+        reason: String,
+    },
+    /// Tracing the sets to compare failed.
+    #[error(transparent)]
+    Kernel(#[from] crate::kernel::KernelError),
+    /// Computing set distances failed.
+    #[error(transparent)]
+    Metric(#[from] crate::metric::MetricError),
+}
 
 /// One environment of the comparison.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -112,7 +143,7 @@ pub fn invariance(
     params: &TraceValidParams,
     metric: MetricKind,
     progress: &dyn Progress,
-) -> Result<InvarianceReport, AnalysisError> {
+) -> Result<InvarianceReport, InvarianceError> {
     invariance_measured(
         agent,
         motors,
@@ -148,16 +179,16 @@ pub fn invariance_measured(
     params: &TraceValidParams,
     metric: MetricKind,
     progress: &dyn Progress,
-) -> Result<InvarianceMeasured, AnalysisError> {
+) -> Result<InvarianceMeasured, InvarianceError> {
     if params.method() != TraceMethod::Sensory {
-        return Err(AnalysisError::InvalidParameter {
+        return Err(InvarianceError::InvalidParameter {
             name: "method",
             value: format!("{:?}", params.method()).to_lowercase(),
             reason: "invariance traces with the sensory method, which sees the environment".into(),
         });
     }
     if environments.len() < 2 {
-        return Err(AnalysisError::InvalidParameter {
+        return Err(InvarianceError::InvalidParameter {
             name: "environments",
             value: environments.len().to_string(),
             reason: "give at least 2 environments to compare".into(),
@@ -174,8 +205,7 @@ pub fn invariance_measured(
         .filter(|row| traced.iter().all(|t| t.kept.binary_search(row).is_ok()))
         .collect();
     if common.len() < 2 {
-        return Err(AnalysisError::Degenerate {
-            what: "invariance",
+        return Err(InvarianceError::TooFewCommon {
             reason: format!(
                 "only {} of {} starts were traced in every environment (traced per environment: {:?}); at least 2 are needed",
                 common.len(),

@@ -1,0 +1,93 @@
+//! `explore`: motor babbling in the working space and the probe grid (paper section
+//! 3.2, step 1), in the experiment's environments.
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use super::{Keyed, Stage, StageContext, StageInput, World};
+use crate::explore::{explore_in, Exploration, ExploreParams, EXPLORATION_FILES};
+use crate::pipeline::StageId;
+
+/// The `explore` stage: the `[exploration]` table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ExploreStage {
+    /// Babbling and probe parameters.
+    pub exploration: ExploreParams,
+}
+
+/// What `explore` reads.
+#[derive(Debug, Clone, Copy)]
+pub struct ExploreInput<'a> {
+    /// The agent, environments and working space.
+    pub world: &'a Keyed<World>,
+}
+
+impl StageInput for ExploreInput<'_> {
+    fn keys(&self) -> Vec<&str> {
+        vec![&self.world.key]
+    }
+}
+
+/// The file of environment `i` (0: the main one).
+fn environment_file(i: usize) -> String {
+    if i == 0 {
+        "environment.json".to_owned()
+    } else {
+        format!("environment-{}.json", i + 1)
+    }
+}
+
+impl Stage for ExploreStage {
+    const ID: StageId = StageId::Explore;
+    type Input<'a> = ExploreInput<'a>;
+    type Output = Exploration;
+
+    fn compute(
+        &self,
+        input: &ExploreInput<'_>,
+        _: &StageContext<'_>,
+    ) -> crate::Result<Exploration> {
+        let world = &input.world.value;
+        Ok(explore_in(
+            world.agent.as_ref(),
+            &self.exploration,
+            world.workspace,
+        )?)
+    }
+
+    fn save(
+        &self,
+        input: &ExploreInput<'_>,
+        exploration: &Exploration,
+        dir: &Path,
+    ) -> crate::Result<Vec<String>> {
+        let world = &input.world.value;
+        exploration.save(dir, &world.agent_config, &self.exploration)?;
+        let mut files: Vec<String> = EXPLORATION_FILES.map(String::from).to_vec();
+        for (i, env) in world.environments.iter().enumerate() {
+            let file = environment_file(i);
+            env.save(&dir.join(&file))?;
+            files.push(file);
+        }
+        Ok(files)
+    }
+
+    fn load(&self, input: &ExploreInput<'_>, dir: &Path) -> crate::Result<Exploration> {
+        let world = &input.world.value;
+        Ok(Exploration::load(
+            dir,
+            world.agent.motor_dim(),
+            world.workspace,
+        )?)
+    }
+
+    fn summary(&self, x: &Exploration) -> String {
+        let probes = x.probe_count();
+        format!(
+            "{} configurations ({} babbled, {probes} probes)",
+            x.motors.nrows(),
+            x.motors.nrows() - probes,
+        )
+    }
+}

@@ -1,0 +1,98 @@
+//! `trace`: the kernel sets `M^i` through the explored configurations (paper section
+//! 3.2, step 2, appendix A).
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use super::{label, Keyed, Stage, StageContext, StageInput, World};
+use crate::explore::Exploration;
+use crate::kernel::{trace_sets, KernelError, TraceParams, TracedSets};
+use crate::pipeline::StageId;
+
+/// The `trace` stage: the `[kernel]` table.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TraceStage {
+    /// Tracing parameters.
+    pub kernel: TraceParams,
+}
+
+/// What `trace` reads.
+#[derive(Debug, Clone, Copy)]
+pub struct TraceInput<'a> {
+    /// The agent, and the environment its sensory method sees (the first).
+    pub world: &'a Keyed<World>,
+    /// The starts: every explored configuration.
+    pub exploration: &'a Keyed<Exploration>,
+}
+
+impl StageInput for TraceInput<'_> {
+    fn keys(&self) -> Vec<&str> {
+        vec![&self.world.key, &self.exploration.key]
+    }
+}
+
+/// The sets file in the run folder; its companions follow [`TracedSets::save`].
+const SETS_FILE: &str = "sets.npy";
+
+impl Stage for TraceStage {
+    const ID: StageId = StageId::Trace;
+    type Input<'a> = TraceInput<'a>;
+    type Output = TracedSets;
+
+    fn compute(
+        &self,
+        input: &TraceInput<'_>,
+        context: &StageContext<'_>,
+    ) -> crate::Result<TracedSets> {
+        let world = &input.world.value;
+        let params = self.kernel.check()?;
+        let motors = input.exploration.motors.view();
+        let traced = trace_sets(
+            world.agent.as_ref(),
+            world.environments.first(),
+            motors,
+            world.workspace.as_ref(),
+            &params,
+            context.progress,
+        )?;
+        if traced.kept.len() < 2 {
+            return Err(KernelError::NothingTraced {
+                traced: traced.kept.len(),
+                total: motors.nrows(),
+                by_status: format!("{:?}", traced.report.summary.by_status),
+            }
+            .into());
+        }
+        Ok(traced)
+    }
+
+    fn save(
+        &self,
+        _: &TraceInput<'_>,
+        traced: &TracedSets,
+        dir: &Path,
+    ) -> crate::Result<Vec<String>> {
+        let files = traced.save(&dir.join(SETS_FILE))?;
+        Ok(files
+            .iter()
+            .filter_map(|p| p.file_name())
+            .map(|n| n.to_string_lossy().into_owned())
+            .collect())
+    }
+
+    fn load(&self, _: &TraceInput<'_>, dir: &Path) -> crate::Result<TracedSets> {
+        Ok(TracedSets::load(&dir.join(SETS_FILE))?)
+    }
+
+    fn summary(&self, t: &TracedSets) -> String {
+        let s = &t.report.summary;
+        format!(
+            "{} of {} sets traced ({}), {} points each",
+            s.traced,
+            s.total,
+            label(&self.kernel.method),
+            t.sets.dim().1
+        )
+    }
+}
