@@ -48,3 +48,9 @@ pub mod progress;
 pub mod report;
 
 pub use error::{Error, Result};
+
+/// The README's library example, compiled and run as a doc test (`cargo test --doc`),
+/// so that the README cannot drift from the library.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeDoctests;
