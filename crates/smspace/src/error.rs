@@ -39,8 +39,47 @@ pub enum Error {
     #[error(transparent)]
     Invariance(#[from] crate::invariance::InvarianceError),
     /// Writing the figures and report failed.
+    #[cfg(feature = "pipeline")]
     #[error(transparent)]
     Report(#[from] crate::report::ReportError),
+}
+
+/// A parameter out of its domain, located by its table and key as in an experiment
+/// file, so that the configuration reader can point at the line without searching the
+/// message.
+///
+/// ```
+/// let e = smspace::error::InvalidParameter::new("exploration", "n", 0, "explore at least one configuration");
+/// assert_eq!(e.to_string(), "invalid exploration parameter n = 0: explore at least one configuration");
+/// ```
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("invalid {table} parameter {key} = {value}: {reason}")]
+pub struct InvalidParameter {
+    /// The table (`exploration`, `kernel`, …).
+    pub table: &'static str,
+    /// The key in that table.
+    pub key: &'static str,
+    /// The value given, formatted.
+    pub value: String,
+    /// What a valid value looks like.
+    pub reason: String,
+}
+
+impl InvalidParameter {
+    /// The error for `table.key = value`.
+    pub fn new(
+        table: &'static str,
+        key: &'static str,
+        value: impl std::fmt::Display,
+        reason: impl Into<String>,
+    ) -> Self {
+        Self {
+            table,
+            key,
+            value: value.to_string(),
+            reason: reason.into(),
+        }
+    }
 }
 
 /// `Result` with the crate-wide [`Error`].

@@ -17,6 +17,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+pub use crate::agent::Workspace;
 use crate::agent::{Agent, AgentConfig, Pose};
 use crate::io::{self, IoError};
 
@@ -34,6 +35,9 @@ pub enum ExploreError {
         /// What a valid value looks like.
         reason: &'static str,
     },
+    /// A parameter is out of its domain (located by table and key).
+    #[error(transparent)]
+    Parameter(#[from] crate::error::InvalidParameter),
     /// Too few random configurations landed in the working space.
     #[error("only {kept} of {wanted} configurations landed in the working space after {draws} draws; is the working space (centre {center:?}, size {size:?}) reachable by the agent?")]
     WorkspaceUnreachable {
@@ -61,48 +65,6 @@ pub enum ExploreError {
     /// The probe grid needs a working space.
     #[error("the probe grid needs a working space; set workspace_center and workspace_size")]
     ProbesWithoutWorkspace,
-}
-
-/// The rectangular working space, in the observer's frame.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Workspace {
-    /// Centre `(x, y)`.
-    pub center: [f64; 2],
-    /// Full extents `(depth along x, width along y)`.
-    pub size: [f64; 2],
-}
-
-impl Workspace {
-    /// The paper's working space: centre `(1.75, 0)`, 1.5 deep, 2 wide.
-    pub const PAPER: Workspace = Workspace {
-        center: [1.75, 0.0],
-        size: [1.5, 2.0],
-    };
-
-    /// Whether the pose's position lies in the working space (boundary included).
-    pub fn contains(&self, pose: Pose) -> bool {
-        (pose.x - self.center[0]).abs() <= self.size[0] / 2.0
-            && (pose.y - self.center[1]).abs() <= self.size[1] / 2.0
-    }
-
-    fn check(&self) -> Result<(), ExploreError> {
-        if !self.center.iter().all(|v| v.is_finite()) {
-            return Err(ExploreError::InvalidParameter {
-                name: "workspace_center",
-                value: format!("{:?}", self.center),
-                reason: "must be two finite numbers",
-            });
-        }
-        if !self.size.iter().all(|v| v.is_finite() && *v > 0.0) {
-            return Err(ExploreError::InvalidParameter {
-                name: "workspace_size",
-                value: format!("{:?}", self.size),
-                reason: "must be two finite numbers greater than zero",
-            });
-        }
-        Ok(())
-    }
 }
 
 /// Whether to add the probe grid.
@@ -224,10 +186,10 @@ impl ExploreParams {
     }
 }
 
-/// The working space an agent explores by default: the paper's for the arm, none for
-/// the toys (their whole motor range).
+/// The working space an agent explores by default: [`Agent::default_workspace`] (the
+/// paper's scaled with the arm's reach, none for the toys: their whole motor range).
 pub fn default_workspace(agent: &dyn Agent) -> Option<Workspace> {
-    (agent.configuration_dim() >= 2).then_some(Workspace::PAPER)
+    agent.default_workspace()
 }
 
 /// The result of exploration.

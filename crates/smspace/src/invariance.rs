@@ -241,13 +241,7 @@ pub fn invariance_measured(
         .iter()
         .map(|env| {
             let mut s = Array2::zeros((rows.nrows(), agent.sensor_dim()));
-            for (m, mut out) in rows.outer_iter().zip(s.outer_iter_mut()) {
-                agent.sense(
-                    env,
-                    m.as_slice().expect("rows of a standard array"),
-                    out.as_slice_mut().expect("rows of a standard array"),
-                );
-            }
+            agent.sense_batch(env, rows.view(), s.view_mut());
             s
         })
         .collect();

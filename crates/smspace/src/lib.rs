@@ -30,6 +30,10 @@
 //! (parameter and experiment files), [`io`] (`.npy` and JSON interchange),
 //! [`progress`] (observers for long stages) and [`error`].
 //!
+//! [`pipeline`] and [`report`] (and the experiment files of [`config`]) need the
+//! default `pipeline` feature; without it the crate is the numerics alone (no plotting,
+//! no bundled JavaScript or font).
+//!
 //! The library never prints: progress goes through [`progress::Progress`], and every
 //! failure a user can cause is a [`Result`] carrying the offending file or value.
 
@@ -43,8 +47,10 @@ pub mod invariance;
 pub mod io;
 pub mod kernel;
 pub mod metric;
+#[cfg(feature = "pipeline")]
 pub mod pipeline;
 pub mod progress;
+#[cfg(feature = "pipeline")]
 pub mod report;
 
 pub use error::{Error, Result};

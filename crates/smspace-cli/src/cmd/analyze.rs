@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     poses: Option<PathBuf>,
     /// Highest homology dimension (0, 1 or 2).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = AnalysisParams::default().max_homology_dim)]
     max_dim: usize,
     /// Rips threshold (default: the enclosing radius, where every bar has died).
     #[arg(long, allow_negative_numbers = true)]

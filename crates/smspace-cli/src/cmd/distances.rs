@@ -45,7 +45,7 @@ pub struct Args {
     #[arg(long, value_name = "K")]
     knn: Option<usize>,
     /// Pivot sets for pruning the --knn search with the triangle inequality.
-    #[arg(long, value_name = "COUNT", default_value_t = 24)]
+    #[arg(long, value_name = "COUNT", default_value_t = smspace::metric::KnnParams::default().pivots)]
     pivots: usize,
     /// Compute only rows i0 (included) to i1 (excluded), e.g. 0:1000, so that the matrix
     /// (or the --knn lists) can be split over processes. Blocks stack exactly into the

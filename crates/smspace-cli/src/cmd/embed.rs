@@ -77,10 +77,10 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Method::Cca)]
     pub method: Method,
     /// Output dimension.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = CcaParams::default().dim)]
     pub dim: usize,
     /// Seed (CCA pivot order, landmarks, eigensolver start vector, dy–dx sample).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = CcaParams::default().seed)]
     pub seed: u64,
     /// Output coordinates (M, dim) .npy; the report goes to <stem>.embed.json.
     #[arg(long, value_name = "Y.npy")]
@@ -108,10 +108,10 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub landmark_choice: Option<LandmarkArg>,
     /// Neighbourhood size of trustworthiness and continuity (capped below M/2).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = smspace::pipeline::stages::QUALITY_NEIGHBOURS)]
     pub quality_k: usize,
     /// Most (dx, dy) pairs written to <stem>.dydx.npy (0: none).
-    #[arg(long, default_value_t = 20_000)]
+    #[arg(long, default_value_t = smspace::pipeline::stages::DYDX_PAIRS)]
     pub dydx_pairs: usize,
 }
 

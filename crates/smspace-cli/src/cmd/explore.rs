@@ -14,19 +14,19 @@ pub struct Args {
     #[command(flatten)]
     agent: AgentArgs,
     /// Number of configurations to keep in the working space.
-    #[arg(long, default_value_t = 2500)]
+    #[arg(long, default_value_t = ExploreParams::default().n)]
     n: usize,
     /// Seed of the babbling.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = ExploreParams::default().seed)]
     seed: u64,
     /// Append the probe grid (10 × 10 positions × 10 orientations by default).
     #[arg(long)]
     probes: bool,
     /// Probe positions along each side of the working space.
-    #[arg(long, default_value_t = 10, requires = "probes")]
+    #[arg(long, default_value_t = ExploreParams::default().probe_positions, requires = "probes")]
     probe_positions: usize,
     /// Probe orientations, evenly spaced from 0.
-    #[arg(long, default_value_t = 10, requires = "probes")]
+    #[arg(long, default_value_t = ExploreParams::default().probe_orientations, requires = "probes")]
     probe_orientations: usize,
     #[command(flatten)]
     workspace: WorkspaceArgs,

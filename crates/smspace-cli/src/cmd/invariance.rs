@@ -28,7 +28,7 @@ pub struct Args {
     #[arg(long, value_name = "L1,L2,...", value_delimiter = ',')]
     lights: Vec<usize>,
     /// Points per traced set.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = smspace::kernel::TraceParams::default().points)]
     points: usize,
     /// Distance between two sets (curve: the traced loops and segments as polylines).
     #[arg(long, value_enum, default_value_t = MetricArg::Hausdorff)]

@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
-use ndarray::{Array2, Axis};
 use smspace::io;
 
 use super::common::{AgentArgs, EnvArgs};
@@ -29,14 +28,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let environment = args.env.resolve_or_default(&spec, agent.as_ref())?;
     let n = agent.motor_dim();
     let motors = io::read_matrix(&args.motors, Some(n), &format!("(M, {n})"))?;
-    let mut sensors = Array2::zeros((motors.nrows(), agent.sensor_dim()));
-    for (m, mut s) in motors
-        .axis_iter(Axis(0))
-        .zip(sensors.axis_iter_mut(Axis(0)))
-    {
-        let m = m.to_vec();
-        agent.sense(&environment, &m, s.as_slice_mut().expect("C-order rows"));
-    }
+    let sensors = smspace::agent::sense_rows(agent.as_ref(), &environment, motors.view())?;
     io::write_npy(&args.out, &sensors)?;
     eprintln!(
         "wrote sensor values {:?} to {}",

@@ -22,19 +22,19 @@ pub struct Args {
     #[arg(long, default_value = "kinematic", value_parser = parse_method)]
     method: TraceMethod,
     /// Points per resampled set.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = TraceParams::default().points)]
     points: usize,
     /// Step length (radians); the initial step when adaptive.
-    #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = TraceParams::default().step, allow_negative_numbers = true)]
     step: f64,
     /// Step control: auto (fixed for kinematic, adaptive for sensory), fixed or adaptive.
     #[arg(long, default_value = "auto", value_parser = parse_step_control)]
     step_control: StepControl,
     /// Largest adaptive step.
-    #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = TraceParams::default().max_step, allow_negative_numbers = true)]
     max_step: f64,
     /// Loop-closure tolerance (torus distance).
-    #[arg(long, default_value_t = 1e-2, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = TraceParams::default().closure_tolerance, allow_negative_numbers = true)]
     closure_tolerance: f64,
     #[command(flatten)]
     env: EnvArgs,

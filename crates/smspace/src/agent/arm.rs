@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{
     check_positive, wrap_angle, Agent, AgentError, Environment, LightRegion, MotorTopology, Pose,
+    Workspace,
 };
 
 /// Parameters of the planar arm (`kind = "planar-arm"`).
@@ -270,7 +271,7 @@ impl Agent for PlanarArm {
         best.map(|(_, motors)| motors)
     }
 
-    fn name(&self) -> &'static str {
+    fn name(&self) -> &str {
         "planar-arm"
     }
 
@@ -302,6 +303,13 @@ impl Agent for PlanarArm {
     fn default_light_count(&self) -> usize {
         10
     }
+
+    /// The paper's working space scaled with the arm's reach (the paper's arm reaches
+    /// 3): an arm with links `[0.3, 0.3, 0.3]` explores a rectangle it can reach.
+    fn default_workspace(&self) -> Option<Workspace> {
+        let scale = self.link_lengths.iter().sum::<f64>() / 3.0;
+        Some(Workspace::PAPER.scaled(scale))
+    }
 }
 
 #[cfg(test)]
@@ -312,6 +320,30 @@ mod tests {
 
     fn arm() -> PlanarArm {
         PlanarArm::new(&ArmParams::default()).unwrap()
+    }
+
+    #[test]
+    fn the_default_working_space_scales_with_the_reach() {
+        assert_eq!(arm().default_workspace(), Some(Workspace::PAPER));
+        // An arm of reach 0.9 cannot put its retina in the paper's rectangle
+        // (x from 1 to 2.5): its own working space is the paper's scaled by 0.3, and
+        // babbling fills it.
+        let small = PlanarArm::new(&ArmParams {
+            link_lengths: vec![0.3, 0.3, 0.3],
+            ..ArmParams::default()
+        })
+        .unwrap();
+        let workspace = small.default_workspace().unwrap();
+        assert_abs_diff_eq!(workspace.center[0], 0.525, epsilon = 1e-12);
+        assert_abs_diff_eq!(workspace.size[1], 0.6, epsilon = 1e-12);
+        let params = crate::explore::ExploreParams {
+            n: 50,
+            ..Default::default()
+        };
+        let found = crate::explore::explore(&small, &params).unwrap();
+        assert_eq!(found.motors.nrows(), 50);
+        let paper = crate::explore::explore_in(&small, &params, Some(Workspace::PAPER));
+        assert!(paper.is_err(), "the paper's rectangle is out of reach");
     }
 
     #[test]

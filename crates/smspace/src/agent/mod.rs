@@ -20,15 +20,18 @@
 mod arm;
 mod environment;
 mod toy;
+mod workspace;
 
 use std::f64::consts::PI;
 use std::fmt;
 
+use ndarray::{ArrayView2, ArrayViewMut2};
 use serde::{Deserialize, Serialize};
 
 pub use arm::{ArmParams, PlanarArm};
 pub use environment::{Environment, EnvironmentConfig, LightRegion};
 pub use toy::{ToyAgent, ToyKind, ToyParams};
+pub use workspace::Workspace;
 
 /// Errors of building agents and environments.
 #[derive(Debug, thiserror::Error)]
@@ -49,6 +52,18 @@ pub enum AgentError {
         value: String,
         /// What a valid value looks like.
         reason: &'static str,
+    },
+    /// A motor array does not fit the agent.
+    #[error(
+        "motor configurations have {found} columns but the {agent} agent has {expected} motors"
+    )]
+    MotorDimension {
+        /// The agent's name.
+        agent: String,
+        /// Columns found.
+        found: usize,
+        /// Motors of the agent.
+        expected: usize,
     },
     /// An environment is invalid for this agent.
     #[error("invalid environment: {reason}")]
@@ -177,8 +192,35 @@ pub trait Agent: Send + Sync + fmt::Debug {
     /// The observer's ground truth: the sensor's pose for motors `m`.
     fn pose(&self, motors: &[f64]) -> Pose;
 
-    /// A short name, e.g. `planar-arm`.
-    fn name(&self) -> &'static str;
+    /// A short name, e.g. `planar-arm` (owned by the agent, so that an agent described
+    /// at run time names itself).
+    fn name(&self) -> &str;
+
+    /// Writes the sensor values of many motor rows: `motors` is `(M, N)`, `sensors`
+    /// `(M, K)`. The default calls [`sense`](Agent::sense) row by row; an agent that is
+    /// costly to call (a simulator in another language, a remote robot) overrides it to
+    /// answer all rows at once.
+    fn sense_batch(
+        &self,
+        environment: &Environment,
+        motors: ArrayView2<'_, f64>,
+        mut sensors: ArrayViewMut2<'_, f64>,
+    ) {
+        let mut m = vec![0.0; motors.ncols()];
+        let mut s = vec![0.0; sensors.ncols()];
+        for (row, mut out) in motors.outer_iter().zip(sensors.outer_iter_mut()) {
+            m.iter_mut().zip(row.iter()).for_each(|(a, &b)| *a = b);
+            self.sense(environment, &m, &mut s);
+            out.iter_mut().zip(&s).for_each(|(a, &b)| *a = b);
+        }
+    }
+
+    /// The working space this agent explores when the experiment names none: a
+    /// rectangle of sensor positions it can reach. The default is none (babbling over
+    /// the whole motor range).
+    fn default_workspace(&self) -> Option<Workspace> {
+        None
+    }
 
     /// How many leading coordinates of the pose `(x, y, alpha)` the motors can change:
     /// 1 for the toys (`x`), 3 for the arm. The kernel sets have dimension
@@ -366,6 +408,35 @@ impl AgentConfig {
     }
 }
 
+/// The sensor values `(M, K)` of the motor rows `(M, N)` in `environment`, through
+/// [`Agent::sense_batch`].
+///
+/// ```
+/// use smspace::agent::{sense_rows, AgentConfig, Environment};
+/// let agent = AgentConfig::preset("toy-line")?.build()?;
+/// let environment = Environment::from_lights(vec![[0.0, 1.0]]);
+/// let motors = ndarray::array![[0.0], [0.5]];
+/// let sensors = sense_rows(agent.as_ref(), &environment, motors.view())?;
+/// assert_eq!(sensors.dim(), (2, agent.sensor_dim()));
+/// # Ok::<(), smspace::agent::AgentError>(())
+/// ```
+pub fn sense_rows(
+    agent: &dyn Agent,
+    environment: &Environment,
+    motors: ArrayView2<'_, f64>,
+) -> Result<ndarray::Array2<f64>, AgentError> {
+    if motors.ncols() != agent.motor_dim() {
+        return Err(AgentError::MotorDimension {
+            agent: agent.name().to_owned(),
+            found: motors.ncols(),
+            expected: agent.motor_dim(),
+        });
+    }
+    let mut sensors = ndarray::Array2::zeros((motors.nrows(), agent.sensor_dim()));
+    agent.sense_batch(environment, motors, sensors.view_mut());
+    Ok(sensors)
+}
+
 pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<(), AgentError> {
     if value.is_finite() && value > 0.0 {
         Ok(())
@@ -382,6 +453,27 @@ pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<(), Agent
 mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
+
+    #[test]
+    fn sense_batch_answers_every_row_as_sense_does() {
+        let arm = PlanarArm::new(&ArmParams::default()).unwrap();
+        let region = arm.default_light_region();
+        let environment = Environment::random(10, 3, &region).unwrap();
+        let motors = ndarray::array![[0.3, -1.2, 2.0, 3.1], [0.0, 0.5, -0.5, 1.0]];
+        let batch = sense_rows(&arm, &environment, motors.view()).unwrap();
+        for (m, row) in motors.outer_iter().zip(batch.outer_iter()) {
+            let mut one = vec![0.0; arm.sensor_dim()];
+            arm.sense(&environment, m.as_slice().unwrap(), &mut one);
+            assert_eq!(row.to_vec(), one);
+        }
+        // Columns that are not the agent's motors are an error, not a panic; so are
+        // rows of a transposed (non-contiguous) array handled.
+        let err = sense_rows(&arm, &environment, motors.t()).unwrap_err();
+        assert!(err.to_string().contains("4 motors"), "{err}");
+        let transposed = motors.t().to_owned();
+        let again = sense_rows(&arm, &environment, transposed.t()).unwrap();
+        assert_eq!(again, batch);
+    }
 
     #[test]
     fn wrap_angle_maps_into_half_open_interval() {
@@ -441,7 +533,7 @@ mod tests {
             fn pose(&self, m: &[f64]) -> Pose {
                 self.0.pose(m)
             }
-            fn name(&self) -> &'static str {
+            fn name(&self) -> &str {
                 "wrapped"
             }
             fn default_light_region(&self) -> LightRegion {

@@ -135,7 +135,7 @@ impl Agent for ToyAgent {
         (low..=high).contains(&m).then(|| vec![m; self.motor_dim()])
     }
 
-    fn name(&self) -> &'static str {
+    fn name(&self) -> &str {
         match self.kind {
             ToyKind::Line => "toy-line",
             ToyKind::Redundant => "toy-redundant",

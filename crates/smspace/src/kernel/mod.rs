@@ -46,8 +46,8 @@ use ndarray::{Array3, ArrayView2};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::agent::Workspace;
 use crate::agent::{Agent, Environment, MotorTopology};
-use crate::explore::Workspace;
 use crate::progress::Progress;
 use curve::{resample, trace_branch, wrap_points, Curve, Scratch};
 use level_set::{Kinematic, LevelSet, Sensory};
@@ -72,7 +72,7 @@ pub enum KernelError {
     )]
     MotorDimension {
         /// The agent's name.
-        agent: &'static str,
+        agent: String,
         /// Columns found.
         found: usize,
         /// Motors of the agent.
@@ -98,7 +98,7 @@ pub enum KernelError {
     #[error("the {agent} agent has {motors} motors for {configuration} pose coordinates, so its kernel sets have dimension {dimension}; the tracer follows sets of dimension 0 or 1")]
     UnsupportedDimension {
         /// The agent's name.
-        agent: &'static str,
+        agent: String,
         /// Motors `N`.
         motors: usize,
         /// Pose coordinates `C`.
@@ -561,7 +561,7 @@ fn check_agent(agent: &dyn Agent) -> Result<(), KernelError> {
     let (n, c) = (agent.motor_dim(), agent.configuration_dim());
     if n < c || n - c > 1 {
         return Err(KernelError::UnsupportedDimension {
-            agent: agent.name(),
+            agent: agent.name().to_owned(),
             motors: n,
             configuration: c,
             dimension: n.saturating_sub(c),
@@ -607,7 +607,7 @@ fn trace_one_with(
     check_agent(agent)?;
     if start.len() != agent.motor_dim() {
         return Err(KernelError::MotorDimension {
-            agent: agent.name(),
+            agent: agent.name().to_owned(),
             found: start.len(),
             expected: agent.motor_dim(),
         });
@@ -798,7 +798,7 @@ pub fn trace_sets(
     let n = agent.motor_dim();
     if motors.ncols() != n {
         return Err(KernelError::MotorDimension {
-            agent: agent.name(),
+            agent: agent.name().to_owned(),
             found: motors.ncols(),
             expected: n,
         });

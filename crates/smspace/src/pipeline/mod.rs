@@ -46,7 +46,7 @@ use runner::Runner;
 use stages::{
     AnalyzeInput, AnalyzeStage, DistancesInput, DistancesStage, EmbedInput, EmbedStage,
     ExploreInput, ExploreStage, InvarianceInput, InvarianceStage, Keyed, ReportInput, ReportStage,
-    TraceInput, TraceStage, World,
+    TraceInput, TraceStage, World, DYDX_PAIRS, QUALITY_NEIGHBOURS,
 };
 
 /// Errors of a run.
@@ -199,11 +199,6 @@ impl Plan {
         self.world.agent.as_ref()
     }
 }
-
-/// Pairs of `(dx, dy)` sampled for the CCA `dy–dx` plot.
-const DYDX_PAIRS: usize = 20_000;
-/// Neighbours of the embedding's trustworthiness and continuity against `D`.
-const QUALITY_NEIGHBOURS: usize = 10;
 
 /// Validates every table of the experiment (agent, environments, working space, and
 /// each stage's parameters) without running anything. Errors name the file, the line

@@ -13,6 +13,13 @@ use crate::embed::{DydxSample, EmbedFile, EmbedParams, EmbedReport};
 use crate::io;
 use crate::pipeline::StageId;
 
+/// Pairs of `(dx, dy)` sampled for the CCA `dy–dx` plot (the default of `smspace
+/// embed --dydx-pairs` too).
+pub const DYDX_PAIRS: usize = 20_000;
+/// Neighbours of the embedding's trustworthiness and continuity against `D` (the
+/// default of `smspace embed --quality-k` too).
+pub const QUALITY_NEIGHBOURS: usize = 10;
+
 /// The `embed` stage: the `[embedding]` table, and the figures computed with the
 /// embedding (their seed is `[report] seed`).
 #[derive(Debug, Clone, PartialEq, Serialize)]

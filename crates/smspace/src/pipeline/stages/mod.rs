@@ -45,7 +45,7 @@ use crate::report::StageTiming;
 
 pub use analyze::{AnalyzeInput, AnalyzeStage};
 pub use distances::{DistancesInput, DistancesStage};
-pub use embed::{EmbedInput, EmbedOutputs, EmbedStage};
+pub use embed::{EmbedInput, EmbedOutputs, EmbedStage, DYDX_PAIRS, QUALITY_NEIGHBOURS};
 pub use explore::{ExploreInput, ExploreStage};
 pub use invariance::{InvarianceInput, InvarianceStage};
 pub use report::{ReportInput, ReportStage};

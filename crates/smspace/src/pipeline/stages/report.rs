@@ -157,13 +157,7 @@ fn sensory_manifolds(agent: &dyn Agent, environments: &[Environment]) -> Vec<Sen
         .enumerate()
         .map(|(e, env)| {
             let mut sensors = Array2::zeros((SENSORY_SAMPLES, agent.sensor_dim()));
-            for (m, mut s) in motors.outer_iter().zip(sensors.outer_iter_mut()) {
-                agent.sense(
-                    env,
-                    m.as_slice().expect("standard layout"),
-                    s.as_slice_mut().expect("standard layout"),
-                );
-            }
+            agent.sense_batch(env, motors.view(), sensors.view_mut());
             let seed = env.seed.map(|s| format!("seed {s}, ")).unwrap_or_default();
             SensoryManifold {
                 label: format!("environment {} ({seed}{} lights)", e + 1, env.lights.len()),
