@@ -19,6 +19,7 @@
 
 mod arm;
 mod environment;
+mod registry;
 mod toy;
 mod workspace;
 
@@ -30,6 +31,7 @@ use serde::{Deserialize, Serialize};
 
 pub use arm::{ArmParams, PlanarArm};
 pub use environment::{Environment, EnvironmentConfig, LightRegion};
+pub use registry::{AgentBuilder, AgentRegistry, BuiltAgent};
 pub use toy::{ToyAgent, ToyKind, ToyParams};
 pub use workspace::Workspace;
 
@@ -37,11 +39,22 @@ pub use workspace::Workspace;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum AgentError {
-    /// No built-in agent has this name.
-    #[error("unknown agent '{name}'; the built-in agents are toy-line, toy-redundant and planar-arm (or give a TOML file with an [agent] table)")]
+    /// No registered agent kind has this name.
+    #[error("unknown agent '{name}'; the registered agents are {known} (or give a TOML file with an [agent] table)")]
     UnknownAgent {
         /// The name given.
         name: String,
+        /// The registered kinds, comma-separated.
+        known: String,
+    },
+    /// The `[agent]` table does not describe an agent of its kind (an unknown key, a
+    /// value of the wrong type).
+    #[error("invalid [agent] table for the {kind} agent: {reason}")]
+    InvalidTable {
+        /// The kind.
+        kind: String,
+        /// The reader's message, naming the key.
+        reason: String,
     },
     /// A parameter is out of its domain.
     #[error("invalid agent parameter {name} = {value}: {reason}")]
@@ -274,8 +287,8 @@ pub trait Agent: Send + Sync + fmt::Debug {
     fn default_light_count(&self) -> usize;
 }
 
-/// Parameters of an agent, as the `[agent]` table of a TOML file: `kind` picks the agent
-/// and the other keys are that agent's parameters (unknown keys are errors).
+/// An agent's `[agent]` table: `kind` picks a kind of an [`AgentRegistry`] and the other
+/// keys are that kind's parameters (unknown keys are errors when the agent is built).
 ///
 /// ```
 /// use smspace::agent::AgentConfig;
@@ -288,123 +301,39 @@ pub trait Agent: Send + Sync + fmt::Debug {
 /// assert_eq!((agent.motor_dim(), agent.sensor_dim()), (4, 6));
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case", try_from = "RawAgentConfig")]
-pub enum AgentConfig {
-    /// Paper section 2.2: one motor moves the body along a line.
-    ToyLine(ToyParams),
-    /// Paper section 2.3: two redundant motors move the body along a line.
-    ToyRedundant(ToyParams),
-    /// Paper section 3.1: a planar arm with a pinhole retina at its end.
-    PlanarArm(ArmParams),
-}
-
-/// Which agent an `[agent]` table describes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-enum AgentKind {
-    ToyLine,
-    ToyRedundant,
-    PlanarArm,
-}
-
-/// The `[agent]` table as written: one flat struct, so that the TOML reader reports the
-/// line and key of a wrong value; [`AgentConfig`] is built from it and rejects keys
-/// that belong to another kind of agent.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawAgentConfig {
-    kind: AgentKind,
-    link_lengths: Option<Vec<f64>>,
-    retina_cells: Option<usize>,
-    retina_half_width: Option<f64>,
-    focal_length: Option<f64>,
-    sensor_spacing: Option<f64>,
-    sensor_height: Option<f64>,
-    motor_range: Option<[f64; 2]>,
-}
-
-impl TryFrom<RawAgentConfig> for AgentConfig {
-    type Error = String;
-
-    fn try_from(raw: RawAgentConfig) -> Result<Self, String> {
-        let arm_keys = [
-            ("link_lengths", raw.link_lengths.is_some()),
-            ("retina_cells", raw.retina_cells.is_some()),
-            ("retina_half_width", raw.retina_half_width.is_some()),
-            ("focal_length", raw.focal_length.is_some()),
-        ];
-        let toy_keys = [
-            ("sensor_spacing", raw.sensor_spacing.is_some()),
-            ("sensor_height", raw.sensor_height.is_some()),
-            ("motor_range", raw.motor_range.is_some()),
-        ];
-        let foreign = match raw.kind {
-            AgentKind::PlanarArm => toy_keys.iter().find(|(_, set)| *set),
-            _ => arm_keys.iter().find(|(_, set)| *set),
-        };
-        let kind_name = match raw.kind {
-            AgentKind::ToyLine => "toy-line",
-            AgentKind::ToyRedundant => "toy-redundant",
-            AgentKind::PlanarArm => "planar-arm",
-        };
-        if let Some((key, _)) = foreign {
-            return Err(format!(
-                "`{key}` is not a parameter of the {kind_name} agent"
-            ));
-        }
-        let toy = || {
-            let d = ToyParams::default();
-            ToyParams {
-                sensor_spacing: raw.sensor_spacing.unwrap_or(d.sensor_spacing),
-                sensor_height: raw.sensor_height.unwrap_or(d.sensor_height),
-                motor_range: raw.motor_range.unwrap_or(d.motor_range),
-            }
-        };
-        Ok(match raw.kind {
-            AgentKind::ToyLine => AgentConfig::ToyLine(toy()),
-            AgentKind::ToyRedundant => AgentConfig::ToyRedundant(toy()),
-            AgentKind::PlanarArm => {
-                let d = ArmParams::default();
-                AgentConfig::PlanarArm(ArmParams {
-                    link_lengths: raw.link_lengths.clone().unwrap_or(d.link_lengths),
-                    retina_cells: raw.retina_cells.unwrap_or(d.retina_cells),
-                    retina_half_width: raw.retina_half_width.unwrap_or(d.retina_half_width),
-                    focal_length: raw.focal_length.unwrap_or(d.focal_length),
-                })
-            }
-        })
-    }
+pub struct AgentConfig {
+    /// The agent's kind (`toy-line`, `toy-redundant`, `planar-arm`, or a registered one).
+    pub kind: String,
+    /// The kind's parameters; missing ones take the kind's defaults.
+    #[serde(flatten)]
+    pub params: toml::Table,
 }
 
 impl AgentConfig {
     /// The built-in agent called `name` with default parameters.
     pub fn preset(name: &str) -> Result<Self, AgentError> {
-        match name {
-            "toy-line" => Ok(AgentConfig::ToyLine(ToyParams::default())),
-            "toy-redundant" => Ok(AgentConfig::ToyRedundant(ToyParams::default())),
-            "planar-arm" => Ok(AgentConfig::PlanarArm(ArmParams::default())),
-            other => Err(AgentError::UnknownAgent {
-                name: other.to_owned(),
-            }),
+        let registry = AgentRegistry::builtin();
+        if registry.summary(name).is_none() {
+            return Err(AgentError::UnknownAgent {
+                name: name.to_owned(),
+                known: registry.kinds().collect::<Vec<_>>().join(", "),
+            });
         }
-    }
-
-    /// The agent's name (`toy-line`, `toy-redundant`, `planar-arm`).
-    pub fn name(&self) -> &'static str {
-        match self {
-            AgentConfig::ToyLine(_) => "toy-line",
-            AgentConfig::ToyRedundant(_) => "toy-redundant",
-            AgentConfig::PlanarArm(_) => "planar-arm",
-        }
-    }
-
-    /// Validates the parameters and builds the agent.
-    pub fn build(&self) -> Result<Box<dyn Agent>, AgentError> {
-        Ok(match self {
-            AgentConfig::ToyLine(p) => Box::new(ToyAgent::new(ToyKind::Line, p)?),
-            AgentConfig::ToyRedundant(p) => Box::new(ToyAgent::new(ToyKind::Redundant, p)?),
-            AgentConfig::PlanarArm(p) => Box::new(PlanarArm::new(p)?),
+        Ok(Self {
+            kind: name.to_owned(),
+            params: toml::Table::new(),
         })
+    }
+
+    /// The agent's kind.
+    pub fn name(&self) -> &str {
+        &self.kind
+    }
+
+    /// Validates the parameters and builds a built-in agent (for registered kinds, see
+    /// [`AgentRegistry::build`]).
+    pub fn build(&self) -> Result<Box<dyn Agent>, AgentError> {
+        AgentRegistry::builtin().build(self).map(|b| b.agent)
     }
 }
 
@@ -498,22 +427,35 @@ mod tests {
 
     #[test]
     fn unknown_fields_and_names_are_errors() {
-        let err = toml::from_str::<AgentConfig>("kind = \"planar-arm\"\nlink_length = [1.0]")
-            .unwrap_err();
+        let build = |text: &str| toml::from_str::<AgentConfig>(text).unwrap().build();
+        let err = build("kind = \"planar-arm\"\nlink_length = [1.0]").unwrap_err();
         assert!(err.to_string().contains("link_length"), "{err}");
-        let err = toml::from_str::<AgentConfig>("kind = \"planar-arm\"\nsensor_height = 1.0")
-            .unwrap_err();
-        assert!(
-            err.to_string()
-                .contains("not a parameter of the planar-arm"),
-            "{err}"
-        );
+        let err = build("kind = \"planar-arm\"\nsensor_height = 1.0").unwrap_err();
+        assert!(err.to_string().contains("sensor_height"), "{err}");
+        let err = build("kind = \"planar-arm\"\nretina_cells = \"six\"").unwrap_err();
+        assert!(err.to_string().contains("retina_cells"), "{err}");
         let config: AgentConfig =
             toml::from_str("kind = \"toy-line\"\nsensor_height = 2.0").unwrap();
         let round = toml::to_string(&config).unwrap();
         assert_eq!(toml::from_str::<AgentConfig>(&round).unwrap(), config);
         let err = AgentConfig::preset("octopus").unwrap_err();
         assert!(err.to_string().contains("octopus"));
+        assert!(err.to_string().contains("planar-arm"), "{err}");
+    }
+
+    #[test]
+    fn a_registered_kind_builds_like_a_built_in_one() {
+        let mut registry = AgentRegistry::builtin();
+        registry.register_params("long-arm", "an arm with longer links", |p: &ArmParams| {
+            Ok(Box::new(PlanarArm::new(p)?))
+        });
+        let config: AgentConfig =
+            toml::from_str("kind = \"long-arm\"\nlink_lengths = [2.0, 2.0]").unwrap();
+        let built = registry.build(&config).unwrap();
+        assert_eq!(built.agent.motor_dim(), 3);
+        // The resolved table holds the defaults it was not given.
+        assert!(built.config.params.contains_key("retina_cells"));
+        assert!(config.build().is_err(), "not a built-in kind");
     }
 
     #[test]

@@ -63,6 +63,14 @@ pub enum ConfigError {
     /// The name is neither a preset nor an existing file.
     #[error(transparent)]
     Agent(#[from] AgentError),
+    /// The file's `[agent]` table does not describe an agent.
+    #[error("{path}: {reason}")]
+    AgentTable {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, naming the key.
+        reason: AgentError,
+    },
     /// A `--set stage.key=value` override is malformed or gives a wrong value.
     #[error("--set {assignment}: {reason}")]
     Override {
@@ -131,6 +139,11 @@ pub fn load_agent(name_or_path: &str) -> Result<AgentSpec, ConfigError> {
     let agent = file.agent.ok_or(ConfigError::MissingTable {
         path: path.to_owned(),
         table: "agent",
+    })?;
+    // Built once here so that a wrong key or value is reported with the file.
+    agent.build().map_err(|reason| ConfigError::AgentTable {
+        path: path.to_owned(),
+        reason,
     })?;
     Ok(AgentSpec {
         agent,

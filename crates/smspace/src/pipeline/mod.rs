@@ -35,7 +35,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use crate::agent::Agent;
+use crate::agent::{Agent, AgentRegistry};
 use crate::analysis::AnalysisReport;
 use crate::config::{ConfigError, LoadedExperiment};
 use crate::io::{self, IoError};
@@ -204,12 +204,26 @@ impl Plan {
 /// each stage's parameters) without running anything. Errors name the file, the line
 /// of the key (or the `--set` that gave it) and the key.
 pub fn check(experiment: &LoadedExperiment) -> Result<Plan, ConfigError> {
+    check_with(experiment, &AgentRegistry::builtin())
+}
+
+/// Like [`check`], building the agent from `agents`: the built-in kinds and any an
+/// embedder registered ([`AgentRegistry::register`]), so that a plug-in agent runs
+/// through the whole pipeline.
+pub fn check_with(
+    experiment: &LoadedExperiment,
+    agents: &AgentRegistry,
+) -> Result<Plan, ConfigError> {
+    let built = agents
+        .build(&experiment.experiment.agent)
+        .map_err(|err| experiment.invalid("agent", crate::Error::from(err)))?;
+    let agent = built.agent;
+    // The resolved agent table (its defaults included) is what the run records.
+    let mut experiment = experiment.clone();
+    experiment.experiment.agent = built.config;
+    let experiment = &experiment;
     let e = &experiment.experiment;
     let invalid = |table| move |err: crate::Error| experiment.invalid(table, err);
-    let agent = e
-        .agent
-        .build()
-        .map_err(|err| invalid("agent")(err.into()))?;
     let environments = e
         .environment
         .configs()
