@@ -5,112 +5,235 @@
 //! With `planar-arm 2500 10 10` it reproduces the paper's 3500 sets (2500 babbled plus
 //! the 10 × 10 × 10 probe grid) and times [`write_report`] on them.
 
-use std::path::Path;
+use std::error::Error;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use ndarray::{Array2, Axis};
+use ndarray::{Array2, ArrayView2, Axis};
 use smspace::agent::{Agent, AgentConfig, Environment, MotorTopology};
-use smspace::analysis::{analyze, AnalysisParams};
+use smspace::analysis::{analyze, AnalysisParams, AnalysisReport};
 use smspace::embed::quality::{shepard_pairs, stress, trustworthiness_continuity};
-use smspace::embed::{CcaParams, Embedding};
-use smspace::explore::{explore, ExploreParams, Probes};
+use smspace::embed::{CcaParams, Embedded, Embedding};
+use smspace::explore::{explore, Exploration, ExploreParams, Probes};
 use smspace::invariance::invariance;
-use smspace::kernel::{trace_sets, TraceMethod, TraceParams};
+use smspace::kernel::{trace_sets, TraceMethod, TraceParams, TracedSets};
 use smspace::metric::{distance_matrix, DistanceParams, Period};
 use smspace::progress::Silent;
 use smspace::report::{
     write_report, InvarianceData, ReportInputs, ReportParams, SensoryManifold, StageTiming,
 };
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let out = Path::new(args.first().ok_or(
-        "usage: report_demo OUT_DIR [AGENT] [BABBLED] [PROBE_POSITIONS] [PROBE_ORIENTATIONS]",
-    )?);
-    let name = args.get(1).map_or("planar-arm", String::as_str);
-    let babbled: usize = args.get(2).map_or(Ok(300), |s| s.parse())?;
-    let positions: usize = args.get(3).map_or(Ok(5), |s| s.parse())?;
-    let orientations: usize = args.get(4).map_or(Ok(10), |s| s.parse())?;
-    let mut stages = Vec::new();
-    let mut clock = Instant::now();
-    let mut lap = |stage: &str, stages: &mut Vec<StageTiming>| {
-        stages.push(StageTiming {
+type DemoResult<T> = Result<T, Box<dyn Error>>;
+
+fn main() -> DemoResult<()> {
+    let args = Args::parse()?;
+    let run = Run::new(&args)?;
+    let config = format!(
+        "[agent]\nkind = \"{}\"\n\n[exploration]\nn = {}\nprobe_positions = {}\nprobe_orientations = {}\n",
+        args.agent, args.babbled, args.positions, args.orientations
+    );
+    let description = "A demonstration run of the pipeline: exploration, tracing of the kernel sets, their Hausdorff distances, a CCA embedding, the analysis and the environment invariance.";
+    let inputs = ReportInputs {
+        name: &format!("report demo: {}", args.agent),
+        description,
+        config_toml: &config,
+        agent: run.agent.as_ref(),
+        environments: &run.environments,
+        workspace: run.exploration.workspace,
+        motors: run.exploration.motors.view(),
+        poses: run.exploration.poses.view(),
+        probes: run.exploration.probes.view(),
+        sets: run.traced.sets.view(),
+        kept: &run.traced.kept,
+        trace: &run.traced.report.summary,
+        embedding: run.embedded.coordinates.view(),
+        embed_report: &run.embedded.report,
+        embed_quality: Some(&run.quality),
+        dydx: Some(run.dydx.view()),
+        analysis: Some(&run.analysis),
+        invariance: Some(&run.invariance),
+        sensory_manifolds: &run.manifolds,
+        stages: &run.stages,
+    };
+    time_reports(&inputs, &args.out)
+}
+
+/// The command line: `OUT_DIR [AGENT] [BABBLED] [PROBE_POSITIONS] [PROBE_ORIENTATIONS]`.
+struct Args {
+    out: PathBuf,
+    agent: String,
+    babbled: usize,
+    positions: usize,
+    orientations: usize,
+}
+
+impl Args {
+    fn parse() -> DemoResult<Self> {
+        let args: Vec<String> = std::env::args().skip(1).collect();
+        let out = PathBuf::from(args.first().ok_or(
+            "usage: report_demo OUT_DIR [AGENT] [BABBLED] [PROBE_POSITIONS] [PROBE_ORIENTATIONS]",
+        )?);
+        Ok(Self {
+            out,
+            agent: args.get(1).map_or("planar-arm", String::as_str).to_owned(),
+            babbled: args.get(2).map_or(Ok(300), |s| s.parse())?,
+            positions: args.get(3).map_or(Ok(5), |s| s.parse())?,
+            orientations: args.get(4).map_or(Ok(10), |s| s.parse())?,
+        })
+    }
+}
+
+/// Times the stages: each lap is the time since the previous one.
+struct Laps {
+    clock: Instant,
+    stages: Vec<StageTiming>,
+}
+
+impl Laps {
+    fn start() -> Self {
+        Self {
+            clock: Instant::now(),
+            stages: Vec::new(),
+        }
+    }
+
+    fn lap(&mut self, stage: &str) {
+        self.stages.push(StageTiming {
             stage: stage.to_owned(),
-            seconds: clock.elapsed().as_secs_f64(),
+            seconds: self.clock.elapsed().as_secs_f64(),
             cached: false,
         });
-        clock = Instant::now();
-    };
+        self.clock = Instant::now();
+    }
+}
 
-    let agent: Box<dyn Agent> = AgentConfig::preset(name)?.build()?;
-    let environments = (1..=2)
-        .map(|seed| {
-            Environment::random(
-                agent.default_light_count(),
-                seed,
-                &agent.default_light_region(),
-            )
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let arm = agent.configuration_dim() >= 2;
-    let exploration = explore(
-        agent.as_ref(),
-        &ExploreParams {
-            n: babbled,
-            probes: if arm && positions > 0 {
-                Probes::Grid
-            } else {
-                Probes::None
+/// The outputs of every stage before the report.
+struct Run {
+    agent: Box<dyn Agent>,
+    environments: Vec<Environment>,
+    exploration: Exploration,
+    traced: TracedSets,
+    embedded: Embedded,
+    quality: serde_json::Value,
+    dydx: Array2<f64>,
+    analysis: AnalysisReport,
+    invariance: InvarianceData,
+    manifolds: Vec<SensoryManifold>,
+    stages: Vec<StageTiming>,
+}
+
+impl Run {
+    /// Runs the stages in order, timing each.
+    fn new(args: &Args) -> DemoResult<Self> {
+        let mut laps = Laps::start();
+        let agent: Box<dyn Agent> = AgentConfig::preset(&args.agent)?.build()?;
+        let environments = (1..=2)
+            .map(|seed| {
+                Environment::random(
+                    agent.default_light_count(),
+                    seed,
+                    &agent.default_light_region(),
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let arm = agent.configuration_dim() >= 2;
+        let exploration = explore(
+            agent.as_ref(),
+            &ExploreParams {
+                n: args.babbled,
+                probes: if arm && args.positions > 0 {
+                    Probes::Grid
+                } else {
+                    Probes::None
+                },
+                probe_positions: args.positions.max(1),
+                probe_orientations: args.orientations.max(1),
+                ..ExploreParams::default()
             },
-            probe_positions: positions.max(1),
-            probe_orientations: orientations.max(1),
-            ..ExploreParams::default()
-        },
-    )?;
-    lap("explore", &mut stages);
-    let traced = trace_sets(
-        agent.as_ref(),
-        Some(&environments[0]),
-        exploration.motors.view(),
-        exploration.workspace.as_ref(),
-        &TraceParams::default().check()?,
-        &Silent,
-    )?;
-    lap("trace", &mut stages);
-    let period = match agent.motor_topology() {
-        MotorTopology::Periodic => Period::TwoPi,
-        MotorTopology::Bounded { .. } => Period::None,
-    };
-    let metric = DistanceParams::new().period(period);
-    let distances = distance_matrix(traced.sets.view(), &metric, &Silent)?;
-    lap("distances", &mut stages);
-    let dim = if arm { 3 } else { 1 };
-    let embedded = CcaParams::default()
-        .dim(dim)
-        .seed(1)
-        .check()?
-        .fit(distances.view(), &Silent)?;
-    let y = &embedded.coordinates;
-    let (trust, cont) = trustworthiness_continuity(distances.view(), y.view(), 10)?;
-    let (raw_stress, normalized_stress) = stress(distances.view(), y.view())?;
-    let quality = serde_json::json!({
+        )?;
+        laps.lap("explore");
+        let traced = trace_sets(
+            agent.as_ref(),
+            Some(&environments[0]),
+            exploration.motors.view(),
+            exploration.workspace.as_ref(),
+            &TraceParams::default().check()?,
+            &Silent,
+        )?;
+        laps.lap("trace");
+        let period = match agent.motor_topology() {
+            MotorTopology::Periodic => Period::TwoPi,
+            MotorTopology::Bounded { .. } => Period::None,
+        };
+        let metric = DistanceParams::new().period(period);
+        let distances = distance_matrix(traced.sets.view(), &metric, &Silent)?;
+        laps.lap("distances");
+        let embedded = CcaParams::default()
+            .dim(if arm { 3 } else { 1 })
+            .seed(1)
+            .check()?
+            .fit(distances.view(), &Silent)?;
+        let y = embedded.coordinates.view();
+        let quality = embedding_quality(distances.view(), y)?;
+        let dydx = shepard_pairs(distances.view(), y, 20_000, 1)?;
+        laps.lap("embed");
+        let set_poses = exploration.poses.select(Axis(0), &traced.kept);
+        let analysis = analyze(
+            distances.view(),
+            Some(set_poses.view()),
+            &AnalysisParams::default().check()?,
+            &Silent,
+        )?;
+        laps.lap("analyze");
+        let invariance = invariance_data(
+            agent.as_ref(),
+            &environments,
+            &exploration,
+            args.babbled,
+            &metric,
+        )?;
+        laps.lap("invariance");
+        let manifolds = sensory_manifolds(agent.as_ref(), &environments);
+        Ok(Self {
+            agent,
+            environments,
+            exploration,
+            traced,
+            embedded,
+            quality,
+            dydx,
+            analysis,
+            invariance,
+            manifolds,
+            stages: laps.stages,
+        })
+    }
+}
+
+/// Trustworthiness, continuity and stress of the embedding `y`, as in `Y.embed.json`.
+fn embedding_quality(
+    distances: ArrayView2<'_, f64>,
+    y: ArrayView2<'_, f64>,
+) -> DemoResult<serde_json::Value> {
+    let (trust, cont) = trustworthiness_continuity(distances, y, 10)?;
+    let (raw_stress, normalized_stress) = stress(distances, y)?;
+    Ok(serde_json::json!({
         "trustworthiness": trust,
         "continuity": cont,
         "stress": raw_stress,
         "normalized_stress": normalized_stress,
-    });
-    let dydx = shepard_pairs(distances.view(), y.view(), 20_000, 1)?;
-    lap("embed", &mut stages);
-    let set_poses = exploration.poses.select(Axis(0), &traced.kept);
-    let analysis = analyze(
-        distances.view(),
-        Some(set_poses.view()),
-        &AnalysisParams::default().check()?,
-        &Silent,
-    )?;
-    lap("analyze", &mut stages);
+    }))
+}
 
-    // Invariance on the first babbled rows, traced with the sensory method.
+/// Invariance on the first babbled rows, traced with the sensory method: the numbers,
+/// and for the rows traced in every environment their set distances and sensor values.
+fn invariance_data(
+    agent: &dyn Agent,
+    environments: &[Environment],
+    exploration: &Exploration,
+    babbled: usize,
+    metric: &DistanceParams,
+) -> DemoResult<InvarianceData> {
     let rows = 40.min(babbled);
     let starts = exploration.motors.slice_axis(Axis(0), (0..rows).into());
     let sensory = TraceParams {
@@ -119,9 +242,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     .check()?;
     let report = invariance(
-        agent.as_ref(),
+        agent,
         starts,
-        &environments,
+        environments,
         exploration.workspace.as_ref(),
         &sensory,
         smspace::metric::MetricKind::Hausdorff,
@@ -131,7 +254,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .iter()
         .map(|env| {
             trace_sets(
-                agent.as_ref(),
+                agent,
                 Some(env),
                 starts,
                 exploration.workspace.as_ref(),
@@ -148,14 +271,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect();
     let mut set_distances = Vec::new();
     let mut sensors = Vec::new();
-    for (t, env) in per_env.iter().zip(&environments) {
+    for (t, env) in per_env.iter().zip(environments) {
         let at: Vec<usize> = common
             .iter()
             .map(|r| t.kept.binary_search(r).unwrap_or(0))
             .collect();
         set_distances.push(distance_matrix(
             t.sets.select(Axis(0), &at).view(),
-            &metric,
+            metric,
             &Silent,
         )?);
         let mut s = Array2::zeros((common.len(), agent.sensor_dim()));
@@ -167,73 +290,51 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         sensors.push(s);
     }
-    let invariance_data = InvarianceData {
+    Ok(InvarianceData {
         report,
         set_distances,
         sensors,
-    };
-    lap("invariance", &mut stages);
+    })
+}
 
-    // Sensory manifolds of a one-motor agent: a sweep of its motor range.
-    let manifolds: Vec<SensoryManifold> = if agent.motor_dim() == 1 {
-        let (lo, hi) = agent.motor_topology().range();
-        let t = 400;
-        let motors =
-            Array2::from_shape_fn((t, 1), |(i, _)| lo + (hi - lo) * i as f64 / (t - 1) as f64);
-        environments
-            .iter()
-            .enumerate()
-            .map(|(k, env)| {
-                let mut s = Array2::zeros((t, agent.sensor_dim()));
-                for i in 0..t {
-                    let mut out = vec![0.0; agent.sensor_dim()];
-                    agent.sense(env, &[motors[[i, 0]]], &mut out);
-                    s.row_mut(i).assign(&ndarray::ArrayView1::from(&out));
-                }
-                SensoryManifold {
-                    label: format!("environment {} ({} lights)", k + 1, env.lights.len()),
-                    motors: motors.clone(),
-                    sensors: s,
-                }
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
+/// Sensory manifolds of a one-motor agent: a sweep of its motor range (none for other
+/// agents).
+fn sensory_manifolds(agent: &dyn Agent, environments: &[Environment]) -> Vec<SensoryManifold> {
+    if agent.motor_dim() != 1 {
+        return Vec::new();
+    }
+    let (lo, hi) = agent.motor_topology().range();
+    let t = 400;
+    let motors = Array2::from_shape_fn((t, 1), |(i, _)| lo + (hi - lo) * i as f64 / (t - 1) as f64);
+    environments
+        .iter()
+        .enumerate()
+        .map(|(k, env)| {
+            let mut s = Array2::zeros((t, agent.sensor_dim()));
+            for i in 0..t {
+                let mut out = vec![0.0; agent.sensor_dim()];
+                agent.sense(env, &[motors[[i, 0]]], &mut out);
+                s.row_mut(i).assign(&ndarray::ArrayView1::from(&out));
+            }
+            SensoryManifold {
+                label: format!("environment {} ({} lights)", k + 1, env.lights.len()),
+                motors: motors.clone(),
+                sensors: s,
+            }
+        })
+        .collect()
+}
 
-    let config = format!(
-        "[agent]\nkind = \"{name}\"\n\n[exploration]\nn = {babbled}\nprobe_positions = {positions}\nprobe_orientations = {orientations}\n"
-    );
-    let description = "A demonstration run of the pipeline: exploration, tracing of the kernel sets, their Hausdorff distances, a CCA embedding, the analysis and the environment invariance.";
-    let inputs = ReportInputs {
-        name: &format!("report demo: {name}"),
-        description,
-        config_toml: &config,
-        agent: agent.as_ref(),
-        environments: &environments,
-        workspace: exploration.workspace,
-        motors: exploration.motors.view(),
-        poses: exploration.poses.view(),
-        probes: exploration.probes.view(),
-        sets: traced.sets.view(),
-        kept: &traced.kept,
-        trace: &traced.report.summary,
-        embedding: y.view(),
-        embed_report: &embedded.report,
-        embed_quality: Some(&quality),
-        dydx: Some(dydx.view()),
-        analysis: Some(&analysis),
-        invariance: Some(&invariance_data),
-        sensory_manifolds: &manifolds,
-        stages: &stages,
-    };
+/// Writes the report three times into `out`, lists its figures and prints the median
+/// wall time and the CPU time per report.
+fn time_reports(inputs: &ReportInputs<'_>, out: &Path) -> DemoResult<()> {
     let params = ReportParams::default();
     let mut times = Vec::new();
     let mut summary = None;
     let cpu_start = cpu_seconds();
     for _ in 0..3 {
         let start = Instant::now();
-        summary = Some(write_report(&inputs, &params, out)?);
+        summary = Some(write_report(inputs, &params, out)?);
         times.push(start.elapsed().as_secs_f64());
     }
     let cpu = cpu_seconds().zip(cpu_start).map(|(b, a)| (b - a) / 3.0);
@@ -247,8 +348,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     println!(
         "{} sets x {} points: write_report took {:.3} s wall (median of 3; min {:.3} s), {} CPU per report",
-        traced.sets.len_of(Axis(0)),
-        traced.sets.len_of(Axis(1)),
+        inputs.sets.len_of(Axis(0)),
+        inputs.sets.len_of(Axis(1)),
         times[1],
         times[0],
         cpu.map_or_else(|| "unknown".to_owned(), |c| format!("{c:.3} s"))

@@ -28,7 +28,8 @@ use plotters::prelude::*;
 
 use super::plot::{
     chart_2d, color_bar, equal_aspect, finite_extent, legend, padded, series_color, stride_sample,
-    tick_font, tick_label, title_font, with_color_bar, ColorScale, Drawn, Figure, PlotError, GREY,
+    tick_font, tick_label, title_font, with_color_bar, Chart2d, ColorScale, Drawn, Figure,
+    PlotError, GREY,
 };
 use super::SensoryManifold;
 use crate::agent::{Environment, MotorTopology};
@@ -318,12 +319,47 @@ impl Figure for Configurations {
     }
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn {
-        let reach = self
-            .skeletons
+        let reach = self.reach();
+        let tick = 0.3 * reach.max(1e-3);
+        let (x, y) = self.ranges(tick);
+        let title = format!(
+            "Fig. 5a: {} of {} explored configurations of the {}",
+            self.skeletons.len(),
+            self.explored,
+            self.agent
+        );
+        let mut chart = chart_2d(root, &title, x, y, "x (m)", "y (m)")?;
+        if let Some(w) = self.workspace {
+            draw_workspace(&mut chart, w)?;
+        }
+        self.draw_arms(&mut chart)?;
+        self.draw_sensor_ticks(&mut chart, tick)?;
+        chart
+            .draw_series(std::iter::once(Rectangle::new(
+                [(-0.04 * reach, -0.04 * reach), (0.04 * reach, 0.04 * reach)],
+                BLACK.filled(),
+            )))?
+            .label("base")
+            .legend(|(x, y)| Rectangle::new([(x + 5, y - 4), (x + 13, y + 4)], BLACK.filled()));
+        if let Some(env) = &self.environment {
+            draw_lights(&mut chart, env)?;
+        }
+        legend(&mut chart, SeriesLabelPosition::LowerLeft)
+    }
+}
+
+impl Configurations {
+    /// The longest link of any drawn arm: the scale of the sensor ticks and the base.
+    fn reach(&self) -> f64 {
+        self.skeletons
             .iter()
             .flat_map(|s| s.windows(2).map(|w| dist(&w[0], &w[1])))
-            .fold(0.0, f64::max);
-        let tick = 0.3 * reach.max(1e-3);
+            .fold(0.0, f64::max)
+    }
+
+    /// The axis ranges, with equal aspect: every joint, the end of every sensor tick
+    /// (of length `tick`), the working space and the lights, padded.
+    fn ranges(&self, tick: f64) -> (Range<f64>, Range<f64>) {
         let mut xs: Vec<f64> = Vec::new();
         let mut ys: Vec<f64> = Vec::new();
         for (s, &alpha) in self.skeletons.iter().zip(&self.alphas) {
@@ -351,39 +387,16 @@ impl Figure for Configurations {
             }
         }
         let (pw, ph) = self.size;
-        let (x, y) = equal_aspect(
+        equal_aspect(
             padded(xs.iter().copied()),
             padded(ys.iter().copied()),
             pw.saturating_sub(100),
             ph.saturating_sub(110),
-        );
-        let title = format!(
-            "Fig. 5a: {} of {} explored configurations of the {}",
-            self.skeletons.len(),
-            self.explored,
-            self.agent
-        );
-        let mut chart = chart_2d(root, &title, x, y, "x (m)", "y (m)")?;
-        if let Some(w) = self.workspace {
-            let (x0, x1) = (w.center[0] - w.size[0] / 2.0, w.center[0] + w.size[0] / 2.0);
-            let (y0, y1) = (w.center[1] - w.size[1] / 2.0, w.center[1] + w.size[1] / 2.0);
-            let green = RGBColor(44, 160, 44);
-            chart
-                .draw_series(std::iter::once(Rectangle::new(
-                    [(x0, y0), (x1, y1)],
-                    green.mix(0.08).filled(),
-                )))?
-                .label("working space")
-                .legend(move |(x, y)| {
-                    Rectangle::new([(x, y - 5), (x + 20, y + 5)], green.stroke_width(2))
-                });
-            chart.draw_series(DashedLineSeries::new(
-                [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)],
-                8,
-                5,
-                green.stroke_width(2),
-            ))?;
-        }
+        )
+    }
+
+    /// Every arm as a polyline from its base, with a dot on each joint after the base.
+    fn draw_arms<DB: DrawingBackend>(&self, chart: &mut Chart2d<'_, DB>) -> Drawn {
         let arm = RGBColor(31, 119, 180);
         for (k, s) in self.skeletons.iter().enumerate() {
             let series = chart.draw_series(LineSeries::new(
@@ -401,6 +414,15 @@ impl Figure for Configurations {
                     .map(|p| Circle::new((p[0], p[1]), 2, arm.filled())),
             )?;
         }
+        Ok(())
+    }
+
+    /// The sensor's orientation alpha as a red tick of length `tick` at each arm's end.
+    fn draw_sensor_ticks<DB: DrawingBackend>(
+        &self,
+        chart: &mut Chart2d<'_, DB>,
+        tick: f64,
+    ) -> Drawn {
         let red = RGBColor(214, 39, 40);
         let ticks = self
             .skeletons
@@ -421,31 +443,48 @@ impl Figure for Configurations {
             .draw_series(ticks)?
             .label("sensor orientation alpha")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], red.stroke_width(2)));
-        chart
-            .draw_series(std::iter::once(Rectangle::new(
-                [(-0.04 * reach, -0.04 * reach), (0.04 * reach, 0.04 * reach)],
-                BLACK.filled(),
-            )))?
-            .label("base")
-            .legend(|(x, y)| Rectangle::new([(x + 5, y - 4), (x + 13, y + 4)], BLACK.filled()));
-        if let Some(env) = &self.environment {
-            let gold = RGBColor(255, 200, 0);
-            chart
-                .draw_series(
-                    env.lights
-                        .iter()
-                        .map(|l| Circle::new((l[0], l[1]), 6, gold.filled())),
-                )?
-                .label("lights (environment 1)")
-                .legend(move |(x, y)| Circle::new((x + 10, y), 5, gold.filled()));
-            chart.draw_series(
-                env.lights
-                    .iter()
-                    .map(|l| Circle::new((l[0], l[1]), 6, BLACK.stroke_width(1))),
-            )?;
-        }
-        legend(&mut chart, SeriesLabelPosition::LowerLeft)
+        Ok(())
     }
+}
+
+/// The working space: a faint green rectangle with a dashed border.
+fn draw_workspace<DB: DrawingBackend>(chart: &mut Chart2d<'_, DB>, w: Workspace) -> Drawn {
+    let (x0, x1) = (w.center[0] - w.size[0] / 2.0, w.center[0] + w.size[0] / 2.0);
+    let (y0, y1) = (w.center[1] - w.size[1] / 2.0, w.center[1] + w.size[1] / 2.0);
+    let green = RGBColor(44, 160, 44);
+    chart
+        .draw_series(std::iter::once(Rectangle::new(
+            [(x0, y0), (x1, y1)],
+            green.mix(0.08).filled(),
+        )))?
+        .label("working space")
+        .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], green.stroke_width(2)));
+    chart.draw_series(DashedLineSeries::new(
+        [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)],
+        8,
+        5,
+        green.stroke_width(2),
+    ))?;
+    Ok(())
+}
+
+/// The lights of `env`, gold discs ringed in black.
+fn draw_lights<DB: DrawingBackend>(chart: &mut Chart2d<'_, DB>, env: &Environment) -> Drawn {
+    let gold = RGBColor(255, 200, 0);
+    chart
+        .draw_series(
+            env.lights
+                .iter()
+                .map(|l| Circle::new((l[0], l[1]), 6, gold.filled())),
+        )?
+        .label("lights (environment 1)")
+        .legend(move |(x, y)| Circle::new((x + 10, y), 5, gold.filled()));
+    chart.draw_series(
+        env.lights
+            .iter()
+            .map(|l| Circle::new((l[0], l[1]), 6, BLACK.stroke_width(1))),
+    )?;
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------------

@@ -90,10 +90,55 @@ nav a { margin-right: 1em; }
 
 /// The data of the interactive view: coordinates, colour options and hover text.
 fn plot_spec(inputs: &ReportInputs<'_>) -> Value {
-    let e = inputs.embedding;
-    let (m, d) = e.dim();
-    let round = |v: f64| (v * 1e6).round() / 1e6;
-    let pose = |i: usize, c: usize| inputs.poses[[inputs.kept[i], c]];
+    let (m, d) = inputs.embedding.dim();
+    let mut trace = json!({
+        "name": "kernel sets",
+        "mode": "markers",
+        "text": hover_text(inputs),
+        "hovertemplate": "%{text}<extra></extra>",
+    });
+    let layout_axes = place_points(&mut trace, inputs);
+    let marker_size = if d >= 3 { 2.5 } else { 4.0 };
+    let (mut buttons, first_marker) = pose_buttons(inputs, marker_size);
+    buttons.extend(probe_button(inputs));
+    trace["marker"] = first_marker.unwrap_or_else(|| json!({"size": marker_size}));
+    let mut layout = json!({
+        "margin": {"l": 10, "r": 10, "t": 50, "b": 10},
+        "showlegend": false,
+        "hovermode": "closest",
+        "title": {"text": format!("{} kernel sets, embedding dimension {d}", m)},
+        "updatemenus": [{
+            "buttons": buttons,
+            "direction": "down",
+            "showactive": true,
+            "x": 0.0,
+            "xanchor": "left",
+            "y": 1.08,
+            "yanchor": "top",
+        }],
+    });
+    if let (Some(l), Some(a)) = (layout.as_object_mut(), layout_axes.as_object()) {
+        for (k, v) in a {
+            l.insert(k.clone(), v.clone());
+        }
+    }
+    json!({"data": [trace], "layout": layout})
+}
+
+/// `v` rounded to six decimals, to keep the page small.
+fn round6(v: f64) -> f64 {
+    (v * 1e6).round() / 1e6
+}
+
+/// Coordinate `c` (0 = x, 1 = y, 2 = alpha) of the pose of set `i`.
+fn set_pose(inputs: &ReportInputs<'_>, i: usize, c: usize) -> f64 {
+    inputs.poses[[inputs.kept[i], c]]
+}
+
+/// The hover text of every set: its exploration row, pose and probe label.
+fn hover_text(inputs: &ReportInputs<'_>) -> Vec<String> {
+    let m = inputs.embedding.nrows();
+    let pose = |i: usize, c: usize| set_pose(inputs, i, c);
     let mut text = Vec::with_capacity(m);
     for i in 0..m {
         let row = inputs.kept[i];
@@ -114,76 +159,90 @@ fn plot_spec(inputs: &ReportInputs<'_>) -> Value {
             pose(i, 2).to_degrees()
         ));
     }
-    let column = |k: usize| -> Vec<f64> { (0..m).map(|i| round(e[[i, k]])).collect() };
-    let mut trace = json!({
-        "name": "kernel sets",
-        "mode": "markers",
-        "text": text,
-        "hovertemplate": "%{text}<extra></extra>",
-    });
-    let layout_axes;
+    text
+}
+
+/// Sets the trace's type and coordinates for the embedding's dimension (a 3-D scatter
+/// of the first three coordinates, a 2-D one, or `q1` against the set index) and
+/// returns the matching layout axes.
+fn place_points(trace: &mut Value, inputs: &ReportInputs<'_>) -> Value {
+    let e = inputs.embedding;
+    let (m, d) = e.dim();
+    let column = |k: usize| -> Vec<f64> { (0..m).map(|i| round6(e[[i, k]])).collect() };
     if d >= 3 {
         trace["type"] = json!("scatter3d");
         trace["x"] = json!(column(0));
         trace["y"] = json!(column(1));
         trace["z"] = json!(column(2));
-        layout_axes = json!({
+        json!({
             "scene": {
                 "xaxis": {"title": {"text": "q1"}},
                 "yaxis": {"title": {"text": "q2"}},
                 "zaxis": {"title": {"text": "q3"}},
                 "aspectmode": "data",
             }
-        });
+        })
     } else if d == 2 {
         trace["type"] = json!("scattergl");
         trace["x"] = json!(column(0));
         trace["y"] = json!(column(1));
-        layout_axes = json!({
+        json!({
             "xaxis": {"title": {"text": "q1"}},
             "yaxis": {"title": {"text": "q2"}, "scaleanchor": "x"},
-        });
+        })
     } else {
         trace["type"] = json!("scattergl");
         trace["x"] = json!(if d == 1 { column(0) } else { Vec::new() });
         trace["y"] = json!((0..m).collect::<Vec<_>>());
-        layout_axes = json!({
+        json!({
             "xaxis": {"title": {"text": "q1"}},
             "yaxis": {"title": {"text": "set index"}},
-        });
-    }
-    let marker_size = if d >= 3 { 2.5 } else { 4.0 };
-    let hue_scale: Vec<Value> = (0..=12)
-        .map(|k| {
-            json!([
-                f64::from(k) / 12.0,
-                format!("hsl({}, 75%, 47%)", 30 * k % 360)
-            ])
         })
-        .collect();
+    }
+}
+
+/// The colour scale of pose coordinate `c` with its range, `(colorscale, cmin,
+/// cmax)`: a circular hue scale over `[-π, π]` for alpha, Viridis over the values'
+/// range (or a unit range around a constant) for x and y.
+fn pose_color_scale(c: usize, values: &[f64]) -> (Value, Value, Value) {
+    if c == 2 {
+        let hue_scale: Vec<Value> = (0..=12)
+            .map(|k| {
+                json!([
+                    f64::from(k) / 12.0,
+                    format!("hsl({}, 75%, 47%)", 30 * k % 360)
+                ])
+            })
+            .collect();
+        (
+            json!(hue_scale),
+            json!(-std::f64::consts::PI),
+            json!(std::f64::consts::PI),
+        )
+    } else {
+        let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let (lo, hi) = if lo.is_finite() && hi > lo {
+            (lo, hi)
+        } else {
+            (lo.min(0.0) - 0.5, lo.max(0.0) + 0.5)
+        };
+        (json!("Viridis"), json!(lo), json!(hi))
+    }
+}
+
+/// One menu button per pose coordinate that colours the points by it, and the
+/// marker of the first (x), which the view starts with.
+fn pose_buttons(inputs: &ReportInputs<'_>, marker_size: f64) -> (Vec<Value>, Option<Value>) {
+    let m = inputs.embedding.nrows();
     let mut buttons = Vec::new();
     let mut first_marker = None;
     for (c, (name, unit)) in [("x", "m"), ("y", "m"), ("alpha", "rad")]
         .into_iter()
         .enumerate()
     {
-        let values: Vec<f64> = (0..m).map(|i| round(pose(i, c))).collect();
-        let (colorscale, cmin, cmax) = if c == 2 {
-            (
-                json!(hue_scale),
-                json!(-std::f64::consts::PI),
-                json!(std::f64::consts::PI),
-            )
-        } else {
-            let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let (lo, hi) = if lo.is_finite() && hi > lo {
-                (lo, hi)
-            } else {
-                (lo.min(0.0) - 0.5, lo.max(0.0) + 0.5)
-            };
-            (json!("Viridis"), json!(lo), json!(hi))
-        };
+        let values: Vec<f64> = (0..m).map(|i| round6(set_pose(inputs, i, c))).collect();
+        let (colorscale, cmin, cmax) = pose_color_scale(c, &values);
         let title = format!("{name} ({unit})");
         if first_marker.is_none() {
             first_marker = Some(json!({
@@ -209,54 +268,36 @@ fn plot_spec(inputs: &ReportInputs<'_>) -> Value {
             }],
         }));
     }
-    let probe_rows = (0..m).any(|i| inputs.probes[[inputs.kept[i], 0]] >= 0);
-    if probe_rows {
-        let orientations = (0..m)
-            .map(|i| inputs.probes[[inputs.kept[i], 0]])
-            .max()
-            .unwrap_or(0)
-            + 1;
-        let colors: Vec<String> = (0..m)
-            .map(|i| {
-                let o = inputs.probes[[inputs.kept[i], 0]];
-                if o < 0 {
-                    "rgba(160,160,160,0.35)".to_owned()
-                } else {
-                    format!("hsl({}, 75%, 45%)", 360 * o / orientations)
-                }
-            })
-            .collect();
-        buttons.push(json!({
-            "label": "probe surfaces (orientation)",
-            "method": "restyle",
-            "args": [{
-                "marker.color": [colors],
-                "marker.showscale": [false],
-            }],
-        }));
+    (buttons, first_marker)
+}
+
+/// The menu button that colours the probe sets by orientation (babbled sets in
+/// faint grey), when there are probe sets.
+fn probe_button(inputs: &ReportInputs<'_>) -> Option<Value> {
+    let m = inputs.embedding.nrows();
+    let orientation = |i: usize| inputs.probes[[inputs.kept[i], 0]];
+    if !(0..m).any(|i| orientation(i) >= 0) {
+        return None;
     }
-    trace["marker"] = first_marker.unwrap_or_else(|| json!({"size": marker_size}));
-    let mut layout = json!({
-        "margin": {"l": 10, "r": 10, "t": 50, "b": 10},
-        "showlegend": false,
-        "hovermode": "closest",
-        "title": {"text": format!("{} kernel sets, embedding dimension {d}", m)},
-        "updatemenus": [{
-            "buttons": buttons,
-            "direction": "down",
-            "showactive": true,
-            "x": 0.0,
-            "xanchor": "left",
-            "y": 1.08,
-            "yanchor": "top",
+    let orientations = (0..m).map(orientation).max().unwrap_or(0) + 1;
+    let colors: Vec<String> = (0..m)
+        .map(|i| {
+            let o = orientation(i);
+            if o < 0 {
+                "rgba(160,160,160,0.35)".to_owned()
+            } else {
+                format!("hsl({}, 75%, 45%)", 360 * o / orientations)
+            }
+        })
+        .collect();
+    Some(json!({
+        "label": "probe surfaces (orientation)",
+        "method": "restyle",
+        "args": [{
+            "marker.color": [colors],
+            "marker.showscale": [false],
         }],
-    });
-    if let (Some(l), Some(a)) = (layout.as_object_mut(), layout_axes.as_object()) {
-        for (k, v) in a {
-            l.insert(k.clone(), v.clone());
-        }
-    }
-    json!({"data": [trace], "layout": layout})
+    }))
 }
 
 const PLOT_SCRIPT: &str = r#"<script>

@@ -21,7 +21,7 @@ mod tables;
 
 use std::path::{Path, PathBuf};
 
-use ndarray::{Array2, ArrayView2, ArrayView3};
+use ndarray::{Array2, ArrayView2, ArrayView3, Axis};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -247,8 +247,22 @@ fn input_error(what: &'static str, reason: String) -> ReportError {
     ReportError::Input { what, reason }
 }
 
-/// Checks that the inputs fit together.
+/// Checks that the inputs fit together, input by input, in the order of
+/// [`ReportInputs`]: the first misfit found is the error.
 fn check_inputs(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
+    check_exploration(inputs)?;
+    check_sets(inputs)?;
+    check_embedding(inputs)?;
+    check_sensory_manifolds(inputs.sensory_manifolds)?;
+    if let Some(inv) = inputs.invariance {
+        check_invariance(inv)?;
+    }
+    Ok(())
+}
+
+/// The exploration: motors `(M0, N)` for the agent, then poses and probe labels with
+/// one row of three per motor row.
+fn check_exploration(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
     let rows = inputs.motors.nrows();
     let n = inputs.agent.motor_dim();
     if inputs.motors.ncols() != n {
@@ -261,26 +275,32 @@ fn check_inputs(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
             ),
         ));
     }
-    if inputs.poses.dim() != (rows, 3) {
+    check_per_motor_row("poses", inputs.poses.dim(), rows)?;
+    check_per_motor_row("probes", inputs.probes.dim(), rows)
+}
+
+/// An array `what` of shape `dim` that must have one row of three per motor row.
+fn check_per_motor_row(
+    what: &'static str,
+    dim: (usize, usize),
+    rows: usize,
+) -> Result<(), ReportError> {
+    if dim != (rows, 3) {
         return Err(input_error(
-            "poses",
+            what,
             format!(
                 "has shape ({}, {}), expected ({rows}, 3) to match the motors",
-                inputs.poses.nrows(),
-                inputs.poses.ncols()
+                dim.0, dim.1
             ),
         ));
     }
-    if inputs.probes.dim() != (rows, 3) {
-        return Err(input_error(
-            "probes",
-            format!(
-                "has shape ({}, {}), expected ({rows}, 3) to match the motors",
-                inputs.probes.nrows(),
-                inputs.probes.ncols()
-            ),
-        ));
-    }
+    Ok(())
+}
+
+/// The kernel sets `(M, P, N)` and `kept`, their increasing exploration rows.
+fn check_sets(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
+    let rows = inputs.motors.nrows();
+    let n = inputs.agent.motor_dim();
     let (m, p, sn) = inputs.sets.dim();
     if m > 0 && (sn != n || p == 0) {
         return Err(input_error(
@@ -309,6 +329,12 @@ fn check_inputs(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
             format!("names exploration row {row} but there are {rows} rows"),
         ));
     }
+    Ok(())
+}
+
+/// The embedding: one finite row per set; and the `dy–dx` sample, `(P, 2)`.
+fn check_embedding(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
+    let m = inputs.sets.len_of(Axis(0));
     if inputs.embedding.nrows() != m {
         return Err(input_error(
             "embedding",
@@ -336,7 +362,12 @@ fn check_inputs(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
             ));
         }
     }
-    for s in inputs.sensory_manifolds {
+    Ok(())
+}
+
+/// Each sensory manifold: motors `(T, N)` and sensors `(T, K)`, `N, K > 0`.
+fn check_sensory_manifolds(manifolds: &[SensoryManifold]) -> Result<(), ReportError> {
+    for s in manifolds {
         if s.motors.nrows() != s.sensors.nrows() || s.sensors.ncols() == 0 || s.motors.ncols() == 0
         {
             return Err(input_error(
@@ -350,30 +381,34 @@ fn check_inputs(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
             ));
         }
     }
-    if let Some(inv) = inputs.invariance {
-        if inv.set_distances.len() != inv.sensors.len() {
+    Ok(())
+}
+
+/// The invariance data: per environment, a `(C, C)` distance matrix and `(C, K)`
+/// sensor values.
+fn check_invariance(inv: &InvarianceData) -> Result<(), ReportError> {
+    if inv.set_distances.len() != inv.sensors.len() {
+        return Err(input_error(
+            "invariance",
+            format!(
+                "has {} distance matrices but {} sensor arrays; give one of each per environment",
+                inv.set_distances.len(),
+                inv.sensors.len()
+            ),
+        ));
+    }
+    for (k, (d, s)) in inv.set_distances.iter().zip(&inv.sensors).enumerate() {
+        let c = d.nrows();
+        if d.ncols() != c || s.nrows() != c {
             return Err(input_error(
                 "invariance",
                 format!(
-                    "has {} distance matrices but {} sensor arrays; give one of each per environment",
-                    inv.set_distances.len(),
-                    inv.sensors.len()
+                    "environment {}: distances {:?} and sensors {:?}, expected (C, C) and (C, K)",
+                    k + 1,
+                    d.dim(),
+                    s.dim()
                 ),
             ));
-        }
-        for (k, (d, s)) in inv.set_distances.iter().zip(&inv.sensors).enumerate() {
-            let c = d.nrows();
-            if d.ncols() != c || s.nrows() != c {
-                return Err(input_error(
-                    "invariance",
-                    format!(
-                        "environment {}: distances {:?} and sensors {:?}, expected (C, C) and (C, K)",
-                        k + 1,
-                        d.dim(),
-                        s.dim()
-                    ),
-                ));
-            }
         }
     }
     Ok(())
@@ -460,306 +495,381 @@ impl Planned<'_> {
     }
 }
 
+/// One entry of the figure plan: `(name, caption, plan)`.
+type PlannedFigure<'b> = (&'static str, String, Planned<'b>);
+
 /// The figures of the report in order: `(name, caption, plan)`.
 fn plan<'a: 'b, 'b>(
     inputs: &ReportInputs<'a>,
     params: &ReportParams,
     derived: &'b Derived,
     surfaces: &'b [figures::ProbeSurface],
-) -> Vec<(&'static str, String, Planned<'b>)> {
-    let panel = (params.panel_width, params.panel_height);
-    let agent = inputs.agent;
-    let n = agent.motor_dim();
-    let m = inputs.kept.len();
-    let d = inputs.embedding.ncols();
-    let set_x: Vec<f64> = derived.set_poses.column(0).to_vec();
-    let unit = derived.motor_unit;
-    let mut out = Vec::new();
-
-    // Fig. 1
-    let caption = "Paper Fig. 1 (section 2.2): the sensory manifold S traced by the sensors as the motors sweep their range, in each environment; it depends on the environment.".to_owned();
-    let planned = if inputs.sensory_manifolds.is_empty() {
-        Planned::Skip(
-            "no sensory manifolds were given (they are computed for the toy agents)".to_owned(),
-        )
-    } else {
-        Planned::SensoryManifolds(figures::SensoryManifolds {
-            manifolds: inputs.sensory_manifolds,
-            agent: agent.name(),
-            motor_unit: unit,
-            size: panel,
-        })
+) -> Vec<PlannedFigure<'b>> {
+    let planner = Planner {
+        inputs: *inputs,
+        derived,
+        panel: (params.panel_width, params.panel_height),
     };
-    out.push(("fig1-sensory-manifolds", caption, planned));
+    let sets_sample = sample(inputs.kept.len(), params.sample_sets, params.seed, 2);
+    vec![
+        planner.sensory_manifolds(),
+        planner.kernel_lines(&sets_sample),
+        planner.learned_manifold(),
+        planner.configurations(params),
+        planner.kernel_sets_3d(sets_sample),
+        planner.embedding_probes(surfaces),
+        planner.embedding_pose(),
+        planner.persistence(),
+        planner.dydx(),
+        planner.invariance(),
+        planner.stress(),
+    ]
+}
 
-    // Fig. 2, kernel lines.
-    let sets_sample = sample(m, params.sample_sets, params.seed, 2);
-    let caption = format!(
-        "Paper Fig. 2 right (section 2.3): {} kernel sets M^i in the motor plane, each the motor configurations that give the same sensation as its start (black dot); coloured by the observer's x.",
-        sets_sample.len()
-    );
-    let planned = if n != 2 {
-        Planned::Skip(format!(
-            "the agent has N = {n} motors; kernel lines in the motor plane are drawn for N = 2 (see fig5b-kernel-sets-3d for N >= 3)"
-        ))
-    } else if sets_sample.is_empty() {
-        Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
-    } else {
-        Planned::KernelLines(figures::KernelLines {
-            sets: inputs.sets.reborrow(),
-            starts: sets_sample
-                .iter()
-                .map(|&i| {
-                    let row = inputs.motors.row(inputs.kept[i]);
-                    (row[0], row[1])
-                })
-                .collect(),
-            sample: sets_sample.clone(),
-            set_x: set_x.clone(),
-            topology: derived.topology,
-            motor_unit: unit,
-            total: m,
-            size: panel,
-        })
-    };
-    out.push(("fig2-kernel-lines", caption, planned));
+/// What the plan of every figure reads: one method per figure, each deciding
+/// whether its figure is drawn and with what.
+struct Planner<'a, 'b> {
+    inputs: ReportInputs<'a>,
+    derived: &'b Derived,
+    /// Size of one panel in pixels, `(width, height)`.
+    panel: (u32, u32),
+}
 
-    // Fig. 2, learned manifold.
-    let caption = if d == 1 {
-        "Paper Fig. 2 left (section 2.3): the learned 1-D manifold, the embedding coordinate q1 of every set against the observer's x: a monotonic curve means the agent has captured x.".to_owned()
-    } else {
-        "Paper Fig. 2 (section 2.3): the learned manifold, the first two embedding coordinates of every set, coloured by the observer's x.".to_owned()
-    };
-    let planned = if m == 0 {
-        Planned::Skip("no kernel sets were embedded".to_owned())
-    } else if d == 1 || (d >= 2 && n == 2) {
-        Planned::LearnedManifold(figures::LearnedManifold {
-            embedding: inputs.embedding.reborrow(),
-            set_x: set_x.clone(),
-            size: panel,
-        })
-    } else {
-        Planned::Skip(format!(
-            "the embedding has d = {d} and the agent N = {n} motors; see embedding-pose and fig5d-embedding-probes"
-        ))
-    };
-    out.push(("fig2-learned-manifold", caption, planned));
+impl<'a: 'b, 'b> Planner<'a, 'b> {
+    /// The observer's `x` for every set.
+    fn set_x(&self) -> Vec<f64> {
+        self.derived.set_poses.column(0).to_vec()
+    }
 
-    // Fig. 5a
-    let babbled: Vec<usize> = (0..inputs.motors.nrows())
-        .filter(|&r| inputs.probes[[r, 0]] < 0)
-        .collect();
-    let picked = sample(babbled.len(), params.sample_configurations, params.seed, 1);
-    let skeletons: Vec<Vec<[f64; 2]>> = picked
-        .iter()
-        .map(|&k| agent.skeleton(&inputs.motors.row(babbled[k]).to_vec()))
-        .collect();
-    let caption = format!(
-        "Paper Fig. 5a (section 3.3): {} of the {} explored (babbled) configurations of the arm, the sensor's orientation alpha as a red tick, the working space and the lights of environment 1.",
-        picked.len(),
-        babbled.len()
-    );
-    let planned = if picked.is_empty() {
-        Planned::Skip("no babbled configurations to draw (or sample_configurations = 0)".to_owned())
-    } else if skeletons.iter().all(Vec::is_empty) {
-        Planned::Skip(format!(
-            "the agent {} has no body to draw (Agent::skeleton is empty)",
-            agent.name()
-        ))
-    } else {
-        Planned::Configurations(figures::Configurations {
-            alphas: picked
-                .iter()
-                .map(|&k| inputs.poses[[babbled[k], 2]])
-                .collect(),
-            skeletons,
-            workspace: inputs.workspace,
-            environment: inputs.environments.first().cloned(),
-            agent: agent.name().to_owned(),
-            explored: babbled.len(),
-            size: panel,
-        })
-    };
-    out.push(("fig5a-configurations", caption, planned));
-
-    // Fig. 5b
-    let caption = format!(
-        "Paper Fig. 5b (section 3.3): {} kernel sets M^i in motor space, two 3-D projections; each closed curve is one set, coordinates wrapped into [-pi, pi).",
-        sets_sample.len()
-    );
-    let planned = if n < 3 {
-        Planned::Skip(format!(
-            "the agent has N = {n} motors; the 3-D view of kernel sets needs N >= 3"
-        ))
-    } else if sets_sample.is_empty() {
-        Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
-    } else {
-        Planned::KernelSets3d(figures::KernelSets3d {
-            sets: inputs.sets.reborrow(),
-            sample: sets_sample,
-            topology: derived.topology,
-            motor_unit: unit,
-            panel,
-        })
-    };
-    out.push(("fig5b-kernel-sets-3d", caption, planned));
-
-    // Fig. 5d
-    let caption = format!(
-        "Paper Fig. 5d (section 3.3): the embedding of the {m} kernel sets (grey) and, for each probe orientation ({}), the surface of the probe sets connected to their grid neighbours, coloured by the probe's x: translations of the sensor at a fixed orientation form a sheet, one per orientation.",
-        surfaces
-            .iter()
-            .map(|s| format!("{:.0} deg", s.alpha.to_degrees()))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    let planned = if d < 2 {
-        Planned::Skip(format!(
-            "the embedding has d = {d}; probe surfaces need d >= 2"
-        ))
-    } else if surfaces.is_empty() {
-        Planned::Skip(
-            "no probe rows among the kept sets (explore with probes = \"grid\")".to_owned(),
-        )
-    } else {
-        Planned::EmbeddingProbes(figures::EmbeddingProbes {
-            embedding: inputs.embedding.reborrow(),
-            set_poses: &derived.set_poses,
-            surfaces,
-            size: panel,
-        })
-    };
-    out.push(("fig5d-embedding-probes", caption, planned));
-
-    // Embedding coloured by the pose.
-    let varying: Vec<usize> = (0..3)
-        .filter(|&c| {
-            figures_extent(derived.set_poses.column(c).iter().copied())
-                .is_some_and(|(lo, hi)| hi - lo > 1e-9)
-        })
-        .collect();
-    let caption = format!(
-        "The embedding of the {m} kernel sets coloured by each varying coordinate of the observer's pose ({}); alpha uses a circular colour map. Smooth colour gradients mean the learned manifold is organised like the sensor's configuration.",
-        varying
-            .iter()
-            .map(|&c| ["x", "y", "alpha"][c])
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    let planned = if m == 0 || d == 0 {
-        Planned::Skip("no kernel sets were embedded".to_owned())
-    } else if varying.is_empty() {
-        Planned::Skip("every pose coordinate is constant over the sets".to_owned())
-    } else {
-        Planned::EmbeddingPose(figures::EmbeddingPose {
-            embedding: inputs.embedding.reborrow(),
-            set_poses: &derived.set_poses,
-            coordinates: varying,
-            panel,
-        })
-    };
-    out.push(("embedding-pose", caption, planned));
-
-    // Persistence.
-    let caption = "Vietoris-Rips persistence diagram of the set metric rho (Hausdorff distances between kernel sets): points far above the diagonal are robust features; the Betti numbers read off by the gap rule are in the title (the arm's manifold, a circle of orientations times a disc of positions, gives b = [1, 1]).".to_owned();
-    let planned = match inputs.analysis {
-        None => Planned::Skip("no analysis was run".to_owned()),
-        Some(a) if a.persistence.iter().all(Vec::is_empty) => {
-            Planned::Skip("the analysis has no persistence bars".to_owned())
-        }
-        Some(a) => Planned::Persistence(figures::PersistenceDiagram {
-            analysis: a,
-            distance_unit: unit,
-            size: panel,
-        }),
-    };
-    out.push(("persistence-diagram", caption, planned));
-
-    // dy–dx
-    let caption = "CCA's dy-dx plot: the distance of two sets in the embedding (dy) against their learned distance (dx); points on the diagonal are preserved, CCA favours the small distances (lower left).".to_owned();
-    let planned = match inputs.dydx {
-        Some(p) if p.nrows() > 0 => Planned::DyDx(figures::DyDx {
-            pairs: p.reborrow(),
-            distance_unit: unit,
-            size: panel,
-        }),
-        _ => Planned::Skip(
-            "no dy-dx sample was given (the embedding method is not CCA, or it was not computed)"
-                .to_owned(),
-        ),
-    };
-    out.push(("dydx", caption, planned));
-
-    // Invariance
-    let caption = "Environment invariance (section 2.3): for the rows traced in two environments, the learned distances between their kernel sets (left) agree across environments, while the distances between their raw sensor values (right) do not.".to_owned();
-    let planned = match inputs.invariance {
-        None => Planned::Skip("no invariance comparison was run".to_owned()),
-        Some(inv) if inv.set_distances.len() < 2 => {
-            Planned::Skip("the invariance comparison has fewer than two environments".to_owned())
-        }
-        Some(inv) => {
-            let pair = inv
-                .report
-                .pairs
-                .iter()
-                .find(|p| p.a == 0 && p.b == 1)
-                .or(inv.report.pairs.first());
-            let c = inv.set_distances[0].nrows();
-            let all: Vec<(usize, usize)> = (0..c)
-                .flat_map(|i| (i + 1..c).map(move |j| (i, j)))
-                .collect();
-            let drawn: Vec<(usize, usize)> =
-                plot::stride_sample(all.len(), figures::MAX_SCATTER_POINTS)
-                    .into_iter()
-                    .map(|k| all[k])
-                    .collect();
-            let sensor_distance = |s: &Array2<f64>, i: usize, j: usize| {
-                s.row(i)
-                    .iter()
-                    .zip(s.row(j))
-                    .map(|(a, b)| (a - b) * (a - b))
-                    .sum::<f64>()
-                    .sqrt()
-            };
-            let (d0, d1) = (&inv.set_distances[0], &inv.set_distances[1]);
-            let (s0, s1) = (&inv.sensors[0], &inv.sensors[1]);
-            Planned::Invariance(figures::Invariance {
-                set_pairs: drawn
-                    .iter()
-                    .map(|&(i, j)| (d0[[i, j]], d1[[i, j]]))
-                    .collect(),
-                sensor_pairs: drawn
-                    .iter()
-                    .map(|&(i, j)| (sensor_distance(s0, i, j), sensor_distance(s1, i, j)))
-                    .collect(),
-                mantel: pair.map_or(f64::NAN, |p| p.mantel),
-                sensor_mantel: pair.map_or(f64::NAN, |p| p.sensor_mantel),
-                environments: (0, 1),
-                distance_unit: unit,
-                panel,
+    /// Fig. 1: the sensory manifolds.
+    fn sensory_manifolds(&self) -> PlannedFigure<'b> {
+        let caption = "Paper Fig. 1 (section 2.2): the sensory manifold S traced by the sensors as the motors sweep their range, in each environment; it depends on the environment.".to_owned();
+        let planned = if self.inputs.sensory_manifolds.is_empty() {
+            Planned::Skip(
+                "no sensory manifolds were given (they are computed for the toy agents)".to_owned(),
+            )
+        } else {
+            Planned::SensoryManifolds(figures::SensoryManifolds {
+                manifolds: self.inputs.sensory_manifolds,
+                agent: self.inputs.agent.name(),
+                motor_unit: self.derived.motor_unit,
+                size: self.panel,
             })
-        }
-    };
-    out.push(("invariance", caption, planned));
+        };
+        ("fig1-sensory-manifolds", caption, planned)
+    }
 
-    // CCA stress
-    let trace = &inputs.embed_report.stress_trace;
-    let caption =
-        "CCA's stress, accumulated over each epoch, as the neighbourhood width lambda shrinks."
-            .to_owned();
-    let planned = if trace.is_empty() {
-        Planned::Skip(format!(
-            "the embedding method {} records no stress per epoch",
-            inputs.embed_report.method
-        ))
-    } else {
-        Planned::Stress(figures::StressTrace {
-            stress: trace,
-            size: panel,
-        })
+    /// Fig. 2, right: the sampled kernel sets in the motor plane.
+    fn kernel_lines(&self, sets_sample: &[usize]) -> PlannedFigure<'b> {
+        let inputs = &self.inputs;
+        let n = inputs.agent.motor_dim();
+        let caption = format!(
+            "Paper Fig. 2 right (section 2.3): {} kernel sets M^i in the motor plane, each the motor configurations that give the same sensation as its start (black dot); coloured by the observer's x.",
+            sets_sample.len()
+        );
+        let planned = if n != 2 {
+            Planned::Skip(format!(
+                "the agent has N = {n} motors; kernel lines in the motor plane are drawn for N = 2 (see fig5b-kernel-sets-3d for N >= 3)"
+            ))
+        } else if sets_sample.is_empty() {
+            Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
+        } else {
+            Planned::KernelLines(figures::KernelLines {
+                sets: inputs.sets.reborrow(),
+                starts: sets_sample
+                    .iter()
+                    .map(|&i| {
+                        let row = inputs.motors.row(inputs.kept[i]);
+                        (row[0], row[1])
+                    })
+                    .collect(),
+                sample: sets_sample.to_vec(),
+                set_x: self.set_x(),
+                topology: self.derived.topology,
+                motor_unit: self.derived.motor_unit,
+                total: inputs.kept.len(),
+                size: self.panel,
+            })
+        };
+        ("fig2-kernel-lines", caption, planned)
+    }
+
+    /// Fig. 2, left: the learned manifold against `x`.
+    fn learned_manifold(&self) -> PlannedFigure<'b> {
+        let n = self.inputs.agent.motor_dim();
+        let m = self.inputs.kept.len();
+        let d = self.inputs.embedding.ncols();
+        let caption = if d == 1 {
+            "Paper Fig. 2 left (section 2.3): the learned 1-D manifold, the embedding coordinate q1 of every set against the observer's x: a monotonic curve means the agent has captured x.".to_owned()
+        } else {
+            "Paper Fig. 2 (section 2.3): the learned manifold, the first two embedding coordinates of every set, coloured by the observer's x.".to_owned()
+        };
+        let planned = if m == 0 {
+            Planned::Skip("no kernel sets were embedded".to_owned())
+        } else if d == 1 || (d >= 2 && n == 2) {
+            Planned::LearnedManifold(figures::LearnedManifold {
+                embedding: self.inputs.embedding.reborrow(),
+                set_x: self.set_x(),
+                size: self.panel,
+            })
+        } else {
+            Planned::Skip(format!(
+                "the embedding has d = {d} and the agent N = {n} motors; see embedding-pose and fig5d-embedding-probes"
+            ))
+        };
+        ("fig2-learned-manifold", caption, planned)
+    }
+
+    /// Fig. 5a: a seeded sample of the babbled configurations of the arm.
+    fn configurations(&self, params: &ReportParams) -> PlannedFigure<'b> {
+        let inputs = &self.inputs;
+        let agent = inputs.agent;
+        let babbled: Vec<usize> = (0..inputs.motors.nrows())
+            .filter(|&r| inputs.probes[[r, 0]] < 0)
+            .collect();
+        let picked = sample(babbled.len(), params.sample_configurations, params.seed, 1);
+        let skeletons: Vec<Vec<[f64; 2]>> = picked
+            .iter()
+            .map(|&k| agent.skeleton(&inputs.motors.row(babbled[k]).to_vec()))
+            .collect();
+        let caption = format!(
+            "Paper Fig. 5a (section 3.3): {} of the {} explored (babbled) configurations of the arm, the sensor's orientation alpha as a red tick, the working space and the lights of environment 1.",
+            picked.len(),
+            babbled.len()
+        );
+        let planned = if picked.is_empty() {
+            Planned::Skip(
+                "no babbled configurations to draw (or sample_configurations = 0)".to_owned(),
+            )
+        } else if skeletons.iter().all(Vec::is_empty) {
+            Planned::Skip(format!(
+                "the agent {} has no body to draw (Agent::skeleton is empty)",
+                agent.name()
+            ))
+        } else {
+            Planned::Configurations(figures::Configurations {
+                alphas: picked
+                    .iter()
+                    .map(|&k| inputs.poses[[babbled[k], 2]])
+                    .collect(),
+                skeletons,
+                workspace: inputs.workspace,
+                environment: inputs.environments.first().cloned(),
+                agent: agent.name().to_owned(),
+                explored: babbled.len(),
+                size: self.panel,
+            })
+        };
+        ("fig5a-configurations", caption, planned)
+    }
+
+    /// Fig. 5b: the sampled kernel sets in 3-D motor space.
+    fn kernel_sets_3d(&self, sets_sample: Vec<usize>) -> PlannedFigure<'b> {
+        let n = self.inputs.agent.motor_dim();
+        let caption = format!(
+            "Paper Fig. 5b (section 3.3): {} kernel sets M^i in motor space, two 3-D projections; each closed curve is one set, coordinates wrapped into [-pi, pi).",
+            sets_sample.len()
+        );
+        let planned = if n < 3 {
+            Planned::Skip(format!(
+                "the agent has N = {n} motors; the 3-D view of kernel sets needs N >= 3"
+            ))
+        } else if sets_sample.is_empty() {
+            Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
+        } else {
+            Planned::KernelSets3d(figures::KernelSets3d {
+                sets: self.inputs.sets.reborrow(),
+                sample: sets_sample,
+                topology: self.derived.topology,
+                motor_unit: self.derived.motor_unit,
+                panel: self.panel,
+            })
+        };
+        ("fig5b-kernel-sets-3d", caption, planned)
+    }
+
+    /// Fig. 5d: the embedding with one probe surface per orientation.
+    fn embedding_probes(&self, surfaces: &'b [figures::ProbeSurface]) -> PlannedFigure<'b> {
+        let m = self.inputs.kept.len();
+        let d = self.inputs.embedding.ncols();
+        let caption = format!(
+            "Paper Fig. 5d (section 3.3): the embedding of the {m} kernel sets (grey) and, for each probe orientation ({}), the surface of the probe sets connected to their grid neighbours, coloured by the probe's x: translations of the sensor at a fixed orientation form a sheet, one per orientation.",
+            surfaces
+                .iter()
+                .map(|s| format!("{:.0} deg", s.alpha.to_degrees()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let planned = if d < 2 {
+            Planned::Skip(format!(
+                "the embedding has d = {d}; probe surfaces need d >= 2"
+            ))
+        } else if surfaces.is_empty() {
+            Planned::Skip(
+                "no probe rows among the kept sets (explore with probes = \"grid\")".to_owned(),
+            )
+        } else {
+            Planned::EmbeddingProbes(figures::EmbeddingProbes {
+                embedding: self.inputs.embedding.reborrow(),
+                set_poses: &self.derived.set_poses,
+                surfaces,
+                size: self.panel,
+            })
+        };
+        ("fig5d-embedding-probes", caption, planned)
+    }
+
+    /// The embedding coloured by each pose coordinate that varies over the sets.
+    fn embedding_pose(&self) -> PlannedFigure<'b> {
+        let m = self.inputs.kept.len();
+        let d = self.inputs.embedding.ncols();
+        let set_poses = &self.derived.set_poses;
+        let varying: Vec<usize> = (0..3)
+            .filter(|&c| {
+                figures_extent(set_poses.column(c).iter().copied())
+                    .is_some_and(|(lo, hi)| hi - lo > 1e-9)
+            })
+            .collect();
+        let caption = format!(
+            "The embedding of the {m} kernel sets coloured by each varying coordinate of the observer's pose ({}); alpha uses a circular colour map. Smooth colour gradients mean the learned manifold is organised like the sensor's configuration.",
+            varying
+                .iter()
+                .map(|&c| ["x", "y", "alpha"][c])
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let planned = if m == 0 || d == 0 {
+            Planned::Skip("no kernel sets were embedded".to_owned())
+        } else if varying.is_empty() {
+            Planned::Skip("every pose coordinate is constant over the sets".to_owned())
+        } else {
+            Planned::EmbeddingPose(figures::EmbeddingPose {
+                embedding: self.inputs.embedding.reborrow(),
+                set_poses,
+                coordinates: varying,
+                panel: self.panel,
+            })
+        };
+        ("embedding-pose", caption, planned)
+    }
+
+    /// The persistence diagram of the analysis.
+    fn persistence(&self) -> PlannedFigure<'b> {
+        let caption = "Vietoris-Rips persistence diagram of the set metric rho (Hausdorff distances between kernel sets): points far above the diagonal are robust features; the Betti numbers read off by the gap rule are in the title (the arm's manifold, a circle of orientations times a disc of positions, gives b = [1, 1]).".to_owned();
+        let planned = match self.inputs.analysis {
+            None => Planned::Skip("no analysis was run".to_owned()),
+            Some(a) if a.persistence.iter().all(Vec::is_empty) => {
+                Planned::Skip("the analysis has no persistence bars".to_owned())
+            }
+            Some(a) => Planned::Persistence(figures::PersistenceDiagram {
+                analysis: a,
+                distance_unit: self.derived.motor_unit,
+                size: self.panel,
+            }),
+        };
+        ("persistence-diagram", caption, planned)
+    }
+
+    /// CCA's `dy–dx` plot.
+    fn dydx(&self) -> PlannedFigure<'b> {
+        let caption = "CCA's dy-dx plot: the distance of two sets in the embedding (dy) against their learned distance (dx); points on the diagonal are preserved, CCA favours the small distances (lower left).".to_owned();
+        let planned = match self.inputs.dydx {
+            Some(p) if p.nrows() > 0 => Planned::DyDx(figures::DyDx {
+                pairs: p.reborrow(),
+                distance_unit: self.derived.motor_unit,
+                size: self.panel,
+            }),
+            _ => Planned::Skip(
+                "no dy-dx sample was given (the embedding method is not CCA, or it was not computed)"
+                    .to_owned(),
+            ),
+        };
+        ("dydx", caption, planned)
+    }
+
+    /// Set and sensor distances in the first two environments.
+    fn invariance(&self) -> PlannedFigure<'b> {
+        let caption = "Environment invariance (section 2.3): for the rows traced in two environments, the learned distances between their kernel sets (left) agree across environments, while the distances between their raw sensor values (right) do not.".to_owned();
+        let planned = match self.inputs.invariance {
+            None => Planned::Skip("no invariance comparison was run".to_owned()),
+            Some(inv) if inv.set_distances.len() < 2 => Planned::Skip(
+                "the invariance comparison has fewer than two environments".to_owned(),
+            ),
+            Some(inv) => {
+                Planned::Invariance(invariance_figure(inv, self.derived.motor_unit, self.panel))
+            }
+        };
+        ("invariance", caption, planned)
+    }
+
+    /// CCA's stress per epoch.
+    fn stress(&self) -> PlannedFigure<'b> {
+        let report = self.inputs.embed_report;
+        let caption =
+            "CCA's stress, accumulated over each epoch, as the neighbourhood width lambda shrinks."
+                .to_owned();
+        let planned = if report.stress_trace.is_empty() {
+            Planned::Skip(format!(
+                "the embedding method {} records no stress per epoch",
+                report.method
+            ))
+        } else {
+            Planned::Stress(figures::StressTrace {
+                stress: &report.stress_trace,
+                size: self.panel,
+            })
+        };
+        ("cca-stress", caption, planned)
+    }
+}
+
+/// The invariance figure of environments 1 and 2 (at least two): an evenly spaced
+/// sample of the pairs of common rows, their set distances and sensor distances in
+/// each environment, and the Mantel correlations of the pair `(0, 1)` (or the first).
+fn invariance_figure(
+    inv: &InvarianceData,
+    distance_unit: &'static str,
+    panel: (u32, u32),
+) -> figures::Invariance {
+    let pair = inv
+        .report
+        .pairs
+        .iter()
+        .find(|p| p.a == 0 && p.b == 1)
+        .or(inv.report.pairs.first());
+    let c = inv.set_distances[0].nrows();
+    let all: Vec<(usize, usize)> = (0..c)
+        .flat_map(|i| (i + 1..c).map(move |j| (i, j)))
+        .collect();
+    let drawn: Vec<(usize, usize)> = plot::stride_sample(all.len(), figures::MAX_SCATTER_POINTS)
+        .into_iter()
+        .map(|k| all[k])
+        .collect();
+    let sensor_distance = |s: &Array2<f64>, i: usize, j: usize| {
+        s.row(i)
+            .iter()
+            .zip(s.row(j))
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            .sqrt()
     };
-    out.push(("cca-stress", caption, planned));
-    out
+    let (d0, d1) = (&inv.set_distances[0], &inv.set_distances[1]);
+    let (s0, s1) = (&inv.sensors[0], &inv.sensors[1]);
+    figures::Invariance {
+        set_pairs: drawn
+            .iter()
+            .map(|&(i, j)| (d0[[i, j]], d1[[i, j]]))
+            .collect(),
+        sensor_pairs: drawn
+            .iter()
+            .map(|&(i, j)| (sensor_distance(s0, i, j), sensor_distance(s1, i, j)))
+            .collect(),
+        mantel: pair.map_or(f64::NAN, |p| p.mantel),
+        sensor_mantel: pair.map_or(f64::NAN, |p| p.sensor_mantel),
+        environments: (0, 1),
+        distance_unit,
+        panel,
+    }
 }
 
 fn figures_extent(values: impl IntoIterator<Item = f64>) -> Option<(f64, f64)> {
