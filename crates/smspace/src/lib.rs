@@ -29,6 +29,7 @@
 //! [`pipeline`] runs them all from an experiment file, with a cache; with [`config`]
 //! (parameter and experiment files), [`io`] (`.npy` and JSON interchange),
 //! [`progress`] (observers for long stages) and [`error`].
+//! [`neighbours`] holds the one landmark picker, kNN search and trustworthiness they share.
 //!
 //! The library never prints: progress goes through [`progress::Progress`], and every
 //! failure a user can cause is a [`Result`] carrying the offending file or value.
@@ -43,6 +44,7 @@ pub mod invariance;
 pub mod io;
 pub mod kernel;
 pub mod metric;
+pub mod neighbours;
 pub mod pipeline;
 pub mod progress;
 pub mod report;
