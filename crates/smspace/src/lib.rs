@@ -29,6 +29,7 @@
 //! [`pipeline`] runs them all from an experiment file, with a cache; with [`config`]
 //! (parameter and experiment files), [`io`] (`.npy` and JSON interchange),
 //! [`progress`] (observers for long stages) and [`error`].
+//! [`neighbours`] holds the one landmark picker, kNN search and trustworthiness they share.
 //!
 //! [`pipeline`] and [`report`] (and the experiment files of [`config`]) need the
 //! default `pipeline` feature; without it the crate is the numerics alone (no plotting,
@@ -47,6 +48,7 @@ pub mod invariance;
 pub mod io;
 pub mod kernel;
 pub mod metric;
+pub mod neighbours;
 #[cfg(feature = "pipeline")]
 pub mod pipeline;
 pub mod progress;

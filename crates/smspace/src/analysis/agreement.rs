@@ -13,7 +13,8 @@
 //! - **Spearman** `ρ_s` between the learned and pose distances over all pairs `i < j`
 //!   (average ranks for ties);
 //! - **trustworthiness** and **continuity** (Venna & Kaski 2001) of the `k` nearest
-//!   neighbours (default 10):
+//!   neighbours (default 10, at most `N/2`), [`crate::neighbours`] with the pose distance
+//!   as the input and the learned one as the output:
 //!   `T(k) = 1 − 2 / (N k (2N − 3k − 1)) Σ_i Σ_{j ∈ U_k(i)} (r(i, j) − k)`, with `U_k(i)`
 //!   the learned neighbours of `i` that are not among its `k` nearest in pose and
 //!   `r(i, j)` the rank of `j` among `i`'s pose neighbours; continuity swaps the roles.
@@ -28,6 +29,7 @@ use serde::{Deserialize, Serialize};
 
 use super::AnalysisError;
 use crate::agent::wrap_angle;
+use crate::neighbours::{self, DenseDistances, NeighboursError};
 
 /// Names of the pose columns.
 pub const POSE_COORDINATES: [&str; 3] = ["x", "y", "alpha"];
@@ -141,63 +143,23 @@ pub fn upper_triangle(matrix: ArrayView2<'_, f64>) -> Vec<f64> {
     out
 }
 
-/// Trustworthiness and continuity of `learned` against `truth` with `k` neighbours
-/// (`1 ≤ k`, `3k < 2N − 1`).
+/// Trustworthiness and continuity of `learned` against `truth` with `k` neighbours,
+/// both `(N, N)`: [`neighbours::trustworthiness_continuity`] with `truth` the input and
+/// `learned` the output (`N ≥ 3`, `1 ≤ k ≤ N/2`).
 pub fn trustworthiness_continuity(
     learned: ArrayView2<'_, f64>,
     truth: ArrayView2<'_, f64>,
     k: usize,
 ) -> Result<(f64, f64), AnalysisError> {
-    let n = learned.nrows();
-    if k == 0 || 3 * k + 1 >= 2 * n {
-        return Err(AnalysisError::InvalidParameter {
+    let (learned, truth) = (DenseDistances::new(learned)?, DenseDistances::new(truth)?);
+    neighbours::trustworthiness_continuity(&truth, &learned, k).map_err(|e| match e {
+        NeighboursError::TrustworthinessK { points, max, .. } => AnalysisError::InvalidParameter {
             name: "neighbors",
             value: k.to_string(),
-            reason: format!(
-                "must be at least 1 and satisfy 3k + 1 < 2N with N = {n} points (k < {})",
-                (2 * n).saturating_sub(1).div_ceil(3)
-            ),
-        });
-    }
-    let sums: Vec<(f64, f64)> = (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let order = |m: ArrayView2<'_, f64>| {
-                let mut idx: Vec<(f64, usize)> = m
-                    .row(i)
-                    .iter()
-                    .copied()
-                    .zip(0..)
-                    .filter(|&(_, j)| j != i)
-                    .collect();
-                idx.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                let mut rank = vec![0usize; n];
-                for (r, &(_, j)) in idx.iter().enumerate() {
-                    rank[j] = r + 1;
-                }
-                let idx: Vec<usize> = idx.into_iter().map(|(_, j)| j).collect();
-                (idx, rank)
-            };
-            let (learned_order, learned_rank) = order(learned);
-            let (truth_order, truth_rank) = order(truth);
-            let trust: usize = learned_order[..k]
-                .iter()
-                .filter(|&&j| truth_rank[j] > k)
-                .map(|&j| truth_rank[j] - k)
-                .sum();
-            let cont: usize = truth_order[..k]
-                .iter()
-                .filter(|&&j| learned_rank[j] > k)
-                .map(|&j| learned_rank[j] - k)
-                .sum();
-            (trust as f64, cont as f64)
-        })
-        .collect();
-    let (nf, kf) = (n as f64, k as f64);
-    let norm = 2.0 / (nf * kf * (2.0 * nf - 3.0 * kf - 1.0));
-    let trust: f64 = sums.iter().map(|s| s.0).sum();
-    let cont: f64 = sums.iter().map(|s| s.1).sum();
-    Ok((1.0 - norm * trust, 1.0 - norm * cont))
+            reason: format!("must be at least 1 and at most N/2 = {max} with N = {points} points"),
+        },
+        e => e.into(),
+    })
 }
 
 /// All agreement figures of `learned` (M × M) against `poses` (M × 3).

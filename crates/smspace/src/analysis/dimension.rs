@@ -15,11 +15,11 @@
 //! Points with a duplicate (a zero distance to another point) carry no scale and are
 //! skipped; the number skipped is reported.
 
-use ndarray::ArrayView2;
-use rayon::prelude::*;
+use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
 
 use super::AnalysisError;
+use crate::neighbours::{nearest_neighbours, DenseDistances};
 
 /// A dimension estimate.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -32,24 +32,13 @@ pub struct DimensionEstimate {
     pub points_skipped: usize,
 }
 
-/// The `k` smallest distances from row `i` to the other points, increasing.
-fn nearest(row: &[f64], i: usize, k: usize) -> Vec<f64> {
-    let mut others: Vec<f64> = row
-        .iter()
-        .enumerate()
-        .filter(|&(j, _)| j != i)
-        .map(|(_, &d)| d)
-        .collect();
-    if k < others.len() {
-        others.select_nth_unstable_by(k - 1, f64::total_cmp);
-        others.truncate(k);
-    }
-    others.sort_by(f64::total_cmp);
-    others
-}
-
-fn rows(distances: ArrayView2<'_, f64>) -> Vec<Vec<f64>> {
-    distances.outer_iter().map(|r| r.to_vec()).collect()
+/// The `k` smallest distances from each point to the other points, increasing
+/// ([`nearest_neighbours`]), `(M, k)`.
+fn nearest_distances(
+    distances: ArrayView2<'_, f64>,
+    k: usize,
+) -> Result<Array2<f64>, AnalysisError> {
+    Ok(nearest_neighbours(&DenseDistances::new(distances)?, k)?.distances)
 }
 
 /// TwoNN estimate; `discard` is the fraction of largest ratios dropped, in `[0, 1)`.
@@ -57,12 +46,7 @@ pub fn twonn(
     distances: ArrayView2<'_, f64>,
     discard: f64,
 ) -> Result<DimensionEstimate, AnalysisError> {
-    let near: Vec<Vec<f64>> = rows(distances)
-        .par_iter()
-        .enumerate()
-        .map(|(i, row)| nearest(row, i, 2))
-        .collect();
-    twonn_sorted(&near, discard)
+    twonn_sorted(nearest_distances(distances, 2)?.view(), discard)
 }
 
 /// The rows of a `(M, k)` array of each point's nearest distances, checked increasing
@@ -70,7 +54,7 @@ pub fn twonn(
 fn neighbour_rows(
     neighbours: ArrayView2<'_, f64>,
     k_min: usize,
-) -> Result<Vec<Vec<f64>>, AnalysisError> {
+) -> Result<ArrayView2<'_, f64>, AnalysisError> {
     if neighbours.ncols() < k_min {
         return Err(AnalysisError::InvalidParameter {
             name: "neighbours",
@@ -78,11 +62,9 @@ fn neighbour_rows(
             reason: format!("the estimate needs at least {k_min} nearest distances per point"),
         });
     }
-    let out: Vec<Vec<f64>> = neighbours.outer_iter().map(|r| r.to_vec()).collect();
-    if let Some(i) = out
-        .iter()
-        .position(|r| r.iter().any(|x| !x.is_finite()) || r.windows(2).any(|w| w[0] > w[1]))
-    {
+    if let Some(i) = neighbours.outer_iter().position(|r| {
+        r.iter().any(|x| !x.is_finite()) || r.iter().zip(r.iter().skip(1)).any(|(a, b)| a > b)
+    }) {
         return Err(AnalysisError::InvalidParameter {
             name: "neighbours",
             value: format!("row {i}"),
@@ -91,7 +73,7 @@ fn neighbour_rows(
                     .into(),
         });
     }
-    Ok(out)
+    Ok(neighbours)
 }
 
 /// TwoNN from each point's nearest distances, `(M, k)` with `k ≥ 2`, sorted nearest
@@ -101,20 +83,24 @@ pub fn twonn_neighbours(
     neighbours: ArrayView2<'_, f64>,
     discard: f64,
 ) -> Result<DimensionEstimate, AnalysisError> {
-    twonn_sorted(&neighbour_rows(neighbours, 2)?, discard)
+    twonn_sorted(neighbour_rows(neighbours, 2)?, discard)
 }
 
 /// Levina–Bickel from each point's `k` nearest distances, `(M, k)` sorted nearest
 /// first: the same estimate as [`mle`] with that `k`, without the matrix.
 pub fn mle_neighbours(neighbours: ArrayView2<'_, f64>) -> Result<DimensionEstimate, AnalysisError> {
     let k = neighbours.ncols();
-    mle_sorted(&neighbour_rows(neighbours, 2)?, k)
+    mle_sorted(neighbour_rows(neighbours, 2)?, k)
 }
 
-fn twonn_sorted(near: &[Vec<f64>], discard: f64) -> Result<DimensionEstimate, AnalysisError> {
-    let n = near.len();
+/// TwoNN from nearest distances `(M, ≥ 2)`, each row increasing.
+fn twonn_sorted(
+    near: ArrayView2<'_, f64>,
+    discard: f64,
+) -> Result<DimensionEstimate, AnalysisError> {
+    let n = near.nrows();
     let ratios: Vec<Option<f64>> = near
-        .iter()
+        .outer_iter()
         .map(|near| (near[0] > 0.0).then(|| near[1] / near[0]))
         .collect();
     let mut mu: Vec<f64> = ratios.iter().flatten().copied().collect();
@@ -155,24 +141,20 @@ pub fn mle(distances: ArrayView2<'_, f64>, k: usize) -> Result<DimensionEstimate
             reason: format!("must be at least 2 and less than the number of points ({n})"),
         });
     }
-    let near: Vec<Vec<f64>> = rows(distances)
-        .par_iter()
-        .enumerate()
-        .map(|(i, row)| nearest(row, i, k))
-        .collect();
-    mle_sorted(&near, k)
+    mle_sorted(nearest_distances(distances, k)?.view(), k)
 }
 
-fn mle_sorted(near: &[Vec<f64>], k: usize) -> Result<DimensionEstimate, AnalysisError> {
-    let n = near.len();
+/// Levina–Bickel from nearest distances `(M, ≥ k)`, each row increasing.
+fn mle_sorted(near: ArrayView2<'_, f64>, k: usize) -> Result<DimensionEstimate, AnalysisError> {
+    let n = near.nrows();
     let local: Vec<Option<f64>> = near
-        .iter()
+        .outer_iter()
         .map(|near| {
             if near[0] <= 0.0 {
                 return None;
             }
             let tk = near[k - 1];
-            let sum: f64 = near[..k - 1].iter().map(|&t| (tk / t).ln()).sum();
+            let sum: f64 = near.iter().take(k - 1).map(|&t| (tk / t).ln()).sum();
             (sum > 0.0).then(|| (k - 1) as f64 / sum)
         })
         .collect();

@@ -32,6 +32,7 @@ pub mod homology;
 use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
 
+use crate::neighbours::{farthest_first, DenseDistances, NeighboursError};
 use crate::progress::Progress;
 pub use agreement::Agreement;
 pub use dimension::DimensionEstimate;
@@ -91,6 +92,9 @@ pub enum AnalysisError {
         /// Why.
         reason: String,
     },
+    /// A neighbour computation refused its input.
+    #[error(transparent)]
+    Neighbours(#[from] NeighboursError),
     /// The computation would be too large.
     #[error("{what} is too large to compute: the limit is {limit}")]
     TooLarge {
@@ -119,7 +123,7 @@ pub struct AnalysisParams {
     pub twonn_discard: f64,
     /// Levina–Bickel: neighbours `k`. Default 20.
     pub mle_neighbors: usize,
-    /// Trustworthiness and continuity: neighbours `k`. Default 10.
+    /// Trustworthiness and continuity: neighbours `k`, at most `M/2`. Default 10.
     pub neighbors: usize,
     /// Environment invariance (`smspace run`, when the experiment has more than one
     /// environment): how many babbled starts are traced with the `sensory` method in
@@ -275,36 +279,15 @@ pub fn check_distances(distances: ArrayView2<'_, f64>) -> Result<Array2<f64>, An
     Ok(out)
 }
 
-/// Greedy max–min landmarks: starts at row 0 and repeatedly adds the point farthest
-/// from the landmarks chosen (ties: the lowest row). Returns the landmark rows, in
-/// the order chosen, and the covering radius.
+/// Max–min landmarks of the square matrix `distances`, from row 0: the
+/// [`farthest_first`] landmark rows, in the order chosen, and their covering radius.
+/// A matrix that is not square has no landmarks (and an infinite radius);
+/// [`farthest_first`] says why.
 pub fn maxmin_landmarks(distances: ArrayView2<'_, f64>, count: usize) -> (Vec<usize>, f64) {
-    let n = distances.nrows();
-    let count = count.min(n);
-    let mut landmarks = Vec::with_capacity(count);
-    let mut nearest = vec![f64::INFINITY; n];
-    let mut next = 0;
-    while landmarks.len() < count {
-        landmarks.push(next);
-        let row = distances.row(next);
-        for (d, &r) in nearest.iter_mut().zip(row.iter()) {
-            *d = d.min(r);
-        }
-        let (far, _) =
-            nearest
-                .iter()
-                .enumerate()
-                .fold((0, f64::NEG_INFINITY), |(bi, bd), (i, &d)| {
-                    if d > bd {
-                        (i, d)
-                    } else {
-                        (bi, bd)
-                    }
-                });
-        next = far;
+    match DenseDistances::new(distances).and_then(|d| farthest_first(&d, count, 0)) {
+        Ok(landmarks) => (landmarks.rows, landmarks.covering_radius),
+        Err(_) => (Vec::new(), f64::INFINITY),
     }
-    let radius = nearest.iter().copied().fold(0.0, f64::max);
-    (landmarks, radius)
 }
 
 /// How the homology's points were chosen.
@@ -414,6 +397,46 @@ pub fn analyze_on(
     progress: &dyn Progress,
 ) -> Result<AnalysisReport, AnalysisError> {
     let p = &params.params;
+    let distances = checked_inputs(distances, poses)?;
+    let (persistence, subsampling) = homology_of(distances.view(), p, progress)?;
+    let intrinsic_dimension = intrinsic_dimension(distances.view(), dimension_sets, p, progress)?;
+    let agreement = match poses {
+        Some(poses) => Some(agreement::agreement(distances.view(), poses, p.neighbors)?),
+        None => None,
+    };
+    let rule = params.betti_rule();
+    Ok(AnalysisReport {
+        points: distances.nrows(),
+        betti: rule.betti(&persistence),
+        persistence: persistence
+            .diagrams
+            .iter()
+            .map(|bars| bars.iter().map(|b| (b.birth, b.death)).collect())
+            .collect(),
+        homology: HomologySummary {
+            max_dim: p.max_homology_dim,
+            threshold: persistence.threshold,
+            threshold_rule: if p.threshold.is_some() {
+                "given"
+            } else {
+                "enclosing-radius"
+            }
+            .into(),
+            subsampling,
+            rule,
+            longest_bars: longest_bars(&persistence),
+        },
+        intrinsic_dimension,
+        agreement,
+    })
+}
+
+/// The distance matrix, checked and symmetrised ([`check_distances`]), of at least 3
+/// points, and poses `(M, 3)` if given.
+fn checked_inputs(
+    distances: ArrayView2<'_, f64>,
+    poses: Option<ArrayView2<'_, f64>>,
+) -> Result<Array2<f64>, AnalysisError> {
     let distances = check_distances(distances)?;
     let n = distances.nrows();
     if n < 3 {
@@ -431,34 +454,44 @@ pub fn analyze_on(
             });
         }
     }
-    let (persistence, subsampling) = if n > p.max_points {
-        let (rows, covering_radius) = maxmin_landmarks(distances.view(), p.max_points);
-        let sub = distances.select(ndarray::Axis(0), &rows);
-        let sub = sub.select(ndarray::Axis(1), &rows);
-        let persistence = rips_persistence(sub.view(), p.max_homology_dim, p.threshold, progress)?;
-        (
-            persistence,
-            Subsampling {
-                method: "max-min".into(),
-                points: rows.len(),
-                covering_radius,
-            },
-        )
-    } else {
-        let persistence =
-            rips_persistence(distances.view(), p.max_homology_dim, p.threshold, progress)?;
-        (
-            persistence,
-            Subsampling {
-                method: "none".into(),
-                points: n,
-                covering_radius: 0.0,
-            },
-        )
+    Ok(distances)
+}
+
+/// Rips persistence of all points, or of `max_points` max–min landmarks from row 0
+/// when there are more.
+fn homology_of(
+    distances: ArrayView2<'_, f64>,
+    p: &AnalysisParams,
+    progress: &dyn Progress,
+) -> Result<(Persistence, Subsampling), AnalysisError> {
+    let n = distances.nrows();
+    if n <= p.max_points {
+        let persistence = rips_persistence(distances, p.max_homology_dim, p.threshold, progress)?;
+        let all = Subsampling {
+            method: "none".into(),
+            points: n,
+            covering_radius: 0.0,
+        };
+        return Ok((persistence, all));
+    }
+    let landmarks = farthest_first(&DenseDistances::new(distances)?, p.max_points, 0)?;
+    let rows = &landmarks.rows;
+    let sub = distances
+        .select(ndarray::Axis(0), rows)
+        .select(ndarray::Axis(1), rows);
+    let persistence = rips_persistence(sub.view(), p.max_homology_dim, p.threshold, progress)?;
+    let max_min = Subsampling {
+        method: "max-min".into(),
+        points: rows.len(),
+        covering_radius: landmarks.covering_radius,
     };
-    let rule = params.betti_rule();
-    let betti = rule.betti(&persistence);
-    let longest_bars = persistence
+    Ok((persistence, max_min))
+}
+
+/// The five longest bar lengths of every dimension, longest first (infinite bars cut
+/// at the threshold).
+fn longest_bars(persistence: &Persistence) -> Vec<Vec<f64>> {
+    persistence
         .diagrams
         .iter()
         .map(|bars| {
@@ -470,11 +503,22 @@ pub fn analyze_on(
             l.truncate(5);
             l
         })
-        .collect();
+        .collect()
+}
+
+/// TwoNN and Levina–Bickel on the sets `dimension_sets` (all sets when `None`, or when
+/// they are all the sets or too few for `mle_neighbors`).
+fn intrinsic_dimension(
+    distances: ArrayView2<'_, f64>,
+    dimension_sets: Option<DimensionSets<'_>>,
+    p: &AnalysisParams,
+    progress: &dyn Progress,
+) -> Result<IntrinsicDimension, AnalysisError> {
+    let n = distances.nrows();
     progress.start("dimension", 2);
     let subset = dimension_sets.filter(|s| s.rows.len() > p.mle_neighbors && s.rows.len() < n);
     let sub;
-    let (on, sets_name) = match subset {
+    let (on, sets) = match subset {
         Some(s) => {
             if let Some(&bad) = s.rows.iter().find(|&&r| r >= n) {
                 return Err(AnalysisError::InvalidParameter {
@@ -495,41 +539,14 @@ pub fn analyze_on(
     let mle = dimension::mle(on, p.mle_neighbors)?;
     progress.advance(1);
     progress.finish();
-    let agreement = match poses {
-        Some(poses) => Some(agreement::agreement(distances.view(), poses, p.neighbors)?),
-        None => None,
-    };
-    Ok(AnalysisReport {
-        points: n,
-        betti,
-        persistence: persistence
-            .diagrams
-            .iter()
-            .map(|bars| bars.iter().map(|b| (b.birth, b.death)).collect())
-            .collect(),
-        homology: HomologySummary {
-            max_dim: p.max_homology_dim,
-            threshold: persistence.threshold,
-            threshold_rule: if p.threshold.is_some() {
-                "given"
-            } else {
-                "enclosing-radius"
-            }
-            .into(),
-            subsampling,
-            rule,
-            longest_bars,
-        },
-        intrinsic_dimension: IntrinsicDimension {
-            twonn: twonn.dimension,
-            mle: mle.dimension,
-            twonn_detail: twonn,
-            mle_detail: mle,
-            sets: sets_name,
-            sets_used: on.nrows(),
-            twonn_discard: p.twonn_discard,
-            mle_neighbors: p.mle_neighbors,
-        },
-        agreement,
+    Ok(IntrinsicDimension {
+        twonn: twonn.dimension,
+        mle: mle.dimension,
+        twonn_detail: twonn,
+        mle_detail: mle,
+        sets,
+        sets_used: on.nrows(),
+        twonn_discard: p.twonn_discard,
+        mle_neighbors: p.mle_neighbors,
     })
 }

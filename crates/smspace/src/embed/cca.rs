@@ -43,6 +43,7 @@ use serde::{Deserialize, Serialize};
 use super::eigen::{classical_mds, landmark_mds, EigenSolver};
 use super::{check_dim, check_dim_param, check_distances, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
+use crate::neighbours::nearest;
 use crate::progress::Progress;
 
 /// Points per block in the inner loop.
@@ -634,7 +635,7 @@ impl CcaExtender {
         let (m, dim) = old.dim();
         let exp = self.neighbourhood == Neighbourhood::Exp;
         // Start at the distance-weighted mean of the nearest old points.
-        let near = super::isomap::nearest(x, (2 * dim + 1).min(m), None);
+        let near = nearest(x, (2 * dim + 1).min(m), None);
         let mut y = vec![0.0; dim];
         let mut total = 0.0;
         for &(j, d) in &near {

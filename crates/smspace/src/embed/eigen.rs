@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::EmbedError;
+use crate::neighbours::{farthest_first, nearest, DenseDistances};
 
 /// Which eigensolver classical MDS uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -308,20 +309,8 @@ pub(crate) fn landmark_mds(
     let n = distances.nrows();
     let l = landmarks.min(n);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x1a4d_4a2c);
-    let mut chosen = Vec::with_capacity(l);
-    let mut nearest = vec![f64::INFINITY; n];
-    let mut next = rng.gen_range(0..n);
-    for _ in 0..l {
-        chosen.push(next);
-        let mut best = (f64::NEG_INFINITY, 0);
-        for (v, m) in nearest.iter_mut().enumerate() {
-            *m = m.min(distances[[next, v]]);
-            if *m > best.0 {
-                best = (*m, v);
-            }
-        }
-        next = best.1;
-    }
+    let start = rng.gen_range(0..n);
+    let chosen = farthest_first(&DenseDistances::new(distances)?, l, start)?.rows;
     let sq = Array2::from_shape_fn((l, l), |(a, b)| {
         let d = distances[[chosen[a], chosen[b]]];
         d * d
@@ -412,7 +401,7 @@ impl Triangulation {
                 let delta: Array1<f64> = match &self.geodesic {
                     None => self.landmarks.iter().map(|&l| x[l] * x[l]).collect(),
                     Some((g, k)) => {
-                        let near = super::isomap::nearest(x, *k, None);
+                        let near = nearest(x, *k, None);
                         g.axis_iter(Axis(0))
                             .map(|gl| {
                                 let d = near

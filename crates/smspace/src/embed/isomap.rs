@@ -20,7 +20,7 @@ use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 use std::path::Path;
 
-use ndarray::{Array2, ArrayView1, ArrayView2};
+use ndarray::{Array2, ArrayView2};
 use ndarray_npy::ReadNpyExt;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -30,6 +30,7 @@ use serde::{Deserialize, Serialize};
 use super::eigen::{classical_mds, EigenSolver, Triangulation};
 use super::{check_dim, check_dim_param, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
+use crate::neighbours::{self, DenseDistances, FarthestFirst, Knn};
 use crate::progress::Progress;
 
 /// How landmark Isomap chooses its landmarks.
@@ -137,64 +138,64 @@ pub struct IsomapValidParams(IsomapParams);
 
 /// A `k`-nearest-neighbour graph: row `i` lists the `k` nearest other points of point
 /// `i`, nearest first.
+///
+/// A checked [`Knn`] over all `M` rows (one kNN type, [`crate::neighbours::Knn`], which
+/// the metric stage's `metric::knn` returns): every index names another point of
+/// `[0, M)` and every distance is finite and non-negative.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KnnGraph {
-    points: usize,
-    k: usize,
-    indices: Vec<u32>,
-    distances: Vec<f64>,
+    knn: Knn,
 }
 
-/// The `k` nearest entries of `row` (excluding `exclude`), ascending by (distance, index).
-pub(crate) fn nearest(
-    row: ArrayView1<'_, f64>,
-    k: usize,
-    exclude: Option<usize>,
-) -> Vec<(usize, f64)> {
-    let mut all: Vec<(usize, f64)> = row
-        .iter()
-        .enumerate()
-        .filter(|&(j, _)| Some(j) != exclude)
-        .map(|(j, &d)| (j, d))
-        .collect();
-    let by = |a: &(usize, f64), b: &(usize, f64)| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0));
-    let k = k.min(all.len());
-    if k == 0 {
-        return Vec::new();
+/// Checks one entry `(j, d)` of row `i` of a graph of `points` points.
+fn check_neighbour(i: usize, j: i64, d: f64, points: usize) -> Result<(), EmbedError> {
+    if j < 0 || j as usize >= points || j as usize == i {
+        return Err(EmbedError::Knn(format!(
+            "row {i} lists neighbour {j}; neighbours must be other points in [0, {points})"
+        )));
     }
-    if k < all.len() {
-        all.select_nth_unstable_by(k - 1, by);
-        all.truncate(k);
+    if !d.is_finite() || d < 0.0 {
+        return Err(EmbedError::Knn(format!(
+            "row {i} has distance {d}; distances must be finite and non-negative"
+        )));
     }
-    all.sort_unstable_by(by);
-    all
+    Ok(())
 }
 
 impl KnnGraph {
-    /// The `k` nearest neighbours of every point of a validated distance matrix.
+    /// The `k` nearest neighbours of every point of a validated distance matrix
+    /// ([`neighbours::nearest_neighbours`]).
     pub fn from_distances(distances: ArrayView2<'_, f64>, k: usize) -> Result<Self, EmbedError> {
         let points = distances.nrows();
         if k >= points {
             return Err(EmbedError::KTooLarge { k, points });
         }
-        let rows: Vec<Vec<(usize, f64)>> = (0..points)
-            .into_par_iter()
-            .map(|i| nearest(distances.row(i), k, Some(i)))
-            .collect();
-        let mut indices = Vec::with_capacity(points * k);
-        let mut dists = Vec::with_capacity(points * k);
-        for row in rows {
-            for (j, d) in row {
-                indices.push(j as u32);
-                dists.push(d);
-            }
+        let knn = neighbours::nearest_neighbours(&DenseDistances::new(distances)?, k)?;
+        Ok(Self { knn })
+    }
+
+    /// A graph from the neighbours of all `M` rows (`knn.rows` is `0..M`, `M ≥ 2`,
+    /// `k ≥ 1`), e.g. those `metric::knn` found for every set.
+    pub fn from_knn(knn: Knn) -> Result<Self, EmbedError> {
+        let (points, k) = knn.indices.dim();
+        if knn.rows != (0..points) || knn.distances.dim() != (points, k) {
+            return Err(EmbedError::Knn(format!(
+                "the lists cover rows {}..{} with indices {:?} and distances {:?}; a graph needs rows 0..M and both (M, K)",
+                knn.rows.start,
+                knn.rows.end,
+                knn.indices.dim(),
+                knn.distances.dim()
+            )));
         }
-        Ok(Self {
-            points,
-            k,
-            indices,
-            distances: dists,
-        })
+        if k == 0 || points < 2 {
+            return Err(EmbedError::Knn(format!(
+                "shape ({points}, {k}): need at least 2 points and 1 neighbour"
+            )));
+        }
+        for (((i, _), &j), &d) in knn.indices.indexed_iter().zip(&knn.distances) {
+            check_neighbour(i, i64::try_from(j).unwrap_or(i64::MAX), d, points)?;
+        }
+        Ok(Self { knn })
     }
 
     /// A graph from arrays `(M, K)`: `indices` (int64, each in `[0, M)`, not the row's own
@@ -217,31 +218,15 @@ impl KnnGraph {
                 "shape ({points}, {k}): need at least 2 points and 1 neighbour"
             )));
         }
-        let mut idx = Vec::with_capacity(points * k);
-        let mut dists = Vec::with_capacity(points * k);
-        for i in 0..points {
-            for c in 0..k {
-                let j = indices[[i, c]];
-                let d = distances[[i, c]];
-                if j < 0 || j as usize >= points || j as usize == i {
-                    return Err(EmbedError::Knn(format!(
-                        "row {i} lists neighbour {j}; neighbours must be other points in [0, {points})"
-                    )));
-                }
-                if !d.is_finite() || d < 0.0 {
-                    return Err(EmbedError::Knn(format!(
-                        "row {i} has distance {d}; distances must be finite and non-negative"
-                    )));
-                }
-                idx.push(j as u32);
-                dists.push(d);
-            }
+        for (((i, _), &j), &d) in indices.indexed_iter().zip(&distances) {
+            check_neighbour(i, j, d, points)?;
         }
         Ok(Self {
-            points,
-            k,
-            indices: idx,
-            distances: dists,
+            knn: Knn {
+                rows: 0..points,
+                indices: indices.mapv(|j| j as usize),
+                distances: distances.to_owned(),
+            },
         })
     }
 
@@ -267,18 +252,22 @@ impl KnnGraph {
 
     /// Number of points `M`.
     pub fn points(&self) -> usize {
-        self.points
+        self.knn.indices.nrows()
     }
 
     /// Neighbours per point `K`.
     pub fn k(&self) -> usize {
-        self.k
+        self.knn.k()
     }
 
     /// Neighbour `c` of point `i`: `(index, distance)`.
     pub fn neighbour(&self, i: usize, c: usize) -> (usize, f64) {
-        let at = i * self.k + c;
-        (self.indices[at] as usize, self.distances[at])
+        (self.knn.indices[[i, c]], self.knn.distances[[i, c]])
+    }
+
+    /// The neighbour lists.
+    pub fn knn(&self) -> &Knn {
+        &self.knn
     }
 }
 
@@ -293,7 +282,7 @@ impl Csr {
     /// The undirected graph of the first `k` neighbours of every point (min weight on
     /// duplicate edges).
     fn from_knn(graph: &KnnGraph, k: usize) -> Self {
-        let n = graph.points;
+        let n = graph.points();
         let mut lists: Vec<Vec<(u32, f64)>> = vec![Vec::with_capacity(2 * k); n];
         for i in 0..n {
             for c in 0..k {
@@ -477,7 +466,7 @@ impl IsomapValidParams {
                         let g = csr.geodesics(&all, progress);
                         (all, g)
                     }
-                    LandmarkChoice::MaxMin => maxmin(&csr, l, rng.gen_range(0..n), progress),
+                    LandmarkChoice::MaxMin => maxmin(&csr, l, rng.gen_range(0..n), progress)?,
                 };
                 let sq = Array2::from_shape_fn((l, l), |(a, b)| {
                     let d = 0.5 * (g[[a, landmarks[b]]] + g[[b, landmarks[a]]]);
@@ -554,32 +543,28 @@ impl IsomapValidParams {
     }
 }
 
-/// MaxMin landmarks: `(landmarks, geodesic rows (L, M))`.
-fn maxmin(csr: &Csr, l: usize, first: usize, progress: &dyn Progress) -> (Vec<usize>, Array2<f64>) {
+/// MaxMin landmarks by geodesic distance: `(landmarks, geodesic rows (L, M))`. The
+/// traversal is [`FarthestFirst`]'s; each landmark's row comes from Dijkstra on the
+/// graph (there is no dense matrix) and is kept for the triangulation.
+fn maxmin(
+    csr: &Csr,
+    l: usize,
+    first: usize,
+    progress: &dyn Progress,
+) -> Result<(Vec<usize>, Array2<f64>), EmbedError> {
     let n = csr.len();
     let mut g = Array2::zeros((l, n));
-    let mut nearest = vec![f64::INFINITY; n];
-    let mut landmarks = Vec::with_capacity(l);
+    let mut traversal = FarthestFirst::new(n, first)?;
     let mut heap = BinaryHeap::new();
-    let mut next = first;
     progress.start("dijkstra", l as u64);
-    for r in 0..l {
-        landmarks.push(next);
-        let mut row = g.row_mut(r);
+    for mut row in g.rows_mut() {
         let row = row.as_slice_mut().expect("standard layout");
-        csr.dijkstra(next, row, &mut heap);
-        let mut best = (f64::NEG_INFINITY, 0);
-        for (v, (m, &d)) in nearest.iter_mut().zip(row.iter()).enumerate() {
-            *m = m.min(d);
-            if *m > best.0 {
-                best = (*m, v);
-            }
-        }
-        next = best.1;
+        csr.dijkstra(traversal.next_landmark(), row, &mut heap);
+        traversal.add(&*row);
         progress.advance(1);
     }
     progress.finish();
-    (landmarks, g)
+    Ok((traversal.finish().rows, g))
 }
 
 impl Embedding for IsomapValidParams {

@@ -173,6 +173,9 @@ pub enum EmbedError {
         /// The value.
         value: f64,
     },
+    /// A neighbour computation refused its input.
+    #[error(transparent)]
+    Neighbours(#[from] crate::neighbours::NeighboursError),
     /// Reading a file failed.
     #[error(transparent)]
     Io(#[from] crate::io::IoError),

@@ -1,6 +1,7 @@
 //! Quality of an embedding `Y` against its input distances `X`.
 //!
-//! * Trustworthiness and continuity at `k` (Venna & Kaski 2001, 2006). With `r(i, j)` the
+//! * Trustworthiness and continuity at `k` (Venna & Kaski 2001, 2006; computed by
+//!   [`crate::neighbours`], valid for `1 ≤ k ≤ M/2`). With `r(i, j)` the
 //!   rank of `j` among the neighbours of `i` by input distance and `r̂(i, j)` by output
 //!   distance, `U_k(i)` the points among the `k` nearest of `i` in the output but not in
 //!   the input, and `V_k(i)` the converse,
@@ -21,6 +22,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::EmbedError;
+use crate::neighbours::{self, Coordinates, DenseDistances};
 
 /// Quality measures of an embedding.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -39,12 +41,7 @@ pub struct Quality {
 
 /// Euclidean distance between rows `i` and `j` of `y`.
 fn out_distance(y: ArrayView2<'_, f64>, i: usize, j: usize) -> f64 {
-    y.row(i)
-        .iter()
-        .zip(y.row(j).iter())
-        .map(|(a, b)| (a - b) * (a - b))
-        .sum::<f64>()
-        .sqrt()
+    Coordinates(y).distance(i, j)
 }
 
 fn check_shapes(x: ArrayView2<'_, f64>, y: ArrayView2<'_, f64>) -> Result<(), EmbedError> {
@@ -59,62 +56,19 @@ fn check_shapes(x: ArrayView2<'_, f64>, y: ArrayView2<'_, f64>) -> Result<(), Em
 }
 
 /// Trustworthiness and continuity at `k` of `y` `(M, d)` for distances `x` `(M, M)`:
-/// `(T, C)`. Requires `1 ≤ k < M/2` (the normalisation assumes it).
+/// `(T, C)`, by [`neighbours::trustworthiness_continuity`] with `x` the input and `y`
+/// the output. Requires `M ≥ 3` and `1 ≤ k ≤ M/2` (the normalisation assumes it).
 pub fn trustworthiness_continuity(
     x: ArrayView2<'_, f64>,
     y: ArrayView2<'_, f64>,
     k: usize,
 ) -> Result<(f64, f64), EmbedError> {
     check_shapes(x, y)?;
-    let m = x.nrows();
-    if k == 0 || 2 * k >= m {
-        return Err(EmbedError::Parameter {
-            name: "quality k",
-            value: k.to_string(),
-            expected: "at least 1 and less than half the number of points",
-        });
-    }
-    let per_row: Vec<(f64, f64)> = (0..m)
-        .into_par_iter()
-        .map(|i| {
-            let dy: Vec<f64> = (0..m).map(|j| out_distance(y, i, j)).collect();
-            let dx: Vec<f64> = x.row(i).to_vec();
-            let rank_in = ranks(&dx, i);
-            let rank_out = ranks(&dy, i);
-            let (mut t, mut c) = (0.0, 0.0);
-            for j in 0..m {
-                if j == i {
-                    continue;
-                }
-                let (ri, ro) = (rank_in[j], rank_out[j]);
-                if ro <= k && ri > k {
-                    t += (ri - k) as f64;
-                }
-                if ri <= k && ro > k {
-                    c += (ro - k) as f64;
-                }
-            }
-            (t, c)
-        })
-        .collect();
-    let (t, c) = per_row
-        .iter()
-        .fold((0.0, 0.0), |(a, b), &(t, c)| (a + t, b + c));
-    let (mf, kf) = (m as f64, k as f64);
-    let norm = 2.0 / (mf * kf * (2.0 * mf - 3.0 * kf - 1.0));
-    Ok((1.0 - norm * t, 1.0 - norm * c))
-}
-
-/// Ranks `1..M−1` of every `j ≠ i` by value (ties by index); `rank[i] = 0`.
-fn ranks(v: &[f64], i: usize) -> Vec<usize> {
-    let m = v.len();
-    let mut order: Vec<usize> = (0..m).filter(|&j| j != i).collect();
-    order.sort_unstable_by(|&a, &b| v[a].total_cmp(&v[b]).then(a.cmp(&b)));
-    let mut rank = vec![0; m];
-    for (r, &j) in order.iter().enumerate() {
-        rank[j] = r + 1;
-    }
-    rank
+    Ok(neighbours::trustworthiness_continuity(
+        &DenseDistances::new(x)?,
+        &Coordinates(y),
+        k,
+    )?)
 }
 
 /// Kruskal's stress-1 and the raw stress `½ Σ_{i≠j} (X_ij − Y_ij)²`: `(stress-1, raw)`.

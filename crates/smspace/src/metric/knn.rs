@@ -2,9 +2,9 @@
 //!
 //! For a metric (the Hausdorff distance `ρ` satisfies the triangle inequality, since
 //! `g` does), `ρ(i, j) ≥ |ρ(i, p) − ρ(j, p)|` for every pivot set `p`. Pivots are
-//! chosen by farthest-first traversal (set 0, then the set farthest from all pivots so
-//! far), and their distances to every set are computed once (`pivots × M` pairs). For
-//! each query set `i`:
+//! chosen by farthest-first traversal ([`crate::neighbours`]: set 0, then the set
+//! farthest from all pivots so far), and their distances to every set are computed
+//! once (`pivots × M` pairs). For each query set `i`:
 //!
 //! 1. the lower bound `L(j) = max_p |ρ(i, p) − ρ(j, p)|` of every other set;
 //! 2. exact distances to the `k` sets of smallest `L`, giving a radius `τ` (the `k`-th
@@ -29,6 +29,7 @@ use super::{
     check_memory, check_metric, check_rows, closure_for, DistanceParams, MetricError, MetricKind,
     PreparedSets, SetsView,
 };
+use crate::neighbours::FarthestFirst;
 use crate::progress::Progress;
 
 /// Relative safety margin on the pivot lower bounds (rounding of the distances).
@@ -89,16 +90,9 @@ impl KnnParams {
     }
 }
 
-/// Nearest sets of a block of rows.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Knn {
-    /// The query rows `[i0, i1)`.
-    pub rows: Range<usize>,
-    /// `(i1 − i0, k)`: indices of the nearest sets, nearest first (ties: smaller index).
-    pub indices: Array2<usize>,
-    /// `(i1 − i0, k)`: their distances.
-    pub distances: Array2<f64>,
-}
+/// Nearest sets of a block of rows: the crate's one kNN type,
+/// [`crate::neighbours::Knn`].
+pub use crate::neighbours::Knn;
 
 /// The `k` nearest sets of each set in rows `rows` of `(M, P, N)` kernel sets.
 pub fn knn<'a>(
@@ -210,11 +204,10 @@ fn pivot_table(
         return table;
     }
     progress.start("pivots", pivots as u64);
-    let mut nearest = vec![f64::INFINITY; m];
-    let mut pivot = 0;
-    for t in 0..pivots {
-        let row = &mut table[t * m..(t + 1) * m];
+    let mut traversal = FarthestFirst::new(m, 0).expect("there are at least 2 sets");
+    for row in table.chunks_mut(m) {
         const COLUMNS: usize = 64;
+        let pivot = traversal.next_landmark();
         row.par_chunks_mut(COLUMNS).enumerate().for_each_init(
             Scratch::default,
             |scratch, (c, out)| {
@@ -226,14 +219,7 @@ fn pivot_table(
                 kernel::dispatch(prepared, metric, scratch, driver);
             },
         );
-        let mut farthest = (f64::NEG_INFINITY, 0);
-        for (j, (near, &d)) in nearest.iter_mut().zip(row.iter()).enumerate() {
-            *near = near.min(d);
-            if *near > farthest.0 {
-                farthest = (*near, j);
-            }
-        }
-        pivot = farthest.1;
+        traversal.add(&*row);
         progress.advance(1);
     }
     progress.finish();
