@@ -13,8 +13,9 @@ use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use smspace::metric::{
-    distance_matrix, distance_rows, fill_rows, knn, reference, DistanceParams, Hausdorff,
-    KnnParams, MeanHausdorff, MetricError, MetricKind, Period, PreparedSets, SetMetric,
+    distance_matrix, distance_matrix_with, distance_rows, fill_rows, knn, reference,
+    DistanceParams, Hausdorff, KnnParams, MeanHausdorff, MetricError, MetricKind, Period,
+    PreparedSets, SetMetric,
 };
 use smspace::progress::Silent;
 
@@ -509,4 +510,91 @@ fn progress_counts_every_pair() {
     assert_eq!(total, count.done.load(Ordering::SeqCst));
     // Rows 2..6 of 9 sets: 4·8 pairs, of which the 6 inside the block are shared.
     assert_eq!(total, 4 * 8 - 6);
+}
+
+/// A metric defined outside the crate: the distance between the sets' centroids
+/// (Euclidean, no wrap), failing on sets whose first coordinate is exactly 42.
+struct Centroids;
+
+impl SetMetric for Centroids {
+    fn name(&self) -> &'static str {
+        "centroids"
+    }
+    fn distance(
+        &self,
+        a: ndarray::ArrayView2<'_, f64>,
+        b: ndarray::ArrayView2<'_, f64>,
+    ) -> Result<f64, MetricError> {
+        if a[[0, 0]] == 42.0 || b[[0, 0]] == 42.0 {
+            return Err(MetricError::EmptySets { shape: (0, 0, 0) });
+        }
+        let (ca, cb) = (a.mean_axis(Axis(0)).unwrap(), b.mean_axis(Axis(0)).unwrap());
+        Ok((&ca - &cb).mapv(|x| x * x).sum().sqrt())
+    }
+}
+
+#[test]
+fn a_user_defined_metric_goes_through_the_tiled_threaded_path() {
+    let sets = uniform_sets(70, 9, 3, 5);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                distance_matrix_with(sets.view(), &Centroids, &DistanceParams::new(), &Silent)
+                    .unwrap()
+            })
+    };
+    let d = run(2);
+    assert_eq!(d, run(1), "thread count changed the matrix");
+    for i in 0..70 {
+        for j in 0..70 {
+            let one = Centroids
+                .distance(sets.index_axis(Axis(0), i), sets.index_axis(Axis(0), j))
+                .unwrap();
+            let expected = if i == j { 0.0 } else { one };
+            assert_eq!(d[[i, j]], expected, "D[{i}, {j}]");
+        }
+    }
+    // The built-in Hausdorff through the generic path agrees with its SIMD kernels.
+    let generic = distance_matrix_with(
+        sets.view(),
+        &Hausdorff {
+            period: Period::TwoPi,
+        },
+        &DistanceParams::new(),
+        &Silent,
+    )
+    .unwrap();
+    let simd = distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap();
+    assert_matrix_eq(&generic, &simd, "generic vs SIMD Hausdorff");
+    // A failing pair is reported, the first in row-major order, whatever the threads.
+    let mut bad = sets.clone();
+    bad[[40, 0, 0]] = 42.0;
+    bad[[12, 0, 0]] = 42.0;
+    let err = distance_matrix_with(bad.view(), &Centroids, &DistanceParams::new(), &Silent)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("centroids metric failed on sets 0 and 12"),
+        "{err}"
+    );
+    // The memory check and the input checks are the built-in metrics'.
+    let small = DistanceParams::new().memory_limit_bytes(Some(1000));
+    assert!(matches!(
+        distance_matrix_with(sets.view(), &Centroids, &small, &Silent),
+        Err(MetricError::OutOfMemory { .. })
+    ));
+    let mut nan = sets.clone();
+    nan[[3, 1, 2]] = f64::NAN;
+    assert!(matches!(
+        distance_matrix_with(nan.view(), &Centroids, &DistanceParams::new(), &Silent),
+        Err(MetricError::NonFinite {
+            set: 3,
+            point: 1,
+            coord: 2,
+            ..
+        })
+    ));
 }

@@ -187,6 +187,18 @@ pub enum MetricError {
         /// `M − 1`.
         max: usize,
     },
+    /// A [`SetMetric`] failed on one pair of sets.
+    #[error("the {metric} metric failed on sets {i} and {j}: {reason}")]
+    Pair {
+        /// The metric's name.
+        metric: String,
+        /// First set.
+        i: usize,
+        /// Second set.
+        j: usize,
+        /// Its error.
+        reason: Box<MetricError>,
+    },
     /// The `curve` metric was asked for sets whose closures are unknown.
     #[error("the curve metric needs to know which sets are closed loops and which are open polylines: the trace stage records it in sets.closed.npy next to sets.npy; for a bare .npy say it with --curve closed or --curve open")]
     MissingClosure,
@@ -677,7 +689,7 @@ pub fn fill_rows(
     prepared: &PreparedSets,
     metric: MetricKind,
     rows: Range<usize>,
-    mut out: ArrayViewMut2<'_, f64>,
+    out: ArrayViewMut2<'_, f64>,
     progress: &dyn Progress,
 ) -> Result<(), MetricError> {
     let m = prepared.len();
@@ -693,28 +705,44 @@ pub fn fill_rows(
             expected,
         });
     }
+    fill_tiles(m, rows, out, progress, |scratch, driver| {
+        kernel::dispatch(prepared, metric, scratch, driver)
+    });
+    Ok(())
+}
+
+/// The tiles of rows `rows` of `out` (checked: `(rows.len(), m)`, standard layout), in
+/// parallel: `tile` computes one [`TileDriver`]; pairs inside the block are then
+/// mirrored and the diagonal is zero.
+fn fill_tiles(
+    m: usize,
+    rows: Range<usize>,
+    mut out: ArrayViewMut2<'_, f64>,
+    progress: &dyn Progress,
+    tile: impl Fn(&mut kernel::Scratch, TileDriver<'_>) + Sync,
+) {
     let i0 = rows.start;
     let total: u64 = rows.clone().map(|i| (m - 1 - (i - i0)) as u64).sum();
     progress.start("distances", total);
     let buffer = out
         .as_slice_mut()
-        .expect("standard layout was checked above");
+        .expect("standard layout was checked by the caller");
     buffer
         .par_chunks_mut(m * TILE_ROWS)
         .enumerate()
-        .for_each_init(kernel::Scratch::default, |scratch, (t, tile)| {
+        .for_each_init(kernel::Scratch::default, |scratch, (t, block)| {
             let row0 = i0 + t * TILE_ROWS;
-            let tile_rows = tile.len() / m;
+            let tile_rows = block.len() / m;
             for r in 0..tile_rows {
-                tile[r * m + row0 + r] = 0.0;
+                block[r * m + row0 + r] = 0.0;
             }
             let driver = TileDriver {
                 row0,
                 m,
                 skip_from: i0,
-                out: tile,
+                out: block,
             };
-            kernel::dispatch(prepared, metric, scratch, driver);
+            tile(scratch, driver);
             let done: usize = (0..tile_rows).map(|r| m - 1 - (row0 + r - i0)).sum();
             progress.advance(done as u64);
         });
@@ -724,5 +752,96 @@ pub fn fill_rows(
         }
     }
     progress.finish();
-    Ok(())
+}
+
+/// The full matrix of any [`SetMetric`] (a user-defined one included), through the
+/// same row tiles, threads, memory check and progress as the built-in metrics (the
+/// generic path next to the SIMD kernels: each pair is one
+/// [`SetMetric::distance`] call, without early exits). Identical for any thread count.
+///
+/// ```
+/// use ndarray::{Array3, ArrayView2};
+/// use smspace::metric::{distance_matrix_with, DistanceParams, MetricError, SetMetric};
+///
+/// /// The distance between the sets' first points.
+/// struct FirstPoints;
+/// impl SetMetric for FirstPoints {
+///     fn name(&self) -> &'static str { "first-points" }
+///     fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
+///         Ok((a[[0, 0]] - b[[0, 0]]).abs())
+///     }
+/// }
+/// let sets = Array3::from_shape_fn((3, 2, 1), |(i, p, _)| (i * 10 + p) as f64);
+/// let d = distance_matrix_with(sets.view(), &FirstPoints, &DistanceParams::new(), &smspace::progress::Silent)?;
+/// assert_eq!(d[[0, 2]], 20.0);
+/// # Ok::<(), MetricError>(())
+/// ```
+pub fn distance_matrix_with(
+    sets: ArrayView3<'_, f64>,
+    metric: &dyn SetMetric,
+    params: &DistanceParams,
+    progress: &dyn Progress,
+) -> Result<Array2<f64>, MetricError> {
+    let (m, p, n) = sets.dim();
+    if m < 2 {
+        return Err(MetricError::TooFewSets { sets: m });
+    }
+    if p == 0 || n == 0 {
+        return Err(MetricError::EmptySets { shape: (m, p, n) });
+    }
+    if let Some(((set, point, coord), &value)) = sets.indexed_iter().find(|(_, v)| !v.is_finite()) {
+        return Err(MetricError::NonFinite {
+            set,
+            point,
+            coord,
+            value,
+        });
+    }
+    check_memory(params.memory_limit_bytes, m, (m as u64) * (m as u64) * 8)?;
+    let mut out = Array2::zeros((m, m));
+    // The error of the first failing pair in row-major order, whatever the threads.
+    let failure: std::sync::Mutex<Option<((usize, usize), MetricError)>> = Default::default();
+    fill_tiles(m, 0..m, out.view_mut(), progress, |_, driver| {
+        let mut eval = GenericEval {
+            sets: sets.view(),
+            metric,
+            failure: &failure,
+        };
+        kernel::Driver::drive(driver, &mut eval)
+    });
+    match failure.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        Some(((i, j), reason)) => Err(MetricError::Pair {
+            metric: metric.name().to_owned(),
+            i,
+            j,
+            reason: Box::new(reason),
+        }),
+        None => Ok(out),
+    }
+}
+
+/// Evaluates a [`SetMetric`] on a pair of sets for the tile driver.
+struct GenericEval<'a> {
+    sets: ArrayView3<'a, f64>,
+    metric: &'a dyn SetMetric,
+    failure: &'a std::sync::Mutex<Option<((usize, usize), MetricError)>>,
+}
+
+impl kernel::Eval for GenericEval<'_> {
+    fn distance(&mut self, i: usize, j: usize, _limit: f64) -> Option<f64> {
+        let (a, b) = (
+            self.sets.index_axis(Axis(0), i),
+            self.sets.index_axis(Axis(0), j),
+        );
+        match self.metric.distance(a, b) {
+            Ok(d) => Some(d),
+            Err(reason) => {
+                let mut failure = self.failure.lock().unwrap_or_else(|e| e.into_inner());
+                if failure.as_ref().is_none_or(|(at, _)| (i, j) < *at) {
+                    *failure = Some(((i, j), reason));
+                }
+                Some(f64::NAN)
+            }
+        }
+    }
 }
