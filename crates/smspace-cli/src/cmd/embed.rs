@@ -16,12 +16,12 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use clap::ValueEnum;
 use serde_json::json;
-use smspace::embed::quality::{assess, shepard_pairs};
+use smspace::embed::quality::measure;
 use smspace::embed::{
-    CcaParams, DydxSample, EmbedFile, EmbedParams, Embedded, ExtendedPoints, IsomapParams,
-    KnnGraph, LandmarkChoice, MdsParams, Neighbourhood,
+    CcaParams, EmbedFile, EmbedParams, Embedded, ExtendedPoints, IsomapParams, KnnGraph,
+    LandmarkChoice, MdsParams, Neighbourhood,
 };
-use smspace::io::{read_matrix, write_json, write_npy};
+use smspace::io::{read_matrix, write_npy};
 
 use super::common::sibling;
 use crate::ui;
@@ -200,28 +200,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
             _ => bail!("give --distances D.npy, or --knn-indices and --knn-distances"),
         };
-    write_npy(&args.out, &embedded.coordinates)?;
-
     let m = embedded.points();
-    let mut quality = None;
-    let mut dydx = None;
-    if let Some(d) = &distances {
-        let k = args.quality_k.min(m.saturating_sub(1) / 2);
-        if k >= 1 {
-            quality = Some(assess(d.view(), embedded.coordinates.view(), k)?);
-        }
-        if args.dydx_pairs > 0 {
-            let pairs = shepard_pairs(
-                d.view(),
-                embedded.coordinates.view(),
-                args.dydx_pairs,
-                args.seed,
-            )?;
-            let path = sibling(&args.out, "dydx.npy");
-            write_npy(&path, &pairs)?;
-            dydx = Some(DydxSample::new(path, pairs.nrows(), m));
-        }
-    }
+    // The same measures as the pipeline's embed stage.
+    let (quality, dydx) = match &distances {
+        Some(d) => measure(
+            d.view(),
+            embedded.coordinates.view(),
+            args.quality_k,
+            args.dydx_pairs,
+            args.seed,
+        )?,
+        None => (None, None),
+    };
 
     let mut extended = None;
     if let Some(path) = &args.extend {
@@ -243,12 +233,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         params: params_json,
         input,
         quality,
-        dydx,
+        dydx: None,
         extended,
         seconds: Some(started.elapsed().as_secs_f64()),
     };
-    let report_path = sibling(&args.out, "embed.json");
-    write_json(&report_path, &report)?;
+    // One writer for Y.npy, Y.dydx.npy and Y.embed.json: the pipeline's.
+    let written = report.clone().write(
+        &args.out,
+        embedded.coordinates.view(),
+        dydx.as_ref().map(|d| d.view()),
+    )?;
+    let report_path = written.last().cloned().unwrap_or_default();
     let quality_line = match &report.quality {
         Some(q) => format!(
             "; trustworthiness {:.4}, continuity {:.4}",

@@ -316,6 +316,40 @@ pub struct EmbedFile {
     pub seconds: Option<f64>,
 }
 
+impl EmbedFile {
+    /// Writes an embedding: `coordinates` `(M, d)` to `y_path`, the dy–dx sample (when
+    /// given) to `<stem>.dydx.npy` and this report to `<stem>.embed.json`, with its
+    /// `dydx` field naming the sample file (relative to the report). Returns the paths
+    /// written. `smspace embed` and the pipeline's embed stage both write through here.
+    pub fn write(
+        mut self,
+        y_path: &std::path::Path,
+        coordinates: ArrayView2<'_, f64>,
+        dydx: Option<ArrayView2<'_, f64>>,
+    ) -> Result<Vec<std::path::PathBuf>, crate::io::IoError> {
+        let mut written = vec![y_path.to_owned()];
+        crate::io::write_npy(y_path, &coordinates)?;
+        self.dydx = match dydx {
+            Some(pairs) => {
+                let path = crate::io::sibling(y_path, "dydx.npy");
+                crate::io::write_npy(&path, &pairs)?;
+                let name = path.file_name().map(std::path::PathBuf::from);
+                written.push(path);
+                Some(DydxSample::new(
+                    name.unwrap_or_default(),
+                    pairs.nrows(),
+                    coordinates.nrows(),
+                ))
+            }
+            None => None,
+        };
+        let report = crate::io::sibling(y_path, "embed.json");
+        crate::io::write_json(&report, &self)?;
+        written.push(report);
+        Ok(written)
+    }
+}
+
 /// The dy–dx sample file, as described in [`EmbedFile`].
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 pub struct DydxSample {

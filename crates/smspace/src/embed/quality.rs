@@ -147,3 +147,30 @@ pub fn shepard_pairs(
         });
     Ok(out)
 }
+
+/// The figures measured with an embedding of `distances`: trustworthiness, continuity
+/// and stress with `neighbours` neighbours (capped below `M/2`; `None` when fewer than
+/// one fits), and a Shepard sample of at most `dydx_pairs` pairs drawn with `seed`
+/// (`None` for 0 pairs). `smspace embed` and the pipeline's embed stage both measure
+/// through here.
+pub fn measure(
+    distances: ArrayView2<'_, f64>,
+    coordinates: ArrayView2<'_, f64>,
+    neighbours: usize,
+    dydx_pairs: usize,
+    seed: u64,
+) -> Result<(Option<Quality>, Option<Array2<f64>>), EmbedError> {
+    let m = distances.nrows();
+    let k = neighbours.min(m.saturating_sub(1) / 2);
+    let quality = if k >= 1 {
+        Some(assess(distances, coordinates, k)?)
+    } else {
+        None
+    };
+    let dydx = if dydx_pairs > 0 {
+        Some(shepard_pairs(distances, coordinates, dydx_pairs, seed)?)
+    } else {
+        None
+    };
+    Ok((quality, dydx))
+}

@@ -8,8 +8,8 @@ use ndarray::Array2;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput};
-use crate::embed::quality::{assess, shepard_pairs, Quality};
-use crate::embed::{DydxSample, EmbedFile, EmbedParams, EmbedReport};
+use crate::embed::quality::{measure, Quality};
+use crate::embed::{EmbedFile, EmbedParams, EmbedReport};
 use crate::io;
 use crate::pipeline::StageId;
 
@@ -80,16 +80,10 @@ impl Stage for EmbedStage {
             .clone()
             .build()?
             .fit(distances, context.progress)?;
-        let m = distances.nrows();
-        let k = self.quality_neighbours.min(m.saturating_sub(1) / 2);
-        let quality = if k >= 1 {
-            Some(assess(distances, fitted.coordinates.view(), k)?)
-        } else {
-            None
-        };
-        let dydx = shepard_pairs(
+        let (quality, dydx) = measure(
             distances,
             fitted.coordinates.view(),
+            self.quality_neighbours,
             self.dydx_pairs,
             self.dydx_seed,
         )?;
@@ -97,30 +91,26 @@ impl Stage for EmbedStage {
             coordinates: fitted.coordinates,
             report: fitted.report,
             quality,
-            dydx,
+            dydx: dydx.unwrap_or_else(|| Array2::zeros((0, 2))),
         })
     }
 
     fn save(&self, _: &EmbedInput<'_>, y: &EmbedOutputs, dir: &Path) -> crate::Result<Vec<String>> {
-        io::write_npy(&dir.join(COORDINATES_FILE), &y.coordinates)?;
-        io::write_npy(&dir.join(DYDX_FILE), &y.dydx)?;
         // The method's own parameters, as `smspace embed` writes them.
         let params = self.embedding.clone().build()?.params_json();
-        io::write_json(
-            &dir.join(REPORT_FILE),
-            &EmbedFile {
-                report: y.report.clone(),
-                params,
-                input: serde_json::json!({ "distances": "D.npy" }),
-                quality: y.quality,
-                dydx: Some(DydxSample::new(
-                    DYDX_FILE,
-                    y.dydx.nrows(),
-                    y.coordinates.nrows(),
-                )),
-                extended: None,
-                seconds: None,
-            },
+        let file = EmbedFile {
+            report: y.report.clone(),
+            params,
+            input: serde_json::json!({ "distances": "D.npy" }),
+            quality: y.quality,
+            dydx: None,
+            extended: None,
+            seconds: None,
+        };
+        file.write(
+            &dir.join(COORDINATES_FILE),
+            y.coordinates.view(),
+            Some(y.dydx.view()),
         )?;
         Ok([COORDINATES_FILE, DYDX_FILE, REPORT_FILE]
             .map(String::from)
