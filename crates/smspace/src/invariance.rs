@@ -24,13 +24,13 @@
 //! and measures again, once per environment. It uses the statistics of
 //! [`analysis::agreement`](crate::analysis::agreement).
 
-use ndarray::{Array2, ArrayView2, Axis};
+use ndarray::{Array2, Array3, ArrayView2, Axis};
 use serde::{Deserialize, Serialize};
 
 use crate::agent::{Agent, Environment, MotorTopology};
 use crate::analysis::agreement::{pearson, upper_triangle};
 use crate::explore::Workspace;
-use crate::kernel::{trace_sets, TraceMethod, TraceValidParams};
+use crate::kernel::{trace_sets, TraceMethod, TraceValidParams, TracedSets};
 use crate::metric::{distance_matrix, Closure, DistanceParams, MetricKind, Period, SetsView};
 use crate::progress::Progress;
 
@@ -180,6 +180,47 @@ pub fn invariance_measured(
     metric: MetricKind,
     progress: &dyn Progress,
 ) -> Result<InvarianceMeasured, InvarianceError> {
+    check_inputs(params, environments)?;
+    let traced = environments
+        .iter()
+        .map(|env| trace_sets(agent, Some(env), motors, workspace, params, progress))
+        .collect::<Result<Vec<_>, _>>()?;
+    let common = common_rows(&traced, motors.nrows())?;
+    let compared = Compared::new(
+        agent,
+        motors,
+        environments,
+        &traced,
+        &common,
+        metric,
+        progress,
+    )?;
+    let mut pairs = Vec::new();
+    for a in 0..environments.len() {
+        for b in a + 1..environments.len() {
+            pairs.push(compared.pair(a, b)?);
+        }
+    }
+    let report = summarise(
+        agent,
+        environments,
+        &traced,
+        motors.nrows(),
+        common.len(),
+        pairs,
+    );
+    Ok(InvarianceMeasured {
+        report,
+        common_rows: common,
+        set_distances: compared.matrices,
+        sensors: compared.sensors,
+    })
+}
+
+fn check_inputs(
+    params: &TraceValidParams,
+    environments: &[Environment],
+) -> Result<(), InvarianceError> {
     if params.method() != TraceMethod::Sensory {
         return Err(InvarianceError::InvalidParameter {
             name: "method",
@@ -194,10 +235,11 @@ pub fn invariance_measured(
             reason: "give at least 2 environments to compare".into(),
         });
     }
-    let traced = environments
-        .iter()
-        .map(|env| trace_sets(agent, Some(env), motors, workspace, params, progress))
-        .collect::<Result<Vec<_>, _>>()?;
+    Ok(())
+}
+
+/// The motor rows traced in every environment (at least 2).
+fn common_rows(traced: &[TracedSets], starts: usize) -> Result<Vec<usize>, InvarianceError> {
     let common: Vec<usize> = traced[0]
         .kept
         .iter()
@@ -207,125 +249,181 @@ pub fn invariance_measured(
     if common.len() < 2 {
         return Err(InvarianceError::TooFewCommon {
             reason: format!(
-                "only {} of {} starts were traced in every environment (traced per environment: {:?}); at least 2 are needed",
+                "only {} of {starts} starts were traced in every environment (traced per environment: {:?}); at least 2 are needed",
                 common.len(),
-                motors.nrows(),
                 traced.iter().map(|t| t.kept.len()).collect::<Vec<_>>()
             ),
         });
     }
-    let period = match agent.motor_topology() {
-        MotorTopology::Periodic => Period::TwoPi,
-        MotorTopology::Bounded { .. } => Period::None,
-    };
-    let (sets, closures): (Vec<_>, Vec<Vec<Closure>>) = traced
-        .iter()
-        .map(|t| {
-            let positions: Vec<usize> = common
-                .iter()
-                .map(|row| t.kept.binary_search(row).expect("common rows are kept"))
-                .collect();
-            let closure = positions.iter().map(|&p| t.closure[p]).collect();
-            (t.sets.select(Axis(0), &positions), closure)
+    Ok(common)
+}
+
+/// What is compared, per environment, over the common rows.
+struct Compared {
+    /// The sets of the common rows.
+    sets: Vec<Array3<f64>>,
+    /// Their closures.
+    closures: Vec<Vec<Closure>>,
+    /// The `(C, C)` distance matrices and their upper triangles.
+    matrices: Vec<Array2<f64>>,
+    upper: Vec<Vec<f64>>,
+    /// The `(C, K)` sensor values and the upper triangles of their distances.
+    sensors: Vec<Array2<f64>>,
+    sensor_upper: Vec<Vec<f64>>,
+    /// The set metric.
+    params: DistanceParams,
+}
+
+impl Compared {
+    fn new(
+        agent: &dyn Agent,
+        motors: ArrayView2<'_, f64>,
+        environments: &[Environment],
+        traced: &[TracedSets],
+        common: &[usize],
+        metric: MetricKind,
+        progress: &dyn Progress,
+    ) -> Result<Self, InvarianceError> {
+        let period = match agent.motor_topology() {
+            MotorTopology::Periodic => Period::TwoPi,
+            MotorTopology::Bounded { .. } => Period::None,
+        };
+        let (sets, closures): (Vec<_>, Vec<Vec<Closure>>) = traced
+            .iter()
+            .map(|t| {
+                let positions: Vec<usize> = common
+                    .iter()
+                    .map(|row| t.kept.binary_search(row).expect("common rows are kept"))
+                    .collect();
+                let closure = positions.iter().map(|&p| t.closure[p]).collect();
+                (t.sets.select(Axis(0), &positions), closure)
+            })
+            .unzip();
+        let params = DistanceParams::new().metric(metric).period(period);
+        let matrices = sets
+            .iter()
+            .zip(&closures)
+            .map(|(s, c)| {
+                distance_matrix(SetsView::new(s.view()).with_closure(c), &params, progress)
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let upper = matrices.iter().map(|d| upper_triangle(d.view())).collect();
+        let rows = motors.select(Axis(0), common);
+        let sensors: Vec<Array2<f64>> = environments
+            .iter()
+            .map(|env| {
+                let mut s = Array2::zeros((rows.nrows(), agent.sensor_dim()));
+                agent.sense_batch(env, rows.view(), s.view_mut());
+                s
+            })
+            .collect();
+        let sensor_upper = sensors.iter().map(|s| sensor_distances(s.view())).collect();
+        Ok(Self {
+            sets,
+            closures,
+            matrices,
+            upper,
+            sensors,
+            sensor_upper,
+            params,
         })
-        .unzip();
-    let params = DistanceParams::new().metric(metric).period(period);
-    let matrices = sets
-        .iter()
-        .zip(&closures)
-        .map(|(s, c)| distance_matrix(SetsView::new(s.view()).with_closure(c), &params, progress))
-        .collect::<Result<Vec<_>, _>>()?;
-    let upper: Vec<Vec<f64>> = matrices.iter().map(|d| upper_triangle(d.view())).collect();
-    let rows = motors.select(Axis(0), &common);
-    let sensors: Vec<Array2<f64>> = environments
-        .iter()
-        .map(|env| {
-            let mut s = Array2::zeros((rows.nrows(), agent.sensor_dim()));
-            agent.sense_batch(env, rows.view(), s.view_mut());
-            s
+    }
+
+    /// The figures of environments `a` and `b`.
+    fn pair(&self, a: usize, b: usize) -> Result<PairInvariance, InvarianceError> {
+        let mut set_distances = Vec::with_capacity(self.sets[a].len_of(Axis(0)));
+        for (s, (x, y)) in self.sets[a]
+            .outer_iter()
+            .zip(self.sets[b].outer_iter())
+            .enumerate()
+        {
+            // The same start traced in two environments, measured as a pair of sets
+            // (each with its own closure).
+            let mut both = Array3::zeros((2, x.nrows(), x.ncols()));
+            both.index_axis_mut(Axis(0), 0).assign(&x);
+            both.index_axis_mut(Axis(0), 1).assign(&y);
+            let closure = [self.closures[a][s], self.closures[b][s]];
+            let d = distance_matrix(
+                SetsView::new(both.view()).with_closure(&closure),
+                &self.params,
+                &crate::progress::Silent,
+            )?;
+            set_distances.push(d[[0, 1]]);
+        }
+        let (upper_a, upper_b) = (&self.upper[a], &self.upper[b]);
+        let (sensors_a, sensors_b) = (&self.sensors[a], &self.sensors[b]);
+        let max_set = set_distances.iter().copied().fold(0.0, f64::max);
+        let mean_set = set_distances.iter().sum::<f64>() / set_distances.len() as f64;
+        let typical = median(upper_a.clone());
+        let largest = upper_a.iter().copied().fold(0.0, f64::max);
+        let max_difference = upper_a
+            .iter()
+            .zip(upper_b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        let sensor_norm = sensors_a
+            .outer_iter()
+            .chain(sensors_b.outer_iter())
+            .map(|s| s.dot(&s).sqrt())
+            .sum::<f64>()
+            / (2 * sensors_a.nrows()) as f64;
+        let max_sensor = sensors_a
+            .outer_iter()
+            .zip(sensors_b.outer_iter())
+            .map(|(x, y)| distance(x.as_slice(), y.as_slice()))
+            .fold(0.0, f64::max);
+        Ok(PairInvariance {
+            a,
+            b,
+            max_set_distance: max_set,
+            mean_set_distance: mean_set,
+            max_set_distance_relative: ratio(max_set, typical),
+            mantel: mantel(upper_a, upper_b),
+            max_distance_difference: max_difference,
+            max_distance_difference_relative: ratio(max_difference, largest),
+            sensor_mantel: mantel(&self.sensor_upper[a], &self.sensor_upper[b]),
+            max_sensor_difference_relative: ratio(max_sensor, sensor_norm),
         })
-        .collect();
-    let sensor_upper: Vec<Vec<f64>> = sensors
-        .iter()
-        .map(|s| {
-            let n = s.nrows();
-            let mut out = Vec::with_capacity(n * (n - 1) / 2);
-            for i in 0..n {
-                for j in i + 1..n {
-                    out.push(distance(s.row(i).as_slice(), s.row(j).as_slice()));
-                }
-            }
-            out
-        })
-        .collect();
-    let mut pairs = Vec::new();
-    for a in 0..environments.len() {
-        for b in a + 1..environments.len() {
-            let mut set_distances = Vec::with_capacity(common.len());
-            for (s, (x, y)) in sets[a].outer_iter().zip(sets[b].outer_iter()).enumerate() {
-                // The same start traced in two environments, measured as a pair of sets
-                // (each with its own closure).
-                let mut both = ndarray::Array3::zeros((2, x.nrows(), x.ncols()));
-                both.index_axis_mut(Axis(0), 0).assign(&x);
-                both.index_axis_mut(Axis(0), 1).assign(&y);
-                let closure = [closures[a][s], closures[b][s]];
-                let d = distance_matrix(
-                    SetsView::new(both.view()).with_closure(&closure),
-                    &params,
-                    &crate::progress::Silent,
-                )?;
-                set_distances.push(d[[0, 1]]);
-            }
-            let max_set = set_distances.iter().copied().fold(0.0, f64::max);
-            let mean_set = set_distances.iter().sum::<f64>() / set_distances.len() as f64;
-            let typical = median(upper[a].clone());
-            let largest = upper[a].iter().copied().fold(0.0, f64::max);
-            let max_difference = upper[a]
-                .iter()
-                .zip(&upper[b])
-                .map(|(x, y)| (x - y).abs())
-                .fold(0.0, f64::max);
-            let sensor_norm = sensors[a]
-                .outer_iter()
-                .chain(sensors[b].outer_iter())
-                .map(|s| s.dot(&s).sqrt())
-                .sum::<f64>()
-                / (2 * common.len()) as f64;
-            let max_sensor = sensors[a]
-                .outer_iter()
-                .zip(sensors[b].outer_iter())
-                .map(|(x, y)| distance(x.as_slice(), y.as_slice()))
-                .fold(0.0, f64::max);
-            pairs.push(PairInvariance {
-                a,
-                b,
-                max_set_distance: max_set,
-                mean_set_distance: mean_set,
-                max_set_distance_relative: ratio(max_set, typical),
-                mantel: mantel(&upper[a], &upper[b]),
-                max_distance_difference: max_difference,
-                max_distance_difference_relative: ratio(max_difference, largest),
-                sensor_mantel: mantel(&sensor_upper[a], &sensor_upper[b]),
-                max_sensor_difference_relative: ratio(max_sensor, sensor_norm),
-            });
+    }
+}
+
+/// Euclidean distances between the rows of `s`, over the pairs `i < j`.
+fn sensor_distances(s: ArrayView2<'_, f64>) -> Vec<f64> {
+    let n = s.nrows();
+    let mut out = Vec::with_capacity(n * (n - 1) / 2);
+    for i in 0..n {
+        for j in i + 1..n {
+            out.push(distance(s.row(i).as_slice(), s.row(j).as_slice()));
         }
     }
+    out
+}
+
+/// The report: every environment, and the extremes over the pairs.
+fn summarise(
+    agent: &dyn Agent,
+    environments: &[Environment],
+    traced: &[TracedSets],
+    starts: usize,
+    common_sets: usize,
+    pairs: Vec<PairInvariance>,
+) -> InvarianceReport {
     let fold = |f: fn(&PairInvariance) -> f64, init: f64, pick: fn(f64, f64) -> f64| {
         pairs.iter().map(f).fold(init, pick)
     };
-    let report = InvarianceReport {
+    InvarianceReport {
         agent: agent.name().to_owned(),
         environments: environments
             .iter()
-            .zip(&traced)
+            .zip(traced)
             .map(|(e, t)| EnvironmentSummary {
                 seed: e.seed,
                 lights: e.lights.len(),
                 traced: t.kept.len(),
             })
             .collect(),
-        starts: motors.nrows(),
-        common_sets: common.len(),
+        starts,
+        common_sets,
         max_set_distance: fold(|p| p.max_set_distance, 0.0, f64::max),
         max_set_distance_relative: fold(|p| p.max_set_distance_relative, 0.0, f64::max),
         min_mantel: fold(|p| p.mantel, f64::INFINITY, f64::min),
@@ -337,13 +435,7 @@ pub fn invariance_measured(
             f64::min,
         ),
         pairs,
-    };
-    Ok(InvarianceMeasured {
-        report,
-        common_rows: common,
-        set_distances: matrices,
-        sensors,
-    })
+    }
 }
 
 fn distance(a: Option<&[f64]>, b: Option<&[f64]>) -> f64 {
