@@ -212,15 +212,13 @@ pub(crate) fn trace_branch(
     let mut t = direction.to_vec();
     let mut predicted = vec![0.0; n];
     let mut previous = vec![0.0; n];
-    let mut image = vec![0.0; n];
     let mut t_new = vec![0.0; n];
     // Change of the unit tangent per unit length (curvature vector), for a second-order
     // predictor m + h t + ½ h² k.
     let mut bend = vec![0.0; n];
     let mut h = params.step;
     let cos_max_turn = params.max_turn.cos();
-    let mut farthest: f64 = 0.0;
-    let mut travel_to_check: f64 = 0.0;
+    let mut watch = ClosureWatch::new(topology, params.closure_tolerance, n);
     loop {
         if branch.steps >= params.max_steps {
             return Err(SetStatus::NotClosed);
@@ -294,50 +292,100 @@ pub(crate) fn trace_branch(
             h = (h * 1.5).min(params.max_step);
         }
 
-        // Closure: the segment just travelled passes within the tolerance of the start.
-        // Far from the start the test is skipped until the trace has travelled the
-        // distance that separated it from the start's tolerance ball.
-        travel_to_check -= travelled;
-        if travel_to_check <= 0.0 {
-            nearest_image(topology, start, &m, &mut image);
-            let from_start = distance(&m, &image);
-            farthest = farthest.max(from_start);
-            travel_to_check = (from_start - 2.0 * params.closure_tolerance) / 2.0;
-            let may_close = farthest > 2.0 * params.closure_tolerance
-                && (adaptive || branch.steps >= params.min_steps);
-            if may_close && from_start <= params.closure_tolerance + travelled {
-                let (tau, d) = closest_on_segment(&previous, &m, &image);
-                if d <= params.closure_tolerance {
-                    if tau < 1.0 && branch.steps > 1 {
-                        // The start lies inside the last segment: close from its beginning.
-                        branch.nodes.truncate(branch.nodes.len() - n);
-                        branch.tangents.truncate(branch.tangents.len() - n);
-                    }
-                    branch.closes_at = Some(image.clone());
-                    return Ok(branch);
-                }
+        let may_close = adaptive || branch.steps >= params.min_steps;
+        if let Some(tau) = watch.closes(start, &previous, &m, travelled, may_close) {
+            if tau < 1.0 && branch.steps > 1 {
+                // The start lies inside the last segment: close from its beginning.
+                branch.nodes.truncate(branch.nodes.len() - n);
+                branch.tangents.truncate(branch.tangents.len() - n);
             }
+            branch.closes_at = Some(watch.image.clone());
+            return Ok(branch);
         }
-        if let MotorTopology::Bounded { low, high } = topology {
-            let mut tau: f64 = 1.0;
-            for j in 0..n {
-                let step = m[j] - previous[j];
-                if m[j] > high {
-                    tau = tau.min((high - previous[j]) / step);
-                } else if m[j] < low {
-                    tau = tau.min((low - previous[j]) / step);
-                }
-            }
-            if tau < 1.0 {
-                let len = branch.nodes.len();
-                for j in 0..n {
-                    let v = (previous[j] + tau * (m[j] - previous[j])).clamp(low, high);
-                    branch.nodes[len - n + j] = v;
-                }
-                return Ok(branch);
-            }
+        if clip_to_box(topology, &previous, &m, &mut branch.nodes) {
+            return Ok(branch);
         }
     }
+}
+
+/// The closure test of a trace: the segment just travelled passes within the tolerance
+/// of the start. Far from the start the test is skipped until the trace has travelled
+/// the distance that separated it from the start's tolerance ball.
+struct ClosureWatch {
+    topology: MotorTopology,
+    tolerance: f64,
+    /// Largest distance from the start seen so far.
+    farthest: f64,
+    /// Length still to travel before the next test.
+    travel_to_check: f64,
+    /// The image of the start nearest the last point tested.
+    image: Vec<f64>,
+}
+
+impl ClosureWatch {
+    fn new(topology: MotorTopology, tolerance: f64, n: usize) -> Self {
+        Self {
+            topology,
+            tolerance,
+            farthest: 0.0,
+            travel_to_check: 0.0,
+            image: vec![0.0; n],
+        }
+    }
+
+    /// After a step from `previous` to `m` of length `travelled`: the parameter on
+    /// that segment of the point nearest the start, when the trace closes there.
+    fn closes(
+        &mut self,
+        start: &[f64],
+        previous: &[f64],
+        m: &[f64],
+        travelled: f64,
+        enough_steps: bool,
+    ) -> Option<f64> {
+        self.travel_to_check -= travelled;
+        if self.travel_to_check > 0.0 {
+            return None;
+        }
+        nearest_image(self.topology, start, m, &mut self.image);
+        let from_start = distance(m, &self.image);
+        self.farthest = self.farthest.max(from_start);
+        self.travel_to_check = (from_start - 2.0 * self.tolerance) / 2.0;
+        let may_close = self.farthest > 2.0 * self.tolerance && enough_steps;
+        if may_close && from_start <= self.tolerance + travelled {
+            let (tau, d) = closest_on_segment(previous, m, &self.image);
+            if d <= self.tolerance {
+                return Some(tau);
+            }
+        }
+        None
+    }
+}
+
+/// For bounded motors: when the step from `previous` to `m` leaves the motor box, moves
+/// the last node of `nodes` to where it crosses the boundary and returns `true`.
+fn clip_to_box(topology: MotorTopology, previous: &[f64], m: &[f64], nodes: &mut [f64]) -> bool {
+    let MotorTopology::Bounded { low, high } = topology else {
+        return false;
+    };
+    let n = m.len();
+    let mut tau: f64 = 1.0;
+    for j in 0..n {
+        let step = m[j] - previous[j];
+        if m[j] > high {
+            tau = tau.min((high - previous[j]) / step);
+        } else if m[j] < low {
+            tau = tau.min((low - previous[j]) / step);
+        }
+    }
+    if tau >= 1.0 {
+        return false;
+    }
+    let len = nodes.len();
+    for j in 0..n {
+        nodes[len - n + j] = (previous[j] + tau * (m[j] - previous[j])).clamp(low, high);
+    }
+    true
 }
 
 /// Cubic Hermite point on the segment from `a` to `b` with unit tangents `ta`, `tb`
