@@ -124,10 +124,17 @@ fn every_stage_reruns_when_a_parameter_it_reads_changes() {
     run(&file, &out, &[]);
     let dydx_before = std::fs::read(out.join("Y.dydx.npy")).unwrap();
     // (override, the stage it belongs to, stages before it that must be reused)
-    let cases: [(&str, &str, &[&str]); 10] = [
+    let cases: [(&str, &str, &[&str]); 13] = [
         ("environment.seed=7", "explore", &[]),
         ("exploration.seed=2", "explore", &[]),
         ("kernel.points=21", "trace", &["explore"]),
+        ("kernel.method=\"sensory\"", "trace", &["explore"]),
+        ("metric.period=\"2pi\"", "distances", &["explore", "trace"]),
+        (
+            "embedding.method=\"isomap\"",
+            "embed",
+            &["explore", "trace", "distances", "analyze"],
+        ),
         (
             "metric.metric=\"mean-hausdorff\"",
             "distances",
