@@ -960,57 +960,8 @@ fn segment_max<const N: usize>(
     };
     // The pieces of every image.
     let mut quads = [Quad::default(); 3 * MAX_IMAGES];
-    let mut pieces = 0;
-    for (m, (j, u0)) in images[..image_count].iter().enumerate() {
-        let j = *j as usize;
-        let w = load::<N>(b.dirs, j);
-        let inv = b.inv_len2[j];
-        let (mut uw, mut vw) = (0.0, 0.0);
-        for k in 0..N {
-            uw += u0[k] * w[k];
-            vw += v[k] * w[k];
-        }
-        // The foot s*(t) = s0 + s1·t before clamping.
-        let (s0, s1) = (uw * inv, vw * inv);
-        let mut at_end = [0.0; N];
-        let mut foot_p = [0.0; N];
-        let mut foot_q = [0.0; N];
-        for k in 0..N {
-            at_end[k] = u0[k] - w[k];
-            foot_p[k] = u0[k] - s0 * w[k];
-            foot_q[k] = v[k] - s1 * w[k];
-        }
-        let mut push = |range: (f64, f64), p: &[f64; N], q: &[f64; N]| {
-            let (t0, t1) = (range.0.max(0.0), range.1.min(1.0));
-            if t0 <= t1 {
-                quads[pieces] = Quad::new::<N>((t0, t1), p, q, m);
-                pieces += 1;
-            }
-        };
-        if inv == 0.0 || s1 == 0.0 {
-            let s = if inv == 0.0 { 0.0 } else { s0 };
-            if s <= 0.0 {
-                push((0.0, 1.0), u0, &v);
-            } else if s >= 1.0 {
-                push((0.0, 1.0), &at_end, &v);
-            } else {
-                push((0.0, 1.0), &foot_p, &foot_q);
-            }
-        } else {
-            let (ta, tb) = (-s0 / s1, (1.0 - s0) / s1);
-            let (lo, hi) = if ta < tb { (ta, tb) } else { (tb, ta) };
-            let (before, after) = if s1 > 0.0 {
-                (u0, &at_end)
-            } else {
-                (&at_end, u0)
-            };
-            push((f64::NEG_INFINITY, lo), before, &v);
-            push((lo, hi), &foot_p, &foot_q);
-            push((hi, f64::INFINITY), after, &v);
-        }
-    }
-    let quads = &quads[..pieces];
-    // d_B² at a(t), exactly: the lifted distances to every image.
+    let pieces = image_pieces::<N>(&v, &images[..image_count], b, &mut quads);
+    let quads = &quads[..pieces]; // d_B² at a(t), exactly: the lifted distances to every image.
     let envelope = |t: f64| {
         let mut best = f64::INFINITY;
         for (j, u0) in &images[..image_count] {
@@ -1074,6 +1025,69 @@ fn segment_max<const N: usize>(
         }
     }
     SegmentMax::Done(c2.sqrt().max(c))
+}
+
+/// The quadratic pieces of `E_m(t)²`, the squared lifted distance from `a(t) = u0 + t·v`
+/// to each image `m` of a segment of `B` (at most 3 per image: before, along and after
+/// the foot's clamp), written into `quads`; returns how many.
+#[inline(always)]
+fn image_pieces<const N: usize>(
+    v: &[f64; N],
+    images: &[(u32, [f64; N])],
+    b: CurveRef<'_>,
+    quads: &mut [Quad; 3 * MAX_IMAGES],
+) -> usize {
+    let v = *v;
+    let mut pieces = 0;
+    for (m, (j, u0)) in images.iter().enumerate() {
+        let j = *j as usize;
+        let w = load::<N>(b.dirs, j);
+        let inv = b.inv_len2[j];
+        let (mut uw, mut vw) = (0.0, 0.0);
+        for k in 0..N {
+            uw += u0[k] * w[k];
+            vw += v[k] * w[k];
+        }
+        // The foot s*(t) = s0 + s1·t before clamping.
+        let (s0, s1) = (uw * inv, vw * inv);
+        let mut at_end = [0.0; N];
+        let mut foot_p = [0.0; N];
+        let mut foot_q = [0.0; N];
+        for k in 0..N {
+            at_end[k] = u0[k] - w[k];
+            foot_p[k] = u0[k] - s0 * w[k];
+            foot_q[k] = v[k] - s1 * w[k];
+        }
+        let mut push = |range: (f64, f64), p: &[f64; N], q: &[f64; N]| {
+            let (t0, t1) = (range.0.max(0.0), range.1.min(1.0));
+            if t0 <= t1 {
+                quads[pieces] = Quad::new::<N>((t0, t1), p, q, m);
+                pieces += 1;
+            }
+        };
+        if inv == 0.0 || s1 == 0.0 {
+            let s = if inv == 0.0 { 0.0 } else { s0 };
+            if s <= 0.0 {
+                push((0.0, 1.0), u0, &v);
+            } else if s >= 1.0 {
+                push((0.0, 1.0), &at_end, &v);
+            } else {
+                push((0.0, 1.0), &foot_p, &foot_q);
+            }
+        } else {
+            let (ta, tb) = (-s0 / s1, (1.0 - s0) / s1);
+            let (lo, hi) = if ta < tb { (ta, tb) } else { (tb, ta) };
+            let (before, after) = if s1 > 0.0 {
+                (u0, &at_end)
+            } else {
+                (&at_end, u0)
+            };
+            push((f64::NEG_INFINITY, lo), before, &v);
+            push((lo, hi), &foot_p, &foot_q);
+            push((hi, f64::INFINITY), after, &v);
+        }
+    }
+    pieces
 }
 
 /// A piece `[t0, t1]` of a segment of `A` still to examine, with `d_B` (not squared)
@@ -1344,11 +1358,26 @@ fn directed<const N: usize>(
         scratch.upper[alpha * LANES..(alpha + 1) * LANES].copy_from_slice(&best);
     }
     scratch.upper[points] = scratch.upper[0];
-    // 2. Segments: settled when `(u_i + u_{i+1} + |v_i|)/2 ≤ c` (d_B is 1-Lipschitz along
+    open_segments::<N>(a, b, c2, period, points, scratch);
+    exact_segments::<N>(a, b, c2.sqrt(), abort, period, points, points_pad, scratch)
+}
+
+/// Phase 2 of [`directed`]: the segments of `A` not settled by the bounds at their ends
+/// (`c2` the squared running maximum), into `scratch.open`.
+#[inline(always)]
+fn open_segments<const N: usize>(
+    a: CurveRef<'_>,
+    b: CurveRef<'_>,
+    c2: f64,
+    period: f64,
+    points: usize,
+    scratch: &mut CurveScratch,
+) {
+    let c = c2.sqrt();
+    // Settled when `(u_i + u_{i+1} + |v_i|)/2 ≤ c` (d_B is 1-Lipschitz along
     //    the segment, `u` the upper bounds at the ends), eight at a time; else when the
     //    segment of B that settled either end is within c of both ends in one image
     //    (the distance to it is convex).
-    let c = c2.sqrt();
     let limit = 2.0 * c * (1.0 - 1e-12);
     scratch.open.clear();
     for block in 0..a.segments.div_ceil(LANES) {
@@ -1378,7 +1407,22 @@ fn directed<const N: usize>(
             scratch.open.push(i as u32);
         }
     }
-    // 3. The rest exactly: the chord bound, then the envelope (or the branch and bound).
+}
+
+/// Phase 3 of [`directed`]: the open segments exactly; `c` is the running maximum.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn exact_segments<const N: usize>(
+    a: CurveRef<'_>,
+    b: CurveRef<'_>,
+    c: f64,
+    abort: f64,
+    period: f64,
+    points: usize,
+    points_pad: usize,
+    scratch: &mut CurveScratch,
+) -> Option<f64> {
+    // The chord bound, then the envelope (or the branch and bound).
     let mut c = c;
     for e in 0..scratch.open.len() {
         let i = scratch.open[e] as usize;
