@@ -337,6 +337,18 @@ impl AgentConfig {
     }
 }
 
+/// Checks that motor configurations of `found` coordinates fit `agent`.
+pub fn check_motor_count(agent: &dyn Agent, found: usize) -> Result<(), AgentError> {
+    if found == agent.motor_dim() {
+        return Ok(());
+    }
+    Err(AgentError::MotorDimension {
+        agent: agent.name().to_owned(),
+        found,
+        expected: agent.motor_dim(),
+    })
+}
+
 /// The sensor values `(M, K)` of the motor rows `(M, N)` in `environment`, through
 /// [`Agent::sense_batch`].
 ///
@@ -354,13 +366,7 @@ pub fn sense_rows(
     environment: &Environment,
     motors: ArrayView2<'_, f64>,
 ) -> Result<ndarray::Array2<f64>, AgentError> {
-    if motors.ncols() != agent.motor_dim() {
-        return Err(AgentError::MotorDimension {
-            agent: agent.name().to_owned(),
-            found: motors.ncols(),
-            expected: agent.motor_dim(),
-        });
-    }
+    check_motor_count(agent, motors.ncols())?;
     let mut sensors = ndarray::Array2::zeros((motors.nrows(), agent.sensor_dim()));
     agent.sense_batch(environment, motors, sensors.view_mut());
     Ok(sensors)

@@ -67,17 +67,8 @@ pub enum KernelError {
         reason: &'static str,
     },
     /// The motor array does not fit the agent.
-    #[error(
-        "motor configurations have {found} columns but the {agent} agent has {expected} motors"
-    )]
-    MotorDimension {
-        /// The agent's name.
-        agent: String,
-        /// Columns found.
-        found: usize,
-        /// Motors of the agent.
-        expected: usize,
-    },
+    #[error(transparent)]
+    Agent(#[from] crate::agent::AgentError),
     /// Nothing to trace.
     #[error("no motor configurations to trace (the motor array has 0 rows)")]
     NoMotors,
@@ -605,13 +596,7 @@ fn trace_one_with(
     scratch: &mut Scratch,
 ) -> Result<(Option<Vec<f64>>, SetReport), KernelError> {
     check_agent(agent)?;
-    if start.len() != agent.motor_dim() {
-        return Err(KernelError::MotorDimension {
-            agent: agent.name().to_owned(),
-            found: start.len(),
-            expected: agent.motor_dim(),
-        });
-    }
+    crate::agent::check_motor_count(agent, start.len())?;
     let mut report = SetReport {
         index: 0,
         status: SetStatus::Closed,
@@ -796,13 +781,7 @@ pub fn trace_sets(
 ) -> Result<TracedSets, KernelError> {
     check_agent(agent)?;
     let n = agent.motor_dim();
-    if motors.ncols() != n {
-        return Err(KernelError::MotorDimension {
-            agent: agent.name().to_owned(),
-            found: motors.ncols(),
-            expected: n,
-        });
-    }
+    crate::agent::check_motor_count(agent, motors.ncols())?;
     if motors.nrows() == 0 {
         return Err(KernelError::NoMotors);
     }

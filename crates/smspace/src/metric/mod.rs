@@ -782,21 +782,11 @@ pub fn distance_matrix_with(
     params: &DistanceParams,
     progress: &dyn Progress,
 ) -> Result<Array2<f64>, MetricError> {
-    let (m, p, n) = sets.dim();
+    let m = sets.dim().0;
     if m < 2 {
         return Err(MetricError::TooFewSets { sets: m });
     }
-    if p == 0 || n == 0 {
-        return Err(MetricError::EmptySets { shape: (m, p, n) });
-    }
-    if let Some(((set, point, coord), &value)) = sets.indexed_iter().find(|(_, v)| !v.is_finite()) {
-        return Err(MetricError::NonFinite {
-            set,
-            point,
-            coord,
-            value,
-        });
-    }
+    prepared::check_points(sets)?;
     check_memory(params.memory_limit_bytes, m, (m as u64) * (m as u64) * 8)?;
     let mut out = Array2::zeros((m, m));
     // The error of the first failing pair in row-major order, whatever the threads.

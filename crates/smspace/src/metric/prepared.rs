@@ -108,6 +108,24 @@ pub(crate) fn fold(u: f64, period: f64) -> f64 {
     }
 }
 
+/// Checks that sets `(M, P, N)` have points (`P, N ≥ 1`) and finite coordinates; the
+/// error names the first bad entry.
+pub(crate) fn check_points(sets: ndarray::ArrayView3<'_, f64>) -> Result<(), MetricError> {
+    let (m, p, n) = sets.dim();
+    if p == 0 || n == 0 {
+        return Err(MetricError::EmptySets { shape: (m, p, n) });
+    }
+    if let Some(((set, point, coord), &value)) = sets.indexed_iter().find(|(_, v)| !v.is_finite()) {
+        return Err(MetricError::NonFinite {
+            set,
+            point,
+            coord,
+            value,
+        });
+    }
+    Ok(())
+}
+
 impl PreparedSets {
     /// Lays out `sets` (`(M, P, N)`: `M` sets of `P` points with `N` coordinates) for the
     /// fast kernels, under the point metric `period`. When the sets come with their
@@ -121,19 +139,7 @@ impl PreparedSets {
         let view: SetsView<'a> = sets.into();
         let sets = view.points();
         let (m, p, n) = sets.dim();
-        if p == 0 || n == 0 {
-            return Err(MetricError::EmptySets { shape: (m, p, n) });
-        }
-        if let Some(((set, point, coord), value)) =
-            sets.indexed_iter().find(|(_, v)| !v.is_finite())
-        {
-            return Err(MetricError::NonFinite {
-                set,
-                point,
-                coord,
-                value: *value,
-            });
-        }
+        check_points(sets)?;
         let period_value = period.radians();
         let dims_pad = pad_dims(n);
         let points_pad = p.div_ceil(LANES) * LANES;
