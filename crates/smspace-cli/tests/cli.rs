@@ -256,8 +256,29 @@ fn bad_inputs_give_clear_errors() {
     )
     .unwrap();
     std::fs::write(dir.join("env.json"), "{\"lights\": [[1.0]]}").unwrap();
+    // A header claiming 10^9 × 10^9 float64 over a 64-byte body.
+    let mut bomb = b"\x93NUMPY\x01\x00".to_vec();
+    let header = "{'descr': '<f8', 'fortran_order': False, 'shape': (1000000000, 1000000000), }";
+    let header = format!("{header:<117}\n");
+    bomb.extend_from_slice(&(header.len() as u16).to_le_bytes());
+    bomb.extend_from_slice(header.as_bytes());
+    bomb.extend_from_slice(&[0u8; 64]);
+    std::fs::write(dir.join("bomb.npy"), bomb).unwrap();
+    std::fs::write(dir.join("empty.npy"), b"").unwrap();
 
     let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["embed", "--distances", "bomb.npy", "--out", "y.npy"],
+            "not a complete .npy file",
+        ),
+        (
+            vec!["distances", "--sets", "bomb.npy", "--out", "d.npy"],
+            "header announces",
+        ),
+        (
+            vec!["distances", "--sets", "empty.npy", "--out", "d.npy"],
+            "the file is empty",
+        ),
         (
             vec!["trace", "--motors", "missing.npy", "--out", "s.npy"],
             "cannot read missing.npy",
@@ -355,6 +376,10 @@ fn bad_inputs_give_clear_errors() {
         (
             vec!["--threads", "0", "env", "--out", "e.json"],
             "--threads must be at least 1",
+        ),
+        (
+            vec!["--threads", "100000", "env", "--out", "e.json"],
+            "per core",
         ),
     ];
     for (args, expected) in cases {

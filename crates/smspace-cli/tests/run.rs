@@ -320,6 +320,25 @@ fn bad_experiment_files_are_refused_before_anything_runs() {
         &["run", "ok.toml", "--set", "embedding.method=tsne"],
         "tsne",
     );
+    // Sizes past the stated limits are refused before anything is allocated.
+    for (set, needle) in [
+        (
+            "exploration.n=1000000000",
+            "at most 100000000 configurations",
+        ),
+        ("exploration.probe_positions=1000000", "probe grid"),
+        ("kernel.points=1000000000000", "at most 100000 points"),
+        ("environment.lights=100000000", "at most 2000 random lights"),
+        ("agent.retina_cells=1000000000000", "at most 10000"),
+    ] {
+        fails_with(d, &["run", "ok.toml", "--set", set], needle);
+    }
+    write_experiment(
+        d,
+        "newline.toml",
+        &SMALL_ARM.replace("name = \"small-arm\"", "name = \"a\\nb\""),
+    );
+    fails_with(d, &["run", "newline.toml"], "the name becomes the folder");
     // Nothing ran, so nothing was written.
     assert!(!d.join("runs").exists());
 }
@@ -352,6 +371,55 @@ fn a_failing_stage_keeps_the_earlier_outputs_and_names_itself() {
     let out = ok(d, &["run", "fail.toml", "--set", "embedding.dim=2"]);
     let log = stderr(&out);
     assert!(log.contains("distances") && log.contains("reused"), "{log}");
+}
+
+#[test]
+fn a_run_folder_has_one_writer_at_a_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = SMALL_ARM
+        .replace("n = 150", "n = 40")
+        .replace("probes = \"grid\"", "probes = \"none\"")
+        .replace("method = \"cca\"", "method = \"mds\"")
+        .replace("epochs = 10\n", "")
+        .replace("dim = 3", "dim = 2");
+    write_experiment(d, "small.toml", &text);
+    let run = d.join("runs/small-arm");
+    std::fs::create_dir_all(&run).unwrap();
+    // Another writer (here: this test) holds the folder.
+    let held = std::fs::File::create(run.join(".smspace.lock")).unwrap();
+    held.lock().unwrap();
+    let out = smspace(d, &["run", "small.toml"]);
+    let log = stderr(&out);
+    assert!(!out.status.success());
+    assert!(
+        log.contains("error: another smspace run is writing"),
+        "{log}"
+    );
+    assert!(!run.join("config.resolved.toml").exists());
+    assert!(!run.join("manifest.json").exists());
+    // A temporary file an interrupted writer left behind.
+    std::fs::write(run.join(".smspace-interrupted.part"), [0u8; 100]).unwrap();
+    // --wait queues behind it and runs once it is released.
+    let mut waiting = std::process::Command::new(env!("CARGO_BIN_EXE_smspace"))
+        .args(["run", "small.toml", "--wait"])
+        .current_dir(d)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    assert!(waiting.try_wait().unwrap().is_none(), "it must wait");
+    assert!(!run.join("config.resolved.toml").exists());
+    drop(held);
+    let out = waiting.wait_with_output().unwrap();
+    let log = stderr(&out);
+    assert!(out.status.success(), "{log}");
+    assert!(log.contains("waiting for it to end"), "{log}");
+    assert_eq!(
+        json(&run.join("manifest.json"))["status"]["state"],
+        "complete"
+    );
+    assert!(!run.join(".smspace-interrupted.part").exists());
 }
 
 #[test]

@@ -50,6 +50,7 @@ fn main() {
             out_dir: dir.path().join("run"),
             recompute: Recompute::All,
             memory_limit_bytes: None,
+            busy: smspace::pipeline::BusyFolder::Refuse,
         };
         let summary = pipeline::run(&plan, &options, &Quiet).expect("the pipeline runs");
         totals.push(summary.manifest.total_seconds);

@@ -158,6 +158,13 @@ impl ExploreParams {
                 reason: "explore at least one configuration (or ask for probes)",
             });
         }
+        if self.n > MAX_CONFIGURATIONS {
+            return Err(ExploreError::InvalidParameter {
+                name: "n",
+                value: self.n.to_string(),
+                reason: "must be at most 100000000 configurations (the paper explores 2500)",
+            });
+        }
         if self.max_draws_per_kept == 0 {
             return Err(ExploreError::InvalidParameter {
                 name: "max_draws_per_kept",
@@ -181,10 +188,28 @@ impl ExploreParams {
                     });
                 }
             }
+            let cells = self
+                .probe_positions
+                .checked_mul(self.probe_positions)
+                .and_then(|p| p.checked_mul(self.probe_orientations))
+                .and_then(|cells| cells.checked_add(self.n));
+            if cells.is_none_or(|total| total > MAX_CONFIGURATIONS) {
+                return Err(ExploreError::InvalidParameter {
+                    name: "probe_positions",
+                    value: format!(
+                        "{} × {} positions × {} orientations",
+                        self.probe_positions, self.probe_positions, self.probe_orientations
+                    ),
+                    reason: "the probe grid and n together must be at most 100000000 configurations (the paper's grid is 10 × 10 × 10)",
+                });
+            }
         }
         Ok(())
     }
 }
+
+/// Most configurations (babbled and probes together) one exploration may make.
+pub const MAX_CONFIGURATIONS: usize = 100_000_000;
 
 /// The working space an agent explores by default: [`Agent::default_workspace`] (the
 /// paper's scaled with the arm's reach, none for the toys: their whole motor range).

@@ -44,6 +44,15 @@ pub enum IoError {
         /// What the reader found.
         reason: String,
     },
+    /// The file is not a whole `.npy` file: too short for its header, or a header whose
+    /// shape does not match the bytes that follow it.
+    #[error("{path} is not a complete .npy file: {reason}; it may be truncated (an interrupted copy or write): write it again with numpy.save")]
+    Incomplete {
+        /// The file.
+        path: PathBuf,
+        /// What does not fit, with the sizes.
+        reason: String,
+    },
     /// The array has the wrong number of dimensions or the wrong extent.
     #[error("{path} has shape {found}, expected {expected}")]
     Shape {
@@ -84,6 +93,16 @@ pub enum IoError {
         /// Which entry, its value and the values allowed.
         reason: String,
     },
+    /// An array to be written holds NaN or an infinity: nothing is written.
+    #[error("refusing to write {path}: its entry {index} is {value}, and smspace never writes a non-finite number (the computation that made it overflowed or failed; check the inputs' scale, or report it with them)")]
+    NonFiniteOutput {
+        /// The file that was not written.
+        path: PathBuf,
+        /// The first offending multi-index, as `[i, j]`.
+        index: String,
+        /// The value found.
+        value: f64,
+    },
     /// The file could not be written.
     #[error("cannot write {path}: {reason}")]
     Write {
@@ -118,6 +137,7 @@ fn open(path: &Path) -> Result<BufReader<File>, IoError> {
 /// F-contiguous array (`np.save(p, np.asfortranarray(a))`, a transposed view), and
 /// every reader downstream may then take rows as contiguous slices.
 fn read_any<A: ReadableElement + Clone>(path: &Path) -> Result<ArrayD<A>, IoError> {
+    check_npy_size(path)?;
     let reader = open(path)?;
     let array = ArrayD::<A>::read_npy(reader).map_err(|error| match error {
         ReadNpyError::Io(reason) => IoError::Read {
@@ -134,6 +154,97 @@ fn read_any<A: ReadableElement + Clone>(path: &Path) -> Result<ArrayD<A>, IoErro
     } else {
         array.as_standard_layout().into_owned()
     })
+}
+
+/// Where the header text of a `.npy` file starts and ends (from its version and its
+/// length field), when `head` holds those fields.
+fn npy_header_range(head: &[u8]) -> Option<(usize, usize)> {
+    let (length_bytes, start) = match head.get(6)? {
+        1 => (2, 10),
+        2 | 3 => (4, 12),
+        _ => return None,
+    };
+    let mut length = 0usize;
+    for (i, byte) in head.get(8..8 + length_bytes)?.iter().enumerate() {
+        length |= (*byte as usize) << (8 * i);
+    }
+    Some((start, start + length))
+}
+
+/// The byte count a `.npy` header announces: `(offset of the data, bytes of data)`, from
+/// the header's `descr` (the item size) and `shape`; `None` when the header does not
+/// parse (the array reader then says what is wrong with it).
+fn npy_layout(head: &[u8]) -> Option<(u64, u128)> {
+    let (start, end) = npy_header_range(head)?;
+    let header = std::str::from_utf8(head.get(start..end)?).ok()?;
+    let descr = header.split("'descr'").nth(1)?;
+    let descr = descr.split('\'').nth(1)?;
+    let descr = descr.trim_start_matches(['<', '>', '|', '=']);
+    // Numbers only (the item size is then the digits); other types are left to the
+    // array reader, which refuses them by type.
+    if !descr.starts_with(['f', 'i', 'u', 'b']) {
+        return None;
+    }
+    let item: u128 = descr.get(1..)?.parse().ok()?;
+    let shape = header.split("'shape'").nth(1)?;
+    let shape = shape.split('(').nth(1)?.split(')').next()?;
+    let mut count: u128 = 1;
+    for extent in shape.split(',').map(str::trim).filter(|e| !e.is_empty()) {
+        // Past u128 no file can hold it: saturate, and the size check refuses it.
+        count = count.saturating_mul(extent.parse::<u64>().ok()? as u128);
+    }
+    Some((end as u64, count.saturating_mul(item)))
+}
+
+/// Refuses a `.npy` file whose header announces more (or fewer) bytes than the file
+/// holds, before any array is allocated from that header: a damaged or hostile header
+/// never makes the reader allocate more than the file's own size.
+fn check_npy_size(path: &Path) -> Result<(), IoError> {
+    let read_error = |reason| IoError::Read {
+        path: path.to_owned(),
+        reason,
+    };
+    let mut file = File::open(path).map_err(read_error)?;
+    let size = file.metadata().map_err(read_error)?.len();
+    let incomplete = |reason: String| IoError::Incomplete {
+        path: path.to_owned(),
+        reason,
+    };
+    if size == 0 {
+        return Err(incomplete("the file is empty".into()));
+    }
+    let mut head = Vec::with_capacity(4096);
+    std::io::Read::read_to_end(&mut std::io::Read::take(&mut file, 65_536), &mut head)
+        .map_err(read_error)?;
+    if !head.starts_with(b"\x93NUMPY") {
+        return Err(IoError::Npy {
+            path: path.to_owned(),
+            reason: "it does not start with the .npy magic bytes \\x93NUMPY".into(),
+        });
+    }
+    if head.len() < 10 {
+        return Err(incomplete(format!(
+            "{size} bytes, shorter than a .npy header"
+        )));
+    }
+    if let Some((_, end)) = npy_header_range(&head) {
+        if end as u64 > size {
+            return Err(incomplete(format!(
+                "its header runs to byte {end} but the file has {size} bytes"
+            )));
+        }
+    }
+    let Some((start, data)) = npy_layout(&head) else {
+        // A header that does not parse: the array reader names the problem.
+        return Ok(());
+    };
+    let found = (size - start) as u128;
+    if found != data {
+        return Err(incomplete(format!(
+            "its header announces {data} bytes of data, the file holds {found} after the header"
+        )));
+    }
+    Ok(())
 }
 
 /// Reads a `float64` `.npy` array of any dimension, checking that every entry is finite.
@@ -265,13 +376,51 @@ where
     Ok(())
 }
 
-/// Writes an array as `.npy` (little-endian, C order), atomically.
+/// An element type smspace writes to `.npy`, and whether a value of it is finite.
+pub trait NpyElement: WritableElement {
+    /// The value as `f64` when it is NaN or infinite, else `None`.
+    fn non_finite(&self) -> Option<f64> {
+        None
+    }
+}
+
+impl NpyElement for f64 {
+    fn non_finite(&self) -> Option<f64> {
+        (!self.is_finite()).then_some(*self)
+    }
+}
+
+impl NpyElement for f32 {
+    fn non_finite(&self) -> Option<f64> {
+        (!self.is_finite()).then_some(f64::from(*self))
+    }
+}
+
+impl NpyElement for i64 {}
+impl NpyElement for i32 {}
+impl NpyElement for u8 {}
+impl NpyElement for bool {}
+
+/// Writes an array as `.npy` (little-endian, C order), atomically; refuses
+/// ([`IoError::NonFiniteOutput`], nothing written) an array that holds NaN or an
+/// infinity.
 pub fn write_npy<A, S, D>(path: &Path, array: &ArrayBase<S, D>) -> Result<(), IoError>
 where
-    A: WritableElement,
+    A: NpyElement,
     S: Data<Elem = A>,
     D: Dimension,
 {
+    let view = array.view().into_dyn();
+    if let Some((index, value)) = view
+        .indexed_iter()
+        .find_map(|(index, v)| v.non_finite().map(|value| (index, value)))
+    {
+        return Err(IoError::NonFiniteOutput {
+            path: path.to_owned(),
+            index: shape_string(index.slice()),
+            value,
+        });
+    }
     write_atomic(path, |writer| {
         array
             .write_npy(writer)
@@ -301,6 +450,108 @@ pub fn read_json<T: DeserializeOwned>(path: &Path, what: &'static str) -> Result
 mod tests {
     use super::*;
     use ndarray::array;
+
+    /// A `.npy` file with `header` (padded as NumPy does) and `body`.
+    fn npy_bytes(header: &str, body: &[u8]) -> Vec<u8> {
+        let mut header = header.to_owned();
+        while !(10 + header.len() + 1).is_multiple_of(64) {
+            header.push(' ');
+        }
+        header.push('\n');
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend_from_slice(&(header.len() as u16).to_le_bytes());
+        bytes.extend_from_slice(header.as_bytes());
+        bytes.extend_from_slice(body);
+        bytes
+    }
+
+    #[test]
+    fn a_header_larger_than_its_file_is_refused_before_allocating() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bomb.npy");
+        for shape in ["(1000000000, 1000000000)", "(100000, 100000)", "(3, 2)"] {
+            let header = format!("{{'descr': '<f8', 'fortran_order': False, 'shape': {shape}, }}");
+            std::fs::write(&path, npy_bytes(&header, &[0u8; 40])).unwrap();
+            let err = read_f64(&path).unwrap_err();
+            assert!(matches!(err, IoError::Incomplete { .. }), "{err}");
+            assert!(err.to_string().contains("after the header"), "{err}");
+        }
+        // A shape whose byte count overflows is refused too.
+        let header = "{'descr': '<f8', 'fortran_order': False, 'shape': (18446744073709551615, 18446744073709551615, 18446744073709551615), }";
+        std::fs::write(&path, npy_bytes(header, &[])).unwrap();
+        let err = read_f64(&path).unwrap_err();
+        assert!(matches!(err, IoError::Incomplete { .. }), "{err}");
+        // Empty, truncated inside the header, not a .npy file at all.
+        std::fs::write(&path, b"").unwrap();
+        assert!(read_f64(&path)
+            .unwrap_err()
+            .to_string()
+            .contains("is empty"));
+        std::fs::write(&path, b"\x93NUMPY\x01").unwrap();
+        let err = read_f64(&path).unwrap_err().to_string();
+        assert!(err.contains("shorter than a .npy header"), "{err}");
+        let whole = npy_bytes(
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (2,), }",
+            &[0; 16],
+        );
+        std::fs::write(&path, &whole[..40]).unwrap();
+        let err = read_f64(&path).unwrap_err().to_string();
+        assert!(err.contains("not a complete .npy file"), "{err}");
+        std::fs::write(&path, b"x,y\n1,2\n3,4\n").unwrap();
+        let err = read_f64(&path).unwrap_err().to_string();
+        assert!(err.contains("magic"), "{err}");
+        // The exact size reads.
+        std::fs::write(&path, &whole).unwrap();
+        assert_eq!(read_f64(&path).unwrap().shape(), &[2]);
+    }
+
+    #[test]
+    fn non_finite_arrays_are_never_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("y.npy");
+        write_npy(&path, &array![[1.0, 2.0]]).unwrap();
+        let err = write_npy(&path, &array![[1.0, 2.0], [f64::INFINITY, 0.0]]).unwrap_err();
+        assert!(matches!(err, IoError::NonFiniteOutput { .. }), "{err}");
+        assert!(err.to_string().contains("(1, 0)"), "{err}");
+        // The earlier file is untouched.
+        assert_eq!(
+            read_matrix(&path, Some(2), "(M, 2)").unwrap(),
+            array![[1.0, 2.0]]
+        );
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig {
+            cases: 256,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(19),
+            ..Default::default()
+        })]
+
+        /// Arbitrary bytes, with or without a valid header in front: an error or an
+        /// array, never a panic or an allocation beyond the file.
+        #[test]
+        fn arbitrary_bytes_never_crash_the_reader(
+            body in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..200),
+            shape in proptest::collection::vec(0u64..u64::MAX, 0..4),
+            framed in proptest::prelude::any::<bool>(),
+        ) {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join("any.npy");
+            let bytes = if framed {
+                let shape: Vec<String> = shape.iter().map(|n| format!("{n}, ")).collect();
+                let header = format!(
+                    "{{'descr': '<f8', 'fortran_order': False, 'shape': ({}), }}",
+                    shape.concat().trim_end()
+                );
+                npy_bytes(&header, &body)
+            } else {
+                body
+            };
+            std::fs::write(&path, bytes).unwrap();
+            let _ = read_f64(&path);
+            let _ = read_i64(&path);
+        }
+    }
 
     #[test]
     fn round_trip_and_shape_errors() {
@@ -363,7 +614,8 @@ mod tests {
     fn nan_is_reported_with_its_index() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("nan.npy");
-        write_npy(&path, &array![[1.0, f64::NAN]]).unwrap();
+        // smspace never writes one (see `non_finite_arrays_are_never_written`): NumPy can.
+        ndarray_npy::write_npy(&path, &array![[1.0, f64::NAN]]).unwrap();
         let err = read_matrix(&path, None, "(M, N)").unwrap_err();
         assert!(err.to_string().contains("(0, 1)"), "{err}");
     }

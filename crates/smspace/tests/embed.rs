@@ -347,6 +347,9 @@ fn bad_distance_matrices_are_refused_with_the_reason() {
         ),
         "{e}"
     );
+    assert!(e.to_string().contains("between 1 and 19"), "{e}");
+    let few = EmbedError::DimTooLarge { dim: 1, points: 1 }.to_string();
+    assert!(few.contains("at least 2 points"), "{few}");
     let e = IsomapParams::default()
         .k(20)
         .check()

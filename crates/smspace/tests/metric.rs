@@ -131,6 +131,34 @@ fn equals_brute_force_when_the_centre_table_overflows_f32() {
 }
 
 #[test]
+fn huge_coordinates_wrap_to_finite_distances() {
+    // Coordinates near 1e300 are angles like any other: wrapped exactly, every
+    // periodic distance stays within π√N, and equals that of the wrapped sets.
+    let sets = arm_like_sets(6, 9, 3);
+    let mut huge = sets.clone();
+    for (i, x) in huge.iter_mut().enumerate() {
+        *x += [1e300, -3e299, 7.5e250, 1e20][i % 4];
+    }
+    let wrapped = huge.mapv(|x| {
+        let w = x.rem_euclid(2.0 * PI);
+        if w >= PI {
+            w - 2.0 * PI
+        } else {
+            w
+        }
+    });
+    for kind in KINDS {
+        let d = distance_matrix(huge.view(), &params(kind, Period::TwoPi), &Silent).unwrap();
+        assert!(d
+            .iter()
+            .all(|v| v.is_finite() && *v <= PI * 3f64.sqrt() + 1e-12));
+        let expected =
+            distance_matrix(wrapped.view(), &params(kind, Period::TwoPi), &Silent).unwrap();
+        assert_matrix_eq(&d, &expected, "huge coordinates");
+    }
+}
+
+#[test]
 fn symmetric_with_zero_diagonal() {
     let sets = arm_like_sets(20, 30, 3);
     for kind in KINDS {
@@ -452,10 +480,36 @@ fn bad_input_is_reported() {
     .unwrap_err();
     assert!(matches!(e, MetricError::BadBuffer { .. }));
 
-    for k in [0, 4, 10] {
+    for k in [4, 10] {
         let e = knn(sets.view(), &p, &KnnParams::new().k(k), 0..4, &Silent).unwrap_err();
         assert!(matches!(e, MetricError::BadK { .. }), "k = {k}: {e}");
     }
+    // k = 0 and absurd pivot counts are parameter errors, whatever the data.
+    let e = knn(sets.view(), &p, &KnnParams::new().k(0), 0..4, &Silent).unwrap_err();
+    assert!(
+        e.to_string().contains("k = 0") && !e.to_string().contains("M - 1"),
+        "{e}"
+    );
+    let e = knn(
+        sets.view(),
+        &p,
+        &KnnParams::new().k(2).pivots(1_000_000_000_000),
+        0..4,
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("pivots = 1000000000000"), "{e}");
+    // Out of memory in kNN mode does not suggest kNN.
+    let e = knn(
+        sets.view(),
+        &DistanceParams::new().memory_limit_bytes(Some(10)),
+        &KnnParams::new().k(2),
+        0..4,
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(matches!(e, MetricError::KnnOutOfMemory { .. }), "{e}");
+    assert!(!e.to_string().contains("--knn"), "{e}");
     let e = knn(sets.view(), &p, &KnnParams::new().k(4), 0..4, &Silent).unwrap_err();
     assert_eq!(
         e.to_string(),

@@ -76,6 +76,7 @@ fn run(file: &Path, out: &Path, overrides: &[&str]) -> RunSummary {
         out_dir: out.to_owned(),
         recompute: Recompute::Changed,
         memory_limit_bytes: None,
+        busy: smspace::pipeline::BusyFolder::Refuse,
     };
     pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -316,6 +317,7 @@ sample_sets = 3
         out_dir: out.clone(),
         recompute: Recompute::Changed,
         memory_limit_bytes: None,
+        busy: smspace::pipeline::BusyFolder::Refuse,
     };
     let summary = pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(summary.analysis.betti.first(), Some(&1));

@@ -5,7 +5,9 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use smspace::config::load_experiment;
-use smspace::pipeline::{self, manifest::StageRecord, Recompute, RunObserver, RunOptions, StageId};
+use smspace::pipeline::{
+    self, manifest::StageRecord, BusyFolder, Recompute, RunObserver, RunOptions, StageId,
+};
 use smspace::progress::Progress;
 
 use super::common::memory_available;
@@ -27,6 +29,10 @@ pub struct Args {
     /// Recompute every stage, even those whose inputs and parameters did not change.
     #[arg(long)]
     force: bool,
+    /// When another smspace run is writing the same folder, wait for it to end instead
+    /// of refusing.
+    #[arg(long)]
+    wait: bool,
 }
 
 /// Prints one line per stage on stderr, with progress bars when it is a terminal.
@@ -58,6 +64,13 @@ impl RunObserver for StageLog {
     fn stage_skipped(&self, stage: StageId, why: &str) {
         eprintln!("[smspace] {:<10} skipped: {why}", stage.name());
     }
+
+    fn waiting_for_folder(&self, lock: &std::path::Path) {
+        eprintln!(
+            "[smspace] another run is writing this folder ({} is locked); waiting for it to end",
+            lock.display()
+        );
+    }
 }
 
 /// Runs `smspace run`.
@@ -75,6 +88,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Recompute::Changed
         },
         memory_limit_bytes: memory_available(),
+        busy: if args.wait {
+            BusyFolder::Wait
+        } else {
+            BusyFolder::Refuse
+        },
     };
     let log = StageLog {
         bar: Bar::new(),

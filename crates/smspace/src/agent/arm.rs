@@ -61,6 +61,12 @@ pub struct PlanarArm {
     focal_length: f64,
 }
 
+/// Most retina cells an arm may have (each is a sensor).
+pub const MAX_RETINA_CELLS: usize = 10_000;
+
+/// Most links an arm may have.
+pub const MAX_LINKS: usize = 1_000;
+
 impl PlanarArm {
     /// Validates `params` and builds the arm.
     pub fn new(params: &ArmParams) -> Result<Self, AgentError> {
@@ -79,6 +85,20 @@ impl PlanarArm {
                 name: "retina_cells",
                 value: "0".into(),
                 reason: "the retina needs at least one cell",
+            });
+        }
+        if params.retina_cells > MAX_RETINA_CELLS {
+            return Err(AgentError::InvalidParameter {
+                name: "retina_cells",
+                value: params.retina_cells.to_string(),
+                reason: "must be at most 10000 (one sensor per cell; the paper's retina has 6)",
+            });
+        }
+        if params.link_lengths.len() > MAX_LINKS {
+            return Err(AgentError::InvalidParameter {
+                name: "link_lengths",
+                value: format!("{} links", params.link_lengths.len()),
+                reason: "at most 1000 links (one motor per joint; the paper's arm has 3)",
             });
         }
         check_positive("retina_half_width", params.retina_half_width)?;

@@ -58,6 +58,12 @@ impl LightRegion {
     }
 }
 
+/// Most lights [`Environment::random`] draws.
+pub const MAX_RANDOM_LIGHTS: usize = 2_000;
+
+/// Most draws spent on one random light before the region is declared too small.
+pub const MAX_DRAWS_PER_LIGHT: usize = 10_000_000;
+
 /// The environment `E`: a set of point lights.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -77,12 +83,35 @@ impl Environment {
 
     /// `count` lights drawn in `region`, stratified by direction from its centre (see
     /// the module docs), from a stream seeded with `seed`.
+    ///
+    /// At most [`MAX_RANDOM_LIGHTS`] lights (light `i` is drawn until it falls in its
+    /// sector, so the work grows as `count²`), and at most [`MAX_DRAWS_PER_LIGHT`]
+    /// draws per light: a region whose exclusion leaves a sector empty is an error.
     pub fn random(count: usize, seed: u64, region: &LightRegion) -> Result<Self, AgentError> {
         region.check()?;
+        if count > MAX_RANDOM_LIGHTS {
+            return Err(AgentError::InvalidEnvironment {
+                reason: format!(
+                    "lights = {count}: at most {MAX_RANDOM_LIGHTS} random lights (the paper uses 10); \
+                     for more, write the lights into an environment file"
+                ),
+            });
+        }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut lights = Vec::with_capacity(count);
         let sector = 2.0 * std::f64::consts::PI / count.max(1) as f64;
+        let mut draws = 0;
         while lights.len() < count {
+            draws += 1;
+            if draws > MAX_DRAWS_PER_LIGHT {
+                return Err(AgentError::InvalidEnvironment {
+                    reason: format!(
+                        "cannot place light {} of {count} in region {region:?}: after {MAX_DRAWS_PER_LIGHT} draws none fell in its direction sector outside the exclusion; \
+                         make the exclusion smaller or use fewer lights",
+                        lights.len()
+                    ),
+                });
+            }
             let p = [
                 region.center[0] + region.half_size[0] * rng.gen_range(-1.0..1.0),
                 region.center[1] + region.half_size[1] * rng.gen_range(-1.0..1.0),
@@ -93,6 +122,7 @@ impl Environment {
             let wanted = lights.len() as f64 * sector;
             if !region.contains_excluded(p) && (wanted..wanted + sector).contains(&angle) {
                 lights.push(p);
+                draws = 0;
             }
         }
         Ok(Self {
@@ -118,8 +148,13 @@ impl Environment {
         io::write_json(path, self)
     }
 
-    /// Checks that every light position is finite.
+    /// Checks that there is a light and that every light position is finite.
     pub fn check(&self) -> Result<(), AgentError> {
+        if self.lights.is_empty() {
+            return Err(AgentError::InvalidEnvironment {
+                reason: "no lights: an environment without lights gives constant sensors; give at least one light".into(),
+            });
+        }
         if let Some((i, l)) = self
             .lights
             .iter()
@@ -205,6 +240,22 @@ mod tests {
         std::fs::write(&path, r#"{"lights": [[1.0, 2.0]], "colour": 3}"#).unwrap();
         let err = Environment::load(&path).unwrap_err().to_string();
         assert!(err.contains("colour") && err.contains("env.json"), "{err}");
+    }
+
+    #[test]
+    fn light_counts_and_regions_are_bounded() {
+        let err = Environment::random(MAX_RANDOM_LIGHTS + 1, 1, &region()).unwrap_err();
+        assert!(err.to_string().contains("lights = 2001"), "{err}");
+        // An exclusion that leaves the sectors along the x axis empty.
+        let thin = LightRegion {
+            center: [0.0, 0.0],
+            half_size: [3.0, 3.0],
+            exclusion_half_size: [4.0, 0.5],
+        };
+        let err = Environment::random(1000, 1, &thin).unwrap_err();
+        assert!(err.to_string().contains("cannot place light 0"), "{err}");
+        let err = Environment::from_lights(Vec::new()).check().unwrap_err();
+        assert!(err.to_string().contains("no lights"), "{err}");
     }
 
     #[test]

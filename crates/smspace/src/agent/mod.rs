@@ -29,8 +29,10 @@ use std::fmt;
 use ndarray::{ArrayView2, ArrayViewMut2};
 use serde::{Deserialize, Serialize};
 
-pub use arm::{ArmParams, PlanarArm};
-pub use environment::{Environment, EnvironmentConfig, LightRegion};
+pub use arm::{ArmParams, PlanarArm, MAX_LINKS, MAX_RETINA_CELLS};
+pub use environment::{
+    Environment, EnvironmentConfig, LightRegion, MAX_DRAWS_PER_LIGHT, MAX_RANDOM_LIGHTS,
+};
 pub use registry::{AgentBuilder, AgentRegistry, BuiltAgent};
 pub use toy::{ToyAgent, ToyKind, ToyParams};
 pub use workspace::Workspace;

@@ -331,7 +331,11 @@ pub fn load_experiment(path: &Path, overrides: &[String]) -> Result<LoadedExperi
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "experiment".to_owned()),
     };
-    if name.is_empty() || name.contains(['/', '\\']) || name.starts_with('.') {
+    if name.is_empty()
+        || name.contains(['/', '\\'])
+        || name.starts_with('.')
+        || name.chars().any(char::is_control)
+    {
         return Err(ConfigError::Parse {
             path: path.to_owned(),
             message: format!("name = {name:?}: the name becomes the folder runs/<name>; use letters, digits and dashes"),

@@ -102,7 +102,7 @@ pub enum EmbedError {
         value: f64,
     },
     /// Too few points for the requested output dimension.
-    #[error("cannot embed {points} points in {dim} dimensions; use a dimension between 1 and {}", points.saturating_sub(1).max(1))]
+    #[error("cannot embed {points} points in {dim} dimensions; {}", dim_advice(*points))]
     DimTooLarge {
         /// Output dimension asked for.
         dim: usize,
@@ -476,6 +476,15 @@ pub fn check_distances(distances: ArrayView2<'_, f64>) -> Result<(), EmbedError>
         }
     }
     Ok(())
+}
+
+/// What to do about [`EmbedError::DimTooLarge`]: a dimension in range, or more points.
+fn dim_advice(points: usize) -> String {
+    if points < 2 {
+        "an embedding needs at least 2 points (sets); explore more configurations".into()
+    } else {
+        format!("use a dimension between 1 and {}", points - 1)
+    }
 }
 
 /// Checks `1 ≤ dim < points`.

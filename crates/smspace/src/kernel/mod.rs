@@ -242,6 +242,9 @@ fn positive(name: &'static str, value: f64) -> Result<(), KernelError> {
     }
 }
 
+/// Most points per kernel set.
+pub const MAX_POINTS: usize = 100_000;
+
 impl TraceParams {
     /// Validates the parameters and resolves `auto` step control.
     pub fn check(&self) -> Result<TraceValidParams, KernelError> {
@@ -275,6 +278,13 @@ impl TraceParams {
                     reason: "must be at least 1",
                 });
             }
+        }
+        if self.points > MAX_POINTS {
+            return Err(KernelError::InvalidParameter {
+                name: "points",
+                value: self.points.to_string(),
+                reason: "must be at most 100000 points per set (the paper uses 100)",
+            });
         }
         let step_control = match (self.step_control, self.method) {
             (StepControl::Auto, TraceMethod::Kinematic) => StepControl::Fixed,

@@ -26,9 +26,10 @@ use serde::{Deserialize, Serialize};
 
 use super::kernel::{self, Driver, Eval, Scratch};
 use super::{
-    check_memory, check_metric, check_rows, closure_for, DistanceParams, MetricError, MetricKind,
-    PreparedSets, SetsView,
+    check_metric, check_rows, closure_for, DistanceParams, MetricError, MetricKind, PreparedSets,
+    SetsView,
 };
+use crate::error::InvalidParameter;
 use crate::neighbours::FarthestFirst;
 use crate::progress::Progress;
 
@@ -63,6 +64,9 @@ impl std::ops::Deref for ValidKnnParams {
     }
 }
 
+/// Most pivots of the nearest-set search.
+pub const MAX_PIVOTS: usize = 4_096;
+
 impl KnnParams {
     /// Default parameters.
     pub fn new() -> Self {
@@ -81,10 +85,26 @@ impl KnnParams {
         self
     }
 
-    /// Checks that `k ≥ 1` (the bound `k < M` is checked against the data).
+    /// Checks that `k ≥ 1` and `pivots ≤` [`MAX_PIVOTS`] (the bound `k < M` is checked
+    /// against the data).
     pub fn check(&self) -> Result<ValidKnnParams, MetricError> {
         if self.k == 0 {
-            return Err(MetricError::BadK { k: 0, max: 0 });
+            return Err(InvalidParameter::new(
+                "knn",
+                "k",
+                0,
+                "ask for at least 1 nearest set (--knn K with K ≥ 1)",
+            )
+            .into());
+        }
+        if self.pivots > MAX_PIVOTS {
+            return Err(InvalidParameter::new(
+                "knn",
+                "pivots",
+                self.pivots,
+                format!("at most {MAX_PIVOTS} (the default {} prunes well; every pivot costs M distances and 8·M bytes)", KnnParams::default().pivots),
+            )
+            .into());
         }
         Ok(ValidKnnParams(self.clone()))
     }
@@ -111,7 +131,14 @@ pub fn knn<'a>(
     }
     check_rows(&rows, m)?;
     let needed = knn_bytes(m, p, n, rows.len(), &params);
-    check_memory(distance.memory_limit_bytes, m, needed)?;
+    if let Some(available) = distance.memory_limit_bytes.filter(|&a| needed > a) {
+        return Err(MetricError::KnnOutOfMemory {
+            sets: m,
+            k: params.k,
+            needed,
+            available,
+        });
+    }
     let prepared = PreparedSets::new(sets, distance.period)?;
     check_metric(&prepared, distance.metric)?;
     knn_prepared(&prepared, distance.metric, &params, rows, progress)

@@ -68,7 +68,7 @@ use serde::{Deserialize, Serialize};
 use crate::progress::Progress;
 
 pub use curve::{Closure, CURVE_TOLERANCE};
-pub use knn::{knn, knn_prepared, Knn, KnnParams, ValidKnnParams};
+pub use knn::{knn, knn_prepared, Knn, KnnParams, ValidKnnParams, MAX_PIVOTS};
 pub use prepared::PreparedSets;
 
 /// Kernel sets as the metric reads them: the points `(M, P, N)` and, for the `curve`
@@ -221,6 +221,21 @@ pub enum MetricError {
     TooManyCoordinates {
         /// `N`.
         dims: usize,
+    },
+    /// A parameter is out of its range.
+    #[error(transparent)]
+    Invalid(#[from] crate::error::InvalidParameter),
+    /// The nearest-set search would not fit in the memory available.
+    #[error("the {k} nearest sets of {sets} sets need {} but only {} is available; use fewer pivots (--pivots), or compute blocks of rows in turn (--rows)", human_bytes(*needed), human_bytes(*available))]
+    KnnOutOfMemory {
+        /// `M`.
+        sets: usize,
+        /// `k`.
+        k: usize,
+        /// Bytes the lists, the pivot table and the working data need.
+        needed: u64,
+        /// Bytes available.
+        available: u64,
     },
     /// The output would not fit in the memory available.
     #[error("the distance matrix of {sets} sets needs {} but only {} is available; compute the k nearest sets instead (knn, `--knn K` on the command line), or a block of rows", human_bytes(*needed), human_bytes(*available))]

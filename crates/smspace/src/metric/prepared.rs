@@ -85,15 +85,14 @@ pub(crate) fn wrap(x: f64, period: f64) -> f64 {
     if (-half..half).contains(&x) {
         return x;
     }
-    let mut w = x - period * ((x + half) / period).floor();
-    // Rounding can land exactly on the upper end or just below the lower one.
+    // The remainder is exact (fmod), so even a coordinate near 1e300 lands in range;
+    // `rem_euclid` can round up to exactly `T` for a tiny negative `x`.
+    let w = x.rem_euclid(period);
     if w >= half {
-        w -= period;
+        w - period
+    } else {
+        w
     }
-    if w < -half {
-        w += period;
-    }
-    w
 }
 
 /// Periodic difference `h(u)` folded to its magnitude, for `|u| < T` (inputs wrapped).

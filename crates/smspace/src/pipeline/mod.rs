@@ -24,13 +24,16 @@
 //! every parameter its computation reads, and the keys of its inputs) is unchanged and whose outputs are intact is not recomputed
 //! ([`Recompute::Changed`]); its outputs are read back instead. Every file is written
 //! atomically and the manifest after every stage, so a failing or interrupted stage
-//! leaves the earlier stages' outputs and records intact.
+//! leaves the earlier stages' outputs and records intact. One process writes a folder at
+//! a time ([`lock`]: a second run refuses, or waits with [`BusyFolder::Wait`]).
+//! `docs/RELIABILITY.md` lists these promises and the tests that check them.
 
+pub mod lock;
 pub mod manifest;
 mod runner;
 pub mod stages;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
@@ -41,6 +44,8 @@ use crate::config::{ConfigError, LoadedExperiment};
 use crate::io::{self, IoError};
 use crate::kernel::{TraceMethod, TraceParams};
 use crate::progress::Progress;
+pub use lock::BusyFolder;
+use lock::FolderLock;
 use manifest::{hash_parts, Manifest, RunStatus, Seeds, StageRecord, SMSPACE_VERSION};
 use runner::Runner;
 use stages::{
@@ -77,6 +82,22 @@ pub enum PipelineError {
     /// Writing the manifest or the resolved configuration failed.
     #[error(transparent)]
     Io(#[from] IoError),
+    /// Another process is writing the run folder (and [`BusyFolder::Refuse`]).
+    #[error("another smspace run is writing {dir} (it holds {lock}); wait for it to end, pass --wait to queue behind it, or choose another --out folder")]
+    Busy {
+        /// The run folder.
+        dir: PathBuf,
+        /// Its lock file.
+        lock: PathBuf,
+    },
+    /// The lock file of the run folder cannot be opened or locked.
+    #[error("cannot lock the run folder through {path}: {reason}")]
+    Lock {
+        /// The lock file.
+        path: PathBuf,
+        /// The operating system's reason.
+        reason: std::io::Error,
+    },
 }
 
 /// The stages, in order.
@@ -146,6 +167,8 @@ pub struct RunOptions {
     /// Refuse a distance matrix larger than this many bytes (the command-line tool
     /// passes the memory available). `None`: no limit.
     pub memory_limit_bytes: Option<u64>,
+    /// What to do when another process is writing the run folder ([`lock`]).
+    pub busy: BusyFolder,
 }
 
 /// Receives the run's events; the command-line tool prints them. All methods but
@@ -159,6 +182,8 @@ pub trait RunObserver: Sync {
     fn stage_finished(&self, _stage: StageId, _record: &StageRecord, _summary: &str) {}
     /// A stage is skipped because the experiment does not need it.
     fn stage_skipped(&self, _stage: StageId, _why: &str) {}
+    /// Another process holds the run folder and [`BusyFolder::Wait`] waits for it.
+    fn waiting_for_folder(&self, _lock: &Path) {}
 }
 
 /// What [`run`] produced.
@@ -375,12 +400,12 @@ fn start<'a>(
         path: dir.clone(),
         reason,
     })?;
+    // One writer at a time, from before the first file is touched.
+    let lock = FolderLock::acquire(&dir, options.busy, |path| observer.waiting_for_folder(path))?;
+    lock::remove_stale_parts(&dir);
     let loaded = &plan.experiment;
     let e = &loaded.experiment;
     let resolved = &plan.report.config_toml;
-    io::write_atomic(&dir.join("config.resolved.toml"), |w| {
-        std::io::Write::write_all(w, resolved.as_bytes())
-    })?;
     let previous = Manifest::previous(&dir);
     let manifest = Manifest {
         smspace_version: SMSPACE_VERSION.to_owned(),
@@ -403,12 +428,21 @@ fn start<'a>(
         total_seconds: 0.0,
         status: RunStatus::Running,
     };
-    Ok(Runner {
+    let mut runner = Runner {
         dir,
         options,
         observer,
         previous,
         manifest,
         started,
-    })
+        _lock: lock,
+    };
+    // The manifest says "running" (keeping the earlier records) before the new
+    // configuration replaces the old one: a run that dies between the two never leaves
+    // a "complete" manifest next to a configuration it did not run.
+    runner.write_manifest()?;
+    io::write_atomic(&runner.dir.join("config.resolved.toml"), |w| {
+        std::io::Write::write_all(w, resolved.as_bytes())
+    })?;
+    Ok(runner)
 }

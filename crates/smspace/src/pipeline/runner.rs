@@ -19,12 +19,33 @@ pub(super) struct Runner<'a> {
     pub(super) previous: Option<Manifest>,
     pub(super) manifest: Manifest,
     pub(super) started: Instant,
+    /// The run folder's lock, held as long as the runner lives.
+    pub(super) _lock: super::lock::FolderLock,
 }
 
 impl Runner<'_> {
+    /// Writes `manifest.json` (atomically), with the time so far.
+    ///
+    /// Until the run is complete, the records of the previous manifest for stages not
+    /// reached yet are kept too (they stay valid: a record is only reused when its key
+    /// and its outputs' hashes match), so that an interrupted or failing run loses no
+    /// earlier record.
     pub(super) fn write_manifest(&mut self) -> Result<(), IoError> {
         self.manifest.total_seconds = self.started.elapsed().as_secs_f64();
-        io::write_json(&self.dir.join("manifest.json"), &self.manifest)
+        let pending: Vec<&StageRecord> = match (&self.manifest.status, &self.previous) {
+            (RunStatus::Complete, _) | (_, None) => Vec::new(),
+            (_, Some(previous)) => previous
+                .stages
+                .iter()
+                .filter(|old| !self.manifest.stages.iter().any(|r| r.stage == old.stage))
+                .collect(),
+        };
+        if pending.is_empty() {
+            return io::write_json(&self.dir.join("manifest.json"), &self.manifest);
+        }
+        let mut written = self.manifest.clone();
+        written.stages.extend(pending.into_iter().cloned());
+        io::write_json(&self.dir.join("manifest.json"), &written)
     }
 
     /// The stages recorded so far, with their times.
