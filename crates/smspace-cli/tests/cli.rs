@@ -234,6 +234,51 @@ fn agent_from_a_toml_file() {
 }
 
 #[test]
+fn a_failing_command_leaves_its_earlier_outputs_alone() {
+    let (_guard, dir) = temp();
+    ok(
+        &dir,
+        &[
+            "explore",
+            "--agent",
+            "planar-arm",
+            "--n",
+            "3",
+            "--seed",
+            "1",
+            "--out-dir",
+            "m",
+        ],
+    );
+    // 254 bytes: a valid name, whose siblings (`<stem>.trace.json`, …) are too long.
+    let name = format!("{}.npy", "s".repeat(250));
+    std::fs::write(dir.join(&name), b"an earlier output").unwrap();
+    let err = fails(
+        &dir,
+        &[
+            "trace",
+            "--agent",
+            "planar-arm",
+            "--motors",
+            "m/motors.npy",
+            "--out",
+            &name,
+        ],
+    );
+    assert!(err.contains("cannot write"), "{err}");
+    assert_eq!(
+        std::fs::read(dir.join(&name)).unwrap(),
+        b"an earlier output"
+    );
+    let left: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".part"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
 fn bad_inputs_give_clear_errors() {
     let (_guard, dir) = temp();
     let nan = ndarray::array![[0.1, 0.2, f64::NAN, 0.4]];

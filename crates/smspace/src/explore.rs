@@ -250,11 +250,13 @@ impl Exploration {
         params: &ExploreParams,
     ) -> Result<(), IoError> {
         let [motors, poses, probes, summary] = EXPLORATION_FILES.map(|f| dir.join(f));
-        io::write_npy(&motors, &self.motors)?;
-        io::write_npy(&poses, &self.poses)?;
-        io::write_npy(&probes, &self.probes)?;
+        // All four or none (see `io::Outputs`).
+        let mut outputs = io::Outputs::new();
+        outputs.npy(&motors, &self.motors)?;
+        outputs.npy(&poses, &self.poses)?;
+        outputs.npy(&probes, &self.probes)?;
         let probe_rows = self.probe_count();
-        io::write_json(
+        outputs.json(
             &summary,
             &serde_json::json!({
                 "agent": agent,
@@ -264,7 +266,9 @@ impl Exploration {
                 "babbled": self.motors.nrows() - probe_rows,
                 "probes": probe_rows,
             }),
-        )
+        )?;
+        outputs.commit()?;
+        Ok(())
     }
 
     /// Reads the arrays [`save`](Self::save) wrote for an agent with `motor_dim`

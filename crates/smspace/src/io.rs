@@ -346,9 +346,9 @@ pub fn folder_of(path: &Path) -> PathBuf {
     }
 }
 
-/// Writes `path` atomically: `fill` writes into a temporary file in the same folder,
-/// which is renamed over `path` only once it is complete and flushed.
-pub fn write_atomic<F>(path: &Path, fill: F) -> Result<(), IoError>
+/// Writes `fill`'s bytes into a new temporary file (`.smspace-*.part`) in the folder of
+/// `path`, flushed and synced, ready to be renamed over `path`.
+fn stage<F>(path: &Path, fill: F) -> Result<tempfile::NamedTempFile, IoError>
 where
     F: FnOnce(&mut BufWriter<&mut File>) -> std::io::Result<()>,
 {
@@ -372,8 +372,117 @@ where
         writer.flush().map_err(write_error)?;
     }
     temp.as_file().sync_all().map_err(write_error)?;
-    temp.persist(path).map_err(|e| write_error(e.error))?;
+    Ok(temp)
+}
+
+/// Writes `path` atomically: `fill` writes into a temporary file in the same folder,
+/// which is renamed over `path` only once it is complete and flushed.
+pub fn write_atomic<F>(path: &Path, fill: F) -> Result<(), IoError>
+where
+    F: FnOnce(&mut BufWriter<&mut File>) -> std::io::Result<()>,
+{
+    let temp = stage(path, fill)?;
+    temp.persist(path).map_err(|e| IoError::Write {
+        path: path.to_owned(),
+        reason: e.error,
+    })?;
     Ok(())
+}
+
+/// The files of one command or stage, written together: every file is first written
+/// in full to its own temporary file, and only then, once every destination has been
+/// checked to take a file (its folder exists, its name is valid), are they all renamed
+/// into place. A failure before that point (a non-finite array, a full disk, a name
+/// too long) leaves every earlier output as it was.
+///
+/// ```
+/// # let dir = tempfile::tempdir().unwrap();
+/// let mut outputs = smspace::io::Outputs::new();
+/// outputs.npy(&dir.path().join("a.npy"), &ndarray::array![1.0, 2.0])?;
+/// outputs.json(&dir.path().join("a.json"), &serde_json::json!({"rows": 2}))?;
+/// outputs.commit()?;
+/// assert!(dir.path().join("a.npy").is_file() && dir.path().join("a.json").is_file());
+/// # Ok::<(), smspace::io::IoError>(())
+/// ```
+#[derive(Debug, Default)]
+pub struct Outputs {
+    staged: Vec<(tempfile::NamedTempFile, PathBuf)>,
+}
+
+impl Outputs {
+    /// No file yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Stages `path`, written by `fill`.
+    pub fn file<F>(&mut self, path: &Path, fill: F) -> Result<(), IoError>
+    where
+        F: FnOnce(&mut BufWriter<&mut File>) -> std::io::Result<()>,
+    {
+        let temp = stage(path, fill)?;
+        self.staged.push((temp, path.to_owned()));
+        Ok(())
+    }
+
+    /// Stages an array as `.npy`; refuses an array with NaN or an infinity (see
+    /// [`write_npy`]).
+    pub fn npy<A, S, D>(&mut self, path: &Path, array: &ArrayBase<S, D>) -> Result<(), IoError>
+    where
+        A: NpyElement,
+        S: Data<Elem = A>,
+        D: Dimension,
+    {
+        check_writable_values(path, array)?;
+        self.file(path, |writer| {
+            array
+                .write_npy(writer)
+                .map_err(|e| std::io::Error::other(e.to_string()))
+        })
+    }
+
+    /// Stages a value as pretty-printed JSON.
+    pub fn json<T: Serialize + ?Sized>(&mut self, path: &Path, value: &T) -> Result<(), IoError> {
+        self.file(path, |writer| {
+            serde_json::to_writer_pretty(&mut *writer, value).map_err(std::io::Error::other)?;
+            writer.write_all(b"\n")
+        })
+    }
+
+    /// Checks every destination, then renames every staged file into place; returns
+    /// the destinations in the order they were staged.
+    pub fn commit(self) -> Result<Vec<PathBuf>, IoError> {
+        for (_, path) in &self.staged {
+            check_destination(path)?;
+        }
+        let mut written = Vec::with_capacity(self.staged.len());
+        for (temp, path) in self.staged {
+            temp.persist(&path).map_err(|e| IoError::Write {
+                path: path.clone(),
+                reason: e.error,
+            })?;
+            written.push(path);
+        }
+        Ok(written)
+    }
+}
+
+/// Whether a file can be renamed to `path`: an existing file can; else a new file of
+/// that name is made and removed again (which catches a name that is too long or a
+/// folder that refuses it), leaving nothing behind.
+fn check_destination(path: &Path) -> Result<(), IoError> {
+    if path.is_file() {
+        return Ok(());
+    }
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+        .and_then(|_| std::fs::remove_file(path))
+        .map_err(|reason| IoError::Write {
+            path: path.to_owned(),
+            reason,
+        })
 }
 
 /// An element type smspace writes to `.npy`, and whether a value of it is finite.
@@ -410,6 +519,21 @@ where
     S: Data<Elem = A>,
     D: Dimension,
 {
+    check_writable_values(path, array)?;
+    write_atomic(path, |writer| {
+        array
+            .write_npy(writer)
+            .map_err(|e| std::io::Error::other(e.to_string()))
+    })
+}
+
+/// Refuses ([`IoError::NonFiniteOutput`]) an array that holds NaN or an infinity.
+fn check_writable_values<A, S, D>(path: &Path, array: &ArrayBase<S, D>) -> Result<(), IoError>
+where
+    A: NpyElement,
+    S: Data<Elem = A>,
+    D: Dimension,
+{
     let view = array.view().into_dyn();
     if let Some((index, value)) = view
         .indexed_iter()
@@ -421,11 +545,7 @@ where
             value,
         });
     }
-    write_atomic(path, |writer| {
-        array
-            .write_npy(writer)
-            .map_err(|e| std::io::Error::other(e.to_string()))
-    })
+    Ok(())
 }
 
 /// Writes a value as pretty-printed JSON, atomically.
@@ -503,6 +623,35 @@ mod tests {
         // The exact size reads.
         std::fs::write(&path, &whole).unwrap();
         assert_eq!(read_f64(&path).unwrap().shape(), &[2]);
+    }
+
+    #[test]
+    fn outputs_appear_together_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.npy");
+        write_npy(&a, &array![1.0]).unwrap();
+        // The second destination's name is too long for the file system: the first
+        // file is not replaced either.
+        let long = dir.path().join(format!("{}.json", "x".repeat(300)));
+        let mut outputs = Outputs::new();
+        outputs.npy(&a, &array![2.0, 3.0]).unwrap();
+        outputs.json(&long, &[1, 2]).unwrap();
+        assert!(matches!(outputs.commit(), Err(IoError::Write { .. })));
+        assert_eq!(read_f64(&a).unwrap().shape(), &[1]);
+        // No temporary file stays behind.
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, ["a.npy"]);
+        // A non-finite array fails while staging, before anything is renamed.
+        let mut outputs = Outputs::new();
+        outputs.npy(&a, &array![5.0]).unwrap();
+        assert!(outputs
+            .npy(&dir.path().join("b.npy"), &array![f64::NAN])
+            .is_err());
+        drop(outputs);
+        assert_eq!(read_f64(&a).unwrap().shape(), &[1]);
     }
 
     #[test]

@@ -166,8 +166,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let indices_path = folder.join("knn_indices.npy");
             let distances_path = folder.join("knn_distances.npy");
             let indices = found.indices.mapv(|j| j as i64);
-            smspace::io::write_npy(&indices_path, &indices)?;
-            smspace::io::write_npy(&distances_path, &found.distances)?;
+            let mut outputs = smspace::io::Outputs::new();
+            outputs.npy(&indices_path, &indices)?;
+            outputs.npy(&distances_path, &found.distances)?;
+            outputs.commit()?;
             eprintln!(
                 "wrote {} and {} ({} x {k}, rows {}:{} of {m} sets, {}) in {:.2} s",
                 indices_path.display(),

@@ -327,14 +327,14 @@ impl EmbedFile {
         coordinates: ArrayView2<'_, f64>,
         dydx: Option<ArrayView2<'_, f64>>,
     ) -> Result<Vec<std::path::PathBuf>, crate::io::IoError> {
-        let mut written = vec![y_path.to_owned()];
-        crate::io::write_npy(y_path, &coordinates)?;
+        // All files or none (see `io::Outputs`).
+        let mut outputs = crate::io::Outputs::new();
+        outputs.npy(y_path, &coordinates)?;
         self.dydx = match dydx {
             Some(pairs) => {
                 let path = crate::io::sibling(y_path, "dydx.npy");
-                crate::io::write_npy(&path, &pairs)?;
+                outputs.npy(&path, &pairs)?;
                 let name = path.file_name().map(std::path::PathBuf::from);
-                written.push(path);
                 Some(DydxSample::new(
                     name.unwrap_or_default(),
                     pairs.nrows(),
@@ -344,9 +344,8 @@ impl EmbedFile {
             None => None,
         };
         let report = crate::io::sibling(y_path, "embed.json");
-        crate::io::write_json(&report, &self)?;
-        written.push(report);
-        Ok(written)
+        outputs.json(&report, &self)?;
+        outputs.commit()
     }
 }
 

@@ -410,8 +410,12 @@ pub fn write_closure(
     path: &std::path::Path,
     closure: &[Closure],
 ) -> Result<(), crate::io::IoError> {
-    let codes: ndarray::Array1<i64> = closure.iter().map(|c| c.code()).collect();
-    crate::io::write_npy(path, &codes)
+    crate::io::write_npy(path, &closure_codes(closure))
+}
+
+/// The codes of `sets.closed.npy`: 1 for a closed loop, 0 for an open polyline.
+fn closure_codes(closure: &[Closure]) -> ndarray::Array1<i64> {
+    closure.iter().map(|c| c.code()).collect()
 }
 
 /// Reads `sets.closed.npy` (see [`write_closure`]), checking that it holds one code,
@@ -514,11 +518,14 @@ impl TracedSets {
     pub fn save(&self, sets_path: &Path) -> Result<[PathBuf; 4], crate::io::IoError> {
         let files = Self::files(sets_path);
         let [sets, kept, closed, report] = &files;
-        crate::io::write_npy(sets, &self.sets)?;
+        // All four or none (see `io::Outputs`).
+        let mut outputs = crate::io::Outputs::new();
+        outputs.npy(sets, &self.sets)?;
         let rows: ndarray::Array1<i64> = self.kept.iter().map(|&k| k as i64).collect();
-        crate::io::write_npy(kept, &rows)?;
-        write_closure(closed, &self.closure)?;
-        crate::io::write_json(report, &self.report)?;
+        outputs.npy(kept, &rows)?;
+        outputs.npy(closed, &closure_codes(&self.closure))?;
+        outputs.json(report, &self.report)?;
+        outputs.commit()?;
         Ok(files)
     }
 
