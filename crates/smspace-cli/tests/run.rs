@@ -49,6 +49,17 @@ sample_sets = 5
 formats = "png"
 "#;
 
+/// [`SMALL_ARM`] cut down to 40 babbled sets without probes, embedded by MDS in `dim`
+/// dimensions.
+fn tiny_mds(dim: usize) -> String {
+    SMALL_ARM
+        .replace("n = 150", "n = 40")
+        .replace("probes = \"grid\"", "probes = \"none\"")
+        .replace("method = \"cca\"", "method = \"mds\"")
+        .replace("epochs = 10\n", "")
+        .replace("dim = 3", &format!("dim = {dim}"))
+}
+
 fn write_experiment(dir: &Path, name: &str, text: &str) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
@@ -348,12 +359,7 @@ fn a_failing_stage_keeps_the_earlier_outputs_and_names_itself() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // MDS to more dimensions than there are sets fails in the embed stage.
-    let text = SMALL_ARM
-        .replace("n = 150", "n = 40")
-        .replace("probes = \"grid\"", "probes = \"none\"")
-        .replace("method = \"cca\"", "method = \"mds\"")
-        .replace("epochs = 10\n", "")
-        .replace("dim = 3", "dim = 60");
+    let text = tiny_mds(60);
     write_experiment(d, "fail.toml", &text);
     let out = smspace(d, &["run", "fail.toml"]);
     let log = stderr(&out);
@@ -377,12 +383,7 @@ fn a_failing_stage_keeps_the_earlier_outputs_and_names_itself() {
 fn a_run_folder_has_one_writer_at_a_time() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let text = SMALL_ARM
-        .replace("n = 150", "n = 40")
-        .replace("probes = \"grid\"", "probes = \"none\"")
-        .replace("method = \"cca\"", "method = \"mds\"")
-        .replace("epochs = 10\n", "")
-        .replace("dim = 3", "dim = 2");
+    let text = tiny_mds(2);
     write_experiment(d, "small.toml", &text);
     let run = d.join("runs/small-arm");
     std::fs::create_dir_all(&run).unwrap();
