@@ -361,16 +361,30 @@ fn arm_report_has_every_figure_the_numbers_and_an_interactive_view() {
 #[test]
 fn figures_without_their_inputs_are_skipped_with_a_reason() {
     let run = run("planar-arm", 30, false, 2, 0);
-    let mut inputs = inputs(&run);
+    let full = inputs(&run);
+    let mut inputs = full;
     inputs.analysis = None;
     inputs.dydx = None;
     let dir = tempfile::tempdir().unwrap();
+    // An earlier report in both formats, with figures that are now skipped.
+    let both = ReportParams {
+        formats: FigureFormats::PngAndSvg,
+        ..ReportParams::default()
+    };
+    write_report(&full, &both, dir.path()).unwrap();
+    let figures = dir.path().join("figures");
+    assert!(figures.join("embedding-pose.svg").is_file());
+    assert!(figures.join("persistence-diagram.png").is_file());
     let params = ReportParams {
         formats: FigureFormats::Png,
         ..ReportParams::default()
     };
     let summary = write_report(&inputs, &params, dir.path()).unwrap();
     check_figure_files(dir.path(), &summary);
+    // Only what this report shows stays: no SVG, no figure of a skipped plot.
+    assert!(!figures.join("embedding-pose.svg").exists());
+    assert!(!figures.join("persistence-diagram.png").exists());
+    assert!(figures.join("embedding-pose.png").is_file());
     let reason = |name: &str| figure(&summary, name).skipped.clone().unwrap_or_default();
     assert!(reason("fig5d-embedding-probes").contains("no probe rows"));
     assert!(reason("persistence-diagram").contains("no analysis"));

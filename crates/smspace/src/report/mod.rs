@@ -495,6 +495,22 @@ impl Planned<'_> {
     }
 }
 
+/// Removes the files of the report's figures that this report did not write: a format
+/// no longer asked for, a figure now skipped. `figures/` then holds only what the
+/// report shows (files of other names are left alone).
+fn remove_stale_figures<'r>(dir: &Path, records: impl Iterator<Item = &'r FigureRecord>) {
+    for record in records {
+        for extension in ["png", "svg"] {
+            let relative = PathBuf::from("figures").join(format!("{}.{extension}", record.name));
+            if !record.files.contains(&relative) {
+                // Absent is the usual case; a file that cannot be removed stays stale
+                // but is not listed by the report.
+                let _ = std::fs::remove_file(dir.join(&relative));
+            }
+        }
+    }
+}
+
 /// One entry of the figure plan: `(name, caption, plan)`.
 type PlannedFigure<'b> = (&'static str, String, Planned<'b>);
 
@@ -920,6 +936,7 @@ pub fn write_report(
             r,
         ));
     }
+    remove_stale_figures(dir, figures.iter().map(|(record, _)| record));
     let tables = tables::tables(inputs);
     let html_text = html::html(inputs, &tables, &figures);
     let html_path = PathBuf::from("report.html");
