@@ -95,6 +95,30 @@ fn computed(out: &Path) -> Vec<String> {
 }
 
 #[test]
+fn an_experiment_larger_than_memory_is_refused_before_anything_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = experiment(dir.path());
+    let loaded = smspace::config::load_experiment(&file, &[]).unwrap();
+    let plan = pipeline::check(&loaded).unwrap();
+    let out = dir.path().join("run");
+    for (limit, what) in [(100, "explored configurations"), (20_000, "kernel sets")] {
+        let options = RunOptions {
+            out_dir: out.clone(),
+            recompute: Recompute::Changed,
+            memory_limit_bytes: Some(limit),
+            busy: smspace::pipeline::BusyFolder::Refuse,
+        };
+        let err = pipeline::run(&plan, &options, &Quiet).unwrap_err();
+        assert!(
+            matches!(err, smspace::pipeline::PipelineError::OutOfMemory { .. }),
+            "{err}"
+        );
+        assert!(err.to_string().contains(what), "{err}");
+        assert!(!out.exists(), "nothing ran, nothing was written");
+    }
+}
+
+#[test]
 fn a_small_experiment_runs_from_the_library() {
     let dir = tempfile::tempdir().unwrap();
     let file = experiment(dir.path());

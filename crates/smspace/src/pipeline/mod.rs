@@ -90,6 +90,19 @@ pub enum PipelineError {
         /// Its lock file.
         lock: PathBuf,
     },
+    /// The explored configurations or their kernel sets would not fit in memory;
+    /// nothing ran.
+    #[error("the {what} need {} but only {} is available; {fix}", crate::metric::human_bytes(*needed), crate::metric::human_bytes(*available))]
+    OutOfMemory {
+        /// What would not fit, with its size (e.g. `kernel sets (3500 × 100 × 4)`).
+        what: String,
+        /// Bytes needed.
+        needed: u64,
+        /// Bytes available.
+        available: u64,
+        /// Which keys to lower.
+        fix: &'static str,
+    },
     /// The lock file of the run folder cannot be opened or locked.
     #[error("cannot lock the run folder through {path}: {reason}")]
     Lock {
@@ -336,6 +349,7 @@ pub fn run(
     options: &RunOptions,
     observer: &dyn RunObserver,
 ) -> Result<RunSummary, PipelineError> {
+    check_memory(plan, options.memory_limit_bytes)?;
     let mut runner = start(plan, options, observer)?;
     let world = &plan.world;
     let exploration = runner.run(&plan.explore, &ExploreInput { world })?;
@@ -385,6 +399,53 @@ pub fn run(
         manifest: runner.manifest,
         analysis: analysis.value,
     })
+}
+
+/// Refuses, before anything runs, an experiment whose explored configurations or kernel
+/// sets alone exceed `limit` bytes (the distance matrix is checked by its stage, which
+/// knows how many sets were traced).
+fn check_memory(plan: &Plan, limit: Option<u64>) -> Result<(), PipelineError> {
+    let Some(available) = limit else {
+        return Ok(());
+    };
+    let e = &plan.explore.exploration;
+    let probes = match e.probes {
+        crate::explore::Probes::Grid => (e.probe_positions as u64)
+            .saturating_mul(e.probe_positions as u64)
+            .saturating_mul(e.probe_orientations as u64),
+        crate::explore::Probes::None => 0,
+    };
+    let rows = (e.n as u64).saturating_add(probes);
+    let motors = plan.agent().motor_dim() as u64;
+    let points = plan.trace.kernel.points as u64;
+    // Motors, poses and probe labels; then the sets, their kept rows and closures.
+    let explored = rows.saturating_mul(motors + 6).saturating_mul(8);
+    let sets = rows
+        .saturating_mul(points)
+        .saturating_mul(motors)
+        .saturating_mul(8);
+    for (what, needed, fix) in [
+        (
+            format!("explored configurations ({rows} × {motors} motors, with poses)"),
+            explored,
+            "lower exploration.n or the probe grid",
+        ),
+        (
+            format!("kernel sets ({rows} × {points} points × {motors} motors)"),
+            explored.saturating_add(sets),
+            "lower exploration.n, the probe grid or kernel.points",
+        ),
+    ] {
+        if needed > available {
+            return Err(PipelineError::OutOfMemory {
+                what,
+                needed,
+                available,
+                fix,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Makes the run folder, writes `config.resolved.toml`, and reads the previous
