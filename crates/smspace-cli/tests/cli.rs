@@ -426,6 +426,34 @@ fn bad_inputs_give_clear_errors() {
             vec!["--threads", "100000", "env", "--out", "e.json"],
             "per core",
         ),
+        (
+            vec![
+                "explore",
+                "--agent",
+                "planar-arm",
+                "--n",
+                "1000",
+                "--max-memory",
+                "1000",
+                "--out-dir",
+                "x",
+            ],
+            "the explored configurations need 78.1 KiB but only 1000 B is available",
+        ),
+        (
+            vec![
+                "trace",
+                "--agent",
+                "planar-arm",
+                "--motors",
+                "good.npy",
+                "--max-memory",
+                "1000",
+                "--out",
+                "s.npy",
+            ],
+            "the kernel sets need 3.1 KiB",
+        ),
     ];
     for (args, expected) in cases {
         let stderr = fails(&dir, &args);

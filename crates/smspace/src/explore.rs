@@ -145,6 +145,25 @@ impl ExploreParams {
         Ok(workspace)
     }
 
+    /// Rows the exploration makes: `n` babbled plus the probe grid's cells (saturating).
+    pub fn rows(&self) -> u64 {
+        let probes = match self.probes {
+            Probes::Grid => (self.probe_positions as u64)
+                .saturating_mul(self.probe_positions as u64)
+                .saturating_mul(self.probe_orientations as u64),
+            Probes::None => 0,
+        };
+        (self.n as u64).saturating_add(probes)
+    }
+
+    /// Bytes of the exploration's arrays for an agent with `motor_dim` motors: motors
+    /// `(rows, N)`, poses `(rows, 3)` and probe labels `(rows, 3)` (saturating).
+    pub fn bytes(&self, motor_dim: usize) -> u64 {
+        self.rows()
+            .saturating_mul(motor_dim as u64 + 6)
+            .saturating_mul(8)
+    }
+
     /// The checks that do not depend on the agent: counts, and the probe grid's need of
     /// a working space.
     fn check_counts(&self, workspace: Option<&Workspace>) -> Result<(), ExploreError> {

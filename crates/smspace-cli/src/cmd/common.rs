@@ -130,6 +130,20 @@ pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
     out.with_file_name(format!("{stem}.{suffix}"))
 }
 
+/// Refuses to start when `what` needs more than `limit` bytes (default: the memory
+/// available), naming the sizes and `fix`.
+pub fn check_memory(what: &str, needed: u64, limit: Option<u64>, fix: &str) -> anyhow::Result<()> {
+    if let Some(available) = limit.or_else(memory_available) {
+        anyhow::ensure!(
+            needed <= available,
+            "the {what} need {} but only {} is available (--max-memory); {fix}",
+            smspace::metric::human_bytes(needed),
+            smspace::metric::human_bytes(available)
+        );
+    }
+    Ok(())
+}
+
 /// Bytes of memory available now (MemAvailable), when the system says.
 pub fn memory_available() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;

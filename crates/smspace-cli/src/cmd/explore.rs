@@ -33,6 +33,10 @@ pub struct Args {
     /// Folder for motors.npy, poses.npy, probes.npy and exploration.json (created if needed).
     #[arg(long, value_name = "DIR")]
     out_dir: PathBuf,
+    /// Refuse to start when the output needs more than this many bytes (default: the
+    /// memory available, MemAvailable in /proc/meminfo).
+    #[arg(long, value_name = "BYTES")]
+    max_memory: Option<u64>,
 }
 
 /// Runs `smspace explore`.
@@ -53,6 +57,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         probe_orientations: args.probe_orientations,
         ..ExploreParams::default()
     };
+    super::common::check_memory(
+        "explored configurations",
+        params.bytes(agent.motor_dim()),
+        args.max_memory,
+        "lower --n or the probe grid",
+    )?;
     let exploration = explore_in(agent.as_ref(), &params, workspace)?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("cannot create {}", args.out_dir.display()))?;

@@ -44,6 +44,10 @@ pub struct Args {
     /// set), `<stem>.closed.npy` (1: closed loop, 0: open) and `<stem>.trace.json`.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
+    /// Refuse to start when the output needs more than this many bytes (default: the
+    /// memory available, MemAvailable in /proc/meminfo).
+    #[arg(long, value_name = "BYTES")]
+    max_memory: Option<u64>,
 }
 
 fn parse_method(s: &str) -> Result<TraceMethod, String> {
@@ -90,6 +94,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     let workspace = args.workspace.resolve(agent.as_ref())?;
+    super::common::check_memory(
+        "kernel sets",
+        params.sets_bytes(motors.nrows() as u64, agent.motor_dim()),
+        args.max_memory,
+        "trace fewer motor rows per call, or lower --points",
+    )?;
     let bar = Bar::new();
     let traced = trace_sets(
         agent.as_ref(),

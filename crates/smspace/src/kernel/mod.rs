@@ -242,10 +242,31 @@ fn positive(name: &'static str, value: f64) -> Result<(), KernelError> {
     }
 }
 
+/// Bytes of `(rows, points, motor_dim)` float64 kernel sets (saturating).
+fn sets_bytes(rows: u64, points: usize, motor_dim: usize) -> u64 {
+    rows.saturating_mul(points as u64)
+        .saturating_mul(motor_dim as u64)
+        .saturating_mul(8)
+}
+
+impl TraceValidParams {
+    /// Bytes of the kernel sets traced from `rows` motor rows of an agent with
+    /// `motor_dim` motors (see [`TraceParams::sets_bytes`]).
+    pub fn sets_bytes(&self, rows: u64, motor_dim: usize) -> u64 {
+        sets_bytes(rows, self.points, motor_dim)
+    }
+}
+
 /// Most points per kernel set.
 pub const MAX_POINTS: usize = 100_000;
 
 impl TraceParams {
+    /// Bytes of the kernel sets `(rows, points, N)` float64 traced from `rows` motor
+    /// rows of an agent with `motor_dim` motors (saturating).
+    pub fn sets_bytes(&self, rows: u64, motor_dim: usize) -> u64 {
+        sets_bytes(rows, self.points, motor_dim)
+    }
+
     /// Validates the parameters and resolves `auto` step control.
     pub fn check(&self) -> Result<TraceValidParams, KernelError> {
         for (name, value) in [

@@ -409,21 +409,11 @@ fn check_memory(plan: &Plan, limit: Option<u64>) -> Result<(), PipelineError> {
         return Ok(());
     };
     let e = &plan.explore.exploration;
-    let probes = match e.probes {
-        crate::explore::Probes::Grid => (e.probe_positions as u64)
-            .saturating_mul(e.probe_positions as u64)
-            .saturating_mul(e.probe_orientations as u64),
-        crate::explore::Probes::None => 0,
-    };
-    let rows = (e.n as u64).saturating_add(probes);
-    let motors = plan.agent().motor_dim() as u64;
-    let points = plan.trace.kernel.points as u64;
-    // Motors, poses and probe labels; then the sets, their kept rows and closures.
-    let explored = rows.saturating_mul(motors + 6).saturating_mul(8);
-    let sets = rows
-        .saturating_mul(points)
-        .saturating_mul(motors)
-        .saturating_mul(8);
+    let rows = e.rows();
+    let motors = plan.agent().motor_dim();
+    let points = plan.trace.kernel.points;
+    let explored = e.bytes(motors);
+    let sets = plan.trace.kernel.sets_bytes(rows, motors);
     for (what, needed, fix) in [
         (
             format!("explored configurations ({rows} × {motors} motors, with poses)"),
