@@ -207,12 +207,8 @@ impl ExploreParams {
                     });
                 }
             }
-            let cells = self
-                .probe_positions
-                .checked_mul(self.probe_positions)
-                .and_then(|p| p.checked_mul(self.probe_orientations))
-                .and_then(|cells| cells.checked_add(self.n));
-            if cells.is_none_or(|total| total > MAX_CONFIGURATIONS) {
+            // `rows` saturates, so an overflowing grid is refused too.
+            if self.rows() > MAX_CONFIGURATIONS as u64 {
                 return Err(ExploreError::InvalidParameter {
                     name: "probe_positions",
                     value: format!(

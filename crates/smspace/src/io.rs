@@ -137,8 +137,12 @@ fn open(path: &Path) -> Result<BufReader<File>, IoError> {
 /// F-contiguous array (`np.save(p, np.asfortranarray(a))`, a transposed view), and
 /// every reader downstream may then take rows as contiguous slices.
 fn read_any<A: ReadableElement + Clone>(path: &Path) -> Result<ArrayD<A>, IoError> {
-    check_npy_size(path)?;
-    let reader = open(path)?;
+    let mut reader = open(path)?;
+    check_npy_size(path, reader.get_mut())?;
+    std::io::Seek::rewind(reader.get_mut()).map_err(|reason| IoError::Read {
+        path: path.to_owned(),
+        reason,
+    })?;
     let array = ArrayD::<A>::read_npy(reader).map_err(|error| match error {
         ReadNpyError::Io(reason) => IoError::Read {
             path: path.to_owned(),
@@ -199,12 +203,11 @@ fn npy_layout(head: &[u8]) -> Option<(u64, u128)> {
 /// Refuses a `.npy` file whose header announces more (or fewer) bytes than the file
 /// holds, before any array is allocated from that header: a damaged or hostile header
 /// never makes the reader allocate more than the file's own size.
-fn check_npy_size(path: &Path) -> Result<(), IoError> {
+fn check_npy_size(path: &Path, file: &mut File) -> Result<(), IoError> {
     let read_error = |reason| IoError::Read {
         path: path.to_owned(),
         reason,
     };
-    let mut file = File::open(path).map_err(read_error)?;
     let size = file.metadata().map_err(read_error)?.len();
     let incomplete = |reason: String| IoError::Incomplete {
         path: path.to_owned(),
@@ -214,7 +217,7 @@ fn check_npy_size(path: &Path) -> Result<(), IoError> {
         return Err(incomplete("the file is empty".into()));
     }
     let mut head = Vec::with_capacity(4096);
-    std::io::Read::read_to_end(&mut std::io::Read::take(&mut file, 65_536), &mut head)
+    std::io::Read::read_to_end(&mut std::io::Read::take(&mut *file, 65_536), &mut head)
         .map_err(read_error)?;
     if !head.starts_with(b"\x93NUMPY") {
         return Err(IoError::Npy {
@@ -264,15 +267,14 @@ pub fn check_finite<S: Data<Elem = f64>, D: Dimension>(
     path: &Path,
     array: &ArrayBase<S, D>,
 ) -> Result<(), IoError> {
-    let view = array.view().into_dyn();
-    if let Some((index, value)) = view.indexed_iter().find(|(_, v)| !v.is_finite()) {
-        return Err(IoError::NonFinite {
+    match first_non_finite(array) {
+        Some((index, value)) => Err(IoError::NonFinite {
             path: path.to_owned(),
-            index: shape_string(index.slice()),
-            value: *value,
-        });
+            index,
+            value,
+        }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// Reads a 2-D `float64` array; `columns`, when given, is the required second extent.
@@ -346,6 +348,12 @@ pub fn folder_of(path: &Path) -> PathBuf {
     }
 }
 
+/// Start of the name of every temporary file smspace writes (`.smspace-XXXXXX.part`).
+pub(crate) const TEMP_PREFIX: &str = ".smspace-";
+
+/// End of the name of every temporary file smspace writes.
+pub(crate) const TEMP_SUFFIX: &str = ".part";
+
 /// Writes `fill`'s bytes into a new temporary file (`.smspace-*.part`) in the folder of
 /// `path`, flushed and synced, ready to be renamed over `path`.
 fn stage<F>(path: &Path, fill: F) -> Result<tempfile::NamedTempFile, IoError>
@@ -358,7 +366,7 @@ where
     };
     let folder = folder_of(path);
     let mut builder = tempfile::Builder::new();
-    builder.prefix(".smspace-").suffix(".part");
+    builder.prefix(TEMP_PREFIX).suffix(TEMP_SUFFIX);
     #[cfg(unix)]
     {
         // Outputs are ordinary files (rw-r--r--), not private temporaries.
@@ -381,12 +389,40 @@ pub fn write_atomic<F>(path: &Path, fill: F) -> Result<(), IoError>
 where
     F: FnOnce(&mut BufWriter<&mut File>) -> std::io::Result<()>,
 {
-    let temp = stage(path, fill)?;
+    persist(stage(path, fill)?, path)
+}
+
+/// Renames a staged file over `path`.
+fn persist(temp: tempfile::NamedTempFile, path: &Path) -> Result<(), IoError> {
     temp.persist(path).map_err(|e| IoError::Write {
         path: path.to_owned(),
         reason: e.error,
     })?;
     Ok(())
+}
+
+/// Writes `array` as `.npy` bytes.
+fn fill_npy<A, S, D>(
+    writer: &mut BufWriter<&mut File>,
+    array: &ArrayBase<S, D>,
+) -> std::io::Result<()>
+where
+    A: WritableElement,
+    S: Data<Elem = A>,
+    D: Dimension,
+{
+    array
+        .write_npy(writer)
+        .map_err(|e| std::io::Error::other(e.to_string()))
+}
+
+/// Writes `value` as pretty-printed JSON and a final newline.
+fn fill_json<T: Serialize + ?Sized>(
+    writer: &mut BufWriter<&mut File>,
+    value: &T,
+) -> std::io::Result<()> {
+    serde_json::to_writer_pretty(&mut *writer, value).map_err(std::io::Error::other)?;
+    writer.write_all(b"\n")
 }
 
 /// The files of one command or stage, written together: every file is first written
@@ -434,19 +470,12 @@ impl Outputs {
         D: Dimension,
     {
         check_writable_values(path, array)?;
-        self.file(path, |writer| {
-            array
-                .write_npy(writer)
-                .map_err(|e| std::io::Error::other(e.to_string()))
-        })
+        self.file(path, |writer| fill_npy(writer, array))
     }
 
     /// Stages a value as pretty-printed JSON.
     pub fn json<T: Serialize + ?Sized>(&mut self, path: &Path, value: &T) -> Result<(), IoError> {
-        self.file(path, |writer| {
-            serde_json::to_writer_pretty(&mut *writer, value).map_err(std::io::Error::other)?;
-            writer.write_all(b"\n")
-        })
+        self.file(path, |writer| fill_json(writer, value))
     }
 
     /// Checks every destination, then renames every staged file into place; returns
@@ -457,10 +486,7 @@ impl Outputs {
         }
         let mut written = Vec::with_capacity(self.staged.len());
         for (temp, path) in self.staged {
-            temp.persist(&path).map_err(|e| IoError::Write {
-                path: path.clone(),
-                reason: e.error,
-            })?;
+            persist(temp, &path)?;
             written.push(path);
         }
         Ok(written)
@@ -520,10 +546,21 @@ where
     D: Dimension,
 {
     check_writable_values(path, array)?;
-    write_atomic(path, |writer| {
-        array
-            .write_npy(writer)
-            .map_err(|e| std::io::Error::other(e.to_string()))
+    write_atomic(path, |writer| fill_npy(writer, array))
+}
+
+/// The first entry of `array` that is NaN or infinite, as `(index, value)` with the
+/// index formatted like a shape.
+fn first_non_finite<A, S, D>(array: &ArrayBase<S, D>) -> Option<(String, f64)>
+where
+    A: NpyElement,
+    S: Data<Elem = A>,
+    D: Dimension,
+{
+    let view = array.view().into_dyn();
+    view.indexed_iter().find_map(|(index, v)| {
+        v.non_finite()
+            .map(|value| (shape_string(index.slice()), value))
     })
 }
 
@@ -534,26 +571,19 @@ where
     S: Data<Elem = A>,
     D: Dimension,
 {
-    let view = array.view().into_dyn();
-    if let Some((index, value)) = view
-        .indexed_iter()
-        .find_map(|(index, v)| v.non_finite().map(|value| (index, value)))
-    {
-        return Err(IoError::NonFiniteOutput {
+    match first_non_finite(array) {
+        Some((index, value)) => Err(IoError::NonFiniteOutput {
             path: path.to_owned(),
-            index: shape_string(index.slice()),
+            index,
             value,
-        });
+        }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// Writes a value as pretty-printed JSON, atomically.
 pub fn write_json<T: Serialize + ?Sized>(path: &Path, value: &T) -> Result<(), IoError> {
-    write_atomic(path, |writer| {
-        serde_json::to_writer_pretty(&mut *writer, value).map_err(std::io::Error::other)?;
-        writer.write_all(b"\n")
-    })
+    write_atomic(path, |writer| fill_json(writer, value))
 }
 
 /// Reads a JSON document; `what` names it in error messages (e.g. "environment").

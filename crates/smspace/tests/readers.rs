@@ -60,6 +60,14 @@ const PIECES: [&str; 16] = [
     "period = \"3pi\"",
 ];
 
+/// `text` in a new file `name` of a new temporary folder (kept alive by the guard).
+fn in_file(name: &str, text: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    std::fs::write(&path, text).unwrap();
+    (dir, path)
+}
+
 fn mutated() -> impl Strategy<Value = String> {
     let lines: Vec<String> = BASE.lines().map(str::to_owned).collect();
     let count = lines.len();
@@ -94,9 +102,7 @@ proptest! {
 
     #[test]
     fn experiment_files_give_a_value_or_an_error(text in prop_oneof![mutated(), ".{0,300}"]) {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("e.toml");
-        std::fs::write(&path, &text).unwrap();
+        let (_dir, path) = in_file("e.toml", &text);
         if let Ok(loaded) = load_experiment(&path, &[]) {
             let _ = smspace::pipeline::check(&loaded);
         }
@@ -109,9 +115,7 @@ proptest! {
             ".{0,40}",
         ]
     ) {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("e.toml");
-        std::fs::write(&path, BASE).unwrap();
+        let (_dir, path) = in_file("e.toml", BASE);
         if let Ok(loaded) = load_experiment(&path, &[set]) {
             let _ = smspace::pipeline::check(&loaded);
         }
@@ -124,9 +128,7 @@ proptest! {
             ".{0,120}",
         ]
     ) {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("env.json");
-        std::fs::write(&path, &text).unwrap();
+        let (_dir, path) = in_file("env.json", &text);
         if let Ok(env) = Environment::load(&path) {
             prop_assert!(!env.lights.is_empty());
             prop_assert!(env.lights.iter().all(|l| l[0].is_finite() && l[1].is_finite()));
@@ -137,9 +139,7 @@ proptest! {
 #[test]
 fn the_base_experiment_is_valid() {
     // So that the mutations start from a file that passes every check.
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("e.toml");
-    std::fs::write(&path, BASE).unwrap();
+    let (_dir, path) = in_file("e.toml", BASE);
     let loaded = load_experiment(&path, &[]).unwrap();
     smspace::pipeline::check(&loaded).unwrap();
 }

@@ -42,7 +42,7 @@ impl FolderLock {
         busy: BusyFolder,
         waiting: impl FnOnce(&Path),
     ) -> Result<Self, PipelineError> {
-        let path = dir.join(LOCK_FILE);
+        let path = lock_path(dir);
         let lock_error = |reason| PipelineError::Lock {
             path: path.clone(),
             reason,
@@ -85,8 +85,8 @@ pub(super) fn remove_stale_parts(dir: &Path) -> usize {
         for entry in entries.flatten() {
             let name = entry.file_name();
             let name = name.to_string_lossy();
-            if name.starts_with(".smspace-")
-                && name.ends_with(".part")
+            if name.starts_with(crate::io::TEMP_PREFIX)
+                && name.ends_with(crate::io::TEMP_SUFFIX)
                 && entry.file_type().is_ok_and(|t| t.is_file())
                 && std::fs::remove_file(entry.path()).is_ok()
             {
