@@ -82,5 +82,37 @@ impl InvalidParameter {
     }
 }
 
+/// The one checked-parameter pattern of the crate (after linfa): a serde parameter
+/// struct `XParams` with documented defaults is checked into `XValidParams`, the only
+/// form an algorithm runs, before any work starts. Every failed check is an
+/// [`InvalidParameter`] naming its table and key, wrapped in the module's own error.
+///
+/// ```
+/// use smspace::error::{CheckParams, InvalidParameter};
+/// /// Steps of a walk.
+/// struct WalkParams { steps: usize }
+/// /// Checked [`WalkParams`].
+/// struct WalkValidParams { steps: usize }
+/// impl CheckParams for WalkParams {
+///     type Valid = WalkValidParams;
+///     type Error = InvalidParameter;
+///     fn check_params(&self) -> Result<WalkValidParams, InvalidParameter> {
+///         if self.steps == 0 {
+///             return Err(InvalidParameter::new("walk", "steps", 0, "take at least one step"));
+///         }
+///         Ok(WalkValidParams { steps: self.steps })
+///     }
+/// }
+/// assert!(WalkParams { steps: 0 }.check_params().is_err());
+/// ```
+pub trait CheckParams {
+    /// The checked form (`XValidParams`).
+    type Valid;
+    /// The module's error; it wraps [`InvalidParameter`].
+    type Error: From<InvalidParameter>;
+    /// Checks every parameter; the result is the only form that runs.
+    fn check_params(&self) -> std::result::Result<Self::Valid, Self::Error>;
+}
+
 /// `Result` with the crate-wide [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
