@@ -300,6 +300,16 @@ fn bad_inputs_give_clear_errors() {
         "[agent]\nkind = \"planar-arm\"\nretina_cell = 6\n",
     )
     .unwrap();
+    std::fs::write(
+        dir.join("arm5.toml"),
+        "[agent]\nkind = \"planar-arm\"\nlink_lengths = [1.0, 1.0, 1.0, 1.0]\n",
+    )
+    .unwrap();
+    write_npy(
+        dir.join("five.npy"),
+        &ndarray::array![[0.3, -1.0, 0.9, 0.2, 0.1]],
+    )
+    .unwrap();
     std::fs::write(dir.join("env.json"), "{\"lights\": [[1.0]]}").unwrap();
     // A header claiming 10^9 × 10^9 float64 over a 64-byte body.
     let mut bomb = b"\x93NUMPY\x01\x00".to_vec();
@@ -400,6 +410,29 @@ fn bad_inputs_give_clear_errors() {
                 "s.npy",
             ],
             "retina_cell",
+        ),
+        (
+            vec![
+                "trace",
+                "--agent",
+                "arm5.toml",
+                "--motors",
+                "five.npy",
+                "--out",
+                "s.npy",
+            ],
+            "kernel sets have dimension k = N − rank(J) = 5 − 3 = 2",
+        ),
+        (
+            vec![
+                "explore",
+                "--agent",
+                "toy-line",
+                "--probes",
+                "--out-dir",
+                "x",
+            ],
+            "the probe grid needs a working space",
         ),
         (vec!["explore", "--n", "0", "--out-dir", "x"], "n = 0"),
         (

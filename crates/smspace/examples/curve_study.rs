@@ -62,7 +62,10 @@ fn babble(m: usize, points: usize) -> Result<Sets, Box<dyn std::error::Error>> {
         &params,
         &Silent,
     )?;
-    let poses = exploration.poses.select(ndarray::Axis(0), &traced.kept);
+    let poses = exploration
+        .planar_poses()
+        .expect("the arm's poses are planar")
+        .select(ndarray::Axis(0), &traced.kept);
     Ok(Sets {
         sets: traced.sets,
         closure: traced.closure,

@@ -27,7 +27,7 @@
 use ndarray::{Array2, Array3, ArrayView2, Axis};
 use serde::{Deserialize, Serialize};
 
-use crate::agent::{Agent, Environment, MotorTopology};
+use crate::agent::{Agent, Environment};
 use crate::analysis::agreement::{pearson, upper_triangle};
 use crate::explore::Workspace;
 use crate::kernel::{trace_sets, TraceMethod, TraceValidParams, TracedSets};
@@ -284,9 +284,12 @@ impl Compared {
         metric: MetricKind,
         progress: &dyn Progress,
     ) -> Result<Self, InvarianceError> {
-        let period = match agent.motor_topology() {
-            MotorTopology::Periodic => Period::TwoPi,
-            MotorTopology::Bounded { .. } => Period::None,
+        // Hinges wrap; bounded motors do not. (Mixed motor spaces are refused by the
+        // pipeline's check until per-coordinate periods reach the metric.)
+        let period = if agent.motor_space().is_hinges() {
+            Period::TwoPi
+        } else {
+            Period::None
         };
         let (sets, closures): (Vec<_>, Vec<Vec<Closure>>) = traced
             .iter()

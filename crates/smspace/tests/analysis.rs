@@ -671,7 +671,10 @@ mod learned {
             &Silent,
         )
         .unwrap();
-        let poses = exploration.poses.select(ndarray::Axis(0), &traced.kept);
+        let poses = exploration
+            .planar_poses()
+            .unwrap()
+            .select(ndarray::Axis(0), &traced.kept);
         let params = AnalysisParams::default().check().unwrap();
         analyze(d.view(), Some(poses.view()), &params, &Silent).unwrap()
     }

@@ -7,7 +7,8 @@ use ndarray::Array2;
 use ndarray_npy::read_npy;
 use serde_json::Value;
 use smspace::agent::{
-    Agent, AgentError, AgentRegistry, Environment, LightRegion, MotorTopology, Pose,
+    Agent, AgentError, AgentRegistry, Environment, LightRegion, Motor, MotorSpace, Observer,
+    PoseSpace,
 };
 use smspace::pipeline::{self, Recompute, RunObserver, RunOptions, RunSummary};
 use smspace::progress::{Progress, Silent};
@@ -244,6 +245,12 @@ impl Default for GearedCartParams {
     }
 }
 
+impl GearedCart {
+    fn x(&self, motors: &[f64]) -> f64 {
+        motors[0] + self.gear * motors[1]
+    }
+}
+
 impl Agent for GearedCart {
     fn motor_dim(&self) -> usize {
         2
@@ -252,7 +259,7 @@ impl Agent for GearedCart {
         2
     }
     fn sense(&self, environment: &Environment, motors: &[f64], sensors: &mut [f64]) {
-        let x = self.pose(motors).x;
+        let x = self.x(motors);
         for (s, offset) in sensors.iter_mut().zip([-0.25, 0.25]) {
             *s = environment
                 .lights
@@ -261,24 +268,14 @@ impl Agent for GearedCart {
                 .sum();
         }
     }
-    fn pose(&self, motors: &[f64]) -> Pose {
-        Pose {
-            x: motors[0] + self.gear * motors[1],
-            y: 0.0,
-            alpha: 0.0,
-        }
-    }
     fn name(&self) -> &str {
         "geared-cart"
     }
-    fn configuration_dim(&self) -> usize {
-        1
+    fn motor_space(&self) -> MotorSpace {
+        MotorSpace::bounded(2, -1.0, 1.0).unwrap()
     }
-    fn motor_topology(&self) -> MotorTopology {
-        MotorTopology::Bounded {
-            low: -1.0,
-            high: 1.0,
-        }
+    fn ground_truth(&self) -> Option<&dyn Observer> {
+        Some(self)
     }
     fn default_light_region(&self) -> LightRegion {
         LightRegion {
@@ -289,6 +286,19 @@ impl Agent for GearedCart {
     }
     fn default_light_count(&self) -> usize {
         4
+    }
+}
+
+/// The observer sees the cart's position as the planar pose `(x, 0, 0)`.
+impl Observer for GearedCart {
+    fn pose_space(&self) -> PoseSpace {
+        PoseSpace::planar()
+    }
+    fn pose(&self, motors: &[f64], pose: &mut [f64]) {
+        pose[..3].copy_from_slice(&[self.x(motors), 0.0, 0.0]);
+    }
+    fn configuration_dim(&self) -> usize {
+        1
     }
 }
 
@@ -353,4 +363,174 @@ sample_sets = 3
     let resolved = std::fs::read_to_string(out.join("config.resolved.toml")).unwrap();
     assert!(resolved.contains("kind = \"geared-cart\"") && resolved.contains("gear = 0.75"));
     assert!(out.join("report.html").is_file());
+}
+
+/// An agent with the required methods only, as a simulator outside Rust would give:
+/// two hinges in series (the default motor space) drive a cart round a circular track,
+/// to the angle `u = m1 + m2`, under lights; two light sensors on the cart. No ground
+/// truth, no working space. Its kernel sets are the curves `m1 + m2 = u` on the torus,
+/// one per position on the track: a circle of sets.
+#[derive(Debug)]
+struct WheelCart;
+
+impl Agent for WheelCart {
+    fn motor_dim(&self) -> usize {
+        2
+    }
+    fn sensor_dim(&self) -> usize {
+        2
+    }
+    fn sense(&self, environment: &Environment, motors: &[f64], sensors: &mut [f64]) {
+        let (y, x) = (motors[0] + motors[1]).sin_cos();
+        for (s, offset) in sensors.iter_mut().zip([-0.25, 0.25]) {
+            *s = environment
+                .lights
+                .iter()
+                .map(|l| 1.0 / ((l[0] - x - offset).powi(2) + (l[1] - y).powi(2)))
+                .sum();
+        }
+    }
+    fn name(&self) -> &str {
+        "wheel-cart"
+    }
+}
+
+/// Its (empty) `[agent]` table.
+#[derive(Debug, Default, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct NoParams {}
+
+const WHEEL_CART: &str = r#"
+name = "wheel-cart"
+[agent]
+kind = "wheel-cart"
+[environment]
+lights = 4
+region = { center = [0.0, 0.0], half_size = [3.0, 3.0], exclusion_half_size = [1.6, 1.6] }
+[exploration]
+n = 150
+[kernel]
+method = "sensory"
+points = 30
+[metric]
+metric = "curve"
+period = "2pi"
+[embedding]
+method = "mds"
+dim = 2
+[report]
+formats = "png"
+sample_configurations = 4
+sample_sets = 3
+"#;
+
+#[test]
+fn an_agent_with_only_the_required_methods_runs_through_the_pipeline() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("wheel.toml");
+    std::fs::write(&file, WHEEL_CART).unwrap();
+    let mut agents = AgentRegistry::builtin();
+    agents.register_params(
+        "wheel-cart",
+        "two hinges move a cart; no ground truth",
+        |_: &NoParams| -> Result<Box<dyn Agent>, AgentError> { Ok(Box::new(WheelCart)) },
+    );
+    let loaded = smspace::config::load_experiment(&file, &[]).unwrap();
+    let plan = pipeline::check_with(&loaded, &agents).unwrap_or_else(|e| panic!("{e}"));
+    let out = dir.path().join("run");
+    let options = RunOptions {
+        out_dir: out.clone(),
+        recompute: Recompute::Changed,
+        memory_limit_bytes: None,
+        busy: smspace::pipeline::BusyFolder::Refuse,
+    };
+    let summary = pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"));
+    // The sets are the curves m1 + m2 = u: a circle of sets.
+    let twonn = summary.analysis.intrinsic_dimension.twonn;
+    assert!((0.7..1.4).contains(&twonn), "TwoNN {twonn}");
+    assert_eq!(summary.analysis.betti, vec![1, 1]);
+    // No ground truth: no poses, no agreement, and the report says why.
+    assert!(summary.analysis.agreement.is_none());
+    assert!(!out.join("poses.npy").exists());
+    let sets: ndarray::Array3<f64> = read_npy(out.join("sets.npy")).unwrap();
+    assert_eq!(sets.dim().1, 30);
+    for set in sets.outer_iter() {
+        let u = set[[0, 0]] + set[[0, 1]];
+        for p in set.outer_iter() {
+            assert!(smspace::agent::wrap_angle(p[0] + p[1] - u).abs() < 1e-8);
+        }
+    }
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("no planar ground truth"), "{report}");
+    let trace: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sets.trace.json")).unwrap())
+            .unwrap();
+    assert_eq!(trace["sets"][0]["dimension"], 1);
+    assert!(trace["sets"][0]["max_pose_deviation"].is_null());
+    // The kinematic method needs the ground truth: refused before anything runs,
+    // naming the agent and the way out.
+    let kinematic =
+        smspace::config::load_experiment(&file, &["kernel.method=\"kinematic\"".into()]).unwrap();
+    let err = pipeline::check_with(&kinematic, &agents)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("[kernel]") && err.contains("wheel-cart") && err.contains("no ground truth"),
+        "{err}"
+    );
+}
+
+/// A hinge arm whose last motor is bounded: a mixed motor space.
+#[derive(Debug)]
+struct Mixed;
+
+impl Agent for Mixed {
+    fn motor_dim(&self) -> usize {
+        2
+    }
+    fn sensor_dim(&self) -> usize {
+        1
+    }
+    fn sense(&self, _: &Environment, motors: &[f64], sensors: &mut [f64]) {
+        sensors[0] = motors[0].sin() + motors[1];
+    }
+    fn name(&self) -> &str {
+        "mixed"
+    }
+    fn motor_space(&self) -> MotorSpace {
+        MotorSpace::new(vec![
+            Motor::HINGE,
+            Motor::Bounded {
+                low: 0.0,
+                high: 1.0,
+            },
+        ])
+        .unwrap()
+    }
+}
+
+#[test]
+fn a_mixed_motor_space_is_refused_until_the_metric_takes_per_motor_periods() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("mixed.toml");
+    std::fs::write(
+        &file,
+        "[agent]\nkind = \"mixed\"\n[kernel]\nmethod = \"sensory\"\n[metric]\nperiod = \"2pi\"\n",
+    )
+    .unwrap();
+    let mut agents = AgentRegistry::builtin();
+    agents.register_params("mixed", "a hinge and a slider", |_: &NoParams| {
+        Ok(Box::new(Mixed) as Box<dyn Agent>)
+    });
+    let loaded = smspace::config::load_experiment(&file, &[]).unwrap();
+    let err = pipeline::check_with(&loaded, &agents)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("mixed.toml, line 6")
+            && err.contains("[metric]")
+            && err.contains("period")
+            && err.contains("m2 bounded in [0, 1]"),
+        "{err}"
+    );
 }

@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::Command;
 
 use ndarray::{Array2, Array3, Axis};
-use smspace::agent::{Agent, AgentConfig, Environment, MotorTopology};
+use smspace::agent::{Agent, AgentConfig, Environment};
 use smspace::analysis::{analyze, AnalysisParams, AnalysisReport};
 use smspace::embed::quality::shepard_pairs;
 use smspace::embed::{CcaParams, EmbedReport, Embedding};
@@ -71,9 +71,10 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
         &Silent,
     )
     .unwrap();
-    let period = match agent.motor_topology() {
-        MotorTopology::Periodic => Period::TwoPi,
-        MotorTopology::Bounded { .. } => Period::None,
+    let period = if agent.motor_space().is_hinges() {
+        Period::TwoPi
+    } else {
+        Period::None
     };
     let metric = DistanceParams::new().period(period);
     let distances = distance_matrix(traced.sets.view(), &metric, &Silent).unwrap();
@@ -86,7 +87,10 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
         .fit(distances.view(), &Silent)
         .unwrap();
     let dydx = shepard_pairs(distances.view(), embedded.coordinates.view(), 5000, 1).unwrap();
-    let set_poses = exploration.poses.select(Axis(0), &traced.kept);
+    let set_poses = exploration
+        .planar_poses()
+        .unwrap()
+        .select(Axis(0), &traced.kept);
     let analysis = analyze(
         distances.view(),
         Some(set_poses.view()),
@@ -174,7 +178,7 @@ fn inputs(run: &Run) -> ReportInputs<'_> {
         environments: &run.environments,
         workspace: run.exploration.workspace,
         motors: run.exploration.motors.view(),
-        poses: run.exploration.poses.view(),
+        poses: run.exploration.planar_poses(),
         probes: run.exploration.probes.view(),
         sets: run.sets.view(),
         kept: &run.kept,

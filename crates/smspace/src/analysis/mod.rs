@@ -32,6 +32,7 @@ pub mod homology;
 use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
 
+use crate::agent::GroundTruthView;
 use crate::neighbours::{farthest_first, DenseDistances, NeighboursError};
 use crate::progress::Progress;
 pub use agreement::Agreement;
@@ -65,7 +66,7 @@ pub enum AnalysisError {
         reason: String,
     },
     /// The poses do not match the distance matrix.
-    #[error("poses have shape ({rows}, {columns}), expected ({expected}, 3) to match the distance matrix")]
+    #[error("poses have shape ({rows}, {columns}), expected ({expected}, {coordinates}) to match the distance matrix")]
     PosesShape {
         /// Rows.
         rows: usize,
@@ -73,6 +74,8 @@ pub enum AnalysisError {
         columns: usize,
         /// `M`.
         expected: usize,
+        /// The pose's coordinates `d` (3 for the planar `(x, y, alpha)`).
+        coordinates: usize,
     },
     /// A parameter is out of its domain.
     #[error("invalid analysis parameter {name} = {value}: {reason}")]
@@ -366,15 +369,30 @@ pub struct AnalysisReport {
     pub agreement: Option<Agreement>,
 }
 
-/// Topology, dimension and (with `poses`, `M × 3` `(x, y, alpha)`) agreement of the
-/// distance matrix `distances` (`M × M`).
+/// Topology, dimension and (with `poses`, `M × 3` `(x, y, alpha)`, the planar ground
+/// truth) agreement of the distance matrix `distances` (`M × M`). [`analyze_on`] takes
+/// poses of any layout.
 pub fn analyze(
     distances: ArrayView2<'_, f64>,
     poses: Option<ArrayView2<'_, f64>>,
     params: &AnalysisValidParams,
     progress: &dyn Progress,
 ) -> Result<AnalysisReport, AnalysisError> {
-    analyze_on(distances, poses, None, params, progress)
+    let planar = crate::agent::PoseSpace::planar();
+    let truth = match poses {
+        Some(poses) => Some(
+            GroundTruthView::new(&planar, poses.reborrow()).map_err(|_| {
+                AnalysisError::PosesShape {
+                    rows: poses.nrows(),
+                    columns: poses.ncols(),
+                    expected: distances.nrows(),
+                    coordinates: 3,
+                }
+            })?,
+        ),
+        None => None,
+    };
+    analyze_on(distances, truth, None, params, progress)
 }
 
 /// The sets an intrinsic dimension is estimated on.
@@ -386,12 +404,13 @@ pub struct DimensionSets<'a> {
     pub name: &'a str,
 }
 
-/// [`analyze`], with the intrinsic dimension estimated on the sets `dimension_sets`
-/// only (e.g. the babbled configurations without the regular probe grid; `None`: all
-/// sets). Topology and agreement always use every set.
+/// [`analyze`] against the observer's poses of any layout (`truth`, `M × d`; `None`:
+/// no ground truth, no agreement), with the intrinsic dimension estimated on the sets
+/// `dimension_sets` only (e.g. the babbled configurations without the regular probe
+/// grid; `None`: all sets). Topology and agreement always use every set.
 pub fn analyze_on(
     distances: ArrayView2<'_, f64>,
-    poses: Option<ArrayView2<'_, f64>>,
+    poses: Option<GroundTruthView<'_>>,
     dimension_sets: Option<DimensionSets<'_>>,
     params: &AnalysisValidParams,
     progress: &dyn Progress,
@@ -401,7 +420,11 @@ pub fn analyze_on(
     let (persistence, subsampling) = homology_of(distances.view(), p, progress)?;
     let intrinsic_dimension = intrinsic_dimension(distances.view(), dimension_sets, p, progress)?;
     let agreement = match poses {
-        Some(poses) => Some(agreement::agreement(distances.view(), poses, p.neighbors)?),
+        Some(truth) => Some(agreement::agreement_of(
+            distances.view(),
+            truth,
+            p.neighbors,
+        )?),
         None => None,
     };
     let rule = params.betti_rule();
@@ -432,10 +455,10 @@ pub fn analyze_on(
 }
 
 /// The distance matrix, checked and symmetrised ([`check_distances`]), of at least 3
-/// points, and poses `(M, 3)` if given.
+/// points, and poses `(M, d)` if given.
 fn checked_inputs(
     distances: ArrayView2<'_, f64>,
-    poses: Option<ArrayView2<'_, f64>>,
+    poses: Option<GroundTruthView<'_>>,
 ) -> Result<Array2<f64>, AnalysisError> {
     let distances = check_distances(distances)?;
     let n = distances.nrows();
@@ -445,12 +468,14 @@ fn checked_inputs(
             needed: 3,
         });
     }
-    if let Some(poses) = poses {
-        if poses.dim() != (n, 3) {
+    if let Some(truth) = poses {
+        let d = truth.space().dim();
+        if truth.poses().dim() != (n, d) {
             return Err(AnalysisError::PosesShape {
-                rows: poses.nrows(),
-                columns: poses.ncols(),
+                rows: truth.poses().nrows(),
+                columns: truth.poses().ncols(),
                 expected: n,
+                coordinates: d,
             });
         }
     }

@@ -10,7 +10,7 @@
 //!
 //! | stage | outputs |
 //! |---|---|
-//! | `explore` | `motors.npy` (M0, N), `poses.npy` (M0, 3), `probes.npy` (M0, 3) int64, `exploration.json`, `environment.json` (+ `environment-2.json`, … for compared environments) |
+//! | `explore` | `motors.npy` (M0, N), `poses.npy` (M0, d) (when the agent has a ground truth), `probes.npy` (M0, 3) int64, `exploration.json`, `environment.json` (+ `environment-2.json`, … for compared environments) |
 //! | `trace` | `sets.npy` (M, P, N), `sets.kept.npy` (M,) int64 (row of `motors.npy` of each set), `sets.closed.npy` (M,) int64 (1: a closed loop, 0: an open polyline), `sets.trace.json` |
 //! | `distances` | `D.npy` (M, M) |
 //! | `embed` | `Y.npy` (M, d), `Y.embed.json`, `Y.dydx.npy` (pairs, 2) |
@@ -41,8 +41,10 @@ use serde::{Deserialize, Serialize};
 use crate::agent::{Agent, AgentRegistry};
 use crate::analysis::AnalysisReport;
 use crate::config::{ConfigError, LoadedExperiment};
+use crate::error::InvalidParameter;
 use crate::io::{self, IoError};
 use crate::kernel::{TraceMethod, TraceParams};
+use crate::metric::{MetricError, Period};
 use crate::progress::Progress;
 pub use lock::BusyFolder;
 use lock::FolderLock;
@@ -254,14 +256,14 @@ pub fn check_with(
 ) -> Result<Plan, ConfigError> {
     let built = agents
         .build(&experiment.experiment.agent)
-        .map_err(|err| experiment.invalid("agent", crate::Error::from(err)))?;
+        .map_err(|err| experiment.invalid_error("agent", err.into()))?;
     let agent = built.agent;
     // The resolved agent table (its defaults included) is what the run records.
     let mut experiment = experiment.clone();
     experiment.experiment.agent = built.config;
     let experiment = &experiment;
     let e = &experiment.experiment;
-    let invalid = |table| move |err: crate::Error| experiment.invalid(table, err);
+    let invalid = |table| move |err: crate::Error| experiment.invalid_error(table, err);
     let environments = e
         .environment
         .configs()
@@ -275,6 +277,7 @@ pub fn check_with(
         .map_err(|err| invalid("exploration")(err.into()))?;
     e.kernel
         .check()
+        .and_then(|kernel| kernel.check_for(agent.as_ref()))
         .map_err(|err| invalid("kernel")(err.into()))?;
     let invariance = if environments.len() > 1 && e.analysis.invariance_starts > 0 {
         let kernel = TraceParams {
@@ -295,6 +298,8 @@ pub fn check_with(
     e.metric
         .check()
         .map_err(|err| invalid("metric")(err.into()))?;
+    let period = metric_period(agent.as_ref(), e.metric.period)
+        .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
     e.embedding
         .clone()
         .build()
@@ -322,7 +327,7 @@ pub fn check_with(
         },
         distances: DistancesStage {
             metric: e.metric.metric,
-            period: e.metric.period,
+            period,
         },
         embed: EmbedStage {
             embedding: e.embedding.clone(),
@@ -341,6 +346,29 @@ pub fn check_with(
             report: e.report.clone(),
         },
     })
+}
+
+/// The period of the motor coordinates the distance stage uses for `agent`: today the
+/// experiment's uniform `[metric] period` (`2pi` or `none`), refused when the agent's
+/// motors are not all alike (hinges and bounded motors mixed, or another period), which
+/// a uniform period cannot describe. This is the one place where the agent's
+/// per-coordinate periods ([`MotorSpace::periods`](crate::agent::MotorSpace::periods))
+/// will reach the metric.
+fn metric_period(agent: &dyn Agent, period: Period) -> Result<Period, InvalidParameter> {
+    let space = agent.motor_space();
+    let uniform = space.is_hinges() || space.is_bounded();
+    if uniform {
+        return Ok(period);
+    }
+    Err(InvalidParameter::new(
+        "metric",
+        "period",
+        stages::label(&period),
+        format!(
+            "the {} agent's motors are {space}; a uniform period (\"2pi\" or \"none\") cannot describe them, and per-motor periods are not wired into the pipeline yet",
+            agent.name()
+        ),
+    ))
 }
 
 /// Runs the checked experiment into `options.out_dir` (see the module docs).
@@ -411,8 +439,12 @@ fn check_memory(plan: &Plan, limit: Option<u64>) -> Result<(), PipelineError> {
     let e = &plan.explore.exploration;
     let rows = e.rows();
     let motors = plan.agent().motor_dim();
+    let pose_dim = plan
+        .agent()
+        .ground_truth()
+        .map_or(0, |o| o.pose_space().dim());
     let points = plan.trace.kernel.points;
-    let explored = e.bytes(motors);
+    let explored = e.bytes(motors, pose_dim);
     let sets = plan.trace.kernel.sets_bytes(rows, motors);
     for (what, needed, fix) in [
         (

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use ndarray::{Array2, Axis};
+use ndarray::Array2;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput};
@@ -59,10 +59,11 @@ impl Stage for AnalyzeStage {
             .filter(|&(_, &row)| exploration.probes[[row, 0]] < 0)
             .map(|(i, _)| i)
             .collect();
-        let poses = exploration.poses.select(Axis(0), kept);
+        // Without a ground truth there is no agreement to measure (the summary says so).
+        let truth = exploration.ground_truth.as_ref().map(|t| t.select(kept));
         Ok(analyze_on(
             input.distances.view(),
-            Some(poses.view()),
+            truth.as_ref().map(|t| t.view()),
             Some(DimensionSets {
                 rows: &babbled,
                 name: "babbled",
@@ -87,11 +88,10 @@ impl Stage for AnalyzeStage {
     }
 
     fn summary(&self, a: &AnalysisReport) -> String {
-        let agreement = a
-            .agreement
-            .as_ref()
-            .map(|g| format!(", Spearman {:.3}", g.spearman))
-            .unwrap_or_default();
+        let agreement = a.agreement.as_ref().map_or_else(
+            || ", no agreement (the agent has no ground truth)".to_owned(),
+            |g| format!(", Spearman {:.3}", g.spearman),
+        );
         format!(
             "betti {:?}, TwoNN {:.2}, MLE {:.2}{agreement}",
             a.betti, a.intrinsic_dimension.twonn, a.intrinsic_dimension.mle
