@@ -300,16 +300,6 @@ fn bad_inputs_give_clear_errors() {
         "[agent]\nkind = \"planar-arm\"\nretina_cell = 6\n",
     )
     .unwrap();
-    std::fs::write(
-        dir.join("arm5.toml"),
-        "[agent]\nkind = \"planar-arm\"\nlink_lengths = [1.0, 1.0, 1.0, 1.0]\n",
-    )
-    .unwrap();
-    write_npy(
-        dir.join("five.npy"),
-        &ndarray::array![[0.3, -1.0, 0.9, 0.2, 0.1]],
-    )
-    .unwrap();
     std::fs::write(dir.join("env.json"), "{\"lights\": [[1.0]]}").unwrap();
     // A header claiming 10^9 × 10^9 float64 over a 64-byte body.
     let mut bomb = b"\x93NUMPY\x01\x00".to_vec();
@@ -411,29 +401,6 @@ fn bad_inputs_give_clear_errors() {
             ],
             "retina_cell",
         ),
-        (
-            vec![
-                "trace",
-                "--agent",
-                "arm5.toml",
-                "--motors",
-                "five.npy",
-                "--out",
-                "s.npy",
-            ],
-            "kernel sets have dimension k = N − rank(J) = 5 − 3 = 2",
-        ),
-        (
-            vec![
-                "explore",
-                "--agent",
-                "toy-line",
-                "--probes",
-                "--out-dir",
-                "x",
-            ],
-            "the probe grid needs a working space",
-        ),
         (vec!["explore", "--n", "0", "--out-dir", "x"], "n = 0"),
         (
             vec!["explore", "--workspace", "1,2,3", "--out-dir", "x"],
@@ -501,4 +468,54 @@ fn bad_inputs_give_clear_errors() {
         );
     }
     assert!(!dir.join("s.npy").exists(), "a failed run wrote output");
+}
+
+/// What an agent cannot give is refused with a clear error: 2-D kernels (an arm of four
+/// links and a retina hinge), a probe grid without a working space.
+#[test]
+fn what_the_agent_cannot_give_is_refused() {
+    let (_guard, dir) = temp();
+    std::fs::write(
+        dir.join("arm5.toml"),
+        "[agent]\nkind = \"planar-arm\"\nlink_lengths = [1.0, 1.0, 1.0, 1.0]\n",
+    )
+    .unwrap();
+    write_npy(
+        dir.join("five.npy"),
+        &ndarray::array![[0.3, -1.0, 0.9, 0.2, 0.1]],
+    )
+    .unwrap();
+    let stderr = fails(
+        &dir,
+        &[
+            "trace",
+            "--agent",
+            "arm5.toml",
+            "--motors",
+            "five.npy",
+            "--out",
+            "s.npy",
+        ],
+    );
+    assert!(
+        stderr.contains("kernel sets have dimension k = N − rank(J) = 5 − 3 = 2")
+            && stderr.contains("not implemented yet"),
+        "{stderr}"
+    );
+    let stderr = fails(
+        &dir,
+        &[
+            "explore",
+            "--agent",
+            "toy-line",
+            "--probes",
+            "--out-dir",
+            "x",
+        ],
+    );
+    assert!(
+        stderr.contains("the probe grid needs a working space"),
+        "{stderr}"
+    );
+    assert!(!dir.join("s.npy").exists() && !dir.join("x").exists());
 }

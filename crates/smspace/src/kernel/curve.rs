@@ -290,10 +290,7 @@ pub(crate) fn trace_branch(
             branch.closes_at = Some(watch.image.clone());
             return Ok(branch);
         }
-        if let Some(tau) = space.exit_fraction(&previous, &m) {
-            // The step left the box: its last node moves to where it crossed a bound.
-            let last = branch.nodes.len() - n;
-            space.point_on_exit(&previous, &m, tau, &mut branch.nodes[last..]);
+        if stops_on_bound(space, &previous, &m, &mut branch.nodes) {
             return Ok(branch);
         }
     }
@@ -351,6 +348,18 @@ impl<'a> ClosureWatch<'a> {
         }
         None
     }
+}
+
+/// When the step from `previous` to `m` leaves the range of a bounded coordinate,
+/// moves the last node of `nodes` (that is `m`) to where the step crosses the bound and
+/// returns `true`: the branch ends there.
+fn stops_on_bound(space: &MotorSpace, previous: &[f64], m: &[f64], nodes: &mut [f64]) -> bool {
+    let Some(tau) = space.exit_fraction(previous, m) else {
+        return false;
+    };
+    let last = nodes.len() - m.len();
+    space.point_on_exit(previous, m, tau, &mut nodes[last..]);
+    true
 }
 
 /// Cubic Hermite point on the segment from `a` to `b` with unit tangents `ta`, `tb`
