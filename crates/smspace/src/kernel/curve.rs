@@ -207,6 +207,7 @@ pub(crate) fn trace_branch(
     let mut h = params.step;
     let cos_max_turn = params.max_turn.cos();
     let mut watch = ClosureWatch::new(space, params.closure_tolerance, n);
+    let bounded = space.has_bounds();
     loop {
         if branch.steps >= params.max_steps {
             return Err(SetStatus::NotClosed);
@@ -290,7 +291,7 @@ pub(crate) fn trace_branch(
             branch.closes_at = Some(watch.image.clone());
             return Ok(branch);
         }
-        if stops_on_bound(space, &previous, &m, &mut branch.nodes) {
+        if bounded && stops_on_bound(space, &previous, &m, &mut branch.nodes) {
             return Ok(branch);
         }
     }

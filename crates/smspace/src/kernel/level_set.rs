@@ -8,7 +8,7 @@
 use nalgebra::{DMatrix, SymmetricEigen};
 
 use super::TraceValidParams;
-use crate::agent::{Agent, Environment, Observer, PoseSpace};
+use crate::agent::{wrap_angle, Agent, Environment, Observer, PoseSpace};
 
 /// `value > floor`, false for NaN (so a NaN pivot counts as singular).
 #[inline]
@@ -65,8 +65,13 @@ pub(crate) struct Kinematic<'a> {
     tolerance: f64,
     /// The pose Jacobian, `T × N` (all tangent rows; the first `C` are constrained).
     jacobian: Vec<f64>,
-    /// Cholesky factor of `G`, `C × C` row-major.
-    cholesky: Vec<f64>,
+    /// Cholesky factor of `G` for `C ≤ 3`, row-major with stride 3.
+    cholesky: [f64; 9],
+    /// Cholesky factor of `G` for `C > 3`, `C × C` row-major.
+    cholesky_any: Vec<f64>,
+    /// Whether the pose is the planar `(x, y, alpha)` (differences without the
+    /// general [`PoseSpace::difference`]).
+    planar: bool,
     pose: Vec<f64>,
     difference: Vec<f64>,
 }
@@ -83,12 +88,29 @@ impl<'a> Kinematic<'a> {
             n,
             c,
             jacobian: vec![0.0; space.tangent_dim() * n],
-            cholesky: vec![0.0; c * c],
+            cholesky: [0.0; 9],
+            cholesky_any: vec![0.0; if c > 3 { c * c } else { 0 }],
+            planar: space.is_planar(),
             pose: vec![0.0; space.dim()],
             difference: vec![0.0; space.tangent_dim()],
             target,
             space,
             tolerance,
+        }
+    }
+
+    /// `r = pose − target` in the first `C` tangent coordinates, for the pose in
+    /// `self.pose` (straight-line for the planar pose, the arm's case).
+    #[inline]
+    fn pose_residual(&mut self, r: &mut [f64]) {
+        if self.planar {
+            let (p, t) = (&self.pose, &self.target);
+            let d = [p[0] - t[0], p[1] - t[1], wrap_angle(p[2] - t[2])];
+            r[..self.c].copy_from_slice(&d[..self.c]);
+        } else {
+            self.space
+                .difference(&self.pose, &self.target, &mut self.difference);
+            r[..self.c].copy_from_slice(&self.difference[..self.c]);
         }
     }
 
@@ -109,15 +131,15 @@ impl<'a> Kinematic<'a> {
             for j in 0..=i {
                 let mut s = gram[i][j];
                 for k in 0..j {
-                    s -= l[i * C + k] * l[j * C + k];
+                    s -= l[i * 3 + k] * l[j * 3 + k];
                 }
                 if i == j {
                     if !exceeds(s, 1e-14 * trace) {
                         return Err(Singular);
                     }
-                    l[i * C + i] = s.sqrt();
+                    l[i * 3 + i] = s.sqrt();
                 } else {
-                    l[i * C + j] = s / l[j * C + j];
+                    l[i * 3 + j] = s / l[j * 3 + j];
                 }
             }
         }
@@ -126,6 +148,7 @@ impl<'a> Kinematic<'a> {
 
     /// [`factor`](Self::factor) for any number `c` of rows (agents beyond the paper's:
     /// more than three pose coordinates held fixed).
+    #[inline(never)]
     fn factor_any(&mut self) -> Result<(), Singular> {
         let (n, c) = (self.n, self.c);
         let mut gram = vec![0.0; c * c];
@@ -137,7 +160,7 @@ impl<'a> Kinematic<'a> {
             }
         }
         let trace: f64 = (0..c).map(|a| gram[a * c + a]).sum();
-        let l = &mut self.cholesky;
+        let l = &mut self.cholesky_any;
         for i in 0..c {
             for j in 0..=i {
                 let mut s = gram[i * c + j];
@@ -157,7 +180,9 @@ impl<'a> Kinematic<'a> {
         Ok(())
     }
 
-    /// [`row_space`](Self::row_space) for any number of rows.
+    /// [`row_space`](Self::row_space) for any number of rows (kept out of line: the
+    /// arm's three rows take [`row_space_3`](Self::row_space_3)).
+    #[inline(never)]
     fn row_space_any(&self, v: &[f64], apply_first: bool, out: &mut [f64]) {
         let (n, c) = (self.n, self.c);
         let mut y: Vec<f64> = (0..c)
@@ -169,7 +194,7 @@ impl<'a> Kinematic<'a> {
                 }
             })
             .collect();
-        let l = &self.cholesky;
+        let l = &self.cholesky_any;
         for i in 0..c {
             let mut s = y[i];
             for k in 0..i {
@@ -207,16 +232,16 @@ impl<'a> Kinematic<'a> {
         for i in 0..C {
             let mut s = y[i];
             for k in 0..i {
-                s -= l[i * C + k] * y[k];
+                s -= l[i * 3 + k] * y[k];
             }
-            y[i] = s / l[i * C + i];
+            y[i] = s / l[i * 3 + i];
         }
         for i in (0..C).rev() {
             let mut s = y[i];
             for k in i + 1..C {
-                s -= l[k * C + i] * y[k];
+                s -= l[k * 3 + i] * y[k];
             }
-            y[i] = s / l[i * C + i];
+            y[i] = s / l[i * 3 + i];
         }
         for (j, o) in out.iter_mut().enumerate() {
             *o = (0..C).map(|a| self.jacobian[a * n + j] * y[a]).sum();
@@ -285,8 +310,7 @@ impl<'a> Kinematic<'a> {
             return Err(Singular);
         }
         let l22 = d2.sqrt();
-        self.cholesky
-            .copy_from_slice(&[l00, 0.0, 0.0, l10, l11, 0.0, l20, l21, l22]);
+        self.cholesky = [l00, 0.0, 0.0, l10, l11, 0.0, l20, l21, l22];
         Ok(())
     }
 }
@@ -302,9 +326,7 @@ impl LevelSet for Kinematic<'_> {
 
     fn residual(&mut self, m: &[f64], r: &mut [f64]) {
         self.observer.pose(m, &mut self.pose);
-        self.space
-            .difference(&self.pose, &self.target, &mut self.difference);
-        r[..self.c].copy_from_slice(&self.difference[..self.c]);
+        self.pose_residual(r);
     }
 
     fn residual_norm(&self, r: &[f64]) -> f64 {
@@ -318,9 +340,7 @@ impl LevelSet for Kinematic<'_> {
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
         self.observer
             .pose_jacobian(m, &mut self.jacobian, &mut self.pose);
-        self.space
-            .difference(&self.pose, &self.target, &mut self.difference);
-        r[..self.c].copy_from_slice(&self.difference[..self.c]);
+        self.pose_residual(r);
         match self.c {
             1 => self.factor::<1>(),
             2 => self.factor::<2>(),
