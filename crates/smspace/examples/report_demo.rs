@@ -175,7 +175,7 @@ impl Run {
             .dim(if arm { 3 } else { 1 })
             .seed(1)
             .check()?
-            .fit(distances.view(), &Silent)?;
+            .fit(&distances, &Silent)?;
         let y = embedded.coordinates.view();
         let quality = embedding_quality(distances.view(), y)?;
         let dydx = shepard_pairs(distances.view(), y, 20_000, 1)?;
@@ -185,7 +185,7 @@ impl Run {
             .expect("the built-in agents have planar poses")
             .select(Axis(0), &traced.kept);
         let analysis = analyze(
-            distances.view(),
+            &distances,
             Some(set_poses.view()),
             &AnalysisParams::default().check()?,
             &Silent,
@@ -253,7 +253,7 @@ fn invariance_data(
         environments,
         exploration.workspace.as_ref(),
         &sensory,
-        smspace::metric::MetricKind::Hausdorff,
+        smspace::invariance::agent_metric(smspace::metric::MetricKind::Hausdorff, agent).as_ref(),
         &Silent,
     )?;
     let per_env = environments
@@ -282,11 +282,9 @@ fn invariance_data(
             .iter()
             .map(|r| t.kept.binary_search(r).unwrap_or(0))
             .collect();
-        set_distances.push(distance_matrix(
-            t.sets.select(Axis(0), &at).view(),
-            metric,
-            &Silent,
-        )?);
+        set_distances.push(
+            distance_matrix(t.sets.select(Axis(0), &at).view(), metric, &Silent)?.into_array(),
+        );
         let mut s = Array2::zeros((common.len(), agent.sensor_dim()));
         for (k, &r) in common.iter().enumerate() {
             let m = starts.row(r).to_vec();

@@ -84,7 +84,7 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
         .seed(1)
         .check()
         .unwrap()
-        .fit(distances.view(), &Silent)
+        .fit(&distances, &Silent)
         .unwrap();
     let dydx = shepard_pairs(distances.view(), embedded.coordinates.view(), 5000, 1).unwrap();
     let set_poses = exploration
@@ -92,7 +92,7 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
         .unwrap()
         .select(Axis(0), &traced.kept);
     let analysis = analyze(
-        distances.view(),
+        &distances,
         Some(set_poses.view()),
         &AnalysisParams::default().check().unwrap(),
         &Silent,
@@ -114,7 +114,11 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
             &environments,
             exploration.workspace.as_ref(),
             &sensory,
-            smspace::metric::MetricKind::Hausdorff,
+            smspace::invariance::agent_metric(
+                smspace::metric::MetricKind::Hausdorff,
+                agent.as_ref(),
+            )
+            .as_ref(),
             &Silent,
         )
         .unwrap();
@@ -122,8 +126,9 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
         // (identical in every environment by construction) and their sensor values.
         let c = report.common_sets.min(invariance_rows);
         let rows: Vec<usize> = (0..c).collect();
-        let d =
-            distance_matrix(traced.sets.select(Axis(0), &rows).view(), &metric, &Silent).unwrap();
+        let d = distance_matrix(traced.sets.select(Axis(0), &rows).view(), &metric, &Silent)
+            .unwrap()
+            .into_array();
         let sensors = environments
             .iter()
             .map(|env| {

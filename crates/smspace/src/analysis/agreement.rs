@@ -156,11 +156,15 @@ pub fn trustworthiness_continuity(
 ) -> Result<(f64, f64), AnalysisError> {
     let (learned, truth) = (DenseDistances::new(learned)?, DenseDistances::new(truth)?);
     neighbours::trustworthiness_continuity(&truth, &learned, k).map_err(|e| match e {
-        NeighboursError::TrustworthinessK { points, max, .. } => AnalysisError::InvalidParameter {
-            name: "neighbors",
-            value: k.to_string(),
-            reason: format!("must be at least 1 and at most N/2 = {max} with N = {points} points"),
-        },
+        NeighboursError::TrustworthinessK { points, max, .. } => {
+            crate::error::InvalidParameter::new(
+                "analysis",
+                "neighbors",
+                k,
+                format!("must be at least 1 and at most N/2 = {max} with N = {points} points"),
+            )
+            .into()
+        }
         e => e.into(),
     })
 }

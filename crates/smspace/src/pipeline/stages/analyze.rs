@@ -3,14 +3,13 @@
 
 use std::path::Path;
 
-use ndarray::Array2;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput};
 use crate::analysis::{analyze_on, AnalysisParams, AnalysisReport, DimensionSets};
 use crate::explore::Exploration;
-use crate::io;
 use crate::kernel::TracedSets;
+use crate::metric::DistanceMatrix;
 use crate::pipeline::StageId;
 
 /// The `analyze` stage: the `[analysis]` table.
@@ -28,7 +27,7 @@ pub struct AnalyzeInput<'a> {
     /// Which rows were traced.
     pub traced: &'a Keyed<TracedSets>,
     /// The distances between the traced sets.
-    pub distances: &'a Keyed<Array2<f64>>,
+    pub distances: &'a Keyed<DistanceMatrix>,
 }
 
 impl StageInput for AnalyzeInput<'_> {
@@ -62,7 +61,7 @@ impl Stage for AnalyzeStage {
         // Without a ground truth there is no agreement to measure (the summary says so).
         let truth = exploration.ground_truth.as_ref().map(|t| t.select(kept));
         Ok(analyze_on(
-            input.distances.view(),
+            &input.distances.value,
             truth.as_ref().map(|t| t.view()),
             Some(DimensionSets {
                 rows: &babbled,
@@ -79,12 +78,12 @@ impl Stage for AnalyzeStage {
         report: &AnalysisReport,
         dir: &Path,
     ) -> crate::Result<Vec<String>> {
-        io::write_json(&dir.join(REPORT_FILE), report)?;
+        report.save(&dir.join(REPORT_FILE))?;
         Ok(vec![REPORT_FILE.to_owned()])
     }
 
     fn load(&self, _: &AnalyzeInput<'_>, dir: &Path) -> crate::Result<AnalysisReport> {
-        Ok(io::read_json(&dir.join(REPORT_FILE), "analysis report")?)
+        Ok(AnalysisReport::load(&dir.join(REPORT_FILE))?)
     }
 
     fn summary(&self, a: &AnalysisReport) -> String {
