@@ -432,12 +432,28 @@ pub fn analyze_on(
 }
 
 /// The distance matrix, checked and symmetrised ([`check_distances`]), of at least 3
-/// points, and poses `(M, 3)` if given.
-fn checked_inputs(
-    distances: ArrayView2<'_, f64>,
+/// points, and poses `(M, 3)` if given. A matrix that is already an exact distance
+/// matrix (square, finite, non-negative, exactly symmetric with a zero diagonal, as
+/// the pipeline's `D`) is used as it is rather than copied (`pipeline::memory`).
+fn checked_inputs<'a>(
+    distances: ArrayView2<'a, f64>,
     poses: Option<ArrayView2<'_, f64>>,
-) -> Result<Array2<f64>, AnalysisError> {
-    let distances = check_distances(distances)?;
+) -> Result<ndarray::CowArray<'a, f64, ndarray::Ix2>, AnalysisError> {
+    let exact = distances.is_square()
+        && distances.indexed_iter().all(|((i, j), &d)| {
+            d.is_finite()
+                && d >= 0.0
+                && (if i == j {
+                    d == 0.0
+                } else {
+                    d == distances[[j, i]]
+                })
+        });
+    let distances = if exact {
+        ndarray::CowArray::from(distances)
+    } else {
+        ndarray::CowArray::from(check_distances(distances)?)
+    };
     let n = distances.nrows();
     if n < 3 {
         return Err(AnalysisError::TooFewPoints {

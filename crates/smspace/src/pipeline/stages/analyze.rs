@@ -9,7 +9,7 @@ use serde::Serialize;
 use super::{Keyed, Stage, StageContext, StageInput};
 use crate::analysis::{analyze_on, AnalysisParams, AnalysisReport, DimensionSets};
 use crate::explore::Exploration;
-use crate::io;
+use crate::io::{self, Outputs};
 use crate::kernel::TracedSets;
 use crate::pipeline::StageId;
 
@@ -76,10 +76,11 @@ impl Stage for AnalyzeStage {
         &self,
         _: &AnalyzeInput<'_>,
         report: &AnalysisReport,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        io::write_json(&dir.join(REPORT_FILE), report)?;
-        Ok(vec![REPORT_FILE.to_owned()])
+    ) -> crate::Result<()> {
+        outputs.json(&dir.join(REPORT_FILE), report)?;
+        Ok(())
     }
 
     fn load(&self, _: &AnalyzeInput<'_>, dir: &Path) -> crate::Result<AnalysisReport> {

@@ -7,7 +7,7 @@ use ndarray::Array2;
 use serde::Serialize;
 
 use super::{label, Keyed, Stage, StageContext, StageInput};
-use crate::io::{self, IoError};
+use crate::io::{self, IoError, Outputs};
 use crate::kernel::TracedSets;
 use crate::metric::{distance_matrix, DistanceParams, MetricKind, Period, SetsView};
 use crate::pipeline::StageId;
@@ -61,10 +61,11 @@ impl Stage for DistancesStage {
         &self,
         _: &DistancesInput<'_>,
         d: &Array2<f64>,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        io::write_npy(&dir.join(MATRIX_FILE), d)?;
-        Ok(vec![MATRIX_FILE.to_owned()])
+    ) -> crate::Result<()> {
+        outputs.npy(&dir.join(MATRIX_FILE), d)?;
+        Ok(())
     }
 
     fn load(&self, input: &DistancesInput<'_>, dir: &Path) -> crate::Result<Array2<f64>> {

@@ -9,7 +9,7 @@ use serde::Serialize;
 use super::{Keyed, Stage, StageContext, StageInput, World};
 use crate::explore::Exploration;
 use crate::invariance::invariance_measured;
-use crate::io;
+use crate::io::{self, Outputs};
 use crate::kernel::TraceParams;
 use crate::metric::MetricKind;
 use crate::pipeline::StageId;
@@ -90,21 +90,20 @@ impl Stage for InvarianceStage {
         })
     }
 
+    /// `invariance.json` and the two arrays of every environment, all together.
     fn save(
         &self,
         _: &InvarianceInput<'_>,
         data: &InvarianceData,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        io::write_json(&dir.join(REPORT_FILE), &data.report)?;
-        let mut files = vec![REPORT_FILE.to_owned()];
+    ) -> crate::Result<()> {
+        outputs.json(&dir.join(REPORT_FILE), &data.report)?;
         for (i, (d, s)) in data.set_distances.iter().zip(&data.sensors).enumerate() {
-            let (d_file, s_file) = (matrix_file(i), sensors_file(i));
-            io::write_npy(&dir.join(&d_file), d)?;
-            io::write_npy(&dir.join(&s_file), s)?;
-            files.extend([d_file, s_file]);
+            outputs.npy(&dir.join(matrix_file(i)), d)?;
+            outputs.npy(&dir.join(sensors_file(i)), s)?;
         }
-        Ok(files)
+        Ok(())
     }
 
     fn load(&self, input: &InvarianceInput<'_>, dir: &Path) -> crate::Result<InvarianceData> {
