@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use super::eigen::{classical_mds, distance_scale, rescaled, EigenSolver, Triangulation};
 use super::{check_dim_param, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
-use crate::progress::Progress;
+use crate::progress::{Progress, Silent};
 
 /// Parameters of classical MDS (unchecked).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -86,11 +86,11 @@ impl Embedding for MdsValidParams {
     fn fit_checked(
         &self,
         distances: ArrayView2<'_, f64>,
-        progress: &dyn Progress,
+        _progress: &dyn Progress,
     ) -> Result<Embedded, EmbedError> {
         if let Some(scale) = distance_scale(distances) {
             let scaled = distances.mapv(|x| x / scale);
-            return Ok(rescaled(self.fit_checked(scaled.view(), progress)?, scale));
+            return Ok(rescaled(self.fit_checked(scaled.view(), &Silent)?, scale));
         }
         let n = distances.nrows();
         let sq: Array2<f64> = distances.mapv(|x| x * x);
