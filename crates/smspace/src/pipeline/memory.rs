@@ -13,7 +13,7 @@
 //! | `trace` | the kernel sets `(rows, P, N)`, twice (traced, then stacked) |
 //! | `distances` | `D`, and the prepared sets ([`crate::metric::matrix_bytes`]) |
 //! | `embed` | CCA: `D` in `f32` and the off-diagonal distances (`≈ 1 D`) and its MDS start; MDS: the squared copy and the eigensolver (`≈ 2 D`, `≈ 4 D` dense below 1000 points); Isomap: geodesics and their squares (`≈ 2 D`, landmarks `≈ 2 L M`) |
-//! | `analyze` | the checked copy of `D` (`1 D`), the pair lists and ranks of the agreement with the poses (`≈ 5 D`), persistence of `max_points` landmarks (`≈ 8 L²`) |
+//! | `analyze` | the pair lists and ranks of the agreement with the poses, one ranking at a time (`≈ 4 D`), persistence of `max_points` landmarks (`≈ 8 L²`) |
 //! | `invariance` | the starts' sets in every environment and their distance matrices |
 //! | `report` | the sampled sets and figures (small next to `D`) |
 
@@ -153,7 +153,7 @@ impl Plan {
         let a = &self.analyze.analysis;
         let landmarks = m.min(a.max_points as u64);
         let working = matrix(m)
-            .saturating_mul(6)
+            .saturating_mul(5)
             .saturating_add(matrix(landmarks).saturating_mul(8));
         Peak {
             what: format!(
