@@ -56,6 +56,7 @@
 pub mod curve;
 mod kernel;
 mod knn;
+mod period;
 mod prepared;
 pub mod reference;
 
@@ -68,7 +69,9 @@ use serde::{Deserialize, Serialize};
 use crate::progress::Progress;
 
 pub use curve::{Closure, CURVE_TOLERANCE};
+pub use kernel::simd_level;
 pub use knn::{knn, knn_prepared, Knn, KnnParams, ValidKnnParams, MAX_PIVOTS};
+pub use period::{CoordinatePeriods, PeriodError, Periods};
 pub use prepared::PreparedSets;
 
 /// Kernel sets as the metric reads them: the points `(M, P, N)` and, for the `curve`
@@ -210,6 +213,9 @@ pub enum MetricError {
         /// `M`.
         sets: usize,
     },
+    /// Periods that do not fit the sets.
+    #[error(transparent)]
+    Period(#[from] PeriodError),
     /// A polyline needs two points.
     #[error("the curve metric joins the points of a set into a polyline, which needs at least 2 points per set, but the sets have P = {points}")]
     TooFewPoints {
