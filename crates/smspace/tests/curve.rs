@@ -523,7 +523,10 @@ fn mixed_periods_point_metrics_equal_the_brute_force() {
         // by 2π the distances differ.
         let uniform = Periods::uniform(Period::TwoPi, 3);
         let other = prepared_matrix(SetsView::new(sets.view()), &uniform, metric);
-        assert!((&other - &fast).iter().any(|x| x.abs() > 1e-3), "{metric:?}");
+        assert!(
+            (&other - &fast).iter().any(|x| x.abs() > 1e-3),
+            "{metric:?}"
+        );
     }
 }
 
@@ -569,7 +572,11 @@ fn a_segment_crosses_the_seam_of_a_small_period() {
     // Farthest: A's ends, 0.05 across and 0.3 below B's lower end (B → A reaches only
     // 0.301).
     let expected = f64::hypot(0.05, 0.3);
-    assert!((d[[0, 1]] - expected).abs() < 1e-12, "{} vs {expected}", d[[0, 1]]);
+    assert!(
+        (d[[0, 1]] - expected).abs() < 1e-12,
+        "{} vs {expected}",
+        d[[0, 1]]
+    );
 }
 
 #[test]
@@ -593,7 +600,11 @@ fn a_period_scales_with_the_coordinates() {
         MetricKind::Curve,
     );
     for (x, y) in small.iter().zip(large.iter()) {
-        assert!((x * scale - y).abs() <= 1e-9 * (1.0 + y), "{} vs {y}", x * scale);
+        assert!(
+            (x * scale - y).abs() <= 1e-9 * (1.0 + y),
+            "{} vs {y}",
+            x * scale
+        );
     }
     assert!(small.iter().any(|&x| x > 0.1));
 }

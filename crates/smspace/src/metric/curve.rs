@@ -6,8 +6,10 @@
 //! one back to `x_0`: the loops of the paper's arm) or an **open** one (`P − 1`
 //! segments: the segments of the redundant toy, sets that end on a joint limit).
 //! Segment `i` runs from `x_i` to `x_i + v_i` with `v_i = h(x_{i+1} − x_i)` (every
-//! coordinate difference wrapped into `[−π, π]`; with [`Period::None`](super::Period)
-//! `v_i = x_{i+1} − x_i`). Its points are `s_i(t) = x_i + t·v_i`, `t ∈ [0, 1]`.
+//! coordinate difference `n` wrapped into `[−T_n/2, T_n/2]` with its own period `T_n`,
+//! `[−π, π]` for the arm's joints, see [`Periods`](super::Periods); an unwrapped
+//! coordinate, as everywhere with [`Period::None`](super::Period), is not changed).
+//! Its points are `s_i(t) = x_i + t·v_i`, `t ∈ [0, 1]`.
 //!
 //! The distance from a point `a` to a segment is the minimum over the segment of the
 //! periodic point metric `g` of [`super`]:
@@ -19,8 +21,8 @@
 //! computed exactly even when the segment crosses the torus' seam: with
 //! `u = h(a − x_i)`, the function `f(t) = Σ_n h(u_n − t v_n)²` is a convex quadratic on
 //! each piece of `[0, 1]` between the (at most `N`) values of `t` where some
-//! `u_n − t v_n` crosses `±π`, and it is minimised on every piece in closed form. When
-//! no coordinate crosses (`|u_n − v_n| ≤ π` for all `n`, almost always) there is one
+//! `u_n − t v_n` crosses `±T_n/2`, and it is minimised on every piece in closed form. When
+//! no coordinate crosses (`|u_n − v_n| ≤ T_n/2` for all `n`, almost always) there is one
 //! piece and `δ² = |u − t* v|²` with `t* = clamp(u·v / |v|², 0, 1)`.
 //!
 //! The directed distance and the metric are taken over the **continuous** polylines:
@@ -53,7 +55,7 @@
 //!    Only images of segments of `B` whose (lifted) segment-to-segment distance to
 //!    `[a_i, a_{i+1}]` is at most `U` can be nearest anywhere on it (boxes prune whole
 //!    chunks first). An image of `s_j` is needed when a coordinate of `a(t) − s_j(s)`
-//!    leaves `[−π, π]` for some `t, s ∈ [0, 1]` (it is linear in both, so the four
+//!    leaves `[−T_n/2, T_n/2]` for some `t, s ∈ [0, 1]` (it is linear in both, so the four
 //!    corners tell). On each, `E(t)² = |p + t q|²` piecewise in `t`, with at most three
 //!    pieces (the foot `s*(t)` is linear in `t`, clamped to 0 or 1), so on the segment
 //!    `d_B² = min E²` is a lower envelope of convex quadratics. Between two points where
@@ -71,6 +73,8 @@
 //! does not depend on which of the two sets is the query.
 
 mod filter;
+
+use std::cell::Cell;
 
 use self::filter::{segment_scan, segment_window, vertex_window, SegmentBlock, Wraps};
 use super::kernel::{
@@ -716,7 +720,7 @@ fn roots_in(a: f64, b: f64, c: f64, lo: f64, hi: f64) -> ([f64; 2], usize) {
 /// `(p, v)` of `A` and the image of segment `j` of `B` nearest to `p` (lifted, as in
 /// [`segment_gap2`]), and whether that image is the only one any pair of their points
 /// reaches (`true` when every coordinate difference at the four corners `t, s ∈ {0, 1}`
-/// is within `[−π, π]`). Lanes past the last segment are `(+∞, true)`.
+/// is within `[−T_n/2, T_n/2]`). Lanes past the last segment are `(+∞, true)`.
 #[inline(always)]
 fn chunk_segment_gaps<const N: usize>(
     p: &[f64; N],
@@ -868,7 +872,7 @@ fn near_images<const N: usize>(
     // Every periodic image of a segment of B that comes within `upper` of the segment
     // (only those can be nearest on it). Per coordinate, the lifted difference
     // `a(t) − s_j(s)` runs between its values at the four corners `t, s ∈ {0, 1}` (it
-    // is linear in both); when every coordinate stays within `[−π, π]` the image
+    // is linear in both); when every coordinate stays within `[−T_n/2, T_n/2]` the image
     // nearest to `a_i` is the only one, else the images shifted by one period on the
     // side where the range leaves it join.
     let mut image_count = 0;
@@ -1312,14 +1316,20 @@ pub(crate) struct CurveScratch {
     /// Per vertex of `A`: its exact `d_B²` and nearest segment of `B`, once computed
     /// (`NaN` before).
     vertex: Vec<(f64, u32)>,
-    /// Segments of `A` that the `f32` passes left open, with their test value.
-    open: Vec<(f32, u32)>,
+    /// Segments of `A` that the `f32` passes left open: their test value, index, and
+    /// the smallest lifted `f32` squared distances from their two ends to the segments
+    /// of `B` in the window (`+∞` when not computed).
+    open: Vec<OpenSegment>,
     /// The `f32` distances of the segment scan of the segment being settled.
     scan: Vec<ScanChunk>,
     /// The same for the vertex whose exact distance is computed.
     vertex_scan: Vec<ScanChunk>,
     stack: Vec<Piece>,
 }
+
+/// A segment of `A` left open by the `f32` passes: `(test value, index, (m0, m1))`, see
+/// [`CurveScratch::open`].
+type OpenSegment = (f32, u32, (f32, f32));
 
 /// One chunk of a [`segment_scan`]: the lifted squared distances from both ends and
 /// the segments that cross the seam.
@@ -1342,6 +1352,9 @@ struct Pass<'a, S: Lanes, const N: usize> {
     image_reach: f64,
     /// Coordinates too large for the `f32` filter: nothing is settled in `f32`.
     wide: bool,
+    /// The last `(c2, segment_threshold(c2))`: `c2` changes a few times per pass while
+    /// the threshold (a square root and a division) is asked for at every test.
+    theta: Cell<(f64, f32)>,
 }
 
 impl<S: Lanes, const N: usize> Pass<'_, S, N> {
@@ -1349,10 +1362,30 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
     #[inline(always)]
     fn segment_threshold(&self, c2: f64) -> f32 {
         if self.wide {
-            -1.0
-        } else {
-            threshold(c2, self.frame.segment_delta, self.frame.rel)
+            return -1.0;
         }
+        let (last, theta) = self.theta.get();
+        if last == c2 {
+            return theta;
+        }
+        let theta = threshold(c2, self.frame.segment_delta, self.frame.rel);
+        self.theta.set((c2, theta));
+        theta
+    }
+
+    /// An upper bound of the exact distance whose lifted `f32` square is `m` (see
+    /// [`FilterBounds`](super::prepared::FilterBounds)).
+    #[inline(always)]
+    fn upper(&self, m: f32) -> f64 {
+        (f64::from(m) * (1.0 + self.frame.rel)).sqrt() * (1.0 + 1e-12) + self.frame.segment_delta
+    }
+
+    /// The Lipschitz bound: segment `i` of `A` is settled when
+    /// `(d_B(a_i) + d_B(a_{i+1}) + |v_i|)/2 ≤ √c2`, with the `f32` lifted squared
+    /// distances `m0`, `m1` from its ends to some segments of `B` as upper bounds.
+    #[inline(always)]
+    fn lipschitz_settles(&self, i: usize, (m0, m1): (f32, f32), c2: f64) -> bool {
+        0.5 * (self.upper(m0) + self.upper(m1) + self.a.lengths[i]) <= c2.sqrt() * (1.0 - 1e-12)
     }
 
     /// The exact `d_B(a_i)²` of vertex `i` of `A` and its nearest segment of `B` (the
@@ -1580,10 +1613,8 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
             scratch.vertex[i] = self.nearest_from_scan(i, min0, &scan);
             c2 = c2.max(scratch.vertex[i].0);
         }
-        let (delta, rel) = (frame.segment_delta, frame.rel);
-        let upper = |m: f32| (f64::from(m) * (1.0 + rel)).sqrt() * (1.0 + 1e-12) + delta;
-        let settled = min_max <= self.segment_threshold(c2)
-            || 0.5 * (upper(min0) + upper(min1) + a.lengths[i]) <= c2.sqrt() * (1.0 - 1e-12);
+        let settled =
+            min_max <= self.segment_threshold(c2) || self.lipschitz_settles(i, (min0, min1), c2);
         if !settled && scratch.vertex[i].0.is_nan() {
             scratch.vertex[i] = self.nearest_from_scan(i, min0, &scan);
         }
@@ -1650,10 +1681,12 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         let theta = self.segment_threshold(c2);
         let mut open = s.gt(best_segment, s.splat(theta)) & live & !scanned;
         let mut best = best_segment;
+        let infinity = s.splat(f32::INFINITY);
+        let (mut ends0, mut ends1) = (infinity, infinity);
         if open != 0 && !self.wide {
             let dirs = &b.dir_ring32.as_chunks::<N>().0[rows.clone()];
             let inverse = &b.inv_ring32[rows];
-            best = segment_window(
+            (best, ends0, ends1) = segment_window(
                 s,
                 &block,
                 (ring, dirs, inverse),
@@ -1663,11 +1696,13 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
             );
             open = s.gt(best, s.splat(theta)) & live;
         }
-        let values = s.array(best);
+        let (values, ends0, ends1) = (s.array(best), s.array(ends0), s.array(ends1));
         while open != 0 {
             let l = open.trailing_zeros() as usize;
             open &= open - 1;
-            scratch.open.push((values[l], (alpha * LANES + l) as u32));
+            scratch
+                .open
+                .push((values[l], (alpha * LANES + l) as u32, (ends0[l], ends1[l])));
         }
         Some(c2)
     }
@@ -1711,8 +1746,9 @@ fn directed<S: Lanes, const N: usize>(
     }
     let mut open = std::mem::take(&mut scratch.open);
     open.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
-    for &(value, i) in &open {
-        if value <= pass.segment_threshold(c2) {
+    for &(value, i, ends) in &open {
+        // The window's tests again with the final c2, before a scan of all of B.
+        if value <= pass.segment_threshold(c2) || pass.lipschitz_settles(i as usize, ends, c2) {
             continue;
         }
         if pass.scan_settles(i as usize, c2, scratch) {
@@ -1830,6 +1866,7 @@ fn curve_hausdorff<S: Lanes, const N: usize>(
         seam_reach: seam - b.max_len,
         image_reach: seam - a.max_len - b.max_len,
         wide,
+        theta: Cell::new((f64::NAN, -1.0)),
     };
     let c2 = directed(&forward, (row_key, row_near), 0.0, abort2, order, curve)?;
     let backward = Pass {
@@ -1842,6 +1879,7 @@ fn curve_hausdorff<S: Lanes, const N: usize>(
         seam_reach: seam - a.max_len,
         image_reach: seam - a.max_len - b.max_len,
         wide,
+        theta: Cell::new((f64::NAN, -1.0)),
     };
     let c2 = directed(&backward, (col_key, col_near), c2, abort2, order, curve)?;
     Some(c2.sqrt())

@@ -109,7 +109,9 @@ pub(super) fn vertex_window<S: Lanes, const N: usize>(
 /// The segments of `B` around its segment `start` (rows of its rings): lowers `best`
 /// (per lane the segment test value) with `max(E_j(0)², E_j(1)²)`, the squared
 /// distances from both ends of the lane's segment to the lifted segment `j` of `B`.
-/// Stops once every lane of `open` is `≤ theta`.
+/// Stops once every lane of `open` is `≤ theta`. Returns `best` and, per lane, the
+/// smallest `E_j(0)²` and `E_j(1)²` over the segments seen (upper bounds of
+/// `d_B(a_i)²` and `d_B(a_{i+1})²` up to the filter's error).
 #[inline(always)]
 pub(super) fn segment_window<S: Lanes, const N: usize>(
     s: S,
@@ -118,9 +120,10 @@ pub(super) fn segment_window<S: Lanes, const N: usize>(
     wraps: &Wraps<S, N>,
     (theta, open, length): (f32, u32, usize),
     mut best: S::V,
-) -> S::V {
+) -> (S::V, S::V, S::V) {
     let thv = s.splat(theta);
     let (zero, one) = (s.splat(0.0), s.splat(1.0));
+    let (mut best0, mut best1) = (s.splat(f32::INFINITY), s.splat(f32::INFINITY));
     for &r in &RING_WINDOW[..length] {
         let (p, v) = (&ring[r], &dirs[r]);
         let inv = s.splat(inverse[r]);
@@ -146,11 +149,13 @@ pub(super) fn segment_window<S: Lanes, const N: usize>(
             e1 = s.mul_add(x1, x1, e1);
         }
         best = s.min(s.max(e0, e1), best);
+        best0 = s.min(e0, best0);
+        best1 = s.min(e1, best1);
         if s.gt(best, thv) & open == 0 {
             break;
         }
     }
-    best
+    (best, best0, best1)
 }
 
 /// The lifted squared distances from the point `x` (and, with `ENDS`, from `x + v`, in
