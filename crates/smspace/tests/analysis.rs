@@ -10,10 +10,16 @@ use ndarray::{Array2, ArrayView2};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smspace::analysis::{
-    agreement, analyze, check_distances, dimension, maxmin_landmarks, rips_persistence,
-    AnalysisError, AnalysisParams, BettiRule, Persistence,
+    agreement, analyze, dimension, maxmin_landmarks, rips_persistence, AnalysisError,
+    AnalysisParams, BettiRule, Persistence,
 };
+use smspace::metric::DistanceMatrix;
 use smspace::progress::Silent;
+
+/// `d` as a validated distance matrix.
+fn dm(d: &Array2<f64>) -> DistanceMatrix {
+    DistanceMatrix::new(d.clone()).unwrap()
+}
 
 fn euclidean(points: &Array2<f64>) -> Array2<f64> {
     let n = points.nrows();
@@ -399,7 +405,7 @@ fn analyze_reports_the_contract_keys() {
     }
     .check()
     .unwrap();
-    let report = analyze(d.view(), Some(poses.view()), &params, &Silent).unwrap();
+    let report = analyze(&dm(&d), Some(poses.view()), &params, &Silent).unwrap();
     assert_eq!(report.homology.subsampling.method, "max-min");
     assert_eq!(report.homology.subsampling.points, 100);
     let json = serde_json::to_value(&report).unwrap();
@@ -420,7 +426,7 @@ fn analyze_reports_the_contract_keys() {
         1.0,
         epsilon = 1e-12
     );
-    let again = analyze(d.view(), Some(poses.view()), &params, &Silent).unwrap();
+    let again = analyze(&dm(&d), Some(poses.view()), &params, &Silent).unwrap();
     assert_eq!(serde_json::to_value(&again).unwrap(), json);
 }
 
@@ -440,31 +446,32 @@ fn landmarks_cover_the_space() {
 
 #[test]
 fn bad_matrices_and_parameters_are_errors() {
-    let err = check_distances(Array2::zeros((3, 4)).view()).unwrap_err();
+    use smspace::metric::MatrixError;
+    // A matrix is checked where it enters, as a DistanceMatrix.
+    let check = |d: Array2<f64>| DistanceMatrix::new(d).map(|_| ());
+    let err = check(Array2::zeros((3, 4))).unwrap_err();
     assert!(matches!(
         err,
-        AnalysisError::NotSquare {
+        MatrixError::NotSquare {
             rows: 3,
-            columns: 4
+            columns: 4,
+            ..
         }
     ));
     let mut d = euclidean(&circle(5, 13));
     d[[1, 2]] += 0.5;
-    let err = check_distances(d.view()).unwrap_err().to_string();
-    assert!(err.contains("(1, 2)") && err.contains("symmetric"), "{err}");
+    let err = check(d).unwrap_err().to_string();
+    assert!(err.contains("[1, 2]") && err.contains("symmetric"), "{err}");
     let mut d = euclidean(&circle(5, 13));
     d[[3, 3]] = 1.0;
-    assert!(check_distances(d.view())
+    assert!(check(d)
         .unwrap_err()
         .to_string()
-        .contains("diagonal"));
+        .contains("itself must be 0"));
     let mut d = euclidean(&circle(5, 13));
     d[[0, 1]] = -1.0;
     d[[1, 0]] = -1.0;
-    assert!(check_distances(d.view())
-        .unwrap_err()
-        .to_string()
-        .contains("negative"));
+    assert!(check(d).unwrap_err().to_string().contains("negative"));
     for params in [
         AnalysisParams {
             max_homology_dim: 3,
@@ -483,14 +490,14 @@ fn bad_matrices_and_parameters_are_errors() {
             ..AnalysisParams::default()
         },
     ] {
-        assert!(matches!(
-            params.check(),
-            Err(AnalysisError::InvalidParameter { .. })
-        ));
+        let err = params.check().unwrap_err();
+        let invalid = err.invalid_parameter().expect("a parameter error");
+        assert_eq!(invalid.table, "analysis", "{err}");
+        assert!(err.to_string().contains(invalid.key), "{err}");
     }
     let small = euclidean(&circle(10, 14));
     let params = AnalysisParams::default().check().unwrap();
-    let err = analyze(small.view(), None, &params, &Silent)
+    let err = analyze(&dm(&small), None, &params, &Silent)
         .unwrap_err()
         .to_string();
     assert!(err.contains("mle_neighbors") && err.contains("10"), "{err}");
@@ -501,7 +508,7 @@ fn bad_matrices_and_parameters_are_errors() {
     }
     .check()
     .unwrap();
-    let err = analyze(small.view(), Some(poses.view()), &params, &Silent).unwrap_err();
+    let err = analyze(&dm(&small), Some(poses.view()), &params, &Silent).unwrap_err();
     assert!(matches!(err, AnalysisError::PosesShape { rows: 9, .. }));
 }
 
@@ -516,8 +523,9 @@ mod invariance {
     use super::*;
     use smspace::agent::{Agent, AgentConfig, Environment, EnvironmentConfig};
     use smspace::explore::{explore, ExploreParams};
-    use smspace::invariance::invariance;
+    use smspace::invariance::{agent_metric, invariance};
     use smspace::kernel::{TraceMethod, TraceParams};
+    use smspace::metric::MetricKind;
 
     fn setup(name: &str, n: usize) -> (Box<dyn Agent>, Array2<f64>) {
         let agent = AgentConfig::preset(name).unwrap().build().unwrap();
@@ -560,7 +568,7 @@ mod invariance {
             &[e.clone(), e],
             None,
             &sensory(30),
-            smspace::metric::MetricKind::Hausdorff,
+            agent_metric(MetricKind::Hausdorff, arm.as_ref()).as_ref(),
             &Silent,
         )
         .unwrap();
@@ -586,7 +594,7 @@ mod invariance {
             &environments,
             None,
             &sensory(20),
-            smspace::metric::MetricKind::Hausdorff,
+            agent_metric(MetricKind::Hausdorff, toy.as_ref()).as_ref(),
             &Silent,
         )
         .unwrap();
@@ -610,7 +618,7 @@ mod invariance {
             &[e.clone(), e.clone()],
             None,
             &kinematic,
-            smspace::metric::MetricKind::Hausdorff,
+            agent_metric(MetricKind::Hausdorff, toy.as_ref()).as_ref(),
             &Silent,
         )
         .unwrap_err();
@@ -621,7 +629,7 @@ mod invariance {
             &[e],
             None,
             &sensory(10),
-            smspace::metric::MetricKind::Hausdorff,
+            agent_metric(MetricKind::Hausdorff, toy.as_ref()).as_ref(),
             &Silent,
         )
         .unwrap_err();
@@ -671,9 +679,12 @@ mod learned {
             &Silent,
         )
         .unwrap();
-        let poses = exploration.poses.select(ndarray::Axis(0), &traced.kept);
+        let poses = exploration
+            .planar_poses()
+            .unwrap()
+            .select(ndarray::Axis(0), &traced.kept);
         let params = AnalysisParams::default().check().unwrap();
-        analyze(d.view(), Some(poses.view()), &params, &Silent).unwrap()
+        analyze(&d, Some(poses.view()), &params, &Silent).unwrap()
     }
 
     #[test]

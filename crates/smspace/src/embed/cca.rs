@@ -43,6 +43,7 @@ use serde::{Deserialize, Serialize};
 use super::eigen::{classical_mds, landmark_mds, EigenSolver};
 use super::{check_dim, check_dim_param, check_distances, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
+use crate::error::InvalidParameter;
 use crate::neighbours::nearest;
 use crate::progress::Progress;
 
@@ -154,12 +155,8 @@ impl CcaParams {
     /// Validates the parameters.
     pub fn check(self) -> Result<CcaValidParams, EmbedError> {
         check_dim_param(self.dim)?;
-        let bad = |name, value: String, expected| {
-            Err(EmbedError::Parameter {
-                name,
-                value,
-                expected,
-            })
+        let bad = |name, value: String, expected: &str| {
+            Err(InvalidParameter::new("embedding", name, value, expected).into())
         };
         if self.epochs == 0 {
             return bad("epochs", "0".into(), "at least 1");
@@ -225,11 +222,13 @@ impl CcaValidParams {
         let n = distances.nrows();
         check_dim(self.0.dim, n)?;
         if initial.dim() != (n, self.0.dim) {
-            return Err(EmbedError::Parameter {
-                name: "initial layout",
-                value: format!("shape {:?}", initial.dim()),
-                expected: "(M, dim)",
-            });
+            return Err(InvalidParameter::new(
+                "embedding",
+                "initial",
+                format!("shape {:?}", initial.dim()),
+                "the initial layout has shape (M, dim)",
+            )
+            .into());
         }
         Ok(self.run(distances, initial.to_owned(), Vec::new(), None, progress))
     }

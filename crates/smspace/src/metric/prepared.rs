@@ -59,7 +59,9 @@ pub struct PreparedSets {
     ring32: Vec<f32>,
     centers_narrow: Vec<f32>,
     centers_wide: Vec<f32>,
-    curves: Option<CurveLayout>,
+    /// Boxed: the segment layout holds many buffers, and `PreparedSets` travels by
+    /// value (inside the tiles' measures).
+    curves: Option<Box<CurveLayout>>,
 }
 
 /// One prepared set, as the kernels see it.
@@ -245,7 +247,7 @@ impl PreparedSets {
                 if p < 2 {
                     return Err(MetricError::TooFewPoints { points: p });
                 }
-                Some(CurveLayout::new(
+                Some(Box::new(CurveLayout::new(
                     &coords,
                     m,
                     p,
@@ -254,7 +256,7 @@ impl PreparedSets {
                     dims_pad,
                     &period_pad,
                     closure,
-                ))
+                )))
             }
         };
         Ok(Self {
@@ -315,7 +317,7 @@ impl PreparedSets {
                 + self.centers_narrow.len()
                 + self.centers_wide.len())
                 * 4) as u64
-            + self.curves.as_ref().map_or(0, CurveLayout::bytes)
+            + self.curves.as_deref().map_or(0, CurveLayout::bytes)
     }
 
     /// True when the sets were prepared with their closures, as the `curve` metric
@@ -326,11 +328,11 @@ impl PreparedSets {
 
     /// The closure of every set, when it was given.
     pub fn closure(&self) -> Option<&[super::Closure]> {
-        self.curves.as_ref().map(|c| c.closure.as_slice())
+        self.curves.as_deref().map(|c| c.closure.as_slice())
     }
 
     pub(crate) fn curves(&self) -> Option<&CurveLayout> {
-        self.curves.as_ref()
+        self.curves.as_deref()
     }
 
     /// Period of every padded coordinate (`+∞`: not wrapped).

@@ -10,7 +10,7 @@
 //!
 //! | stage | outputs |
 //! |---|---|
-//! | `explore` | `motors.npy` (M0, N), `poses.npy` (M0, 3), `probes.npy` (M0, 3) int64, `exploration.json`, `environment.json` (+ `environment-2.json`, … for compared environments) |
+//! | `explore` | `motors.npy` (M0, N), `poses.npy` (M0, d) (when the agent has a ground truth), `probes.npy` (M0, 3) int64, `exploration.json`, `environment.json` (+ `environment-2.json`, … for compared environments) |
 //! | `trace` | `sets.npy` (M, P, N), `sets.kept.npy` (M,) int64 (row of `motors.npy` of each set), `sets.closed.npy` (M,) int64 (1: a closed loop, 0: an open polyline), `sets.trace.json` |
 //! | `distances` | `D.npy` (M, M) |
 //! | `embed` | `Y.npy` (M, d), `Y.embed.json`, `Y.dydx.npy` (pairs, 2) |
@@ -27,6 +27,55 @@
 //! leaves the earlier stages' outputs and records intact. One process writes a folder at
 //! a time ([`lock`]: a second run refuses, or waits with [`BusyFolder::Wait`]).
 //! `docs/RELIABILITY.md` lists these promises and the tests that check them.
+//!
+//! # Example
+//!
+//! A tiny experiment (the redundant toy of section 2.3) from the library:
+//!
+//! ```
+//! use smspace::pipeline::{self, BusyFolder, Recompute, RunObserver, RunOptions};
+//! use smspace::progress::{Progress, Silent};
+//!
+//! struct Quiet;
+//! impl RunObserver for Quiet {
+//!     fn progress(&self) -> &dyn Progress { &Silent }
+//! }
+//! let dir = tempfile::tempdir()?;
+//! let file = dir.path().join("tiny.toml");
+//! std::fs::write(&file, r#"
+//!     [agent]
+//!     kind = "toy-redundant"
+//!     [exploration]
+//!     n = 60
+//!     [kernel]
+//!     method = "kinematic"
+//!     points = 12
+//!     [metric]
+//!     period = "none"
+//!     [embedding]
+//!     method = "mds"
+//!     dim = 1
+//!     [analysis]
+//!     mle_neighbors = 8
+//!     [report]
+//!     formats = "svg"
+//!     sample_configurations = 3
+//!     sample_sets = 3
+//! "#)?;
+//! let experiment = smspace::config::load_experiment(&file, &[])?;
+//! let plan = pipeline::check(&experiment)?;
+//! let options = RunOptions {
+//!     out_dir: dir.path().join("run"),
+//!     recompute: Recompute::Changed,
+//!     memory_limit_bytes: None,
+//!     busy: BusyFolder::Refuse,
+//! };
+//! let summary = pipeline::run(&plan, &options, &Quiet)?;
+//! // The kernel sets m1 + m2 = x form one segment: one component.
+//! assert_eq!(summary.analysis.betti[0], 1);
+//! assert!(summary.dir.join("D.npy").is_file() && summary.dir.join("report.html").is_file());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 pub mod lock;
 pub mod manifest;
@@ -34,6 +83,7 @@ mod runner;
 pub mod stages;
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
@@ -41,8 +91,10 @@ use serde::{Deserialize, Serialize};
 use crate::agent::{Agent, AgentRegistry};
 use crate::analysis::AnalysisReport;
 use crate::config::{ConfigError, LoadedExperiment};
+use crate::error::InvalidParameter;
 use crate::io::{self, IoError};
 use crate::kernel::{TraceMethod, TraceParams};
+use crate::metric::{MetricError, MetricRegistry, Period};
 use crate::progress::Progress;
 pub use lock::BusyFolder;
 use lock::FolderLock;
@@ -236,32 +288,116 @@ impl Plan {
     pub fn agent(&self) -> &dyn Agent {
         self.world.agent.as_ref()
     }
+
+    /// What the cache compares besides the keys of the inputs: every stage's struct as
+    /// JSON (the parameters its computation reads) and its parameter key (the hash of
+    /// its name and that JSON, [`Stage::parameter_key`](stages::Stage::parameter_key)),
+    /// in order; the invariance stage only when it runs. The world's key is
+    /// [`Plan::world_key`].
+    pub fn parameter_keys(&self) -> Vec<(StageId, String, serde_json::Value)> {
+        use stages::Stage;
+        fn entry<S: Stage>(stage: &S) -> (StageId, String, serde_json::Value) {
+            let json = serde_json::to_value(stage).unwrap_or_default();
+            (S::ID, stage.parameter_key(), json)
+        }
+        let mut keys = vec![
+            entry(&self.explore),
+            entry(&self.trace),
+            entry(&self.distances),
+            entry(&self.embed),
+            entry(&self.analyze),
+        ];
+        keys.extend(self.invariance.as_ref().map(entry));
+        keys.push(entry(&self.report));
+        keys
+    }
+
+    /// The key of the agent, its environments and its working space.
+    pub fn world_key(&self) -> &str {
+        &self.world.key
+    }
+}
+
+/// The kinds a run can build by name: agents (`[agent] kind`) and set metrics
+/// (`[metric] metric`). An embedder adds its own to the built-in ones and hands them
+/// to [`check_with`]; an [`AgentRegistry`] or a [`MetricRegistry`] alone stands for
+/// itself with the other's built-in kinds.
+#[derive(Debug, Clone)]
+pub struct Registries {
+    /// Agent kinds.
+    pub agents: AgentRegistry,
+    /// Set metrics.
+    pub metrics: MetricRegistry,
+}
+
+impl Registries {
+    /// The built-in agents and metrics.
+    pub fn builtin() -> Self {
+        Self {
+            agents: AgentRegistry::builtin(),
+            metrics: MetricRegistry::builtin(),
+        }
+    }
+}
+
+impl From<&Registries> for Registries {
+    fn from(registries: &Registries) -> Self {
+        registries.clone()
+    }
+}
+
+impl From<&AgentRegistry> for Registries {
+    fn from(agents: &AgentRegistry) -> Self {
+        Self {
+            agents: agents.clone(),
+            metrics: MetricRegistry::builtin(),
+        }
+    }
+}
+
+impl From<&MetricRegistry> for Registries {
+    fn from(metrics: &MetricRegistry) -> Self {
+        Self {
+            agents: AgentRegistry::builtin(),
+            metrics: metrics.clone(),
+        }
+    }
 }
 
 /// Validates every table of the experiment (agent, environments, working space, and
 /// each stage's parameters) without running anything. Errors name the file, the line
 /// of the key (or the `--set` that gave it) and the key.
 pub fn check(experiment: &LoadedExperiment) -> Result<Plan, ConfigError> {
-    check_with(experiment, &AgentRegistry::builtin())
+    check_with(experiment, Registries::builtin())
 }
 
-/// Like [`check`], building the agent from `agents`: the built-in kinds and any an
-/// embedder registered ([`AgentRegistry::register`]), so that a plug-in agent runs
-/// through the whole pipeline.
+/// Like [`check`], building the agent and the set metric from `registries`: the
+/// built-in kinds and any an embedder registered ([`AgentRegistry::register`],
+/// [`MetricRegistry::register`]), so that a plug-in agent or metric runs through the
+/// whole pipeline. `registries` is a [`Registries`], or an [`AgentRegistry`] or
+/// [`MetricRegistry`] alone.
 pub fn check_with(
     experiment: &LoadedExperiment,
-    agents: &AgentRegistry,
+    registries: impl Into<Registries>,
 ) -> Result<Plan, ConfigError> {
-    let built = agents
+    let registries: Registries = registries.into();
+    let built = registries
+        .agents
         .build(&experiment.experiment.agent)
-        .map_err(|err| experiment.invalid("agent", crate::Error::from(err)))?;
+        .map_err(|err| experiment.invalid_error("agent", err.into()))?;
     let agent = built.agent;
-    // The resolved agent table (its defaults included) is what the run records.
+    let metric = registries
+        .metrics
+        .build(&experiment.experiment.metric)
+        .map_err(|err| experiment.invalid("metric", crate::Error::from(err)))?;
+    // The resolved agent and metric tables (their defaults included) are what the run
+    // records.
     let mut experiment = experiment.clone();
     experiment.experiment.agent = built.config;
+    experiment.experiment.metric = metric.params.clone();
     let experiment = &experiment;
     let e = &experiment.experiment;
-    let invalid = |table| move |err: crate::Error| experiment.invalid(table, err);
+    let invalid = |table| move |err: crate::Error| experiment.invalid_error(table, err);
     let environments = e
         .environment
         .configs()
@@ -275,6 +411,7 @@ pub fn check_with(
         .map_err(|err| invalid("exploration")(err.into()))?;
     e.kernel
         .check()
+        .and_then(|kernel| kernel.check_for(agent.as_ref()))
         .map_err(|err| invalid("kernel")(err.into()))?;
     let invariance = if environments.len() > 1 && e.analysis.invariance_starts > 0 {
         let kernel = TraceParams {
@@ -284,17 +421,22 @@ pub fn check_with(
         kernel
             .check()
             .map_err(|err| invalid("kernel")(err.into()))?;
-        Some(InvarianceStage {
+        // A built-in metric measures the sets under the agent's own point metric.
+        let set_metric = match metric.params.metric.kind() {
+            Some(kind) => Arc::from(crate::invariance::agent_metric(kind, agent.as_ref())),
+            None => metric.metric.clone(),
+        };
+        Some(InvarianceStage::new(
             kernel,
-            starts: e.analysis.invariance_starts,
-            metric: e.metric.metric,
-        })
+            e.analysis.invariance_starts,
+            metric.params.metric.clone(),
+            set_metric,
+        ))
     } else {
         None
     };
-    e.metric
-        .check()
-        .map_err(|err| invalid("metric")(err.into()))?;
+    metric_period(agent.as_ref(), metric.params.period)
+        .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
     e.embedding
         .clone()
         .build()
@@ -320,10 +462,7 @@ pub fn check_with(
         trace: TraceStage {
             kernel: e.kernel.clone(),
         },
-        distances: DistancesStage {
-            metric: e.metric.metric,
-            period: e.metric.period,
-        },
+        distances: DistancesStage::new(&metric),
         embed: EmbedStage {
             embedding: e.embedding.clone(),
             quality_neighbours: QUALITY_NEIGHBOURS,
@@ -341,6 +480,29 @@ pub fn check_with(
             report: e.report.clone(),
         },
     })
+}
+
+/// Checks the period of the motor coordinates the distance stage uses for `agent`: today the
+/// experiment's uniform `[metric] period` (`2pi` or `none`), refused when the agent's
+/// motors are not all alike (hinges and bounded motors mixed, or another period), which
+/// a uniform period cannot describe. This is the one place where the agent's
+/// per-coordinate periods ([`MotorSpace::periods`](crate::agent::MotorSpace::periods))
+/// will reach the metric.
+fn metric_period(agent: &dyn Agent, period: Period) -> Result<Period, InvalidParameter> {
+    let space = agent.motor_space();
+    let uniform = space.is_hinges() || space.is_bounded();
+    if uniform {
+        return Ok(period);
+    }
+    Err(InvalidParameter::new(
+        "metric",
+        "period",
+        stages::label(&period),
+        format!(
+            "the {} agent's motors are {space}; a uniform period (\"2pi\" or \"none\") cannot describe them, and per-motor periods are not wired into the pipeline yet",
+            agent.name()
+        ),
+    ))
 }
 
 /// Runs the checked experiment into `options.out_dir` (see the module docs).
@@ -411,8 +573,12 @@ fn check_memory(plan: &Plan, limit: Option<u64>) -> Result<(), PipelineError> {
     let e = &plan.explore.exploration;
     let rows = e.rows();
     let motors = plan.agent().motor_dim();
+    let pose_dim = plan
+        .agent()
+        .ground_truth()
+        .map_or(0, |o| o.pose_space().dim());
     let points = plan.trace.kernel.points;
-    let explored = e.bytes(motors);
+    let explored = e.bytes(motors, pose_dim);
     let sets = plan.trace.kernel.sets_bytes(rows, motors);
     for (what, needed, fix) in [
         (

@@ -32,7 +32,7 @@ use super::plot::{
     PlotError, GREY,
 };
 use super::SensoryManifold;
-use crate::agent::{Environment, MotorTopology};
+use crate::agent::{Environment, Motor, MotorSpace};
 use crate::analysis::AnalysisReport;
 use crate::explore::Workspace;
 
@@ -163,11 +163,15 @@ fn dist<const K: usize>(a: &[f64; K], b: &[f64; K]) -> f64 {
         .sqrt()
 }
 
-/// The axis range of motor coordinates.
-fn motor_range(topology: MotorTopology, values: impl IntoIterator<Item = f64>) -> Range<f64> {
-    match topology {
-        MotorTopology::Periodic => -PI..PI,
-        MotorTopology::Bounded { .. } => padded(values),
+/// The axis range of a motor coordinate: its period's range when periodic, the values'
+/// when bounded.
+fn motor_range(motor: Motor, values: impl IntoIterator<Item = f64>) -> Range<f64> {
+    match motor {
+        Motor::Periodic { .. } => {
+            let (low, high) = motor.range();
+            low..high
+        }
+        Motor::Bounded { .. } => padded(values),
     }
 }
 
@@ -178,7 +182,7 @@ pub(super) struct KernelLines<'a> {
     pub(super) starts: Vec<(f64, f64)>,
     pub(super) sample: Vec<usize>,
     pub(super) set_x: Vec<f64>,
-    pub(super) topology: MotorTopology,
+    pub(super) space: MotorSpace,
     pub(super) motor_unit: &'static str,
     pub(super) total: usize,
     pub(super) size: (u32, u32),
@@ -197,8 +201,8 @@ impl Figure for KernelLines<'_> {
                 .iter()
                 .flat_map(move |&i| self.sets.index_axis(Axis(0), i).column(a).to_vec())
         };
-        let x = motor_range(self.topology, coords(0));
-        let y = motor_range(self.topology, coords(1));
+        let x = motor_range(self.space.motor(0), coords(0));
+        let y = motor_range(self.space.motor(1), coords(1));
         let title = format!(
             "Fig. 2: {} of {} kernel sets in motor space",
             self.sample.len(),
@@ -212,7 +216,7 @@ impl Figure for KernelLines<'_> {
             &format!("m1 ({})", self.motor_unit),
             &format!("m2 ({})", self.motor_unit),
         )?;
-        let periodic = self.topology == MotorTopology::Periodic;
+        let periodic = !self.space.is_bounded();
         for (k, &i) in self.sample.iter().enumerate() {
             let color = scale.color(self.set_x[i]);
             let set = self.sets.index_axis(Axis(0), i);
@@ -543,7 +547,7 @@ fn p3(a: f64, b: f64, c: f64) -> (f64, f64, f64) {
 pub(super) struct KernelSets3d<'a> {
     pub(super) sets: ArrayView3<'a, f64>,
     pub(super) sample: Vec<usize>,
-    pub(super) topology: MotorTopology,
+    pub(super) space: MotorSpace,
     pub(super) motor_unit: &'static str,
     pub(super) panel: (u32, u32),
 }
@@ -562,11 +566,11 @@ impl Figure for KernelSets3d<'_> {
         };
         let panels = root.split_evenly((1, 2));
         let total = self.sets.len_of(Axis(0));
-        let periodic = self.topology == MotorTopology::Periodic;
+        let periodic = !self.space.is_bounded();
         for (panel, (axes, yaw)) in panels.iter().zip(views) {
             let range = |a: usize| {
                 motor_range(
-                    self.topology,
+                    self.space.motor(a),
                     self.sample
                         .iter()
                         .flat_map(move |&i| self.sets.index_axis(Axis(0), i).column(a).to_vec()),

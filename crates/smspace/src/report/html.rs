@@ -130,9 +130,10 @@ fn round6(v: f64) -> f64 {
     (v * 1e6).round() / 1e6
 }
 
-/// Coordinate `c` (0 = x, 1 = y, 2 = alpha) of the pose of set `i`.
-fn set_pose(inputs: &ReportInputs<'_>, i: usize, c: usize) -> f64 {
-    inputs.poses[[inputs.kept[i], c]]
+/// Coordinate `c` (0 = x, 1 = y, 2 = alpha) of the pose of set `i`, when there are
+/// planar poses.
+fn set_pose(inputs: &ReportInputs<'_>, i: usize, c: usize) -> Option<f64> {
+    inputs.poses.map(|poses| poses[[inputs.kept[i], c]])
 }
 
 /// The hover text of every set: its exploration row, pose and probe label.
@@ -151,13 +152,17 @@ fn hover_text(inputs: &ReportInputs<'_>) -> Vec<String> {
         } else {
             "<br>babbled".to_owned()
         };
-        text.push(format!(
-            "set {i}, exploration row {row}<br>x = {} m, y = {} m<br>alpha = {} rad ({:.1}°){probe}",
-            num(pose(i, 0)),
-            num(pose(i, 1)),
-            num(pose(i, 2)),
-            pose(i, 2).to_degrees()
-        ));
+        let pose = match (pose(i, 0), pose(i, 1), pose(i, 2)) {
+            (Some(x), Some(y), Some(alpha)) => format!(
+                "<br>x = {} m, y = {} m<br>alpha = {} rad ({:.1}°)",
+                num(x),
+                num(y),
+                num(alpha),
+                alpha.to_degrees()
+            ),
+            _ => String::new(),
+        };
+        text.push(format!("set {i}, exploration row {row}{pose}{probe}"));
     }
     text
 }
@@ -241,7 +246,13 @@ fn pose_buttons(inputs: &ReportInputs<'_>, marker_size: f64) -> (Vec<Value>, Opt
         .into_iter()
         .enumerate()
     {
-        let values: Vec<f64> = (0..m).map(|i| round6(set_pose(inputs, i, c))).collect();
+        let Some(values) = (0..m)
+            .map(|i| set_pose(inputs, i, c).map(round6))
+            .collect::<Option<Vec<f64>>>()
+        else {
+            // No planar poses: no colouring by pose.
+            break;
+        };
         let (colorscale, cmin, cmax) = pose_color_scale(c, &values);
         let title = format!("{name} ({unit})");
         if first_marker.is_none() {

@@ -27,7 +27,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::agent::{Agent, Environment, MotorTopology};
+use crate::agent::{Agent, Environment, MotorSpace};
 use crate::analysis::AnalysisReport;
 use crate::embed::EmbedReport;
 use crate::explore::Workspace;
@@ -123,8 +123,9 @@ pub struct ReportInputs<'a> {
     pub workspace: Option<Workspace>,
     /// Explored motor configurations `(M0, N)`.
     pub motors: ArrayView2<'a, f64>,
-    /// Their poses `(M0, 3)` as `(x, y, alpha)`.
-    pub poses: ArrayView2<'a, f64>,
+    /// Their poses `(M0, 3)` as `(x, y, alpha)`, when the agent's ground truth is the
+    /// planar pose; `None` skips the figures of poses (with a sentence).
+    pub poses: Option<ArrayView2<'a, f64>>,
     /// Probe labels `(M0, 3)`: `(orientation, ix, iy)`, `-1` for babbled rows.
     pub probes: ArrayView2<'a, i64>,
     /// The kernel sets `(M, P, N)`, one per kept exploration row.
@@ -275,7 +276,9 @@ fn check_exploration(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
             ),
         ));
     }
-    check_per_motor_row("poses", inputs.poses.dim(), rows)?;
+    if let Some(poses) = inputs.poses {
+        check_per_motor_row("poses", poses.dim(), rows)?;
+    }
     check_per_motor_row("probes", inputs.probes.dim(), rows)
 }
 
@@ -416,28 +419,37 @@ fn check_invariance(inv: &InvarianceData) -> Result<(), ReportError> {
 
 /// What every figure needs besides the inputs.
 struct Derived {
-    /// `(M, 3)`: the pose of every set's exploration row.
-    set_poses: Array2<f64>,
+    /// `(M, 3)`: the planar pose of every set's exploration row, when there are poses.
+    set_poses: Option<Array2<f64>>,
     /// Unit of motor coordinates and of set distances.
     motor_unit: &'static str,
-    topology: MotorTopology,
+    space: MotorSpace,
 }
+
+/// Why the figures of poses are skipped when there are none.
+const NO_PLANAR_POSES: &str = "the agent has no planar ground truth (x, y, alpha) to colour or place the sets by, so the figures of poses are skipped";
 
 fn derive(inputs: &ReportInputs<'_>) -> Derived {
     let m = inputs.kept.len();
-    let mut set_poses = Array2::zeros((m, 3));
-    for (i, &row) in inputs.kept.iter().enumerate() {
-        set_poses.row_mut(i).assign(&inputs.poses.row(row));
-    }
-    let topology = inputs.agent.motor_topology();
-    let motor_unit = match topology {
-        MotorTopology::Periodic => "rad",
-        MotorTopology::Bounded { .. } => "m",
+    let set_poses = inputs.poses.map(|poses| {
+        let mut set_poses = Array2::zeros((m, 3));
+        for (i, &row) in inputs.kept.iter().enumerate() {
+            set_poses.row_mut(i).assign(&poses.row(row));
+        }
+        set_poses
+    });
+    let space = inputs.agent.motor_space();
+    let motor_unit = if space.is_hinges() {
+        "rad"
+    } else if space.is_bounded() {
+        "m"
+    } else {
+        "rad or m"
     };
     Derived {
         set_poses,
         motor_unit,
-        topology,
+        space,
     }
 }
 
@@ -553,8 +565,9 @@ struct Planner<'a, 'b> {
 
 impl<'a: 'b, 'b> Planner<'a, 'b> {
     /// The observer's `x` for every set.
-    fn set_x(&self) -> Vec<f64> {
-        self.derived.set_poses.column(0).to_vec()
+    fn set_x(&self) -> Option<Vec<f64>> {
+        let poses = self.derived.set_poses.as_ref()?;
+        Some(poses.column(0).to_vec())
     }
 
     /// Fig. 1: the sensory manifolds.
@@ -589,6 +602,8 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
             ))
         } else if sets_sample.is_empty() {
             Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
+        } else if self.set_x().is_none() {
+            Planned::Skip(NO_PLANAR_POSES.to_owned())
         } else {
             Planned::KernelLines(figures::KernelLines {
                 sets: inputs.sets.reborrow(),
@@ -600,8 +615,8 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
                     })
                     .collect(),
                 sample: sets_sample.to_vec(),
-                set_x: self.set_x(),
-                topology: self.derived.topology,
+                set_x: self.set_x().unwrap_or_default(),
+                space: self.derived.space.clone(),
                 motor_unit: self.derived.motor_unit,
                 total: inputs.kept.len(),
                 size: self.panel,
@@ -622,10 +637,12 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
         };
         let planned = if m == 0 {
             Planned::Skip("no kernel sets were embedded".to_owned())
+        } else if self.set_x().is_none() {
+            Planned::Skip(NO_PLANAR_POSES.to_owned())
         } else if d == 1 || (d >= 2 && n == 2) {
             Planned::LearnedManifold(figures::LearnedManifold {
                 embedding: self.inputs.embedding.reborrow(),
-                set_x: self.set_x(),
+                set_x: self.set_x().unwrap_or_default(),
                 size: self.panel,
             })
         } else {
@@ -662,12 +679,9 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
                 "the agent {} has no body to draw (Agent::skeleton is empty)",
                 agent.name()
             ))
-        } else {
+        } else if let Some(poses) = inputs.poses {
             Planned::Configurations(figures::Configurations {
-                alphas: picked
-                    .iter()
-                    .map(|&k| inputs.poses[[babbled[k], 2]])
-                    .collect(),
+                alphas: picked.iter().map(|&k| poses[[babbled[k], 2]]).collect(),
                 skeletons,
                 workspace: inputs.workspace,
                 environment: inputs.environments.first().cloned(),
@@ -675,6 +689,8 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
                 explored: babbled.len(),
                 size: self.panel,
             })
+        } else {
+            Planned::Skip(NO_PLANAR_POSES.to_owned())
         };
         ("fig5a-configurations", caption, planned)
     }
@@ -696,7 +712,7 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
             Planned::KernelSets3d(figures::KernelSets3d {
                 sets: self.inputs.sets.reborrow(),
                 sample: sets_sample,
-                topology: self.derived.topology,
+                space: self.derived.space.clone(),
                 motor_unit: self.derived.motor_unit,
                 panel: self.panel,
             })
@@ -724,13 +740,15 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
             Planned::Skip(
                 "no probe rows among the kept sets (explore with probes = \"grid\")".to_owned(),
             )
-        } else {
+        } else if let Some(set_poses) = &self.derived.set_poses {
             Planned::EmbeddingProbes(figures::EmbeddingProbes {
                 embedding: self.inputs.embedding.reborrow(),
-                set_poses: &self.derived.set_poses,
+                set_poses,
                 surfaces,
                 size: self.panel,
             })
+        } else {
+            Planned::Skip(NO_PLANAR_POSES.to_owned())
         };
         ("fig5d-embedding-probes", caption, planned)
     }
@@ -739,7 +757,15 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
     fn embedding_pose(&self) -> PlannedFigure<'b> {
         let m = self.inputs.kept.len();
         let d = self.inputs.embedding.ncols();
-        let set_poses = &self.derived.set_poses;
+        let Some(set_poses) = &self.derived.set_poses else {
+            let caption =
+                format!("The embedding of the {m} kernel sets coloured by the observer's pose.");
+            return (
+                "embedding-pose",
+                caption,
+                Planned::Skip(NO_PLANAR_POSES.to_owned()),
+            );
+        };
         let varying: Vec<usize> = (0..3)
             .filter(|&c| {
                 figures_extent(set_poses.column(c).iter().copied())
@@ -913,7 +939,11 @@ pub fn write_report(
         })
     })?;
     let derived = derive(inputs);
-    let surfaces = figures::probe_surfaces(inputs.probes, inputs.kept, &derived.set_poses);
+    let surfaces = derived
+        .set_poses
+        .as_ref()
+        .map(|poses| figures::probe_surfaces(inputs.probes, inputs.kept, poses))
+        .unwrap_or_default();
     let planned = plan(inputs, params, &derived, &surfaces);
     let rendered: Vec<Result<plot::Rendered, ReportError>> = planned
         .par_iter()

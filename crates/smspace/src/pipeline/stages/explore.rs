@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput, World};
-use crate::explore::{explore_in, Exploration, ExploreParams, EXPLORATION_FILES};
+use crate::explore::{explore_in, Exploration, ExploreParams};
 use crate::pipeline::StageId;
 
 /// The `explore` stage: the `[exploration]` table.
@@ -64,7 +64,7 @@ impl Stage for ExploreStage {
     ) -> crate::Result<Vec<String>> {
         let world = &input.world.value;
         exploration.save(dir, &world.agent_config, &self.exploration)?;
-        let mut files: Vec<String> = EXPLORATION_FILES.map(String::from).to_vec();
+        let mut files: Vec<String> = exploration.files().into_iter().map(String::from).collect();
         for (i, env) in world.environments.iter().enumerate() {
             let file = environment_file(i);
             env.save(&dir.join(&file))?;
@@ -77,7 +77,7 @@ impl Stage for ExploreStage {
         let world = &input.world.value;
         Ok(Exploration::load(
             dir,
-            world.agent.motor_dim(),
+            world.agent.as_ref(),
             world.workspace,
         )?)
     }

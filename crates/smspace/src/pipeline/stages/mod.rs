@@ -18,7 +18,7 @@
 //! |---|---|---|---|
 //! | `explore` | [`ExploreStage`] | [`World`] | [`Exploration`](crate::explore::Exploration) |
 //! | `trace` | [`TraceStage`] | world, exploration | [`TracedSets`](crate::kernel::TracedSets) |
-//! | `distances` | [`DistancesStage`] | traced sets | `(M, M)` matrix |
+//! | `distances` | [`DistancesStage`] | traced sets | [`DistanceMatrix`](crate::metric::DistanceMatrix) |
 //! | `embed` | [`EmbedStage`] | distances | [`EmbedOutputs`] |
 //! | `analyze` | [`AnalyzeStage`] | exploration, traced sets, distances | [`AnalysisReport`](crate::analysis::AnalysisReport) |
 //! | `invariance` | [`InvarianceStage`] | world, exploration | [`InvarianceData`](crate::report::InvarianceData) |
@@ -94,6 +94,18 @@ pub trait Stage: Serialize {
         ];
         parts.extend(input.keys().into_iter().map(str::as_bytes));
         hash_parts(&parts)
+    }
+
+    /// The part of the key the stage's own parameters make: the hash of its name and
+    /// its struct, without the inputs' keys. Two stages with the same parameter key
+    /// and the same inputs have the same [`key`](Stage::key).
+    fn parameter_key(&self) -> String {
+        let params = json(self);
+        hash_parts(&[
+            SMSPACE_VERSION.as_bytes(),
+            Self::ID.name().as_bytes(),
+            params.as_bytes(),
+        ])
     }
 }
 

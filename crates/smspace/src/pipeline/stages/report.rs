@@ -7,7 +7,7 @@ use ndarray::Array2;
 use serde::Serialize;
 
 use super::{EmbedOutputs, Keyed, Stage, StageContext, StageInput, World};
-use crate::agent::{Agent, Environment, MotorTopology};
+use crate::agent::{Agent, Environment};
 use crate::analysis::AnalysisReport;
 use crate::explore::Exploration;
 use crate::io;
@@ -95,7 +95,7 @@ impl Stage for ReportStage {
             environments: &world.environments,
             workspace: world.workspace,
             motors: exploration.motors.view(),
-            poses: exploration.poses.view(),
+            poses: exploration.planar_poses(),
             probes: exploration.probes.view(),
             sets: traced.sets.view(),
             kept: &traced.kept,
@@ -145,10 +145,7 @@ fn sensory_manifolds(agent: &dyn Agent, environments: &[Environment]) -> Vec<Sen
     if agent.motor_dim() != 1 {
         return Vec::new();
     }
-    let (low, high) = match agent.motor_topology() {
-        MotorTopology::Bounded { low, high } => (low, high),
-        MotorTopology::Periodic => (-std::f64::consts::PI, std::f64::consts::PI),
-    };
+    let (low, high) = agent.motor_space().motor(0).range();
     let motors = Array2::from_shape_fn((SENSORY_SAMPLES, 1), |(t, _)| {
         low + (high - low) * t as f64 / (SENSORY_SAMPLES - 1) as f64
     });
