@@ -93,20 +93,6 @@ fn metrics() -> Vec<MetricKind> {
         .collect()
 }
 
-/// The instruction set the runtime dispatch picks on this CPU.
-fn simd_level() -> &'static str {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if is_x86_feature_detected!("avx512f") {
-            return "AVX-512 (x86-v4)";
-        }
-        if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
-            return "AVX2 + FMA (x86-v3), no AVX-512";
-        }
-    }
-    "scalar (no AVX2)"
-}
-
 fn pairs(m: usize) -> u64 {
     (m * (m - 1) / 2) as u64
 }
@@ -173,7 +159,7 @@ fn nearest(c: &mut Criterion) {
 /// One timed run per size and metric, printed as a table.
 fn once() {
     let threads = rayon::current_num_threads();
-    println!("threads {threads}, SIMD {}", simd_level());
+    println!("threads {threads}, SIMD {}", smspace::metric::simd_level());
     println!(
         "{:>14} {:>7} {:>12} {:>9} {:>14}",
         "metric", "M", "pairs", "seconds", "pairs/s"

@@ -12,8 +12,9 @@ use ndarray::{array, Array2, Array3, Axis};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smspace::metric::{
-    distance_matrix, distance_rows, knn, reference, Closure, Curve, DistanceParams, KnnParams,
-    MetricError, MetricKind, Period, SetMetric, SetsView, CURVE_TOLERANCE,
+    distance_matrix, distance_rows, fill_rows, knn, reference, Closure, Curve, DistanceParams,
+    KnnParams, MetricError, MetricKind, Period, Periods, PreparedSets, SetMetric, SetsView,
+    CURVE_TOLERANCE,
 };
 use smspace::progress::Silent;
 
@@ -467,4 +468,163 @@ fn the_inradius_of_a_polygon_from_a_spoke_through_its_centre() {
     let d = pair(&a, Closure::Closed, &b, Closure::Closed, Period::None);
     assert!(d <= inradius + 1e-12, "{d} > {inradius}");
     assert!(inradius - d < 1e-10, "{d} vs {inradius}");
+}
+
+// Periods per coordinate: the point metric and the curve metric with each coordinate
+// wrapped with its own period, or not wrapped.
+
+/// Two periodic coordinates (`2π` and 1.7, the second one smaller than the segments'
+/// reach so that many segments cross its seam) and an unwrapped one.
+fn mixed_periods() -> Periods {
+    Periods::new(vec![Some(2.0 * PI), None, Some(1.7)]).unwrap()
+}
+
+/// `m` random walks of `p` points under `periods`: a periodic coordinate wrapped into
+/// `[−T/2, T/2)`, an unwrapped one left where the walk goes.
+fn random_walks(m: usize, p: usize, step: f64, periods: &Periods, seed: u64) -> Array3<f64> {
+    let n = periods.dims();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut sets = Array3::zeros((m, p, n));
+    for i in 0..m {
+        let mut x: Vec<f64> = (0..n).map(|_| rng.gen_range(-3.0..3.0)).collect();
+        for j in 0..p {
+            for k in 0..n {
+                x[k] += rng.gen_range(-step..step);
+                sets[[i, j, k]] = match periods.get(k) {
+                    Some(t) => (x[k] + 0.5 * t).rem_euclid(t) - 0.5 * t,
+                    None => x[k],
+                };
+            }
+        }
+    }
+    sets
+}
+
+/// The matrix of `metric` through the prepared layout (the public path for
+/// per-coordinate periods).
+fn prepared_matrix(view: SetsView<'_>, periods: &Periods, metric: MetricKind) -> Array2<f64> {
+    let m = view.points().dim().0;
+    let prepared = PreparedSets::new(view, periods).unwrap();
+    let mut out = Array2::zeros((m, m));
+    fill_rows(&prepared, metric, 0..m, out.view_mut(), &Silent).unwrap();
+    out
+}
+
+#[test]
+fn mixed_periods_point_metrics_equal_the_brute_force() {
+    let periods = mixed_periods();
+    let sets = random_walks(9, 21, 0.5, &periods, 31);
+    for metric in [MetricKind::Hausdorff, MetricKind::MeanHausdorff] {
+        let fast = prepared_matrix(SetsView::new(sets.view()), &periods, metric);
+        let brute = reference::distance_matrix(sets.view(), metric, &periods);
+        let diff = (&fast - &brute).iter().fold(0.0f64, |x, y| x.max(y.abs()));
+        assert!(diff < 1e-12, "{metric:?}: max |diff| {diff}");
+        // Each coordinate counts with its own period: with every coordinate wrapped
+        // by 2π the distances differ.
+        let uniform = Periods::uniform(Period::TwoPi, 3);
+        let other = prepared_matrix(SetsView::new(sets.view()), &uniform, metric);
+        assert!(
+            (&other - &fast).iter().any(|x| x.abs() > 1e-3),
+            "{metric:?}"
+        );
+    }
+}
+
+#[test]
+fn mixed_periods_curve_within_the_dense_sampling_bounds() {
+    let periods = mixed_periods();
+    let (m, p) = (6, 11);
+    let sets = random_walks(m, p, 0.45, &periods, 32);
+    for closure in [Closure::Closed, Closure::Open] {
+        let closures = vec![closure; m];
+        let view = SetsView::new(sets.view()).with_closure(&closures);
+        let d = prepared_matrix(view, &periods, MetricKind::Curve);
+        let closed = closure == Closure::Closed;
+        for i in 0..m {
+            for j in i + 1..m {
+                let a = sets.index_axis(Axis(0), i);
+                let b = sets.index_axis(Axis(0), j);
+                let (lo, hi) = reference::curve_bounds(a, closed, b, closed, &periods, 150);
+                let x = d[[i, j]];
+                assert!(
+                    x >= lo - 1e-9 && x <= hi + 1e-9,
+                    "{closure:?} ({i}, {j}): {lo} <= {x} <= {hi}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_segment_crosses_the_seam_of_a_small_period() {
+    // Coordinate 0 has period 1; coordinate 1 is not wrapped. A runs from 0.45 to 0.55
+    // ≡ −0.45 across the seam (its segment is 0.1 long, through ±0.5), B sits at
+    // x = 0.5 ≡ −0.5, 0.3 above.
+    let periods = Periods::new(vec![Some(1.0), None]).unwrap();
+    let a = array![[0.45, 0.0], [-0.45, 0.0]];
+    let b = array![[-0.5, 0.3], [-0.5, 0.3 + 1e-3]];
+    let mut sets = Array3::zeros((2, 2, 2));
+    sets.index_axis_mut(Axis(0), 0).assign(&a);
+    sets.index_axis_mut(Axis(0), 1).assign(&b);
+    let closures = [Closure::Open, Closure::Open];
+    let view = SetsView::new(sets.view()).with_closure(&closures);
+    let d = prepared_matrix(view, &periods, MetricKind::Curve);
+    // Farthest: A's ends, 0.05 across and 0.3 below B's lower end (B → A reaches only
+    // 0.301).
+    let expected = f64::hypot(0.05, 0.3);
+    assert!(
+        (d[[0, 1]] - expected).abs() < 1e-12,
+        "{} vs {expected}",
+        d[[0, 1]]
+    );
+}
+
+#[test]
+fn a_period_scales_with_the_coordinates() {
+    // Every coordinate with period T: scaling the sets by 2π/T scales every distance by
+    // 2π/T and gives the 2π case, seams included.
+    let t = 1.3;
+    let periods = Periods::new(vec![Some(t); 4]).unwrap();
+    let sets = random_walks(7, 13, 0.35, &periods, 33);
+    let scale = 2.0 * PI / t;
+    let scaled = sets.mapv(|x| x * scale);
+    let closures = vec![Closure::Closed; 7];
+    let small = prepared_matrix(
+        SetsView::new(sets.view()).with_closure(&closures),
+        &periods,
+        MetricKind::Curve,
+    );
+    let large = prepared_matrix(
+        SetsView::new(scaled.view()).with_closure(&closures),
+        &Periods::uniform(Period::TwoPi, 4),
+        MetricKind::Curve,
+    );
+    for (x, y) in small.iter().zip(large.iter()) {
+        assert!(
+            (x * scale - y).abs() <= 1e-9 * (1.0 + y),
+            "{} vs {y}",
+            x * scale
+        );
+    }
+    assert!(small.iter().any(|&x| x > 0.1));
+}
+
+#[test]
+fn uniform_periods_equal_their_shorthand_bit_for_bit() {
+    let sets = arm_like_sets(12, 24, 5);
+    let closures = vec![Closure::Closed; 12];
+    let view = SetsView::new(sets.view()).with_closure(&closures);
+    for period in [Period::TwoPi, Period::None] {
+        let uniform = Periods::uniform(period, 4);
+        assert_eq!(uniform.as_uniform(), Some(period));
+        for metric in [MetricKind::Curve, MetricKind::Hausdorff] {
+            let shorthand = distance_matrix(
+                view,
+                &DistanceParams::new().metric(metric).period(period),
+                &Silent,
+            )
+            .unwrap();
+            assert_eq!(prepared_matrix(view, &uniform, metric), shorthand);
+        }
+    }
 }

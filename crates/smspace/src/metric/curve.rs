@@ -6,8 +6,10 @@
 //! one back to `x_0`: the loops of the paper's arm) or an **open** one (`P − 1`
 //! segments: the segments of the redundant toy, sets that end on a joint limit).
 //! Segment `i` runs from `x_i` to `x_i + v_i` with `v_i = h(x_{i+1} − x_i)` (every
-//! coordinate difference wrapped into `[−π, π]`; with [`Period::None`](super::Period)
-//! `v_i = x_{i+1} − x_i`). Its points are `s_i(t) = x_i + t·v_i`, `t ∈ [0, 1]`.
+//! coordinate difference `n` wrapped into `[−T_n/2, T_n/2]` with its own period `T_n`,
+//! `[−π, π]` for the arm's joints, see [`Periods`](super::Periods); an unwrapped
+//! coordinate, as everywhere with [`Period::None`](super::Period), is not changed).
+//! Its points are `s_i(t) = x_i + t·v_i`, `t ∈ [0, 1]`.
 //!
 //! The distance from a point `a` to a segment is the minimum over the segment of the
 //! periodic point metric `g` of [`super`]:
@@ -19,8 +21,8 @@
 //! computed exactly even when the segment crosses the torus' seam: with
 //! `u = h(a − x_i)`, the function `f(t) = Σ_n h(u_n − t v_n)²` is a convex quadratic on
 //! each piece of `[0, 1]` between the (at most `N`) values of `t` where some
-//! `u_n − t v_n` crosses `±π`, and it is minimised on every piece in closed form. When
-//! no coordinate crosses (`|u_n − v_n| ≤ π` for all `n`, almost always) there is one
+//! `u_n − t v_n` crosses `±T_n/2`, and it is minimised on every piece in closed form. When
+//! no coordinate crosses (`|u_n − v_n| ≤ T_n/2` for all `n`, almost always) there is one
 //! piece and `δ² = |u − t* v|²` with `t* = clamp(u·v / |v|², 0, 1)`.
 //!
 //! The directed distance and the metric are taken over the **continuous** polylines:
@@ -53,7 +55,7 @@
 //!    Only images of segments of `B` whose (lifted) segment-to-segment distance to
 //!    `[a_i, a_{i+1}]` is at most `U` can be nearest anywhere on it (boxes prune whole
 //!    chunks first). An image of `s_j` is needed when a coordinate of `a(t) − s_j(s)`
-//!    leaves `[−π, π]` for some `t, s ∈ [0, 1]` (it is linear in both, so the four
+//!    leaves `[−T_n/2, T_n/2]` for some `t, s ∈ [0, 1]` (it is linear in both, so the four
 //!    corners tell). On each, `E(t)² = |p + t q|²` piecewise in `t`, with at most three
 //!    pieces (the foot `s*(t)` is linear in `t`, clamped to 0 or 1), so on the segment
 //!    `d_B² = min E²` is a lower envelope of convex quadratics. Between two points where
@@ -70,8 +72,16 @@
 //! Pairs are always evaluated in the order (smaller index, larger index), so the value
 //! does not depend on which of the two sets is the query.
 
-use super::kernel::{around, Scratch};
-use super::prepared::{fold, wrap, PreparedSets, SetRef, BOUND_MARGIN, LANES};
+mod filter;
+
+use std::cell::Cell;
+
+use self::filter::{segment_scan, segment_window, vertex_window, SegmentBlock, Wraps};
+use super::kernel::{
+    cut_above, far_first, threshold, Frame, Lanes, Portable, Scratch, Simd, RING_WINDOW,
+};
+use super::period::swrap;
+use super::prepared::{fold, wrap, PreparedSets, SetRef, BOUND_MARGIN, LANES, RING};
 
 /// Absolute accuracy of the `curve` metric: every value is within this much below the
 /// exact Hausdorff distance between the polylines (and never above it, up to rounding).
@@ -83,17 +93,6 @@ pub const CURVE_TOLERANCE: f64 = 1e-10;
 const MAX_DEPTH: usize = 200;
 
 pub use crate::kernel::Closure;
-
-/// `u` brought into `[−T/2, T/2]` for `|u| < 3T/2`; unchanged without a period.
-#[inline(always)]
-pub(crate) fn swrap(u: f64, period: f64, half: f64) -> f64 {
-    let u = if u > half { u - period } else { u };
-    if u < -half {
-        u + period
-    } else {
-        u
-    }
-}
 
 /// The segments of every set, laid out for the curve kernels. Built by
 /// [`PreparedSets::new`] when the sets come with their [`Closure`].
@@ -117,6 +116,20 @@ pub(crate) struct CurveLayout {
     pub centers: Vec<f64>,
     /// `[set][chunk][n]`: half-widths of those boxes (periodic intervals, with margin).
     pub widths: Vec<f64>,
+    /// `[set][n][segment]`: `v_i` in `f32` (lanes over segments, 0 past the last).
+    pub dirs32: Vec<f32>,
+    /// `[set][r][n]`, `(P + 2·RING) × dims_pad`: the `f32` direction of segment
+    /// `(r − RING) mod P` (0 for the missing last segment of an open set), next to the
+    /// ring of points of [`SetRef::ring32`].
+    pub dir_ring32: Vec<f32>,
+    /// `[set][r]`: `1 / |v|²` of the same segments in `f32` (0 for a segment too short
+    /// for it, which then counts as its first point).
+    pub inv_ring32: Vec<f32>,
+    /// `[set][segment]`: `1 / |v_i|²` in `f32` (0 past the last segment, and for a
+    /// segment too short for it, which then counts as its first point).
+    pub inv32: Vec<f32>,
+    /// `[set]`: the longest segment `max_i |v_i|`.
+    pub max_len: Vec<f64>,
 }
 
 /// One set's segments, as the kernels see them.
@@ -130,6 +143,11 @@ pub(crate) struct CurveRef<'a> {
     pub lengths: &'a [f64],
     pub centers: &'a [f64],
     pub widths: &'a [f64],
+    pub dirs32: &'a [f32],
+    pub dir_ring32: &'a [f32],
+    pub inv_ring32: &'a [f32],
+    pub inv32: &'a [f32],
+    pub max_len: f64,
 }
 
 impl CurveLayout {
@@ -145,10 +163,9 @@ impl CurveLayout {
         points_pad: usize,
         dims: usize,
         dims_pad: usize,
-        period: f64,
+        period: &[f64],
         closure: &[Closure],
     ) -> Self {
-        let half = 0.5 * period;
         let chunks = points_pad / LANES;
         let per = dims_pad * points_pad;
         let mut segments = Vec::with_capacity(sets);
@@ -171,8 +188,7 @@ impl CurveLayout {
                 for k in 0..dims {
                     let v = swrap(
                         block[k * points_pad + next] - block[k * points_pad + i],
-                        period,
-                        half,
+                        period[k],
                     );
                     dirs[s * per + i * dims_pad + k] = v;
                     dirs_soa[s * per + k * points_pad + i] = v;
@@ -202,20 +218,52 @@ impl CurveLayout {
                         lo = lo.min(y);
                         hi = hi.max(y);
                     }
-                    centers[at + k] = wrap(0.5 * (lo + hi), period);
+                    centers[at + k] = wrap(0.5 * (lo + hi), period[k]);
                     widths[at + k] = 0.5 * (hi - lo) * (1.0 + BOUND_MARGIN) + 1e-13;
                 }
             }
         }
+        let rows = points + 2 * RING;
+        let mut dir_ring32 = vec![0.0f32; sets * rows * dims_pad];
+        let mut inv_ring32 = vec![0.0f32; sets * rows];
+        let mut max_len = vec![0.0f64; sets];
+        for s in 0..sets {
+            let count = segments[s] as usize;
+            max_len[s] = lengths[s * points_pad..s * points_pad + count]
+                .iter()
+                .fold(0.0, |m: f64, &x| m.max(x));
+            for r in 0..rows {
+                let j = (r + RING * points - RING) % points;
+                if j >= count {
+                    continue;
+                }
+                for k in 0..dims_pad {
+                    dir_ring32[(s * rows + r) * dims_pad + k] =
+                        dirs[s * per + j * dims_pad + k] as f32;
+                }
+                let inv = inv_len2[s * points_pad + j];
+                // Beyond f32's range a segment counts as its first point (t = 0).
+                inv_ring32[s * rows + r] = if inv < 1e30 { inv as f32 } else { 0.0 };
+            }
+        }
+        let inv32 = inv_len2
+            .iter()
+            .map(|&inv| if inv < 1e30 { inv as f32 } else { 0.0 })
+            .collect();
         Self {
             segments,
             closure: closure.to_vec(),
+            inv32,
+            dirs32: dirs_soa.iter().map(|&x| x as f32).collect(),
             dirs,
             dirs_soa,
             inv_len2,
             lengths,
             centers,
             widths,
+            dir_ring32,
+            inv_ring32,
+            max_len,
         }
     }
 
@@ -224,14 +272,27 @@ impl CurveLayout {
         ((self.dirs.len() + self.dirs_soa.len()) * 8
             + (self.inv_len2.len() + self.lengths.len()) * 8
             + (self.centers.len() + self.widths.len()) * 8
-            + self.segments.len() * 5) as u64
+            + (self.dirs32.len()
+                + self.dir_ring32.len()
+                + self.inv_ring32.len()
+                + self.inv32.len())
+                * 4
+            + self.segments.len() * 13) as u64
     }
 
     /// Bytes a layout of this shape holds.
-    pub(crate) fn estimate_bytes(sets: usize, points_pad: usize, dims_pad: usize) -> u64 {
+    pub(crate) fn estimate_bytes(
+        sets: usize,
+        points: usize,
+        points_pad: usize,
+        dims_pad: usize,
+    ) -> u64 {
         let chunks = points_pad / LANES;
+        let rows = points + 2 * RING;
         (sets as u64)
-            * ((2 * points_pad * dims_pad + 2 * points_pad + 2 * chunks * dims_pad) * 8 + 5) as u64
+            * ((2 * points_pad * dims_pad + 2 * points_pad + 2 * chunks * dims_pad) * 8
+                + (points_pad * (dims_pad + 1) + rows * (dims_pad + 1)) * 4
+                + 13) as u64
     }
 }
 
@@ -244,6 +305,7 @@ impl PreparedSets {
         let points_pad = self.points_pad();
         let per = dims_pad * points_pad;
         let chunks = self.chunks();
+        let rows = self.points() + 2 * RING;
         CurveRef {
             set: self.set(s),
             segments: layout.segments[s] as usize,
@@ -253,6 +315,11 @@ impl PreparedSets {
             lengths: &layout.lengths[s * points_pad..(s + 1) * points_pad],
             centers: &layout.centers[s * chunks * dims_pad..(s + 1) * chunks * dims_pad],
             widths: &layout.widths[s * chunks * dims_pad..(s + 1) * chunks * dims_pad],
+            dirs32: &layout.dirs32[s * per..(s + 1) * per],
+            dir_ring32: &layout.dir_ring32[s * rows * dims_pad..(s + 1) * rows * dims_pad],
+            inv_ring32: &layout.inv_ring32[s * rows..(s + 1) * rows],
+            inv32: &layout.inv32[s * points_pad..(s + 1) * points_pad],
+            max_len: layout.max_len[s],
         }
     }
 }
@@ -267,21 +334,34 @@ pub(crate) fn segment_distance2(
     b: &[f64],
     v: &[f64],
     inv_len2: f64,
-    period: f64,
+    period: &[f64],
 ) -> f64 {
     const MAX: usize = 16;
     let n = a.len();
     assert!(n <= MAX, "at most {MAX} coordinates");
-    let half = 0.5 * period;
     let mut u = [0.0; MAX];
+    let mut crossing = false;
+    let mut dot = 0.0;
     for k in 0..n {
-        u[k] = swrap(a[k] - b[k], period, half);
+        u[k] = swrap(a[k] - b[k], period[k]);
+        crossing |= (u[k] - v[k]).abs() > 0.5 * period[k];
+        dot += u[k] * v[k];
+    }
+    if !crossing {
+        // One piece: the lifted distance.
+        let t = (dot * inv_len2).clamp(0.0, 1.0);
+        let mut d2 = 0.0;
+        for k in 0..n {
+            d2 += (u[k] - t * v[k]).powi(2);
+        }
+        return d2;
     }
     let mut cuts = [0.0; MAX + 2];
     cuts[1] = 1.0;
     let mut count = 2;
     for k in 0..n {
         let end = u[k] - v[k];
+        let half = 0.5 * period[k];
         if end > half {
             cuts[count] = (u[k] - half) / v[k];
             count += 1;
@@ -299,16 +379,54 @@ pub(crate) fn segment_distance2(
         let mut dot = 0.0;
         for k in 0..n {
             let at_mid = u[k] - mid * v[k];
-            dot += (u[k] + (swrap(at_mid, period, half) - at_mid)) * v[k];
+            dot += (u[k] + (swrap(at_mid, period[k]) - at_mid)) * v[k];
         }
         let t = (dot * inv_len2).clamp(t0, t1);
         let mut d2 = 0.0;
         for k in 0..n {
-            d2 += swrap(u[k] - t * v[k], period, half).powi(2);
+            d2 += swrap(u[k] - t * v[k], period[k]).powi(2);
         }
         best = best.min(d2);
     }
     best
+}
+
+/// Exact `δ(x, s_j)²` from the (wrapped) point `x` to segment `j` of `b`: the lifted
+/// distance when the segment does not cross the seam relative to `x` (almost always),
+/// else [`segment_distance2`].
+#[inline(always)]
+fn point_segment2<const N: usize>(
+    x: &[f64; N],
+    b: CurveRef<'_>,
+    j: usize,
+    period: &[f64; N],
+) -> f64 {
+    let start = load::<N>(b.set.points, j);
+    let v = load::<N>(b.dirs, j);
+    let inv = b.inv_len2[j];
+    let mut u = [0.0; N];
+    let mut crossings = 0;
+    let mut last = 0;
+    for k in 0..N {
+        u[k] = swrap(x[k] - start[k], period[k]);
+        if (u[k] - v[k]).abs() > 0.5 * period[k] {
+            crossings += 1;
+            last = k;
+        }
+    }
+    match crossings {
+        0 => lifted_distance2(&u, &v, inv),
+        1 => {
+            // The difference leaves [−T/2, T/2] in one coordinate along the segment: past
+            // that point the image one period over is the nearer one, so the periodic
+            // distance is the smaller of the two lifted ones.
+            let mut shifted = u;
+            let k = last;
+            shifted[k] -= period[k].copysign(u[k] - v[k]);
+            lifted_distance2(&u, &v, inv).min(lifted_distance2(&shifted, &v, inv))
+        }
+        _ => segment_distance2(x, &start, &v, inv, period),
+    }
 }
 
 /// Per-lane `δ²` from points to segments given `u = h(a − start)` and the directions
@@ -320,15 +438,14 @@ fn lanes_distance2<const N: usize>(
     u: &[[f64; LANES]; N],
     v: &[[f64; LANES]; N],
     inv: &[f64; LANES],
-    period: f64,
+    period: &[f64; N],
 ) -> ([f64; LANES], [bool; LANES]) {
-    let half = 0.5 * period;
     let mut dot = [0.0; LANES];
     let mut crossings = [0u32; LANES];
     for k in 0..N {
         for l in 0..LANES {
             dot[l] = u[k][l].mul_add(v[k][l], dot[l]);
-            crossings[l] += u32::from((u[k][l] - v[k][l]).abs() > half);
+            crossings[l] += u32::from((u[k][l] - v[k][l]).abs() > 0.5 * period[k]);
         }
     }
     let mut t = [0.0; LANES];
@@ -373,102 +490,36 @@ fn load<const N: usize>(data: &[f64], at: usize) -> [f64; N] {
     x
 }
 
-/// Per-lane `δ²` from eight points (lanes) to segment `j` of `b`, exact: the lifted
-/// distance, recomputed piece by piece for the (rare) lanes whose segment crosses the
-/// seam relative to them.
+/// The eight consecutive rows `block` of every coordinate of a `[n][point]` layout with
+/// `stride` points per coordinate.
 #[inline(always)]
-fn segment_lanes<const N: usize>(
-    a: &[[f64; LANES]; N],
-    b: CurveRef<'_>,
-    j: usize,
-    period: f64,
-) -> [f64; LANES] {
-    let half = 0.5 * period;
-    let start = load::<N>(b.set.points, j);
-    let dir = load::<N>(b.dirs, j);
-    let inv = b.inv_len2[j];
-    let mut u = [[0.0; LANES]; N];
-    let mut v = [[0.0; LANES]; N];
-    for k in 0..N {
-        for l in 0..LANES {
-            u[k][l] = swrap(a[k][l] - start[k], period, half);
-            v[k][l] = dir[k];
-        }
+fn load_block<const N: usize>(rows: &[f64], stride: usize, block: usize) -> [[f64; LANES]; N] {
+    let mut a = [[0.0; LANES]; N];
+    for (k, lanes) in a.iter_mut().enumerate() {
+        lanes.copy_from_slice(&rows[k * stride + block * LANES..][..LANES]);
     }
-    let (mut d2, crossing) = lanes_distance2::<N>(&u, &v, &[inv; LANES], period);
-    for l in 0..LANES {
-        if crossing[l] {
-            let mut x = [0.0; N];
-            for k in 0..N {
-                x[k] = a[k][l];
-            }
-            d2[l] = segment_distance2(&x, &start, &dir, inv, period);
-        }
-    }
-    d2
+    a
 }
 
-/// Window of `B`'s vertices around vertex `start`: per-lane smallest `g²` to a vertex
-/// (an upper bound of `d_B²`) and a segment through that vertex. Stops once every lane
-/// is `≤ settle`, and says whether it got there.
+/// The `t`-th index of a scan centred on `start`: `start, start+1, start−1, start+2, …`
+/// (modulo `len`).
 #[inline(always)]
-fn vertex_window<const N: usize>(
-    a: &[[f64; LANES]; N],
-    b: CurveRef<'_>,
-    period: f64,
-    points: usize,
-    start: usize,
-    settle: f64,
-) -> ([f64; LANES], [u32; LANES], bool) {
-    let mut best = [f64::INFINITY; LANES];
-    let mut arg = [0u32; LANES];
-    for t in 0..9.min(points) {
-        let j = around(start, t, points);
-        let d = super::kernel::dist2::<N>(a, &load::<N>(b.set.points, j), period);
-        // Segment j starts at vertex j; the last vertex of an open set ends segment j − 1.
-        let segment = j.min(b.segments - 1) as u32;
-        let mut settled = true;
-        for l in 0..LANES {
-            let closer = d[l] < best[l];
-            best[l] = if closer { d[l] } else { best[l] };
-            arg[l] = if closer { segment } else { arg[l] };
-            settled &= best[l] <= settle;
+fn around(start: usize, t: usize, len: usize) -> usize {
+    // `t < 2·len`, so one subtraction brings the step into range.
+    let step = t.div_ceil(2);
+    let step = if step >= len { step - len } else { step };
+    if t % 2 == 1 {
+        let j = start + step;
+        if j >= len {
+            j - len
+        } else {
+            j
         }
-        if settled {
-            return (best, arg, true);
-        }
+    } else if start >= step {
+        start - step
+    } else {
+        start + len - step
     }
-    (best, arg, false)
-}
-
-/// Window of `B`'s segments around segment `start`, lowering `best` (per-lane `δ²` upper
-/// bounds) and `arg` (their segments). Stops once every lane is `≤ settle`, and says
-/// whether it got there.
-#[inline(always)]
-fn window<const N: usize>(
-    a: &[[f64; LANES]; N],
-    b: CurveRef<'_>,
-    period: f64,
-    start: usize,
-    settle: f64,
-    best: &mut [f64; LANES],
-    arg: &mut [u32; LANES],
-) -> bool {
-    for t in 0..9.min(b.segments) {
-        let j = around(start, t, b.segments);
-        let d = segment_lanes(a, b, j, period);
-        let mut settled = true;
-        for l in 0..LANES {
-            let closer = d[l] < best[l];
-            best[l] = if closer { d[l] } else { best[l] };
-            arg[l] = if closer { j as u32 } else { arg[l] };
-            settled &= best[l] <= settle;
-        }
-        if settled {
-            return true;
-        }
-    }
-    false
 }
 
 /// Whether segment `i` of `A` lies within `√c2` of segment `j` of `B` all along: the
@@ -481,9 +532,8 @@ fn within_along<const N: usize>(
     i: usize,
     j: usize,
     c2: f64,
-    period: f64,
+    period: &[f64; N],
 ) -> bool {
-    let half = 0.5 * period;
     let p = load::<N>(a.set.points, i);
     let v = load::<N>(a.dirs, i);
     let bs = load::<N>(b.set.points, j);
@@ -491,61 +541,10 @@ fn within_along<const N: usize>(
     let mut u0 = [0.0; N];
     let mut u1 = [0.0; N];
     for k in 0..N {
-        u0[k] = swrap(p[k] - bs[k], period, half);
+        u0[k] = swrap(p[k] - bs[k], period[k]);
         u1[k] = u0[k] + v[k];
     }
     lifted_distance2(&u0, &w, b.inv_len2[j]) <= c2 && lifted_distance2(&u1, &w, b.inv_len2[j]) <= c2
-}
-
-/// Lowers `best` to the exact `d_B²` of every lane still `> settle`: the chunks of
-/// `B`'s segments whose box may hold a closer point are scanned.
-#[inline(always)]
-fn refine_lanes<const N: usize>(
-    a: &[[f64; LANES]; N],
-    best: &mut [f64; LANES],
-    arg: &mut [u32; LANES],
-    settle: f64,
-    b: CurveRef<'_>,
-    period: f64,
-    first_chunk: usize,
-) {
-    let chunks = b.segments.div_ceil(LANES);
-    let shrink = 1.0 - 4.0 * BOUND_MARGIN;
-    for t in 0..chunks {
-        let q = around(first_chunk, t, chunks);
-        let mut open = false;
-        for l in 0..LANES {
-            open |= best[l] > settle;
-        }
-        if !open {
-            break;
-        }
-        let center = load::<N>(b.centers, q);
-        let width = load::<N>(b.widths, q);
-        let mut lower = [0.0; LANES];
-        for k in 0..N {
-            for l in 0..LANES {
-                let gap = fold(a[k][l] - center[k], period) - width[k];
-                let gap = if gap > 0.0 { gap } else { 0.0 };
-                lower[l] += gap * gap;
-            }
-        }
-        let mut useful = false;
-        for l in 0..LANES {
-            useful |= best[l] > settle && lower[l] * shrink < best[l];
-        }
-        if !useful {
-            continue;
-        }
-        for j in q * LANES..((q + 1) * LANES).min(b.segments) {
-            let d = segment_lanes(a, b, j, period);
-            for l in 0..LANES {
-                let closer = d[l] < best[l];
-                best[l] = if closer { d[l] } else { best[l] };
-                arg[l] = if closer { j as u32 } else { arg[l] };
-            }
-        }
-    }
 }
 
 /// `δ²` from one (wrapped) point `x` to the eight segments of chunk `q` of `b` (lanes
@@ -558,17 +557,16 @@ fn chunk_lanes<const N: usize>(
     b: CurveRef<'_>,
     q: usize,
     stride: usize,
-    period: f64,
+    period: &[f64; N],
 ) -> [f64; LANES] {
-    let half = 0.5 * period;
-    let start = super::kernel::load_block::<N>(b.set.coords, stride, q);
-    let dir = super::kernel::load_block::<N>(b.dirs_soa, stride, q);
+    let start = load_block::<N>(b.set.coords, stride, q);
+    let dir = load_block::<N>(b.dirs_soa, stride, q);
     let mut inv = [0.0; LANES];
     inv.copy_from_slice(&b.inv_len2[q * LANES..][..LANES]);
     let mut u = [[0.0; LANES]; N];
     for k in 0..N {
         for l in 0..LANES {
-            u[k][l] = swrap(x[k] - start[k][l], period, half);
+            u[k][l] = swrap(x[k] - start[k][l], period[k]);
         }
     }
     let (mut d2, crossing) = lanes_distance2::<N>(&u, &dir, &inv, period);
@@ -598,13 +596,13 @@ fn chunk_gap2<const N: usize>(
     reach: &[f64; N],
     b: CurveRef<'_>,
     q: usize,
-    period: f64,
+    period: &[f64; N],
 ) -> f64 {
     let center = load::<N>(b.centers, q);
     let width = load::<N>(b.widths, q);
     let mut lower = 0.0;
     for k in 0..N {
-        let gap = fold(x[k] - center[k], period) - width[k] - reach[k];
+        let gap = fold(x[k] - center[k], period[k]) - width[k] - reach[k];
         if gap > 0.0 {
             lower += gap * gap;
         }
@@ -618,7 +616,7 @@ fn chunk_gap2<const N: usize>(
 fn nearest<const N: usize>(
     x: &[f64; N],
     b: CurveRef<'_>,
-    period: f64,
+    period: &[f64; N],
     stride: usize,
     hint: usize,
 ) -> (f64, usize) {
@@ -722,7 +720,7 @@ fn roots_in(a: f64, b: f64, c: f64, lo: f64, hi: f64) -> ([f64; 2], usize) {
 /// `(p, v)` of `A` and the image of segment `j` of `B` nearest to `p` (lifted, as in
 /// [`segment_gap2`]), and whether that image is the only one any pair of their points
 /// reaches (`true` when every coordinate difference at the four corners `t, s ∈ {0, 1}`
-/// is within `[−π, π]`). Lanes past the last segment are `(+∞, true)`.
+/// is within `[−T_n/2, T_n/2]`). Lanes past the last segment are `(+∞, true)`.
 #[inline(always)]
 fn chunk_segment_gaps<const N: usize>(
     p: &[f64; N],
@@ -730,11 +728,10 @@ fn chunk_segment_gaps<const N: usize>(
     b: CurveRef<'_>,
     q: usize,
     stride: usize,
-    period: f64,
+    period: &[f64; N],
 ) -> ([f64; LANES], [bool; LANES]) {
-    let half = 0.5 * period;
-    let start = super::kernel::load_block::<N>(b.set.coords, stride, q);
-    let dir = super::kernel::load_block::<N>(b.dirs_soa, stride, q);
+    let start = load_block::<N>(b.set.coords, stride, q);
+    let dir = load_block::<N>(b.dirs_soa, stride, q);
     let mut inv_e = [0.0; LANES];
     inv_e.copy_from_slice(&b.inv_len2[q * LANES..][..LANES]);
     let mut a = 0.0;
@@ -747,9 +744,10 @@ fn chunk_segment_gaps<const N: usize>(
     let (mut e, mut f, mut c, mut bb) = ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
     for k in 0..N {
         for l in 0..LANES {
-            let x = swrap(p[k] - start[k][l], period, half);
+            let x = swrap(p[k] - start[k][l], period[k]);
             let w = dir[k][l];
             r[k][l] = x;
+            let half = 0.5 * period[k];
             single[l] &=
                 (x + v[k]).abs() <= half && (x - w).abs() <= half && (x + v[k] - w).abs() <= half;
             e[l] = w.mul_add(w, e[l]);
@@ -857,17 +855,16 @@ fn near_images<const N: usize>(
     b: CurveRef<'_>,
     i: usize,
     upper: f64,
-    period: f64,
+    period: &[f64; N],
     stride: usize,
     images: &mut [(u32, [f64; N]); MAX_IMAGES],
 ) -> Option<usize> {
-    let half = 0.5 * period;
     let p = load::<N>(a.set.points, i);
     let v = load::<N>(a.dirs, i);
     let mut mid = [0.0; N];
     let mut spread = [0.0; N];
     for k in 0..N {
-        mid[k] = wrap(p[k] + 0.5 * v[k], period);
+        mid[k] = wrap(p[k] + 0.5 * v[k], period[k]);
         spread[k] = 0.5 * v[k].abs() * (1.0 + BOUND_MARGIN);
     }
     let reach = upper * (1.0 + 4.0 * BOUND_MARGIN) + 1e-12;
@@ -875,7 +872,7 @@ fn near_images<const N: usize>(
     // Every periodic image of a segment of B that comes within `upper` of the segment
     // (only those can be nearest on it). Per coordinate, the lifted difference
     // `a(t) − s_j(s)` runs between its values at the four corners `t, s ∈ {0, 1}` (it
-    // is linear in both); when every coordinate stays within `[−π, π]` the image
+    // is linear in both); when every coordinate stays within `[−T_n/2, T_n/2]` the image
     // nearest to `a_i` is the only one, else the images shifted by one period on the
     // side where the range leaves it join.
     let mut image_count = 0;
@@ -894,7 +891,7 @@ fn near_images<const N: usize>(
             let mut shifted = [[0.0; N]; MAX_SHIFTS];
             let mut shifts = 1;
             for k in 0..N {
-                shifted[0][k] = swrap(p[k] - bs[k], period, half);
+                shifted[0][k] = swrap(p[k] - bs[k], period[k]);
             }
             if !single[l] {
                 for k in 0..N {
@@ -903,7 +900,8 @@ fn near_images<const N: usize>(
                     let lo = corners.iter().fold(f64::INFINITY, |m, &x| m.min(x));
                     let hi = corners.iter().fold(f64::NEG_INFINITY, |m, &x| m.max(x));
                     let last = shifts;
-                    for (shift, needed) in [(-period, hi > half), (period, lo < -half)] {
+                    let half = 0.5 * period[k];
+                    for (shift, needed) in [(-period[k], hi > half), (period[k], lo < -half)] {
                         if !needed {
                             continue;
                         }
@@ -932,100 +930,133 @@ fn near_images<const N: usize>(
     Some(image_count)
 }
 
-/// `max(c, max_{t∈[0,1]} d_B(a_i + t v_i))` exactly, given an upper bound `upper` of that
-/// maximum (the chord bound).
+/// `max(c, max_{t∈[0,1]} d_B(a_i + t v_i))` exactly, given the periodic `images` of
+/// segments of `B` that come within an upper bound of that maximum of the segment (only
+/// those can be nearest anywhere on it: [`near_images`]).
 ///
-/// Only the images of segments of `B` that come within `upper` of the segment can be
-/// nearest anywhere on it ([`near_images`]). On each image, `E(t)² = |p + t q|²`
-/// piecewise, with at most three pieces (the foot `s*(t)` linear in `t`, clamped to
-/// `0` or `1`), so `d_B² = min E²` is a lower envelope of convex quadratics. Its
-/// maximum is at an end (a vertex, already in `c`) or where the minimising image
-/// changes, a root of `E_x² − E_y²` on a common piece: all those roots are tried.
-#[allow(clippy::too_many_arguments)]
+/// On each image, `E(t)² = |p + t q|²` piecewise, with at most three pieces (the foot
+/// `s*(t)` linear in `t`, clamped to `0` or `1`), so `d_B² = min E²` is a lower envelope
+/// of convex quadratics. On an interval `[t_a, t_b]` whose ends are nearest to images
+/// `m_a` and `m_b`, `d_B ≤ F = min(E_{m_a}, E_{m_b})`, and the maximum of `F` is at an end
+/// or where the two cross (a root of `E_{m_a}² − E_{m_b}²` on a common piece; each piece
+/// of `F` is convex). So every crossing above the running maximum is evaluated
+/// exactly: if no third image is lower there, its value is attained and bounds the
+/// interval; else the interval is split there with the lower image, and both halves
+/// are examined the same way. Crossings below the running maximum are skipped
+/// unevaluated. Past [`MAX_SPLITS`] splits the segment goes to the branch and bound.
 #[inline(always)]
 fn segment_max<const N: usize>(
     a: CurveRef<'_>,
     b: CurveRef<'_>,
     i: usize,
-    upper: f64,
+    images: &[(u32, [f64; N])],
     c: f64,
     abort: f64,
-    period: f64,
-    stride: usize,
 ) -> SegmentMax {
     let v = load::<N>(a.dirs, i);
-    let mut images = [(0u32, [0.0; N]); MAX_IMAGES];
-    let Some(image_count) = near_images::<N>(a, b, i, upper, period, stride, &mut images) else {
-        return SegmentMax::Fallback;
-    };
-    // The pieces of every image.
+    // The pieces of every image, and where each image's pieces start.
     let mut quads = [Quad::default(); 3 * MAX_IMAGES];
-    let pieces = image_pieces::<N>(&v, &images[..image_count], b, &mut quads);
-    let quads = &quads[..pieces]; // d_B² at a(t), exactly: the lifted distances to every image.
+    let pieces = image_pieces::<N>(&v, images, b, &mut quads);
+    let quads = &quads[..pieces];
+    let mut first = [0usize; MAX_IMAGES + 1];
+    for m in 0..images.len() {
+        first[m + 1] = first[m]
+            + quads[first[m]..]
+                .iter()
+                .take_while(|f| f.owner as usize == m)
+                .count();
+    }
+    // d_B² at a(t) exactly (the lifted distances to every image) and the image reaching
+    // it (the lowest index among ties).
     let envelope = |t: f64| {
-        let mut best = f64::INFINITY;
-        for (j, u0) in &images[..image_count] {
+        let mut best = (f64::INFINITY, 0usize);
+        for (m, (j, u0)) in images.iter().enumerate() {
             let j = *j as usize;
             let mut u = [0.0; N];
             for k in 0..N {
                 u[k] = u0[k] + t * v[k];
             }
             let d = lifted_distance2(&u, &load::<N>(b.dirs, j), b.inv_len2[j]);
-            best = if d < best { d } else { best };
+            if d < best.0 {
+                best = (d, m);
+            }
         }
         best
     };
-    // The same from the expanded quadratics (rounding ~1e-14, far below SLACK): a filter.
-    let quick = |t: f64| {
-        quads
-            .iter()
-            .filter(|f| f.t0 <= t && t <= f.t1)
-            .fold(f64::INFINITY, |m, f| m.min(f.at(t)))
-    };
     const SLACK: f64 = 1e-12;
-    let mut c2 = c * c;
     let abort2 = abort * abort;
-    for (x, f) in quads.iter().enumerate() {
-        // A crossing on f is at most f's larger end value (f is convex).
-        if f.at(f.t0).max(f.at(f.t1)) + SLACK <= c2 {
+    let (at0, m0) = envelope(0.0);
+    let (at1, m1) = envelope(1.0);
+    let mut c2 = (c * c).max(at0).max(at1);
+    if c2 > abort2 {
+        return SegmentMax::Abort;
+    }
+    // Intervals [ta, tb] with the images minimal at their ends.
+    let mut stack = [(0.0f64, 1.0f64, 0usize, 0usize); MAX_SPLITS];
+    stack[0] = (0.0, 1.0, m0, m1);
+    let mut depth = 1;
+    let mut splits = 0;
+    while depth > 0 {
+        depth -= 1;
+        let (ta, tb, ma, mb) = stack[depth];
+        if ma == mb {
+            // One convex function, at most its end values.
             continue;
         }
-        for g in &quads[x + 1..] {
-            if f.owner == g.owner {
-                continue;
-            }
-            let (lo, hi) = (f.t0.max(g.t0), f.t1.min(g.t1));
-            // At a crossing both are equal, and a convex function is at most its
-            // larger end value on the common range.
-            if lo > hi
-                || f.at(lo).max(f.at(hi)) + SLACK <= c2
-                || g.at(lo).max(g.at(hi)) + SLACK <= c2
-            {
-                continue;
-            }
-            let (roots, found) = roots_in(
-                f.alpha - g.alpha,
-                f.beta - g.beta,
-                f.gamma - g.gamma,
-                lo,
-                hi,
-            );
-            for &t in &roots[..found] {
-                if quick(t) + SLACK <= c2 {
+        let mut split = None;
+        'pairs: for f in &quads[first[ma]..first[ma + 1]] {
+            for g in &quads[first[mb]..first[mb + 1]] {
+                let (lo, hi) = (f.t0.max(g.t0).max(ta), f.t1.min(g.t1).min(tb));
+                // At a crossing both are equal, and a convex function is at most its
+                // larger end value on the common range.
+                if lo > hi
+                    || f.at(lo).max(f.at(hi)) + SLACK <= c2
+                    || g.at(lo).max(g.at(hi)) + SLACK <= c2
+                {
                     continue;
                 }
-                let value = envelope(t);
-                if value > c2 {
-                    c2 = value;
-                    if c2 > abort2 {
-                        return SegmentMax::Abort;
+                let (roots, found) = roots_in(
+                    f.alpha - g.alpha,
+                    f.beta - g.beta,
+                    f.gamma - g.gamma,
+                    lo,
+                    hi,
+                );
+                for &t in &roots[..found] {
+                    let crossing = f.at(t);
+                    if crossing + SLACK <= c2 {
+                        continue;
+                    }
+                    let (value, m) = envelope(t);
+                    if value > c2 {
+                        c2 = value;
+                        if c2 > abort2 {
+                            return SegmentMax::Abort;
+                        }
+                    }
+                    if m != ma && m != mb && value < crossing * (1.0 - 1e-13) - SLACK {
+                        split = Some((t, m));
+                        break 'pairs;
                     }
                 }
             }
         }
+        if let Some((t, m)) = split {
+            splits += 1;
+            if splits > MAX_SPLITS || depth + 2 > MAX_SPLITS {
+                return SegmentMax::Fallback;
+            }
+            stack[depth] = (ta, t, ma, m);
+            stack[depth + 1] = (t, tb, m, mb);
+            depth += 2;
+        }
     }
     SegmentMax::Done(c2.sqrt().max(c))
 }
+
+/// Largest number of splits of the envelope of one segment (then the branch and bound
+/// takes over).
+const MAX_SPLITS: usize = 64;
 
 /// The quadratic pieces of `E_m(t)²`, the squared lifted distance from `a(t) = u0 + t·v`
 /// to each image `m` of a segment of `B` (at most 3 per image: before, along and after
@@ -1136,12 +1167,12 @@ fn envelope_max(lines: &[(f64, f64)]) -> (f64, f64) {
 
 /// The point `a_i + t·v_i` of segment `i` of `A`, wrapped.
 #[inline(always)]
-fn point_on<const N: usize>(a: CurveRef<'_>, i: usize, t: f64, period: f64) -> [f64; N] {
+fn point_on<const N: usize>(a: CurveRef<'_>, i: usize, t: f64, period: &[f64; N]) -> [f64; N] {
     let start = load::<N>(a.set.points, i);
     let v = load::<N>(a.dirs, i);
     let mut x = [0.0; N];
     for k in 0..N {
-        x[k] = wrap(start[k] + t * v[k], period);
+        x[k] = wrap(start[k] + t * v[k], period[k]);
     }
     x
 }
@@ -1159,9 +1190,8 @@ fn chord_bound<const N: usize>(
     t0: f64,
     t1: f64,
     ends: [u32; 2],
-    period: f64,
+    period: &[f64; N],
 ) -> (f64, f64) {
-    let half = 0.5 * period;
     let start = load::<N>(a.set.points, i);
     let v = load::<N>(a.dirs, i);
     let span = t1 - t0;
@@ -1188,7 +1218,7 @@ fn chord_bound<const N: usize>(
         let mut u0 = [0.0; N];
         let mut u1 = [0.0; N];
         for k in 0..N {
-            u0[k] = swrap(x0[k] - bs[k], period, half);
+            u0[k] = swrap(x0[k] - bs[k], period[k]);
             u1[k] = u0[k] + span * v[k];
         }
         *line = (
@@ -1208,7 +1238,7 @@ fn refine_segment<const N: usize>(
     b: CurveRef<'_>,
     i: usize,
     ends: [(f64, u32); 2],
-    period: f64,
+    period: &[f64; N],
     mut c: f64,
     abort: f64,
     stride: usize,
@@ -1283,185 +1313,457 @@ fn refine_segment<const N: usize>(
 /// Reusable buffers of the curve kernel.
 #[derive(Debug, Default)]
 pub(crate) struct CurveScratch {
-    /// Per vertex of `A`: the segment of `B` that settled it (or its nearest).
-    arg: Vec<u32>,
-    /// Per vertex of `A` (and vertex 0 again after the last): an upper bound of `d_B²`.
-    upper: Vec<f64>,
-    /// Segments of `A` that the quick tests did not settle.
-    open: Vec<u32>,
+    /// Per vertex of `A`: its exact `d_B²` and nearest segment of `B`, once computed
+    /// (`NaN` before).
+    vertex: Vec<(f64, u32)>,
+    /// Segments of `A` that the `f32` passes left open: their test value, index, and
+    /// the smallest lifted `f32` squared distances from their two ends to the segments
+    /// of `B` in the window (`+∞` when not computed).
+    open: Vec<OpenSegment>,
+    /// The `f32` distances of the segment scan of the segment being settled.
+    scan: Vec<ScanChunk>,
+    /// The same for the vertex whose exact distance is computed.
+    vertex_scan: Vec<ScanChunk>,
     stack: Vec<Piece>,
 }
 
-/// `max(c², h(A, B)²)` (squared, the vertex pass) and then `h` over the continuous
-/// polyline; `None` once the answer is proven `> abort` (not squared).
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn directed<const N: usize>(
-    a: CurveRef<'_>,
-    b: CurveRef<'_>,
-    period: f64,
-    points: usize,
-    points_pad: usize,
-    (key, near): (&[f32], &[u32]),
-    c: f64,
-    abort: f64,
-    order: &mut Vec<u64>,
-    scratch: &mut CurveScratch,
-) -> Option<f64> {
-    let chunks = points_pad / LANES;
-    let mut c2 = c * c;
-    let abort2 = if abort.is_finite() {
-        abort * abort
-    } else {
-        f64::INFINITY
-    };
-    super::kernel::far_first(key, chunks, order);
-    scratch.arg.clear();
-    scratch.arg.resize(points_pad, 0);
-    scratch.upper.clear();
-    scratch.upper.resize(points_pad + LANES, 0.0);
-    // 1. Vertices, eight at a time, far blocks first: a vertex of B within c settles a
-    //    lane, else a segment of B within c, else the lane's exact d_B raises c.
-    for &alpha in order.iter().take(chunks) {
-        let alpha = alpha as usize;
-        let block = super::kernel::load_block::<N>(a.set.coords, points_pad, alpha);
-        let start = (near[alpha] as usize * LANES + LANES / 2).min(points - 1);
-        let (mut best, mut arg, mut settled) = if c2 > 0.0 {
-            vertex_window(&block, b, period, points, start, c2)
-        } else {
-            ([f64::INFINITY; LANES], [0; LANES], false)
-        };
-        if !settled && c2 > 0.0 {
-            let start = start.min(b.segments - 1);
-            settled = window(&block, b, period, start, c2, &mut best, &mut arg);
+/// A segment of `A` left open by the `f32` passes: `(test value, index, (m0, m1))`, see
+/// [`CurveScratch::open`].
+type OpenSegment = (f32, u32, (f32, f32));
+
+/// One chunk of a [`segment_scan`]: the lifted squared distances from both ends and
+/// the segments that cross the seam.
+type ScanChunk = ([f32; LANES], [f32; LANES], u32);
+
+/// One direction `A → B` of the curve kernel.
+struct Pass<'a, S: Lanes, const N: usize> {
+    s: S,
+    a: CurveRef<'a>,
+    b: CurveRef<'a>,
+    frame: &'a Frame<N>,
+    wraps: Wraps<S, N>,
+    /// Half of every period (`+∞` when not wrapped), as vectors.
+    half: [S::V; N],
+    /// Smallest distance from a point to a segment of `B` that crosses the seam relative
+    /// to it: `min_n T_n/2 − L` (`L` the longest segment of `B`; `+∞` without a period).
+    seam_reach: f64,
+    /// Smallest distance between a segment of `A` and an image of a segment of `B`
+    /// other than the one nearest to its start: `min_n T_n/2 − L_A − L_B`.
+    image_reach: f64,
+    /// Coordinates too large for the `f32` filter: nothing is settled in `f32`.
+    wide: bool,
+    /// The last `(c2, segment_threshold(c2))`: `c2` changes a few times per pass while
+    /// the threshold (a square root and a division) is asked for at every test.
+    theta: Cell<(f64, f32)>,
+}
+
+impl<S: Lanes, const N: usize> Pass<'_, S, N> {
+    /// The `f32` threshold of the lifted (segment) tests for the running `c2`.
+    #[inline(always)]
+    fn segment_threshold(&self, c2: f64) -> f32 {
+        if self.wide {
+            return -1.0;
         }
-        if !settled {
-            refine_lanes(
-                &block,
-                &mut best,
-                &mut arg,
-                c2,
-                b,
-                period,
-                start.min(b.segments - 1) / LANES,
-            );
-            for l in 0..LANES {
-                if alpha * LANES + l < points && best[l] > c2 {
-                    c2 = best[l];
+        let (last, theta) = self.theta.get();
+        if last == c2 {
+            return theta;
+        }
+        let theta = threshold(c2, self.frame.segment_delta, self.frame.rel);
+        self.theta.set((c2, theta));
+        theta
+    }
+
+    /// An upper bound of the exact distance whose lifted `f32` square is `m` (see
+    /// [`FilterBounds`](super::prepared::FilterBounds)).
+    #[inline(always)]
+    fn upper(&self, m: f32) -> f64 {
+        (f64::from(m) * (1.0 + self.frame.rel)).sqrt() * (1.0 + 1e-12) + self.frame.segment_delta
+    }
+
+    /// The Lipschitz bound: segment `i` of `A` is settled when
+    /// `(d_B(a_i) + d_B(a_{i+1}) + |v_i|)/2 ≤ √c2`, with the `f32` lifted squared
+    /// distances `m0`, `m1` from its ends to some segments of `B` as upper bounds.
+    #[inline(always)]
+    fn lipschitz_settles(&self, i: usize, (m0, m1): (f32, f32), c2: f64) -> bool {
+        0.5 * (self.upper(m0) + self.upper(m1) + self.a.lengths[i]) <= c2.sqrt() * (1.0 - 1e-12)
+    }
+
+    /// The exact `d_B(a_i)²` of vertex `i` of `A` and its nearest segment of `B` (the
+    /// lowest index among ties), computed once per pass.
+    #[inline(always)]
+    fn vertex(&self, i: usize, scratch: &mut CurveScratch) -> (f64, u32) {
+        if scratch.vertex[i].0.is_nan() {
+            scratch.vertex[i] = self.exact_vertex(i, &mut scratch.vertex_scan);
+        }
+        scratch.vertex[i]
+    }
+
+    /// [`Self::vertex`], computed: the `f32` distances from `a_i` to every vertex of
+    /// `B` give an upper bound `R` of `d_B(a_i)` (the nearest vertex); a segment where
+    /// `d_B` is reached has an end within `R + L/2` (`L` the longest segment of `B`),
+    /// so only the segments at the vertices whose `f32` value allows that
+    /// ([`cut_above`]) are computed, exactly ([`segment_distance2`]).
+    #[inline(always)]
+    fn exact_vertex(&self, i: usize, scan: &mut Vec<ScanChunk>) -> (f64, u32) {
+        let (a, b, frame) = (self.a, self.b, self.frame);
+        let x = load::<N>(a.set.points, i);
+        let exact = |j: usize| point_segment2::<N>(&x, b, j, &frame.period);
+        let mut best = (f64::INFINITY, u32::MAX);
+        let keep = |d2: f64, j: usize, best: &mut (f64, u32)| {
+            if d2 < best.0 || (d2 == best.0 && (j as u32) < best.1) {
+                *best = (d2, j as u32);
+            }
+        };
+        if self.wide {
+            for j in 0..b.segments {
+                keep(exact(j), j, &mut best);
+            }
+            return best;
+        }
+        let x32: [f32; N] = std::array::from_fn(|k| a.set.coords32[k * frame.points_pad + i]);
+        let (smallest, _, _) = self.scan::<false>(&x32, &[0.0; N], scan);
+        self.nearest_from_scan(i, smallest, scan)
+    }
+
+    /// The exact `d_B(a_i)²` and nearest segment from a [`segment_scan`] of `a_i`
+    /// (smallest value `smallest`).
+    #[inline(always)]
+    fn nearest_from_scan(&self, i: usize, smallest: f32, scan: &[ScanChunk]) -> (f64, u32) {
+        let (a, b, frame) = (self.a, self.b, self.frame);
+        let x = load::<N>(a.set.points, i);
+        let exact = |j: usize| point_segment2::<N>(&x, b, j, &frame.period);
+        let mut best = (f64::INFINITY, u32::MAX);
+        let keep = |d2: f64, j: usize, best: &mut (f64, u32)| {
+            if d2 < best.0 || (d2 == best.0 && (j as u32) < best.1) {
+                *best = (d2, j as u32);
+            }
+        };
+        let (delta, rel) = (frame.segment_delta, frame.rel);
+        // d_B(a_i) ≤ radius. A segment that does not cross the seam relative to a_i has
+        // an f32 value within the bounds of its exact distance, so the nearest one is
+        // below `cut`; one that crosses is at least `T_n/2 − |v_n|` away in the
+        // crossing coordinate, so it only counts when the radius reaches that.
+        let radius = (f64::from(smallest) * (1.0 + rel)).sqrt() * (1.0 + 1e-12) + delta;
+        let cut = cut_above(smallest, 2.0 * delta, rel);
+        let crossing_counts = radius >= self.seam_reach;
+        let cut = self.s.splat(cut);
+        for (q, (e0, _, crossing)) in scan.iter().enumerate().take(frame.chunks) {
+            let mut mask = self.s.le(self.s.load(e0), cut) & !crossing;
+            if crossing_counts {
+                mask |= crossing;
+            }
+            while mask != 0 {
+                let l = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let j = q * LANES + l;
+                if j < b.segments {
+                    keep(exact(j), j, &mut best);
                 }
             }
-            if c2 > abort2 {
+        }
+        best
+    }
+
+    /// [`segment_scan`] over the segments of `B` from the point `x` (and `x + v`).
+    #[inline(always)]
+    fn scan<const ENDS: bool>(
+        &self,
+        x: &[f32; N],
+        v: &[f32; N],
+        out: &mut Vec<ScanChunk>,
+    ) -> (f32, f32, f32) {
+        let (b, frame) = (self.b, self.frame);
+        out.resize(frame.chunks, ([0.0; LANES], [0.0; LANES], 0));
+        segment_scan::<S, N, ENDS>(
+            self.s,
+            (x, v),
+            (b.set.coords32, b.dirs32, b.inv32),
+            frame.chunks,
+            &self.wraps,
+            &self.half,
+            out,
+        )
+    }
+
+    /// Settles segment `i` of `A` exactly, raising `c2` to its maximum `max_t d_B²` when
+    /// that is larger; `None` once `c2 > abort2`. The exact values at its ends come
+    /// first, then the Lipschitz bound `(d_i + d_{i+1} + |v_i|)/2`, convexity with the
+    /// segments nearest to either end, the chord bound, and last the envelope.
+    #[inline(always)]
+    fn exact_segment(
+        &self,
+        i: usize,
+        mut c2: f64,
+        abort2: f64,
+        scratch: &mut CurveScratch,
+    ) -> Option<f64> {
+        let (a, b, period) = (self.a, self.b, &self.frame.period);
+        let next = if i + 1 == self.frame.points { 0 } else { i + 1 };
+        let (d0, j0) = self.vertex(i, scratch);
+        let (d1, j1) = self.vertex(next, scratch);
+        c2 = c2.max(d0).max(d1);
+        if c2 > abort2 {
+            return None;
+        }
+        let c = c2.sqrt();
+        if 0.5 * (d0.sqrt() + d1.sqrt() + a.lengths[i]) <= c * (1.0 - 1e-12)
+            || within_along::<N>(a, b, i, j0 as usize, c2, period)
+            || within_along::<N>(a, b, i, j1 as usize, c2, period)
+        {
+            return Some(c2);
+        }
+        let abort = abort2.sqrt();
+        let (upper, _) = chord_bound::<N>(a, b, i, 0.0, 1.0, [j0, j1], period);
+        if upper <= c + 0.5 * CURVE_TOLERANCE {
+            return Some(c2);
+        }
+        let stride = self.frame.points_pad;
+        let mut images = [(0u32, [0.0; N]); MAX_IMAGES];
+        let found = if self.wide || upper >= self.image_reach {
+            near_images::<N>(a, b, i, upper, period, stride, &mut images)
+        } else {
+            self.near_images_scanned(i, upper, &scratch.scan, &mut images)
+        };
+        let outcome = match found {
+            Some(count) => segment_max::<N>(a, b, i, &images[..count], c, abort),
+            None => SegmentMax::Fallback,
+        };
+        let ends = match outcome {
+            SegmentMax::Done(value) => {
+                return Some(c2.max(value * value));
+            }
+            SegmentMax::Abort => return None,
+            SegmentMax::Fallback => [(d0.sqrt(), j0), (d1.sqrt(), j1)],
+        };
+        let mut stack = std::mem::take(&mut scratch.stack);
+        let result = refine_segment::<N>(a, b, i, ends, period, c, abort, stride, &mut stack);
+        scratch.stack = stack;
+        result.map(|value| c2.max(value * value))
+    }
+
+    /// The segments of `B` that may come within `upper` of segment `i` of `A`, from its
+    /// [`segment_scan`] `scan`, as images relative to `a_i` (written to `images`; their
+    /// count, or `None` past [`MAX_IMAGES`]). The lifted distance to segment `j` is
+    /// convex along segment `i` and changes at most `|v_i|` from end to end, so its
+    /// minimum is at least `(E_j(0) + E_j(1) − |v_i|)/2`; only segments where that can be
+    /// `≤ upper` are kept. Valid when `upper` is below `image_reach`: then no image
+    /// but the one nearest to `a_i` can come within `upper`.
+    #[inline(always)]
+    fn near_images_scanned(
+        &self,
+        i: usize,
+        upper: f64,
+        scan: &[ScanChunk],
+        images: &mut [(u32, [f64; N]); MAX_IMAGES],
+    ) -> Option<usize> {
+        let (s, a, b, frame) = (self.s, self.a, self.b, self.frame);
+        let p = load::<N>(a.set.points, i);
+        let reach = upper * (1.0 + 4.0 * BOUND_MARGIN) + 1e-12;
+        let (delta, rel) = (frame.segment_delta, frame.rel);
+        // √ẽ0 + √ẽ1 ≤ limit for every segment whose lower bound is ≤ reach.
+        let limit = (((2.0 * reach + a.lengths[i]) * (1.0 + rel).sqrt() + 2.0 * delta)
+            * (1.0 + 1e-6)) as f32;
+        let limit = s.splat(limit);
+        let mut count = 0;
+        for (q, (e0, e1, _)) in scan.iter().enumerate().take(frame.chunks) {
+            let sum = s.add(s.sqrt(s.load(e0)), s.sqrt(s.load(e1)));
+            let mut mask = s.le(sum, limit);
+            while mask != 0 {
+                let l = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let j = q * LANES + l;
+                if j >= b.segments {
+                    continue;
+                }
+                if count == MAX_IMAGES {
+                    return None;
+                }
+                let bs = load::<N>(b.set.points, j);
+                images[count] = (
+                    j as u32,
+                    std::array::from_fn(|k| swrap(p[k] - bs[k], frame.period[k])),
+                );
+                count += 1;
+            }
+        }
+        Some(count)
+    }
+
+    /// Whether a [`segment_scan`] of segment `i` of `A` settles it for the running `c2`:
+    /// both ends within `√c2` of one lifted segment of `B` (convexity), or the Lipschitz
+    /// bound `(d_B(a_i) + d_B(a_{i+1}) + |v_i|)/2 ≤ √c2` with the upper bounds of the
+    /// scan. Records the exact `d_B(a_i)` it gives for free.
+    #[inline(always)]
+    fn scan_settles(&self, i: usize, c2: f64, scratch: &mut CurveScratch) -> bool {
+        !self.wide && self.scan_segment(i, c2, false, scratch)
+    }
+
+    /// The [`segment_scan`] of segment `i` of `A` (see [`Self::scan_settles`]): whether it
+    /// settles the segment for `max(c2, d_B(a_i)²)`, with the exact `d_B(a_i)` recorded
+    /// when it is still unknown and `vertex` asks for it or the segment stays open.
+    #[inline(always)]
+    fn scan_segment(&self, i: usize, c2: f64, vertex: bool, scratch: &mut CurveScratch) -> bool {
+        let (a, frame) = (self.a, self.frame);
+        let x: [f32; N] = std::array::from_fn(|k| a.set.coords32[k * frame.points_pad + i]);
+        let v: [f32; N] = std::array::from_fn(|k| a.dirs32[k * frame.points_pad + i]);
+        let mut scan = std::mem::take(&mut scratch.scan);
+        let (min0, min1, min_max) = self.scan::<true>(&x, &v, &mut scan);
+        let mut c2 = c2;
+        if vertex && scratch.vertex[i].0.is_nan() {
+            scratch.vertex[i] = self.nearest_from_scan(i, min0, &scan);
+            c2 = c2.max(scratch.vertex[i].0);
+        }
+        let settled =
+            min_max <= self.segment_threshold(c2) || self.lipschitz_settles(i, (min0, min1), c2);
+        if !settled && scratch.vertex[i].0.is_nan() {
+            scratch.vertex[i] = self.nearest_from_scan(i, min0, &scan);
+        }
+        scratch.scan = scan;
+        settled
+    }
+
+    /// The `f32` passes over one block `alpha` of segments of `A`: exact values of the
+    /// vertices that may raise `c2` (largest window value first), and the segments
+    /// left open pushed to `scratch.open`. Returns the new `c2`, or `None` once
+    /// `c2 > abort2`.
+    #[inline(always)]
+    fn block(
+        &self,
+        alpha: usize,
+        near: usize,
+        mut c2: f64,
+        abort2: f64,
+        scratch: &mut CurveScratch,
+    ) -> Option<f64> {
+        let (s, a, b, frame) = (self.s, self.a, self.b, self.frame);
+        let live = (1u32 << a.segments.saturating_sub(alpha * LANES).min(LANES)) - 1;
+        if live == 0 {
+            return Some(c2);
+        }
+        let block = SegmentBlock::load(s, a.set.coords32, a.dirs32, frame.chunks, alpha);
+        let start = (near * LANES + LANES / 2).min(frame.points - 1);
+        let rows = start..start + 2 * RING + 1;
+        let ring = &b.set.ring32.as_chunks::<N>().0[rows.clone()];
+        let length = frame.points.min(RING_WINDOW.len());
+        let (best_segment, best_vertex) = if self.wide {
+            (s.splat(f32::INFINITY), s.splat(f32::INFINITY))
+        } else {
+            let theta = self.segment_threshold(c2);
+            vertex_window(s, &block, ring, &self.wraps, (theta, live, length))
+        };
+        // Vertices whose window value does not prove them within c: exact values, from
+        // the scan of their segment, which may settle it too.
+        let mut values = s.array(best_vertex);
+        let mut open = s.gt(best_vertex, s.splat(self.segment_threshold(c2))) & live;
+        let mut scanned = 0u32;
+        while open != 0 {
+            let l = largest(&values, open);
+            open &= !(1 << l);
+            values[l] = f32::NEG_INFINITY;
+            let i = alpha * LANES + l;
+            let d2 = if self.wide {
+                self.vertex(i, scratch).0
+            } else {
+                if self.scan_segment(i, c2, true, scratch) {
+                    scanned |= 1 << l;
+                }
+                scratch.vertex[i].0
+            };
+            if d2 > c2 {
+                c2 = d2;
+                if c2 > abort2 {
+                    return None;
+                }
+                open &= s.gt(s.load(&values), s.splat(self.segment_threshold(c2)));
+            }
+        }
+        // Segments: the window of vertices, then of segments of B.
+        let theta = self.segment_threshold(c2);
+        let mut open = s.gt(best_segment, s.splat(theta)) & live & !scanned;
+        let mut best = best_segment;
+        let infinity = s.splat(f32::INFINITY);
+        let (mut ends0, mut ends1) = (infinity, infinity);
+        if open != 0 && !self.wide {
+            let dirs = &b.dir_ring32.as_chunks::<N>().0[rows.clone()];
+            let inverse = &b.inv_ring32[rows];
+            (best, ends0, ends1) = segment_window(
+                s,
+                &block,
+                (ring, dirs, inverse),
+                &self.wraps,
+                (theta, open, length),
+                best,
+            );
+            open = s.gt(best, s.splat(theta)) & live;
+        }
+        let (values, ends0, ends1) = (s.array(best), s.array(ends0), s.array(ends1));
+        while open != 0 {
+            let l = open.trailing_zeros() as usize;
+            open &= open - 1;
+            scratch
+                .open
+                .push((values[l], (alpha * LANES + l) as u32, (ends0[l], ends1[l])));
+        }
+        Some(c2)
+    }
+}
+
+/// The lane of `mask` with the largest value (the lowest among ties).
+#[inline(always)]
+fn largest(values: &[f32; LANES], mask: u32) -> usize {
+    let mut l = mask.trailing_zeros() as usize;
+    let mut rest = mask & (mask - 1);
+    while rest != 0 {
+        let m = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        if values[m] > values[l] {
+            l = m;
+        }
+    }
+    l
+}
+
+/// `max(c2, h(A, B)²)` over the continuous polylines (squared); `None` once it is
+/// proven `> abort2`. Blocks of segments of `A` far from `B` first go through the `f32`
+/// passes ([`Pass::block`]); the segments they leave open are then settled exactly,
+/// largest test value first ([`Pass::exact_segment`]).
+#[inline(always)]
+fn directed<S: Lanes, const N: usize>(
+    pass: &Pass<'_, S, N>,
+    (key, near): (&[f32], &[u32]),
+    mut c2: f64,
+    abort2: f64,
+    order: &mut Vec<u32>,
+    scratch: &mut CurveScratch,
+) -> Option<f64> {
+    far_first(&key[..pass.frame.chunks], order);
+    scratch.vertex.clear();
+    scratch.vertex.resize(pass.frame.points, (f64::NAN, 0));
+    scratch.open.clear();
+    for &alpha in order.iter() {
+        let alpha = alpha as usize;
+        c2 = pass.block(alpha, near[alpha] as usize, c2, abort2, scratch)?;
+    }
+    let mut open = std::mem::take(&mut scratch.open);
+    open.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+    for &(value, i, ends) in &open {
+        // The window's tests again with the final c2, before a scan of all of B.
+        if value <= pass.segment_threshold(c2) || pass.lipschitz_settles(i as usize, ends, c2) {
+            continue;
+        }
+        if pass.scan_settles(i as usize, c2, scratch) {
+            continue;
+        }
+        match pass.exact_segment(i as usize, c2, abort2, scratch) {
+            Some(value) => c2 = value,
+            None => {
+                scratch.open = open;
                 return None;
             }
         }
-        scratch.arg[alpha * LANES..(alpha + 1) * LANES].copy_from_slice(&arg);
-        scratch.upper[alpha * LANES..(alpha + 1) * LANES].copy_from_slice(&best);
     }
-    scratch.upper[points] = scratch.upper[0];
-    open_segments::<N>(a, b, c2, period, points, scratch);
-    exact_segments::<N>(a, b, c2.sqrt(), abort, period, points, points_pad, scratch)
-}
-
-/// Phase 2 of [`directed`]: the segments of `A` not settled by the bounds at their ends
-/// (`c2` the squared running maximum), into `scratch.open`.
-#[inline(always)]
-fn open_segments<const N: usize>(
-    a: CurveRef<'_>,
-    b: CurveRef<'_>,
-    c2: f64,
-    period: f64,
-    points: usize,
-    scratch: &mut CurveScratch,
-) {
-    let c = c2.sqrt();
-    // Settled when `(u_i + u_{i+1} + |v_i|)/2 ≤ c` (d_B is 1-Lipschitz along
-    //    the segment, `u` the upper bounds at the ends), eight at a time; else when the
-    //    segment of B that settled either end is within c of both ends in one image
-    //    (the distance to it is convex).
-    let limit = 2.0 * c * (1.0 - 1e-12);
-    scratch.open.clear();
-    for block in 0..a.segments.div_ceil(LANES) {
-        let mut bound = [0.0; LANES];
-        let here = &scratch.upper[block * LANES..][..LANES];
-        let after = &scratch.upper[block * LANES + 1..][..LANES];
-        let length = &a.lengths[block * LANES..][..LANES];
-        let mut all = true;
-        for l in 0..LANES {
-            bound[l] = here[l].sqrt() + after[l].sqrt() + length[l];
-            all &= bound[l] <= limit || block * LANES + l >= a.segments;
-        }
-        if all {
-            continue;
-        }
-        for (l, &bound) in bound.iter().enumerate() {
-            let i = block * LANES + l;
-            if i >= a.segments || bound <= limit {
-                continue;
-            }
-            let next = if i + 1 == points { 0 } else { i + 1 };
-            if within_along::<N>(a, b, i, scratch.arg[i] as usize, c2, period)
-                || within_along::<N>(a, b, i, scratch.arg[next] as usize, c2, period)
-            {
-                continue;
-            }
-            scratch.open.push(i as u32);
-        }
-    }
-}
-
-/// Phase 3 of [`directed`]: the open segments exactly; `c` is the running maximum.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn exact_segments<const N: usize>(
-    a: CurveRef<'_>,
-    b: CurveRef<'_>,
-    c: f64,
-    abort: f64,
-    period: f64,
-    points: usize,
-    points_pad: usize,
-    scratch: &mut CurveScratch,
-) -> Option<f64> {
-    // The chord bound, then the envelope (or the branch and bound).
-    let mut c = c;
-    for e in 0..scratch.open.len() {
-        let i = scratch.open[e] as usize;
-        let next = if i + 1 == points { 0 } else { i + 1 };
-        // The chord envelope of the segments that settled either end and their
-        // neighbours, without any exact search: settles most segments where the
-        // nearest segment of B switches along the way.
-        let (upper, _) = chord_bound::<N>(
-            a,
-            b,
-            i,
-            0.0,
-            1.0,
-            [scratch.arg[i], scratch.arg[next]],
-            period,
-        );
-        if upper <= c + 0.5 * CURVE_TOLERANCE {
-            continue;
-        }
-        let ends = match segment_max::<N>(a, b, i, upper, c, abort, period, points_pad) {
-            SegmentMax::Done(value) => {
-                c = value;
-                continue;
-            }
-            SegmentMax::Abort => return None,
-            SegmentMax::Fallback => {
-                [(i, scratch.arg[i]), (next, scratch.arg[next])].map(|(x, hint)| {
-                    let x = load::<N>(a.set.points, x);
-                    let (d2, j) = nearest::<N>(&x, b, period, points_pad, hint as usize);
-                    (d2.sqrt(), j as u32)
-                })
-            }
-        };
-        let mut stack = std::mem::take(&mut scratch.stack);
-        let result = refine_segment::<N>(a, b, i, ends, period, c, abort, points_pad, &mut stack);
-        scratch.stack = stack;
-        c = result?;
-    }
-    Some(c)
+    scratch.open = open;
+    Some(c2)
 }
 
 /// `ρ_c(set i, set j)`, or `None` once it is proven `> limit`, with the kernels
@@ -1474,49 +1776,62 @@ pub(crate) fn curve_pair(
     limit: f64,
     scratch: &mut Scratch,
 ) -> Option<f64> {
-    pulp::Arch::new().dispatch(CurveJob {
-        prepared,
-        i,
-        j,
-        limit,
-        scratch,
-    })
+    match super::kernel::simd() {
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx2(v3) => v3.vectorize(CurveCall {
+            s: v3,
+            prepared,
+            pair: (i, j),
+            limit,
+            scratch,
+        }),
+        Simd::Portable => curve_fixed(Portable, prepared, i, j, limit, scratch),
+    }
 }
 
-struct CurveJob<'a> {
+/// One pair, as work for `pulp`'s target-feature context (its `call` is inlined there).
+struct CurveCall<'a, S> {
+    s: S,
     prepared: &'a PreparedSets,
-    i: usize,
-    j: usize,
+    pair: (usize, usize),
     limit: f64,
     scratch: &'a mut Scratch,
 }
 
-impl pulp::WithSimd for CurveJob<'_> {
+impl<S: Lanes> pulp::NullaryFnOnce for CurveCall<'_, S> {
     type Output = Option<f64>;
 
     #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) -> Option<f64> {
-        let CurveJob {
-            prepared,
-            i,
-            j,
-            limit,
-            scratch,
-        } = self;
-        match prepared.dims_pad() {
-            2 => curve_hausdorff::<2>(prepared, i, j, limit, scratch),
-            4 => curve_hausdorff::<4>(prepared, i, j, limit, scratch),
-            8 => curve_hausdorff::<8>(prepared, i, j, limit, scratch),
-            16 => curve_hausdorff::<16>(prepared, i, j, limit, scratch),
-            _ => unreachable!("the curve metric is checked to have at most 16 coordinates"),
-        }
+    fn call(self) -> Option<f64> {
+        let (i, j) = self.pair;
+        curve_fixed(self.s, self.prepared, i, j, self.limit, self.scratch)
+    }
+}
+
+/// [`curve_hausdorff`] for the coordinate count of `prepared`.
+#[inline(always)]
+fn curve_fixed<S: Lanes>(
+    s: S,
+    prepared: &PreparedSets,
+    i: usize,
+    j: usize,
+    limit: f64,
+    scratch: &mut Scratch,
+) -> Option<f64> {
+    match prepared.dims_pad() {
+        2 => curve_hausdorff::<S, 2>(s, prepared, i, j, limit, scratch),
+        4 => curve_hausdorff::<S, 4>(s, prepared, i, j, limit, scratch),
+        8 => curve_hausdorff::<S, 8>(s, prepared, i, j, limit, scratch),
+        16 => curve_hausdorff::<S, 16>(s, prepared, i, j, limit, scratch),
+        _ => unreachable!("the curve metric is checked to have at most 16 coordinates"),
     }
 }
 
 /// `ρ_c(set i, set j)`, or `None` once it is proven `> limit`. The pair is always
 /// evaluated as (smaller index, larger index).
 #[inline(always)]
-fn curve_hausdorff<const N: usize>(
+fn curve_hausdorff<S: Lanes, const N: usize>(
+    s: S,
     prepared: &PreparedSets,
     i: usize,
     j: usize,
@@ -1526,35 +1841,48 @@ fn curve_hausdorff<const N: usize>(
     let (i, j) = if i <= j { (i, j) } else { (j, i) };
     let a = prepared.curve(i);
     let b = prepared.curve(j);
-    let shape = super::kernel::Shape::of(prepared);
-    super::kernel::center_table::<N>(a.set, b.set, shape, scratch);
+    let frame = Frame::<N>::of(prepared);
+    super::kernel::center_table(s, a.set, b.set, &frame, scratch);
     let (row_key, row_near, col_key, col_near, order, curve) = scratch.parts();
-    let period = prepared.period_value();
-    let (points, points_pad) = (prepared.points(), prepared.points_pad());
-    let c = directed::<N>(
+    let abort2 = if limit.is_finite() {
+        limit * limit
+    } else {
+        f64::INFINITY
+    };
+    let wraps = Wraps::new(s, &frame.period);
+    let wide = prepared.is_wide();
+    let half: [S::V; N] = std::array::from_fn(|k| s.splat((0.5 * frame.period[k]) as f32));
+    let seam = frame
+        .period
+        .iter()
+        .fold(f64::INFINITY, |m, &t| m.min(0.5 * t));
+    let forward = Pass {
+        s,
         a,
         b,
-        period,
-        points,
-        points_pad,
-        (row_key, row_near),
-        0.0,
-        limit,
-        order,
-        curve,
-    )?;
-    directed::<N>(
-        b,
-        a,
-        period,
-        points,
-        points_pad,
-        (col_key, col_near),
-        c,
-        limit,
-        order,
-        curve,
-    )
+        frame: &frame,
+        wraps,
+        half,
+        seam_reach: seam - b.max_len,
+        image_reach: seam - a.max_len - b.max_len,
+        wide,
+        theta: Cell::new((f64::NAN, -1.0)),
+    };
+    let c2 = directed(&forward, (row_key, row_near), 0.0, abort2, order, curve)?;
+    let backward = Pass {
+        s,
+        a: b,
+        b: a,
+        frame: &frame,
+        wraps,
+        half,
+        seam_reach: seam - a.max_len,
+        image_reach: seam - a.max_len - b.max_len,
+        wide,
+        theta: Cell::new((f64::NAN, -1.0)),
+    };
+    let c2 = directed(&backward, (col_key, col_near), c2, abort2, order, curve)?;
+    Some(c2.sqrt())
 }
 
 #[cfg(test)]
@@ -1579,11 +1907,11 @@ mod tests {
             let v: Vec<f64> = start
                 .iter()
                 .zip(&end)
-                .map(|(s, e)| swrap(e - s, period, PI))
+                .map(|(s, e)| swrap(e - s, period))
                 .collect();
             let len2: f64 = v.iter().map(|x| x * x).sum();
             let inv = if len2 > 0.0 { 1.0 / len2 } else { 0.0 };
-            let fast = segment_distance2(&a, &start, &v, inv, period).sqrt();
+            let fast = segment_distance2(&a, &start, &v, inv, &vec![period; n]).sqrt();
             let slow = reference::segment_distance(
                 ArrayView1::from(a.as_slice()),
                 ArrayView1::from(start.as_slice()),
@@ -1597,7 +1925,7 @@ mod tests {
             let u: Vec<f64> = a
                 .iter()
                 .zip(&start)
-                .map(|(x, y)| swrap(x - y, period, PI))
+                .map(|(x, y)| swrap(x - y, period))
                 .collect();
             crossing += usize::from(u.iter().zip(&v).any(|(x, y)| (x - y).abs() > PI));
         }

@@ -4,54 +4,79 @@
 //! # How the directed Hausdorff part `max_a min_b g²(a, b)` is found without the full
 //! `P × P` scan
 //!
-//! Both sets are cut into chunks of eight consecutive points, each with a bounding box
-//! (centre, half-width per coordinate). The points of `A` are processed one chunk at a
-//! time as a SIMD block (lanes over `a`, one point `b` broadcast). A running lower
-//! bound `c` of the answer is kept: a point `a` only matters if its nearest distance
-//! exceeds `c`, so as soon as any `b` with `g²(a, b) ≤ c` is seen, `a` is settled (the
-//! early break of Taha & Hanbury 2015).
+//! A running lower bound `c` of the answer is kept (the largest exactly computed
+//! `min_b g²(a, b)` so far): a point `a` only matters if its nearest distance exceeds
+//! `c`, so as soon as any `b` with `g²(a, b) ≤ c` is seen, `a` is *settled* (the early
+//! break of Taha & Hanbury 2015). Settling only needs an upper bound of `g²`, so it is
+//! done in `f32`, eight points per AVX2 register; exact `f64` distances are computed
+//! only for the few points that may raise `c`.
 //!
-//! 1. *Centre table.* The squared distances between all chunk centres of `A` and `B`
-//!    give, for every chunk of either set, the nearest chunk of the other (a warm
-//!    start: the sets are ordered curves, so a point's nearest neighbour lies near the
-//!    nearest chunk) and an ordering: blocks far from the other set first, so that `c`
-//!    reaches its final value early. Without that order the matrix of 2500 arm sets
-//!    takes 30 % longer. The table only steers the work, so it is computed in `f32`,
-//!    sixteen chunks per vector (about 10 % less time than in `f64`).
-//! 2. *Window.* The points of chunk `β` nearest to block `α` are scanned from the
-//!    middle of the chunk outward (one more point past it); the scan stops as soon as
-//!    every lane is `≤ c`.
-//! 3. *Exact search.* Lanes still open get their exact nearest distance: the other
-//!    chunks of `B` are visited outward from `β` (`β` itself was covered by the
-//!    window), and a chunk is scanned only if its bounding box (per-coordinate periodic
-//!    interval around the centre) can hold a point closer than a lane's best so far
-//!    (`|h(a_n − b_n)| ≥ |h(a_n − centre_n)| − width_n`); the search stops as soon as
-//!    every lane is `≤ c`. The exact distances found raise `c`.
+//! 1. *Centre table.* Both sets are cut into chunks of eight consecutive points. The
+//!    squared distances between all chunk centres of `A` and `B` give, for every chunk
+//!    of either set, the nearest chunk of the other (a warm start: the sets are ordered
+//!    curves, so a point's nearest neighbour lies near the nearest chunk) and an
+//!    ordering: blocks far from the other set first, so that `c` reaches its final
+//!    value early. The table only steers the work.
+//! 2. *Window.* The eight points of a block of `A` (one lane each) are compared with
+//!    the points of `B` around the middle of the nearest chunk (outward, up to nine
+//!    points): the block is settled as soon as every lane has a `b` whose `f32` value
+//!    `g̃²` proves `g(a, b) ≤ √c` (below the threshold `θ(c)`, see below).
+//! 3. *Lanes left open*, largest window value first: the `f32` distances from that
+//!    point to every point of `B` (lanes over `b`, no branch); if the smallest is
+//!    `≤ θ(c)` the point is settled, else its exact nearest distance is computed in
+//!    `f64` among the few points whose `f32` value is close enough to the smallest to
+//!    be the exact minimiser ([`cut_above`]), and raises `c`.
 //!
 //! The result is the maximum over `a` of exactly computed minima: the same number the
 //! brute force gives, for any order of work (up to rounding: the sums of squares use
-//! fused multiply-adds; on the arm sets the largest difference is 9e-16). The symmetric
-//! distance runs `B → A` starting from `c = h(A, B)`, where most blocks settle at once.
-//! Bounds carry a relative margin ([`BOUND_MARGIN`]) so that rounding never prunes a
-//! winner.
+//! fused multiply-adds in coordinate order). The symmetric distance runs `B → A`
+//! starting from `c = h(A, B)`, where most blocks settle at once.
+//!
+//! # The `f32` error bound
+//!
+//! The `f32` copy of the coordinates (see [`PreparedSets`]) and every `f32` operation
+//! round. From the largest coordinate magnitudes and the periods, [`FilterBounds`]
+//! gives `δ` and `rel` with `√g² ≤ √(g̃²·(1 + rel)) + δ` (and the same with `g` and `g̃`
+//! swapped); for four angles `δ ≈ 6·10⁻⁶` rad and `rel ≈ 5·10⁻⁷`. A lane is settled only
+//! when `g̃² ≤ θ(c) = (√c − δ)²/(1 + rel)` (rounded down to `f32`), which proves
+//! `g² ≤ c`; nothing else depends on `f32` values, so every result is exact.
+//! Coordinates beyond `10¹⁵` (after centring) do not enter the filter: such sets are
+//! compared by brute force in `f64`.
+//!
+//! # Instruction sets
+//!
+//! The kernels run on eight `f32` lanes: one AVX2 register on CPUs with AVX2 + FMA
+//! (also on AVX-512 CPUs), plain arrays elsewhere, chosen at run time. The environment
+//! variable `SMSPACE_SIMD=portable` forces the plain path (for comparisons);
+//! [`simd_level`] says which one runs.
 
-use super::prepared::{fold, PreparedSets, SetRef, BOUND_MARGIN, LANES, WIDE};
+mod lanes;
 
-/// Window length of the warm-started scan (number of `b` tried per block).
-///
-/// A window centred on the middle of chunk `β` that runs to its end covers every point of
-/// that chunk (`start − 4 ..= start + 4`), so the exact search can skip `β`.
-const WINDOW: usize = 9;
-const _: () = assert!(WINDOW > LANES);
+use std::sync::OnceLock;
 
-/// Whether the window scan already went through every point of the nearest chunk.
-#[derive(Debug, Clone, Copy)]
-enum Scanned {
-    /// The window ran to its end: chunk `β` is covered.
-    Yes,
-    /// No window ran.
-    No,
-}
+pub(crate) use self::lanes::{Lanes, Portable, WIDTH};
+#[cfg(doc)]
+use super::prepared::FilterBounds;
+use super::prepared::{fold, PreparedSets, SetRef, LANES, RING};
+
+const _: () = assert!(WIDTH == LANES);
+
+/// Rows of a window around its centre in a ring (see [`SetRef::ring32`]), outward.
+pub(crate) const RING_WINDOW: [usize; 9] = [
+    RING,
+    RING + 1,
+    RING - 1,
+    RING + 2,
+    RING - 2,
+    RING + 3,
+    RING - 3,
+    RING + 4,
+    RING - 4,
+];
+
+/// Window points compared before the first test of a block (most blocks settle after
+/// one or two).
+const WINDOW_FIRST: usize = 1;
 
 /// Largest block count ordered by the branch-free rank sort.
 const RANK_SORT_MAX: usize = 16;
@@ -63,8 +88,9 @@ pub(crate) struct Scratch {
     row_near: Vec<u32>,
     col_key: Vec<f32>,
     col_near: Vec<u32>,
-    order: Vec<u64>,
-    curve: super::curve::CurveScratch,
+    order: Vec<u32>,
+    lane: Vec<[f32; LANES]>,
+    pub(crate) curve: super::curve::CurveScratch,
 }
 
 /// The centre tables of both directions, the order buffer and the curve buffers.
@@ -73,7 +99,7 @@ type ScratchParts<'a> = (
     &'a [u32],
     &'a [f32],
     &'a [u32],
-    &'a mut Vec<u64>,
+    &'a mut Vec<u32>,
     &'a mut super::curve::CurveScratch,
 );
 
@@ -91,369 +117,381 @@ impl Scratch {
     }
 }
 
-/// Shape of the prepared sets, copied out for the kernels.
+/// What the kernels need to know of the prepared sets, for `N` padded coordinates.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Shape {
-    points: usize,
-    points_pad: usize,
-    chunks: usize,
-    chunks_wide: usize,
-    period: f64,
+pub(crate) struct Frame<const N: usize> {
+    pub points: usize,
+    pub points_pad: usize,
+    pub chunks: usize,
+    pub chunks_wide: usize,
+    /// `‖δ‖` of the `f32` point distances (see [`FilterBounds`]).
+    pub delta: f64,
+    /// `‖δ‖` of the `f32` lifted segment quantities (the curve kernels).
+    pub segment_delta: f64,
+    /// Relative error of an `f32` sum of squares.
+    pub rel: f64,
+    pub period: [f64; N],
+    pub period32: [f32; N],
 }
 
-impl Shape {
+impl<const N: usize> Frame<N> {
     pub(crate) fn of(prepared: &PreparedSets) -> Self {
+        let mut period = [f64::INFINITY; N];
+        period.copy_from_slice(prepared.period_pad());
         Self {
             points: prepared.points(),
             points_pad: prepared.points_pad(),
             chunks: prepared.chunks(),
             chunks_wide: prepared.chunks_wide(),
-            period: prepared.period_value(),
+            delta: prepared.filter().point_delta,
+            segment_delta: prepared.filter().segment_delta,
+            rel: prepared.filter().rel,
+            period,
+            period32: period.map(|t| t as f32),
         }
     }
 }
 
+/// The largest `f32` `θ` such that an `f32` squared distance `s̃ ≤ θ` proves the exact
+/// distance at most `√c2`: `θ = (√c2 − delta)² / (1 + rel)`, rounded down (see
+/// [`FilterBounds`]). Negative when nothing can be proven.
 #[inline(always)]
-fn min(x: f64, y: f64) -> f64 {
-    if y < x {
-        y
+pub(crate) fn threshold(c2: f64, delta: f64, rel: f64) -> f32 {
+    let margin = c2.sqrt() * (1.0 - 4.0 * f64::EPSILON) - delta;
+    if margin <= 0.0 {
+        return -1.0;
+    }
+    let x = margin * margin / (1.0 + rel) * (1.0 - 4.0 * f64::EPSILON);
+    let t = x as f32;
+    if f64::from(t) > x {
+        t.next_down()
     } else {
-        x
+        t
     }
 }
 
+/// The smallest `f32` at least `(√(s·(1 + rel)) + reach)²·(1 + rel)`: every point whose
+/// exact distance is at most `√(s·(1 + rel)) + reach − delta` has an `f32` squared
+/// distance at most this (with `reach ≥ delta`).
 #[inline(always)]
-fn max(x: f64, y: f64) -> f64 {
-    if y > x {
-        y
+pub(crate) fn cut_above(s: f32, reach: f64, rel: f64) -> f32 {
+    let root = (f64::from(s) * (1.0 + rel)).sqrt() * (1.0 + 4.0 * f64::EPSILON) + reach;
+    let x = root * root * (1.0 + rel) * (1.0 + 4.0 * f64::EPSILON);
+    let t = x as f32;
+    if f64::from(t) < x {
+        t.next_up()
     } else {
-        x
+        t
     }
 }
 
+/// Exact `g²(x, y)` in `f64` (fused multiply-adds in coordinate order).
 #[inline(always)]
-fn lanes_max(v: &[f64; LANES]) -> f64 {
-    let a = [
-        max(v[0], v[4]),
-        max(v[1], v[5]),
-        max(v[2], v[6]),
-        max(v[3], v[7]),
-    ];
-    max(max(a[0], a[2]), max(a[1], a[3]))
-}
-
-#[inline(always)]
-pub(crate) fn load_block<const N: usize>(
-    rows: &[f64],
-    stride: usize,
-    block: usize,
-) -> [[f64; LANES]; N] {
-    let mut a = [[0.0; LANES]; N];
-    for (k, lanes) in a.iter_mut().enumerate() {
-        lanes.copy_from_slice(&rows[k * stride + block * LANES..][..LANES]);
-    }
-    a
-}
-
-#[inline(always)]
-fn load_point<const N: usize>(set: SetRef<'_>, _shape: Shape, j: usize) -> [f64; N] {
-    let mut b = [0.0; N];
-    b.copy_from_slice(&set.points[j * N..(j + 1) * N]);
-    b
-}
-
-/// `g²(a_l, b)` for the eight lanes: `Σ_n h(a_n − b_n)²`, summed in coordinate order.
-#[inline(always)]
-pub(crate) fn dist2<const N: usize>(
-    a: &[[f64; LANES]; N],
-    b: &[f64; N],
-    period: f64,
-) -> [f64; LANES] {
-    let mut acc = [0.0; LANES];
+pub(crate) fn exact2<const N: usize>(x: &[f64; N], y: &[f64], period: &[f64; N]) -> f64 {
+    let mut d2 = 0.0;
     for k in 0..N {
-        let bk = b[k];
-        for l in 0..LANES {
-            let w = fold(a[k][l] - bk, period);
-            acc[l] = w.mul_add(w, acc[l]);
+        let w = fold(x[k] - y[k], period[k]);
+        d2 = w.mul_add(w, d2);
+    }
+    d2
+}
+
+/// For every chunk of `a` the nearest chunk of `b` by centre distance and that squared
+/// distance (`row_*`), and the same for the chunks of `b` (`col_*`), in `f32`: lanes
+/// over eight chunks of `a`, the centres of `b` broadcast one by one. Ties keep the
+/// lower index.
+#[inline(always)]
+pub(crate) fn center_table<S: Lanes, const N: usize>(
+    s: S,
+    a: SetRef<'_>,
+    b: SetRef<'_>,
+    frame: &Frame<N>,
+    scratch: &mut Scratch,
+) {
+    let chunks = frame.chunks;
+    let period: [S::V; N] = std::array::from_fn(|k| s.splat(frame.period32[k]));
+    scratch.row_key.clear();
+    scratch.row_near.clear();
+    scratch.col_key.clear();
+    scratch.col_key.resize(chunks, f32::INFINITY);
+    scratch.col_near.clear();
+    scratch.col_near.resize(chunks, 0);
+    let (a_rows, _) = a.centers_wide.as_chunks::<LANES>();
+    let (b_centers, _) = b.centers_narrow.as_chunks::<N>();
+    let b_centers = &b_centers[..chunks];
+    let groups = chunks.div_ceil(LANES);
+    let per_row = frame.chunks_wide / LANES;
+    for g in 0..groups {
+        let ca: [S::V; N] = std::array::from_fn(|k| s.load(&a_rows[k * per_row + g]));
+        let mut best = s.splat(f32::INFINITY);
+        let mut best_at = s.splat(0.0);
+        for (beta, cb) in b_centers.iter().enumerate() {
+            let mut d = s.splat(0.0);
+            for k in 0..N {
+                let w = s.fold(s.sub(ca[k], s.splat(cb[k])), period[k]);
+                d = s.mul_add(w, w, d);
+            }
+            best_at = s.select_lt(d, best, s.splat(beta as f32), best_at);
+            best = s.min(d, best);
+            let m = s.hmin(d);
+            if m < scratch.col_key[beta] {
+                scratch.col_key[beta] = m;
+                scratch.col_near[beta] = (g * LANES) as u32 + s.le(d, s.splat(m)).trailing_zeros();
+            }
         }
+        let (key, at) = (s.array(best), s.array(best_at));
+        let live = (chunks - g * LANES).min(LANES);
+        scratch.row_key.extend_from_slice(&key[..live]);
+        scratch
+            .row_near
+            .extend(at[..live].iter().map(|&x| x as u32));
+    }
+}
+
+/// Fills `order[..chunks]` with the blocks ordered far from the other set first (by
+/// `key`, the squared distance from a block's centre to the other set's nearest
+/// centre; ties: lower index first), so that the running bound reaches its final value
+/// early.
+#[inline(always)]
+pub(crate) fn far_first(key: &[f32], order: &mut Vec<u32>) {
+    let chunks = key.len();
+    order.clear();
+    order.resize(chunks, 0);
+    if chunks <= RANK_SORT_MAX {
+        // A non-negative f32 orders like its bits; the low four bits take the
+        // (inverted) block index, which makes the keys distinct. Ranked without
+        // branches: the rank of a key is the number of larger keys.
+        let mut packed = [0u32; RANK_SORT_MAX];
+        for (alpha, slot) in packed.iter_mut().enumerate().take(chunks) {
+            *slot = (key[alpha].to_bits() & !15) | (15 - alpha as u32);
+        }
+        for alpha in 0..chunks {
+            let x = packed[alpha];
+            let mut rank = 0;
+            for &y in &packed {
+                rank += u32::from(y > x);
+            }
+            order[rank as usize] = alpha as u32;
+        }
+    } else {
+        for (alpha, slot) in order.iter_mut().enumerate() {
+            *slot = alpha as u32;
+        }
+        order.sort_by(|&x, &y| key[y as usize].total_cmp(&key[x as usize]));
+    }
+}
+
+/// The `f32` `g²` from the eight points of `block` (lanes) to the point `b`.
+#[inline(always)]
+fn block_dist2<S: Lanes, const N: usize>(
+    s: S,
+    block: &[S::V; N],
+    b: &[f32; N],
+    period: &[S::V; N],
+) -> S::V {
+    let mut acc = s.splat(0.0);
+    for k in 0..N {
+        let w = s.fold(s.sub(block[k], s.splat(b[k])), period[k]);
+        acc = s.mul_add(w, w, acc);
     }
     acc
 }
 
-/// The `t`-th index of a scan centred on `start`: `start, start+1, start−1, start+2, …`
-/// (modulo `len`).
+/// The `f32` `g²` from point `x` to every point of `b`, chunk by chunk (lanes over the
+/// points of a chunk), into `out`; returns the smallest.
 #[inline(always)]
-pub(crate) fn around(start: usize, t: usize, len: usize) -> usize {
-    // `t < 2·len`, so one subtraction brings the step into range.
-    let step = t.div_ceil(2);
-    let step = if step >= len { step - len } else { step };
-    if t % 2 == 1 {
-        let j = start + step;
-        if j >= len {
-            j - len
-        } else {
-            j
-        }
-    } else if start >= step {
-        start - step
-    } else {
-        start + len - step
-    }
-}
-
-/// For every chunk of `a`, the nearest chunk of `b` by centre distance and that squared
-/// distance, written to `key` and `near` (one entry per chunk of `a`).
-///
-/// The table only orders the work and picks where each scan starts; no distance depends
-/// on it. It is therefore computed in `f32`, sixteen chunks of `a` per vector, while the
-/// centres of `b` are broadcast one by one: the running minimum stays in registers and
-/// needs no horizontal reduction. Indices are kept as `f32` (small exact integers) so
-/// that the selects compile to vector blends. Ties keep the lower index.
-#[inline(always)]
-fn nearest_chunks<const N: usize>(
-    a: SetRef<'_>,
+pub(crate) fn lane_scan<S: Lanes, const N: usize>(
+    s: S,
+    x: &[f32; N],
     b: SetRef<'_>,
-    shape: Shape,
-    key: &mut Vec<f32>,
-    near: &mut Vec<u32>,
-) {
-    key.clear();
-    near.clear();
-    let period = shape.period as f32;
-    for v in 0..shape.chunks_wide / WIDE {
-        let mut ca = [[0.0f32; WIDE]; N];
-        for (k, lanes) in ca.iter_mut().enumerate() {
-            lanes.copy_from_slice(&a.centers_wide[k * shape.chunks_wide + v * WIDE..][..WIDE]);
-        }
-        let mut best = [f32::INFINITY; WIDE];
-        let mut best_at = [0.0f32; WIDE];
-        for beta in 0..shape.chunks {
-            let mut cb = [0.0f32; N];
-            cb.copy_from_slice(&b.centers_narrow[beta * N..(beta + 1) * N]);
-            let mut d = [0.0f32; WIDE];
-            for k in 0..N {
-                for l in 0..WIDE {
-                    let u = (ca[k][l] - cb[k]).abs();
-                    let v = period - u;
-                    let w = if v < u { v } else { u };
-                    d[l] = w.mul_add(w, d[l]);
-                }
-            }
-            let beta_f = beta as f32;
-            for l in 0..WIDE {
-                let closer = d[l] < best[l];
-                best[l] = if closer { d[l] } else { best[l] };
-                best_at[l] = if closer { beta_f } else { best_at[l] };
-            }
-        }
-        key.extend_from_slice(&best);
-        near.extend(best_at.iter().map(|&x| x as u32));
-    }
-    key.truncate(shape.chunks);
-    near.truncate(shape.chunks);
-}
-
-/// For both directions, the nearest chunk of the other set to every chunk (by centre
-/// distance) and that squared distance: `row_*` for `A → B`, `col_*` for `B → A`.
-#[inline(always)]
-pub(crate) fn center_table<const N: usize>(
-    a: SetRef<'_>,
-    b: SetRef<'_>,
-    shape: Shape,
-    scratch: &mut Scratch,
-) {
-    nearest_chunks::<N>(a, b, shape, &mut scratch.row_key, &mut scratch.row_near);
-    nearest_chunks::<N>(b, a, shape, &mut scratch.col_key, &mut scratch.col_near);
-}
-
-/// Window scan of one block around `start`: per-lane smallest `g²` over the window.
-/// Stops early (and says so) once every lane is `≤ settle`.
-#[inline(always)]
-fn window<const N: usize>(
-    a: &[[f64; LANES]; N],
-    b: SetRef<'_>,
-    shape: Shape,
-    start: usize,
-    settle: f64,
-) -> ([f64; LANES], bool) {
-    let mut best = [f64::INFINITY; LANES];
-    for t in 0..WINDOW.min(shape.points) {
-        let j = around(start, t, shape.points);
-        let d = dist2(a, &load_point::<N>(b, shape, j), shape.period);
-        for l in 0..LANES {
-            best[l] = min(best[l], d[l]);
-        }
-        let mut settled = true;
-        for l in 0..LANES {
-            settled &= best[l] <= settle;
-        }
-        if settled {
-            return (best, true);
-        }
-    }
-    (best, false)
-}
-
-/// Lowers `best` (per-lane `g²` upper bounds) to the exact nearest distances to `B`,
-/// except for lanes that reach `≤ settle`, which may stop there. Chunks of `B` are
-/// visited outward from `near`; a chunk is scanned only if its bounding box can hold a
-/// point closer than the best so far for some open lane.
-#[inline(always)]
-fn refine<const N: usize>(
-    a: &[[f64; LANES]; N],
-    mut best: [f64; LANES],
-    settle: f64,
-    b: SetRef<'_>,
-    shape: Shape,
-    near: usize,
-    near_scanned: Scanned,
-) -> [f64; LANES] {
-    let shrink = 1.0 - 4.0 * BOUND_MARGIN;
-    let first = match near_scanned {
-        Scanned::Yes => 1,
-        Scanned::No => 0,
-    };
-    for t in first..shape.chunks {
-        let q = around(near, t, shape.chunks);
-        let mut open = false;
-        for l in 0..LANES {
-            open |= best[l] > settle;
-        }
-        if !open {
-            break;
-        }
-        let mut center = [0.0; N];
-        center.copy_from_slice(&b.centers[q * N..(q + 1) * N]);
-        let mut width = [0.0; N];
-        width.copy_from_slice(&b.widths[q * N..(q + 1) * N]);
-        // Squared distance to the chunk's bounding box: a lower bound of `g²` to each of
-        // its points, coordinate by coordinate (`|h(a − b)| ≥ |h(a − centre)| − width`).
-        let mut lower = [0.0; LANES];
+    frame: &Frame<N>,
+    out: &mut [[f32; LANES]],
+) -> f32 {
+    let chunks = frame.chunks;
+    let (rows, _) = b.coords32.as_chunks::<LANES>();
+    let rows: [&[[f32; LANES]]; N] = std::array::from_fn(|k| &rows[k * chunks..(k + 1) * chunks]);
+    let xs: [S::V; N] = std::array::from_fn(|k| s.splat(x[k]));
+    let period: [S::V; N] = std::array::from_fn(|k| s.splat(frame.period32[k]));
+    let out = &mut out[..chunks];
+    let mut smallest = s.splat(f32::INFINITY);
+    for q in 0..chunks {
+        let mut acc = s.splat(0.0);
         for k in 0..N {
-            for l in 0..LANES {
-                let gap = fold(a[k][l] - center[k], shape.period) - width[k];
-                let gap = if gap > 0.0 { gap } else { 0.0 };
-                lower[l] += gap * gap;
-            }
+            let w = s.fold(s.sub(xs[k], s.load(&rows[k][q])), period[k]);
+            acc = s.mul_add(w, w, acc);
         }
-        let mut useful = false;
-        for l in 0..LANES {
-            useful |= best[l] > settle && lower[l] * shrink < best[l];
-        }
-        if !useful {
-            continue;
-        }
-        for j in q * LANES..(q + 1) * LANES {
-            let d = dist2(a, &load_point::<N>(b, shape, j), shape.period);
-            for l in 0..LANES {
-                best[l] = min(best[l], d[l]);
-            }
+        out[q] = s.array(acc);
+        smallest = s.min(acc, smallest);
+    }
+    s.hmin(smallest)
+}
+
+/// The exact `min_b g²(x, b)`, given the `f32` values `scan` of every `b`: the exact
+/// minimiser's `f32` value is at most [`cut_above`]`(smallest, 2·delta)` (it is no
+/// farther than the `f32` minimiser, whose exact distance is at most
+/// `√(smallest·(1 + rel)) + delta`), so only those points are computed in `f64`.
+#[inline(always)]
+fn exact_nearest<S: Lanes, const N: usize>(
+    s: S,
+    x: &[f64; N],
+    b: SetRef<'_>,
+    frame: &Frame<N>,
+    scan: &[[f32; LANES]],
+    smallest: f32,
+) -> f64 {
+    let cut = s.splat(cut_above(smallest, 2.0 * frame.delta, frame.rel));
+    let (points, _) = b.points.as_chunks::<N>();
+    let mut best = f64::INFINITY;
+    for (q, lanes) in scan.iter().enumerate().take(frame.chunks) {
+        let mut mask = s.le(s.load(lanes), cut);
+        while mask != 0 {
+            let l = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let d2 = exact2(x, &points[q * LANES + l], &frame.period);
+            best = if d2 < best { d2 } else { best };
         }
     }
     best
 }
 
-/// Fills `scratch_order[..chunks]` with the blocks of a set ordered far from the other
-/// set first (by `key`, the squared distance from a block's centre to the other set's
-/// nearest centre), so that the running lower bound reaches its final value early.
-#[inline(always)]
-pub(crate) fn far_first(key: &[f32], chunks: usize, scratch_order: &mut Vec<u64>) {
-    scratch_order.resize(chunks.max(scratch_order.len()), 0);
-    // The order only decides how soon blocks can be settled, never the result, so the
-    // keys may be coarse: a non-negative f32 orders like its bits, and the block index
-    // takes the low bits, which makes the keys distinct integers. Up to RANK_SORT_MAX
-    // blocks they are ranked without branches (the insertion and generic sorts
-    // mispredicted); past that the comparison sort is used.
-    let order = &mut scratch_order[..chunks];
-    if chunks <= RANK_SORT_MAX {
-        // Rank sort without branches: the keys are distinct (the block index is in the
-        // low bits), so the rank of a key is the number of larger keys.
-        let mut packed = [0u64; RANK_SORT_MAX];
-        for (alpha, slot) in packed.iter_mut().enumerate().take(chunks) {
-            *slot = (u64::from(key[alpha].to_bits()) << 8) | alpha as u64;
+/// The lanes of one block of `A`: its `f32` coordinates, and the `f64` point of a lane.
+#[derive(Clone, Copy)]
+struct Block<'a, S: Lanes, const N: usize> {
+    lanes: [S::V; N],
+    set: SetRef<'a>,
+    first: usize,
+}
+
+impl<'a, S: Lanes, const N: usize> Block<'a, S, N> {
+    #[inline(always)]
+    fn load(s: S, set: SetRef<'a>, frame: &Frame<N>, alpha: usize) -> Self {
+        let (rows, _) = set.coords32.as_chunks::<LANES>();
+        Self {
+            lanes: std::array::from_fn(|k| s.load(&rows[k * frame.chunks + alpha])),
+            set,
+            first: alpha * LANES,
         }
-        for (alpha, &x) in packed.iter().enumerate().take(chunks) {
-            let mut rank = 0u64;
-            for &y in &packed {
-                rank += u64::from(y > x);
-            }
-            order[rank as usize] = alpha as u64;
-        }
-    } else {
-        for (alpha, slot) in order.iter_mut().enumerate() {
-            *slot = alpha as u64;
-        }
-        order.sort_unstable_by(|&x, &y| key[y as usize].total_cmp(&key[x as usize]));
+    }
+
+    #[inline(always)]
+    fn point32(&self, frame: &Frame<N>, l: usize) -> [f32; N] {
+        std::array::from_fn(|k| self.set.coords32[k * frame.points_pad + self.first + l])
+    }
+
+    #[inline(always)]
+    fn point64(&self, l: usize) -> [f64; N] {
+        let (points, _) = self.set.points.as_chunks::<N>();
+        points[self.first + l]
     }
 }
 
-/// `max(c, max_{a∈A} min_{b∈B} g²(a, b))`, or `None` as soon as it is proven to exceed
-/// `abort`. `(key[α], near[α])`: squared distance from the centre of block `α` of `A`
-/// to the nearest centre of `B`, and that chunk.
+/// The window of block `block` around point `start` of `b`: per-lane smallest `f32`
+/// `g²`. With `theta ≥ 0` it stops once every live lane is `≤ theta`; without (nothing
+/// found yet) it runs to its end, so that its values rank the lanes well.
 #[inline(always)]
-fn directed_hausdorff<const N: usize>(
-    a_set: SetRef<'_>,
-    b_set: SetRef<'_>,
-    shape: Shape,
-    (key, near): (&[f32], &[u32]),
-    mut c: f64,
-    abort: f64,
-    scratch_order: &mut Vec<u64>,
-) -> Option<f64> {
-    far_first(key, shape.chunks, scratch_order);
-    let order = &scratch_order[..shape.chunks];
-    for &alpha in order.iter() {
-        let alpha = alpha as usize;
-        let near = near[alpha] as usize;
-        let a = load_block::<N>(a_set.coords, shape.points_pad, alpha);
-        let start = (near * LANES + LANES / 2).min(shape.points - 1);
-        // With nothing found yet (c = 0) no window can settle the block: go straight to
-        // the exact search, which scans the nearest chunk first anyway.
-        let (best, settled) = if c > 0.0 {
-            window(&a, b_set, shape, start, c)
-        } else {
-            ([f64::INFINITY; LANES], false)
-        };
-        if settled {
-            continue;
-        }
-        let scanned = if c > 0.0 { Scanned::Yes } else { Scanned::No };
-        let best = refine(&a, best, c, b_set, shape, near, scanned);
-        c = max(c, lanes_max(&best));
-        if c > abort {
-            return None;
+fn window<S: Lanes, const N: usize>(
+    s: S,
+    block: &[S::V; N],
+    b: SetRef<'_>,
+    frame: &Frame<N>,
+    start: usize,
+    theta: f32,
+    live: u32,
+) -> S::V {
+    let period: [S::V; N] = std::array::from_fn(|k| s.splat(frame.period32[k]));
+    let (ring, _) = b.ring32.as_chunks::<N>();
+    let ring = &ring[start..start + 2 * RING + 1];
+    let mut best = s.splat(f32::INFINITY);
+    for &r in &RING_WINDOW[..WINDOW_FIRST] {
+        best = s.min(block_dist2(s, block, &ring[r], &period), best);
+    }
+    let thv = s.splat(theta);
+    if s.gt(best, thv) & live == 0 && theta >= 0.0 {
+        return best;
+    }
+    for &r in &RING_WINDOW[WINDOW_FIRST..frame.points.min(RING_WINDOW.len()).max(WINDOW_FIRST)] {
+        best = s.min(block_dist2(s, block, &ring[r], &period), best);
+        if theta >= 0.0 && s.gt(best, thv) & live == 0 {
+            break;
         }
     }
-    Some(c)
+    best
+}
+
+/// `max(c2, max_{a∈A} min_{b∈B} g²(a, b))`, or `None` as soon as it is proven to exceed
+/// `abort2`. `(key[α], near[α])`: squared distance from the centre of block `α` of `A`
+/// to the nearest centre of `B`, and that chunk.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn directed_hausdorff<S: Lanes, const N: usize>(
+    s: S,
+    a: SetRef<'_>,
+    b: SetRef<'_>,
+    frame: &Frame<N>,
+    (key, near): (&[f32], &[u32]),
+    mut c2: f64,
+    abort2: f64,
+    (order, scan): (&mut Vec<u32>, &mut Vec<[f32; LANES]>),
+) -> Option<f64> {
+    far_first(key, order);
+    scan.resize(frame.chunks, [0.0; LANES]);
+    let mut theta = threshold(c2, frame.delta, frame.rel);
+    for &alpha in order.iter() {
+        let alpha = alpha as usize;
+        let block = Block::<S, N>::load(s, a, frame, alpha);
+        let start = (near[alpha] as usize * LANES + LANES / 2).min(frame.points - 1);
+        let live = (1u32 << (frame.points - alpha * LANES).min(LANES)) - 1;
+        let best = window(s, &block.lanes, b, frame, start, theta, live);
+        let mut open = s.gt(best, s.splat(theta)) & live;
+        let mut values = s.array(best);
+        // The open lanes, largest window value first.
+        while open != 0 {
+            let mut l = open.trailing_zeros() as usize;
+            let mut rest = open & (open - 1);
+            while rest != 0 {
+                let m = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                if values[m] > values[l] {
+                    l = m;
+                }
+            }
+            open &= !(1 << l);
+            values[l] = f32::NEG_INFINITY;
+            let smallest = lane_scan(s, &block.point32(frame, l), b, frame, scan);
+            if smallest <= theta {
+                continue;
+            }
+            let d2 = exact_nearest(s, &block.point64(l), b, frame, scan, smallest);
+            if d2 > c2 {
+                c2 = d2;
+                if c2 > abort2 {
+                    return None;
+                }
+                theta = threshold(c2, frame.delta, frame.rel);
+                // Lanes whose window value now settles them.
+                open &= s.gt(s.load(&values), s.splat(theta));
+            }
+        }
+    }
+    Some(c2)
 }
 
 /// `Σ_{a∈A} min_{b∈B} g(a, b)`, summed in point order.
 #[inline(always)]
-fn directed_mean_sum<const N: usize>(
-    a_set: SetRef<'_>,
-    b_set: SetRef<'_>,
-    shape: Shape,
-    near: &[u32],
+fn directed_mean_sum<S: Lanes, const N: usize>(
+    s: S,
+    a: SetRef<'_>,
+    b: SetRef<'_>,
+    frame: &Frame<N>,
+    scan: &mut Vec<[f32; LANES]>,
 ) -> f64 {
+    scan.resize(frame.chunks, [0.0; LANES]);
     let mut sum = 0.0;
-    for block in 0..shape.chunks {
-        let a = load_block::<N>(a_set.coords, shape.points_pad, block);
-        let near = near[block] as usize;
-        let start = (near * LANES + LANES / 2).min(shape.points - 1);
-        let (best, _) = window(&a, b_set, shape, start, f64::NEG_INFINITY);
-        let best = refine(
-            &a,
-            best,
-            f64::NEG_INFINITY,
-            b_set,
-            shape,
-            near,
-            Scanned::Yes,
-        );
-        for (l, d2) in best.iter().enumerate() {
-            if block * LANES + l < shape.points {
-                sum += d2.sqrt();
-            }
+    for alpha in 0..frame.chunks {
+        let block = Block::<S, N>::load(s, a, frame, alpha);
+        for l in 0..(frame.points - alpha * LANES).min(LANES) {
+            let smallest = lane_scan(s, &block.point32(frame, l), b, frame, scan);
+            sum += exact_nearest(s, &block.point64(l), b, frame, scan, smallest).sqrt();
         }
     }
     sum
@@ -461,68 +499,88 @@ fn directed_mean_sum<const N: usize>(
 
 /// Symmetric Hausdorff distance `ρ(A, B)`, or `None` once proven `> limit`.
 #[inline(always)]
-pub(crate) fn hausdorff<const N: usize>(
+fn hausdorff<S: Lanes, const N: usize>(
+    s: S,
     a: SetRef<'_>,
     b: SetRef<'_>,
-    shape: Shape,
+    frame: &Frame<N>,
     limit: f64,
     scratch: &mut Scratch,
 ) -> Option<f64> {
-    let abort = if limit.is_finite() {
+    let abort2 = if limit.is_finite() {
         limit * limit
     } else {
         f64::INFINITY
     };
-    center_table::<N>(a, b, shape, scratch);
+    center_table(s, a, b, frame, scratch);
     let Scratch {
         row_key,
         row_near,
         col_key,
         col_near,
         order,
+        lane,
         ..
     } = scratch;
-    let c = directed_hausdorff::<N>(a, b, shape, (row_key, row_near), 0.0, abort, order)?;
-    let c = directed_hausdorff::<N>(b, a, shape, (col_key, col_near), c, abort, order)?;
-    Some(c.sqrt())
+    let c2 = directed_hausdorff(
+        s,
+        a,
+        b,
+        frame,
+        (row_key, row_near),
+        0.0,
+        abort2,
+        (order, lane),
+    )?;
+    let c2 = directed_hausdorff(
+        s,
+        b,
+        a,
+        frame,
+        (col_key, col_near),
+        c2,
+        abort2,
+        (order, lane),
+    )?;
+    Some(c2.sqrt())
 }
 
 /// Mean Hausdorff distance: the average of the two mean directed distances.
 #[inline(always)]
-pub(crate) fn mean_hausdorff<const N: usize>(
+fn mean_hausdorff<S: Lanes, const N: usize>(
+    s: S,
     a: SetRef<'_>,
     b: SetRef<'_>,
-    shape: Shape,
+    frame: &Frame<N>,
     scratch: &mut Scratch,
 ) -> f64 {
-    center_table::<N>(a, b, shape, scratch);
-    let p = shape.points as f64;
-    let ab = directed_mean_sum::<N>(a, b, shape, &scratch.row_near) / p;
-    let ba = directed_mean_sum::<N>(b, a, shape, &scratch.col_near) / p;
+    let p = frame.points as f64;
+    let ab = directed_mean_sum(s, a, b, frame, &mut scratch.lane) / p;
+    let ba = directed_mean_sum(s, b, a, frame, &mut scratch.lane) / p;
     0.5 * (ab + ba)
 }
 
 /// Brute force over the prepared layout, for coordinate counts without a fixed kernel
-/// (`N > 16`): `(max_a min_b g², max_b min_a g², Σ_a min_b g, Σ_b min_a g)`.
+/// (`N > 16`) and coordinates beyond the `f32` filter:
+/// `(max_a min_b g², max_b min_a g², Σ_a min_b g, Σ_b min_a g)`.
 pub(crate) fn brute_pair(a: SetRef<'_>, b: SetRef<'_>, prepared: &PreparedSets) -> [f64; 4] {
     let p = prepared.points();
-    let pp = prepared.points_pad();
     let dims = prepared.dims_pad();
-    let period = prepared.period_value();
+    let period = prepared.period_pad();
     let mut row_min = vec![f64::INFINITY; p];
     let mut col_min = vec![f64::INFINITY; p];
     for i in 0..p {
         for j in 0..p {
             let mut d2 = 0.0;
             for k in 0..dims {
-                let w = fold(a.coords[k * pp + i] - b.coords[k * pp + j], period);
-                d2 += w * w;
+                let w = fold(a.points[i * dims + k] - b.points[j * dims + k], period[k]);
+                d2 = w.mul_add(w, d2);
             }
-            row_min[i] = min(row_min[i], d2);
-            col_min[j] = min(col_min[j], d2);
+            row_min[i] = row_min[i].min(d2);
+            col_min[j] = col_min[j].min(d2);
         }
     }
-    let fold_max = |v: &[f64]| v.iter().fold(0.0, |m: f64, &x| max(m, x));
+    let fold_max = |v: &[f64]| v.iter().fold(0.0, |m: f64, &x| m.max(x));
     let fold_sum = |v: &[f64]| v.iter().fold(0.0, |s: f64, &x| s + x.sqrt());
     [
         fold_max(&row_min),
@@ -553,25 +611,28 @@ pub(crate) trait Driver {
     fn drive<E: Eval>(self, eval: &mut E) -> Self::Output;
 }
 
-struct Evaluator<'a, const N: usize> {
+struct Evaluator<'a, S, const N: usize> {
+    s: S,
     prepared: &'a PreparedSets,
     kind: super::MetricKind,
-    shape: Shape,
+    frame: Frame<N>,
     scratch: &'a mut Scratch,
 }
 
-impl<const N: usize> Eval for Evaluator<'_, N> {
+impl<S: Lanes, const N: usize> Eval for Evaluator<'_, S, N> {
     #[inline(always)]
     fn distance(&mut self, i: usize, j: usize, limit: f64) -> Option<f64> {
         let a = self.prepared.set(i);
         let b = self.prepared.set(j);
         match self.kind {
-            super::MetricKind::Hausdorff => hausdorff::<N>(a, b, self.shape, limit, self.scratch),
+            super::MetricKind::Hausdorff => {
+                hausdorff(self.s, a, b, &self.frame, limit, self.scratch)
+            }
             super::MetricKind::MeanHausdorff => {
-                Some(mean_hausdorff::<N>(a, b, self.shape, self.scratch))
+                Some(mean_hausdorff(self.s, a, b, &self.frame, self.scratch))
             }
             // Its own runtime dispatch (one per pair, negligible next to the pair), so
-            // that the curve kernel is compiled once per SIMD level and coordinate
+            // that the curve kernel is compiled once per instruction set and coordinate
             // count instead of once per driver as well.
             super::MetricKind::Curve => {
                 super::curve::curve_pair(self.prepared, i, j, limit, self.scratch)
@@ -583,12 +644,10 @@ impl<const N: usize> Eval for Evaluator<'_, N> {
     fn touch(&mut self, j: usize) {
         let set = self.prepared.set(j);
         let mut sum = 0.0;
-        for part in [set.coords, set.points, set.centers, set.widths] {
-            for x in part.iter().step_by(8) {
-                sum += x;
-            }
+        for x in set.points.iter().step_by(8) {
+            sum += x;
         }
-        for part in [set.centers_narrow, set.centers_wide] {
+        for part in [set.coords32, set.ring32, set.centers_wide] {
             for &x in part.iter().step_by(16) {
                 sum += f64::from(x);
             }
@@ -607,7 +666,7 @@ impl Eval for BruteEvaluator<'_> {
         let [ab, ba, sum_ab, sum_ba] =
             brute_pair(self.prepared.set(i), self.prepared.set(j), self.prepared);
         Some(match self.kind {
-            super::MetricKind::Hausdorff => max(ab, ba).sqrt(),
+            super::MetricKind::Hausdorff => ab.max(ba).sqrt(),
             super::MetricKind::MeanHausdorff => {
                 let p = self.prepared.points() as f64;
                 0.5 * (sum_ab / p + sum_ba / p)
@@ -621,57 +680,164 @@ impl Eval for BruteEvaluator<'_> {
     }
 }
 
-struct Job<'a, D> {
-    prepared: &'a PreparedSets,
-    kind: super::MetricKind,
-    scratch: &'a mut Scratch,
-    driver: D,
+/// The instruction set the kernels run with.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Simd {
+    /// AVX2 + FMA: one 256-bit register per eight lanes.
+    #[cfg(target_arch = "x86_64")]
+    Avx2(pulp::x86::V3),
+    /// Plain arrays.
+    Portable,
 }
 
-impl<D: Driver> pulp::WithSimd for Job<'_, D> {
-    type Output = D::Output;
+/// The instruction set of this CPU (AVX2 + FMA when present, unless the environment
+/// variable `SMSPACE_SIMD` is `portable`), detected once.
+pub(crate) fn simd() -> Simd {
+    static CHOICE: OnceLock<Simd> = OnceLock::new();
+    *CHOICE.get_or_init(|| {
+        let forced = std::env::var("SMSPACE_SIMD").is_ok_and(|v| v == "portable");
+        #[cfg(target_arch = "x86_64")]
+        if !forced {
+            if let Some(v3) = pulp::x86::V3::try_new() {
+                return Simd::Avx2(v3);
+            }
+        }
+        let _ = forced;
+        Simd::Portable
+    })
+}
 
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) -> D::Output {
-        let Job {
-            prepared,
-            kind,
-            scratch,
-            driver,
-        } = self;
-        let shape = Shape::of(prepared);
-        macro_rules! fixed {
-            ($n:literal) => {
-                driver.drive(&mut Evaluator::<$n> {
-                    prepared,
-                    kind,
-                    shape,
-                    scratch,
-                })
-            };
-        }
-        match prepared.dims_pad() {
-            2 => fixed!(2),
-            4 => fixed!(4),
-            8 => fixed!(8),
-            16 => fixed!(16),
-            _ => driver.drive(&mut BruteEvaluator { prepared, kind }),
-        }
+/// Which instruction set the metric kernels run with on this machine, in words (for
+/// benchmarks and reports): `"AVX2 + FMA, 8 f32 lanes"` or `"portable (no AVX2)"`.
+pub fn simd_level() -> &'static str {
+    match simd() {
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx2(_) => "AVX2 + FMA, 8 f32 lanes",
+        Simd::Portable => "portable (no AVX2 + FMA, or SMSPACE_SIMD=portable)",
     }
 }
 
-/// Runs `driver` with the kernels compiled for the best instruction set of this CPU
-/// (AVX-512, AVX2 + FMA, or plain code), chosen at run time.
+/// Runs `driver` with the evaluator of `prepared`'s coordinate count, on lanes `s`.
+#[inline(always)]
+fn drive_with<S: Lanes, D: Driver>(
+    s: S,
+    prepared: &PreparedSets,
+    kind: super::MetricKind,
+    scratch: &mut Scratch,
+    driver: D,
+) -> D::Output {
+    macro_rules! fixed {
+        ($n:literal) => {
+            driver.drive(&mut Evaluator::<S, $n> {
+                s,
+                prepared,
+                kind,
+                frame: Frame::of(prepared),
+                scratch,
+            })
+        };
+    }
+    if prepared.is_wide() && kind != super::MetricKind::Curve {
+        return driver.drive(&mut BruteEvaluator { prepared, kind });
+    }
+    match prepared.dims_pad() {
+        2 => fixed!(2),
+        4 => fixed!(4),
+        8 => fixed!(8),
+        16 => fixed!(16),
+        _ => driver.drive(&mut BruteEvaluator { prepared, kind }),
+    }
+}
+
+/// Runs `driver` with the kernels compiled for the best instruction set of this CPU,
+/// chosen at run time.
 pub(crate) fn dispatch<D: Driver>(
     prepared: &PreparedSets,
     kind: super::MetricKind,
     scratch: &mut Scratch,
     driver: D,
 ) -> D::Output {
-    pulp::Arch::new().dispatch(Job {
-        prepared,
-        kind,
-        scratch,
-        driver,
-    })
+    match simd() {
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx2(v3) => v3.vectorize(DriveCall {
+            s: v3,
+            prepared,
+            kind,
+            scratch,
+            driver,
+        }),
+        Simd::Portable => drive_with(Portable, prepared, kind, scratch, driver),
+    }
+}
+
+/// A driver's work, for `pulp`'s target-feature context (its `call` is inlined there).
+struct DriveCall<'a, S, D> {
+    s: S,
+    prepared: &'a PreparedSets,
+    kind: super::MetricKind,
+    scratch: &'a mut Scratch,
+    driver: D,
+}
+
+impl<S: Lanes, D: Driver> pulp::NullaryFnOnce for DriveCall<'_, S, D> {
+    type Output = D::Output;
+
+    #[inline(always)]
+    fn call(self) -> D::Output {
+        drive_with(self.s, self.prepared, self.kind, self.scratch, self.driver)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::metric::{reference, MetricKind, Period};
+    use rand::{Rng, SeedableRng};
+
+    /// The portable lanes give the same matrix as the brute force (the AVX2 lanes are
+    /// checked against the portable ones in `lanes`, and the whole path in the tests).
+    #[test]
+    fn portable_kernels_equal_the_brute_force() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let sets = ndarray::Array3::from_shape_fn((12, 21, 3), |_| rng.gen_range(-4.0..4.0));
+        for period in [Period::TwoPi, Period::None] {
+            let prepared = PreparedSets::new(sets.view(), period).unwrap();
+            let frame = Frame::<4>::of(&prepared);
+            let mut scratch = Scratch::default();
+            for kind in [MetricKind::Hausdorff, MetricKind::MeanHausdorff] {
+                let slow = reference::distance_matrix(sets.view(), kind, period);
+                for i in 0..12 {
+                    for j in 0..12 {
+                        let (a, b) = (prepared.set(i), prepared.set(j));
+                        let fast = match kind {
+                            MetricKind::Hausdorff => {
+                                hausdorff(Portable, a, b, &frame, f64::INFINITY, &mut scratch)
+                                    .unwrap()
+                            }
+                            _ => mean_hausdorff(Portable, a, b, &frame, &mut scratch),
+                        };
+                        assert!((fast - slow[[i, j]]).abs() < 1e-12, "{kind:?} {i} {j}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn thresholds_round_down_and_cuts_up() {
+        let (delta, rel) = (1e-5, 1e-6);
+        for c2 in [1e-12, 0.37, 4.0, 39.0] {
+            let t = threshold(c2, delta, rel);
+            if c2.sqrt() > delta {
+                let x = f64::from(t);
+                assert!((x * (1.0 + rel)).sqrt() + delta <= c2.sqrt());
+                let above = f64::from(t.next_up());
+                assert!((above * (1.0 + rel)).sqrt() + delta > c2.sqrt() * (1.0 - 1e-6));
+            } else {
+                assert!(t < 0.0);
+            }
+            let cut = f64::from(cut_above(c2 as f32, delta, rel));
+            assert!(cut.sqrt() >= (f64::from(c2 as f32) * (1.0 + rel)).sqrt() + delta);
+        }
+    }
 }

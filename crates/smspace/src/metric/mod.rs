@@ -77,6 +77,7 @@ pub mod curve;
 mod kernel;
 mod knn;
 mod matrix;
+mod period;
 mod prepared;
 pub mod reference;
 mod registry;
@@ -91,8 +92,10 @@ use crate::error::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
 
 pub use curve::{Closure, CURVE_TOLERANCE};
+pub use kernel::simd_level;
 pub use knn::{knn, knn_prepared, knn_with, Knn, KnnParams, KnnValidParams, MAX_PIVOTS};
 pub use matrix::{DistanceMatrix, MatrixError, SYMMETRY_TOLERANCE};
+pub use period::{CoordinatePeriods, PeriodError, Periods};
 pub use prepared::PreparedSets;
 pub use registry::{BuiltMetric, MetricBuilder, MetricRegistry};
 pub use tiles::{
@@ -249,6 +252,9 @@ pub enum MetricError {
         /// `M`.
         sets: usize,
     },
+    /// Periods that do not fit the sets.
+    #[error(transparent)]
+    Period(#[from] PeriodError),
     /// A polyline needs two points.
     #[error("the curve metric joins the points of a set into a polyline, which needs at least 2 points per set, but the sets have P = {points}")]
     TooFewPoints {

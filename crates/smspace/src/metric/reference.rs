@@ -3,12 +3,19 @@
 
 use ndarray::{Array2, ArrayView1, ArrayView2, ArrayView3};
 
+use super::period::{CoordinatePeriods, Periods};
 use super::{MetricKind, Period};
 
-/// `h(u)` of paper section 3.2 in magnitude: the coordinate difference `u` brought to
-/// the nearest of its periodic images, `|h(u)| ≤ T/2`.
-pub fn wrapped_difference(u: f64, period: Period) -> f64 {
-    let t = period.radians();
+/// The periods of `dims` coordinates (a uniform [`Period`] or [`Periods`]); panics when
+/// they were given for another coordinate count (a bug in the caller).
+fn periods_of(periods: &impl CoordinatePeriods, dims: usize) -> Periods {
+    periods
+        .for_dims(dims)
+        .expect("the reference needs one period per coordinate")
+}
+
+/// `|h(u)|` with period `t` (`+∞`: none).
+fn folded(u: f64, t: f64) -> f64 {
     if !t.is_finite() {
         return u.abs();
     }
@@ -16,15 +23,26 @@ pub fn wrapped_difference(u: f64, period: Period) -> f64 {
     r.min(t - r)
 }
 
-/// The point metric `g(a, b) = sqrt(Σ_n h(a_n − b_n)²)` of paper section 3.2.
-pub fn point_distance(a: ArrayView1<'_, f64>, b: ArrayView1<'_, f64>, period: Period) -> f64 {
-    point_distance2(a, b, period).sqrt()
+/// `h(u)` of paper section 3.2 in magnitude: the coordinate difference `u` brought to
+/// the nearest of its periodic images, `|h(u)| ≤ T/2`.
+pub fn wrapped_difference(u: f64, period: Period) -> f64 {
+    folded(u, period.radians())
 }
 
-fn point_distance2(a: ArrayView1<'_, f64>, b: ArrayView1<'_, f64>, period: Period) -> f64 {
+/// The point metric `g(a, b) = sqrt(Σ_n h_n(a_n − b_n)²)` of paper section 3.2, every
+/// coordinate with its own period (a uniform [`Period`] or [`Periods`]).
+pub fn point_distance(
+    a: ArrayView1<'_, f64>,
+    b: ArrayView1<'_, f64>,
+    periods: impl CoordinatePeriods,
+) -> f64 {
+    point_distance2(a, b, &periods_of(&periods, a.len())).sqrt()
+}
+
+fn point_distance2(a: ArrayView1<'_, f64>, b: ArrayView1<'_, f64>, periods: &Periods) -> f64 {
     let mut s = 0.0;
-    for (x, y) in a.iter().zip(b.iter()) {
-        let w = wrapped_difference(x - y, period);
+    for (k, (x, y)) in a.iter().zip(b.iter()).enumerate() {
+        let w = folded(x - y, periods.radians(k));
         s += w * w;
     }
     s
@@ -34,13 +52,13 @@ fn point_distance2(a: ArrayView1<'_, f64>, b: ArrayView1<'_, f64>, period: Perio
 fn nearest2(
     a: ArrayView2<'_, f64>,
     b: ArrayView2<'_, f64>,
-    period: Period,
+    periods: &Periods,
 ) -> (Vec<f64>, Vec<f64>) {
     let mut rows = vec![f64::INFINITY; a.nrows()];
     let mut cols = vec![f64::INFINITY; b.nrows()];
     for (i, x) in a.outer_iter().enumerate() {
         for (j, y) in b.outer_iter().enumerate() {
-            let d2 = point_distance2(x, y, period);
+            let d2 = point_distance2(x, y, periods);
             rows[i] = rows[i].min(d2);
             cols[j] = cols[j].min(d2);
         }
@@ -49,9 +67,13 @@ fn nearest2(
 }
 
 /// Brute-force Hausdorff distance `ρ(A, B) = max(max_a min_b g, max_b min_a g)` between
-/// two sets of points (rows).
-pub fn hausdorff(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, period: Period) -> f64 {
-    let (rows, cols) = nearest2(a, b, period);
+/// two sets of points (rows), under a uniform [`Period`] or [`Periods`].
+pub fn hausdorff(
+    a: ArrayView2<'_, f64>,
+    b: ArrayView2<'_, f64>,
+    periods: impl CoordinatePeriods,
+) -> f64 {
+    let (rows, cols) = nearest2(a, b, &periods_of(&periods, a.ncols()));
     let m = rows
         .iter()
         .chain(cols.iter())
@@ -61,8 +83,12 @@ pub fn hausdorff(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, period: Period)
 
 /// Brute-force mean Hausdorff distance
 /// `(mean_a min_b g(a, b) + mean_b min_a g(a, b)) / 2`.
-pub fn mean_hausdorff(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, period: Period) -> f64 {
-    let (rows, cols) = nearest2(a, b, period);
+pub fn mean_hausdorff(
+    a: ArrayView2<'_, f64>,
+    b: ArrayView2<'_, f64>,
+    periods: impl CoordinatePeriods,
+) -> f64 {
+    let (rows, cols) = nearest2(a, b, &periods_of(&periods, a.ncols()));
     let mean = |v: &[f64]| v.iter().fold(0.0, |s, x| s + x.sqrt()) / v.len() as f64;
     0.5 * (mean(&rows) + mean(&cols))
 }
@@ -70,16 +96,21 @@ pub fn mean_hausdorff(a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>, period: Pe
 /// Brute-force distance matrix `(M, M)` between all sets of `(M, P, N)`, single-threaded,
 /// for the point metrics. The curve metric has no finite brute force: its reference is
 /// [`curve_bounds`], and asking this function for it is a bug (it panics).
-pub fn distance_matrix(sets: ArrayView3<'_, f64>, kind: MetricKind, period: Period) -> Array2<f64> {
+pub fn distance_matrix(
+    sets: ArrayView3<'_, f64>,
+    kind: MetricKind,
+    periods: impl CoordinatePeriods,
+) -> Array2<f64> {
     let m = sets.dim().0;
+    let periods = periods_of(&periods, sets.dim().2);
     let mut out = Array2::zeros((m, m));
     for i in 0..m {
         for j in i + 1..m {
             let a = sets.index_axis(ndarray::Axis(0), i);
             let b = sets.index_axis(ndarray::Axis(0), j);
             let d = match kind {
-                MetricKind::Hausdorff => hausdorff(a, b, period),
-                MetricKind::MeanHausdorff => mean_hausdorff(a, b, period),
+                MetricKind::Hausdorff => hausdorff(a, b, &periods),
+                MetricKind::MeanHausdorff => mean_hausdorff(a, b, &periods),
                 MetricKind::Curve => {
                     panic!("reference::distance_matrix is for the point metrics; use curve_bounds")
                 }
@@ -93,45 +124,43 @@ pub fn distance_matrix(sets: ArrayView3<'_, f64>, kind: MetricKind, period: Peri
 
 /// `δ(a, s)`: the periodic distance from point `a` to the segment from `start` along
 /// `v` (`s(t) = start + t·v`, `t ∈ [0, 1]`), by brute force over periodic images: the
-/// Euclidean distance from `a` to every translate `s + T·k` of the segment with
-/// `k ∈ {−1, 0, 1}^N` (enough when every coordinate of `a`, `start` and `v` lies in
-/// `[−T/2, T/2]`), the smallest one kept. Independent of the fast kernel's pieces;
-/// `3^N` images, meant for `N ≤ 8`.
+/// Euclidean distance from `a` to every translate `s + Σ_n T_n·k_n·e_n` of the segment
+/// with `k_n ∈ {−1, 0, 1}` for every periodic coordinate `n` (enough when `a` and
+/// `start` are wrapped and `|v_n| ≤ T_n/2`), the smallest one kept. Every coordinate
+/// has its own period (a uniform [`Period`] or [`Periods`]). Independent of the fast
+/// kernel's pieces; `3^N` images, meant for `N ≤ 8`.
 pub fn segment_distance(
     a: ArrayView1<'_, f64>,
     start: ArrayView1<'_, f64>,
     v: ArrayView1<'_, f64>,
-    period: Period,
+    periods: impl CoordinatePeriods,
 ) -> f64 {
-    let t = period.radians();
     let n = a.len();
-    let images: usize = if t.is_finite() {
-        3usize.pow(n as u32)
-    } else {
-        1
-    };
+    let periods = periods_of(&periods, n);
+    let t: Vec<f64> = (0..n).map(|k| periods.radians(k)).collect();
+    let images: usize = t.iter().filter(|t| t.is_finite()).map(|_| 3).product();
     let len2: f64 = v.iter().map(|x| x * x).sum();
+    // Bring a and start to their representatives first.
+    let wrap = |x: f64, t: f64| {
+        if t.is_finite() {
+            x - t * (x / t).round()
+        } else {
+            x
+        }
+    };
     let mut best = f64::INFINITY;
     for code in 0..images {
         let mut rest = code;
         let mut u = vec![0.0; n];
         for k in 0..n {
-            let shift = if t.is_finite() {
+            let shift = if t[k].is_finite() {
                 let digit = rest % 3;
                 rest /= 3;
-                (digit as f64 - 1.0) * t
+                (digit as f64 - 1.0) * t[k]
             } else {
                 0.0
             };
-            // Bring a and start to their representatives first.
-            let wrap = |x: f64| {
-                if t.is_finite() {
-                    x - t * (x / t).round()
-                } else {
-                    x
-                }
-            };
-            u[k] = wrap(a[k]) - (wrap(start[k]) + shift);
+            u[k] = wrap(a[k], t[k]) - (wrap(start[k], t[k]) + shift);
         }
         let dot: f64 = u.iter().zip(v.iter()).map(|(x, y)| x * y).sum();
         let s = if len2 > 0.0 {
@@ -150,14 +179,15 @@ pub fn segment_distance(
 }
 
 /// The segments `(start, v)` of a polyline through the rows of `x`: `P` of them when
-/// `closed`, `P − 1` otherwise, with `v = h(x_{i+1} − x_i)`.
+/// `closed`, `P − 1` otherwise, with `v_n = h_n(x_{i+1,n} − x_{i,n})`.
 pub fn polyline_segments(
     x: ArrayView2<'_, f64>,
     closed: bool,
-    period: Period,
+    periods: impl CoordinatePeriods,
 ) -> Vec<(Vec<f64>, Vec<f64>)> {
-    let t = period.radians();
-    let signed = |u: f64| {
+    let periods = periods_of(&periods, x.ncols());
+    let signed = |u: f64, k: usize| {
+        let t = periods.radians(k);
         if t.is_finite() {
             u - t * (u / t).round()
         } else {
@@ -169,12 +199,18 @@ pub fn polyline_segments(
     (0..count)
         .map(|i| {
             let next = x.row((i + 1) % p);
-            let start: Vec<f64> = x.row(i).iter().map(|&z| signed(z)).collect();
+            let start: Vec<f64> = x
+                .row(i)
+                .iter()
+                .enumerate()
+                .map(|(k, &z)| signed(z, k))
+                .collect();
             let v: Vec<f64> = x
                 .row(i)
                 .iter()
                 .zip(next.iter())
-                .map(|(a, b)| signed(b - a))
+                .enumerate()
+                .map(|(k, (a, b))| signed(b - a, k))
                 .collect();
             (start, v)
         })
@@ -185,8 +221,9 @@ pub fn polyline_segments(
 pub fn polyline_distance(
     a: ArrayView1<'_, f64>,
     segments: &[(Vec<f64>, Vec<f64>)],
-    period: Period,
+    periods: impl CoordinatePeriods,
 ) -> f64 {
+    let periods = periods_of(&periods, a.len());
     segments
         .iter()
         .map(|(s, v)| {
@@ -194,7 +231,7 @@ pub fn polyline_distance(
                 a,
                 ArrayView1::from(s.as_slice()),
                 ArrayView1::from(v.as_slice()),
-                period,
+                &periods,
             )
         })
         .fold(f64::INFINITY, f64::min)
@@ -211,11 +248,12 @@ pub fn curve_bounds(
     a_closed: bool,
     b: ArrayView2<'_, f64>,
     b_closed: bool,
-    period: Period,
+    periods: impl CoordinatePeriods,
     pieces: usize,
 ) -> (f64, f64) {
-    let sa = polyline_segments(a, a_closed, period);
-    let sb = polyline_segments(b, b_closed, period);
+    let periods = periods_of(&periods, a.ncols());
+    let sa = polyline_segments(a, a_closed, &periods);
+    let sb = polyline_segments(b, b_closed, &periods);
     let directed = |from: &[(Vec<f64>, Vec<f64>)], to: &[(Vec<f64>, Vec<f64>)]| {
         let mut lower: f64 = 0.0;
         let mut longest: f64 = 0.0;
@@ -228,7 +266,7 @@ pub fn curve_bounds(
                 lower = lower.max(polyline_distance(
                     ArrayView1::from(x.as_slice()),
                     to,
-                    period,
+                    &periods,
                 ));
             }
         }

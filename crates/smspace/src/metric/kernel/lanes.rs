@@ -1,0 +1,287 @@
+//! Eight `f32` lanes, the vector type of the filtering kernels: one AVX2 register
+//! through `pulp`'s safe `V3` token (also on AVX-512 CPUs), or plain arrays on CPUs
+//! without AVX2 + FMA. Every method is `#[inline(always)]`, so that it is compiled in
+//! the caller's target-feature context (a helper that is not inlined loses the
+//! features and calls the software `fma`).
+
+#[cfg(target_arch = "x86_64")]
+use pulp::x86::V3;
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::{__m256, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ};
+
+/// Lanes per vector.
+pub(crate) const WIDTH: usize = 8;
+
+/// Operations on eight `f32` lanes.
+pub(crate) trait Lanes: Copy {
+    /// The vector.
+    type V: Copy;
+    /// Every lane `x`.
+    fn splat(self, x: f32) -> Self::V;
+    /// Eight values.
+    fn load(self, x: &[f32; WIDTH]) -> Self::V;
+    /// The lanes as an array.
+    fn array(self, a: Self::V) -> [f32; WIDTH];
+    /// `a + b`.
+    fn add(self, a: Self::V, b: Self::V) -> Self::V;
+    /// `a − b`.
+    fn sub(self, a: Self::V, b: Self::V) -> Self::V;
+    /// `a · b`.
+    fn mul(self, a: Self::V, b: Self::V) -> Self::V;
+    /// The smaller of `a` and `b` (`b` where either is NaN).
+    fn min(self, a: Self::V, b: Self::V) -> Self::V;
+    /// The larger of `a` and `b` (`b` where either is NaN).
+    fn max(self, a: Self::V, b: Self::V) -> Self::V;
+    /// `a · b + c`, rounded once.
+    fn mul_add(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
+    /// `c − a · b`, rounded once.
+    fn neg_mul_add(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
+    /// `|u|`.
+    fn abs(self, u: Self::V) -> Self::V;
+    /// `min(|u|, t − |u|)`: a coordinate difference folded with period `t` (`+∞`: `|u|`).
+    fn fold(self, u: Self::V, t: Self::V) -> Self::V;
+    /// `u − t · round(u · inv)` (`inv = 1/t`; `0` without a period): the signed
+    /// difference brought near `[−t/2, t/2]`.
+    fn swrap(self, u: Self::V, t: Self::V, inv: Self::V) -> Self::V;
+    /// Square root.
+    fn sqrt(self, a: Self::V) -> Self::V;
+    /// Bit `l` set where `a[l] ≤ b[l]`.
+    fn le(self, a: Self::V, b: Self::V) -> u32;
+    /// Bit `l` set where `a[l] > b[l]`.
+    fn gt(self, a: Self::V, b: Self::V) -> u32;
+    /// `x` where `a < b`, else `y`.
+    fn select_lt(self, a: Self::V, b: Self::V, x: Self::V, y: Self::V) -> Self::V;
+    /// The smallest lane.
+    fn hmin(self, a: Self::V) -> f32;
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Lanes for V3 {
+    type V = __m256;
+    #[inline(always)]
+    fn splat(self, x: f32) -> __m256 {
+        self.avx._mm256_set1_ps(x)
+    }
+    #[inline(always)]
+    fn load(self, x: &[f32; WIDTH]) -> __m256 {
+        pulp::cast(*x)
+    }
+    #[inline(always)]
+    fn array(self, a: __m256) -> [f32; WIDTH] {
+        pulp::cast(a)
+    }
+    #[inline(always)]
+    fn add(self, a: __m256, b: __m256) -> __m256 {
+        self.avx._mm256_add_ps(a, b)
+    }
+    #[inline(always)]
+    fn sub(self, a: __m256, b: __m256) -> __m256 {
+        self.avx._mm256_sub_ps(a, b)
+    }
+    #[inline(always)]
+    fn mul(self, a: __m256, b: __m256) -> __m256 {
+        self.avx._mm256_mul_ps(a, b)
+    }
+    #[inline(always)]
+    fn min(self, a: __m256, b: __m256) -> __m256 {
+        self.avx._mm256_min_ps(a, b)
+    }
+    #[inline(always)]
+    fn max(self, a: __m256, b: __m256) -> __m256 {
+        self.avx._mm256_max_ps(a, b)
+    }
+    #[inline(always)]
+    fn mul_add(self, a: __m256, b: __m256, c: __m256) -> __m256 {
+        self.fma._mm256_fmadd_ps(a, b, c)
+    }
+    #[inline(always)]
+    fn neg_mul_add(self, a: __m256, b: __m256, c: __m256) -> __m256 {
+        self.fma._mm256_fnmadd_ps(a, b, c)
+    }
+    #[inline(always)]
+    fn abs(self, u: __m256) -> __m256 {
+        let magnitude = self
+            .avx
+            ._mm256_castsi256_ps(self.avx._mm256_set1_epi32(0x7fff_ffff));
+        self.avx._mm256_and_ps(u, magnitude)
+    }
+    #[inline(always)]
+    fn fold(self, u: __m256, t: __m256) -> __m256 {
+        let magnitude = self
+            .avx
+            ._mm256_castsi256_ps(self.avx._mm256_set1_epi32(0x7fff_ffff));
+        let a = self.avx._mm256_and_ps(u, magnitude);
+        self.avx._mm256_min_ps(a, self.avx._mm256_sub_ps(t, a))
+    }
+    #[inline(always)]
+    fn swrap(self, u: __m256, t: __m256, inv: __m256) -> __m256 {
+        // Round to nearest, no exceptions.
+        let k = self
+            .avx
+            ._mm256_round_ps::<0x08>(self.avx._mm256_mul_ps(u, inv));
+        self.fma._mm256_fnmadd_ps(k, t, u)
+    }
+    #[inline(always)]
+    fn sqrt(self, a: __m256) -> __m256 {
+        self.avx._mm256_sqrt_ps(a)
+    }
+    #[inline(always)]
+    fn le(self, a: __m256, b: __m256) -> u32 {
+        self.avx
+            ._mm256_movemask_ps(self.avx._mm256_cmp_ps::<_CMP_LE_OQ>(a, b)) as u32
+    }
+    #[inline(always)]
+    fn gt(self, a: __m256, b: __m256) -> u32 {
+        self.avx
+            ._mm256_movemask_ps(self.avx._mm256_cmp_ps::<_CMP_GT_OQ>(a, b)) as u32
+    }
+    #[inline(always)]
+    fn select_lt(self, a: __m256, b: __m256, x: __m256, y: __m256) -> __m256 {
+        let m = self.avx._mm256_cmp_ps::<_CMP_LT_OQ>(a, b);
+        self.avx._mm256_blendv_ps(y, x, m)
+    }
+    #[inline(always)]
+    fn hmin(self, a: __m256) -> f32 {
+        let hi = self.avx._mm256_extractf128_ps::<1>(a);
+        let lo = self.avx._mm256_castps256_ps128(a);
+        let m = self.sse._mm_min_ps(lo, hi);
+        let m = self.sse._mm_min_ps(m, self.sse._mm_movehl_ps(m, m));
+        let m = self.sse._mm_min_ss(m, self.sse._mm_shuffle_ps::<1>(m, m));
+        self.sse._mm_cvtss_f32(m)
+    }
+}
+
+/// The same operations on arrays, for CPUs without AVX2 + FMA (and the tests).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Portable;
+
+impl Lanes for Portable {
+    type V = [f32; WIDTH];
+    #[inline(always)]
+    fn splat(self, x: f32) -> Self::V {
+        [x; WIDTH]
+    }
+    #[inline(always)]
+    fn load(self, x: &[f32; WIDTH]) -> Self::V {
+        *x
+    }
+    #[inline(always)]
+    fn array(self, a: Self::V) -> [f32; WIDTH] {
+        a
+    }
+    #[inline(always)]
+    fn add(self, a: Self::V, b: Self::V) -> Self::V {
+        std::array::from_fn(|l| a[l] + b[l])
+    }
+    #[inline(always)]
+    fn sub(self, a: Self::V, b: Self::V) -> Self::V {
+        std::array::from_fn(|l| a[l] - b[l])
+    }
+    #[inline(always)]
+    fn mul(self, a: Self::V, b: Self::V) -> Self::V {
+        std::array::from_fn(|l| a[l] * b[l])
+    }
+    #[inline(always)]
+    fn min(self, a: Self::V, b: Self::V) -> Self::V {
+        // As the x86 instruction: `b` unless `a < b`.
+        std::array::from_fn(|l| if a[l] < b[l] { a[l] } else { b[l] })
+    }
+    #[inline(always)]
+    fn max(self, a: Self::V, b: Self::V) -> Self::V {
+        std::array::from_fn(|l| if a[l] > b[l] { a[l] } else { b[l] })
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V {
+        std::array::from_fn(|l| a[l].mul_add(b[l], c[l]))
+    }
+    #[inline(always)]
+    fn neg_mul_add(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V {
+        std::array::from_fn(|l| (-a[l]).mul_add(b[l], c[l]))
+    }
+    #[inline(always)]
+    fn abs(self, u: Self::V) -> Self::V {
+        u.map(f32::abs)
+    }
+    #[inline(always)]
+    fn fold(self, u: Self::V, t: Self::V) -> Self::V {
+        std::array::from_fn(|l| {
+            let a = u[l].abs();
+            let v = t[l] - a;
+            if a < v {
+                a
+            } else {
+                v
+            }
+        })
+    }
+    #[inline(always)]
+    fn swrap(self, u: Self::V, t: Self::V, inv: Self::V) -> Self::V {
+        std::array::from_fn(|l| (-(u[l] * inv[l]).round_ties_even()).mul_add(t[l], u[l]))
+    }
+    #[inline(always)]
+    fn sqrt(self, a: Self::V) -> Self::V {
+        std::array::from_fn(|l| a[l].sqrt())
+    }
+    #[inline(always)]
+    fn le(self, a: Self::V, b: Self::V) -> u32 {
+        (0..WIDTH).fold(0, |m, l| m | (u32::from(a[l] <= b[l]) << l))
+    }
+    #[inline(always)]
+    fn gt(self, a: Self::V, b: Self::V) -> u32 {
+        (0..WIDTH).fold(0, |m, l| m | (u32::from(a[l] > b[l]) << l))
+    }
+    #[inline(always)]
+    fn select_lt(self, a: Self::V, b: Self::V, x: Self::V, y: Self::V) -> Self::V {
+        std::array::from_fn(|l| if a[l] < b[l] { x[l] } else { y[l] })
+    }
+    #[inline(always)]
+    fn hmin(self, a: Self::V) -> f32 {
+        a.iter()
+            .fold(f32::INFINITY, |m, &x| if x < m { x } else { m })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The AVX2 lanes and the portable ones agree bit for bit on every operation.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_and_portable_lanes_agree() {
+        let Some(v3) = V3::try_new() else {
+            return;
+        };
+        let a = [-3.5f32, 0.0, 1.25, 7.0, -0.1, 3.0, 6.2, -6.2];
+        let b = [1.0f32, -0.0, 1.25, -2.0, 0.3, 3.5, 0.1, 6.3];
+        let t = [std::f32::consts::TAU; WIDTH];
+        let inv = [1.0 / std::f32::consts::TAU; WIDTH];
+        let p = Portable;
+        v3.vectorize(
+            #[inline(always)]
+            || {
+                let (x, y) = (v3.load(&a), v3.load(&b));
+                let (tv, iv) = (v3.load(&t), v3.load(&inv));
+                let pairs: [([f32; WIDTH], [f32; WIDTH]); 10] = [
+                    (v3.array(v3.abs(x)), p.abs(a)),
+                    (v3.array(v3.add(x, y)), p.add(a, b)),
+                    (v3.array(v3.sub(x, y)), p.sub(a, b)),
+                    (v3.array(v3.mul(x, y)), p.mul(a, b)),
+                    (v3.array(v3.min(x, y)), p.min(a, b)),
+                    (v3.array(v3.max(x, y)), p.max(a, b)),
+                    (v3.array(v3.mul_add(x, y, x)), p.mul_add(a, b, a)),
+                    (v3.array(v3.neg_mul_add(x, y, x)), p.neg_mul_add(a, b, a)),
+                    (v3.array(v3.fold(x, tv)), p.fold(a, t)),
+                    (v3.array(v3.swrap(x, tv, iv)), p.swrap(a, t, inv)),
+                ];
+                for (fast, slow) in pairs {
+                    assert_eq!(fast.map(f32::to_bits), slow.map(f32::to_bits));
+                }
+                assert_eq!(v3.le(x, y), p.le(a, b));
+                assert_eq!(v3.gt(x, y), p.gt(a, b));
+                assert_eq!(v3.hmin(x), p.hmin(a));
+                assert_eq!(v3.array(v3.select_lt(x, y, x, y)), p.select_lt(a, b, a, b));
+            },
+        );
+    }
+}
