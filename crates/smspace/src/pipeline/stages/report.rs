@@ -1,5 +1,5 @@
-//! `report`: the paper's figures, `report.html` with a 3-D view, `report.md` and
-//! `report.json`.
+//! `report`: the paper's figures, `report.html` with a 3-D view (and the plotly.js it
+//! loads, in `assets/`), `report.md` and `report.json`.
 
 use std::path::Path;
 
@@ -108,6 +108,7 @@ impl Stage for ReportStage {
             invariance: input.invariance.map(|i| &i.value),
             sensory_manifolds: &manifolds,
             stages: context.stage_times,
+            warnings: &[],
         };
         Ok(write_report(&inputs, &self.report, context.dir)?)
     }
@@ -124,6 +125,12 @@ impl Stage for ReportStage {
             .iter()
             .flat_map(|f| f.files.iter().map(|p| p.to_string_lossy().into_owned()))
             .collect();
+        files.extend(
+            summary
+                .assets
+                .iter()
+                .map(|p| p.to_string_lossy().into_owned()),
+        );
         files.push(summary.html.to_string_lossy().into_owned());
         files.push(summary.markdown.to_string_lossy().into_owned());
         files.push(SUMMARY_FILE.to_owned());
@@ -134,8 +141,14 @@ impl Stage for ReportStage {
         Ok(io::read_json(&dir.join(SUMMARY_FILE), "report summary")?)
     }
 
-    fn summary(&self, _: &ReportSummary) -> String {
-        "report.html, report.md and figures/".to_owned()
+    fn summary(&self, summary: &ReportSummary) -> String {
+        match summary.warnings.len() {
+            0 => "report.html, report.md and figures/".to_owned(),
+            n => format!(
+                "report.html, report.md and figures/; {n} warning{} at the top of the report",
+                if n == 1 { "" } else { "s" }
+            ),
+        }
     }
 }
 
