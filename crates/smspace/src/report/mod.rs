@@ -11,7 +11,8 @@
 //!
 //! **Warnings first.** Everything the run flagged (sets the tracer could not trace
 //! or kept as single points, dimension estimates the data make unreliable, analyses
-//! that did not run) opens the report, in a "Warnings" section ([`warnings`]).
+//! that did not run, and any figure of this run whose texts overlap) opens the report,
+//! in a "Warnings" section ([`warnings`]).
 //!
 //! **Print sizes.** A panel prints `panel_width_in × panel_height_in` inches (3.5 ×
 //! 2.8, one journal column; two-panel figures are a page wide), the PNG has `dpi`
@@ -493,6 +494,18 @@ pub fn write_report(
         .par_iter()
         .map(|(name, _, p)| p.render(name, params.formats, print, dir))
         .collect();
+    // The reviewer's check on this run's own data: texts that overlap or leave their
+    // figure are reported at the top of the report.
+    let layout: Vec<Result<Option<FigureText>, ReportError>> = planned
+        .par_iter()
+        .map(|(name, _, p)| p.record(name, print))
+        .collect();
+    let mut warnings = warnings::warnings(inputs);
+    for text in layout {
+        for problem in text?.iter().flat_map(FigureText::problems) {
+            warnings.push(Warning::new("report", format!("figure layout: {problem}")));
+        }
+    }
     let mut figures = Vec::with_capacity(planned.len());
     for ((name, caption, p), r) in planned.into_iter().zip(rendered) {
         let r = r?;
@@ -516,7 +529,6 @@ pub fn write_report(
     } else {
         vec![html::write_plotly(dir)?]
     };
-    let warnings = warnings::warnings(inputs);
     let tables = tables::tables(inputs);
     let page = html::Page {
         inputs,
