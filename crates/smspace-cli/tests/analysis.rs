@@ -108,7 +108,7 @@ fn analyze_rejects_bad_input_naming_the_file() {
     assert!(err.contains("cube.npy") && err.contains("(M, M)"), "{err}");
     let err = fails(p, &["analyze", "--distances", "asym.npy"]);
     assert!(
-        err.contains("asym.npy") && err.contains("symmetric") && err.contains("(2, 5)"),
+        err.contains("asym.npy") && err.contains("symmetric") && err.contains("[2, 5]"),
         "{err}"
     );
     let err = fails(p, &["analyze", "--distances", "nan.npy"]);
@@ -189,6 +189,20 @@ fn invariance_of_the_redundant_toy() {
         report["min_sensor_difference_relative"].as_f64().unwrap() > 0.1,
         "{report}"
     );
+    // The invariance stage's writer: beside the report, what was compared per
+    // environment, as `smspace run` writes it.
+    let d1: Array2<f64> = ndarray_npy::read_npy(p.join("invariance-D-1.npy")).unwrap();
+    let d3: Array2<f64> = ndarray_npy::read_npy(p.join("invariance-D-3.npy")).unwrap();
+    let common = report["common_sets"].as_u64().unwrap() as usize;
+    assert_eq!(d1.dim(), (common, common));
+    let largest = d1
+        .iter()
+        .zip(&d3)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(largest < 1e-6, "{largest}");
+    let sensors: Array2<f64> = ndarray_npy::read_npy(p.join("invariance-sensors-2.npy")).unwrap();
+    assert_eq!(sensors.nrows(), common);
 
     let args = |seeds: &'static str, lights: &'static str| {
         vec![

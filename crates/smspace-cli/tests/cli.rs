@@ -469,3 +469,53 @@ fn bad_inputs_give_clear_errors() {
     }
     assert!(!dir.join("s.npy").exists(), "a failed run wrote output");
 }
+
+/// What an agent cannot give is refused with a clear error: 2-D kernels (an arm of four
+/// links and a retina hinge), a probe grid without a working space.
+#[test]
+fn what_the_agent_cannot_give_is_refused() {
+    let (_guard, dir) = temp();
+    std::fs::write(
+        dir.join("arm5.toml"),
+        "[agent]\nkind = \"planar-arm\"\nlink_lengths = [1.0, 1.0, 1.0, 1.0]\n",
+    )
+    .unwrap();
+    write_npy(
+        dir.join("five.npy"),
+        &ndarray::array![[0.3, -1.0, 0.9, 0.2, 0.1]],
+    )
+    .unwrap();
+    let stderr = fails(
+        &dir,
+        &[
+            "trace",
+            "--agent",
+            "arm5.toml",
+            "--motors",
+            "five.npy",
+            "--out",
+            "s.npy",
+        ],
+    );
+    assert!(
+        stderr.contains("kernel sets have dimension k = N − rank(J) = 5 − 3 = 2")
+            && stderr.contains("not implemented yet"),
+        "{stderr}"
+    );
+    let stderr = fails(
+        &dir,
+        &[
+            "explore",
+            "--agent",
+            "toy-line",
+            "--probes",
+            "--out-dir",
+            "x",
+        ],
+    );
+    assert!(
+        stderr.contains("the probe grid needs a working space"),
+        "{stderr}"
+    );
+    assert!(!dir.join("s.npy").exists() && !dir.join("x").exists());
+}

@@ -470,3 +470,136 @@ fn trace_records_which_sets_are_closed() {
     let closed: ndarray::Array1<i64> = read_npy(dir.path().join("toy-sets.closed.npy")).unwrap();
     assert!(closed.iter().all(|&c| c == 0), "{closed}");
 }
+
+/// The tiles of a plan, each written by its own process, merge into the matrix byte for
+/// byte; row blocks merge too; a missing or foreign tile is refused.
+#[test]
+fn tiles_merge_into_the_matrix() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_npy(d.join("sets.npy"), &curves(23, 12)).unwrap();
+    common::ok(d, &["distances", "--sets", "sets.npy", "--out", "D.npy"]);
+    // Blocks 0:10, 10:20, 20:23: the tiles (a, b) with a <= b.
+    let blocks = ["0:10", "10:20", "20:23"];
+    let mut tiles = Vec::new();
+    for a in 0..3 {
+        for b in a..3 {
+            let name = format!("T{a}{b}.npy");
+            let tile = format!("{},{}", blocks[a], blocks[b]);
+            common::ok(
+                d,
+                &[
+                    "distances",
+                    "--sets",
+                    "sets.npy",
+                    "--tile",
+                    &tile,
+                    "--out",
+                    &name,
+                ],
+            );
+            assert!(d.join(format!("T{a}{b}.tile.json")).is_file());
+            tiles.push(name);
+        }
+    }
+    let t01: Array2<f64> = read_npy(d.join("T01.npy")).unwrap();
+    assert_eq!(t01.dim(), (10, 10));
+    let mut args = vec!["distances", "--out", "M.npy", "--merge"];
+    args.extend(tiles.iter().map(String::as_str));
+    common::ok(d, &args);
+    assert_eq!(
+        std::fs::read(d.join("M.npy")).unwrap(),
+        std::fs::read(d.join("D.npy")).unwrap()
+    );
+    // Row blocks are tiles of every column: they merge too.
+    for (rows, name) in [("0:12", "R0.npy"), ("12:23", "R1.npy")] {
+        common::ok(
+            d,
+            &[
+                "distances",
+                "--sets",
+                "sets.npy",
+                "--rows",
+                rows,
+                "--out",
+                name,
+            ],
+        );
+    }
+    common::ok(
+        d,
+        &["distances", "--out", "R.npy", "--merge", "R0.npy", "R1.npy"],
+    );
+    assert_eq!(
+        std::fs::read(d.join("R.npy")).unwrap(),
+        std::fs::read(d.join("D.npy")).unwrap()
+    );
+    // A tile left out, a tile of another metric, a tile without its record.
+    let e = fails(
+        d,
+        &[
+            "distances",
+            "--out",
+            "X.npy",
+            "--merge",
+            "T00.npy",
+            "T11.npy",
+        ],
+    );
+    assert!(e.contains("no tile holds the pair (0, 10)"), "{e}");
+    common::ok(
+        d,
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--tile",
+            "0:10,10:20",
+            "--metric",
+            "mean-hausdorff",
+            "--out",
+            "H.npy",
+        ],
+    );
+    let e = fails(
+        d,
+        &["distances", "--out", "X.npy", "--merge", "T00.npy", "H.npy"],
+    );
+    assert!(
+        e.contains("mean-hausdorff") && e.contains("merge the tiles of one matrix"),
+        "{e}"
+    );
+    std::fs::copy(d.join("T00.npy"), d.join("bare.npy")).unwrap();
+    let e = fails(d, &["distances", "--out", "X.npy", "--merge", "bare.npy"]);
+    assert!(e.contains("bare.tile.json"), "{e}");
+    assert!(!d.join("X.npy").exists());
+    let e = fails(
+        d,
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--tile",
+            "0:10,20:30",
+            "--out",
+            "X.npy",
+        ],
+    );
+    assert!(
+        e.contains("20:30 is not a non-empty range within 0:23"),
+        "{e}"
+    );
+    let e = fails(
+        d,
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--tile",
+            "0:10",
+            "--out",
+            "X.npy",
+        ],
+    );
+    assert!(e.contains("expected I0:I1,J0:J1"), "{e}");
+}

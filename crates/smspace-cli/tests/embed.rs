@@ -193,7 +193,7 @@ fn bad_input_gets_a_clear_error() {
     fails_with(
         p,
         &["embed", "--distances", "rect.npy", "--out", "Y.npy"],
-        "must be square",
+        "rect.npy has shape (3, 4); a distance matrix is square",
     );
     let mut asym = circle(20);
     asym[[1, 2]] += 0.1;
@@ -201,7 +201,7 @@ fn bad_input_gets_a_clear_error() {
     fails_with(
         p,
         &["embed", "--distances", "asym.npy", "--out", "Y.npy"],
-        "not symmetric",
+        "asym.npy is not symmetric",
     );
     let mut nan = circle(20);
     nan[[3, 3]] = f64::NAN;
@@ -218,7 +218,7 @@ fn bad_input_gets_a_clear_error() {
     fails_with(
         p,
         &["embed", "--distances", "neg.npy", "--out", "Y.npy"],
-        "negative",
+        "neg.npy holds a negative distance",
     );
     write_npy(p.join("D.npy"), &circle(20)).unwrap();
     fails_with(

@@ -20,6 +20,7 @@ use ndarray::Array2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smspace::embed::{CcaParams, Embedding, IsomapParams, KnnGraph, LandmarkChoice, MdsParams};
+use smspace::metric::DistanceMatrix;
 use smspace::progress::Silent;
 
 /// `n` seeded points `(cos a, sin a, x, y)` with `a ∈ [0, 2π)`, `x, y ∈ [0, 2)`.
@@ -70,9 +71,9 @@ fn knn_arrays(p: &Array2<f64>, k: usize) -> KnnGraph {
     KnnGraph::from_arrays(indices.view(), dists.view()).expect("valid graph")
 }
 
-fn arm_distances() -> Option<Array2<f64>> {
+fn arm_distances() -> Option<DistanceMatrix> {
     let path = std::env::var_os("SMSPACE_ARM_D")?;
-    smspace::io::read_matrix(std::path::Path::new(&path), None, "(M, M)").ok()
+    DistanceMatrix::load(std::path::Path::new(&path)).ok()
 }
 
 fn cca(c: &mut Criterion) {
@@ -82,14 +83,14 @@ fn cca(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(15));
     let method = CcaParams::default().dim(3).epochs(50).check().unwrap();
     for n in [500, 1000, 2500] {
-        let d = euclidean(&circle_times_plane(n, 1));
+        let d = DistanceMatrix::new(euclidean(&circle_times_plane(n, 1))).unwrap();
         group.bench_with_input(BenchmarkId::new("circle_x_plane", n), &d, |b, d| {
-            b.iter(|| black_box(method.fit(d.view(), &Silent).unwrap()))
+            b.iter(|| black_box(method.fit(d, &Silent).unwrap()))
         });
     }
     if let Some(d) = arm_distances() {
         group.bench_function(BenchmarkId::new("arm", d.nrows()), |b| {
-            b.iter(|| black_box(method.fit(d.view(), &Silent).unwrap()))
+            b.iter(|| black_box(method.fit(&d, &Silent).unwrap()))
         });
     }
     group.finish();
@@ -102,14 +103,14 @@ fn isomap(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(15));
     let method = IsomapParams::default().dim(3).k(10).check().unwrap();
     for n in [1000, 2500] {
-        let d = euclidean(&circle_times_plane(n, 2));
+        let d = DistanceMatrix::new(euclidean(&circle_times_plane(n, 2))).unwrap();
         group.bench_with_input(BenchmarkId::new("exact", n), &d, |b, d| {
-            b.iter(|| black_box(method.fit(d.view(), &Silent).unwrap()))
+            b.iter(|| black_box(method.fit(d, &Silent).unwrap()))
         });
     }
     if let Some(d) = arm_distances() {
         group.bench_function(BenchmarkId::new("arm_exact", d.nrows()), |b| {
-            b.iter(|| black_box(method.fit(d.view(), &Silent).unwrap()))
+            b.iter(|| black_box(method.fit(&d, &Silent).unwrap()))
         });
     }
     let n = 20_000;
@@ -133,14 +134,14 @@ fn isomap(c: &mut Criterion) {
 fn mds(c: &mut Criterion) {
     let mut group = c.benchmark_group("mds_3d");
     group.sample_size(10);
-    let d = euclidean(&circle_times_plane(2500, 4));
+    let d = DistanceMatrix::new(euclidean(&circle_times_plane(2500, 4))).unwrap();
     for solver in [
         smspace::embed::EigenSolver::Partial,
         smspace::embed::EigenSolver::Dense,
     ] {
         let method = MdsParams::default().solver(solver).check().unwrap();
         group.bench_function(BenchmarkId::new(format!("{solver:?}"), 2500), |b| {
-            b.iter(|| black_box(method.fit(d.view(), &Silent).unwrap()))
+            b.iter(|| black_box(method.fit(&d, &Silent).unwrap()))
         });
     }
     group.finish();

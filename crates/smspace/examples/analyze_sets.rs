@@ -25,7 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let start = Instant::now();
     let params = AnalysisParams::default().check()?;
-    let report = analyze(distances.view(), Some(poses.view()), &params, &Silent)?;
+    let report = analyze(&distances, Some(poses.view()), &params, &Silent)?;
     eprintln!("analysis: {:.2} s", start.elapsed().as_secs_f64());
     println!(
         "betti {:?}, longest bars {:?}",

@@ -2,7 +2,7 @@
 //! them set by set (largest point distance on the torus), per status.
 //!
 //! `cargo run --release -p smspace --example compare_methods -- [n] [env-seed] [lights]`
-use smspace::agent::{AgentConfig, EnvironmentConfig, MotorTopology};
+use smspace::agent::{AgentConfig, EnvironmentConfig, MotorSpace};
 use smspace::explore::{explore, ExploreParams};
 use smspace::kernel::{trace_sets, TraceMethod, TraceParams};
 use smspace::progress::Silent;
@@ -62,7 +62,8 @@ fn main() -> Result<(), smspace::Error> {
         let mut d: f64 = 0.0;
         for (pa, pb) in a.outer_iter().zip(b.outer_iter()) {
             d = d.max(
-                MotorTopology::Periodic.distance(pa.as_slice().unwrap(), pb.as_slice().unwrap()),
+                MotorSpace::hinges(pa.len())
+                    .distance(pa.as_slice().unwrap(), pb.as_slice().unwrap()),
             );
         }
         if d > 1e-3 {
@@ -73,7 +74,7 @@ fn main() -> Result<(), smspace::Error> {
                     "row {row}: max distance {d:.3e}, lengths {:.4} vs {:.4}, pose {:?}",
                     kr.length,
                     sr.length,
-                    e.poses.row(row).to_vec()
+                    e.planar_poses().map(|p| p.row(row).to_vec())
                 );
             }
         }
@@ -92,7 +93,7 @@ fn main() -> Result<(), smspace::Error> {
             r.index,
             r.status,
             r.steps,
-            e.poses.row(r.index).to_vec()
+            e.planar_poses().map(|p| p.row(r.index).to_vec())
         );
     }
     println!("lights {:?}", environment.lights);

@@ -62,7 +62,10 @@ fn babble(m: usize, points: usize) -> Result<Sets, Box<dyn std::error::Error>> {
         &params,
         &Silent,
     )?;
-    let poses = exploration.poses.select(ndarray::Axis(0), &traced.kept);
+    let poses = exploration
+        .planar_poses()
+        .expect("the arm's poses are planar")
+        .select(ndarray::Axis(0), &traced.kept);
     Ok(Sets {
         sets: traced.sets,
         closure: traced.closure,
@@ -105,7 +108,7 @@ fn dimensions(
             mle: mle(d.view(), MLE_K)?.dimension,
             seconds,
         };
-        Ok((row, Some(d)))
+        Ok((row, Some(d.into_array())))
     } else {
         let found = knn(view, &params, &KnnParams::new().k(MLE_K), 0..m, &Silent)?;
         let seconds = started.elapsed().as_secs_f64();
@@ -145,7 +148,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if m == base {
                 let d = d.expect("the base size has its matrix");
                 let params = AnalysisParams::default().check()?;
-                let report = analyze(d.view(), Some(data.poses.view()), &params, &Silent)?;
+                let d = smspace::metric::DistanceMatrix::new(d)?;
+                let report = analyze(&d, Some(data.poses.view()), &params, &Silent)?;
                 let g = report.agreement.as_ref().expect("poses were given");
                 agreement.push(serde_json::json!({
                     "metric": metric.name(),

@@ -29,6 +29,7 @@ fn main() {
         let v = &p.row(i) - &p.row(j);
         v.dot(&v).sqrt()
     });
+    let d = smspace::metric::DistanceMatrix::new(d).expect("Euclidean distances");
     let methods: Vec<Box<dyn Embedding>> = vec![
         Box::new(MdsParams::default().check().unwrap()),
         Box::new(CcaParams::default().epochs(50).check().unwrap()),
@@ -55,7 +56,7 @@ fn main() {
         let mut last = None;
         for _ in 0..repeats {
             let t = Instant::now();
-            let e = m.fit(d.view(), &Silent).unwrap();
+            let e = m.fit(&d, &Silent).unwrap();
             best = best.min(t.elapsed().as_secs_f64());
             last = Some(e);
         }

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use ndarray::{Array2, ArrayView2, Axis};
-use smspace::agent::{Agent, AgentConfig, Environment, MotorTopology};
+use smspace::agent::{Agent, AgentConfig, Environment};
 use smspace::analysis::{analyze, AnalysisParams, AnalysisReport};
 use smspace::embed::quality::{shepard_pairs, stress, trustworthiness_continuity};
 use smspace::embed::{CcaParams, Embedded, Embedding};
@@ -42,7 +42,7 @@ fn main() -> DemoResult<()> {
         environments: &run.environments,
         workspace: run.exploration.workspace,
         motors: run.exploration.motors.view(),
-        poses: run.exploration.poses.view(),
+        poses: run.exploration.planar_poses(),
         probes: run.exploration.probes.view(),
         sets: run.traced.sets.view(),
         kept: &run.traced.kept,
@@ -138,7 +138,9 @@ impl Run {
                 )
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let arm = agent.configuration_dim() >= 2;
+        let arm = agent
+            .ground_truth()
+            .is_some_and(|o| o.configuration_dim() >= 2);
         let exploration = explore(
             agent.as_ref(),
             &ExploreParams {
@@ -163,9 +165,10 @@ impl Run {
             &Silent,
         )?;
         laps.lap("trace");
-        let period = match agent.motor_topology() {
-            MotorTopology::Periodic => Period::TwoPi,
-            MotorTopology::Bounded { .. } => Period::None,
+        let period = if agent.motor_space().is_hinges() {
+            Period::TwoPi
+        } else {
+            Period::None
         };
         let metric = DistanceParams::new().period(period);
         let distances = distance_matrix(traced.sets.view(), &metric, &Silent)?;
@@ -174,14 +177,17 @@ impl Run {
             .dim(if arm { 3 } else { 1 })
             .seed(1)
             .check()?
-            .fit(distances.view(), &Silent)?;
+            .fit(&distances, &Silent)?;
         let y = embedded.coordinates.view();
         let quality = embedding_quality(distances.view(), y)?;
         let dydx = shepard_pairs(distances.view(), y, 20_000, 1)?;
         laps.lap("embed");
-        let set_poses = exploration.poses.select(Axis(0), &traced.kept);
+        let set_poses = exploration
+            .planar_poses()
+            .expect("the built-in agents have planar poses")
+            .select(Axis(0), &traced.kept);
         let analysis = analyze(
-            distances.view(),
+            &distances,
             Some(set_poses.view()),
             &AnalysisParams::default().check()?,
             &Silent,
@@ -249,7 +255,7 @@ fn invariance_data(
         environments,
         exploration.workspace.as_ref(),
         &sensory,
-        smspace::metric::MetricKind::Hausdorff,
+        smspace::invariance::agent_metric(smspace::metric::MetricKind::Hausdorff, agent).as_ref(),
         &Silent,
     )?;
     let per_env = environments
@@ -278,11 +284,9 @@ fn invariance_data(
             .iter()
             .map(|r| t.kept.binary_search(r).unwrap_or(0))
             .collect();
-        set_distances.push(distance_matrix(
-            t.sets.select(Axis(0), &at).view(),
-            metric,
-            &Silent,
-        )?);
+        set_distances.push(
+            distance_matrix(t.sets.select(Axis(0), &at).view(), metric, &Silent)?.into_array(),
+        );
         let mut s = Array2::zeros((common.len(), agent.sensor_dim()));
         for (k, &r) in common.iter().enumerate() {
             let m = starts.row(r).to_vec();
@@ -305,7 +309,7 @@ fn sensory_manifolds(agent: &dyn Agent, environments: &[Environment]) -> Vec<Sen
     if agent.motor_dim() != 1 {
         return Vec::new();
     }
-    let (lo, hi) = agent.motor_topology().range();
+    let (lo, hi) = agent.motor_space().motor(0).range();
     let t = 400;
     let motors = Array2::from_shape_fn((t, 1), |(i, _)| lo + (hi - lo) * i as f64 / (t - 1) as f64);
     environments

@@ -49,7 +49,7 @@ fn main() -> Result<(), smspace::Error> {
     let max_dev = r
         .sets
         .iter()
-        .map(|s| s.max_pose_deviation)
+        .filter_map(|s| s.max_pose_deviation)
         .fold(0.0, f64::max);
     let lengths: Vec<f64> = r
         .sets

@@ -44,6 +44,21 @@ pub enum Error {
     Report(#[from] crate::report::ReportError),
 }
 
+impl Error {
+    /// The parameter this error is about, when it is an [`InvalidParameter`] (wrapped
+    /// in its module's error): what the configuration reader uses to point at the
+    /// parameter's line.
+    pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
+        match self {
+            Error::Agent(e) => e.invalid_parameter(),
+            Error::Explore(e) => e.invalid_parameter(),
+            Error::Kernel(e) => e.invalid_parameter(),
+            Error::Metric(MetricError::Invalid(p)) => Some(p),
+            _ => None,
+        }
+    }
+}
+
 /// A parameter out of its domain, located by its table and key as in an experiment
 /// file, so that the configuration reader can point at the line without searching the
 /// message.

@@ -1,43 +1,44 @@
 //! Exploration: motor babbling in a working space, and the probe grid of paper Fig. 5d.
 //!
-//! **Babbling** (paper section 3.2, step 1): motor configurations are drawn uniformly in
-//! the motor range (`[-π, π)^N` for hinges) from a ChaCha8 stream seeded with `seed`, and
-//! kept only where the observer sees the sensor inside the working space, a rectangle
-//! `|x − c_x| ≤ w_x/2, |y − c_y| ≤ w_y/2` (the paper's: centre `(1.75, 0)`, 1.5 deep
-//! along `x` and 2 wide along `y`). Draws continue until `n` are kept.
+//! **Babbling** (paper section 3.2, step 1): motor configurations are drawn uniformly,
+//! each coordinate from its own range of the agent's [`MotorSpace`] (`[-π, π)` for a
+//! hinge, `[low, high)` for a bounded motor), from a ChaCha8 stream seeded with `seed`,
+//! and kept only where the observer sees the sensor inside the working space, a
+//! rectangle `|x − c_x| ≤ w_x/2, |y − c_y| ≤ w_y/2` of the first two pose coordinates
+//! (the paper's: centre `(1.75, 0)`, 1.5 deep along `x` and 2 wide along `y`). Draws
+//! continue until `n` are kept. An agent without a ground truth babbles over its whole
+//! motor space (no working space) and its exploration has no poses.
 //!
 //! **Probes** (paper section 3.3, Fig. 5d): a grid of `positions × positions` points at
 //! the centres of the cells of the working space, times `orientations` orientations
 //! `alpha = 2πk/orientations` (0° to 324° by 36° for 10), each turned into a motor
-//! configuration by the agent's inverse kinematics. Probes are appended after the
-//! babbled configurations and marked in [`Exploration::probes`].
+//! configuration by the observer's inverse kinematics (so the grid needs the planar
+//! pose `(x, y, alpha)`). Probes are appended after the babbled configurations and
+//! marked in [`Exploration::probes`].
+//!
+//! [`MotorSpace`]: crate::agent::MotorSpace
 
-use ndarray::{Array2, Axis};
+use ndarray::Array2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 pub use crate::agent::Workspace;
-use crate::agent::{Agent, AgentConfig, Pose};
+use crate::agent::{Agent, AgentConfig, AgentError, GroundTruth, Observer, Pose};
+use crate::error::{CheckParams, InvalidParameter};
 use crate::io::{self, IoError};
 
 /// Errors of exploration.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ExploreError {
-    /// A parameter is out of its domain.
-    #[error("invalid exploration parameter {name} = {value}: {reason}")]
-    InvalidParameter {
-        /// The parameter, as in the configuration file.
-        name: &'static str,
-        /// The value given.
-        value: String,
-        /// What a valid value looks like.
-        reason: &'static str,
-    },
     /// A parameter is out of its domain (located by table and key).
     #[error(transparent)]
-    Parameter(#[from] crate::error::InvalidParameter),
+    Parameter(#[from] InvalidParameter),
+    /// The agent answered something impossible (an inverse kinematics of the wrong
+    /// length).
+    #[error(transparent)]
+    Agent(#[from] AgentError),
     /// Too few random configurations landed in the working space.
     #[error("only {kept} of {wanted} configurations landed in the working space after {draws} draws; is the working space (centre {center:?}, size {size:?}) reachable by the agent?")]
     WorkspaceUnreachable {
@@ -62,9 +63,26 @@ pub enum ExploreError {
         /// Probe orientation, radians.
         alpha: f64,
     },
-    /// The probe grid needs a working space.
-    #[error("the probe grid needs a working space; set workspace_center and workspace_size")]
-    ProbesWithoutWorkspace,
+}
+
+impl ExploreError {
+    /// The parameter this error is about, when it is one of the `[exploration]` table
+    /// (or of the agent).
+    pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
+        match self {
+            ExploreError::Parameter(p) => Some(p),
+            ExploreError::Agent(e) => e.invalid_parameter(),
+            _ => None,
+        }
+    }
+}
+
+fn invalid(
+    key: &'static str,
+    value: impl std::fmt::Display,
+    reason: impl Into<String>,
+) -> ExploreError {
+    InvalidParameter::new("exploration", key, value, reason).into()
 }
 
 /// Whether to add the probe grid.
@@ -117,31 +135,19 @@ impl Default for ExploreParams {
 }
 
 impl ExploreParams {
-    /// The working space these parameters name, or the agent's default (the paper's for
-    /// the arm, none for the toys).
+    /// The working space these parameters name, or the agent's default (the paper's
+    /// scaled to the arm, none for the toys), checked against the agent's ground truth.
     pub fn workspace(&self, agent: &dyn Agent) -> Result<Option<Workspace>, ExploreError> {
-        let workspace = match (self.workspace_center, self.workspace_size) {
-            (Some(center), Some(size)) => Some(Workspace { center, size }),
-            (None, None) => default_workspace(agent),
-            (Some(_), None) | (None, Some(_)) => {
-                return Err(ExploreError::InvalidParameter {
-                    name: "workspace_center/workspace_size",
-                    value: "only one of them".into(),
-                    reason: "give both or neither",
-                })
-            }
-        };
-        if let Some(w) = &workspace {
-            w.check()?;
-        }
-        Ok(workspace)
+        self.check_params()?.workspace(agent)
     }
 
-    /// Validates the parameters for `agent` before anything runs, and returns the
+    /// Validates the parameters for `agent` before anything runs (the probe grid's
+    /// need of a working space and of the planar pose included), and returns the
     /// working space they name (see [`workspace`](Self::workspace)).
     pub fn check(&self, agent: &dyn Agent) -> Result<Option<Workspace>, ExploreError> {
-        let workspace = self.workspace(agent)?;
-        self.check_counts(workspace.as_ref())?;
+        let valid = self.check_params()?;
+        let workspace = valid.workspace(agent)?;
+        valid.check_for(agent, workspace.as_ref())?;
         Ok(workspace)
     }
 
@@ -156,68 +162,173 @@ impl ExploreParams {
         (self.n as u64).saturating_add(probes)
     }
 
-    /// Bytes of the exploration's arrays for an agent with `motor_dim` motors: motors
-    /// `(rows, N)`, poses `(rows, 3)` and probe labels `(rows, 3)` (saturating).
-    pub fn bytes(&self, motor_dim: usize) -> u64 {
+    /// Bytes of the exploration's arrays for an agent with `motor_dim` motors and
+    /// poses of `pose_dim` coordinates (0 without a ground truth): motors `(rows, N)`,
+    /// poses `(rows, d)` and probe labels `(rows, 3)` (saturating).
+    pub fn bytes(&self, motor_dim: usize, pose_dim: usize) -> u64 {
         self.rows()
-            .saturating_mul(motor_dim as u64 + 6)
+            .saturating_mul((motor_dim as u64).saturating_add(pose_dim as u64 + 3))
             .saturating_mul(8)
     }
+}
 
-    /// The checks that do not depend on the agent: counts, and the probe grid's need of
-    /// a working space.
-    fn check_counts(&self, workspace: Option<&Workspace>) -> Result<(), ExploreError> {
-        if let Some(w) = workspace {
+/// Checked [`ExploreParams`]: counts within their limits and an explicit working space
+/// (if any) valid. What depends on the agent (its default working space, its ground
+/// truth) is checked by [`ExploreValidParams::workspace`] and
+/// [`ExploreValidParams::check_for`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExploreValidParams {
+    n: usize,
+    seed: u64,
+    workspace: Option<Workspace>,
+    probes: Probes,
+    probe_positions: usize,
+    probe_orientations: usize,
+    max_draws_per_kept: u64,
+}
+
+impl CheckParams for ExploreParams {
+    type Valid = ExploreValidParams;
+    type Error = ExploreError;
+
+    fn check_params(&self) -> Result<ExploreValidParams, ExploreError> {
+        let workspace = match (self.workspace_center, self.workspace_size) {
+            (Some(center), Some(size)) => Some(Workspace { center, size }),
+            (None, None) => None,
+            (Some(center), None) => {
+                return Err(invalid(
+                    "workspace_center",
+                    format!("{center:?}"),
+                    "given without workspace_size: give both or neither",
+                ))
+            }
+            (None, Some(size)) => {
+                return Err(invalid(
+                    "workspace_size",
+                    format!("{size:?}"),
+                    "given without workspace_center: give both or neither",
+                ))
+            }
+        };
+        if let Some(w) = &workspace {
             w.check()?;
         }
         if self.n == 0 && self.probes == Probes::None {
-            return Err(ExploreError::InvalidParameter {
-                name: "n",
-                value: "0".into(),
-                reason: "explore at least one configuration (or ask for probes)",
-            });
+            return Err(invalid(
+                "n",
+                0,
+                "explore at least one configuration (or ask for probes)",
+            ));
         }
         if self.n > MAX_CONFIGURATIONS {
-            return Err(ExploreError::InvalidParameter {
-                name: "n",
-                value: self.n.to_string(),
-                reason: "must be at most 100000000 configurations (the paper explores 2500)",
-            });
+            return Err(invalid(
+                "n",
+                self.n,
+                "must be at most 100000000 configurations (the paper explores 2500)",
+            ));
         }
         if self.max_draws_per_kept == 0 {
-            return Err(ExploreError::InvalidParameter {
-                name: "max_draws_per_kept",
-                value: "0".into(),
-                reason: "must be at least 1",
-            });
+            return Err(invalid("max_draws_per_kept", 0, "must be at least 1"));
         }
         if self.probes == Probes::Grid {
-            if workspace.is_none() {
-                return Err(ExploreError::ProbesWithoutWorkspace);
+            self.check_grid()?;
+        }
+        Ok(ExploreValidParams {
+            n: self.n,
+            seed: self.seed,
+            workspace,
+            probes: self.probes,
+            probe_positions: self.probe_positions,
+            probe_orientations: self.probe_orientations,
+            max_draws_per_kept: self.max_draws_per_kept,
+        })
+    }
+}
+
+impl ExploreParams {
+    /// The probe grid's counts: at least one of each, within the configuration limit.
+    fn check_grid(&self) -> Result<(), ExploreError> {
+        for (key, value) in [
+            ("probe_positions", self.probe_positions),
+            ("probe_orientations", self.probe_orientations),
+        ] {
+            if value == 0 {
+                return Err(invalid(key, 0, "must be at least 1"));
             }
-            for (name, value) in [
-                ("probe_positions", self.probe_positions),
-                ("probe_orientations", self.probe_orientations),
-            ] {
-                if value == 0 {
-                    return Err(ExploreError::InvalidParameter {
-                        name,
-                        value: "0".into(),
-                        reason: "must be at least 1",
-                    });
-                }
-            }
-            // `rows` saturates, so an overflowing grid is refused too.
-            if self.rows() > MAX_CONFIGURATIONS as u64 {
-                return Err(ExploreError::InvalidParameter {
-                    name: "probe_positions",
-                    value: format!(
-                        "{} × {} positions × {} orientations",
-                        self.probe_positions, self.probe_positions, self.probe_orientations
+        }
+        // `rows` saturates, so an overflowing grid is refused too.
+        if self.rows() > MAX_CONFIGURATIONS as u64 {
+            return Err(invalid(
+                "probe_positions",
+                format!(
+                    "{} × {} positions × {} orientations",
+                    self.probe_positions, self.probe_positions, self.probe_orientations
+                ),
+                "the probe grid and n together must be at most 100000000 configurations (the paper's grid is 10 × 10 × 10)",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl ExploreValidParams {
+    /// The working space: the one the parameters name, else the agent's default. A
+    /// working space bounds the sensor's position, so it needs the agent's ground
+    /// truth with a position first.
+    pub fn workspace(&self, agent: &dyn Agent) -> Result<Option<Workspace>, ExploreError> {
+        let workspace = self.workspace.or_else(|| default_workspace(agent));
+        if let Some(w) = &workspace {
+            w.check()?;
+            let fits = agent
+                .ground_truth()
+                .is_some_and(|o| Workspace::fits(&o.pose_space()));
+            if !fits {
+                return Err(invalid(
+                    "workspace_center",
+                    format!("{:?}", w.center),
+                    format!(
+                        "a working space bounds the sensor's position (the first two coordinates of the observer's pose), and the {} agent has {}; remove workspace_center and workspace_size",
+                        agent.name(),
+                        match agent.ground_truth() {
+                            None => "no ground truth".to_owned(),
+                            Some(_) => "no position first in its pose".to_owned(),
+                        }
                     ),
-                    reason: "the probe grid and n together must be at most 100000000 configurations (the paper's grid is 10 × 10 × 10)",
-                });
+                ));
             }
+        }
+        Ok(workspace)
+    }
+
+    /// The checks that need the agent and the working space: the probe grid needs a
+    /// working space and the planar pose `(x, y, alpha)`.
+    pub fn check_for(
+        &self,
+        agent: &dyn Agent,
+        workspace: Option<&Workspace>,
+    ) -> Result<(), ExploreError> {
+        if self.probes != Probes::Grid {
+            return Ok(());
+        }
+        if workspace.is_none() {
+            return Err(invalid(
+                "probes",
+                "\"grid\"",
+                "the probe grid needs a working space; set workspace_center and workspace_size",
+            ));
+        }
+        if !agent
+            .ground_truth()
+            .is_some_and(|o| o.pose_space().is_planar())
+        {
+            return Err(invalid(
+                "probes",
+                "\"grid\"",
+                format!(
+                    "the probe grid places the sensor at positions × orientations (x, y, alpha), and the {} agent has no planar ground truth; remove probes",
+                    agent.name()
+                ),
+            ));
         }
         Ok(())
     }
@@ -237,8 +348,8 @@ pub fn default_workspace(agent: &dyn Agent) -> Option<Workspace> {
 pub struct Exploration {
     /// Motor configurations `(M, N)`: the babbled ones, then the probes.
     pub motors: Array2<f64>,
-    /// The observer's poses `(M, 3)` as `(x, y, alpha)`.
-    pub poses: Array2<f64>,
+    /// The observer's poses `(M, d)` of every row, when the agent has a ground truth.
+    pub ground_truth: Option<GroundTruth>,
     /// `(M, 3)` int64: for probe rows `(orientation index, x index, y index)`, for babbled
     /// rows `(-1, -1, -1)`.
     pub probes: Array2<i64>,
@@ -246,7 +357,8 @@ pub struct Exploration {
     pub workspace: Option<Workspace>,
 }
 
-/// The files [`Exploration::save`] writes, in a folder.
+/// The files [`Exploration::save`] writes, in a folder (`poses.npy` only when the agent
+/// has a ground truth).
 pub const EXPLORATION_FILES: [&str; 4] =
     ["motors.npy", "poses.npy", "probes.npy", "exploration.json"];
 
@@ -256,19 +368,51 @@ impl Exploration {
         self.probes.column(0).iter().filter(|&&o| o >= 0).count()
     }
 
-    /// Writes [`EXPLORATION_FILES`] into `dir`: the three arrays, and
-    /// `exploration.json` with the agent, the parameters and the row counts.
+    /// The poses as `(M, 3)` `(x, y, alpha)` when the agent's ground truth is the
+    /// planar pose; `None` otherwise (no ground truth, or poses of another layout). What
+    /// the figures of planar poses draw.
+    pub fn planar_poses(&self) -> Option<ndarray::ArrayView2<'_, f64>> {
+        self.ground_truth.as_ref().and_then(GroundTruth::planar)
+    }
+
+    /// The files [`save`](Self::save) writes: [`EXPLORATION_FILES`], without
+    /// `poses.npy` when there is no ground truth.
+    pub fn files(&self) -> Vec<&'static str> {
+        EXPLORATION_FILES
+            .into_iter()
+            .filter(|&f| f != "poses.npy" || self.ground_truth.is_some())
+            .collect()
+    }
+
+    /// Writes [`files`](Self::files) into `dir`: the arrays, and `exploration.json` with
+    /// the agent, the parameters and the row counts.
     pub fn save(
         &self,
         dir: &std::path::Path,
         agent: &AgentConfig,
         params: &ExploreParams,
     ) -> Result<(), IoError> {
-        let [motors, poses, probes, summary] = EXPLORATION_FILES.map(|f| dir.join(f));
-        // All four or none (see `io::Outputs`).
+        // All or none (see `io::Outputs`).
         let mut outputs = io::Outputs::new();
+        self.write_into(&mut outputs, dir, agent, params)?;
+        outputs.commit()?;
+        Ok(())
+    }
+
+    /// Stages the files of [`save`](Self::save) into `outputs`, to be renamed into place
+    /// with the other files of a command or stage.
+    pub fn write_into(
+        &self,
+        outputs: &mut io::Outputs,
+        dir: &std::path::Path,
+        agent: &AgentConfig,
+        params: &ExploreParams,
+    ) -> Result<(), IoError> {
+        let [motors, poses, probes, summary] = EXPLORATION_FILES.map(|f| dir.join(f));
         outputs.npy(&motors, &self.motors)?;
-        outputs.npy(&poses, &self.poses)?;
+        if let Some(truth) = &self.ground_truth {
+            outputs.npy(&poses, truth.poses())?;
+        }
         outputs.npy(&probes, &self.probes)?;
         let probe_rows = self.probe_count();
         outputs.json(
@@ -281,35 +425,50 @@ impl Exploration {
                 "babbled": self.motors.nrows() - probe_rows,
                 "probes": probe_rows,
             }),
-        )?;
-        outputs.commit()?;
-        Ok(())
+        )
     }
 
-    /// Reads the arrays [`save`](Self::save) wrote for an agent with `motor_dim`
-    /// motors, explored in `workspace`.
+    /// Reads the arrays [`save`](Self::save) wrote for `agent` (its motors, and its
+    /// poses when it has a ground truth), explored in `workspace`.
     pub fn load(
         dir: &std::path::Path,
-        motor_dim: usize,
+        agent: &dyn Agent,
         workspace: Option<Workspace>,
     ) -> Result<Self, IoError> {
         let [motors, poses, probes, _] = EXPLORATION_FILES.map(|f| dir.join(f));
-        let motors = io::read_matrix(&motors, Some(motor_dim), &format!("(M, {motor_dim})"))?;
-        let poses = io::read_matrix(&poses, Some(3), "(M, 3)")?;
+        let n = agent.motor_dim();
+        let motors = io::read_matrix(&motors, Some(n), &format!("(M, {n})"))?;
+        let rows = motors.nrows();
+        let ground_truth = match agent.ground_truth() {
+            Some(observer) => {
+                let space = observer.pose_space();
+                let d = space.dim();
+                let values = io::read_matrix(&poses, Some(d), &format!("(M, {d})"))?;
+                if values.nrows() != rows {
+                    return Err(IoError::Shape {
+                        path: poses,
+                        found: io::shape_string(values.shape()),
+                        expected: format!("({rows}, {d}), one pose per row of motors.npy"),
+                    });
+                }
+                Some(GroundTruth::new(space, values).expect("the columns were checked"))
+            }
+            None => None,
+        };
         let labels = io::read_i64(&probes)?;
         let shape = labels.shape().to_vec();
         let probes = labels
             .into_dimensionality()
             .ok()
-            .filter(|p: &Array2<i64>| p.dim() == (motors.nrows(), 3))
+            .filter(|p: &Array2<i64>| p.dim() == (rows, 3))
             .ok_or_else(|| IoError::Shape {
                 path: probes.clone(),
                 found: io::shape_string(&shape),
-                expected: format!("({}, 3)", motors.nrows()),
+                expected: format!("({rows}, 3)"),
             })?;
         Ok(Self {
             motors,
-            poses,
+            ground_truth,
             probes,
             workspace,
         })
@@ -326,34 +485,90 @@ impl Exploration {
 /// let params = ExploreParams { n: 20, ..ExploreParams::default() };
 /// let found = explore(agent.as_ref(), &params).unwrap();
 /// assert_eq!(found.motors.dim(), (20, 4));
-/// assert!(found.poses.column(0).iter().all(|&x| (1.0..=2.5).contains(&x)));
+/// let poses = found.planar_poses().unwrap();
+/// assert!(poses.column(0).iter().all(|&x| (1.0..=2.5).contains(&x)));
 /// ```
 pub fn explore(agent: &dyn Agent, params: &ExploreParams) -> Result<Exploration, ExploreError> {
     let workspace = params.workspace(agent)?;
     explore_in(agent, params, workspace)
 }
 
-/// Like [`explore`], in the given working space (`None`: the whole motor range),
+/// Like [`explore`], in the given working space (`None`: the whole motor space),
 /// ignoring the parameters' `workspace_center` and `workspace_size`.
 pub fn explore_in(
     agent: &dyn Agent,
     params: &ExploreParams,
     workspace: Option<Workspace>,
 ) -> Result<Exploration, ExploreError> {
-    params.check_counts(workspace.as_ref())?;
-    let n_motors = agent.motor_dim();
-    let (low, high) = agent.motor_topology().range();
+    let valid = params.check_params()?;
+    if let Some(w) = &workspace {
+        // An explicit working space of the caller's, checked like the parameters'.
+        let explicit = ExploreValidParams {
+            workspace: Some(*w),
+            ..valid.clone()
+        };
+        explicit.workspace(agent)?;
+    }
+    valid.check_for(agent, workspace.as_ref())?;
+    let observer = agent.ground_truth();
+    let pose_dim = observer.map_or(0, |o| o.pose_space().dim());
+    let mut rows = babble(agent, observer, &valid, workspace.as_ref(), pose_dim)?;
+    let mut probes = vec![-1_i64; valid.n * 3];
+    if let (Probes::Grid, Some(observer), Some(w)) = (valid.probes, observer, &workspace) {
+        probe_grid(agent, observer, &valid, w, &mut rows, &mut probes)?;
+    }
+    let count = probes.len() / 3;
+    let to_array = |v: Vec<f64>, cols: usize| {
+        Array2::from_shape_vec((count, cols), v).expect("rows × cols values were pushed")
+    };
+    let ground_truth = observer.map(|o| {
+        GroundTruth::new(o.pose_space(), to_array(rows.poses, pose_dim))
+            .expect("d values per row were pushed")
+    });
+    Ok(Exploration {
+        motors: to_array(rows.motors, agent.motor_dim()),
+        ground_truth,
+        probes: Array2::from_shape_vec((count, 3), probes).expect("three indices per row"),
+        workspace,
+    })
+}
+
+/// Motor rows and their poses, row-major, as they are explored.
+struct Rows {
+    motors: Vec<f64>,
+    poses: Vec<f64>,
+}
+
+/// The babbled rows: each coordinate drawn from its own range until `n` rows whose
+/// pose lies in the working space are kept.
+fn babble(
+    agent: &dyn Agent,
+    observer: Option<&dyn Observer>,
+    params: &ExploreValidParams,
+    workspace: Option<&Workspace>,
+    pose_dim: usize,
+) -> Result<Rows, ExploreError> {
+    let ranges: Vec<(f64, f64)> = agent
+        .motor_space()
+        .motors()
+        .iter()
+        .map(|m| m.range())
+        .collect();
+    let n_motors = ranges.len();
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
-    let mut motors: Vec<f64> = Vec::with_capacity(params.n * n_motors);
-    let mut poses: Vec<f64> = Vec::with_capacity(params.n * 3);
+    let mut rows = Rows {
+        motors: Vec::with_capacity(params.n * n_motors),
+        poses: Vec::with_capacity(params.n * pose_dim),
+    };
     let budget = params.max_draws_per_kept.saturating_mul(params.n as u64);
-    let mut draws = 0_u64;
+    let (mut draws, mut kept) = (0_u64, 0);
     let mut m = vec![0.0; n_motors];
-    while poses.len() < params.n * 3 {
+    let mut pose = vec![0.0; pose_dim];
+    while kept < params.n {
         if draws >= budget {
-            let w = workspace.unwrap_or(Workspace::PAPER);
+            let w = workspace.copied().unwrap_or(Workspace::PAPER);
             return Err(ExploreError::WorkspaceUnreachable {
-                kept: poses.len() / 3,
+                kept,
                 wanted: params.n,
                 draws,
                 center: w.center,
@@ -361,60 +576,54 @@ pub fn explore_in(
             });
         }
         draws += 1;
-        for v in m.iter_mut() {
+        for (v, &(low, high)) in m.iter_mut().zip(&ranges) {
             *v = rng.gen_range(low..high);
         }
-        let pose = agent.pose(&m);
-        if workspace.is_none_or(|w| w.contains(pose)) {
-            motors.extend_from_slice(&m);
-            poses.extend_from_slice(&pose.to_array());
+        if let Some(observer) = observer {
+            observer.pose(&m, &mut pose);
+        }
+        if workspace.is_none_or(|w| w.contains(&pose)) {
+            rows.motors.extend_from_slice(&m);
+            rows.poses.extend_from_slice(&pose);
+            kept += 1;
         }
     }
-    let mut probes = vec![-1_i64; params.n * 3];
-    if params.probes == Probes::Grid {
-        let w = workspace.ok_or(ExploreError::ProbesWithoutWorkspace)?;
-        let k = params.probe_positions;
-        for o in 0..params.probe_orientations {
-            let alpha = crate::agent::wrap_angle(
-                2.0 * std::f64::consts::PI * o as f64 / params.probe_orientations as f64,
-            );
-            for ix in 0..k {
-                for iy in 0..k {
-                    let x =
-                        w.center[0] - w.size[0] / 2.0 + w.size[0] * (ix as f64 + 0.5) / k as f64;
-                    let y =
-                        w.center[1] - w.size[1] / 2.0 + w.size[1] * (iy as f64 + 0.5) / k as f64;
-                    let target = Pose { x, y, alpha };
-                    let q = agent
-                        .inverse_kinematics(target)
-                        .ok_or(ExploreError::ProbeUnreachable { x, y, alpha })?;
-                    motors.extend_from_slice(&q);
-                    poses.extend_from_slice(&agent.pose(&q).to_array());
-                    probes.extend_from_slice(&[o as i64, ix as i64, iy as i64]);
-                }
+    Ok(rows)
+}
+
+/// Appends the probe grid (paper Fig. 5d): every cell centre of the working space at
+/// every orientation, put in place by the observer's inverse kinematics.
+fn probe_grid(
+    agent: &dyn Agent,
+    observer: &dyn Observer,
+    params: &ExploreValidParams,
+    w: &Workspace,
+    rows: &mut Rows,
+    probes: &mut Vec<i64>,
+) -> Result<(), ExploreError> {
+    let k = params.probe_positions;
+    let mut pose = vec![0.0; observer.pose_space().dim()];
+    for o in 0..params.probe_orientations {
+        let alpha = crate::agent::wrap_angle(
+            2.0 * std::f64::consts::PI * o as f64 / params.probe_orientations as f64,
+        );
+        for ix in 0..k {
+            for iy in 0..k {
+                let x = w.center[0] - w.size[0] / 2.0 + w.size[0] * (ix as f64 + 0.5) / k as f64;
+                let y = w.center[1] - w.size[1] / 2.0 + w.size[1] * (iy as f64 + 0.5) / k as f64;
+                let target = Pose { x, y, alpha };
+                let q = observer
+                    .inverse_kinematics(&target.to_array())
+                    .ok_or(ExploreError::ProbeUnreachable { x, y, alpha })?;
+                crate::agent::check_motor_count(agent, q.len())?;
+                observer.pose(&q, &mut pose);
+                rows.motors.extend_from_slice(&q);
+                rows.poses.extend_from_slice(&pose);
+                probes.extend_from_slice(&[o as i64, ix as i64, iy as i64]);
             }
         }
     }
-    let rows = poses.len() / 3;
-    let to_array = |v: Vec<f64>, cols: usize| {
-        Array2::from_shape_vec((rows, cols), v).expect("rows × cols values were pushed")
-    };
-    Ok(Exploration {
-        motors: to_array(motors, n_motors),
-        poses: to_array(poses, 3),
-        probes: Array2::from_shape_vec((rows, 3), probes).expect("three indices per row"),
-        workspace,
-    })
-}
-
-/// The observer's poses `(M, 3)` of motor configurations `(M, N)`.
-pub fn poses_of(agent: &dyn Agent, motors: &Array2<f64>) -> Array2<f64> {
-    let mut poses = Array2::zeros((motors.nrows(), 3));
-    for (row, mut out) in motors.axis_iter(Axis(0)).zip(poses.axis_iter_mut(Axis(0))) {
-        let p = agent.pose(row.as_slice().expect("C-order rows")).to_array();
-        out.assign(&ndarray::aview1(&p));
-    }
-    poses
+    Ok(())
 }
 
 #[cfg(test)]
@@ -435,7 +644,7 @@ mod tests {
         let a = explore(arm().as_ref(), &params).unwrap();
         let b = explore(arm().as_ref(), &params).unwrap();
         assert_eq!(a.motors, b.motors);
-        for p in a.poses.rows() {
+        for p in a.planar_poses().unwrap().rows() {
             assert!((1.0..=2.5).contains(&p[0]) && (-1.0..=1.0).contains(&p[1]));
         }
         assert!(a
@@ -457,9 +666,10 @@ mod tests {
         // Probe (orientation 3, ix 0, iy 9): alpha = 108°, x = 1.075, y = 0.9.
         let row = 5 + 3 * 100 + 9;
         assert_eq!(e.probes.row(row).to_vec(), vec![3, 0, 9]);
-        approx::assert_abs_diff_eq!(e.poses[[row, 0]], 1.075, epsilon = 1e-9);
-        approx::assert_abs_diff_eq!(e.poses[[row, 1]], 0.9, epsilon = 1e-9);
-        approx::assert_abs_diff_eq!(e.poses[[row, 2]], 108f64.to_radians(), epsilon = 1e-9);
+        let poses = e.planar_poses().unwrap();
+        approx::assert_abs_diff_eq!(poses[[row, 0]], 1.075, epsilon = 1e-9);
+        approx::assert_abs_diff_eq!(poses[[row, 1]], 0.9, epsilon = 1e-9);
+        approx::assert_abs_diff_eq!(poses[[row, 2]], 108f64.to_radians(), epsilon = 1e-9);
     }
 
     #[test]
@@ -473,5 +683,108 @@ mod tests {
         };
         let err = explore(arm().as_ref(), &params).unwrap_err();
         assert!(err.to_string().contains("only 0 of 10"), "{err}");
+    }
+
+    /// A hinge and a slider in `[0, 0.5]`, with no ground truth.
+    #[derive(Debug)]
+    struct Slider;
+
+    impl Agent for Slider {
+        fn motor_dim(&self) -> usize {
+            2
+        }
+        fn sensor_dim(&self) -> usize {
+            1
+        }
+        fn sense(&self, _: &crate::agent::Environment, m: &[f64], s: &mut [f64]) {
+            s[0] = m[0].cos() + m[1];
+        }
+        fn name(&self) -> &str {
+            "slider"
+        }
+        fn motor_space(&self) -> crate::agent::MotorSpace {
+            use crate::agent::Motor;
+            crate::agent::MotorSpace::new(vec![
+                Motor::HINGE,
+                Motor::Bounded {
+                    low: 0.0,
+                    high: 0.5,
+                },
+            ])
+            .unwrap()
+        }
+    }
+
+    #[test]
+    fn each_motor_is_drawn_from_its_own_range_without_a_ground_truth() {
+        let params = ExploreParams {
+            n: 2000,
+            ..ExploreParams::default()
+        };
+        let e = explore(&Slider, &params).unwrap();
+        assert!(e.ground_truth.is_none() && e.planar_poses().is_none());
+        let pi = std::f64::consts::PI;
+        let hinge = e.motors.column(0);
+        let slider = e.motors.column(1);
+        assert!(hinge.iter().all(|v| (-pi..pi).contains(v)));
+        assert!(hinge.iter().any(|&v| v < -3.0) && hinge.iter().any(|&v| v > 3.0));
+        assert!(slider.iter().all(|v| (0.0..0.5).contains(v)));
+        assert!(slider.iter().any(|&v| v < 0.01) && slider.iter().any(|&v| v > 0.49));
+        // Written and read back without poses.npy.
+        let dir = tempfile::tempdir().unwrap();
+        let agent = AgentConfig {
+            kind: "slider".into(),
+            params: toml::Table::new(),
+        };
+        e.save(dir.path(), &agent, &params).unwrap();
+        assert_eq!(
+            e.files(),
+            vec!["motors.npy", "probes.npy", "exploration.json"]
+        );
+        assert!(!dir.path().join("poses.npy").exists());
+        let back = Exploration::load(dir.path(), &Slider, None).unwrap();
+        assert_eq!(back.motors, e.motors);
+        assert!(back.ground_truth.is_none());
+        // A working space and the probe grid need the observer's pose.
+        let with_workspace = ExploreParams {
+            workspace_center: Some([0.0, 0.0]),
+            workspace_size: Some([1.0, 1.0]),
+            ..params.clone()
+        };
+        let err = explore(&Slider, &with_workspace).unwrap_err();
+        let located = err.invalid_parameter().unwrap();
+        assert_eq!(located.key, "workspace_center");
+        assert!(err.to_string().contains("no ground truth"), "{err}");
+        let grid = ExploreParams {
+            probes: Probes::Grid,
+            ..params
+        };
+        let err = grid.check(&Slider).unwrap_err();
+        assert_eq!(err.invalid_parameter().unwrap().key, "probes");
+    }
+
+    #[test]
+    fn poses_are_written_and_read_back_with_the_ground_truth() {
+        let params = ExploreParams {
+            n: 30,
+            ..ExploreParams::default()
+        };
+        let arm = arm();
+        let e = explore(arm.as_ref(), &params).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        e.save(
+            dir.path(),
+            &AgentConfig::preset("planar-arm").unwrap(),
+            &params,
+        )
+        .unwrap();
+        let back = Exploration::load(dir.path(), arm.as_ref(), e.workspace).unwrap();
+        assert_eq!(back.ground_truth, e.ground_truth);
+        assert_eq!(back.planar_poses().unwrap().dim(), (30, 3));
+        // Poses of the wrong number of rows are refused.
+        let three = e.ground_truth.as_ref().unwrap().select(&[0, 1, 2]);
+        crate::io::write_npy(&dir.path().join("poses.npy"), three.poses()).unwrap();
+        let err = Exploration::load(dir.path(), arm.as_ref(), e.workspace).unwrap_err();
+        assert!(err.to_string().contains("one pose per row"), "{err}");
     }
 }

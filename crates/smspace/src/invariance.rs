@@ -24,14 +24,20 @@
 //! and measures again, once per environment. It uses the statistics of
 //! [`analysis::agreement`](crate::analysis::agreement).
 
+use std::path::{Path, PathBuf};
+
 use ndarray::{Array2, Array3, ArrayView2, Axis};
 use serde::{Deserialize, Serialize};
 
-use crate::agent::{Agent, Environment, MotorTopology};
+use crate::agent::{Agent, Environment};
 use crate::analysis::agreement::{pearson, upper_triangle};
+use crate::error::InvalidParameter;
 use crate::explore::Workspace;
+use crate::io::{self, IoError};
 use crate::kernel::{trace_sets, TraceMethod, TraceValidParams, TracedSets};
-use crate::metric::{distance_matrix, Closure, DistanceParams, MetricKind, Period, SetsView};
+use crate::metric::{
+    distance_matrix_with, Closure, DistanceParams, MetricKind, Period, SetMetric, SetsView,
+};
 use crate::progress::Progress;
 
 /// Errors of the invariance experiment.
@@ -39,15 +45,8 @@ use crate::progress::Progress;
 #[non_exhaustive]
 pub enum InvarianceError {
     /// A parameter is out of its domain.
-    #[error("invalid invariance parameter {name} = {value}: {reason}")]
-    InvalidParameter {
-        /// The parameter.
-        name: &'static str,
-        /// The value given.
-        value: String,
-        /// What a valid value looks like.
-        reason: String,
-    },
+    #[error(transparent)]
+    Invalid(#[from] InvalidParameter),
     /// Too few starts were traced in every environment.
     #[error("invariance is undefined for these starts: {reason}")]
     TooFewCommon {
@@ -60,6 +59,18 @@ pub enum InvarianceError {
     /// Computing set distances failed.
     #[error(transparent)]
     Metric(#[from] crate::metric::MetricError),
+}
+
+impl InvarianceError {
+    /// The parameter out of its domain, located by table and key, if this is one
+    /// (also from the metric).
+    pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
+        match self {
+            InvarianceError::Invalid(p) => Some(p),
+            InvarianceError::Metric(e) => e.invalid_parameter(),
+            _ => None,
+        }
+    }
 }
 
 /// One environment of the comparison.
@@ -130,18 +141,31 @@ fn median(mut values: Vec<f64>) -> f64 {
     values.get(values.len() / 2).copied().unwrap_or(0.0)
 }
 
-/// Traces `motors` in every environment with `params` (which must use the `sensory`
-/// method) and compares the results (see the module docs).
+/// The built-in metric `kind` under the point metric of `agent`'s motors (periodic
+/// hinges: `2π`; otherwise none), as [`invariance`] measures sets with it.
+pub fn agent_metric(kind: MetricKind, agent: &dyn Agent) -> Box<dyn SetMetric> {
+    // Hinges wrap; bounded motors do not. (Mixed motor spaces are refused by the
+    // pipeline's check until per-coordinate periods reach the metric.)
+    let period = if agent.motor_space().is_hinges() {
+        Period::TwoPi
+    } else {
+        Period::None
+    };
+    kind.with_period(period, Closure::Closed)
+}
+
+/// Traces `motors` (any strides) in every environment with `params` (which must use
+/// the `sensory` method) and compares the results (see the module docs).
 ///
-/// `metric` measures the sets (the paper's [`MetricKind::Hausdorff`] or the polyline
-/// [`MetricKind::Curve`]); the point metric's period follows the agent's motors.
+/// `metric` measures the sets: the paper's Hausdorff distance or the polyline one under
+/// the agent's point metric ([`agent_metric`]), or any [`SetMetric`].
 pub fn invariance(
     agent: &dyn Agent,
     motors: ArrayView2<'_, f64>,
     environments: &[Environment],
     workspace: Option<&Workspace>,
     params: &TraceValidParams,
-    metric: MetricKind,
+    metric: &dyn SetMetric,
     progress: &dyn Progress,
 ) -> Result<InvarianceReport, InvarianceError> {
     invariance_measured(
@@ -170,6 +194,83 @@ pub struct InvarianceMeasured {
     pub sensors: Vec<Array2<f64>>,
 }
 
+impl InvarianceMeasured {
+    /// Writes the report to `path` and, next to it, the compared matrices and sensor
+    /// values ([`invariance_files`]), all together.
+    pub fn save(&self, path: &Path) -> Result<Vec<PathBuf>, IoError> {
+        write_invariance(path, &self.report, &self.set_distances, &self.sensors)
+    }
+}
+
+/// The files beside the report `path` (`dir/invariance.json`) that hold, for
+/// environment `e` (from 0), the distance matrix of its sets and its sensor values:
+/// `dir/invariance-D-<e+1>.npy` and `dir/invariance-sensors-<e+1>.npy`.
+pub fn invariance_files(path: &Path, environment: usize) -> [PathBuf; 2] {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let e = environment + 1;
+    [
+        path.with_file_name(format!("{stem}-D-{e}.npy")),
+        path.with_file_name(format!("{stem}-sensors-{e}.npy")),
+    ]
+}
+
+/// Writes an invariance report to `path` and the per-environment matrices and sensor
+/// values beside it ([`invariance_files`]), all or none; returns the paths written.
+/// `smspace invariance` and the pipeline's invariance stage write through here.
+pub fn write_invariance(
+    path: &Path,
+    report: &InvarianceReport,
+    set_distances: &[Array2<f64>],
+    sensors: &[Array2<f64>],
+) -> Result<Vec<PathBuf>, IoError> {
+    let mut outputs = io::Outputs::new();
+    stage_invariance(&mut outputs, path, report, set_distances, sensors)?;
+    outputs.commit()
+}
+
+/// Stages the files of [`write_invariance`] into `outputs`, to be renamed into place
+/// with the other files of a command or stage.
+pub fn stage_invariance(
+    outputs: &mut io::Outputs,
+    path: &Path,
+    report: &InvarianceReport,
+    set_distances: &[Array2<f64>],
+    sensors: &[Array2<f64>],
+) -> Result<(), IoError> {
+    outputs.json(path, report)?;
+    for (e, (d, s)) in set_distances.iter().zip(sensors).enumerate() {
+        let [d_path, s_path] = invariance_files(path, e);
+        outputs.npy(&d_path, d)?;
+        outputs.npy(&s_path, s)?;
+    }
+    Ok(())
+}
+
+/// What [`write_invariance`] writes: the report, and per environment the distance
+/// matrix of its sets and its sensor values.
+pub type InvarianceFiles = (InvarianceReport, Vec<Array2<f64>>, Vec<Array2<f64>>);
+
+/// Reads back what [`write_invariance`] wrote for `environments` environments whose
+/// agent has `sensors` sensors.
+pub fn read_invariance(
+    path: &Path,
+    environments: usize,
+    sensors: usize,
+) -> Result<InvarianceFiles, IoError> {
+    let report = io::read_json(path, "invariance report")?;
+    let mut set_distances = Vec::with_capacity(environments);
+    let mut sensor_values = Vec::with_capacity(environments);
+    for e in 0..environments {
+        let [d_path, s_path] = invariance_files(path, e);
+        set_distances.push(io::read_matrix(&d_path, None, "(C, C)")?);
+        sensor_values.push(io::read_matrix(&s_path, Some(sensors), "(C, K)")?);
+    }
+    Ok((report, set_distances, sensor_values))
+}
+
 /// Like [`invariance`], also returning the matrices and sensor values compared.
 pub fn invariance_measured(
     agent: &dyn Agent,
@@ -177,7 +278,7 @@ pub fn invariance_measured(
     environments: &[Environment],
     workspace: Option<&Workspace>,
     params: &TraceValidParams,
-    metric: MetricKind,
+    metric: &dyn SetMetric,
     progress: &dyn Progress,
 ) -> Result<InvarianceMeasured, InvarianceError> {
     check_inputs(params, environments)?;
@@ -198,7 +299,7 @@ pub fn invariance_measured(
     let mut pairs = Vec::new();
     for a in 0..environments.len() {
         for b in a + 1..environments.len() {
-            pairs.push(compared.pair(a, b)?);
+            pairs.push(compared.pair(a, b, metric)?);
         }
     }
     let report = summarise(
@@ -222,18 +323,22 @@ fn check_inputs(
     environments: &[Environment],
 ) -> Result<(), InvarianceError> {
     if params.method() != TraceMethod::Sensory {
-        return Err(InvarianceError::InvalidParameter {
-            name: "method",
-            value: format!("{:?}", params.method()).to_lowercase(),
-            reason: "invariance traces with the sensory method, which sees the environment".into(),
-        });
+        return Err(InvalidParameter::new(
+            "kernel",
+            "method",
+            format!("{:?}", params.method()).to_lowercase(),
+            "invariance traces with the sensory method, which sees the environment",
+        )
+        .into());
     }
     if environments.len() < 2 {
-        return Err(InvarianceError::InvalidParameter {
-            name: "environments",
-            value: environments.len().to_string(),
-            reason: "give at least 2 environments to compare".into(),
-        });
+        return Err(InvalidParameter::new(
+            "environment",
+            "compare",
+            environments.len(),
+            "give at least 2 environments to compare",
+        )
+        .into());
     }
     Ok(())
 }
@@ -270,8 +375,6 @@ struct Compared {
     /// The `(C, K)` sensor values and the upper triangles of their distances.
     sensors: Vec<Array2<f64>>,
     sensor_upper: Vec<Vec<f64>>,
-    /// The set metric.
-    params: DistanceParams,
 }
 
 impl Compared {
@@ -281,13 +384,9 @@ impl Compared {
         environments: &[Environment],
         traced: &[TracedSets],
         common: &[usize],
-        metric: MetricKind,
+        metric: &dyn SetMetric,
         progress: &dyn Progress,
     ) -> Result<Self, InvarianceError> {
-        let period = match agent.motor_topology() {
-            MotorTopology::Periodic => Period::TwoPi,
-            MotorTopology::Bounded { .. } => Period::None,
-        };
         let (sets, closures): (Vec<_>, Vec<Vec<Closure>>) = traced
             .iter()
             .map(|t| {
@@ -299,12 +398,13 @@ impl Compared {
                 (t.sets.select(Axis(0), &positions), closure)
             })
             .unzip();
-        let params = DistanceParams::new().metric(metric).period(period);
         let matrices = sets
             .iter()
             .zip(&closures)
             .map(|(s, c)| {
-                distance_matrix(SetsView::new(s.view()).with_closure(c), &params, progress)
+                let sets = SetsView::new(s.view()).with_closure(c);
+                distance_matrix_with(sets, metric, &DistanceParams::new(), progress)
+                    .map(|d| d.into_array())
             })
             .collect::<Result<Vec<_>, _>>()?;
         let upper = matrices.iter().map(|d| upper_triangle(d.view())).collect();
@@ -325,12 +425,16 @@ impl Compared {
             upper,
             sensors,
             sensor_upper,
-            params,
         })
     }
 
     /// The figures of environments `a` and `b`.
-    fn pair(&self, a: usize, b: usize) -> Result<PairInvariance, InvarianceError> {
+    fn pair(
+        &self,
+        a: usize,
+        b: usize,
+        metric: &dyn SetMetric,
+    ) -> Result<PairInvariance, InvarianceError> {
         let mut set_distances = Vec::with_capacity(self.sets[a].len_of(Axis(0)));
         for (s, (x, y)) in self.sets[a]
             .outer_iter()
@@ -343,9 +447,10 @@ impl Compared {
             both.index_axis_mut(Axis(0), 0).assign(&x);
             both.index_axis_mut(Axis(0), 1).assign(&y);
             let closure = [self.closures[a][s], self.closures[b][s]];
-            let d = distance_matrix(
+            let d = distance_matrix_with(
                 SetsView::new(both.view()).with_closure(&closure),
-                &self.params,
+                metric,
+                &DistanceParams::new(),
                 &crate::progress::Silent,
             )?;
             set_distances.push(d[[0, 1]]);

@@ -123,7 +123,7 @@ pub struct DenseDistances<'a>(ArrayView2<'a, f64>);
 impl<'a> DenseDistances<'a> {
     /// Wraps `distances`, which must be square (any memory order). Its values are used
     /// as they are: symmetry and a zero diagonal are the caller's (see
-    /// [`crate::analysis::check_distances`]).
+    /// [`crate::metric::DistanceMatrix`], which validates them).
     pub fn new(distances: ArrayView2<'a, f64>) -> Result<Self, NeighboursError> {
         let (rows, columns) = distances.dim();
         if rows != columns {
@@ -289,6 +289,20 @@ impl Knn {
     /// Neighbours per row `k`.
     pub fn k(&self) -> usize {
         self.indices.ncols()
+    }
+
+    /// Writes the lists, together (all or none): `indices` `(rows, k)` as int64 and
+    /// `distances` `(rows, k)` as float64 (what `smspace embed --knn-indices
+    /// --knn-distances` reads). `smspace distances --knn` writes through here.
+    pub fn save(
+        &self,
+        indices: &std::path::Path,
+        distances: &std::path::Path,
+    ) -> Result<Vec<std::path::PathBuf>, crate::io::IoError> {
+        let mut outputs = crate::io::Outputs::new();
+        outputs.npy(indices, &self.indices.mapv(|j| j as i64))?;
+        outputs.npy(distances, &self.distances)?;
+        outputs.commit()
     }
 }
 

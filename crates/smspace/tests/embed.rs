@@ -9,7 +9,13 @@ use smspace::embed::{
     CcaParams, EigenSolver, EmbedError, EmbedParams, Embedding, IsomapParams, KnnGraph,
     LandmarkChoice, MdsParams, Neighbourhood,
 };
+use smspace::metric::DistanceMatrix;
 use smspace::progress::Silent;
+
+/// `d` as a validated distance matrix.
+fn dm(d: &Array2<f64>) -> DistanceMatrix {
+    DistanceMatrix::new(d.clone()).unwrap()
+}
 
 /// Euclidean distances between the rows of `points`.
 fn euclidean(points: &Array2<f64>) -> Array2<f64> {
@@ -52,7 +58,7 @@ fn swiss_roll(n: usize, seed: u64) -> (Array2<f64>, Array2<f64>) {
 }
 
 fn fit(params: EmbedParams, d: &Array2<f64>) -> smspace::embed::Embedded {
-    params.build().unwrap().fit(d.view(), &Silent).unwrap()
+    params.build().unwrap().fit(&dm(d), &Silent).unwrap()
 }
 
 #[test]
@@ -263,7 +269,7 @@ fn landmark_isomap_from_a_knn_graph_matches_the_dense_input() {
         .clone()
         .check()
         .unwrap()
-        .fit(d.view(), &Silent)
+        .fit(&dm(&d), &Silent)
         .unwrap();
     // The metric stage's layout: (M, K) int64 indices and f64 distances, K ≥ k.
     let graph = KnnGraph::from_distances(d.view(), 12).unwrap();
@@ -304,13 +310,22 @@ fn results_do_not_depend_on_the_thread_count() {
 
 #[test]
 fn bad_distance_matrices_are_refused_with_the_reason() {
+    use smspace::metric::MatrixError;
     let good = euclidean(&circle(20, 1));
     let mds = MdsParams::default().dim(2).check().unwrap();
-    let err = |d: &Array2<f64>| mds.fit(d.view(), &Silent).unwrap_err();
+    // A matrix is checked once, where it enters: as a DistanceMatrix.
+    let err = |d: &Array2<f64>| DistanceMatrix::new(d.clone()).unwrap_err();
 
     let e = err(&Array2::zeros((3, 4)));
     assert!(
-        matches!(e, EmbedError::NotSquare { rows: 3, cols: 4 }),
+        matches!(
+            e,
+            MatrixError::NotSquare {
+                rows: 3,
+                columns: 4,
+                ..
+            }
+        ),
         "{e}"
     );
     let mut d = good.clone();
@@ -322,20 +337,26 @@ fn bad_distance_matrices_are_refused_with_the_reason() {
     );
     let mut d = good.clone();
     d[[2, 5]] += 1e-12; // within tolerance
-    assert!(mds.fit(d.view(), &Silent).is_ok());
+    assert!(mds.fit(&dm(&d), &Silent).is_ok());
     let mut d = good.clone();
     d[[1, 3]] = -1.0;
     d[[3, 1]] = -1.0;
-    assert!(matches!(err(&d), EmbedError::Negative { .. }));
+    assert!(matches!(err(&d), MatrixError::Negative { .. }));
     let mut d = good.clone();
     d[[4, 4]] = f64::NAN;
-    assert!(matches!(err(&d), EmbedError::NonFinite { i: 4, j: 4, .. }));
+    assert!(matches!(err(&d), MatrixError::NonFinite { i: 4, j: 4, .. }));
+    // The check of a view for the lower-level entry points says the same.
+    let e = smspace::embed::check_distances(d.view()).unwrap_err();
+    assert!(
+        matches!(e, EmbedError::Distances(MatrixError::NonFinite { .. })),
+        "{e}"
+    );
 
     let e = MdsParams::default()
         .dim(20)
         .check()
         .unwrap()
-        .fit(good.view(), &Silent)
+        .fit(&dm(&good), &Silent)
         .unwrap_err();
     assert!(
         matches!(
@@ -354,7 +375,7 @@ fn bad_distance_matrices_are_refused_with_the_reason() {
         .k(20)
         .check()
         .unwrap()
-        .fit(good.view(), &Silent)
+        .fit(&dm(&good), &Silent)
         .unwrap_err();
     assert!(
         matches!(e, EmbedError::KTooLarge { k: 20, points: 20 }),
@@ -365,19 +386,19 @@ fn bad_distance_matrices_are_refused_with_the_reason() {
         .dim(3)
         .check()
         .unwrap()
-        .fit(good.view(), &Silent)
+        .fit(&dm(&good), &Silent)
         .unwrap_err();
     assert!(e.to_string().contains("only 2 positive"), "{e}");
     // CCA starts from the two and a small seeded third coordinate.
     let cca = CcaParams::default().dim(3).epochs(2).check().unwrap();
-    assert!(cca.fit(good.view(), &Silent).is_ok());
+    assert!(cca.fit(&dm(&good), &Silent).is_ok());
     assert!(MdsParams::default().dim(0).check().is_err());
     assert!(CcaParams::default().epochs(0).check().is_err());
     assert!(CcaParams::default().alpha(0.5, 0.9).check().is_err());
     let wrong = CcaParams::default()
         .check()
         .unwrap()
-        .fit(good.view(), &Silent)
+        .fit(&dm(&good), &Silent)
         .unwrap();
     assert!(matches!(
         wrong.extend(Array2::zeros((2, 19)).view()),
@@ -399,7 +420,7 @@ fn a_disconnected_graph_names_its_components_and_the_fix() {
         .k(5)
         .check()
         .unwrap()
-        .fit(d.view(), &Silent)
+        .fit(&dm(&d), &Silent)
         .unwrap_err();
     assert!(
         matches!(e, EmbedError::Disconnected { components: 2, .. }),

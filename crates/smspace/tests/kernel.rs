@@ -4,12 +4,13 @@ use approx::assert_abs_diff_eq;
 use ndarray::{Array2, ArrayView2, Axis};
 use proptest::prelude::*;
 use smspace::agent::{
-    wrap_angle, Agent, AgentConfig, Environment, EnvironmentConfig, MotorTopology,
+    wrap_angle, Agent, AgentConfig, Environment, EnvironmentConfig, LightRegion, Motor, MotorSpace,
+    Observer, PoseSpace,
 };
 use smspace::explore::{explore, ExploreParams, Workspace};
 use smspace::kernel::{
-    trace_one, trace_sets, KernelError, SetStatus, StepControl, TraceMethod, TraceParams,
-    TracedSets,
+    tangent_space, trace_one, trace_sets, Closure, KernelError, SetStatus, StepControl,
+    TraceMethod, TraceParams, TracedSets,
 };
 use smspace::progress::Silent;
 
@@ -39,7 +40,15 @@ fn trace(
 }
 
 fn torus_distance(a: &[f64], b: &[f64]) -> f64 {
-    MotorTopology::Periodic.distance(a, b)
+    MotorSpace::hinges(a.len()).distance(a, b)
+}
+
+/// The observer's pose of `agent` at `motors`.
+fn pose_of(agent: &dyn Agent, motors: &[f64]) -> Vec<f64> {
+    let observer = agent.ground_truth().expect("the agent has a ground truth");
+    let mut pose = vec![0.0; observer.pose_space().dim()];
+    observer.pose(motors, &mut pose);
+    pose
 }
 
 /// Largest pointwise torus distance between two equally long sets.
@@ -73,7 +82,8 @@ fn toy_redundant_kernels_are_the_lines_m1_plus_m2_constant() {
             );
         }
         // Its length is √2 (2π − |x|) (toy motors are linear: no wrapping).
-        let length = MotorTopology::Bounded { low: -pi, high: pi }
+        let length = MotorSpace::bounded(2, -pi, pi)
+            .unwrap()
             .distance(first.as_slice().unwrap(), last.as_slice().unwrap());
         assert_abs_diff_eq!(length, 2f64.sqrt() * (2.0 * pi - x.abs()), epsilon = 1e-9);
     }
@@ -106,14 +116,14 @@ fn every_traced_arm_point_keeps_the_start_pose_and_loops_close() {
     let traced = trace(arm.as_ref(), None, motors.view(), TraceParams::default());
     assert_eq!(traced.kept.len(), 12);
     for (set, start) in traced.sets.outer_iter().zip(motors.outer_iter()) {
-        let target = arm.pose(start.as_slice().unwrap());
+        let target = pose_of(arm.as_ref(), start.as_slice().unwrap());
         // The resampled set starts at the explored configuration.
         assert!(torus_distance(set.row(0).as_slice().unwrap(), start.as_slice().unwrap()) < 1e-9);
         for p in set.outer_iter() {
-            let pose = arm.pose(p.as_slice().unwrap());
-            assert_abs_diff_eq!(pose.x, target.x, epsilon = 1e-9);
-            assert_abs_diff_eq!(pose.y, target.y, epsilon = 1e-9);
-            assert_abs_diff_eq!(wrap_angle(pose.alpha - target.alpha), 0.0, epsilon = 1e-9);
+            let pose = pose_of(arm.as_ref(), p.as_slice().unwrap());
+            assert_abs_diff_eq!(pose[0], target[0], epsilon = 1e-9);
+            assert_abs_diff_eq!(pose[1], target[1], epsilon = 1e-9);
+            assert_abs_diff_eq!(wrap_angle(pose[2] - target[2]), 0.0, epsilon = 1e-9);
             assert!(p
                 .iter()
                 .all(|v| (-std::f64::consts::PI..std::f64::consts::PI).contains(v)));
@@ -122,7 +132,8 @@ fn every_traced_arm_point_keeps_the_start_pose_and_loops_close() {
     for line in &traced.report.sets {
         assert_eq!(line.status, SetStatus::Closed);
         assert!(line.steps >= 50);
-        assert!(line.max_pose_deviation <= 1e-9, "{line:?}");
+        assert!(line.max_pose_deviation.unwrap() <= 1e-9, "{line:?}");
+        assert_eq!(line.dimension, 1);
         assert!(line.max_residual <= 1e-11, "{line:?}");
     }
 }
@@ -342,10 +353,9 @@ fn impossible_parameters_and_inputs_are_errors() {
             ..TraceParams::default()
         },
     ] {
-        assert!(matches!(
-            params.check(),
-            Err(KernelError::InvalidParameter { .. })
-        ));
+        let err = params.check().unwrap_err();
+        let located = err.invalid_parameter().expect("a parameter error");
+        assert_eq!(located.table, "kernel", "{err}");
     }
     let arm = agent("planar-arm");
     let params = TraceParams::default().check().unwrap();
@@ -385,7 +395,271 @@ proptest! {
         });
         let line = &traced.report.sets[0];
         prop_assert_eq!(line.status, SetStatus::Closed);
-        prop_assert!(line.max_pose_deviation <= 1e-9);
+        prop_assert!(line.max_pose_deviation.unwrap() <= 1e-9);
         prop_assert!(line.length > 1.0);
+    }
+}
+
+/// A planar arm on a rail: the base slides along x by `s ∈ [−0.5, 0.5]` (a bounded
+/// motor), then two unit links and the retina turn on hinges. Motors `(s, m1, m2, m3)`,
+/// pose `x = s + cos m1 + cos(m1 + m2)`, `y = sin m1 + sin(m1 + m2)`,
+/// `alpha = m1 + m2 + m3`: 1-D kernels along which the rail slides, ending on its
+/// bounds. Its pose Jacobian is the default (central differences).
+#[derive(Debug)]
+struct RailArm;
+
+impl Agent for RailArm {
+    fn motor_dim(&self) -> usize {
+        4
+    }
+    fn sensor_dim(&self) -> usize {
+        1
+    }
+    fn sense(&self, _: &Environment, m: &[f64], s: &mut [f64]) {
+        s[0] = m.iter().sum();
+    }
+    fn name(&self) -> &str {
+        "rail-arm"
+    }
+    fn motor_space(&self) -> MotorSpace {
+        MotorSpace::new(vec![
+            Motor::Bounded {
+                low: -0.5,
+                high: 0.5,
+            },
+            Motor::HINGE,
+            Motor::HINGE,
+            Motor::HINGE,
+        ])
+        .unwrap()
+    }
+    fn ground_truth(&self) -> Option<&dyn Observer> {
+        Some(self)
+    }
+}
+
+impl Observer for RailArm {
+    fn pose_space(&self) -> PoseSpace {
+        PoseSpace::planar()
+    }
+    fn pose(&self, m: &[f64], pose: &mut [f64]) {
+        let (t1, t2) = (m[1], m[1] + m[2]);
+        pose[0] = m[0] + t1.cos() + t2.cos();
+        pose[1] = t1.sin() + t2.sin();
+        pose[2] = wrap_angle(m[1] + m[2] + m[3]);
+    }
+}
+
+#[test]
+fn a_mixed_motor_space_wraps_its_hinges_and_ends_sets_on_its_bounds() {
+    let arm = RailArm;
+    // The hand well inside the reach of the links (above or below the base, the
+    // elbow bent), so that sliding the rail from one bound to the other never
+    // stretches or folds the arm; hinges anywhere.
+    let motors = ndarray::array![
+        [0.0, 0.785, 1.571, 3.0],
+        [0.2, 2.356, -1.571, -2.0],
+        [-0.2, -2.17, 1.2, 0.5],
+    ];
+    let traced = trace(&arm, None, motors.view(), TraceParams::default());
+    assert_eq!(traced.kept, vec![0, 1, 2], "{:?}", traced.report.summary);
+    for ((set, start), line) in traced
+        .sets
+        .outer_iter()
+        .zip(motors.outer_iter())
+        .zip(&traced.report.sets)
+    {
+        // The rail slides from one bound to the other: an open set (its ends are
+        // the clipped nodes, projected back onto the set by the corrector).
+        assert_eq!(line.status, SetStatus::Open, "{line:?}");
+        let rail = set.column(0);
+        let (lo, hi) = rail
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(lo, hi), &s| (lo.min(s), hi.max(s)));
+        assert_abs_diff_eq!(lo, -0.5, epsilon = 1e-7);
+        assert_abs_diff_eq!(hi, 0.5, epsilon = 1e-7);
+        // Hinges are wrapped into [−π, π); every point keeps the start's pose.
+        let target = pose_of(&arm, start.as_slice().unwrap());
+        for p in set.outer_iter() {
+            assert!(p
+                .iter()
+                .skip(1)
+                .all(|v| (-std::f64::consts::PI..std::f64::consts::PI).contains(v)));
+            let pose = pose_of(&arm, p.as_slice().unwrap());
+            for c in 0..2 {
+                assert_abs_diff_eq!(pose[c], target[c], epsilon = 1e-9);
+            }
+            assert_abs_diff_eq!(wrap_angle(pose[2] - target[2]), 0.0, epsilon = 1e-9);
+        }
+    }
+    assert!(traced.closure.iter().all(|&c| c == Closure::Open));
+}
+
+/// An agent with the required methods only: a cart at `x = sin m1 + sin(m2)/2` (two
+/// hinges, the default motor space) with two light sensors, and no ground truth.
+#[derive(Debug)]
+struct BlindCart;
+
+impl Agent for BlindCart {
+    fn motor_dim(&self) -> usize {
+        2
+    }
+    fn sensor_dim(&self) -> usize {
+        2
+    }
+    fn sense(&self, environment: &Environment, m: &[f64], s: &mut [f64]) {
+        let x = m[0].sin() + 0.5 * m[1].sin();
+        for (s, offset) in s.iter_mut().zip([-0.25, 0.25]) {
+            *s = environment
+                .lights
+                .iter()
+                .map(|l| 1.0 / ((l[0] - x - offset).powi(2) + l[1].powi(2)))
+                .sum();
+        }
+    }
+    fn name(&self) -> &str {
+        "blind-cart"
+    }
+}
+
+#[test]
+fn without_a_ground_truth_the_sensory_method_traces_and_the_kinematic_one_explains() {
+    let cart = BlindCart;
+    let region = LightRegion {
+        center: [0.0, 2.0],
+        half_size: [3.0, 1.0],
+        exclusion_half_size: [0.0, 0.0],
+    };
+    let env = Environment::random(4, 3, &region).unwrap();
+    let motors = ndarray::array![[0.3, 0.2], [-0.6, 0.4], [0.1, -0.2]];
+    let params = TraceParams::default().check().unwrap();
+    let err = trace_sets(&cart, Some(&env), motors.view(), None, &params, &Silent).unwrap_err();
+    assert!(matches!(err, KernelError::NoGroundTruth { .. }), "{err}");
+    assert!(err.to_string().contains("blind-cart") && err.to_string().contains("sensory"));
+    let err = trace_sets(
+        &cart,
+        Some(&env),
+        motors.view(),
+        Some(&Workspace::PAPER),
+        &TraceParams {
+            method: TraceMethod::Sensory,
+            ..TraceParams::default()
+        }
+        .check()
+        .unwrap(),
+        &Silent,
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("working space"), "{err}");
+    // The sensors see x only: the sensory Jacobian has rank 1, the kernels are the
+    // curves sin m1 + sin(m2)/2 = const on the torus.
+    let sensory = trace(
+        &cart,
+        Some(&env),
+        motors.view(),
+        TraceParams {
+            method: TraceMethod::Sensory,
+            ..TraceParams::default()
+        },
+    );
+    assert_eq!(sensory.kept.len(), 3, "{:?}", sensory.report.summary);
+    for (set, start) in sensory.sets.outer_iter().zip(motors.outer_iter()) {
+        let x0 = start[0].sin() + 0.5 * start[1].sin();
+        for p in set.outer_iter() {
+            assert_abs_diff_eq!(p[0].sin() + 0.5 * p[1].sin(), x0, epsilon = 1e-9);
+        }
+    }
+    for line in &sensory.report.sets {
+        assert_eq!(line.max_pose_deviation, None);
+        assert_eq!(line.dimension, 1);
+    }
+    assert_eq!(sensory.dimensions(), vec![1, 1, 1]);
+}
+
+#[test]
+fn kernels_of_two_dimensions_are_refused_with_their_dimension() {
+    // Four links and the retina hinge: five motors for a 3-D pose.
+    let arm = AgentConfig {
+        kind: "planar-arm".into(),
+        params: toml::from_str("link_lengths = [1.0, 1.0, 1.0, 1.0]").unwrap(),
+    }
+    .build()
+    .unwrap();
+    let motors = ndarray::array![[0.1, 0.2, 0.3, 0.4, 0.5]];
+    let params = TraceParams::default().check().unwrap();
+    // Known before any start is traced (the pipeline checks it with the experiment).
+    assert!(matches!(
+        params.check_for(arm.as_ref()),
+        Err(KernelError::UnsupportedDimension { dimension: 2, .. })
+    ));
+    let err = trace_sets(arm.as_ref(), None, motors.view(), None, &params, &Silent).unwrap_err();
+    match &err {
+        KernelError::UnsupportedDimension {
+            dimension, rank, ..
+        } => assert_eq!((*dimension, *rank), (2, 3)),
+        other => panic!("{other}"),
+    }
+    let message = err.to_string();
+    assert!(
+        message.contains("k = N − rank(J) = 5 − 3 = 2") && message.contains("not implemented"),
+        "{message}"
+    );
+    // The tangent space there is 2-D, orthonormal, and the pose does not change along
+    // it to first order.
+    let tangent = tangent_space(
+        arm.as_ref(),
+        None,
+        motors.row(0).as_slice().unwrap(),
+        &params,
+    )
+    .unwrap();
+    assert_eq!((tangent.rank, tangent.dimension()), (3, 2));
+    let start = motors.row(0).to_vec();
+    let base = pose_of(arm.as_ref(), &start);
+    for direction in tangent.basis.outer_iter() {
+        let norm: f64 = direction.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert_abs_diff_eq!(norm, 1.0, epsilon = 1e-12);
+        let h = 1e-6;
+        let moved: Vec<f64> = start
+            .iter()
+            .zip(direction)
+            .map(|(m, d)| m + h * d)
+            .collect();
+        let pose = pose_of(arm.as_ref(), &moved);
+        for c in 0..3 {
+            assert!((pose[c] - base[c]).abs() < 1e-10, "{pose:?} vs {base:?}");
+        }
+    }
+}
+
+#[test]
+fn the_tangent_space_of_the_arm_is_its_traced_direction() {
+    let arm = agent("planar-arm");
+    let env = EnvironmentConfig::default().build(arm.as_ref()).unwrap();
+    let start = arm_starts(1, 4).row(0).to_vec();
+    for method in [TraceMethod::Kinematic, TraceMethod::Sensory] {
+        let params = TraceParams {
+            method,
+            points: 400,
+            ..TraceParams::default()
+        }
+        .check()
+        .unwrap();
+        let tangent = tangent_space(arm.as_ref(), Some(&env), &start, &params).unwrap();
+        assert_eq!((tangent.rank, tangent.dimension()), (3, 1), "{method:?}");
+        // The first resampled step leaves the start along ± the null direction.
+        let (points, _) = trace_one(arm.as_ref(), Some(&env), &start, None, &params).unwrap();
+        let points = points.unwrap();
+        let step: Vec<f64> = (0..4)
+            .map(|j| wrap_angle(points[4 + j] - points[j]))
+            .collect();
+        let norm: f64 = step.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let cosine: f64 = step
+            .iter()
+            .zip(tangent.basis.row(0))
+            .map(|(a, b)| a * b)
+            .sum::<f64>()
+            / norm;
+        assert!(cosine.abs() > 0.999, "{method:?}: cosine {cosine}");
     }
 }

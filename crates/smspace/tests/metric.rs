@@ -652,3 +652,306 @@ fn a_user_defined_metric_goes_through_the_tiled_threaded_path() {
         })
     ));
 }
+
+/// Every plan of tiles, computed from the sets of each tile's rows and columns only,
+/// merges into the matrix bit for bit, for the three built-in metrics and a
+/// user-defined one, with 1 and 2 threads.
+#[test]
+fn any_tiling_merges_into_the_matrix_bit_for_bit() {
+    use smspace::metric::{distance_tile, Closure, SetsView, TileMerge, TilePlan};
+    let sets = arm_like_sets(45, 20, 71);
+    let closure: Vec<Closure> = (0..45)
+        .map(|i| {
+            if i % 3 == 0 {
+                Closure::Open
+            } else {
+                Closure::Closed
+            }
+        })
+        .collect();
+    let view = |r: std::ops::Range<usize>| {
+        SetsView::new(sets.slice_axis(Axis(0), Slice::from(r.clone()))).with_closure(&closure[r])
+    };
+    let mut metrics: Vec<(Box<dyn SetMetric>, DistanceParams)> = Vec::new();
+    for kind in [
+        MetricKind::Hausdorff,
+        MetricKind::MeanHausdorff,
+        MetricKind::Curve,
+    ] {
+        let p = params(kind, Period::TwoPi);
+        metrics.push((p.check().unwrap().set_metric(), p));
+    }
+    metrics.push((Box::new(Centroids), DistanceParams::new()));
+    for (metric, p) in &metrics {
+        let whole = match metric.kernel() {
+            Some(_) => distance_matrix(view(0..45), p, &Silent).unwrap(),
+            None => distance_matrix_with(view(0..45), metric.as_ref(), p, &Silent).unwrap(),
+        };
+        for (size, threads) in [(1, 2), (4, 1), (7, 2), (32, 2), (44, 1), (45, 2), (100, 1)] {
+            let plan = TilePlan::new(45, size).unwrap();
+            let merged = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    let mut merge = TileMerge::new(45, None).unwrap();
+                    for tile in plan.tiles() {
+                        let values = distance_tile(
+                            view(tile.rows.clone()),
+                            view(tile.cols.clone()),
+                            &tile,
+                            metric.as_ref(),
+                            &Silent,
+                        )
+                        .unwrap();
+                        merge.add(&tile, values.view()).unwrap();
+                    }
+                    merge.finish().unwrap()
+                });
+            assert_eq!(merged, whole, "{} in tiles of {size}", metric.name());
+        }
+        // Any tile, in or off the plan (overlapping rows and columns included), is the
+        // block of the matrix.
+        for (r, c) in [
+            (3..20, 10..45),
+            (0..45, 0..45),
+            (40..45, 0..2),
+            (5..6, 5..6),
+        ] {
+            let tile = smspace::metric::Tile::new(r.clone(), c.clone());
+            let values = distance_tile(
+                view(r.clone()),
+                view(c.clone()),
+                &tile,
+                metric.as_ref(),
+                &Silent,
+            )
+            .unwrap();
+            let block = whole
+                .slice_axis(Axis(0), Slice::from(r.clone()))
+                .slice_axis(Axis(1), Slice::from(c.clone()))
+                .to_owned();
+            assert_eq!(values, block, "{} tile {r:?} x {c:?}", metric.name());
+        }
+    }
+}
+
+/// A metric that counts its calls (the distance between the sets' first points).
+#[derive(Default)]
+struct Counting {
+    calls: std::sync::atomic::AtomicUsize,
+    metric: bool,
+}
+
+impl SetMetric for Counting {
+    fn name(&self) -> &'static str {
+        "counting"
+    }
+    fn distance(
+        &self,
+        a: ndarray::ArrayView2<'_, f64>,
+        b: ndarray::ArrayView2<'_, f64>,
+    ) -> Result<f64, MetricError> {
+        self.calls
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Ok((a[[0, 0]] - b[[0, 0]]).abs() + (a[[0, 1]] - b[[0, 1]]).abs())
+    }
+    fn is_metric(&self) -> bool {
+        self.metric
+    }
+}
+
+#[test]
+fn a_tile_plan_computes_every_pair_exactly_once() {
+    use smspace::metric::{distance_tile, TilePlan};
+    let sets = uniform_sets(37, 4, 2, 3);
+    for size in [1, 5, 36, 37] {
+        let metric = Counting::default();
+        let plan = TilePlan::new(37, size).unwrap();
+        let mut pairs = 0;
+        for tile in plan.tiles() {
+            let r = sets.slice_axis(Axis(0), Slice::from(tile.rows.clone()));
+            let c = sets.slice_axis(Axis(0), Slice::from(tile.cols.clone()));
+            distance_tile(r, c, &tile, &metric, &Silent).unwrap();
+            pairs += tile.pairs();
+        }
+        let calls = metric.calls.load(std::sync::atomic::Ordering::Relaxed);
+        assert_eq!(calls, 37 * 36 / 2, "tiles of {size}");
+        assert_eq!(pairs, 37 * 36 / 2);
+    }
+}
+
+#[test]
+fn merging_refuses_missing_and_conflicting_tiles() {
+    use smspace::metric::{distance_tile, Tile, TileMerge, TilePlan};
+    let sets = uniform_sets(9, 3, 2, 4);
+    let metric = DistanceParams::new().check().unwrap().set_metric();
+    let tile_of = |t: &Tile| {
+        distance_tile(
+            sets.slice_axis(Axis(0), Slice::from(t.rows.clone())),
+            sets.slice_axis(Axis(0), Slice::from(t.cols.clone())),
+            t,
+            metric.as_ref(),
+            &Silent,
+        )
+        .unwrap()
+    };
+    let tiles: Vec<Tile> = TilePlan::new(9, 4).unwrap().tiles().collect();
+    let mut merge = TileMerge::new(9, None).unwrap();
+    for t in &tiles[..tiles.len() - 1] {
+        merge.add(t, tile_of(t).view()).unwrap();
+    }
+    // The last tile (8..9 × 8..9) holds only the diagonal: nothing is missing.
+    assert!(merge.clone().finish().is_ok());
+    let mut merge = TileMerge::new(9, None).unwrap();
+    for t in &tiles[1..] {
+        merge.add(t, tile_of(t).view()).unwrap();
+    }
+    let err = merge.finish().unwrap_err();
+    assert!(
+        matches!(err, MetricError::TileMissing { i: 0, j: 1 }),
+        "{err}"
+    );
+    let mut merge = TileMerge::new(9, None).unwrap();
+    let t = &tiles[1];
+    merge.add(t, tile_of(t).view()).unwrap();
+    let mut other = tile_of(t);
+    other[[0, 0]] += 1.0;
+    let err = merge.add(t, other.view()).unwrap_err().to_string();
+    assert!(
+        err.contains("two tiles disagree on the pair (0, 4)"),
+        "{err}"
+    );
+    let err = merge
+        .add(&Tile::new(0..3, 5..12), Array2::zeros((3, 7)).view())
+        .unwrap_err();
+    assert!(matches!(err, MetricError::BadRows { end: 12, .. }), "{err}");
+}
+
+#[test]
+fn knn_of_a_user_metric_is_the_top_k_of_its_matrix() {
+    use smspace::metric::knn_with;
+    let mut sets = uniform_sets(60, 5, 3, 8);
+    for (dst, src) in [(50, 3), (51, 3)] {
+        let copy = sets.index_axis(Axis(0), src).to_owned();
+        sets.index_axis_mut(Axis(0), dst).assign(&copy);
+    }
+    for metric in [false, true] {
+        let counting = Counting {
+            metric,
+            ..Counting::default()
+        };
+        let full =
+            distance_matrix_with(sets.view(), &counting, &DistanceParams::new(), &Silent).unwrap();
+        for (k, pivots) in [(1, 4), (7, 16), (7, 0)] {
+            let (indices, distances) = top_k(&full, k);
+            let calls = |c: &Counting| c.calls.load(std::sync::atomic::Ordering::Relaxed);
+            let before = calls(&counting);
+            let knn_params = KnnParams::new().k(k).pivots(pivots);
+            let found = knn_with(
+                sets.view(),
+                &counting,
+                &DistanceParams::new(),
+                &knn_params,
+                0..60,
+                &Silent,
+            )
+            .unwrap();
+            assert_eq!(found.indices, indices, "metric {metric} k={k}");
+            assert_eq!(found.distances, distances);
+            let used = calls(&counting) - before;
+            // Pruning only for a metric (and with pivots): otherwise every pair of
+            // every row is measured.
+            if metric && pivots > 0 {
+                assert!(used < 60 * 59, "{used} calls");
+            } else {
+                assert_eq!(used, 60 * 59);
+            }
+            let block = knn_with(
+                sets.view(),
+                &counting,
+                &DistanceParams::new(),
+                &knn_params,
+                10..25,
+                &Silent,
+            )
+            .unwrap();
+            assert_eq!(block.indices, rows(&indices, 10..25));
+        }
+    }
+    // The built-in Hausdorff through knn_with runs on its kernels: the same lists as knn.
+    let p = DistanceParams::new();
+    let h = Hausdorff {
+        period: Period::TwoPi,
+    };
+    let knn_params = KnnParams::new().k(4);
+    assert_eq!(
+        knn_with(sets.view(), &h, &p, &knn_params, 0..60, &Silent).unwrap(),
+        knn(sets.view(), &p, &knn_params, 0..60, &Silent).unwrap()
+    );
+    // A failing pair is reported; so is the memory limit.
+    let mut bad = sets.clone();
+    bad[[20, 0, 0]] = 42.0;
+    let err = knn_with(bad.view(), &Centroids, &p, &knn_params, 0..60, &Silent)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("centroids metric failed on sets"), "{err}");
+    let small = DistanceParams::new().memory_limit_bytes(Some(100));
+    assert!(matches!(
+        knn_with(sets.view(), &Centroids, &small, &knn_params, 0..60, &Silent),
+        Err(MetricError::KnnOutOfMemory { .. })
+    ));
+}
+
+/// A sets array in Fortran order and one taken every other set of a larger array give
+/// the matrix, the rows, the tiles and the nearest sets of the C-order array.
+#[test]
+fn inputs_in_any_layout_or_stride_give_the_same_numbers() {
+    use ndarray::ShapeBuilder;
+    use smspace::metric::{distance_tile, knn_with, Tile};
+    let sets = arm_like_sets(21, 12, 81);
+    let mut fortran = Array3::zeros(sets.raw_dim().f());
+    fortran.assign(&sets);
+    assert!(!fortran.is_standard_layout());
+    let mut big = Array3::zeros((42, 12, 4));
+    big.slice_axis_mut(Axis(0), Slice::new(0, None, 2))
+        .assign(&sets);
+    let strided = big.slice_axis(Axis(0), Slice::new(0, None, 2));
+    let p = DistanceParams::new();
+    let expected = distance_matrix(sets.view(), &p, &Silent).unwrap();
+    let knn_params = KnnParams::new().k(3);
+    let near = knn(sets.view(), &p, &knn_params, 0..21, &Silent).unwrap();
+    let tile = Tile::new(2..9, 5..21);
+    for view in [fortran.view(), strided] {
+        assert_eq!(distance_matrix(view, &p, &Silent).unwrap(), expected);
+        assert_eq!(
+            distance_rows(view, &p, 4..11, &Silent).unwrap(),
+            rows(&expected, 4..11)
+        );
+        assert_eq!(knn(view, &p, &knn_params, 0..21, &Silent).unwrap(), near);
+        let generic = distance_matrix_with(view, &Centroids, &p, &Silent).unwrap();
+        assert_eq!(
+            generic,
+            distance_matrix_with(sets.view(), &Centroids, &p, &Silent).unwrap()
+        );
+        assert_eq!(
+            knn_with(view, &Centroids, &p, &knn_params, 0..21, &Silent).unwrap(),
+            knn_with(sets.view(), &Centroids, &p, &knn_params, 0..21, &Silent).unwrap()
+        );
+        let metric = p.check().unwrap().set_metric();
+        let values = distance_tile(
+            view.slice_axis(Axis(0), Slice::from(2..9)),
+            view.slice_axis(Axis(0), Slice::from(5..21)),
+            &tile,
+            metric.as_ref(),
+            &Silent,
+        )
+        .unwrap();
+        assert_eq!(
+            values,
+            expected
+                .slice_axis(Axis(0), Slice::from(2..9))
+                .slice_axis(Axis(1), Slice::from(5..21))
+        );
+    }
+}

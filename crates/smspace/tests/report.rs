@@ -9,7 +9,7 @@ use std::path::Path;
 use std::process::Command;
 
 use ndarray::{Array2, Array3, Axis};
-use smspace::agent::{Agent, AgentConfig, Environment, MotorTopology};
+use smspace::agent::{Agent, AgentConfig, Environment};
 use smspace::analysis::{analyze, AnalysisParams, AnalysisReport};
 use smspace::embed::quality::shepard_pairs;
 use smspace::embed::{CcaParams, EmbedReport, Embedding};
@@ -73,9 +73,10 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
         &Silent,
     )
     .unwrap();
-    let period = match agent.motor_topology() {
-        MotorTopology::Periodic => Period::TwoPi,
-        MotorTopology::Bounded { .. } => Period::None,
+    let period = if agent.motor_space().is_hinges() {
+        Period::TwoPi
+    } else {
+        Period::None
     };
     let metric = DistanceParams::new().period(period);
     let distances = distance_matrix(traced.sets.view(), &metric, &Silent).unwrap();
@@ -85,12 +86,15 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
         .seed(1)
         .check()
         .unwrap()
-        .fit(distances.view(), &Silent)
+        .fit(&distances, &Silent)
         .unwrap();
     let dydx = shepard_pairs(distances.view(), embedded.coordinates.view(), 5000, 1).unwrap();
-    let set_poses = exploration.poses.select(Axis(0), &traced.kept);
+    let set_poses = exploration
+        .planar_poses()
+        .unwrap()
+        .select(Axis(0), &traced.kept);
     let analysis = analyze(
-        distances.view(),
+        &distances,
         Some(set_poses.view()),
         &AnalysisParams::default().check().unwrap(),
         &Silent,
@@ -112,7 +116,11 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
             &environments,
             exploration.workspace.as_ref(),
             &sensory,
-            smspace::metric::MetricKind::Hausdorff,
+            smspace::invariance::agent_metric(
+                smspace::metric::MetricKind::Hausdorff,
+                agent.as_ref(),
+            )
+            .as_ref(),
             &Silent,
         )
         .unwrap();
@@ -120,8 +128,9 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
         // (identical in every environment by construction) and their sensor values.
         let c = report.common_sets.min(invariance_rows);
         let rows: Vec<usize> = (0..c).collect();
-        let d =
-            distance_matrix(traced.sets.select(Axis(0), &rows).view(), &metric, &Silent).unwrap();
+        let d = distance_matrix(traced.sets.select(Axis(0), &rows).view(), &metric, &Silent)
+            .unwrap()
+            .into_array();
         let sensors = environments
             .iter()
             .map(|env| {
@@ -176,7 +185,7 @@ fn inputs(run: &Run) -> ReportInputs<'_> {
         environments: &run.environments,
         workspace: run.exploration.workspace,
         motors: run.exploration.motors.view(),
-        poses: run.exploration.poses.view(),
+        poses: run.exploration.planar_poses(),
         probes: run.exploration.probes.view(),
         sets: run.sets.view(),
         kept: &run.kept,

@@ -7,6 +7,7 @@ use anyhow::Context;
 use clap::Args as ClapArgs;
 use smspace::analysis::{analyze, AnalysisParams};
 use smspace::io;
+use smspace::metric::DistanceMatrix;
 
 use crate::ui::Bar;
 
@@ -51,32 +52,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..AnalysisParams::default()
     }
     .check()?;
-    let distances = io::read_matrix(&args.distances, None, "(M, M)")?;
+    let distances = DistanceMatrix::load(&args.distances)?;
     let poses = match &args.poses {
         Some(path) => {
             let poses = io::read_matrix(path, Some(3), "(M, 3)")?;
             anyhow::ensure!(
-                poses.nrows() == distances.nrows(),
+                poses.nrows() == distances.len(),
                 "{} has {} rows but {} has {} points; the poses must be those of the same sets",
                 path.display(),
                 poses.nrows(),
                 args.distances.display(),
-                distances.nrows()
+                distances.len()
             );
             Some(poses)
         }
         None => None,
     };
     let bar = Bar::new();
-    let report = analyze(
-        distances.view(),
-        poses.as_ref().map(|p| p.view()),
-        &params,
-        &bar,
-    )
-    .with_context(|| format!("analysing {}", args.distances.display()))?;
+    let report = analyze(&distances, poses.as_ref().map(|p| p.view()), &params, &bar)
+        .with_context(|| format!("analysing {}", args.distances.display()))?;
     match &args.out {
-        Some(path) => io::write_json(path, &report)?,
+        // The analyze stage's writer.
+        Some(path) => report.save(path)?,
         None => println!("{}", serde_json::to_string_pretty(&report)?),
     }
     let dimension = &report.intrinsic_dimension;

@@ -1,15 +1,22 @@
 //! `smspace distances`: the metric between kernel sets (paper section 3.2, step 3).
 //!
-//! Reads kernel sets `(M, P, N)` and writes either the distance matrix `(M, M)` (or a
-//! block of its rows) or, with `--knn K`, the `K` nearest sets of every set.
+//! Reads kernel sets `(M, P, N)` and writes the distance matrix `(M, M)`, a block of its
+//! rows, a tile (`--tile`), or with `--knn K` the `K` nearest sets of every set; or
+//! assembles tiles into the matrix (`--merge`). Every file goes through the library's
+//! writer of its kind: `DistanceMatrix::save` (as the pipeline's distances stage),
+//! `metric::save_tile`, `Knn::save`.
 
 use std::ops::Range;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
 use clap::ValueEnum;
-use smspace::metric::{self, Closure, DistanceParams, KnnParams, Period, SetsView};
+use ndarray::{Array3, Axis, Slice};
+use smspace::metric::{
+    self, Closure, DistanceParams, KnnParams, Period, PreparedSets, SetsView, Tile, TileMerge,
+    TileRecord,
+};
 
 use super::common::{sibling, MetricArg};
 
@@ -19,11 +26,12 @@ use crate::ui;
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Kernel sets: a float64 .npy array of shape (M, P, N), motor angles in radians.
-    #[arg(long, value_name = "FILE")]
-    sets: PathBuf,
-    /// Output: the distance matrix, float64 (M, M) (or (i1 - i0, M) with --rows). With
-    /// --knn this file is not written: knn_indices.npy and knn_distances.npy go into
-    /// the folder that holds it.
+    #[arg(long, value_name = "FILE", required_unless_present = "merge")]
+    sets: Option<PathBuf>,
+    /// Output: the distance matrix, float64 (M, M) (or (i1 - i0, M) with --rows, a tile
+    /// with --tile; both with their record OUT_STEM.tile.json). With --knn this file is
+    /// not written: knn_indices.npy and knn_distances.npy go into the folder that holds
+    /// it.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
     /// Distance between two sets. `curve` reads every set as a polyline: closed or open
@@ -50,8 +58,18 @@ pub struct Args {
     /// Compute only rows i0 (included) to i1 (excluded), e.g. 0:1000, so that the matrix
     /// (or the --knn lists) can be split over processes. Blocks stack exactly into the
     /// whole.
-    #[arg(long, value_name = "I0:I1", value_parser = parse_rows)]
+    #[arg(long, value_name = "I0:I1", value_parser = parse_rows, conflicts_with = "tile")]
     rows: Option<Range<usize>>,
+    /// Compute only the tile of rows I0:I1 and columns J0:J1 (e.g. 0:500,500:1000), so
+    /// that the pairs can be spread over processes each computed once: the tiles of
+    /// the blocks (a, b) with a <= b cover every pair; --merge assembles them.
+    #[arg(long, value_name = "I0:I1,J0:J1", value_parser = parse_tile, conflicts_with = "knn")]
+    tile: Option<Tile>,
+    /// Assemble the matrix from tiles (and row blocks) written by --tile or --rows
+    /// (each with its .tile.json record): every pair must be covered, and tiles that
+    /// overlap must agree. Reads no sets.
+    #[arg(long, value_name = "TILE.npy", num_args = 1.., conflicts_with_all = ["sets", "knn", "rows", "tile"])]
+    merge: Vec<PathBuf>,
     /// Refuse to start when the output needs more than this many bytes (default: the
     /// memory available, MemAvailable in /proc/meminfo).
     #[arg(long, value_name = "BYTES")]
@@ -77,6 +95,13 @@ enum PeriodArg {
     None,
 }
 
+fn parse_tile(text: &str) -> Result<Tile, String> {
+    let (rows, cols) = text
+        .split_once(',')
+        .ok_or_else(|| format!("expected I0:I1,J0:J1, e.g. 0:500,500:1000, got {text:?}"))?;
+    Ok(Tile::new(parse_rows(rows)?, parse_rows(cols)?))
+}
+
 fn parse_rows(text: &str) -> Result<Range<usize>, String> {
     let (start, end) = text
         .split_once(':')
@@ -91,7 +116,7 @@ fn parse_rows(text: &str) -> Result<Range<usize>, String> {
 
 /// The closures of the sets for `--metric curve`: `--curve`, else `SETS.closed.npy`
 /// next to the sets; `None` for the point metrics.
-fn closure(args: &Args, sets: usize) -> anyhow::Result<Option<Vec<Closure>>> {
+fn closure(args: &Args, path: &Path, sets: usize) -> anyhow::Result<Option<Vec<Closure>>> {
     if args.metric != MetricArg::Curve {
         anyhow::ensure!(
             args.curve.is_none(),
@@ -106,7 +131,7 @@ fn closure(args: &Args, sets: usize) -> anyhow::Result<Option<Vec<Closure>>> {
         };
         return Ok(Some(vec![closure; sets]));
     }
-    let record = sibling(&args.sets, "closed.npy");
+    let record = sibling(path, "closed.npy");
     if !record.exists() {
         anyhow::bail!(
             "--metric curve needs to know which sets are closed loops: {} is missing (smspace trace writes it next to the sets); for sets from elsewhere give --curve closed or --curve open",
@@ -116,73 +141,198 @@ fn closure(args: &Args, sets: usize) -> anyhow::Result<Option<Vec<Closure>>> {
     Ok(Some(smspace::kernel::read_closure(&record, sets)?))
 }
 
-/// Runs the subcommand.
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let sets = smspace::io::read_cube(&args.sets, "(M, P, N)")?;
-    let (m, p, n) = sets.dim();
-    let kind = args.metric.kind();
-    let closure = closure(&args, m)?;
-    let view = match &closure {
-        Some(c) => SetsView::new(sets.view()).with_closure(c),
-        None => SetsView::new(sets.view()),
-    };
-    let params = DistanceParams::new()
-        .metric(kind)
-        .period(match args.period {
-            PeriodArg::TwoPi => Period::TwoPi,
-            PeriodArg::None => Period::None,
+/// The kernel sets, their closures and the metric's parameters.
+struct Input {
+    path: PathBuf,
+    sets: Array3<f64>,
+    closure: Option<Vec<Closure>>,
+    params: DistanceParams,
+}
+
+impl Input {
+    fn read(args: &Args, path: &Path) -> anyhow::Result<Self> {
+        let sets = smspace::io::read_cube(path, "(M, P, N)")?;
+        let closure = closure(args, path, sets.dim().0)?;
+        let params = DistanceParams::new()
+            .metric(args.metric.kind())
+            .period(match args.period {
+                PeriodArg::TwoPi => Period::TwoPi,
+                PeriodArg::None => Period::None,
+            })
+            .memory_limit_bytes(args.max_memory.or_else(super::common::memory_available));
+        Ok(Self {
+            path: path.to_owned(),
+            sets,
+            closure,
+            params,
         })
-        .memory_limit_bytes(args.max_memory.or_else(super::common::memory_available));
-    let rows = args.rows.clone().unwrap_or(0..m);
-    let context = || {
-        format!(
-            "cannot compute distances between the sets of {}",
-            args.sets.display()
-        )
-    };
-    let bar = ui::Bar::new();
-    let started = Instant::now();
-    match args.knn {
-        None => {
-            let block =
-                metric::distance_rows(view, &params, rows.clone(), &bar).with_context(context)?;
-            smspace::io::write_npy(&args.out, &block)?;
-            eprintln!(
-                "wrote {} ({} x {}, rows {}:{} of {m} sets of {p} points in {n}-D, {}) in {:.2} s",
-                args.out.display(),
-                block.nrows(),
-                block.ncols(),
-                rows.start,
-                rows.end,
-                params.metric.name(),
-                started.elapsed().as_secs_f64(),
-            );
-        }
-        Some(k) => {
-            let knn_params = KnnParams::new().k(k).pivots(args.pivots);
-            let found = metric::knn(view, &params, &knn_params, rows.clone(), &bar)
-                .with_context(context)?;
-            let folder = smspace::io::folder_of(&args.out);
-            let indices_path = folder.join("knn_indices.npy");
-            let distances_path = folder.join("knn_distances.npy");
-            let indices = found.indices.mapv(|j| j as i64);
-            let mut outputs = smspace::io::Outputs::new();
-            outputs.npy(&indices_path, &indices)?;
-            outputs.npy(&distances_path, &found.distances)?;
-            outputs.commit()?;
-            eprintln!(
-                "wrote {} and {} ({} x {k}, rows {}:{} of {m} sets, {}) in {:.2} s",
-                indices_path.display(),
-                distances_path.display(),
-                rows.len(),
-                rows.start,
-                rows.end,
-                params.metric.name(),
-                started.elapsed().as_secs_f64(),
-            );
+    }
+
+    /// The sets `range` (all of them for `0..M`), with their closures.
+    fn view(&self, range: Range<usize>) -> SetsView<'_> {
+        let points = self.sets.slice_axis(Axis(0), Slice::from(range.clone()));
+        match &self.closure {
+            Some(c) => SetsView::new(points).with_closure(&c[range]),
+            None => SetsView::new(points),
         }
     }
+
+    fn context(&self) -> String {
+        format!(
+            "cannot compute distances between the sets of {}",
+            self.path.display()
+        )
+    }
+
+    /// What is measured, for the closing line: `M sets of P points in N-D, metric`.
+    fn describe(&self) -> String {
+        let (m, p, n) = self.sets.dim();
+        format!("{m} sets of {p} points in {n}-D, {}", self.params.metric)
+    }
+}
+
+/// Runs the subcommand.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let started = Instant::now();
+    if !args.merge.is_empty() {
+        return merge(&args, started);
+    }
+    let path = args.sets.clone().context("give --sets, or --merge")?;
+    let input = Input::read(&args, &path)?;
+    let m = input.sets.dim().0;
+    let bar = ui::Bar::new();
+    let line = if let Some(k) = args.knn {
+        let rows = args.rows.clone().unwrap_or(0..m);
+        let knn_params = KnnParams::new().k(k).pivots(args.pivots);
+        let found = metric::knn(
+            input.view(0..m),
+            &input.params,
+            &knn_params,
+            rows.clone(),
+            &bar,
+        )
+        .with_context(|| input.context())?;
+        let folder = smspace::io::folder_of(&args.out);
+        let written = found.save(
+            &folder.join("knn_indices.npy"),
+            &folder.join("knn_distances.npy"),
+        )?;
+        format!(
+            "wrote {} ({} x {k}, rows {}:{} of {})",
+            names(&written),
+            rows.len(),
+            rows.start,
+            rows.end,
+            input.describe()
+        )
+    } else if let Some(tile) = args
+        .rows
+        .clone()
+        .map(|r| Tile::new(r, 0..m))
+        .or(args.tile.clone())
+    {
+        write_tile(&args, &input, &tile, &bar)?
+    } else {
+        let d = metric::distance_matrix(input.view(0..m), &input.params, &bar)
+            .with_context(|| input.context())?;
+        d.save(&args.out)?;
+        format!(
+            "wrote {} ({m} x {m}, {})",
+            args.out.display(),
+            input.describe()
+        )
+    };
+    eprintln!("{line} in {:.2} s", started.elapsed().as_secs_f64());
     Ok(())
+}
+
+/// `--rows` or `--tile`: the tile from the sets of its rows and columns, and its record.
+fn write_tile(args: &Args, input: &Input, tile: &Tile, bar: &ui::Bar) -> anyhow::Result<String> {
+    let (m, p, n) = input.sets.dim();
+    tile.check(m).with_context(|| input.context())?;
+    let (rows, cols) = tile.shape();
+    let needed = (rows as u64) * (cols as u64) * 8
+        + PreparedSets::estimate_bytes_with_curves(rows + cols, p, n);
+    super::common::check_memory(
+        &format!("tile ({rows} x {cols}) and its sets"),
+        needed,
+        input.params.memory_limit_bytes,
+        "compute smaller tiles",
+    )?;
+    let metric = input.params.check()?.set_metric();
+    let values = metric::distance_tile(
+        input.view(tile.rows.clone()),
+        input.view(tile.cols.clone()),
+        tile,
+        metric.as_ref(),
+        bar,
+    )
+    .with_context(|| input.context())?;
+    let record = TileRecord {
+        sets: m,
+        rows: [tile.rows.start, tile.rows.end],
+        cols: [tile.cols.start, tile.cols.end],
+        metric: input.params.metric.to_string(),
+    };
+    let written = metric::save_tile(&args.out, &record, values.view())?;
+    Ok(format!(
+        "wrote {} ({rows} x {cols}, rows {}:{} and columns {}:{} of {})",
+        names(&written),
+        tile.rows.start,
+        tile.rows.end,
+        tile.cols.start,
+        tile.cols.end,
+        input.describe()
+    ))
+}
+
+/// `--merge`: the matrix from tiles.
+fn merge(args: &Args, started: Instant) -> anyhow::Result<()> {
+    let mut merged: Option<(TileRecord, TileMerge)> = None;
+    for path in &args.merge {
+        let (record, values) = metric::load_tile(path)?;
+        if merged.is_none() {
+            let limit = args.max_memory.or_else(super::common::memory_available);
+            let merge = TileMerge::new(record.sets, limit)
+                .with_context(|| format!("cannot merge the tiles of {}", path.display()))?;
+            merged = Some((record.clone(), merge));
+        }
+        let (first, merge) = merged.as_mut().expect("set above");
+        anyhow::ensure!(
+            (record.sets, &record.metric) == (first.sets, &first.metric),
+            "{} is a tile of {} sets under the {} metric, but {} is one of {} sets under the {} metric; merge the tiles of one matrix",
+            path.display(),
+            record.sets,
+            record.metric,
+            args.merge[0].display(),
+            first.sets,
+            first.metric
+        );
+        merge
+            .add(&record.tile(), values.view())
+            .with_context(|| format!("cannot merge {}", path.display()))?;
+    }
+    let (record, merge) = merged.context("give the tiles to merge")?;
+    let d = merge.finish().context("cannot assemble the matrix")?;
+    d.save(&args.out)?;
+    eprintln!(
+        "wrote {} ({1} x {1}, {2}, from {3} tiles) in {4:.2} s",
+        args.out.display(),
+        record.sets,
+        record.metric,
+        args.merge.len(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The paths written, joined by "and".
+fn names(paths: &[PathBuf]) -> String {
+    paths
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect::<Vec<_>>()
+        .join(" and ")
 }
 
 #[cfg(test)]
@@ -194,5 +344,9 @@ mod tests {
         assert_eq!(parse_rows("3:10").unwrap(), 3..10);
         assert!(parse_rows("3-10").unwrap_err().contains("expected I0:I1"));
         assert!(parse_rows("a:10").unwrap_err().contains("not a row index"));
+        assert_eq!(parse_tile("0:5,5:9").unwrap(), Tile::new(0..5, 5..9));
+        assert!(parse_tile("0:5")
+            .unwrap_err()
+            .contains("expected I0:I1,J0:J1"));
     }
 }

@@ -22,6 +22,7 @@ use smspace::embed::{
     LandmarkChoice, MdsParams, Neighbourhood,
 };
 use smspace::io::{read_matrix, write_npy};
+use smspace::metric::DistanceMatrix;
 
 use super::common::sibling;
 use crate::ui;
@@ -180,10 +181,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (embedded, distances, input): (Embedded, Option<_>, _) =
         match (&args.distances, &args.knn_indices, &args.knn_distances) {
             (Some(path), _, _) => {
-                let d = read_matrix(path, None, "(M, M)")?;
+                let d = DistanceMatrix::load(path)?;
                 let method = params.build()?;
                 let e = method
-                    .fit(d.view(), &bar)
+                    .fit(&d, &bar)
                     .with_context(|| format!("cannot embed {}", path.display()))?;
                 (e, Some(d), json!({ "distances": path }))
             }

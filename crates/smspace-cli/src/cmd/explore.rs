@@ -30,7 +30,8 @@ pub struct Args {
     probe_orientations: usize,
     #[command(flatten)]
     workspace: WorkspaceArgs,
-    /// Folder for motors.npy, poses.npy, probes.npy and exploration.json (created if needed).
+    /// Folder for motors.npy, poses.npy (when the agent has a ground truth), probes.npy
+    /// and exploration.json (created if needed).
     #[arg(long, value_name = "DIR")]
     out_dir: PathBuf,
     /// Refuse to start when the output needs more than this many bytes (default: the
@@ -57,9 +58,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         probe_orientations: args.probe_orientations,
         ..ExploreParams::default()
     };
+    let pose_dim = agent.ground_truth().map_or(0, |o| o.pose_space().dim());
     super::common::check_memory(
         "explored configurations",
-        params.bytes(agent.motor_dim()),
+        params.bytes(agent.motor_dim(), pose_dim),
         args.max_memory,
         "lower --n or the probe grid",
     )?;

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use smspace::agent::EnvironmentConfig;
-use smspace::invariance::invariance;
+use smspace::invariance::{agent_metric, invariance_measured};
 use smspace::io;
 use smspace::kernel::{TraceMethod, TraceParams};
 
@@ -35,7 +35,9 @@ pub struct Args {
     metric: MetricArg,
     #[command(flatten)]
     workspace: WorkspaceArgs,
-    /// Report (JSON).
+    /// Report (JSON); beside it, for environment e (from 1), OUT_STEM-D-e.npy (the
+    /// distance matrix of its sets) and OUT_STEM-sensors-e.npy (its sensor values), as
+    /// `smspace run` writes them.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
 }
@@ -83,16 +85,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<Result<Vec<_>, _>>()?;
     let workspace = args.workspace.resolve(agent.as_ref())?;
     let bar = Bar::new();
-    let report = invariance(
+    let metric = agent_metric(args.metric.kind(), agent.as_ref());
+    let measured = invariance_measured(
         agent.as_ref(),
         motors.view(),
         &environments,
         workspace.as_ref(),
         &params,
-        args.metric.kind(),
+        metric.as_ref(),
         &bar,
     )?;
-    io::write_json(&args.out, &report)?;
+    // The invariance stage's writer: the report and, beside it, the compared matrices
+    // and sensor values.
+    measured.save(&args.out)?;
+    let report = &measured.report;
     eprintln!(
         "{} sets traced in all {} environments: sets differ by at most {:.3e} ({:.2e} of the median set distance), metric Mantel >= {:.6}; sensor values differ by >= {:.3} of their norm, sensor Mantel <= {:.3}",
         report.common_sets,

@@ -23,9 +23,10 @@
 use serde::{Deserialize, Serialize};
 
 use super::{
-    check_positive, wrap_angle, Agent, AgentError, Environment, LightRegion, MotorTopology, Pose,
-    Workspace,
+    check_positive, wrap_angle, Agent, AgentError, Environment, LightRegion, Observer, Pose,
+    PoseSpace, Workspace,
 };
+use crate::error::{CheckParams, InvalidParameter};
 
 /// Parameters of the planar arm (`kind = "planar-arm"`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -67,42 +68,79 @@ pub const MAX_RETINA_CELLS: usize = 10_000;
 /// Most links an arm may have.
 pub const MAX_LINKS: usize = 1_000;
 
+/// Checked [`ArmParams`], the only form an arm is built from
+/// ([`PlanarArm::from_valid`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmValidParams {
+    link_lengths: Vec<f64>,
+    retina_cells: usize,
+    retina_half_width: f64,
+    focal_length: f64,
+}
+
+impl CheckParams for ArmParams {
+    type Valid = ArmValidParams;
+    type Error = AgentError;
+
+    /// At least one and at most [`MAX_LINKS`] links of positive length, 1 to
+    /// [`MAX_RETINA_CELLS`] cells, a positive half width and focal length.
+    fn check_params(&self) -> Result<ArmValidParams, AgentError> {
+        let invalid =
+            |key, value: String, reason| InvalidParameter::new("agent", key, value, reason);
+        if self.link_lengths.is_empty() {
+            return Err(invalid(
+                "link_lengths",
+                "[]".into(),
+                "the arm needs at least one link",
+            )
+            .into());
+        }
+        for &length in &self.link_lengths {
+            check_positive("link_lengths", length)?;
+        }
+        if self.retina_cells == 0 {
+            return Err(invalid(
+                "retina_cells",
+                "0".into(),
+                "the retina needs at least one cell",
+            )
+            .into());
+        }
+        if self.retina_cells > MAX_RETINA_CELLS {
+            return Err(invalid(
+                "retina_cells",
+                self.retina_cells.to_string(),
+                "must be at most 10000 (one sensor per cell; the paper's retina has 6)",
+            )
+            .into());
+        }
+        if self.link_lengths.len() > MAX_LINKS {
+            return Err(invalid(
+                "link_lengths",
+                format!("{} links", self.link_lengths.len()),
+                "at most 1000 links (one motor per joint; the paper's arm has 3)",
+            )
+            .into());
+        }
+        check_positive("retina_half_width", self.retina_half_width)?;
+        check_positive("focal_length", self.focal_length)?;
+        Ok(ArmValidParams {
+            link_lengths: self.link_lengths.clone(),
+            retina_cells: self.retina_cells,
+            retina_half_width: self.retina_half_width,
+            focal_length: self.focal_length,
+        })
+    }
+}
+
 impl PlanarArm {
     /// Validates `params` and builds the arm.
     pub fn new(params: &ArmParams) -> Result<Self, AgentError> {
-        if params.link_lengths.is_empty() {
-            return Err(AgentError::InvalidParameter {
-                name: "link_lengths",
-                value: "[]".into(),
-                reason: "the arm needs at least one link",
-            });
-        }
-        for &length in &params.link_lengths {
-            check_positive("link_lengths", length)?;
-        }
-        if params.retina_cells == 0 {
-            return Err(AgentError::InvalidParameter {
-                name: "retina_cells",
-                value: "0".into(),
-                reason: "the retina needs at least one cell",
-            });
-        }
-        if params.retina_cells > MAX_RETINA_CELLS {
-            return Err(AgentError::InvalidParameter {
-                name: "retina_cells",
-                value: params.retina_cells.to_string(),
-                reason: "must be at most 10000 (one sensor per cell; the paper's retina has 6)",
-            });
-        }
-        if params.link_lengths.len() > MAX_LINKS {
-            return Err(AgentError::InvalidParameter {
-                name: "link_lengths",
-                value: format!("{} links", params.link_lengths.len()),
-                reason: "at most 1000 links (one motor per joint; the paper's arm has 3)",
-            });
-        }
-        check_positive("retina_half_width", params.retina_half_width)?;
-        check_positive("focal_length", params.focal_length)?;
+        Ok(Self::from_valid(params.check_params()?))
+    }
+
+    /// The arm of checked parameters.
+    pub fn from_valid(params: ArmValidParams) -> Self {
         let k = params.retina_cells;
         let w = params.retina_half_width;
         let cell_positions = if k == 1 {
@@ -112,11 +150,11 @@ impl PlanarArm {
                 .map(|i| -w + 2.0 * w * i as f64 / (k - 1) as f64)
                 .collect()
         };
-        Ok(Self {
-            link_lengths: params.link_lengths.clone(),
+        Self {
+            link_lengths: params.link_lengths,
             cell_positions,
             focal_length: params.focal_length,
-        })
+        }
     }
 
     /// The links' lengths.
@@ -138,11 +176,38 @@ impl PlanarArm {
         points
     }
 
+    /// The retina's pose `(x, y, alpha)` for motors `m` (see the module docs).
+    ///
+    /// Angles are summed as they are, except that a motor angle beyond `±2^20` rad is
+    /// first reduced to `[0, 2π)` (exactly: `rem_euclid` is exact), so that the sum
+    /// and its trigonometry stay finite for any finite motors (e.g. `1e308`, whose sum
+    /// would overflow). Ordinary angles are untouched, so their poses do not change
+    /// by a bit.
+    pub fn planar_pose(&self, motors: &[f64]) -> Pose {
+        const LARGE_ANGLE: f64 = 1_048_576.0;
+        let reduced = |m: f64| {
+            if m.abs() > LARGE_ANGLE {
+                m.rem_euclid(std::f64::consts::TAU)
+            } else {
+                m
+            }
+        };
+        let (mut x, mut y, mut theta) = (0.0, 0.0, 0.0);
+        for (length, &m) in self.link_lengths.iter().zip(motors) {
+            theta += reduced(m);
+            let (s, c) = theta.sin_cos();
+            x += length * c;
+            y += length * s;
+        }
+        let alpha = wrap_angle(motors.iter().map(|&m| reduced(m)).sum());
+        Pose { x, y, alpha }
+    }
+
     /// The 2 × N Jacobian of the lens position, row-major, for manipulability.
     fn position_manipulability(&self, motors: &[f64]) -> f64 {
         let n = self.motor_dim();
         let mut j = vec![0.0; 3 * n];
-        self.pose_jacobian(motors, &mut j);
+        self.pose_jacobian(motors, &mut j, &mut [0.0; 3]);
         // det(J_p J_pᵀ) for the 2 position rows.
         let (mut a, mut b, mut c) = (0.0, 0.0, 0.0);
         for k in 0..n {
@@ -164,7 +229,7 @@ impl Agent for PlanarArm {
     }
 
     fn sense(&self, environment: &Environment, motors: &[f64], sensors: &mut [f64]) {
-        let pose = self.pose(motors);
+        let pose = self.planar_pose(motors);
         let (sin_a, cos_a) = pose.alpha.sin_cos();
         sensors.fill(0.0);
         for light in &environment.lights {
@@ -184,22 +249,62 @@ impl Agent for PlanarArm {
         }
     }
 
-    fn pose(&self, motors: &[f64]) -> Pose {
-        let (mut x, mut y, mut theta) = (0.0, 0.0, 0.0);
-        for (length, m) in self.link_lengths.iter().zip(motors) {
-            theta += m;
-            let (s, c) = theta.sin_cos();
-            x += length * c;
-            y += length * s;
+    fn name(&self) -> &str {
+        "planar-arm"
+    }
+
+    fn skeleton(&self, motors: &[f64]) -> Vec<[f64; 2]> {
+        self.joint_positions(motors)
+    }
+
+    fn ground_truth(&self) -> Option<&dyn Observer> {
+        Some(self)
+    }
+
+    /// Lights go around the paper's working space (centre 1.75 units in front of the
+    /// base), in a 6 × 6 square minus a margin of 0.5 around the working space, scaled
+    /// with the arm's reach (3 for the paper's arm): the retina sees lights from every
+    /// pose of the working space.
+    fn default_light_region(&self) -> LightRegion {
+        let scale = self.link_lengths.iter().sum::<f64>() / 3.0;
+        LightRegion {
+            center: [1.75 * scale, 0.0],
+            half_size: [3.0 * scale, 3.0 * scale],
+            exclusion_half_size: [1.25 * scale, 1.5 * scale],
         }
-        let alpha = wrap_angle(motors.iter().sum());
-        Pose { x, y, alpha }
+    }
+
+    fn default_light_count(&self) -> usize {
+        10
+    }
+
+    /// The paper's working space scaled with the arm's reach (the paper's arm reaches
+    /// 3): an arm with links `[0.3, 0.3, 0.3]` explores a rectangle it can reach.
+    fn default_workspace(&self) -> Option<Workspace> {
+        let scale = self.link_lengths.iter().sum::<f64>() / 3.0;
+        Some(Workspace::PAPER.scaled(scale))
+    }
+}
+
+/// The observer sees the retina's planar pose `(x, y, alpha)`; all three change with
+/// the motors.
+impl Observer for PlanarArm {
+    fn pose_space(&self) -> PoseSpace {
+        PoseSpace::planar()
+    }
+
+    fn pose(&self, motors: &[f64], pose: &mut [f64]) {
+        pose[..3].copy_from_slice(&self.planar_pose(motors).to_array());
+    }
+
+    fn configuration_dim(&self) -> usize {
+        3
     }
 
     /// Analytic Jacobian (paper appendix A): `∂x/∂m_j = −Σ_{k≥j} L_k sin θ_k`,
     /// `∂y/∂m_j = Σ_{k≥j} L_k cos θ_k`, `∂alpha/∂m_j = 1`; the retina hinge moves only
     /// `alpha`.
-    fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64]) -> Pose {
+    fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64], pose: &mut [f64]) {
         let n = self.motor_dim();
         let links = self.link_lengths.len();
         let (dx, rest) = jacobian.split_at_mut(n);
@@ -228,11 +333,7 @@ impl Agent for PlanarArm {
         dx[links] = 0.0;
         dy[links] = 0.0;
         dalpha[..n].fill(1.0);
-        Pose {
-            x: sy,
-            y: -sx,
-            alpha: wrap_angle(theta + motors[links]),
-        }
+        pose[..3].copy_from_slice(&[sy, -sx, wrap_angle(theta + motors[links])]);
     }
 
     /// Puts the lens at `(x, y)` with orientation `alpha`. The redundancy is resolved by
@@ -240,7 +341,8 @@ impl Agent for PlanarArm {
     /// problem for the rest (elbow `+`), and choosing, among 720 values of `θ`, the one of
     /// greatest manipulability `sqrt(det(J_p J_pᵀ))`, which keeps the arm away from
     /// singular (folded or stretched) postures. Deterministic.
-    fn inverse_kinematics(&self, pose: Pose) -> Option<Vec<f64>> {
+    fn inverse_kinematics(&self, pose: &[f64]) -> Option<Vec<f64>> {
+        let pose = Pose::from_slice(pose);
         let links = self.link_lengths.len();
         let n = self.motor_dim();
         let to_motors = |thetas: &[f64]| {
@@ -290,46 +392,6 @@ impl Agent for PlanarArm {
         }
         best.map(|(_, motors)| motors)
     }
-
-    fn name(&self) -> &str {
-        "planar-arm"
-    }
-
-    fn skeleton(&self, motors: &[f64]) -> Vec<[f64; 2]> {
-        self.joint_positions(motors)
-    }
-
-    fn configuration_dim(&self) -> usize {
-        3
-    }
-
-    fn motor_topology(&self) -> MotorTopology {
-        MotorTopology::Periodic
-    }
-
-    /// Lights go around the paper's working space (centre 1.75 units in front of the
-    /// base), in a 6 × 6 square minus a margin of 0.5 around the working space, scaled
-    /// with the arm's reach (3 for the paper's arm): the retina sees lights from every
-    /// pose of the working space.
-    fn default_light_region(&self) -> LightRegion {
-        let scale = self.link_lengths.iter().sum::<f64>() / 3.0;
-        LightRegion {
-            center: [1.75 * scale, 0.0],
-            half_size: [3.0 * scale, 3.0 * scale],
-            exclusion_half_size: [1.25 * scale, 1.5 * scale],
-        }
-    }
-
-    fn default_light_count(&self) -> usize {
-        10
-    }
-
-    /// The paper's working space scaled with the arm's reach (the paper's arm reaches
-    /// 3): an arm with links `[0.3, 0.3, 0.3]` explores a rectangle it can reach.
-    fn default_workspace(&self) -> Option<Workspace> {
-        let scale = self.link_lengths.iter().sum::<f64>() / 3.0;
-        Some(Workspace::PAPER.scaled(scale))
-    }
 }
 
 #[cfg(test)]
@@ -340,6 +402,42 @@ mod tests {
 
     fn arm() -> PlanarArm {
         PlanarArm::new(&ArmParams::default()).unwrap()
+    }
+
+    #[test]
+    fn huge_motor_angles_give_finite_sensors_and_poses() {
+        let arm = arm();
+        let env = Environment::from_lights(vec![[1.5, 0.3], [2.0, -1.0], [-1.0, 2.0]]);
+        for motors in [
+            [1e308, 1e308, 1e308, 1e308],
+            [-1e308, 3e307, f64::MAX, -f64::MAX],
+            [1e20, 0.5, -2e9, 1e6 + 0.5],
+        ] {
+            let mut sensors = [0.0; 6];
+            arm.sense(&env, &motors, &mut sensors);
+            let pose = arm.planar_pose(&motors);
+            assert!(
+                sensors.iter().all(|s| s.is_finite())
+                    && [pose.x, pose.y, pose.alpha].iter().all(|v| v.is_finite()),
+                "{motors:?}: {sensors:?}, {pose:?}"
+            );
+            // The same as the angles reduced exactly to [0, 2π).
+            let reduced = motors.map(|m| m.rem_euclid(std::f64::consts::TAU));
+            let mut expected = [0.0; 6];
+            arm.sense(&env, &reduced, &mut expected);
+            for (a, b) in sensors.iter().zip(expected) {
+                assert_abs_diff_eq!(*a, b, epsilon = 1e-9);
+            }
+        }
+        // Ordinary angles are used as they are.
+        let motors = [0.3, -1.2, 2.5, 7.0];
+        let mut theta = 0.0;
+        let mut x = 0.0;
+        for (length, m) in [1.0, 1.0, 1.0].iter().zip(motors) {
+            theta += m;
+            x += length * f64::cos(theta);
+        }
+        assert_eq!(arm.planar_pose(&motors).x, x);
     }
 
     #[test]
@@ -368,10 +466,10 @@ mod tests {
 
     #[test]
     fn stretched_arm_pose() {
-        let p = arm().pose(&[0.0, 0.0, 0.0, 0.0]);
+        let p = arm().planar_pose(&[0.0, 0.0, 0.0, 0.0]);
         assert_abs_diff_eq!(p.x, 3.0);
         assert_abs_diff_eq!(p.y, 0.0);
-        let p = arm().pose(&[FRAC_PI_2, -FRAC_PI_2, 0.0, 0.5]);
+        let p = arm().planar_pose(&[FRAC_PI_2, -FRAC_PI_2, 0.0, 0.5]);
         assert_abs_diff_eq!(p.x, 2.0, epsilon = 1e-12);
         assert_abs_diff_eq!(p.y, 1.0, epsilon = 1e-12);
         assert_abs_diff_eq!(p.alpha, 0.5, epsilon = 1e-12);
@@ -408,21 +506,13 @@ mod tests {
     fn inverse_kinematics_reaches_the_pose() {
         let a = arm();
         for &(x, y, alpha) in &[(1.1, -0.9, 0.0), (2.4, 0.9, 2.0), (1.75, 0.0, -PI + 0.1)] {
-            let m = a
-                .inverse_kinematics(Pose { x, y, alpha })
-                .expect("reachable");
-            let p = a.pose(&m);
+            let m = a.inverse_kinematics(&[x, y, alpha]).expect("reachable");
+            let p = a.planar_pose(&m);
             assert_abs_diff_eq!(p.x, x, epsilon = 1e-10);
             assert_abs_diff_eq!(p.y, y, epsilon = 1e-10);
             assert_abs_diff_eq!(wrap_angle(p.alpha - alpha), 0.0, epsilon = 1e-10);
         }
-        assert!(a
-            .inverse_kinematics(Pose {
-                x: 3.5,
-                y: 0.0,
-                alpha: 0.0
-            })
-            .is_none());
+        assert!(a.inverse_kinematics(&[3.5, 0.0, 0.0]).is_none());
     }
 
     #[test]
@@ -433,6 +523,8 @@ mod tests {
         };
         let err = PlanarArm::new(&bad).unwrap_err();
         assert!(err.to_string().contains("link_lengths = -1"), "{err}");
+        let located = err.invalid_parameter().unwrap();
+        assert_eq!((located.table, located.key), ("agent", "link_lengths"));
         let bad = ArmParams {
             focal_length: f64::NAN,
             ..ArmParams::default()

@@ -15,6 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::{Agent, AgentError};
+use crate::error::InvalidParameter;
 use crate::io::{self, IoError};
 
 /// A rectangle (minus an inner rectangle) where random lights are drawn.
@@ -35,7 +36,9 @@ impl LightRegion {
             && (p[1] - self.center[1]).abs() < self.exclusion_half_size[1]
     }
 
-    fn check(&self) -> Result<(), AgentError> {
+    /// Checks that every value is finite, the half sizes positive (the exclusion's
+    /// non-negative), and that the exclusion leaves room for lights.
+    pub fn check(&self) -> Result<(), InvalidParameter> {
         let finite = self
             .center
             .iter()
@@ -49,11 +52,12 @@ impl LightRegion {
         if finite && positive && room {
             Ok(())
         } else {
-            Err(AgentError::InvalidEnvironment {
-                reason: format!(
-                    "light region {self:?} must have finite values, positive half sizes, and an exclusion smaller than the region"
-                ),
-            })
+            Err(InvalidParameter::new(
+                "environment",
+                "region",
+                format!("{self:?}"),
+                "a light region needs finite values, positive half sizes, and an exclusion smaller than the region",
+            ))
         }
     }
 }
@@ -90,12 +94,16 @@ impl Environment {
     pub fn random(count: usize, seed: u64, region: &LightRegion) -> Result<Self, AgentError> {
         region.check()?;
         if count > MAX_RANDOM_LIGHTS {
-            return Err(AgentError::InvalidEnvironment {
-                reason: format!(
-                    "lights = {count}: at most {MAX_RANDOM_LIGHTS} random lights (the paper uses 10); \
+            return Err(InvalidParameter::new(
+                "environment",
+                "lights",
+                count,
+                format!(
+                    "at most {MAX_RANDOM_LIGHTS} random lights (the paper uses 10); \
                      for more, write the lights into an environment file"
                 ),
-            });
+            )
+            .into());
         }
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut lights = Vec::with_capacity(count);
@@ -104,13 +112,17 @@ impl Environment {
         while lights.len() < count {
             draws += 1;
             if draws > MAX_DRAWS_PER_LIGHT {
-                return Err(AgentError::InvalidEnvironment {
-                    reason: format!(
-                        "cannot place light {} of {count} in region {region:?}: after {MAX_DRAWS_PER_LIGHT} draws none fell in its direction sector outside the exclusion; \
+                return Err(InvalidParameter::new(
+                    "environment",
+                    "region",
+                    format!("{region:?}"),
+                    format!(
+                        "cannot place light {} of {count}: after {MAX_DRAWS_PER_LIGHT} draws none fell in its direction sector outside the exclusion; \
                          make the exclusion smaller or use fewer lights",
                         lights.len()
                     ),
-                });
+                )
+                .into());
             }
             let p = [
                 region.center[0] + region.half_size[0] * rng.gen_range(-1.0..1.0),
@@ -197,9 +209,13 @@ impl EnvironmentConfig {
         let region = self.region.unwrap_or_else(|| agent.default_light_region());
         let count = self.lights.unwrap_or_else(|| agent.default_light_count());
         if count == 0 {
-            return Err(AgentError::InvalidEnvironment {
-                reason: "lights = 0: an environment without lights gives constant sensors; use at least one light".into(),
-            });
+            return Err(InvalidParameter::new(
+                "environment",
+                "lights",
+                0,
+                "an environment without lights gives constant sensors; use at least one light",
+            )
+            .into());
         }
         Environment::random(count, self.seed, &region)
     }

@@ -1,24 +1,32 @@
 //! Agents and environments: the sensorimotor law `s = σ_E(m)` (paper section 2.1, eq. 2).
 //!
-//! An [`Agent`] maps motor commands `m ∈ ℝ^N` to raw sensor values `s ∈ ℝ^K` in an
-//! [`Environment`] of point lights. For evaluation only, it also exposes the observer's
-//! ground truth: the external configuration of its sensor, a [`Pose`] `(x, y, alpha)`.
-//! The agent itself never uses the pose; the `kinematic` tracing method does, as the
-//! paper's simulation does "only to accelerate the simulation" (section 3.2, step 2).
+//! An [`Agent`] maps motor commands `m` of its [`MotorSpace`] (each motor periodic with
+//! its period, a hinge, or bounded with its range) to raw sensor values `s ∈ ℝ^K` in
+//! an [`Environment`] of point lights. For evaluation only, it may expose the
+//! observer's ground truth ([`Agent::ground_truth`], an [`Observer`]): the external
+//! configuration of its sensor, a pose of any dimension whose coordinates are linear,
+//! angles or quaternion blocks ([`PoseSpace`]); the paper's agents use the planar
+//! [`Pose`] `(x, y, alpha)`. The agent itself never uses the pose; the `kinematic`
+//! tracing method does, as the paper's simulation does "only to accelerate the
+//! simulation" (section 3.2, step 2), and so does the analysis of agreement.
 //!
 //! Three agents are built in:
 //!
 //! | name | paper | motors `N` | sensors `K` | pose |
 //! |---|---|---|---|---|
-//! | [`ToyAgent`] `toy-line` | 2.2, agent 1 | 1 | 2 | `x = m1` |
-//! | [`ToyAgent`] `toy-redundant` | 2.3, agent 2 | 2 | 2 | `x = m1 + m2` |
-//! | [`PlanarArm`] `planar-arm` | 3.1 | links + 1 | `retina_cells` | retina `(x, y, alpha)` |
+//! | [`ToyAgent`] `toy-line` | 2.2, agent 1 | 1 bounded | 2 | `x = m1` |
+//! | [`ToyAgent`] `toy-redundant` | 2.3, agent 2 | 2 bounded | 2 | `x = m1 + m2` |
+//! | [`PlanarArm`] `planar-arm` | 3.1 | links + 1 hinges | `retina_cells` | retina `(x, y, alpha)` |
 //!
 //! Build one from its parameter table with [`AgentConfig::build`], or by name with
-//! [`AgentConfig::preset`].
+//! [`AgentConfig::preset`]; an agent of your own (a simulator in another language, a
+//! robot) implements the four required methods of [`Agent`] and registers in an
+//! [`AgentRegistry`].
 
 mod arm;
 mod environment;
+mod ground_truth;
+mod motor_space;
 mod registry;
 mod toy;
 mod workspace;
@@ -29,13 +37,20 @@ use std::fmt;
 use ndarray::{ArrayView2, ArrayViewMut2};
 use serde::{Deserialize, Serialize};
 
-pub use arm::{ArmParams, PlanarArm, MAX_LINKS, MAX_RETINA_CELLS};
+pub use arm::{ArmParams, ArmValidParams, PlanarArm, MAX_LINKS, MAX_RETINA_CELLS};
 pub use environment::{
     Environment, EnvironmentConfig, LightRegion, MAX_DRAWS_PER_LIGHT, MAX_RANDOM_LIGHTS,
 };
+pub use ground_truth::{
+    CoordinateKind, GroundTruth, GroundTruthView, Observer, Pose, PoseComponent, PoseCoordinate,
+    PoseSpace,
+};
+pub use motor_space::{wrap_period, Motor, MotorSpace};
 pub use registry::{AgentBuilder, AgentRegistry, BuiltAgent};
-pub use toy::{ToyAgent, ToyKind, ToyParams};
+pub use toy::{ToyAgent, ToyKind, ToyParams, ToyValidParams};
 pub use workspace::Workspace;
+
+use crate::error::InvalidParameter;
 
 /// Errors of building agents and environments.
 #[derive(Debug, thiserror::Error)]
@@ -58,15 +73,24 @@ pub enum AgentError {
         /// The reader's message, naming the key.
         reason: String,
     },
-    /// A parameter is out of its domain.
-    #[error("invalid agent parameter {name} = {value}: {reason}")]
-    InvalidParameter {
-        /// The parameter's name, as in the configuration file.
-        name: &'static str,
-        /// The value given, formatted.
-        value: String,
-        /// What a valid value looks like.
-        reason: &'static str,
+    /// A parameter is out of its domain (located by its table and key).
+    #[error(transparent)]
+    Parameter(#[from] InvalidParameter),
+    /// The agent's methods contradict each other (a plug-in agent's bug).
+    #[error("the {agent} agent is inconsistent: {reason}")]
+    Inconsistent {
+        /// The agent's name.
+        agent: String,
+        /// What disagrees.
+        reason: String,
+    },
+    /// Poses do not have the columns of their layout.
+    #[error("poses have {found} columns but the observer's pose has {expected} coordinates")]
+    PoseColumns {
+        /// Columns found.
+        found: usize,
+        /// Coordinates of the pose space.
+        expected: usize,
     },
     /// A motor array does not fit the agent.
     #[error(
@@ -88,89 +112,14 @@ pub enum AgentError {
     },
 }
 
-/// The observer's ground truth of the sensor's external configuration: position
-/// `(x, y)` in the plane (length units of the agent) and orientation `alpha` (radians).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Pose {
-    /// Position along the world's x axis.
-    pub x: f64,
-    /// Position along the world's y axis.
-    pub y: f64,
-    /// Orientation of the sensor's optical axis, radians from the x axis.
-    pub alpha: f64,
-}
-
-impl Pose {
-    /// The pose as `[x, y, alpha]`.
-    pub fn to_array(self) -> [f64; 3] {
-        [self.x, self.y, self.alpha]
-    }
-
-    /// `self − other` as `[Δx, Δy, Δalpha]`, with `Δalpha` wrapped into `[-π, π)`.
-    pub fn difference(self, other: Pose) -> [f64; 3] {
-        [
-            self.x - other.x,
-            self.y - other.y,
-            wrap_angle(self.alpha - other.alpha),
-        ]
-    }
-
-    /// The pose from `[x, y, alpha]`.
-    pub fn from_array(a: [f64; 3]) -> Self {
-        Self {
-            x: a[0],
-            y: a[1],
-            alpha: a[2],
-        }
-    }
-}
-
-/// How motor coordinates behave.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum MotorTopology {
-    /// Every motor is a hinge angle: configurations live on the torus `[-π, π)^N` and
-    /// kernel sets are closed loops.
-    Periodic,
-    /// Every motor ranges over `[low, high]` without wrapping (a linear actuator): kernel
-    /// sets are segments ending on the boundary of the motor box.
-    Bounded {
-        /// Lower end of every motor's range.
-        low: f64,
-        /// Upper end of every motor's range.
-        high: f64,
-    },
-}
-
-impl MotorTopology {
-    /// The interval motor babbling draws each coordinate from.
-    pub fn range(self) -> (f64, f64) {
+impl AgentError {
+    /// The parameter this error is about, when it is one of an `[agent]` or
+    /// `[environment]` table.
+    pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
         match self {
-            MotorTopology::Periodic => (-PI, PI),
-            MotorTopology::Bounded { low, high } => (low, high),
+            AgentError::Parameter(p) => Some(p),
+            _ => None,
         }
-    }
-
-    /// The difference `a − b` of one motor coordinate, wrapped into `[-π, π)` when periodic.
-    #[inline]
-    pub fn difference(self, a: f64, b: f64) -> f64 {
-        match self {
-            MotorTopology::Periodic => wrap_angle(a - b),
-            MotorTopology::Bounded { .. } => a - b,
-        }
-    }
-
-    /// Distance between two configurations: Euclidean, with every coordinate difference
-    /// wrapped into `[-π, π)` when periodic (the paper's `g`, section 3.2).
-    pub fn distance(self, a: &[f64], b: &[f64]) -> f64 {
-        a.iter()
-            .zip(b)
-            .map(|(&x, &y)| {
-                let d = self.difference(x, y);
-                d * d
-            })
-            .sum::<f64>()
-            .sqrt()
     }
 }
 
@@ -189,10 +138,18 @@ pub fn wrap_angle(angle: f64) -> f64 {
     }
 }
 
-/// A sensorimotor agent: the law `s = σ_E(m)` plus, for evaluation, the observer's pose.
+/// A sensorimotor agent: the law `s = σ_E(m)`, its motor space and, optionally, the
+/// observer's ground truth.
 ///
 /// Required: [`motor_dim`](Agent::motor_dim), [`sensor_dim`](Agent::sensor_dim),
-/// [`sense`](Agent::sense) and [`pose`](Agent::pose). The other methods have defaults.
+/// [`sense`](Agent::sense) and [`name`](Agent::name), what every agent has. The rest
+/// has defaults: [`motor_space`](Agent::motor_space) (`N` hinges),
+/// [`sense_batch`](Agent::sense_batch) (row by row), no
+/// [`ground_truth`](Agent::ground_truth) (then the `kinematic` tracer is unavailable
+/// and the analysis against poses is skipped), no working space, no skeleton, and a
+/// generic light region. An agent simulated outside Rust (or a robot) implements
+/// `sense_batch` to be called rarely. The trait is object-safe: a run holds a
+/// `Box<dyn Agent>` built by an [`AgentRegistry`].
 pub trait Agent: Send + Sync + fmt::Debug {
     /// Number of motors `N`.
     fn motor_dim(&self) -> usize;
@@ -204,12 +161,15 @@ pub trait Agent: Send + Sync + fmt::Debug {
     /// (length `K`).
     fn sense(&self, environment: &Environment, motors: &[f64], sensors: &mut [f64]);
 
-    /// The observer's ground truth: the sensor's pose for motors `m`.
-    fn pose(&self, motors: &[f64]) -> Pose;
-
     /// A short name, e.g. `planar-arm` (owned by the agent, so that an agent described
     /// at run time names itself).
     fn name(&self) -> &str;
+
+    /// Each motor's coordinate: periodic with its period, or bounded with its range
+    /// (length `N`). The default is `N` hinges ([`MotorSpace::hinges`]).
+    fn motor_space(&self) -> MotorSpace {
+        MotorSpace::hinges(self.motor_dim())
+    }
 
     /// Writes the sensor values of many motor rows: `motors` is `(M, N)`, `sensors`
     /// `(M, K)`. The default calls [`sense`](Agent::sense) row by row; an agent that is
@@ -230,48 +190,17 @@ pub trait Agent: Send + Sync + fmt::Debug {
         }
     }
 
-    /// The working space this agent explores when the experiment names none: a
-    /// rectangle of sensor positions it can reach. The default is none (babbling over
-    /// the whole motor range).
-    fn default_workspace(&self) -> Option<Workspace> {
+    /// The observer's ground truth (the sensor's pose for any motors), for evaluation
+    /// only. The default is none.
+    fn ground_truth(&self) -> Option<&dyn Observer> {
         None
     }
 
-    /// How many leading coordinates of the pose `(x, y, alpha)` the motors can change:
-    /// 1 for the toys (`x`), 3 for the arm. The kernel sets have dimension
-    /// `N − configuration_dim()` where the pose Jacobian has full rank.
-    fn configuration_dim(&self) -> usize {
-        3
-    }
-
-    /// Whether motors are hinge angles (periodic) or bounded linear actuators.
-    fn motor_topology(&self) -> MotorTopology {
-        MotorTopology::Periodic
-    }
-
-    /// Writes the pose Jacobian `∂(x, y, alpha)/∂m` (3 × N, row-major) into `jacobian`
-    /// and returns the pose. The default uses central differences of [`pose`](Agent::pose)
-    /// with step `1e-6`, wrapping the `alpha` difference.
-    fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64]) -> Pose {
-        let n = self.motor_dim();
-        let h = 1e-6;
-        let mut m = motors.to_vec();
-        for j in 0..n {
-            m[j] = motors[j] + h;
-            let plus = self.pose(&m);
-            m[j] = motors[j] - h;
-            let minus = self.pose(&m);
-            m[j] = motors[j];
-            jacobian[j] = (plus.x - minus.x) / (2.0 * h);
-            jacobian[n + j] = (plus.y - minus.y) / (2.0 * h);
-            jacobian[2 * n + j] = wrap_angle(plus.alpha - minus.alpha) / (2.0 * h);
-        }
-        self.pose(motors)
-    }
-
-    /// One motor configuration that puts the sensor at `pose`, if the agent can reach it
-    /// (used for the probe grid). The default knows no inverse kinematics.
-    fn inverse_kinematics(&self, _pose: Pose) -> Option<Vec<f64>> {
+    /// The working space this agent explores when the experiment names none: a
+    /// rectangle of sensor positions it can reach (it needs a
+    /// [`ground_truth`](Agent::ground_truth) whose first two coordinates are the
+    /// position). The default is none (babbling over the whole motor space).
+    fn default_workspace(&self) -> Option<Workspace> {
         None
     }
 
@@ -282,11 +211,70 @@ pub trait Agent: Send + Sync + fmt::Debug {
         Vec::new()
     }
 
-    /// Where random lights go by default for this agent.
-    fn default_light_region(&self) -> LightRegion;
+    /// Where random lights go by default for this agent. The default is the square
+    /// `[−3, 3]²` around the origin, without exclusion.
+    fn default_light_region(&self) -> LightRegion {
+        LightRegion {
+            center: [0.0, 0.0],
+            half_size: [3.0, 3.0],
+            exclusion_half_size: [0.0, 0.0],
+        }
+    }
 
-    /// How many lights a random environment has by default (5 for the toys, 10 for the arm).
-    fn default_light_count(&self) -> usize;
+    /// How many lights a random environment has by default (5 for the toys, 10 for the
+    /// arm). The default is 10.
+    fn default_light_count(&self) -> usize {
+        10
+    }
+}
+
+/// Checks that an agent's parts agree: a motor space of `N` motors, at least one
+/// motor and one sensor, a default working space only with a ground truth whose first
+/// two coordinates are a position, and a ground truth whose layout holds the
+/// coordinates the motors change. The registry checks every agent it builds.
+pub fn check_agent(agent: &dyn Agent) -> Result<(), AgentError> {
+    let inconsistent = |reason: String| {
+        Err(AgentError::Inconsistent {
+            agent: agent.name().to_owned(),
+            reason,
+        })
+    };
+    let (n, space) = (agent.motor_dim(), agent.motor_space());
+    if n == 0 || agent.sensor_dim() == 0 {
+        return inconsistent(format!(
+            "it has {n} motors and {} sensors; an agent needs at least one of each",
+            agent.sensor_dim()
+        ));
+    }
+    if space.dim() != n {
+        return inconsistent(format!(
+            "motor_space() describes {} motors but motor_dim() is {n}",
+            space.dim()
+        ));
+    }
+    for (j, motor) in space.motors().iter().enumerate() {
+        motor.check(j)?;
+    }
+    let fits_workspace = agent
+        .ground_truth()
+        .is_some_and(|o| Workspace::fits(&o.pose_space()));
+    if agent.default_workspace().is_some() && !fits_workspace {
+        return inconsistent(
+            "it has a default working space, which bounds the sensor's position, but no ground truth with a position first".into(),
+        );
+    }
+    if let Some(observer) = agent.ground_truth() {
+        let poses = observer.pose_space();
+        let c = observer.configuration_dim();
+        if c == 0 || c > poses.tangent_dim() {
+            return inconsistent(format!(
+                "its ground truth holds {c} pose coordinates fixed, but its pose has {} tangent coordinates ({} columns)",
+                poses.tangent_dim(),
+                poses.dim()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// An agent's `[agent]` table: `kind` picks a kind of an [`AgentRegistry`] and the other
@@ -374,15 +362,16 @@ pub fn sense_rows(
     Ok(sensors)
 }
 
-pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<(), AgentError> {
+pub(crate) fn check_positive(key: &'static str, value: f64) -> Result<(), InvalidParameter> {
     if value.is_finite() && value > 0.0 {
         Ok(())
     } else {
-        Err(AgentError::InvalidParameter {
-            name,
-            value: value.to_string(),
-            reason: "must be a finite number greater than zero",
-        })
+        Err(InvalidParameter::new(
+            "agent",
+            key,
+            value,
+            "must be a finite number greater than zero",
+        ))
     }
 }
 
@@ -423,13 +412,11 @@ mod tests {
 
     #[test]
     fn periodic_distance_wraps_each_coordinate() {
-        let d = MotorTopology::Periodic.distance(&[-PI + 0.1, 0.0], &[PI - 0.1, 0.0]);
+        let d = MotorSpace::hinges(2).distance(&[-PI + 0.1, 0.0], &[PI - 0.1, 0.0]);
         assert_abs_diff_eq!(d, 0.2, epsilon = 1e-12);
-        let e = MotorTopology::Bounded {
-            low: -4.0,
-            high: 4.0,
-        }
-        .distance(&[-3.0, 0.0], &[3.0, 0.0]);
+        let e = MotorSpace::bounded(2, -4.0, 4.0)
+            .unwrap()
+            .distance(&[-3.0, 0.0], &[3.0, 0.0]);
         assert_abs_diff_eq!(e, 6.0);
     }
 
@@ -468,39 +455,75 @@ mod tests {
 
     #[test]
     fn finite_difference_pose_jacobian_matches_analytic_arm() {
-        #[derive(Debug)]
-        struct Wrapped(PlanarArm);
-        impl Agent for Wrapped {
-            fn motor_dim(&self) -> usize {
-                self.0.motor_dim()
+        /// The arm's pose without its analytic Jacobian.
+        struct Numeric(PlanarArm);
+        impl Observer for Numeric {
+            fn pose_space(&self) -> PoseSpace {
+                PoseSpace::planar()
             }
-            fn sensor_dim(&self) -> usize {
-                self.0.sensor_dim()
-            }
-            fn sense(&self, e: &Environment, m: &[f64], s: &mut [f64]) {
-                self.0.sense(e, m, s)
-            }
-            fn pose(&self, m: &[f64]) -> Pose {
-                self.0.pose(m)
-            }
-            fn name(&self) -> &str {
-                "wrapped"
-            }
-            fn default_light_region(&self) -> LightRegion {
-                self.0.default_light_region()
-            }
-            fn default_light_count(&self) -> usize {
-                10
+            fn pose(&self, m: &[f64], pose: &mut [f64]) {
+                self.0.pose(m, pose)
             }
         }
         let arm = PlanarArm::new(&ArmParams::default()).unwrap();
         let m = [0.3, -1.2, 2.0, 3.1];
-        let mut analytic = [0.0; 12];
-        let mut numeric = [0.0; 12];
-        arm.pose_jacobian(&m, &mut analytic);
-        Wrapped(arm).pose_jacobian(&m, &mut numeric);
+        let (mut analytic, mut numeric) = ([0.0; 12], [0.0; 12]);
+        let (mut pose_a, mut pose_n) = ([0.0; 3], [0.0; 3]);
+        arm.pose_jacobian(&m, &mut analytic, &mut pose_a);
+        Numeric(arm).pose_jacobian(&m, &mut numeric, &mut pose_n);
         for (a, b) in analytic.iter().zip(&numeric) {
             assert_abs_diff_eq!(a, b, epsilon = 1e-8);
         }
+        assert_eq!(pose_a, pose_n);
+    }
+
+    /// An agent with the required methods only: hinges, no ground truth.
+    #[derive(Debug)]
+    struct Bare;
+    impl Agent for Bare {
+        fn motor_dim(&self) -> usize {
+            2
+        }
+        fn sensor_dim(&self) -> usize {
+            1
+        }
+        fn sense(&self, _: &Environment, m: &[f64], s: &mut [f64]) {
+            s[0] = m[0].cos() + m[1].cos();
+        }
+        fn name(&self) -> &str {
+            "bare"
+        }
+    }
+
+    #[test]
+    fn an_agent_needs_only_its_law_and_parts_must_agree() {
+        let bare = Bare;
+        assert!(check_agent(&bare).is_ok());
+        assert!(bare.ground_truth().is_none());
+        assert_eq!(bare.motor_space(), MotorSpace::hinges(2));
+        assert!(bare.default_workspace().is_none());
+        assert!(bare.default_light_region().check().is_ok());
+        /// Claims three motors in its motor space.
+        #[derive(Debug)]
+        struct Liar;
+        impl Agent for Liar {
+            fn motor_dim(&self) -> usize {
+                2
+            }
+            fn sensor_dim(&self) -> usize {
+                1
+            }
+            fn sense(&self, _: &Environment, _: &[f64], s: &mut [f64]) {
+                s[0] = 0.0;
+            }
+            fn name(&self) -> &str {
+                "liar"
+            }
+            fn motor_space(&self) -> MotorSpace {
+                MotorSpace::hinges(3)
+            }
+        }
+        let err = check_agent(&Liar).unwrap_err().to_string();
+        assert!(err.contains("liar") && err.contains("3 motors"), "{err}");
     }
 }

@@ -139,7 +139,8 @@ impl AgentRegistry {
         self.kinds.get(kind).map(|e| e.summary.as_str())
     }
 
-    /// Builds the agent an `[agent]` table describes.
+    /// Builds the agent an `[agent]` table describes, and checks that its parts agree
+    /// ([`check_agent`](super::check_agent)).
     pub fn build(&self, config: &AgentConfig) -> Result<BuiltAgent, AgentError> {
         let entry = self
             .kinds
@@ -149,6 +150,7 @@ impl AgentRegistry {
                 known: self.kinds().collect::<Vec<_>>().join(", "),
             })?;
         let (agent, params) = (entry.build)(&config.params)?;
+        super::check_agent(agent.as_ref())?;
         Ok(BuiltAgent {
             agent,
             config: AgentConfig {

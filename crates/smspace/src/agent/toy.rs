@@ -17,7 +17,11 @@ use std::f64::consts::PI;
 
 use serde::{Deserialize, Serialize};
 
-use super::{check_positive, Agent, AgentError, Environment, LightRegion, MotorTopology, Pose};
+use super::{
+    check_positive, Agent, AgentError, Environment, LightRegion, MotorSpace, Observer, Pose,
+    PoseSpace,
+};
+use crate::error::{CheckParams, InvalidParameter};
 
 /// Parameters of the toy agents (`kind = "toy-line"` or `kind = "toy-redundant"`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -59,30 +63,68 @@ pub struct ToyAgent {
     motor_range: [f64; 2],
 }
 
+/// Checked [`ToyParams`], the only form a toy is built from ([`ToyAgent::from_valid`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToyValidParams {
+    sensor_spacing: f64,
+    sensor_height: f64,
+    motor_range: [f64; 2],
+}
+
+impl CheckParams for ToyParams {
+    type Valid = ToyValidParams;
+    type Error = AgentError;
+
+    /// Positive spacing and height, a finite motor range with `low < high`.
+    fn check_params(&self) -> Result<ToyValidParams, AgentError> {
+        check_positive("sensor_spacing", self.sensor_spacing)?;
+        check_positive("sensor_height", self.sensor_height)?;
+        let [low, high] = self.motor_range;
+        if !(low.is_finite() && high.is_finite() && low < high) {
+            return Err(InvalidParameter::new(
+                "agent",
+                "motor_range",
+                format!("[{low}, {high}]"),
+                "must be two finite numbers [low, high] with low < high",
+            )
+            .into());
+        }
+        Ok(ToyValidParams {
+            sensor_spacing: self.sensor_spacing,
+            sensor_height: self.sensor_height,
+            motor_range: self.motor_range,
+        })
+    }
+}
+
 impl ToyAgent {
     /// Validates `params` and builds the agent.
     pub fn new(kind: ToyKind, params: &ToyParams) -> Result<Self, AgentError> {
-        check_positive("sensor_spacing", params.sensor_spacing)?;
-        check_positive("sensor_height", params.sensor_height)?;
-        let [low, high] = params.motor_range;
-        if !(low.is_finite() && high.is_finite() && low < high) {
-            return Err(AgentError::InvalidParameter {
-                name: "motor_range",
-                value: format!("[{low}, {high}]"),
-                reason: "must be two finite numbers [low, high] with low < high",
-            });
-        }
-        Ok(Self {
+        Ok(Self::from_valid(kind, params.check_params()?))
+    }
+
+    /// The agent of checked parameters.
+    pub fn from_valid(kind: ToyKind, params: ToyValidParams) -> Self {
+        Self {
             kind,
             sensor_spacing: params.sensor_spacing,
             sensor_height: params.sensor_height,
             motor_range: params.motor_range,
-        })
+        }
+    }
+
+    /// The body's pose `(x, 0, 0)`: its position on the line.
+    pub fn planar_pose(&self, motors: &[f64]) -> Pose {
+        Pose {
+            x: motors.iter().sum(),
+            y: 0.0,
+            alpha: 0.0,
+        }
     }
 
     /// Positions of the two sensors for motors `m`.
     pub fn sensor_positions(&self, motors: &[f64]) -> [[f64; 2]; 2] {
-        let x = self.pose(motors).x;
+        let x = self.planar_pose(motors).x;
         let half = self.sensor_spacing / 2.0;
         [
             [x - half, self.sensor_height],
@@ -113,28 +155,6 @@ impl Agent for ToyAgent {
         }
     }
 
-    fn pose(&self, motors: &[f64]) -> Pose {
-        Pose {
-            x: motors.iter().sum(),
-            y: 0.0,
-            alpha: 0.0,
-        }
-    }
-
-    fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64]) -> Pose {
-        let n = self.motor_dim();
-        jacobian[..n].fill(1.0);
-        jacobian[n..3 * n].fill(0.0);
-        self.pose(motors)
-    }
-
-    fn inverse_kinematics(&self, pose: Pose) -> Option<Vec<f64>> {
-        let n = self.motor_dim() as f64;
-        let m = pose.x / n;
-        let [low, high] = self.motor_range;
-        (low..=high).contains(&m).then(|| vec![m; self.motor_dim()])
-    }
-
     fn name(&self) -> &str {
         match self.kind {
             ToyKind::Line => "toy-line",
@@ -142,15 +162,15 @@ impl Agent for ToyAgent {
         }
     }
 
-    fn configuration_dim(&self) -> usize {
-        1
+    /// Every motor is a linear actuator on `motor_range`.
+    fn motor_space(&self) -> MotorSpace {
+        let [low, high] = self.motor_range;
+        MotorSpace::bounded(self.motor_dim(), low, high)
+            .expect("the range was checked when the agent was built")
     }
 
-    fn motor_topology(&self) -> MotorTopology {
-        MotorTopology::Bounded {
-            low: self.motor_range[0],
-            high: self.motor_range[1],
-        }
+    fn ground_truth(&self) -> Option<&dyn Observer> {
+        Some(self)
     }
 
     /// A band of lights above the sensors: `x` across the reachable line widened by 1,
@@ -170,10 +190,56 @@ impl Agent for ToyAgent {
     }
 }
 
+/// The observer sees the body's position on the line as the planar pose `(x, 0, 0)`:
+/// only `x` changes with the motors.
+impl Observer for ToyAgent {
+    fn pose_space(&self) -> PoseSpace {
+        PoseSpace::planar()
+    }
+
+    fn pose(&self, motors: &[f64], pose: &mut [f64]) {
+        pose[..3].copy_from_slice(&self.planar_pose(motors).to_array());
+    }
+
+    fn configuration_dim(&self) -> usize {
+        1
+    }
+
+    fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64], pose: &mut [f64]) {
+        let n = self.motor_dim();
+        jacobian[..n].fill(1.0);
+        jacobian[n..3 * n].fill(0.0);
+        self.pose(motors, pose);
+    }
+
+    fn inverse_kinematics(&self, pose: &[f64]) -> Option<Vec<f64>> {
+        let n = self.motor_dim() as f64;
+        let m = pose[0] / n;
+        let [low, high] = self.motor_range;
+        (low..=high).contains(&m).then(|| vec![m; self.motor_dim()])
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
+
+    #[test]
+    fn huge_motors_give_finite_sensors() {
+        let env = Environment::from_lights(vec![[-0.25, 3.0], [1.0, 2.0]]);
+        for (kind, motors) in [
+            (ToyKind::Line, &[1e308][..]),
+            (ToyKind::Redundant, &[1e308, 1e308][..]),
+            (ToyKind::Redundant, &[-f64::MAX, 1e300][..]),
+        ] {
+            let agent = ToyAgent::new(kind, &ToyParams::default()).unwrap();
+            let mut s = [f64::NAN; 2];
+            agent.sense(&env, motors, &mut s);
+            // Lights infinitely far away in effect: no light reaches the sensors.
+            assert_eq!(s, [0.0, 0.0], "{motors:?}");
+        }
+    }
 
     #[test]
     fn inverse_square_law() {

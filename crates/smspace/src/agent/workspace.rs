@@ -1,9 +1,10 @@
 //! The working space: the rectangle of sensor positions an agent explores, in the
-//! observer's frame (paper section 3.2, step 1).
+//! observer's frame (paper section 3.2, step 1). It bounds the first two coordinates
+//! of the observer's pose, which must then be linear (the sensor's position).
 
 use serde::{Deserialize, Serialize};
 
-use super::Pose;
+use super::{CoordinateKind, PoseSpace};
 use crate::error::InvalidParameter;
 
 /// The rectangular working space, in the observer's frame.
@@ -32,10 +33,18 @@ impl Workspace {
         }
     }
 
-    /// Whether the pose's position lies in the working space (boundary included).
-    pub fn contains(&self, pose: Pose) -> bool {
-        (pose.x - self.center[0]).abs() <= self.size[0] / 2.0
-            && (pose.y - self.center[1]).abs() <= self.size[1] / 2.0
+    /// Whether the position `(pose[0], pose[1])` lies in the working space (boundary
+    /// included).
+    pub fn contains(&self, pose: &[f64]) -> bool {
+        (pose[0] - self.center[0]).abs() <= self.size[0] / 2.0
+            && (pose[1] - self.center[1]).abs() <= self.size[1] / 2.0
+    }
+
+    /// Whether poses of `space` can be tested against a working space: their first two
+    /// coordinates are linear (a position).
+    pub fn fits(space: &PoseSpace) -> bool {
+        let c = space.coordinates();
+        c.len() >= 2 && c[..2].iter().all(|c| c.kind == CoordinateKind::Linear)
     }
 
     /// Checks that the centre is finite and both extents are finite and positive.

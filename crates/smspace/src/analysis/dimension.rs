@@ -277,21 +277,20 @@ fn neighbour_rows(
     k_min: usize,
 ) -> Result<ArrayView2<'_, f64>, AnalysisError> {
     if neighbours.ncols() < k_min {
-        return Err(AnalysisError::InvalidParameter {
-            name: "neighbours",
-            value: neighbours.ncols().to_string(),
-            reason: format!("the estimate needs at least {k_min} nearest distances per point"),
+        return Err(AnalysisError::NotNeighbourDistances {
+            reason: format!(
+                "there are {} per point, the estimate needs at least {k_min}",
+                neighbours.ncols()
+            ),
         });
     }
     if let Some(i) = neighbours.outer_iter().position(|r| {
         r.iter().any(|x| !x.is_finite()) || r.iter().zip(r.iter().skip(1)).any(|(a, b)| a > b)
     }) {
-        return Err(AnalysisError::InvalidParameter {
-            name: "neighbours",
-            value: format!("row {i}"),
-            reason:
-                "every row must hold finite distances sorted nearest first (as knn_distances.npy)"
-                    .into(),
+        return Err(AnalysisError::NotNeighbourDistances {
+            reason: format!(
+                "row {i}: every row must hold finite distances sorted nearest first (as knn_distances.npy)"
+            ),
         });
     }
     Ok(neighbours)
@@ -360,11 +359,13 @@ fn twonn_sorted(
 pub fn mle(distances: ArrayView2<'_, f64>, k: usize) -> Result<DimensionEstimate, AnalysisError> {
     let n = distances.nrows();
     if k < 2 || k >= n {
-        return Err(AnalysisError::InvalidParameter {
-            name: "mle_neighbors",
-            value: k.to_string(),
-            reason: format!("must be at least 2 and less than the number of points ({n})"),
-        });
+        return Err(crate::error::InvalidParameter::new(
+            "analysis",
+            "mle_neighbors",
+            k,
+            format!("must be at least 2 and less than the number of points ({n})"),
+        )
+        .into());
     }
     mle_sorted(nearest_distances(distances, k)?.view(), k)
 }
@@ -558,7 +559,9 @@ mod tests {
         };
         let sets = traced.sets.select(Axis(0), &rows);
         let metric = DistanceParams::new().period(Period::TwoPi);
-        distance_matrix(sets.view(), &metric, &Silent).unwrap()
+        distance_matrix(sets.view(), &metric, &Silent)
+            .unwrap()
+            .into_array()
     }
 
     #[test]

@@ -29,9 +29,12 @@ pub mod agreement;
 pub mod dimension;
 pub mod homology;
 
-use ndarray::{Array2, ArrayView2};
+use ndarray::ArrayView2;
 use serde::{Deserialize, Serialize};
 
+use crate::agent::GroundTruthView;
+use crate::error::{CheckParams, InvalidParameter};
+use crate::metric::DistanceMatrix;
 use crate::neighbours::{farthest_first, DenseDistances, NeighboursError};
 use crate::progress::Progress;
 pub use agreement::Agreement;
@@ -42,14 +45,6 @@ pub use homology::{rips_persistence, Bar, BettiRule, Persistence};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum AnalysisError {
-    /// The distance matrix is not square.
-    #[error("the distance matrix has shape ({rows}, {columns}), expected (M, M)")]
-    NotSquare {
-        /// Rows.
-        rows: usize,
-        /// Columns.
-        columns: usize,
-    },
     /// Too few points to analyse.
     #[error("the distance matrix has {points} points; the analysis needs at least {needed}")]
     TooFewPoints {
@@ -58,14 +53,8 @@ pub enum AnalysisError {
         /// The least `M` accepted.
         needed: usize,
     },
-    /// An entry is not a distance.
-    #[error("the distance matrix is not a distance matrix: {reason}")]
-    NotDistances {
-        /// What is wrong, with the entry.
-        reason: String,
-    },
     /// The poses do not match the distance matrix.
-    #[error("poses have shape ({rows}, {columns}), expected ({expected}, 3) to match the distance matrix")]
+    #[error("poses have shape ({rows}, {columns}), expected ({expected}, {coordinates}) to match the distance matrix")]
     PosesShape {
         /// Rows.
         rows: usize,
@@ -73,15 +62,16 @@ pub enum AnalysisError {
         columns: usize,
         /// `M`.
         expected: usize,
+        /// The pose's coordinates `d` (3 for the planar `(x, y, alpha)`).
+        coordinates: usize,
     },
     /// A parameter is out of its domain.
-    #[error("invalid analysis parameter {name} = {value}: {reason}")]
-    InvalidParameter {
-        /// The parameter, as in the configuration file.
-        name: &'static str,
-        /// The value given.
-        value: String,
-        /// What a valid value looks like.
+    #[error(transparent)]
+    Invalid(#[from] InvalidParameter),
+    /// Nearest-neighbour distances given to a dimension estimate are not usable.
+    #[error("the nearest-neighbour distances are not usable: {reason}")]
+    NotNeighbourDistances {
+        /// What is wrong, with the row.
         reason: String,
     },
     /// The data give no estimate.
@@ -103,6 +93,16 @@ pub enum AnalysisError {
         /// The limit.
         limit: &'static str,
     },
+}
+
+impl AnalysisError {
+    /// The parameter out of its domain, located by table and key, if this is one.
+    pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
+        match self {
+            AnalysisError::Invalid(p) => Some(p),
+            _ => None,
+        }
+    }
 }
 
 /// Parameters of [`analyze`] (the `[analysis]` table).
@@ -169,12 +169,8 @@ impl AnalysisValidParams {
     }
 }
 
-fn invalid(name: &'static str, value: impl ToString, reason: &str) -> AnalysisError {
-    AnalysisError::InvalidParameter {
-        name,
-        value: value.to_string(),
-        reason: reason.to_owned(),
-    }
+fn invalid(key: &'static str, value: impl std::fmt::Display, reason: &str) -> AnalysisError {
+    InvalidParameter::new("analysis", key, value, reason).into()
 }
 
 impl AnalysisParams {
@@ -235,48 +231,12 @@ impl AnalysisParams {
     }
 }
 
-/// Checks that `distances` is a distance matrix: square, finite, non-negative, zero on
-/// the diagonal and symmetric (to `1e-9` of its largest entry). Returns it with the
-/// two triangles averaged, so that every algorithm sees exactly symmetric values.
-pub fn check_distances(distances: ArrayView2<'_, f64>) -> Result<Array2<f64>, AnalysisError> {
-    let (rows, columns) = distances.dim();
-    if rows != columns {
-        return Err(AnalysisError::NotSquare { rows, columns });
+impl CheckParams for AnalysisParams {
+    type Valid = AnalysisValidParams;
+    type Error = AnalysisError;
+    fn check_params(&self) -> Result<AnalysisValidParams, AnalysisError> {
+        self.check()
     }
-    let not = |reason: String| AnalysisError::NotDistances { reason };
-    let mut largest: f64 = 0.0;
-    for ((i, j), &d) in distances.indexed_iter() {
-        if !d.is_finite() {
-            return Err(not(format!("entry ({i}, {j}) is {d}")));
-        }
-        if d < 0.0 {
-            return Err(not(format!("entry ({i}, {j}) is negative ({d})")));
-        }
-        largest = largest.max(d);
-    }
-    let tolerance = 1e-9 * largest.max(f64::MIN_POSITIVE);
-    let mut out = distances.to_owned();
-    for i in 0..rows {
-        if distances[[i, i]] > tolerance {
-            return Err(not(format!(
-                "diagonal entry ({i}, {i}) is {}, expected 0",
-                distances[[i, i]]
-            )));
-        }
-        out[[i, i]] = 0.0;
-        for j in i + 1..rows {
-            let (a, b) = (distances[[i, j]], distances[[j, i]]);
-            if (a - b).abs() > tolerance {
-                return Err(not(format!(
-                    "it is not symmetric: entry ({i}, {j}) is {a} but ({j}, {i}) is {b}"
-                )));
-            }
-            let mean = 0.5 * (a + b);
-            out[[i, j]] = mean;
-            out[[j, i]] = mean;
-        }
-    }
-    Ok(out)
 }
 
 /// Max–min landmarks of the square matrix `distances`, from row 0: the
@@ -366,15 +326,69 @@ pub struct AnalysisReport {
     pub agreement: Option<Agreement>,
 }
 
-/// Topology, dimension and (with `poses`, `M × 3` `(x, y, alpha)`) agreement of the
-/// distance matrix `distances` (`M × M`).
+impl AnalysisReport {
+    /// Writes the report as JSON to `path` (atomically). `smspace analyze --out` and
+    /// the pipeline's analyze stage write through here.
+    pub fn save(&self, path: &std::path::Path) -> Result<(), crate::io::IoError> {
+        crate::io::write_json(path, self)
+    }
+
+    /// Stages the report for `path` into `outputs`, to be renamed into place with the
+    /// other files of a command or stage (the bytes [`save`](Self::save) writes).
+    pub fn write_into(
+        &self,
+        outputs: &mut crate::io::Outputs,
+        path: &std::path::Path,
+    ) -> Result<(), crate::io::IoError> {
+        outputs.json(path, self)
+    }
+
+    /// Reads a report written by [`save`](AnalysisReport::save).
+    pub fn load(path: &std::path::Path) -> Result<Self, crate::io::IoError> {
+        crate::io::read_json(path, "analysis report")
+    }
+}
+
+/// Topology, dimension and (with `poses`, `M × 3` `(x, y, alpha)`, the planar ground
+/// truth, any strides) agreement of the distance matrix `distances` (`M × M`, `M ≥ 3`).
+/// [`analyze_on`] takes poses of any layout.
+///
+/// ```
+/// use smspace::analysis::{analyze, AnalysisParams};
+/// use smspace::metric::DistanceMatrix;
+/// use smspace::progress::Silent;
+/// // 60 points on a circle of radius 1, unevenly spaced, at chord distances: one
+/// // component, one loop, dimension about 1.
+/// let angle = |i: usize| (i as f64 + 0.4 * (7.0 * i as f64).sin()) * std::f64::consts::TAU / 60.0;
+/// let d = ndarray::Array2::from_shape_fn((60, 60), |(i, j)| 2.0 * ((angle(i) - angle(j)) / 2.0).sin().abs());
+/// let d = DistanceMatrix::new(d)?;
+/// let params = AnalysisParams { mle_neighbors: 5, ..AnalysisParams::default() }.check()?;
+/// let report = analyze(&d, None, &params, &Silent)?;
+/// assert_eq!(report.betti, vec![1, 1]);
+/// assert!((0.5..2.0).contains(&report.intrinsic_dimension.mle));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn analyze(
-    distances: ArrayView2<'_, f64>,
+    distances: &DistanceMatrix,
     poses: Option<ArrayView2<'_, f64>>,
     params: &AnalysisValidParams,
     progress: &dyn Progress,
 ) -> Result<AnalysisReport, AnalysisError> {
-    analyze_on(distances, poses, None, params, progress)
+    let planar = crate::agent::PoseSpace::planar();
+    let truth = match poses {
+        Some(poses) => Some(
+            GroundTruthView::new(&planar, poses.reborrow()).map_err(|_| {
+                AnalysisError::PosesShape {
+                    rows: poses.nrows(),
+                    columns: poses.ncols(),
+                    expected: distances.len(),
+                    coordinates: 3,
+                }
+            })?,
+        ),
+        None => None,
+    };
+    analyze_on(distances, truth, None, params, progress)
 }
 
 /// The sets an intrinsic dimension is estimated on.
@@ -386,22 +400,24 @@ pub struct DimensionSets<'a> {
     pub name: &'a str,
 }
 
-/// [`analyze`], with the intrinsic dimension estimated on the sets `dimension_sets`
-/// only (e.g. the babbled configurations without the regular probe grid; `None`: all
-/// sets). Topology and agreement always use every set.
+/// [`analyze`] against the observer's poses of any layout (`truth`, `M × d`; `None`:
+/// no ground truth, no agreement), with the intrinsic dimension estimated on the sets
+/// `dimension_sets` only (e.g. the babbled configurations without the regular probe
+/// grid; `None`: all sets). Topology and agreement always use every set.
 pub fn analyze_on(
-    distances: ArrayView2<'_, f64>,
-    poses: Option<ArrayView2<'_, f64>>,
+    distances: &DistanceMatrix,
+    poses: Option<GroundTruthView<'_>>,
     dimension_sets: Option<DimensionSets<'_>>,
     params: &AnalysisValidParams,
     progress: &dyn Progress,
 ) -> Result<AnalysisReport, AnalysisError> {
     let p = &params.params;
-    let distances = checked_inputs(distances, poses)?;
-    let (persistence, subsampling) = homology_of(distances.view(), p, progress)?;
-    let intrinsic_dimension = intrinsic_dimension(distances.view(), dimension_sets, p, progress)?;
+    check_inputs(distances, poses)?;
+    let distances = distances.view();
+    let (persistence, subsampling) = homology_of(distances, p, progress)?;
+    let intrinsic_dimension = intrinsic_dimension(distances, dimension_sets, p, progress)?;
     let agreement = match poses {
-        Some(poses) => Some(agreement::agreement(distances.view(), poses, p.neighbors)?),
+        Some(truth) => Some(agreement::agreement_of(distances, truth, p.neighbors)?),
         None => None,
     };
     let rule = params.betti_rule();
@@ -431,30 +447,30 @@ pub fn analyze_on(
     })
 }
 
-/// The distance matrix, checked and symmetrised ([`check_distances`]), of at least 3
-/// points, and poses `(M, 3)` if given.
-fn checked_inputs(
-    distances: ArrayView2<'_, f64>,
-    poses: Option<ArrayView2<'_, f64>>,
-) -> Result<Array2<f64>, AnalysisError> {
-    let distances = check_distances(distances)?;
-    let n = distances.nrows();
+/// At least 3 points, and poses `(M, d)` if given.
+fn check_inputs(
+    distances: &DistanceMatrix,
+    poses: Option<GroundTruthView<'_>>,
+) -> Result<(), AnalysisError> {
+    let n = distances.len();
     if n < 3 {
         return Err(AnalysisError::TooFewPoints {
             points: n,
             needed: 3,
         });
     }
-    if let Some(poses) = poses {
-        if poses.dim() != (n, 3) {
+    if let Some(truth) = poses {
+        let d = truth.space().dim();
+        if truth.poses().dim() != (n, d) {
             return Err(AnalysisError::PosesShape {
-                rows: poses.nrows(),
-                columns: poses.ncols(),
+                rows: truth.poses().nrows(),
+                columns: truth.poses().ncols(),
                 expected: n,
+                coordinates: d,
             });
         }
     }
-    Ok(distances)
+    Ok(())
 }
 
 /// Rips persistence of all points, or of `max_points` max–min landmarks from row 0
@@ -521,11 +537,13 @@ fn intrinsic_dimension(
     let (on, sets) = match subset {
         Some(s) => {
             if let Some(&bad) = s.rows.iter().find(|&&r| r >= n) {
-                return Err(AnalysisError::InvalidParameter {
-                    name: "dimension_sets",
-                    value: bad.to_string(),
-                    reason: format!("a row of the {n} x {n} distance matrix"),
-                });
+                return Err(InvalidParameter::new(
+                    "analysis",
+                    "dimension_sets",
+                    bad,
+                    format!("a row of the {n} x {n} distance matrix"),
+                )
+                .into());
             }
             sub = distances
                 .select(ndarray::Axis(0), s.rows)

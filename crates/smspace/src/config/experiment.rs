@@ -10,6 +10,7 @@ use super::{parse_toml, read_text, ConfigError};
 use crate::agent::{AgentConfig, EnvironmentConfig, LightRegion};
 use crate::analysis::AnalysisParams;
 use crate::embed::EmbedParams;
+use crate::error::InvalidParameter;
 use crate::explore::ExploreParams;
 use crate::kernel::TraceParams;
 use crate::metric::DistanceParams;
@@ -157,8 +158,46 @@ impl LoadedExperiment {
             .unwrap_or_else(|e| format!("# the experiment could not be written as TOML: {e}\n"))
     }
 
+    /// An [`Invalid`](ConfigError::Invalid) error for a stage's error: located at the
+    /// line of its key ([`crate::Error::invalid_parameter`]: the table and key it
+    /// names), or at the override that set it; errors that name no parameter are
+    /// located as [`invalid`](Self::invalid) does, in `table`.
+    pub fn invalid_error(&self, table: &'static str, error: crate::Error) -> ConfigError {
+        match error.invalid_parameter() {
+            Some(parameter) => self.invalid_parameter(parameter),
+            None => self.invalid(table, error),
+        }
+    }
+
+    /// An [`Invalid`](ConfigError::Invalid) error for `parameter`, located at the line of
+    /// its key in its table (`[table]` or a `[table.key]` sub-table), or at the `--set
+    /// table.key=…` that gave it.
+    pub fn invalid_parameter(&self, parameter: &InvalidParameter) -> ConfigError {
+        let (table, key) = (parameter.table, parameter.key);
+        let path = format!("{table}.{key}");
+        let overridden = self.overrides.iter().find(|o| {
+            o.split_once('=').is_some_and(|(p, _)| {
+                let p = p.trim();
+                p == path || p.starts_with(&format!("{path}."))
+            })
+        });
+        let line = match overridden {
+            Some(o) => format!(" (from --set {o})"),
+            None => exact_key_line(&self.text, table, key)
+                .map(|n| format!(", line {n}"))
+                .unwrap_or_default(),
+        };
+        ConfigError::Invalid {
+            path: self.path.clone(),
+            line,
+            table,
+            reason: parameter.to_string(),
+        }
+    }
+
     /// An [`Invalid`](ConfigError::Invalid) error for `table`, located at the line of the
-    /// first of the table's keys that `message` names (or at the override that set it).
+    /// first of the table's keys that `message` names (or at the override that set it):
+    /// for errors that carry no [`InvalidParameter`].
     pub fn invalid(&self, table: &'static str, message: impl ToString) -> ConfigError {
         let reason = message.to_string();
         let overridden = self.overrides.iter().find(|o| {
@@ -182,6 +221,37 @@ impl LoadedExperiment {
             reason,
         }
     }
+}
+
+/// The 1-based line where `key` of `[table]` is written: `key = …` inside `[table]`
+/// (or one of its `[[table.…]]` entries), or the header of a `[table.key]` sub-table;
+/// `table = ""` is the file's top level, before the first table.
+fn exact_key_line(text: &str, table: &str, key: &str) -> Option<usize> {
+    let sub_table = format!("{table}.{key}");
+    let mut in_table = table.is_empty();
+    for (n, line) in text.lines().enumerate() {
+        let t = line.trim();
+        if t.starts_with('[') {
+            let header = t
+                .trim_start_matches('[')
+                .split(']')
+                .next()
+                .unwrap_or("")
+                .trim();
+            if header == sub_table {
+                return Some(n + 1);
+            }
+            in_table = header == table || header.starts_with(&format!("{table}."));
+            continue;
+        }
+        if in_table {
+            let written = t.split_once('=').map(|(k, _)| k.trim().trim_matches('"'));
+            if written == Some(key) {
+                return Some(n + 1);
+            }
+        }
+    }
+    None
 }
 
 /// Whether `message` names `key` as a word.
@@ -336,9 +406,19 @@ pub fn load_experiment(path: &Path, overrides: &[String]) -> Result<LoadedExperi
         || name.starts_with('.')
         || name.chars().any(char::is_control)
     {
-        return Err(ConfigError::Parse {
+        let parameter = InvalidParameter::new(
+            "experiment",
+            "name",
+            format!("{name:?}"),
+            "the name becomes the folder runs/<name>; use letters, digits and dashes",
+        );
+        return Err(ConfigError::Invalid {
             path: path.to_owned(),
-            message: format!("name = {name:?}: the name becomes the folder runs/<name>; use letters, digits and dashes"),
+            line: exact_key_line(&text, "", "name")
+                .map(|n| format!(", line {n}"))
+                .unwrap_or_default(),
+            table: parameter.table,
+            reason: parameter.to_string(),
         });
     }
     Ok(LoadedExperiment {

@@ -273,4 +273,50 @@ mod tests {
             .to_string();
         assert!(err.contains("(from --set kernel.points=1)"), "{err}");
     }
+
+    /// A stage's parameter error names its table and key, so the reader points at the
+    /// key's own line even where the message names other keys too (here `max_step`'s
+    /// message names `step`, written on an earlier line).
+    #[test]
+    fn parameter_errors_are_located_by_their_table_and_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let check = |text: &str, overrides: &[&str]| {
+            let path = write(&dir, "located.toml", text);
+            let overrides: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
+            let loaded = load_experiment(&path, &overrides).unwrap();
+            crate::pipeline::check(&loaded).unwrap_err().to_string()
+        };
+        let arm = "[agent]\nkind = \"planar-arm\"\n";
+        let err = check(
+            &format!("{arm}[kernel]\nstep_control = \"adaptive\"\nstep = 0.01\nmax_step = 0.001\n"),
+            &[],
+        );
+        assert!(
+            err.contains("located.toml, line 6: [kernel] invalid kernel parameter max_step"),
+            "{err}"
+        );
+        let err = check(&format!("{arm}retina_cells = 0\n"), &[]);
+        assert!(
+            err.contains("line 3: [agent]") && err.contains("retina_cells = 0"),
+            "{err}"
+        );
+        let err = check(
+            &format!("{arm}[exploration]\nn = 10\nworkspace_center = [1.0, 0.0]\n"),
+            &[],
+        );
+        assert!(
+            err.contains("line 5: [exploration]") && err.contains("workspace_size"),
+            "{err}"
+        );
+        let err = check(
+            &format!("{arm}[environment]\nseed = 2\nlights = 5000\n"),
+            &[],
+        );
+        assert!(err.contains("line 5: [environment]"), "{err}");
+        let err = check(
+            &format!("{arm}[kernel]\npoints = 10\n"),
+            &["kernel.points=0"],
+        );
+        assert!(err.contains("(from --set kernel.points=0)"), "{err}");
+    }
 }

@@ -27,9 +27,10 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::eigen::{classical_mds, EigenSolver, Triangulation};
+use super::eigen::{classical_mds, distance_scale, rescaled, EigenSolver, Triangulation};
 use super::{check_dim, check_dim_param, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
+use crate::error::InvalidParameter;
 use crate::neighbours::{self, DenseDistances, FarthestFirst, Knn};
 use crate::progress::Progress;
 
@@ -112,19 +113,17 @@ impl IsomapParams {
     pub fn check(self) -> Result<IsomapValidParams, EmbedError> {
         check_dim_param(self.dim)?;
         if self.k == 0 {
-            return Err(EmbedError::Parameter {
-                name: "k",
-                value: "0".into(),
-                expected: "at least 1 neighbour",
-            });
+            return Err(InvalidParameter::new("embedding", "k", 0, "at least 1 neighbour").into());
         }
         if let Some(l) = self.landmarks {
             if l <= self.dim {
-                return Err(EmbedError::Parameter {
-                    name: "landmarks",
-                    value: l.to_string(),
-                    expected: "more landmarks than output dimensions (a few hundred is typical)",
-                });
+                return Err(InvalidParameter::new(
+                    "embedding",
+                    "landmarks",
+                    l,
+                    "more landmarks than output dimensions (a few hundred is typical)",
+                )
+                .into());
             }
         }
         Ok(IsomapValidParams(self))
@@ -428,6 +427,15 @@ impl IsomapValidParams {
         graph: &KnnGraph,
         progress: &dyn Progress,
     ) -> Result<Embedded, EmbedError> {
+        if let Some(scale) = distance_scale(&graph.knn().distances) {
+            let knn = graph.knn();
+            let scaled = KnnGraph::from_knn(Knn {
+                rows: knn.rows.clone(),
+                indices: knn.indices.clone(),
+                distances: knn.distances.mapv(|x| x / scale),
+            })?;
+            return Ok(rescaled(self.fit_knn(&scaled, progress)?, scale));
+        }
         let p = &self.0;
         let n = graph.points();
         check_dim(p.dim, n)?;

@@ -36,6 +36,8 @@ pub mod quality;
 use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
 
+use crate::error::{CheckParams, InvalidParameter};
+use crate::metric::DistanceMatrix;
 use crate::progress::Progress;
 
 pub use cca::{CcaParams, CcaValidParams, Neighbourhood};
@@ -47,60 +49,9 @@ pub use mds::{MdsParams, MdsValidParams};
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum EmbedError {
-    /// The distance matrix is not square.
-    #[error("the distance matrix has shape ({rows}, {cols}); it must be square (M, M)")]
-    NotSquare {
-        /// Rows found.
-        rows: usize,
-        /// Columns found.
-        cols: usize,
-    },
-    /// The distance matrix holds a non-finite entry.
-    #[error(
-        "the distance matrix holds {value} at [{i}, {j}]; every distance must be a finite number"
-    )]
-    NonFinite {
-        /// Row.
-        i: usize,
-        /// Column.
-        j: usize,
-        /// The value.
-        value: f64,
-    },
-    /// The distance matrix holds a negative entry.
-    #[error("the distance matrix holds a negative distance {value} at [{i}, {j}]")]
-    Negative {
-        /// Row.
-        i: usize,
-        /// Column.
-        j: usize,
-        /// The value.
-        value: f64,
-    },
-    /// The distance matrix is not symmetric.
-    #[error("the distance matrix is not symmetric: X[{i}, {j}] = {a} but X[{j}, {i}] = {b} (tolerance {tolerance:.1e}); symmetrise it, e.g. (X + X.T) / 2")]
-    Asymmetric {
-        /// Row.
-        i: usize,
-        /// Column.
-        j: usize,
-        /// `X[i, j]`.
-        a: f64,
-        /// `X[j, i]`.
-        b: f64,
-        /// The tolerance used.
-        tolerance: f64,
-    },
-    /// The diagonal of the distance matrix is not zero.
-    #[error(
-        "the distance matrix has X[{i}, {i}] = {value}; the distance of a set to itself must be 0"
-    )]
-    NonZeroDiagonal {
-        /// Index.
-        i: usize,
-        /// The value.
-        value: f64,
-    },
+    /// The distance matrix is not one.
+    #[error(transparent)]
+    Distances(#[from] crate::metric::MatrixError),
     /// Too few points for the requested output dimension.
     #[error("cannot embed {points} points in {dim} dimensions; {}", dim_advice(*points))]
     DimTooLarge {
@@ -110,15 +61,8 @@ pub enum EmbedError {
         points: usize,
     },
     /// A parameter is out of its range.
-    #[error("invalid parameter {name} = {value}: {expected}")]
-    Parameter {
-        /// Parameter name.
-        name: &'static str,
-        /// The value given, formatted.
-        value: String,
-        /// What is allowed.
-        expected: &'static str,
-    },
+    #[error(transparent)]
+    Invalid(#[from] InvalidParameter),
     /// The neighbour count is too large for the number of points.
     #[error("k = {k} neighbours asked for {points} points; use k < {points}")]
     KTooLarge {
@@ -181,10 +125,40 @@ pub enum EmbedError {
     Io(#[from] crate::io::IoError),
 }
 
+impl EmbedError {
+    /// The parameter out of its domain, located by table and key, if this is one.
+    pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
+        match self {
+            EmbedError::Invalid(p) => Some(p),
+            _ => None,
+        }
+    }
+}
+
 /// An embedding method: turns an `(M, M)` distance matrix into coordinates `(M, d)`.
 ///
 /// Object-safe, so that a configuration can pick the method by name
 /// ([`EmbedParams::build`]).
+///
+/// ```
+/// use smspace::embed::{CcaParams, Embedding, IsomapParams, MdsParams};
+/// use smspace::metric::DistanceMatrix;
+/// use smspace::progress::Silent;
+/// // Eight points on a line, 1 apart: every method finds the line.
+/// let d = ndarray::Array2::from_shape_fn((8, 8), |(i, j)| (i as f64 - j as f64).abs());
+/// let d = DistanceMatrix::new(d)?;
+/// let methods: [Box<dyn Embedding>; 3] = [
+///     Box::new(MdsParams::default().dim(1).check()?),
+///     Box::new(IsomapParams::default().dim(1).k(2).check()?),
+///     Box::new(CcaParams::default().dim(1).epochs(20).check()?),
+/// ];
+/// for method in methods {
+///     let y = method.fit(&d, &Silent)?.coordinates;
+///     let span = (y[[7, 0]] - y[[0, 0]]).abs();
+///     assert!((span - 7.0).abs() < 0.1, "{}: {span}", method.name());
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub trait Embedding: Send + Sync + std::fmt::Debug {
     /// The method's name (`"cca"`, `"isomap"`, `"mds"`).
     fn name(&self) -> &'static str;
@@ -192,21 +166,20 @@ pub trait Embedding: Send + Sync + std::fmt::Debug {
     /// The output dimension `d`.
     fn dim(&self) -> usize;
 
-    /// Embeds the points whose pairwise distances are `distances` `(M, M)`.
-    ///
-    /// The matrix is validated first ([`check_distances`]), and the dimension against
-    /// its size; then [`fit_checked`](Embedding::fit_checked) runs.
+    /// Embeds the points whose pairwise distances are `distances` `(M, M)` (validated
+    /// when it was made: [`DistanceMatrix`]); the dimension is checked against its
+    /// size, then [`fit_checked`](Embedding::fit_checked) runs.
     fn fit(
         &self,
-        distances: ArrayView2<'_, f64>,
+        distances: &DistanceMatrix,
         progress: &dyn Progress,
     ) -> Result<Embedded, EmbedError> {
-        check_distances(distances)?;
-        check_dim(self.dim(), distances.nrows())?;
-        self.fit_checked(distances, progress)
+        check_dim(self.dim(), distances.len())?;
+        self.fit_checked(distances.view(), progress)
     }
 
-    /// The method itself, on a matrix that [`fit`](Embedding::fit) has validated.
+    /// The method itself, on a matrix that [`fit`](Embedding::fit) has validated (a
+    /// [`DistanceMatrix`] in C order).
     fn fit_checked(
         &self,
         distances: ArrayView2<'_, f64>,
@@ -237,14 +210,68 @@ impl Default for EmbedParams {
     }
 }
 
+/// Checked [`EmbedParams`]: one method, ready to fit.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EmbedValidParams {
+    /// Curvilinear Component Analysis.
+    Cca(CcaValidParams),
+    /// Isomap.
+    Isomap(IsomapValidParams),
+    /// Classical MDS.
+    Mds(MdsValidParams),
+}
+
+impl EmbedValidParams {
+    /// The method, as an [`Embedding`].
+    pub fn into_embedding(self) -> Box<dyn Embedding> {
+        match self {
+            Self::Cca(p) => Box::new(p),
+            Self::Isomap(p) => Box::new(p),
+            Self::Mds(p) => Box::new(p),
+        }
+    }
+}
+
 impl EmbedParams {
     /// Checks the parameters and returns the method, ready to fit.
     pub fn build(self) -> Result<Box<dyn Embedding>, EmbedError> {
-        Ok(match self {
-            Self::Cca(p) => Box::new(p.check()?),
-            Self::Isomap(p) => Box::new(p.check()?),
-            Self::Mds(p) => Box::new(p.check()?),
+        Ok(self.check_params()?.into_embedding())
+    }
+}
+
+impl CheckParams for EmbedParams {
+    type Valid = EmbedValidParams;
+    type Error = EmbedError;
+    fn check_params(&self) -> Result<EmbedValidParams, EmbedError> {
+        Ok(match self.clone() {
+            Self::Cca(p) => EmbedValidParams::Cca(p.check()?),
+            Self::Isomap(p) => EmbedValidParams::Isomap(p.check()?),
+            Self::Mds(p) => EmbedValidParams::Mds(p.check()?),
         })
+    }
+}
+
+impl CheckParams for CcaParams {
+    type Valid = CcaValidParams;
+    type Error = EmbedError;
+    fn check_params(&self) -> Result<CcaValidParams, EmbedError> {
+        self.clone().check()
+    }
+}
+
+impl CheckParams for IsomapParams {
+    type Valid = IsomapValidParams;
+    type Error = EmbedError;
+    fn check_params(&self) -> Result<IsomapValidParams, EmbedError> {
+        self.clone().check()
+    }
+}
+
+impl CheckParams for MdsParams {
+    type Valid = MdsValidParams;
+    type Error = EmbedError;
+    fn check_params(&self) -> Result<MdsValidParams, EmbedError> {
+        self.clone().check()
     }
 }
 
@@ -322,13 +349,26 @@ impl EmbedFile {
     /// `dydx` field naming the sample file (relative to the report). Returns the paths
     /// written. `smspace embed` and the pipeline's embed stage both write through here.
     pub fn write(
-        mut self,
+        self,
         y_path: &std::path::Path,
         coordinates: ArrayView2<'_, f64>,
         dydx: Option<ArrayView2<'_, f64>>,
     ) -> Result<Vec<std::path::PathBuf>, crate::io::IoError> {
         // All files or none (see `io::Outputs`).
         let mut outputs = crate::io::Outputs::new();
+        self.write_into(&mut outputs, y_path, coordinates, dydx)?;
+        outputs.commit()
+    }
+
+    /// Stages the files of [`write`](Self::write) into `outputs`, to be renamed into
+    /// place with the other files of a command or stage.
+    pub fn write_into(
+        mut self,
+        outputs: &mut crate::io::Outputs,
+        y_path: &std::path::Path,
+        coordinates: ArrayView2<'_, f64>,
+        dydx: Option<ArrayView2<'_, f64>>,
+    ) -> Result<(), crate::io::IoError> {
         outputs.npy(y_path, &coordinates)?;
         self.dydx = match dydx {
             Some(pairs) => {
@@ -344,8 +384,7 @@ impl EmbedFile {
             None => None,
         };
         let report = crate::io::sibling(y_path, "embed.json");
-        outputs.json(&report, &self)?;
-        outputs.commit()
+        outputs.json(&report, &self)
     }
 }
 
@@ -416,7 +455,11 @@ impl Embedded {
     /// CCA minimises each new point's CCA stress against the fixed layout, starting from
     /// its nearest old points; MDS and Isomap use landmark triangulation (for Isomap on
     /// geodesic distances through the new point's `k` nearest old points).
+    ///
+    /// `new_to_old` may have any layout or strides.
     pub fn extend(&self, new_to_old: ArrayView2<'_, f64>) -> Result<Array2<f64>, EmbedError> {
+        let new_to_old = new_to_old.as_standard_layout();
+        let new_to_old = new_to_old.view();
         let points = self.points();
         if new_to_old.ncols() != points {
             return Err(EmbedError::ExtendShape {
@@ -438,42 +481,11 @@ impl Embedded {
     }
 }
 
-/// Validates a distance matrix: square, finite, non-negative, zero diagonal and
-/// symmetric within `1e-9 · max(1, max X)`.
+/// Validates a distance matrix view (any layout): square, finite, non-negative, zero
+/// diagonal and symmetric within [`SYMMETRY_TOLERANCE`](crate::metric::SYMMETRY_TOLERANCE)
+/// (see [`DistanceMatrix`], which every entry point takes).
 pub fn check_distances(distances: ArrayView2<'_, f64>) -> Result<(), EmbedError> {
-    let (rows, cols) = distances.dim();
-    if rows != cols {
-        return Err(EmbedError::NotSquare { rows, cols });
-    }
-    let mut max = 0.0_f64;
-    for ((i, j), &value) in distances.indexed_iter() {
-        if !value.is_finite() {
-            return Err(EmbedError::NonFinite { i, j, value });
-        }
-        if value < 0.0 {
-            return Err(EmbedError::Negative { i, j, value });
-        }
-        max = max.max(value);
-    }
-    let tolerance = 1e-9 * max.max(1.0);
-    for i in 0..rows {
-        let value = distances[[i, i]];
-        if value > tolerance {
-            return Err(EmbedError::NonZeroDiagonal { i, value });
-        }
-        for j in 0..i {
-            let (a, b) = (distances[[i, j]], distances[[j, i]]);
-            if (a - b).abs() > tolerance {
-                return Err(EmbedError::Asymmetric {
-                    i,
-                    j,
-                    a,
-                    b,
-                    tolerance,
-                });
-            }
-        }
-    }
+    DistanceMatrix::from_view(distances)?;
     Ok(())
 }
 
@@ -497,11 +509,7 @@ pub(crate) fn check_dim(dim: usize, points: usize) -> Result<(), EmbedError> {
 /// Checks `dim ≥ 1` at parameter-check time (before the size is known).
 pub(crate) fn check_dim_param(dim: usize) -> Result<(), EmbedError> {
     if dim == 0 {
-        return Err(EmbedError::Parameter {
-            name: "dim",
-            value: "0".into(),
-            expected: "at least 1",
-        });
+        return Err(InvalidParameter::new("embedding", "dim", 0, "at least 1").into());
     }
     Ok(())
 }

@@ -46,11 +46,13 @@ fn out_distance(y: ArrayView2<'_, f64>, i: usize, j: usize) -> f64 {
 
 fn check_shapes(x: ArrayView2<'_, f64>, y: ArrayView2<'_, f64>) -> Result<(), EmbedError> {
     if x.nrows() != x.ncols() || x.nrows() != y.nrows() {
-        return Err(EmbedError::Parameter {
-            name: "embedding",
-            value: format!("{} points for a {:?} distance matrix", y.nrows(), x.dim()),
-            expected: "one row per row of the distance matrix",
-        });
+        return Err(crate::error::InvalidParameter::new(
+            "embedding",
+            "coordinates",
+            format!("{} points for a {:?} distance matrix", y.nrows(), x.dim()),
+            "one row per row of the distance matrix",
+        )
+        .into());
     }
     Ok(())
 }

@@ -1,11 +1,9 @@
 //! Predictor–corrector continuation of a 1-D level set, closure, and arc-length
 //! resampling.
 
-use std::f64::consts::PI;
-
 use super::level_set::LevelSet;
 use super::{SetStatus, StepControl, TraceValidParams};
-use crate::agent::{wrap_angle, MotorTopology};
+use crate::agent::MotorSpace;
 
 /// Smallest step the adaptive control may take before it gives up.
 const MIN_ADAPTIVE_STEP: f64 = 1e-7;
@@ -147,16 +145,6 @@ fn correct(
     None
 }
 
-/// The image of `start` nearest to `m` on the torus (or `start` itself when bounded).
-fn nearest_image(topology: MotorTopology, start: &[f64], m: &[f64], image: &mut [f64]) {
-    for ((out, s), x) in image.iter_mut().zip(start).zip(m) {
-        *out = match topology {
-            MotorTopology::Periodic => s + 2.0 * PI * ((x - s) / (2.0 * PI)).round(),
-            MotorTopology::Bounded { .. } => *s,
-        };
-    }
-}
-
 fn distance(a: &[f64], b: &[f64]) -> f64 {
     a.iter()
         .zip(b)
@@ -188,15 +176,15 @@ fn closest_on_segment(a: &[f64], b: &[f64], p: &[f64]) -> (f64, f64) {
     (tau, d)
 }
 
-/// Traces from `start` along `direction` until the curve closes (back at the start),
-/// leaves the motor box (bounded topology), or fails. The level set must be
-/// linearised at `start`.
+/// Traces from `start` along `direction` until the curve closes (back at an image of
+/// the start), reaches a bound of a bounded coordinate, or fails. The level set must
+/// be linearised at `start`.
 pub(crate) fn trace_branch(
     set: &mut dyn LevelSet,
     start: &[f64],
     direction: &[f64],
     params: &TraceValidParams,
-    topology: MotorTopology,
+    space: &MotorSpace,
     scratch: &mut Scratch,
 ) -> Result<Branch, SetStatus> {
     let n = start.len();
@@ -218,7 +206,8 @@ pub(crate) fn trace_branch(
     let mut bend = vec![0.0; n];
     let mut h = params.step;
     let cos_max_turn = params.max_turn.cos();
-    let mut watch = ClosureWatch::new(topology, params.closure_tolerance, n);
+    let mut watch = ClosureWatch::new(space, params.closure_tolerance, n);
+    let bounded = space.has_bounds();
     loop {
         if branch.steps >= params.max_steps {
             return Err(SetStatus::NotClosed);
@@ -302,7 +291,7 @@ pub(crate) fn trace_branch(
             branch.closes_at = Some(watch.image.clone());
             return Ok(branch);
         }
-        if clip_to_box(topology, &previous, &m, &mut branch.nodes) {
+        if bounded && stops_on_bound(space, &previous, &m, &mut branch.nodes) {
             return Ok(branch);
         }
     }
@@ -311,8 +300,8 @@ pub(crate) fn trace_branch(
 /// The closure test of a trace: the segment just travelled passes within the tolerance
 /// of the start. Far from the start the test is skipped until the trace has travelled
 /// the distance that separated it from the start's tolerance ball.
-struct ClosureWatch {
-    topology: MotorTopology,
+struct ClosureWatch<'a> {
+    space: &'a MotorSpace,
     tolerance: f64,
     /// Largest distance from the start seen so far.
     farthest: f64,
@@ -322,10 +311,10 @@ struct ClosureWatch {
     image: Vec<f64>,
 }
 
-impl ClosureWatch {
-    fn new(topology: MotorTopology, tolerance: f64, n: usize) -> Self {
+impl<'a> ClosureWatch<'a> {
+    fn new(space: &'a MotorSpace, tolerance: f64, n: usize) -> Self {
         Self {
-            topology,
+            space,
             tolerance,
             farthest: 0.0,
             travel_to_check: 0.0,
@@ -347,7 +336,7 @@ impl ClosureWatch {
         if self.travel_to_check > 0.0 {
             return None;
         }
-        nearest_image(self.topology, start, m, &mut self.image);
+        self.space.nearest_image(start, m, &mut self.image);
         let from_start = distance(m, &self.image);
         self.farthest = self.farthest.max(from_start);
         self.travel_to_check = (from_start - 2.0 * self.tolerance) / 2.0;
@@ -362,29 +351,15 @@ impl ClosureWatch {
     }
 }
 
-/// For bounded motors: when the step from `previous` to `m` leaves the motor box, moves
-/// the last node of `nodes` to where it crosses the boundary and returns `true`.
-fn clip_to_box(topology: MotorTopology, previous: &[f64], m: &[f64], nodes: &mut [f64]) -> bool {
-    let MotorTopology::Bounded { low, high } = topology else {
+/// When the step from `previous` to `m` leaves the range of a bounded coordinate,
+/// moves the last node of `nodes` (that is `m`) to where the step crosses the bound and
+/// returns `true`: the branch ends there.
+fn stops_on_bound(space: &MotorSpace, previous: &[f64], m: &[f64], nodes: &mut [f64]) -> bool {
+    let Some(tau) = space.exit_fraction(previous, m) else {
         return false;
     };
-    let n = m.len();
-    let mut tau: f64 = 1.0;
-    for j in 0..n {
-        let step = m[j] - previous[j];
-        if m[j] > high {
-            tau = tau.min((high - previous[j]) / step);
-        } else if m[j] < low {
-            tau = tau.min((low - previous[j]) / step);
-        }
-    }
-    if tau >= 1.0 {
-        return false;
-    }
-    let len = nodes.len();
-    for j in 0..n {
-        nodes[len - n + j] = (previous[j] + tau * (m[j] - previous[j])).clamp(low, high);
-    }
+    let last = nodes.len() - m.len();
+    space.point_on_exit(previous, m, tau, &mut nodes[last..]);
     true
 }
 
@@ -542,14 +517,5 @@ pub(crate) fn resample(
     match status {
         Some(status) => Err(status),
         None => Ok((out, length, max_residual)),
-    }
-}
-
-/// Wraps every coordinate into `[-π, π)` for hinge motors.
-pub(crate) fn wrap_points(points: &mut [f64], topology: MotorTopology) {
-    if topology == MotorTopology::Periodic {
-        for x in points.iter_mut() {
-            *x = wrap_angle(*x);
-        }
     }
 }

@@ -1,11 +1,14 @@
 //! The two level sets the tracer follows: the observer's pose (`kinematic`) and the
 //! agent's own sensor values (`sensory`). Each gives, at a motor configuration `m`, a
-//! residual `F(m) − F(m⁰)`, a local linearisation `J = ∂F/∂m`, the unit null vector of
-//! `J` (the tangent of the set) and the minimum-norm correction `Δ` with `J Δ = r`.
+//! residual `F(m) − F(m⁰)`, a local linearisation `J = ∂F/∂m` (which
+//! [`tangent_space`](super::tangent_space) decomposes for a null-space basis of any
+//! dimension), the unit null vector of `J` (the tangent of a 1-D set) and the
+//! minimum-norm correction `Δ` with `J Δ = r`.
 
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use crate::agent::{Agent, Environment, Pose};
+use super::TraceValidParams;
+use crate::agent::{wrap_angle, Agent, Environment, Observer, PoseSpace};
 
 /// `value > floor`, false for NaN (so a NaN pivot counts as singular).
 #[inline]
@@ -41,37 +44,73 @@ pub(crate) trait LevelSet {
     fn null_vector(&self, reference: &[f64], t: &mut [f64]);
     /// The minimum-norm `Δ` with `J Δ = r` (so that `m − Δ` cancels `r` to first order).
     fn correction(&self, r: &[f64], delta: &mut [f64]);
+    /// The current linearisation `J` (row-major) and its number of rows.
+    fn jacobian(&self) -> (&[f64], usize);
     /// Whether the corrector should re-linearise at every iteration (Newton) rather
     /// than reuse the current linearisation (chord method) while it converges.
     fn newton(&self) -> bool;
 }
 
-/// The kinematic level set: the first `C` pose coordinates of the observer's pose (the
-/// paper's method, appendix A, where `J` is the pose Jacobian). `J` is `C × N` with
-/// `C = N − 1`; with `G = J Jᵀ` (Cholesky), the tangent is the projection
+/// The kinematic level set: the first `C` tangent coordinates of the observer's pose
+/// (the paper's method, appendix A, where `J` is the pose Jacobian). `J` is `C × N`
+/// (`C = N − 1` for curves); with `G = J Jᵀ` (Cholesky), the tangent is the projection
 /// `t ∝ (I − Jᵀ G⁻¹ J) t_prev`, which keeps the sign continuous, and the correction is
 /// `Δ = Jᵀ G⁻¹ r`.
 pub(crate) struct Kinematic<'a> {
-    agent: &'a dyn Agent,
+    observer: &'a dyn Observer,
+    space: PoseSpace,
     n: usize,
     c: usize,
-    target: Pose,
+    target: Vec<f64>,
     tolerance: f64,
+    /// The pose Jacobian, `T × N` (all tangent rows; the first `C` are constrained).
     jacobian: Vec<f64>,
+    /// Cholesky factor of `G` for `C ≤ 3`, row-major with stride 3.
     cholesky: [f64; 9],
+    /// Cholesky factor of `G` for `C > 3`, `C × C` row-major.
+    cholesky_any: Vec<f64>,
+    /// Whether the pose is the planar `(x, y, alpha)` (differences without the
+    /// general [`PoseSpace::difference`]).
+    planar: bool,
+    pose: Vec<f64>,
+    difference: Vec<f64>,
 }
 
 impl<'a> Kinematic<'a> {
-    pub(crate) fn new(agent: &'a dyn Agent, start: &[f64], tolerance: f64) -> Self {
-        let n = agent.motor_dim();
+    pub(crate) fn new(observer: &'a dyn Observer, start: &[f64], tolerance: f64) -> Self {
+        let n = start.len();
+        let space = observer.pose_space();
+        let c = observer.configuration_dim();
+        let mut target = vec![0.0; space.dim()];
+        observer.pose(start, &mut target);
         Self {
-            agent,
+            observer,
             n,
-            c: agent.configuration_dim(),
-            target: agent.pose(start),
-            tolerance,
-            jacobian: vec![0.0; 3 * n],
+            c,
+            jacobian: vec![0.0; space.tangent_dim() * n],
             cholesky: [0.0; 9],
+            cholesky_any: vec![0.0; if c > 3 { c * c } else { 0 }],
+            planar: space.is_planar(),
+            pose: vec![0.0; space.dim()],
+            difference: vec![0.0; space.tangent_dim()],
+            target,
+            space,
+            tolerance,
+        }
+    }
+
+    /// `r = pose − target` in the first `C` tangent coordinates, for the pose in
+    /// `self.pose` (straight-line for the planar pose, the arm's case).
+    #[inline]
+    fn pose_residual(&mut self, r: &mut [f64]) {
+        if self.planar {
+            let (p, t) = (&self.pose, &self.target);
+            let d = [p[0] - t[0], p[1] - t[1], wrap_angle(p[2] - t[2])];
+            r[..self.c].copy_from_slice(&d[..self.c]);
+        } else {
+            self.space
+                .difference(&self.pose, &self.target, &mut self.difference);
+            r[..self.c].copy_from_slice(&self.difference[..self.c]);
         }
     }
 
@@ -105,6 +144,74 @@ impl<'a> Kinematic<'a> {
             }
         }
         Ok(())
+    }
+
+    /// [`factor`](Self::factor) for any number `c` of rows (agents beyond the paper's:
+    /// more than three pose coordinates held fixed).
+    #[inline(never)]
+    fn factor_any(&mut self) -> Result<(), Singular> {
+        let (n, c) = (self.n, self.c);
+        let mut gram = vec![0.0; c * c];
+        for a in 0..c {
+            for b in 0..=a {
+                let ra = &self.jacobian[a * n..(a + 1) * n];
+                let rb = &self.jacobian[b * n..(b + 1) * n];
+                gram[a * c + b] = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+            }
+        }
+        let trace: f64 = (0..c).map(|a| gram[a * c + a]).sum();
+        let l = &mut self.cholesky_any;
+        for i in 0..c {
+            for j in 0..=i {
+                let mut s = gram[i * c + j];
+                for k in 0..j {
+                    s -= l[i * c + k] * l[j * c + k];
+                }
+                if i == j {
+                    if !exceeds(s, 1e-14 * trace) {
+                        return Err(Singular);
+                    }
+                    l[i * c + i] = s.sqrt();
+                } else {
+                    l[i * c + j] = s / l[j * c + j];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// [`row_space`](Self::row_space) for any number of rows (kept out of line: the
+    /// arm's three rows take [`row_space_3`](Self::row_space_3)).
+    #[inline(never)]
+    fn row_space_any(&self, v: &[f64], apply_first: bool, out: &mut [f64]) {
+        let (n, c) = (self.n, self.c);
+        let mut y: Vec<f64> = (0..c)
+            .map(|a| {
+                if apply_first {
+                    dot(&self.jacobian[a * n..(a + 1) * n], v)
+                } else {
+                    v[a]
+                }
+            })
+            .collect();
+        let l = &self.cholesky_any;
+        for i in 0..c {
+            let mut s = y[i];
+            for k in 0..i {
+                s -= l[i * c + k] * y[k];
+            }
+            y[i] = s / l[i * c + i];
+        }
+        for i in (0..c).rev() {
+            let mut s = y[i];
+            for k in i + 1..c {
+                s -= l[k * c + i] * y[k];
+            }
+            y[i] = s / l[i * c + i];
+        }
+        for (j, o) in out.iter_mut().enumerate() {
+            *o = (0..c).map(|a| self.jacobian[a * n + j] * y[a]).sum();
+        }
     }
 
     #[inline]
@@ -146,7 +253,8 @@ impl<'a> Kinematic<'a> {
         match self.c {
             1 => self.row_space::<1>(v, apply_first, out),
             2 => self.row_space::<2>(v, apply_first, out),
-            _ => self.row_space_3(v, apply_first, out),
+            3 => self.row_space_3(v, apply_first, out),
+            _ => self.row_space_any(v, apply_first, out),
         }
     }
 
@@ -217,8 +325,8 @@ impl LevelSet for Kinematic<'_> {
     }
 
     fn residual(&mut self, m: &[f64], r: &mut [f64]) {
-        let d = self.agent.pose(m).difference(self.target);
-        r[..self.c].copy_from_slice(&d[..self.c]);
+        self.observer.pose(m, &mut self.pose);
+        self.pose_residual(r);
     }
 
     fn residual_norm(&self, r: &[f64]) -> f64 {
@@ -230,15 +338,14 @@ impl LevelSet for Kinematic<'_> {
     }
 
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
-        let d = self
-            .agent
-            .pose_jacobian(m, &mut self.jacobian)
-            .difference(self.target);
-        r[..self.c].copy_from_slice(&d[..self.c]);
+        self.observer
+            .pose_jacobian(m, &mut self.jacobian, &mut self.pose);
+        self.pose_residual(r);
         match self.c {
             1 => self.factor::<1>(),
             2 => self.factor::<2>(),
-            _ => self.factor_3(),
+            3 => self.factor_3(),
+            _ => self.factor_any(),
         }
     }
 
@@ -283,6 +390,10 @@ impl LevelSet for Kinematic<'_> {
         self.project_row_space(r, false, delta);
     }
 
+    fn jacobian(&self) -> (&[f64], usize) {
+        (&self.jacobian[..self.c * self.n], self.c)
+    }
+
     fn newton(&self) -> bool {
         true
     }
@@ -291,11 +402,12 @@ impl LevelSet for Kinematic<'_> {
 /// The sensory level set `{ m | σ_E(m) = σ_E(m⁰) }`, from what the agent measures
 /// alone: `J = ∂s/∂m` by central differences of sensor readings (`2N` readings), the
 /// eigen-decomposition `Jᵀ J = V Λ Vᵀ` (ascending `λ`), the tangent `t = v₀`, and the
-/// correction `Δ = Σ_{k≥1} v_k (v_kᵀ Jᵀ r) / λ_k` (Gauss–Newton on `‖s(m) − s⁰‖²`
-/// restricted to the rank `N − 1` part). The set is a curve only where `λ₁`, the
-/// smallest eigenvalue that should be nonzero, is not negligible: `√(λ₁/λ_max)` below
-/// the rank tolerance means the sensors cannot tell some pose change apart (too few
-/// lights in view) and the set is reported as singular instead of traced.
+/// correction `Δ = Σ_{e≥d} v_e (v_eᵀ Jᵀ r) / λ_e` (Gauss–Newton on `‖s(m) − s⁰‖²`
+/// restricted to the rank `N − d` part, `d` the kernel dimension, 1 for curves). The
+/// set has dimension `d` only where `λ_d`, the smallest eigenvalue that should be
+/// nonzero, is not negligible: `√(λ_d/λ_max)` below the rank tolerance means the
+/// sensors cannot tell some pose change apart (too few lights in view) and the set is
+/// reported as singular instead of traced.
 pub(crate) struct Sensory<'a> {
     agent: &'a dyn Agent,
     environment: &'a Environment,
@@ -306,6 +418,9 @@ pub(crate) struct Sensory<'a> {
     tolerance: f64,
     step: f64,
     rank_tolerance: f64,
+    /// The kernel dimension `d`: the null space is spanned by the first `d`
+    /// eigenvectors.
+    dimension: usize,
     jacobian: Vec<f64>,
     eigenvalues: Vec<f64>,
     eigenvectors: Vec<f64>,
@@ -315,13 +430,14 @@ pub(crate) struct Sensory<'a> {
 }
 
 impl<'a> Sensory<'a> {
+    /// The level set through `start` for kernels of dimension `dimension` (at least 1),
+    /// with the sensory tolerances of `params`.
     pub(crate) fn new(
         agent: &'a dyn Agent,
         environment: &'a Environment,
         start: &[f64],
-        relative_tolerance: f64,
-        finite_difference_step: f64,
-        rank_tolerance: f64,
+        params: &TraceValidParams,
+        dimension: usize,
     ) -> Self {
         let (n, k) = (agent.motor_dim(), agent.sensor_dim());
         let mut target = vec![0.0; k];
@@ -334,9 +450,10 @@ impl<'a> Sensory<'a> {
             k,
             target,
             scale: if scale > 0.0 { scale } else { 1.0 },
-            tolerance: relative_tolerance,
-            step: finite_difference_step,
-            rank_tolerance,
+            tolerance: params.sensor_tolerance,
+            step: params.finite_difference_step,
+            rank_tolerance: params.rank_tolerance,
+            dimension,
             jacobian: vec![0.0; k * n],
             eigenvalues: vec![0.0; n],
             eigenvectors: vec![0.0; n * n],
@@ -407,9 +524,13 @@ impl LevelSet for Sensory<'_> {
             }
         }
         let largest = self.eigenvalues[n - 1];
-        let second = if n >= 2 { self.eigenvalues[1] } else { largest };
+        let smallest_nonzero = if n > self.dimension {
+            self.eigenvalues[self.dimension]
+        } else {
+            largest
+        };
         let ratio = if largest > 0.0 {
-            (second.max(0.0) / largest).sqrt()
+            (smallest_nonzero.max(0.0) / largest).sqrt()
         } else {
             0.0
         };
@@ -435,7 +556,7 @@ impl LevelSet for Sensory<'_> {
             *gj = (0..self.k).map(|i| self.jacobian[i * n + j] * r[i]).sum();
         }
         delta.fill(0.0);
-        for e in 1..n {
+        for e in self.dimension..n {
             let v = &self.eigenvectors[e * n..(e + 1) * n];
             let coefficient =
                 v.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>() / self.eigenvalues[e];
@@ -443,6 +564,10 @@ impl LevelSet for Sensory<'_> {
                 *d += coefficient * vj;
             }
         }
+    }
+
+    fn jacobian(&self) -> (&[f64], usize) {
+        (&self.jacobian, self.k)
     }
 
     fn newton(&self) -> bool {

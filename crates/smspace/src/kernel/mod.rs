@@ -1,10 +1,13 @@
 //! Kernel sets `M^i`: the motor configurations that give the same sensory input as an
 //! explored configuration `m^i` (paper section 2.3 and appendix A).
 //!
-//! `M^i = { m | σ_E(m) = σ_E(m^i) }` is the kernel of `σ_E − s^i`. For the paper's arm
-//! (`N = 4` motors, a 3-D pose) it is a closed curve on the motor torus; for the
-//! redundant toy a segment `m1 + m2 = x` of the motor box; for the one-motor toy a
-//! single point.
+//! `M^i = { m | σ_E(m) = σ_E(m^i) }` is the kernel of `σ_E − s^i`, a set of dimension
+//! `k = N − rank(J)` (`J` the Jacobian of the level set's function, see
+//! [`tangent_space`]). For the paper's arm (`N = 4` hinges, a 3-D pose) it is a closed
+//! curve on the motor torus; for the redundant toy a segment `m1 + m2 = x` of the
+//! motor box; for the one-motor toy a single point. The tracer samples kernels of
+//! dimension 0 and 1 ([`SetReport::dimension`]); a larger `k` is refused with
+//! [`KernelError::UnsupportedDimension`] (sampling k-D kernels is the next step).
 //!
 //! ## Tracing (appendix A)
 //!
@@ -18,27 +21,32 @@
 //! pose to about `10⁻¹¹`.
 //!
 //! Two level sets can be followed ([`TraceMethod`]):
-//! - `kinematic`, the paper's: `F(m)` is the observer's pose, `J` the pose Jacobian;
+//! - `kinematic`, the paper's: `F(m)` is the observer's pose (the tangent coordinates
+//!   the motors change), `J` the pose Jacobian; it needs the agent's ground truth;
 //! - `sensory`: `F(m) = σ_E(m)`, `J` from finite differences of sensor readings, i.e.
-//!   only what the agent can measure. In a rich environment it gives the same sets.
+//!   only what the agent can measure. In a rich environment it gives the same sets,
+//!   and it is the only method for an agent without a ground truth.
 //!
 //! With [`StepControl::Adaptive`] the step grows up to `max_step` while the tangent
 //! turns less than `max_turn` per step and the corrector has little to do, and shrinks
 //! otherwise. Closure is detected on segments (the travelled segment passes within
-//! `closure_tolerance` of the start, on the torus), after `min_steps` steps for fixed
-//! steps and in any case only once the trace has gone farther than twice the
-//! tolerance from the start.
+//! `closure_tolerance` of an image of the start, periodic coordinates shifted by whole
+//! periods), after `min_steps` steps for fixed steps and in any case only once the
+//! trace has gone farther than twice the tolerance from the start. A trace that
+//! reaches a bound of a bounded motor ends there; the set is then traced the other way
+//! from the start too, and is an open segment (status `open`).
 //!
 //! ## Resampling
 //!
 //! The traced nodes with their tangents define a piecewise cubic Hermite curve. Its
 //! arc length is measured on a fine subdivision (spacing `≈ 10⁻³`); `points` targets
 //! equally spaced in arc length (starting at `m^i` for closed loops) are interpolated and
-//! projected back onto the set with the corrector. Coordinates of hinge motors are
-//! finally wrapped into `[-π, π)`.
+//! projected back onto the set with the corrector. Periodic coordinates are finally
+//! wrapped into their ranges (`[-π, π)` for hinges); bounded ones are left as they are.
 
 mod curve;
 mod level_set;
+mod tracer;
 
 use std::path::{Path, PathBuf};
 
@@ -47,25 +55,20 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::agent::Workspace;
-use crate::agent::{Agent, Environment, MotorTopology};
+use crate::agent::{Agent, Environment};
+use crate::error::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
-use curve::{resample, trace_branch, wrap_points, Curve, Scratch};
-use level_set::{Kinematic, LevelSet, Sensory};
+use curve::Scratch;
+use tracer::Tracer;
+pub use tracer::{tangent_space, TangentSpace};
 
 /// Errors of tracing kernel sets (failures of single sets are statuses, not errors).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum KernelError {
-    /// A parameter is out of its domain.
-    #[error("invalid tracing parameter {name} = {value}: {reason}")]
-    InvalidParameter {
-        /// The parameter, as in the configuration file.
-        name: &'static str,
-        /// The value given.
-        value: String,
-        /// What a valid value looks like.
-        reason: &'static str,
-    },
+    /// A parameter is out of its domain (located by table and key).
+    #[error(transparent)]
+    Parameter(#[from] InvalidParameter),
     /// The motor array does not fit the agent.
     #[error(transparent)]
     Agent(#[from] crate::agent::AgentError),
@@ -85,18 +88,61 @@ pub enum KernelError {
         /// Count per status.
         by_status: String,
     },
-    /// The agent's kernel sets are not curves.
-    #[error("the {agent} agent has {motors} motors for {configuration} pose coordinates, so its kernel sets have dimension {dimension}; the tracer follows sets of dimension 0 or 1")]
+    /// The agent's kernel sets have a dimension the tracer does not sample yet.
+    #[error("the {agent} agent's kernel sets have dimension k = N − rank(J) = {motors} − {rank} = {dimension}, with J {jacobian}; the tracer samples kernels of dimension 0 (points) and 1 (curves): sampling k-dimensional kernels is not implemented yet")]
     UnsupportedDimension {
         /// The agent's name.
         agent: String,
         /// Motors `N`.
         motors: usize,
-        /// Pose coordinates `C`.
-        configuration: usize,
-        /// `N − C`.
+        /// The rank of the method's Jacobian.
+        rank: usize,
+        /// The kernel dimension `k = N − rank`.
         dimension: usize,
+        /// Which Jacobian, and where its rank comes from.
+        jacobian: String,
     },
+    /// The agent has fewer motors than the pose coordinates the kinematic level set
+    /// holds fixed.
+    #[error("the {agent} agent has {motors} motors for {configuration} pose coordinates that the motors change: its pose Jacobian cannot have full rank {configuration}; check its ground truth's configuration_dim")]
+    TooFewMotors {
+        /// The agent's name.
+        agent: String,
+        /// Motors `N`.
+        motors: usize,
+        /// Pose coordinates `C` held fixed.
+        configuration: usize,
+    },
+    /// Something needs the observer's pose and the agent has no ground truth.
+    #[error("{needs} needs the observer's pose, and the {agent} agent has no ground truth; {fix}")]
+    NoGroundTruth {
+        /// The agent's name.
+        agent: String,
+        /// What needs it.
+        needs: &'static str,
+        /// What to do instead.
+        fix: &'static str,
+    },
+    /// The Jacobian at a configuration is not finite.
+    #[error("the Jacobian of the {method:?} level set at {motors:?} is not finite (NaN or infinite sensor or pose values)")]
+    NonFiniteJacobian {
+        /// The level set.
+        method: TraceMethod,
+        /// Where.
+        motors: Vec<f64>,
+    },
+}
+
+impl KernelError {
+    /// The parameter this error is about, when it is one of the `[kernel]` table (or
+    /// of the agent).
+    pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
+        match self {
+            KernelError::Parameter(p) => Some(p),
+            KernelError::Agent(e) => e.invalid_parameter(),
+            _ => None,
+        }
+    }
 }
 
 /// Which level set to follow.
@@ -230,15 +276,19 @@ impl TraceValidParams {
     }
 }
 
-fn positive(name: &'static str, value: f64) -> Result<(), KernelError> {
+fn invalid(key: &'static str, value: impl std::fmt::Display, reason: &str) -> KernelError {
+    InvalidParameter::new("kernel", key, value, reason).into()
+}
+
+fn positive(key: &'static str, value: f64) -> Result<(), KernelError> {
     if value.is_finite() && value > 0.0 {
         Ok(())
     } else {
-        Err(KernelError::InvalidParameter {
-            name,
-            value: value.to_string(),
-            reason: "must be a finite number greater than zero",
-        })
+        Err(invalid(
+            key,
+            value,
+            "must be a finite number greater than zero",
+        ))
     }
 }
 
@@ -250,6 +300,14 @@ fn sets_bytes(rows: u64, points: usize, motor_dim: usize) -> u64 {
 }
 
 impl TraceValidParams {
+    /// The checks of these parameters against an agent that need no start: the
+    /// `kinematic` method needs a ground truth, and the kernel dimension
+    /// `k = N − rank(J)` the ground truth implies must be 0 or 1 (without a ground truth
+    /// it is estimated when tracing). The pipeline runs this before anything runs.
+    pub fn check_for(&self, agent: &dyn Agent) -> Result<(), KernelError> {
+        tracer::check_agent_for(agent, self).map(drop)
+    }
+
     /// Bytes of the kernel sets traced from `rows` motor rows of an agent with
     /// `motor_dim` motors (see [`TraceParams::sets_bytes`]).
     pub fn sets_bytes(&self, rows: u64, motor_dim: usize) -> u64 {
@@ -267,9 +325,19 @@ impl TraceParams {
         sets_bytes(rows, self.points, motor_dim)
     }
 
-    /// Validates the parameters and resolves `auto` step control.
+    /// Validates the parameters and resolves `auto` step control
+    /// ([`CheckParams::check_params`]).
     pub fn check(&self) -> Result<TraceValidParams, KernelError> {
-        for (name, value) in [
+        self.check_params()
+    }
+}
+
+impl CheckParams for TraceParams {
+    type Valid = TraceValidParams;
+    type Error = KernelError;
+
+    fn check_params(&self) -> Result<TraceValidParams, KernelError> {
+        for (key, value) in [
             ("step", self.step),
             ("max_step", self.max_step),
             ("max_turn", self.max_turn),
@@ -278,34 +346,30 @@ impl TraceParams {
             ("sensor_tolerance", self.sensor_tolerance),
             ("finite_difference_step", self.finite_difference_step),
         ] {
-            positive(name, value)?;
+            positive(key, value)?;
         }
         if !(self.rank_tolerance.is_finite() && (0.0..1.0).contains(&self.rank_tolerance)) {
-            return Err(KernelError::InvalidParameter {
-                name: "rank_tolerance",
-                value: self.rank_tolerance.to_string(),
-                reason: "must be in [0, 1)",
-            });
+            return Err(invalid(
+                "rank_tolerance",
+                self.rank_tolerance,
+                "must be in [0, 1)",
+            ));
         }
-        for (name, value) in [
+        for (key, value) in [
             ("points", self.points),
             ("max_steps", self.max_steps),
             ("max_corrector_iterations", self.max_corrector_iterations),
         ] {
             if value == 0 {
-                return Err(KernelError::InvalidParameter {
-                    name,
-                    value: "0".into(),
-                    reason: "must be at least 1",
-                });
+                return Err(invalid(key, 0, "must be at least 1"));
             }
         }
         if self.points > MAX_POINTS {
-            return Err(KernelError::InvalidParameter {
-                name: "points",
-                value: self.points.to_string(),
-                reason: "must be at most 100000 points per set (the paper uses 100)",
-            });
+            return Err(invalid(
+                "points",
+                self.points,
+                "must be at most 100000 points per set (the paper uses 100)",
+            ));
         }
         let step_control = match (self.step_control, self.method) {
             (StepControl::Auto, TraceMethod::Kinematic) => StepControl::Fixed,
@@ -313,18 +377,18 @@ impl TraceParams {
             (other, _) => other,
         };
         if step_control == StepControl::Adaptive && self.max_step < self.step {
-            return Err(KernelError::InvalidParameter {
-                name: "max_step",
-                value: self.max_step.to_string(),
-                reason: "must be at least step when the step is adaptive",
-            });
+            return Err(invalid(
+                "max_step",
+                self.max_step,
+                "must be at least step when the step is adaptive",
+            ));
         }
         if step_control == StepControl::Fixed && self.step >= self.closure_tolerance {
-            return Err(KernelError::InvalidParameter {
-                name: "step",
-                value: self.step.to_string(),
-                reason: "fixed steps must be shorter than closure_tolerance, or loops may step over their start",
-            });
+            return Err(invalid(
+                "step",
+                self.step,
+                "fixed steps must be shorter than closure_tolerance, or loops may step over their start",
+            ));
         }
         Ok(TraceValidParams {
             method: self.method,
@@ -351,9 +415,9 @@ impl TraceParams {
 pub enum SetStatus {
     /// A closed loop, traced and resampled.
     Closed,
-    /// A segment between two faces of the motor box (bounded motors), traced and resampled.
+    /// A segment ending on bounds of bounded motors at both ends, traced and resampled.
     Open,
-    /// The set is a single point (as many motors as pose coordinates).
+    /// The set is a single point (kernel dimension 0: `rank(J) = N`).
     Point,
     /// The loop did not close within `max_steps`.
     NotClosed,
@@ -483,8 +547,11 @@ pub struct SetReport {
     /// kinematic, relative sensor units for sensory).
     pub max_residual: f64,
     /// Observer's check: largest deviation of a resampled point's pose from the start's
-    /// pose (largest of |Δx|, |Δy|, |Δalpha| over the agent's pose coordinates).
-    pub max_pose_deviation: f64,
+    /// pose (largest of the tangent coordinates held fixed, |Δx|, |Δy|, |Δalpha| for the
+    /// arm); `null` when the agent has no ground truth.
+    pub max_pose_deviation: Option<f64>,
+    /// The dimension `k = N − rank(J)` of the kernel set (0: a point, 1: a curve).
+    pub dimension: usize,
 }
 
 /// Counts of sets by status.
@@ -526,27 +593,52 @@ pub struct TracedSets {
     pub kept: Vec<usize>,
     /// How the points of every kept set are joined (closed loops, open polylines).
     pub closure: Vec<Closure>,
-    /// Per-set statuses and the summary.
+    /// Per-set statuses, dimensions and the summary.
     pub report: TraceReport,
 }
 
 impl TracedSets {
+    /// The dimension `k` of every kept set, in the order of [`sets`](Self::sets).
+    pub fn dimensions(&self) -> Vec<usize> {
+        let sets = &self.report.sets;
+        self.kept
+            .iter()
+            .map(|&row| {
+                sets.get(row)
+                    .filter(|s| s.index == row)
+                    .or_else(|| sets.iter().find(|s| s.index == row))
+                    .map_or(0, |s| s.dimension)
+            })
+            .collect()
+    }
+
     /// Writes the sets to `sets_path` (`(M, P, N)` float64) and, next to it (see
     /// [`crate::io::sibling`]), `<stem>.kept.npy` (`(M,)` int64 motor rows),
     /// `<stem>.closed.npy` ([`write_closure`]) and `<stem>.trace.json` (the report).
     /// Returns the four paths. `smspace trace` and the pipeline's trace stage both
     /// write through here.
     pub fn save(&self, sets_path: &Path) -> Result<[PathBuf; 4], crate::io::IoError> {
-        let files = Self::files(sets_path);
-        let [sets, kept, closed, report] = &files;
         // All four or none (see `io::Outputs`).
         let mut outputs = crate::io::Outputs::new();
+        let files = self.write_into(&mut outputs, sets_path)?;
+        outputs.commit()?;
+        Ok(files)
+    }
+
+    /// Stages the files of [`save`](Self::save) into `outputs`, to be renamed into place
+    /// with the other files of a command or stage; returns their paths.
+    pub fn write_into(
+        &self,
+        outputs: &mut crate::io::Outputs,
+        sets_path: &Path,
+    ) -> Result<[PathBuf; 4], crate::io::IoError> {
+        let files = Self::files(sets_path);
+        let [sets, kept, closed, report] = &files;
         outputs.npy(sets, &self.sets)?;
         let rows: ndarray::Array1<i64> = self.kept.iter().map(|&k| k as i64).collect();
         outputs.npy(kept, &rows)?;
         outputs.npy(closed, &closure_codes(&self.closure))?;
         outputs.json(report, &self.report)?;
-        outputs.commit()?;
         Ok(files)
     }
 
@@ -586,26 +678,6 @@ impl TracedSets {
     }
 }
 
-fn check_agent(agent: &dyn Agent) -> Result<(), KernelError> {
-    let (n, c) = (agent.motor_dim(), agent.configuration_dim());
-    if n < c || n - c > 1 {
-        return Err(KernelError::UnsupportedDimension {
-            agent: agent.name().to_owned(),
-            motors: n,
-            configuration: c,
-            dimension: n.saturating_sub(c),
-        });
-    }
-    Ok(())
-}
-
-/// A fixed direction with no special relation to any axis; the first tangent of every
-/// set is oriented along it (`t·w > 0`), so both methods traverse a set the same way.
-fn orientation_reference(n: usize) -> Vec<f64> {
-    let golden = 0.5 * (1.0 + 5f64.sqrt());
-    (0..n).map(|k| golden.powi(-(k as i32))).collect()
-}
-
 /// Traces and resamples the kernel set through one start `m⁰`. Returns the points
 /// `(P × N, row-major)` when the set was traced, and its report line (`index` 0).
 pub fn trace_one(
@@ -615,179 +687,11 @@ pub fn trace_one(
     workspace: Option<&Workspace>,
     params: &TraceValidParams,
 ) -> Result<(Option<Vec<f64>>, SetReport), KernelError> {
-    trace_one_with(
-        agent,
-        environment,
-        start,
-        workspace,
-        params,
-        &mut Scratch::default(),
-    )
-}
-
-fn trace_one_with(
-    agent: &dyn Agent,
-    environment: Option<&Environment>,
-    start: &[f64],
-    workspace: Option<&Workspace>,
-    params: &TraceValidParams,
-    scratch: &mut Scratch,
-) -> Result<(Option<Vec<f64>>, SetReport), KernelError> {
-    check_agent(agent)?;
     crate::agent::check_motor_count(agent, start.len())?;
-    let mut report = SetReport {
-        index: 0,
-        status: SetStatus::Closed,
-        steps: 0,
-        length: 0.0,
-        max_residual: 0.0,
-        max_pose_deviation: 0.0,
-    };
-    let start_pose = agent.pose(start);
-    if workspace.is_some_and(|w| !w.contains(start_pose)) {
-        report.status = SetStatus::OutsideWorkspace;
-        return Ok((None, report));
-    }
-    let n = agent.motor_dim();
-    let topology = agent.motor_topology();
-    if n == agent.configuration_dim() {
-        report.status = SetStatus::Point;
-        let mut points: Vec<f64> = start.repeat(params.points);
-        wrap_points(&mut points, topology);
-        return Ok((Some(points), report));
-    }
-    let mut kinematic;
-    let mut sensory;
-    let set: &mut dyn LevelSet = match params.method {
-        TraceMethod::Kinematic => {
-            kinematic = Kinematic::new(agent, start, params.pose_tolerance);
-            &mut kinematic
-        }
-        TraceMethod::Sensory => {
-            let environment = environment.ok_or(KernelError::MissingEnvironment)?;
-            sensory = Sensory::new(
-                agent,
-                environment,
-                start,
-                params.sensor_tolerance,
-                params.finite_difference_step,
-                params.rank_tolerance,
-            );
-            &mut sensory
-        }
-    };
-    match trace_set(set, start, params, topology, scratch) {
-        Ok((mut points, length, steps, residual)) => {
-            let c = agent.configuration_dim();
-            for p in points.chunks_exact(n) {
-                let d = agent.pose(p).difference(start_pose);
-                for v in &d[..c] {
-                    report.max_pose_deviation = report.max_pose_deviation.max(v.abs());
-                }
-            }
-            wrap_points(&mut points, topology);
-            report.status = if topology == MotorTopology::Periodic
-                || !ends_on_box_faces(&points, n, topology)
-            {
-                SetStatus::Closed
-            } else {
-                SetStatus::Open
-            };
-            report.steps = steps;
-            report.length = length;
-            report.max_residual = residual;
-            Ok((Some(points), report))
-        }
-        Err((status, steps)) => {
-            report.status = status;
-            report.steps = steps;
-            Ok((None, report))
-        }
-    }
-}
-
-/// For bounded motors, a set is open when its ends lie on the faces of the motor box.
-fn ends_on_box_faces(points: &[f64], n: usize, topology: MotorTopology) -> bool {
-    let MotorTopology::Bounded { low, high } = topology else {
-        return false;
-    };
-    let on_face = |p: &[f64]| p.iter().any(|&x| x <= low + 1e-9 || x >= high - 1e-9);
-    on_face(&points[..n]) || on_face(&points[points.len() - n..])
-}
-
-type Traced = (Vec<f64>, f64, usize, f64);
-
-fn trace_set(
-    set: &mut dyn LevelSet,
-    start: &[f64],
-    params: &TraceValidParams,
-    topology: MotorTopology,
-    scratch: &mut Scratch,
-) -> Result<Traced, (SetStatus, usize)> {
-    let n = start.len();
-    scratch.prepare(set.rows(), n);
-    let mut r = vec![0.0; set.rows()];
-    set.linearize(start, &mut r)
-        .map_err(|_| (SetStatus::Singular, 0))?;
-    let mut t0 = vec![0.0; n];
-    set.null_vector(&orientation_reference(n), &mut t0);
-    let forward =
-        trace_branch(set, start, &t0, params, topology, scratch).map_err(|status| (status, 0))?;
-    let mut steps = forward.steps;
-    let mut max_residual = forward.max_residual;
-    let curve = if let Some(image) = forward.closes_at {
-        let mut nodes = forward.nodes;
-        let mut tangents = forward.tangents;
-        nodes.extend_from_slice(&image);
-        tangents.extend_from_slice(&t0);
-        Curve {
-            nodes,
-            tangents,
-            closed: true,
-        }
-    } else {
-        // An open segment: trace the other way too and join the branches.
-        set.linearize(start, &mut r)
-            .map_err(|_| (SetStatus::Singular, steps))?;
-        let backward_direction: Vec<f64> = t0.iter().map(|x| -x).collect();
-        let backward = trace_branch(set, start, &backward_direction, params, topology, scratch)
-            .map_err(|status| (status, steps))?;
-        steps += backward.steps;
-        max_residual = max_residual.max(backward.max_residual);
-        let mut nodes = Vec::with_capacity(forward.nodes.len() + backward.nodes.len());
-        let mut tangents = Vec::with_capacity(nodes.capacity());
-        let back_count = backward.nodes.len() / n;
-        for i in (1..back_count).rev() {
-            nodes.extend_from_slice(&backward.nodes[i * n..(i + 1) * n]);
-            tangents.extend(backward.tangents[i * n..(i + 1) * n].iter().map(|x| -x));
-        }
-        nodes.extend_from_slice(&forward.nodes);
-        tangents.extend_from_slice(&forward.tangents);
-        for v in [
-            forward.nodes,
-            forward.tangents,
-            backward.nodes,
-            backward.tangents,
-        ] {
-            scratch.give(v);
-        }
-        Curve {
-            nodes,
-            tangents,
-            closed: false,
-        }
-    };
-    let resampled = resample(
-        set,
-        &curve,
-        params.points,
-        params.max_corrector_iterations,
-        scratch,
-    );
-    scratch.give(curve.nodes);
-    scratch.give(curve.tangents);
-    let (points, length, residual) = resampled.map_err(|status| (status, steps))?;
-    Ok((points, length, steps, max_residual.max(residual)))
+    let starts =
+        ndarray::ArrayView2::from_shape((1, start.len()), start).expect("one row of N values");
+    let tracer = Tracer::new(agent, environment, starts, workspace, params)?;
+    Ok(tracer.trace(start, &mut Scratch::default()))
 }
 
 /// Traces the kernel set of every motor row, in parallel. Sets are independent and
@@ -817,28 +721,24 @@ pub fn trace_sets(
     params: &TraceValidParams,
     progress: &dyn Progress,
 ) -> Result<TracedSets, KernelError> {
-    check_agent(agent)?;
     let n = agent.motor_dim();
     crate::agent::check_motor_count(agent, motors.ncols())?;
     if motors.nrows() == 0 {
         return Err(KernelError::NoMotors);
     }
-    if params.method == TraceMethod::Sensory && environment.is_none() {
-        return Err(KernelError::MissingEnvironment);
-    }
+    let tracer = Tracer::new(agent, environment, motors, workspace, params)?;
     progress.start("trace", motors.nrows() as u64);
     let rows: Vec<Vec<f64>> = motors.outer_iter().map(|r| r.to_vec()).collect();
     let results: Vec<(Option<Vec<f64>>, SetReport)> = rows
         .par_iter()
         .enumerate()
         .map_init(Scratch::default, |scratch, (index, start)| {
-            let (points, mut report) =
-                trace_one_with(agent, environment, start, workspace, params, scratch)?;
+            let (points, mut report) = tracer.trace(start, scratch);
             report.index = index;
             progress.advance(1);
-            Ok((points, report))
+            (points, report)
         })
-        .collect::<Result<_, KernelError>>()?;
+        .collect();
     progress.finish();
     let p = params.points;
     let mut data = Vec::new();

@@ -15,8 +15,13 @@
 //! Ties are broken by the smaller index, so the lists equal the first `k` entries of
 //! the sorted rows of the full matrix (diagonal excluded). Memory: `pivots × M` for the
 //! pivot table, `rows × k` for the output and `O(M)` per thread. Without the triangle
-//! inequality ([`MetricKind::MeanHausdorff`]) no pivots are used: every pair of a row is
-//! measured, still in `O(M)` memory per thread.
+//! inequality ([`MetricKind::MeanHausdorff`], or a [`SetMetric`] whose
+//! [`is_metric`](SetMetric::is_metric) is false) no pivots are used: every pair of a
+//! row is measured, still in `O(M)` memory per thread.
+//!
+//! [`knn`] runs a built-in metric on its SIMD kernels, with early exits once a pair is
+//! proven farther than `τ`; [`knn_with`] runs any [`SetMetric`] through the same rows,
+//! threads, memory check, progress and pruning (one call per pair, no early exit).
 
 use std::ops::Range;
 
@@ -24,12 +29,13 @@ use ndarray::Array2;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::kernel::{self, Driver, Eval, Scratch};
+use super::kernel::{Driver, Eval, Scratch};
+use super::tiles::Measure;
 use super::{
-    check_metric, check_rows, closure_for, DistanceParams, MetricError, MetricKind, PreparedSets,
+    check_rows, closure_for, DistanceParams, MetricError, MetricKind, PreparedSets, SetMetric,
     SetsView,
 };
-use crate::error::InvalidParameter;
+use crate::error::{CheckParams, InvalidParameter};
 use crate::neighbours::FarthestFirst;
 use crate::progress::Progress;
 
@@ -55,9 +61,9 @@ impl Default for KnnParams {
 
 /// Validated [`KnnParams`].
 #[derive(Debug, Clone, PartialEq)]
-pub struct ValidKnnParams(KnnParams);
+pub struct KnnValidParams(KnnParams);
 
-impl std::ops::Deref for ValidKnnParams {
+impl std::ops::Deref for KnnValidParams {
     type Target = KnnParams;
     fn deref(&self) -> &KnnParams {
         &self.0
@@ -87,7 +93,7 @@ impl KnnParams {
 
     /// Checks that `k ≥ 1` and `pivots ≤` [`MAX_PIVOTS`] (the bound `k < M` is checked
     /// against the data).
-    pub fn check(&self) -> Result<ValidKnnParams, MetricError> {
+    pub fn check(&self) -> Result<KnnValidParams, MetricError> {
         if self.k == 0 {
             return Err(InvalidParameter::new(
                 "knn",
@@ -106,7 +112,15 @@ impl KnnParams {
             )
             .into());
         }
-        Ok(ValidKnnParams(self.clone()))
+        Ok(KnnValidParams(self.clone()))
+    }
+}
+
+impl CheckParams for KnnParams {
+    type Valid = KnnValidParams;
+    type Error = MetricError;
+    fn check_params(&self) -> Result<KnnValidParams, MetricError> {
+        self.check()
     }
 }
 
@@ -114,7 +128,22 @@ impl KnnParams {
 /// [`crate::neighbours::Knn`].
 pub use crate::neighbours::Knn;
 
-/// The `k` nearest sets of each set in rows `rows` of `(M, P, N)` kernel sets.
+/// The `k` nearest sets of each set in rows `rows` of `(M, P, N)` kernel sets (any
+/// strides) under a built-in metric: equal to the first `k` entries of the rows of
+/// [`distance_matrix`](super::distance_matrix) sorted by `(distance, index)`, the set
+/// itself left out.
+///
+/// ```
+/// use smspace::metric::{knn, DistanceParams, KnnParams, Period};
+/// use smspace::progress::Silent;
+/// // Sets of one point at 0, 1, 3, 7 on a line.
+/// let sets = ndarray::Array3::from_shape_fn((4, 1, 1), |(i, _, _)| [0.0, 1.0, 3.0, 7.0][i]);
+/// let params = DistanceParams::new().period(Period::None);
+/// let near = knn(sets.view(), &params, &KnnParams::new().k(2), 0..4, &Silent)?;
+/// assert_eq!(near.indices.row(2).to_vec(), vec![1, 0]);
+/// assert_eq!(near.distances.row(2).to_vec(), vec![2.0, 3.0]);
+/// # Ok::<(), smspace::metric::MetricError>(())
+/// ```
 pub fn knn<'a>(
     sets: impl Into<SetsView<'a>>,
     distance: &DistanceParams,
@@ -124,31 +153,76 @@ pub fn knn<'a>(
 ) -> Result<Knn, MetricError> {
     let distance = distance.check()?;
     let params = params.check()?;
-    let sets = closure_for(sets.into(), distance.metric)?;
+    let sets = closure_for(sets.into(), distance.kind())?;
     let (m, p, n) = sets.points().dim();
     if m < 2 {
         return Err(MetricError::TooFewSets { sets: m });
     }
     check_rows(&rows, m)?;
-    let needed = knn_bytes(m, p, n, rows.len(), &params);
-    if let Some(available) = distance.memory_limit_bytes.filter(|&a| needed > a) {
-        return Err(MetricError::KnnOutOfMemory {
-            sets: m,
+    check_knn_memory(
+        distance.memory_limit_bytes(),
+        m,
+        &params,
+        knn_bytes(m, p, n, rows.len(), &params),
+    )?;
+    let measure = Measure::kernel(sets, distance.kind(), distance.period())?;
+    knn_measured(measure, &params, rows, progress)
+}
+
+/// [`knn`] for any [`SetMetric`] (a user-defined one included): on its kernel when it
+/// has one ([`SetMetric::kernel`]), else one call per pair; pivots prune only when
+/// [`SetMetric::is_metric`]. Of `distance` only the memory limit is read.
+pub fn knn_with<'a>(
+    sets: impl Into<SetsView<'a>>,
+    metric: &dyn SetMetric,
+    distance: &DistanceParams,
+    params: &KnnParams,
+    rows: Range<usize>,
+    progress: &dyn Progress,
+) -> Result<Knn, MetricError> {
+    let params = params.check()?;
+    let sets: SetsView<'a> = sets.into();
+    let sets = sets.reborrow();
+    let (m, p, n) = sets.points().dim();
+    if m < 2 {
+        return Err(MetricError::TooFewSets { sets: m });
+    }
+    check_rows(&rows, m)?;
+    let needed = match metric.kernel() {
+        Some(_) => knn_bytes(m, p, n, rows.len(), &params),
+        None => search_bytes(m, rows.len(), &params),
+    };
+    check_knn_memory(distance.memory_limit_bytes, m, &params, needed)?;
+    knn_measured(Measure::new(sets, metric)?, &params, rows, progress)
+}
+
+fn check_knn_memory(
+    limit: Option<u64>,
+    sets: usize,
+    params: &KnnParams,
+    needed: u64,
+) -> Result<(), MetricError> {
+    match limit {
+        Some(available) if needed > available => Err(MetricError::KnnOutOfMemory {
+            sets,
             k: params.k,
             needed,
             available,
-        });
+        }),
+        _ => Ok(()),
     }
-    let prepared = PreparedSets::new(sets, distance.period)?;
-    check_metric(&prepared, distance.metric)?;
-    knn_prepared(&prepared, distance.metric, &params, rows, progress)
 }
 
 /// Bytes [`knn`] needs: layout, pivot table, output and per-thread buffers.
 pub fn knn_bytes(sets: usize, points: usize, dims: usize, rows: usize, params: &KnnParams) -> u64 {
+    PreparedSets::estimate_bytes_with_curves(sets, points, dims) + search_bytes(sets, rows, params)
+}
+
+/// Bytes of the search without the sets' layout: pivot table, output, per-thread
+/// buffers.
+fn search_bytes(sets: usize, rows: usize, params: &KnnParams) -> u64 {
     let threads = rayon::current_num_threads() as u64;
-    PreparedSets::estimate_bytes_with_curves(sets, points, dims)
-        + (params.pivots as u64) * (sets as u64) * 8
+    (params.pivots as u64) * (sets as u64) * 8
         + (rows as u64) * (params.k as u64) * 16
         + threads * (sets as u64) * 24
 }
@@ -157,7 +231,7 @@ pub fn knn_bytes(sets: usize, points: usize, dims: usize, rows: usize, params: &
 pub fn knn_prepared(
     prepared: &PreparedSets,
     metric: MetricKind,
-    params: &ValidKnnParams,
+    params: &KnnValidParams,
     rows: Range<usize>,
     progress: &dyn Progress,
 ) -> Result<Knn, MetricError> {
@@ -166,17 +240,24 @@ pub fn knn_prepared(
         return Err(MetricError::TooFewSets { sets: m });
     }
     check_rows(&rows, m)?;
-    check_metric(prepared, metric)?;
+    knn_measured(Measure::prepared(prepared, metric)?, params, rows, progress)
+}
+
+/// The search itself (module docs), on the sets and metric of `measure`.
+fn knn_measured(
+    measure: Measure<'_>,
+    params: &KnnValidParams,
+    rows: Range<usize>,
+    progress: &dyn Progress,
+) -> Result<Knn, MetricError> {
+    let m = measure.len();
     let k = params.k;
     if k == 0 || k >= m {
         return Err(MetricError::BadK { k, max: m - 1 });
     }
-    let pivots = if metric.is_metric() {
-        params.pivots.min(m)
-    } else {
-        0
-    };
-    let table = pivot_table(prepared, metric, pivots, progress);
+    let (is_metric, tolerance) = measure.bounds();
+    let pivots = if is_metric { params.pivots.min(m) } else { 0 };
+    let table = pivot_table(&measure, pivots, progress);
 
     progress.start("neighbours", rows.len() as u64);
     let mut indices = Array2::zeros((rows.len(), k));
@@ -195,7 +276,7 @@ pub fn knn_prepared(
             || (Scratch::default(), Vec::new(), Vec::new()),
             |(scratch, bounds, candidates), (r, (out_index, out_distance))| {
                 let driver = QueryDriver {
-                    margin: 3.0 * metric.tolerance(),
+                    margin: 3.0 * tolerance,
                     query: rows.start + r,
                     sets: m,
                     k,
@@ -206,11 +287,12 @@ pub fn knn_prepared(
                     out_index,
                     out_distance,
                 };
-                kernel::dispatch(prepared, metric, scratch, driver);
+                measure.drive(scratch, driver);
                 progress.advance(1);
             },
         );
     progress.finish();
+    measure.failure(|s| s)?;
     Ok(Knn {
         rows,
         indices,
@@ -219,13 +301,8 @@ pub fn knn_prepared(
 }
 
 /// `[t][j]`: distance from pivot `t` to set `j`, pivots by farthest-first traversal.
-fn pivot_table(
-    prepared: &PreparedSets,
-    metric: MetricKind,
-    pivots: usize,
-    progress: &dyn Progress,
-) -> Vec<f64> {
-    let m = prepared.len();
+fn pivot_table(measure: &Measure<'_>, pivots: usize, progress: &dyn Progress) -> Vec<f64> {
+    let m = measure.len();
     let mut table = vec![0.0; pivots * m];
     if pivots == 0 {
         return table;
@@ -243,7 +320,7 @@ fn pivot_table(
                     first: c * COLUMNS,
                     out,
                 };
-                kernel::dispatch(prepared, metric, scratch, driver);
+                measure.drive(scratch, driver);
             },
         );
         traversal.add(&*row);

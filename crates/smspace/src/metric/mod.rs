@@ -46,30 +46,58 @@
 //!
 //! # Entry points
 //!
-//! * [`distance_matrix`]: the full symmetric `(M, M)` matrix, for users;
+//! * [`distance_matrix`]: the full symmetric matrix as a validated [`DistanceMatrix`],
+//!   for users;
+//! * [`distance_matrix_with`]: the same for any [`SetMetric`] (a user-defined one
+//!   included), through the same tiles, threads, memory check and progress;
 //! * [`distance_rows`] / [`fill_rows`]: any block of rows `[i0, i1)` on its own, into a
-//!   new array or a caller's buffer, so that the matrix can be spread over processes;
-//! * [`knn`]: the `k` nearest sets of every set (or of a block of rows) without the
-//!   matrix, in `O(M·k)` memory;
-//! * [`SetMetric`]: one distance between two point sets.
+//!   new array or a caller's buffer;
+//! * [`TilePlan`], [`distance_tile`] / [`fill_tile`], [`TileMerge`]: the matrix as
+//!   triangular tiles, each pair computed exactly once, each tile from the sets of its
+//!   rows and columns only, for spreading over processes ([`mod@tiles`]);
+//! * [`knn`] / [`knn_with`]: the `k` nearest sets of every set (or of a block of rows)
+//!   without the matrix, in `O(M·k)` memory;
+//! * [`SetMetric`]: one distance between two point sets; [`MetricRegistry`]: metrics
+//!   by name, as the `[metric]` table of an experiment picks them.
+//!
+//! ```
+//! use smspace::metric::{distance_matrix, DistanceParams, MetricKind, Period};
+//! use smspace::progress::Silent;
+//! // Three sets of two points on a line (no period): ρ is the largest point shift.
+//! let sets = ndarray::array![[[0.0], [1.0]], [[0.5], [1.0]], [[3.0], [4.0]]];
+//! let params = DistanceParams::new().metric(MetricKind::Hausdorff).period(Period::None);
+//! let d = distance_matrix(sets.view(), &params, &Silent)?;
+//! assert_eq!(d[[0, 1]], 0.5);
+//! assert_eq!(d[[0, 2]], 3.0);
+//! assert_eq!(d[[2, 0]], d[[0, 2]]);
+//! # Ok::<(), smspace::metric::MetricError>(())
+//! ```
 
 pub mod curve;
 mod kernel;
 mod knn;
+mod matrix;
 mod prepared;
 pub mod reference;
+mod registry;
+pub mod tiles;
 
 use std::ops::Range;
 
 use ndarray::{Array2, Array3, ArrayView2, ArrayView3, ArrayViewMut2, Axis};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::error::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
 
 pub use curve::{Closure, CURVE_TOLERANCE};
-pub use knn::{knn, knn_prepared, Knn, KnnParams, ValidKnnParams, MAX_PIVOTS};
+pub use knn::{knn, knn_prepared, knn_with, Knn, KnnParams, KnnValidParams, MAX_PIVOTS};
+pub use matrix::{DistanceMatrix, MatrixError, SYMMETRY_TOLERANCE};
 pub use prepared::PreparedSets;
+pub use registry::{BuiltMetric, MetricBuilder, MetricRegistry};
+pub use tiles::{
+    distance_tile, fill_tile, load_tile, save_tile, Tile, TileMerge, TilePlan, TileRecord,
+};
 
 /// Kernel sets as the metric reads them: the points `(M, P, N)` and, for the `curve`
 /// metric, how each set's points are joined ([`Closure`]).
@@ -116,6 +144,17 @@ impl<'a> SetsView<'a> {
     /// The closures, if given.
     pub fn closure(&self) -> Option<&'a [Closure]> {
         self.closure
+    }
+
+    /// The same view with a shorter lifetime (array views are invariant in theirs).
+    pub fn reborrow<'b>(self) -> SetsView<'b>
+    where
+        'a: 'b,
+    {
+        SetsView {
+            points: self.points.reborrow(),
+            closure: self.closure,
+        }
     }
 }
 
@@ -237,6 +276,71 @@ pub enum MetricError {
         /// Bytes available.
         available: u64,
     },
+    /// A [`SetMetric`] returned a value that is not a distance.
+    #[error("it returned {value}; a distance must be a finite number of at least 0")]
+    NotADistance {
+        /// The value returned.
+        value: f64,
+    },
+    /// The `[metric]` table names a metric that is not registered.
+    #[error("unknown metric '{name}' ([metric] metric); the registered metrics are {known}")]
+    UnknownMetric {
+        /// The name given.
+        name: String,
+        /// The registered names, comma-separated.
+        known: String,
+    },
+    /// A metric's parameter table (`[metric.params]`) does not fit the metric.
+    #[error("invalid [metric.params] table for the {metric} metric: {reason}")]
+    InvalidTable {
+        /// The metric.
+        metric: String,
+        /// The reader's message, naming the key.
+        reason: String,
+    },
+    /// The sets given for one side of a tile do not match its range.
+    #[error("{found} sets were given for the tile range {start}:{end}; give exactly the sets of that range")]
+    TileSets {
+        /// Sets given.
+        found: usize,
+        /// First index of the range.
+        start: usize,
+        /// One past its last index.
+        end: usize,
+    },
+    /// A tile holds a value that is not a distance.
+    #[error("a tile holds {value} at [{i}, {j}]; every distance must be finite and at least 0")]
+    TileValue {
+        /// Row.
+        i: usize,
+        /// Column.
+        j: usize,
+        /// The value.
+        value: f64,
+    },
+    /// Two tiles hold different values for one pair.
+    #[error("two tiles disagree on the pair ({i}, {j}): {before} and {after}; were they computed from the same sets and metric?")]
+    TileConflict {
+        /// First set.
+        i: usize,
+        /// Second set.
+        j: usize,
+        /// The value of the earlier tile.
+        before: f64,
+        /// The value of the later one.
+        after: f64,
+    },
+    /// The tiles merged leave a pair out.
+    #[error("no tile holds the pair ({i}, {j}); merge the tiles of a whole plan (every block of rows against every block of columns at or after it)")]
+    TileMissing {
+        /// First set.
+        i: usize,
+        /// Second set.
+        j: usize,
+    },
+    /// An array is not a distance matrix.
+    #[error(transparent)]
+    Matrix(#[from] MatrixError),
     /// The output would not fit in the memory available.
     #[error("the distance matrix of {sets} sets needs {} but only {} is available; compute the k nearest sets instead (knn, `--knn K` on the command line), or a block of rows", human_bytes(*needed), human_bytes(*available))]
     OutOfMemory {
@@ -247,6 +351,18 @@ pub enum MetricError {
         /// Bytes available.
         available: u64,
     },
+}
+
+impl MetricError {
+    /// The parameter out of its domain, located by table and key, if this is one
+    /// (also inside a failing pair).
+    pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
+        match self {
+            MetricError::Invalid(p) => Some(p),
+            MetricError::Pair { reason, .. } => reason.invalid_parameter(),
+            _ => None,
+        }
+    }
 }
 
 /// Formats a byte count as `12.3 GiB`.
@@ -301,6 +417,18 @@ pub enum MetricKind {
 }
 
 impl MetricKind {
+    /// Every built-in metric.
+    pub const ALL: [MetricKind; 3] = [
+        MetricKind::Hausdorff,
+        MetricKind::MeanHausdorff,
+        MetricKind::Curve,
+    ];
+
+    /// The built-in metric called `name`, if there is one.
+    pub fn from_name(name: &str) -> Option<MetricKind> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+
     /// The name used in files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
@@ -342,19 +470,70 @@ impl MetricKind {
     }
 }
 
-/// A distance between two point sets, each a `(P, N)` view (one point per row).
-pub trait SetMetric: Sync {
+/// A distance between two point sets, each a `(P, N)` view (one point per row, any
+/// strides).
+///
+/// Every function that measures many pairs takes one ([`distance_matrix_with`],
+/// [`knn_with`], [`fill_tile`]): a metric defined outside the crate runs through the
+/// same tiles, threads, memory checks and progress as the built-in ones, and a
+/// [`MetricRegistry`] gives it a name for the `[metric]` table of an experiment.
+///
+/// ```
+/// use ndarray::ArrayView2;
+/// use smspace::metric::{knn_with, DistanceParams, KnnParams, MetricError, SetMetric};
+/// /// The distance between the sets' first points (a metric: the triangle inequality holds).
+/// struct FirstPoints;
+/// impl SetMetric for FirstPoints {
+///     fn name(&self) -> &'static str { "first-points" }
+///     fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
+///         Ok((a[[0, 0]] - b[[0, 0]]).abs())
+///     }
+///     fn is_metric(&self) -> bool { true }
+/// }
+/// let sets = ndarray::Array3::from_shape_fn((6, 2, 1), |(i, p, _)| (i * i + p) as f64);
+/// let near = knn_with(sets.view(), &FirstPoints, &DistanceParams::new(), &KnnParams::new().k(2), 0..6, &smspace::progress::Silent)?;
+/// assert_eq!(near.indices.row(3).to_vec(), vec![2, 4]); // 9 is nearest to 4, then 16
+/// # Ok::<(), MetricError>(())
+/// ```
+pub trait SetMetric: Send + Sync {
     /// Short name, as on the command line.
     fn name(&self) -> &'static str;
 
-    /// The distance between `a` and `b`. Errors on empty sets, non-finite coordinates
-    /// or different coordinate counts.
+    /// The distance between `a` and `b`: finite and at least 0. Errors on empty sets,
+    /// non-finite coordinates or different coordinate counts.
     fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError>;
 
-    /// True when the triangle inequality holds. Defaults to `false`.
+    /// True when the triangle inequality holds, which nearest-neighbour search uses to
+    /// prune. Defaults to `false`.
     fn is_metric(&self) -> bool {
         false
     }
+
+    /// Absolute error of the values (nearest-neighbour pruning widens its bounds by
+    /// it). Defaults to 0.
+    fn tolerance(&self) -> f64 {
+        0.0
+    }
+
+    /// The built-in SIMD kernel that computes exactly this metric, if there is one: the
+    /// built-in metrics return theirs, so that the functions measuring many pairs run
+    /// them on the kernels. Defaults to `None`: one [`distance`](SetMetric::distance)
+    /// call per pair.
+    fn kernel(&self) -> Option<KernelMetric> {
+        None
+    }
+}
+
+/// A built-in metric as its SIMD kernels run it ([`SetMetric::kernel`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KernelMetric {
+    /// The metric.
+    pub kind: MetricKind,
+    /// The point metric's period.
+    pub period: Period,
+    /// For the `curve` metric, how sets given without their closures are joined (sets
+    /// given with them, [`SetsView::with_closure`], keep their own).
+    pub closure: Closure,
 }
 
 /// The paper's symmetric Hausdorff distance `ρ` under the point metric `g`.
@@ -466,6 +645,13 @@ impl SetMetric for Hausdorff {
     fn is_metric(&self) -> bool {
         true
     }
+    fn kernel(&self) -> Option<KernelMetric> {
+        Some(KernelMetric {
+            kind: MetricKind::Hausdorff,
+            period: self.period,
+            closure: Closure::Open,
+        })
+    }
 }
 
 impl SetMetric for Curve {
@@ -478,6 +664,16 @@ impl SetMetric for Curve {
     fn is_metric(&self) -> bool {
         true
     }
+    fn tolerance(&self) -> f64 {
+        MetricKind::Curve.tolerance()
+    }
+    fn kernel(&self) -> Option<KernelMetric> {
+        Some(KernelMetric {
+            kind: MetricKind::Curve,
+            period: self.period,
+            closure: self.closure,
+        })
+    }
 }
 
 impl SetMetric for MeanHausdorff {
@@ -487,24 +683,86 @@ impl SetMetric for MeanHausdorff {
     fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
         pair_distance(MetricKind::MeanHausdorff, self.period, a, b)
     }
+    fn kernel(&self) -> Option<KernelMetric> {
+        Some(KernelMetric {
+            kind: MetricKind::MeanHausdorff,
+            period: self.period,
+            closure: Closure::Open,
+        })
+    }
 }
 
-/// Parameters of the distance matrix. Unchecked; [`DistanceParams::check`] validates them.
+/// The name of a set metric in a `[metric]` table: a built-in one ([`MetricKind`]) or
+/// one registered in a [`MetricRegistry`]. Written as the bare name.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct MetricName(String);
+
+impl MetricName {
+    /// The name.
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+
+    /// The built-in metric of this name, if it is one.
+    pub fn kind(&self) -> Option<MetricKind> {
+        MetricKind::from_name(&self.0)
+    }
+}
+
+impl Default for MetricName {
+    /// The paper's Hausdorff distance.
+    fn default() -> Self {
+        MetricKind::default().into()
+    }
+}
+
+impl From<MetricKind> for MetricName {
+    fn from(kind: MetricKind) -> Self {
+        Self(kind.name().to_owned())
+    }
+}
+
+impl From<&str> for MetricName {
+    fn from(name: &str) -> Self {
+        Self(name.to_owned())
+    }
+}
+
+impl std::fmt::Display for MetricName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// Parameters of the distance matrix: the `[metric]` table of an experiment.
+/// Unchecked; [`DistanceParams::check`] validates them for the built-in metrics,
+/// [`MetricRegistry::build`] for any registered one.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct DistanceParams {
-    /// Set metric. Default: [`MetricKind::Hausdorff`].
-    pub metric: MetricKind,
+    /// Set metric, by name: `hausdorff`, `mean-hausdorff`, `curve` ([`MetricKind`]),
+    /// or a registered one. Default: `hausdorff`.
+    pub metric: MetricName,
     /// Period of the motor coordinates. Default: [`Period::TwoPi`].
     pub period: Period,
     /// Refuse to start when the output needs more bytes than this. Default: `None`
     /// (no limit; the command-line tool passes the memory available).
     pub memory_limit_bytes: Option<u64>,
+    /// The metric's own parameters (`[metric.params]`), for registered metrics that
+    /// have some; the built-in ones have none. Default: empty.
+    #[serde(skip_serializing_if = "toml::Table::is_empty")]
+    pub params: toml::Table,
 }
 
-/// Validated [`DistanceParams`].
-#[derive(Debug, Clone, PartialEq)]
-pub struct ValidDistanceParams(DistanceParams);
+/// Checked [`DistanceParams`] of a built-in metric: the only form the built-in
+/// matrix and kNN functions run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DistanceValidParams {
+    kind: MetricKind,
+    period: Period,
+    memory_limit_bytes: Option<u64>,
+}
 
 impl DistanceParams {
     /// Default parameters.
@@ -512,9 +770,9 @@ impl DistanceParams {
         Self::default()
     }
 
-    /// Sets the set metric (default Hausdorff).
-    pub fn metric(mut self, metric: MetricKind) -> Self {
-        self.metric = metric;
+    /// Sets the set metric (default Hausdorff): a [`MetricKind`] or a registered name.
+    pub fn metric(mut self, metric: impl Into<MetricName>) -> Self {
+        self.metric = metric.into();
         self
     }
 
@@ -530,17 +788,63 @@ impl DistanceParams {
         self
     }
 
-    /// Validates the parameters. Every combination is valid today; the call keeps the
-    /// unchecked/checked pattern of the other stages.
-    pub fn check(&self) -> Result<ValidDistanceParams, MetricError> {
-        Ok(ValidDistanceParams(self.clone()))
+    /// Validates the parameters of a built-in metric: the name must be one of
+    /// [`MetricKind`]'s (a registered metric is built by [`MetricRegistry::build`] and
+    /// run with [`distance_matrix_with`]) and `params` empty.
+    pub fn check(&self) -> Result<DistanceValidParams, MetricError> {
+        let Some(kind) = self.metric.kind() else {
+            return Err(MetricError::UnknownMetric {
+                name: self.metric.to_string(),
+                known: MetricKind::ALL.map(MetricKind::name).join(", ")
+                    + " (register others in a MetricRegistry and run them with distance_matrix_with)",
+            });
+        };
+        if let Some(key) = self.params.keys().next() {
+            return Err(InvalidParameter::new(
+                "metric",
+                "params",
+                format!("{{ {key} = … }}"),
+                format!("the {} metric has no parameters", kind.name()),
+            )
+            .into());
+        }
+        Ok(DistanceValidParams {
+            kind,
+            period: self.period,
+            memory_limit_bytes: self.memory_limit_bytes,
+        })
     }
 }
 
-impl std::ops::Deref for ValidDistanceParams {
-    type Target = DistanceParams;
-    fn deref(&self) -> &DistanceParams {
-        &self.0
+impl CheckParams for DistanceParams {
+    type Valid = DistanceValidParams;
+    type Error = MetricError;
+    fn check_params(&self) -> Result<DistanceValidParams, MetricError> {
+        self.check()
+    }
+}
+
+impl DistanceValidParams {
+    /// The metric.
+    pub fn kind(&self) -> MetricKind {
+        self.kind
+    }
+
+    /// The point metric's period.
+    pub fn period(&self) -> Period {
+        self.period
+    }
+
+    /// The memory limit in bytes, if any.
+    pub fn memory_limit_bytes(&self) -> Option<u64> {
+        self.memory_limit_bytes
+    }
+
+    /// The metric as a [`SetMetric`] (for [`fill_tile`], [`distance_matrix_with`],
+    /// [`knn_with`]); `curve` sets given without their closures are read as closed
+    /// loops.
+    pub fn set_metric(&self) -> Box<dyn SetMetric> {
+        self.kind.with_period(self.period, Closure::Closed)
     }
 }
 
@@ -589,25 +893,29 @@ fn check_memory(limit: Option<u64>, sets: usize, needed: u64) -> Result<(), Metr
     }
 }
 
-/// The full symmetric distance matrix `(M, M)` of kernel sets `(M, P, N)`: zero
-/// diagonal, `D[i, j] = D[j, i] = ρ(M^i, M^j)`.
+/// The full symmetric distance matrix `(M, M)` of kernel sets `(M, P, N)` (any
+/// strides) under a built-in metric: zero diagonal, `D[i, j] = D[j, i] = ρ(M^i, M^j)`.
 ///
 /// Errors before any work when `M < 2`, `P` or `N` is zero, a coordinate is not
-/// finite, or the matrix needs more than `params.memory_limit_bytes`.
+/// finite, the metric is not built in, or the matrix needs more than
+/// `params.memory_limit_bytes`.
 ///
 /// The `curve` metric needs the sets' closures ([`SetsView::with_closure`]).
 pub fn distance_matrix<'a>(
     sets: impl Into<SetsView<'a>>,
     params: &DistanceParams,
     progress: &dyn Progress,
-) -> Result<Array2<f64>, MetricError> {
+) -> Result<DistanceMatrix, MetricError> {
     let sets = sets.into();
     let m = sets.points().dim().0;
-    distance_rows(sets, params, 0..m, progress)
+    let values = distance_rows(sets, params, 0..m, progress)?;
+    Ok(DistanceMatrix::from_symmetric(values))
 }
 
-/// Rows `[i0, i1)` of the distance matrix, as a `(i1 − i0, M)` array. Any split of
-/// `0..M` into blocks gives, stacked, exactly [`distance_matrix`].
+/// Rows `[i0, i1)` of the distance matrix, as a `(i1 − i0, M)` array: the tile
+/// `(i0..i1, 0..M)` ([`mod@tiles`]). Any split of `0..M` into blocks gives, stacked,
+/// exactly [`distance_matrix`] (the pairs across blocks are computed in both; a
+/// [`TilePlan`] computes each pair once).
 pub fn distance_rows<'a>(
     sets: impl Into<SetsView<'a>>,
     params: &DistanceParams,
@@ -615,7 +923,7 @@ pub fn distance_rows<'a>(
     progress: &dyn Progress,
 ) -> Result<Array2<f64>, MetricError> {
     let params = params.check()?;
-    let sets = closure_for(sets.into(), params.metric)?;
+    let sets = closure_for(sets.into(), params.kind)?;
     let (m, p, n) = sets.points().dim();
     if m < 2 {
         return Err(MetricError::TooFewSets { sets: m });
@@ -626,10 +934,10 @@ pub fn distance_rows<'a>(
         m,
         matrix_bytes(m, p, n, rows.len()),
     )?;
-    let prepared = PreparedSets::new(sets, params.period)?;
-    check_metric(&prepared, params.metric)?;
+    let measure = tiles::Measure::kernel(sets, params.kind, params.period)?;
     let mut out = Array2::zeros((rows.len(), m));
-    fill_rows(&prepared, params.metric, rows, out.view_mut(), progress)?;
+    let layout = tiles::Layout::within(Tile::new(rows, 0..m));
+    tiles::fill(measure, &layout, out.view_mut(), progress)?;
     Ok(out)
 }
 
@@ -646,52 +954,6 @@ pub(crate) fn closure_for(
         Ok(sets)
     } else {
         Ok(SetsView::new(sets.points()))
-    }
-}
-
-/// Rows of a tile share a pass over each block of this many columns, so that the
-/// block's sets stay in the core's L2 cache while every row of the tile uses them.
-const TILE_COLUMNS: usize = 32;
-/// Rows computed together (one parallel task).
-const TILE_ROWS: usize = 32;
-
-/// Computes a tile of rows `[row0, row0 + out.len() / m)` of the matrix, column block by
-/// column block (cache blocking: each column set is read from memory once per tile
-/// instead of once per row). Every entry is the same `distance(i, j)` call as without
-/// tiling, so the result does not depend on the tile sizes.
-struct TileDriver<'a> {
-    row0: usize,
-    m: usize,
-    /// Columns `skip_from..=row` of a row are left alone (mirrored afterwards, or the
-    /// diagonal).
-    skip_from: usize,
-    out: &'a mut [f64],
-}
-
-impl kernel::Driver for TileDriver<'_> {
-    type Output = ();
-    #[inline(always)]
-    fn drive<E: kernel::Eval>(self, eval: &mut E) {
-        let m = self.m;
-        let rows = self.out.len() / m;
-        for block in (0..m).step_by(TILE_COLUMNS) {
-            let columns = block..(block + TILE_COLUMNS).min(m);
-            for r in 0..rows {
-                let i = self.row0 + r;
-                let out = &mut self.out[r * m..(r + 1) * m];
-                for j in columns.clone() {
-                    if j >= self.skip_from && j <= i {
-                        continue;
-                    }
-                    // The first row of the tile brings the block's sets from memory:
-                    // start loading the one after next while this pair is computed.
-                    if r == 0 && j + 2 < columns.end {
-                        eval.touch(j + 2);
-                    }
-                    out[j] = eval.distance(i, j, f64::INFINITY).unwrap_or(f64::INFINITY);
-                }
-            }
-        }
     }
 }
 
@@ -712,67 +974,20 @@ pub fn fill_rows(
         return Err(MetricError::TooFewSets { sets: m });
     }
     check_rows(&rows, m)?;
-    check_metric(prepared, metric)?;
-    let expected = (rows.len(), m);
-    if out.dim() != expected || !out.is_standard_layout() {
-        return Err(MetricError::BadBuffer {
-            found: out.dim(),
-            expected,
-        });
-    }
-    fill_tiles(m, rows, out, progress, |scratch, driver| {
-        kernel::dispatch(prepared, metric, scratch, driver)
-    });
-    Ok(())
-}
-
-/// The tiles of rows `rows` of `out` (checked: `(rows.len(), m)`, standard layout), in
-/// parallel: `tile` computes one [`TileDriver`]; pairs inside the block are then
-/// mirrored and the diagonal is zero.
-fn fill_tiles(
-    m: usize,
-    rows: Range<usize>,
-    mut out: ArrayViewMut2<'_, f64>,
-    progress: &dyn Progress,
-    tile: impl Fn(&mut kernel::Scratch, TileDriver<'_>) + Sync,
-) {
-    let i0 = rows.start;
-    let total: u64 = rows.clone().map(|i| (m - 1 - (i - i0)) as u64).sum();
-    progress.start("distances", total);
-    let buffer = out
-        .as_slice_mut()
-        .expect("standard layout was checked by the caller");
-    buffer
-        .par_chunks_mut(m * TILE_ROWS)
-        .enumerate()
-        .for_each_init(kernel::Scratch::default, |scratch, (t, block)| {
-            let row0 = i0 + t * TILE_ROWS;
-            let tile_rows = block.len() / m;
-            for r in 0..tile_rows {
-                block[r * m + row0 + r] = 0.0;
-            }
-            let driver = TileDriver {
-                row0,
-                m,
-                skip_from: i0,
-                out: block,
-            };
-            tile(scratch, driver);
-            let done: usize = (0..tile_rows).map(|r| m - 1 - (row0 + r - i0)).sum();
-            progress.advance(done as u64);
-        });
-    for i in rows.clone() {
-        for j in i0..i {
-            out[[i - i0, j]] = out[[j - i0, i]];
-        }
-    }
-    progress.finish();
+    let measure = tiles::Measure::prepared(prepared, metric)?;
+    let tile = Tile::new(rows, 0..m);
+    tiles::check_buffer(&out, &tile)?;
+    tiles::fill(measure, &tiles::Layout::within(tile), out, progress)
 }
 
 /// The full matrix of any [`SetMetric`] (a user-defined one included), through the
-/// same row tiles, threads, memory check and progress as the built-in metrics (the
-/// generic path next to the SIMD kernels: each pair is one
-/// [`SetMetric::distance`] call, without early exits). Identical for any thread count.
+/// same tiles, threads, memory check and progress as the built-in metrics: a metric
+/// with a [`kernel`](SetMetric::kernel) (the built-in ones) runs on it, any other one
+/// [`SetMetric::distance`] call per pair, without early exits. Identical for any
+/// thread count. Of `params` only the memory limit is read.
+///
+/// A failing pair is reported (the first in row-major order, whatever the threads),
+/// and so is a value that is not a distance (negative or not finite).
 ///
 /// ```
 /// use ndarray::{Array3, ArrayView2};
@@ -791,62 +1006,26 @@ fn fill_tiles(
 /// assert_eq!(d[[0, 2]], 20.0);
 /// # Ok::<(), MetricError>(())
 /// ```
-pub fn distance_matrix_with(
-    sets: ArrayView3<'_, f64>,
+pub fn distance_matrix_with<'a>(
+    sets: impl Into<SetsView<'a>>,
     metric: &dyn SetMetric,
     params: &DistanceParams,
     progress: &dyn Progress,
-) -> Result<Array2<f64>, MetricError> {
-    let m = sets.dim().0;
+) -> Result<DistanceMatrix, MetricError> {
+    let sets: SetsView<'a> = sets.into();
+    let sets = sets.reborrow();
+    let (m, p, n) = sets.points().dim();
     if m < 2 {
         return Err(MetricError::TooFewSets { sets: m });
     }
-    prepared::check_points(sets)?;
-    check_memory(params.memory_limit_bytes, m, (m as u64) * (m as u64) * 8)?;
+    let needed = match metric.kernel() {
+        Some(_) => matrix_bytes(m, p, n, m),
+        None => (m as u64) * (m as u64) * 8,
+    };
+    check_memory(params.memory_limit_bytes, m, needed)?;
+    let measure = tiles::Measure::new(sets, metric)?;
     let mut out = Array2::zeros((m, m));
-    // The error of the first failing pair in row-major order, whatever the threads.
-    let failure: std::sync::Mutex<Option<((usize, usize), MetricError)>> = Default::default();
-    fill_tiles(m, 0..m, out.view_mut(), progress, |_, driver| {
-        let mut eval = GenericEval {
-            sets: sets.view(),
-            metric,
-            failure: &failure,
-        };
-        kernel::Driver::drive(driver, &mut eval)
-    });
-    match failure.into_inner().unwrap_or_else(|e| e.into_inner()) {
-        Some(((i, j), reason)) => Err(MetricError::Pair {
-            metric: metric.name().to_owned(),
-            i,
-            j,
-            reason: Box::new(reason),
-        }),
-        None => Ok(out),
-    }
-}
-
-/// Evaluates a [`SetMetric`] on a pair of sets for the tile driver.
-struct GenericEval<'a> {
-    sets: ArrayView3<'a, f64>,
-    metric: &'a dyn SetMetric,
-    failure: &'a std::sync::Mutex<Option<((usize, usize), MetricError)>>,
-}
-
-impl kernel::Eval for GenericEval<'_> {
-    fn distance(&mut self, i: usize, j: usize, _limit: f64) -> Option<f64> {
-        let (a, b) = (
-            self.sets.index_axis(Axis(0), i),
-            self.sets.index_axis(Axis(0), j),
-        );
-        match self.metric.distance(a, b) {
-            Ok(d) => Some(d),
-            Err(reason) => {
-                let mut failure = self.failure.lock().unwrap_or_else(|e| e.into_inner());
-                if failure.as_ref().is_none_or(|(at, _)| (i, j) < *at) {
-                    *failure = Some(((i, j), reason));
-                }
-                Some(f64::NAN)
-            }
-        }
-    }
+    let layout = tiles::Layout::within(Tile::new(0..m, 0..m));
+    tiles::fill(measure, &layout, out.view_mut(), progress)?;
+    Ok(DistanceMatrix::from_symmetric(out))
 }

@@ -10,7 +10,7 @@
 //!
 //! | stage | outputs |
 //! |---|---|
-//! | `explore` | `motors.npy` (M0, N), `poses.npy` (M0, 3), `probes.npy` (M0, 3) int64, `exploration.json`, `environment.json` (+ `environment-2.json`, … for compared environments) |
+//! | `explore` | `motors.npy` (M0, N), `poses.npy` (M0, d) (when the agent has a ground truth), `probes.npy` (M0, 3) int64, `exploration.json`, `environment.json` (+ `environment-2.json`, … for compared environments) |
 //! | `trace` | `sets.npy` (M, P, N), `sets.kept.npy` (M,) int64 (row of `motors.npy` of each set), `sets.closed.npy` (M,) int64 (1: a closed loop, 0: an open polyline), `sets.trace.json` |
 //! | `distances` | `D.npy` (M, M) |
 //! | `embed` | `Y.npy` (M, d), `Y.embed.json`, `Y.dydx.npy` (pairs, 2) |
@@ -22,18 +22,74 @@
 //! `manifest.json` ([`manifest::Manifest`]: version, seeds, configuration hash, time per
 //! stage, output hashes). A stage whose key (the hash of the stage struct, which holds
 //! every parameter its computation reads, and the keys of its inputs) is unchanged and whose outputs are intact is not recomputed
-//! ([`Recompute::Changed`]); its outputs are read back instead. Every file is written
-//! atomically and the manifest after every stage, so a failing or interrupted stage
-//! leaves the earlier stages' outputs and records intact. One process writes a folder at
-//! a time ([`lock`]: a second run refuses, or waits with [`BusyFolder::Wait`]).
-//! `docs/RELIABILITY.md` lists these promises and the tests that check them.
+//! ([`Recompute::Changed`]); its outputs are read back instead. A computed stage's
+//! files, the configuration and the manifest with its record are written together
+//! ([`crate::io::Outputs`], hashed while written), so a failing or interrupted stage
+//! leaves the earlier stages' outputs and records intact; a run that reuses every stage
+//! of an unchanged configuration writes nothing, and so runs from a read-only folder
+//! (the order of the writes is in `runner`'s docs). Each stage's peak memory is
+//! estimated before it starts and held to [`RunOptions::memory_limit_bytes`]. One
+//! process writes a folder at a time ([`lock`]: a second run refuses, or waits with
+//! [`BusyFolder::Wait`]). `docs/RELIABILITY.md` lists these promises and the tests that
+//! check them.
+//!
+//! # Example
+//!
+//! A tiny experiment (the redundant toy of section 2.3) from the library:
+//!
+//! ```
+//! use smspace::pipeline::{self, BusyFolder, Recompute, RunObserver, RunOptions};
+//! use smspace::progress::{Progress, Silent};
+//!
+//! struct Quiet;
+//! impl RunObserver for Quiet {
+//!     fn progress(&self) -> &dyn Progress { &Silent }
+//! }
+//! let dir = tempfile::tempdir()?;
+//! let file = dir.path().join("tiny.toml");
+//! std::fs::write(&file, r#"
+//!     [agent]
+//!     kind = "toy-redundant"
+//!     [exploration]
+//!     n = 60
+//!     [kernel]
+//!     method = "kinematic"
+//!     points = 12
+//!     [metric]
+//!     period = "none"
+//!     [embedding]
+//!     method = "mds"
+//!     dim = 1
+//!     [analysis]
+//!     mle_neighbors = 8
+//!     [report]
+//!     formats = "svg"
+//!     sample_configurations = 3
+//!     sample_sets = 3
+//! "#)?;
+//! let experiment = smspace::config::load_experiment(&file, &[])?;
+//! let plan = pipeline::check(&experiment)?;
+//! let options = RunOptions {
+//!     out_dir: dir.path().join("run"),
+//!     recompute: Recompute::Changed,
+//!     memory_limit_bytes: None,
+//!     busy: BusyFolder::Refuse,
+//! };
+//! let summary = pipeline::run(&plan, &options, &Quiet)?;
+//! // The kernel sets m1 + m2 = x form one segment: one component.
+//! assert_eq!(summary.analysis.betti[0], 1);
+//! assert!(summary.dir.join("D.npy").is_file() && summary.dir.join("report.html").is_file());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 pub mod lock;
 pub mod manifest;
+mod memory;
 mod runner;
 pub mod stages;
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
@@ -41,8 +97,10 @@ use serde::{Deserialize, Serialize};
 use crate::agent::{Agent, AgentRegistry};
 use crate::analysis::AnalysisReport;
 use crate::config::{ConfigError, LoadedExperiment};
+use crate::error::InvalidParameter;
 use crate::io::{self, IoError};
 use crate::kernel::{TraceMethod, TraceParams};
+use crate::metric::{MetricError, MetricRegistry, Period};
 use crate::progress::Progress;
 pub use lock::BusyFolder;
 use lock::FolderLock;
@@ -90,9 +148,10 @@ pub enum PipelineError {
         /// Its lock file.
         lock: PathBuf,
     },
-    /// The explored configurations or their kernel sets would not fit in memory;
-    /// nothing ran.
-    #[error("the {what} need {} but only {} is available; {fix}", crate::metric::human_bytes(*needed), crate::metric::human_bytes(*available))]
+    /// A stage's estimated peak memory (or, before anything runs, the explored
+    /// configurations or their kernel sets) exceeds the run's limit; the stage did
+    /// not start.
+    #[error("{what}: about {} needed, but the limit is {} (the memory available, or --max-memory); {fix}", crate::metric::human_bytes(*needed), crate::metric::human_bytes(*available))]
     OutOfMemory {
         /// What would not fit, with its size (e.g. `kernel sets (3500 × 100 × 4)`).
         what: String,
@@ -102,6 +161,17 @@ pub enum PipelineError {
         available: u64,
         /// Which keys to lower.
         fix: &'static str,
+    },
+    /// The run folder cannot be written (a read-only folder or file system) and the run
+    /// would have to write it; nothing was written.
+    #[error("{dir} cannot be written, and {what}: a read-only run folder can only be reused as it is (the same experiment and settings, every stage finished); run it into a writable folder with --out{}", reason.as_ref().map(|r| format!(" ({r})")).unwrap_or_default())]
+    ReadOnly {
+        /// The run folder.
+        dir: PathBuf,
+        /// Why the run must write (e.g. "stage `embed` must be computed").
+        what: String,
+        /// The operating system's reason, when a write was tried.
+        reason: Option<std::io::Error>,
     },
     /// The lock file of the run folder cannot be opened or locked.
     #[error("cannot lock the run folder through {path}: {reason}")]
@@ -177,8 +247,11 @@ pub struct RunOptions {
     pub out_dir: PathBuf,
     /// Which stages run again.
     pub recompute: Recompute,
-    /// Refuse a distance matrix larger than this many bytes (the command-line tool
-    /// passes the memory available). `None`: no limit.
+    /// The run's memory limit in bytes (the command-line tool passes `--max-memory`,
+    /// by default the memory available): every stage's estimated peak is checked
+    /// against it before the stage starts, and the distance matrix against the
+    /// smaller of it and the experiment's `[metric] memory_limit_bytes`. `None`: no
+    /// limit but the experiment's.
     pub memory_limit_bytes: Option<u64>,
     /// What to do when another process is writing the run folder ([`lock`]).
     pub busy: BusyFolder,
@@ -236,32 +309,116 @@ impl Plan {
     pub fn agent(&self) -> &dyn Agent {
         self.world.agent.as_ref()
     }
+
+    /// What the cache compares besides the keys of the inputs: every stage's struct as
+    /// JSON (the parameters its computation reads) and its parameter key (the hash of
+    /// its name and that JSON, [`Stage::parameter_key`](stages::Stage::parameter_key)),
+    /// in order; the invariance stage only when it runs. The world's key is
+    /// [`Plan::world_key`].
+    pub fn parameter_keys(&self) -> Vec<(StageId, String, serde_json::Value)> {
+        use stages::Stage;
+        fn entry<S: Stage>(stage: &S) -> (StageId, String, serde_json::Value) {
+            let json = serde_json::to_value(stage).unwrap_or_default();
+            (S::ID, stage.parameter_key(), json)
+        }
+        let mut keys = vec![
+            entry(&self.explore),
+            entry(&self.trace),
+            entry(&self.distances),
+            entry(&self.embed),
+            entry(&self.analyze),
+        ];
+        keys.extend(self.invariance.as_ref().map(entry));
+        keys.push(entry(&self.report));
+        keys
+    }
+
+    /// The key of the agent, its environments and its working space.
+    pub fn world_key(&self) -> &str {
+        &self.world.key
+    }
+}
+
+/// The kinds a run can build by name: agents (`[agent] kind`) and set metrics
+/// (`[metric] metric`). An embedder adds its own to the built-in ones and hands them
+/// to [`check_with`]; an [`AgentRegistry`] or a [`MetricRegistry`] alone stands for
+/// itself with the other's built-in kinds.
+#[derive(Debug, Clone)]
+pub struct Registries {
+    /// Agent kinds.
+    pub agents: AgentRegistry,
+    /// Set metrics.
+    pub metrics: MetricRegistry,
+}
+
+impl Registries {
+    /// The built-in agents and metrics.
+    pub fn builtin() -> Self {
+        Self {
+            agents: AgentRegistry::builtin(),
+            metrics: MetricRegistry::builtin(),
+        }
+    }
+}
+
+impl From<&Registries> for Registries {
+    fn from(registries: &Registries) -> Self {
+        registries.clone()
+    }
+}
+
+impl From<&AgentRegistry> for Registries {
+    fn from(agents: &AgentRegistry) -> Self {
+        Self {
+            agents: agents.clone(),
+            metrics: MetricRegistry::builtin(),
+        }
+    }
+}
+
+impl From<&MetricRegistry> for Registries {
+    fn from(metrics: &MetricRegistry) -> Self {
+        Self {
+            agents: AgentRegistry::builtin(),
+            metrics: metrics.clone(),
+        }
+    }
 }
 
 /// Validates every table of the experiment (agent, environments, working space, and
 /// each stage's parameters) without running anything. Errors name the file, the line
 /// of the key (or the `--set` that gave it) and the key.
 pub fn check(experiment: &LoadedExperiment) -> Result<Plan, ConfigError> {
-    check_with(experiment, &AgentRegistry::builtin())
+    check_with(experiment, Registries::builtin())
 }
 
-/// Like [`check`], building the agent from `agents`: the built-in kinds and any an
-/// embedder registered ([`AgentRegistry::register`]), so that a plug-in agent runs
-/// through the whole pipeline.
+/// Like [`check`], building the agent and the set metric from `registries`: the
+/// built-in kinds and any an embedder registered ([`AgentRegistry::register`],
+/// [`MetricRegistry::register`]), so that a plug-in agent or metric runs through the
+/// whole pipeline. `registries` is a [`Registries`], or an [`AgentRegistry`] or
+/// [`MetricRegistry`] alone.
 pub fn check_with(
     experiment: &LoadedExperiment,
-    agents: &AgentRegistry,
+    registries: impl Into<Registries>,
 ) -> Result<Plan, ConfigError> {
-    let built = agents
+    let registries: Registries = registries.into();
+    let built = registries
+        .agents
         .build(&experiment.experiment.agent)
-        .map_err(|err| experiment.invalid("agent", crate::Error::from(err)))?;
+        .map_err(|err| experiment.invalid_error("agent", err.into()))?;
     let agent = built.agent;
-    // The resolved agent table (its defaults included) is what the run records.
+    let metric = registries
+        .metrics
+        .build(&experiment.experiment.metric)
+        .map_err(|err| experiment.invalid("metric", crate::Error::from(err)))?;
+    // The resolved agent and metric tables (their defaults included) are what the run
+    // records.
     let mut experiment = experiment.clone();
     experiment.experiment.agent = built.config;
+    experiment.experiment.metric = metric.params.clone();
     let experiment = &experiment;
     let e = &experiment.experiment;
-    let invalid = |table| move |err: crate::Error| experiment.invalid(table, err);
+    let invalid = |table| move |err: crate::Error| experiment.invalid_error(table, err);
     let environments = e
         .environment
         .configs()
@@ -275,6 +432,7 @@ pub fn check_with(
         .map_err(|err| invalid("exploration")(err.into()))?;
     e.kernel
         .check()
+        .and_then(|kernel| kernel.check_for(agent.as_ref()))
         .map_err(|err| invalid("kernel")(err.into()))?;
     let invariance = if environments.len() > 1 && e.analysis.invariance_starts > 0 {
         let kernel = TraceParams {
@@ -284,17 +442,22 @@ pub fn check_with(
         kernel
             .check()
             .map_err(|err| invalid("kernel")(err.into()))?;
-        Some(InvarianceStage {
+        // A built-in metric measures the sets under the agent's own point metric.
+        let set_metric = match metric.params.metric.kind() {
+            Some(kind) => Arc::from(crate::invariance::agent_metric(kind, agent.as_ref())),
+            None => metric.metric.clone(),
+        };
+        Some(InvarianceStage::new(
             kernel,
-            starts: e.analysis.invariance_starts,
-            metric: e.metric.metric,
-        })
+            e.analysis.invariance_starts,
+            metric.params.metric.clone(),
+            set_metric,
+        ))
     } else {
         None
     };
-    e.metric
-        .check()
-        .map_err(|err| invalid("metric")(err.into()))?;
+    metric_period(agent.as_ref(), metric.params.period)
+        .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
     e.embedding
         .clone()
         .build()
@@ -320,10 +483,7 @@ pub fn check_with(
         trace: TraceStage {
             kernel: e.kernel.clone(),
         },
-        distances: DistancesStage {
-            metric: e.metric.metric,
-            period: e.metric.period,
-        },
+        distances: DistancesStage::new(&metric),
         embed: EmbedStage {
             embedding: e.embedding.clone(),
             quality_neighbours: QUALITY_NEIGHBOURS,
@@ -343,6 +503,29 @@ pub fn check_with(
     })
 }
 
+/// Checks the period of the motor coordinates the distance stage uses for `agent`: today the
+/// experiment's uniform `[metric] period` (`2pi` or `none`), refused when the agent's
+/// motors are not all alike (hinges and bounded motors mixed, or another period), which
+/// a uniform period cannot describe. This is the one place where the agent's
+/// per-coordinate periods ([`MotorSpace::periods`](crate::agent::MotorSpace::periods))
+/// will reach the metric.
+fn metric_period(agent: &dyn Agent, period: Period) -> Result<Period, InvalidParameter> {
+    let space = agent.motor_space();
+    let uniform = space.is_hinges() || space.is_bounded();
+    if uniform {
+        return Ok(period);
+    }
+    Err(InvalidParameter::new(
+        "metric",
+        "period",
+        stages::label(&period),
+        format!(
+            "the {} agent's motors are {space}; a uniform period (\"2pi\" or \"none\") cannot describe them, and per-motor periods are not wired into the pipeline yet",
+            agent.name()
+        ),
+    ))
+}
+
 /// Runs the checked experiment into `options.out_dir` (see the module docs).
 pub fn run(
     plan: &Plan,
@@ -352,13 +535,31 @@ pub fn run(
     check_memory(plan, options.memory_limit_bytes)?;
     let mut runner = start(plan, options, observer)?;
     let world = &plan.world;
-    let exploration = runner.run(&plan.explore, &ExploreInput { world })?;
+    let motors = plan.agent().motor_dim() as u64;
+    let exploration = runner.run(&plan.explore, &ExploreInput { world }, plan.explore_peak())?;
     let exploration = &exploration;
-    let traced = runner.run(&plan.trace, &TraceInput { world, exploration })?;
+    let rows = exploration.motors.nrows() as u64;
+    let held = memory::Held::default().plus(memory::exploration_bytes(rows, motors));
+    let traced = runner.run(
+        &plan.trace,
+        &TraceInput { world, exploration },
+        plan.trace_peak(held, rows),
+    )?;
     let traced = &traced;
-    let distances = runner.run(&plan.distances, &DistancesInput { traced })?;
+    let (m, points) = (traced.sets.dim().0 as u64, traced.sets.dim().1 as u64);
+    let held = held.plus(memory::sets_bytes(m, points, motors));
+    let distances = runner.run(
+        &plan.distances,
+        &DistancesInput { traced },
+        plan.distances_peak(held, m),
+    )?;
     let distances = &distances;
-    let embedded = runner.run(&plan.embed, &EmbedInput { distances })?;
+    let held = held.plus(memory::matrix_bytes(m));
+    let embedded = runner.run(
+        &plan.embed,
+        &EmbedInput { distances },
+        plan.embed_peak(held, m),
+    )?;
     let analysis = runner.run(
         &plan.analyze,
         &AnalyzeInput {
@@ -366,10 +567,13 @@ pub fn run(
             traced,
             distances,
         },
+        plan.analyze_peak(held, m),
     )?;
-    let invariance = match &plan.invariance {
-        Some(stage) => Some(runner.run(stage, &InvarianceInput { world, exploration })?),
-        None => {
+    let invariance = match (&plan.invariance, plan.invariance_peak(held)) {
+        (Some(stage), Some(peak)) => {
+            Some(runner.run(stage, &InvarianceInput { world, exploration }, peak)?)
+        }
+        _ => {
             observer.stage_skipped(
                 StageId::Invariance,
                 if world.environments.len() < 2 {
@@ -391,9 +595,9 @@ pub fn run(
             analysis: &analysis,
             invariance: invariance.as_ref(),
         },
+        plan.report_peak(held, m),
     )?;
-    runner.manifest.status = RunStatus::Complete;
-    runner.write_manifest()?;
+    runner.finish()?;
     Ok(RunSummary {
         dir: runner.dir,
         manifest: runner.manifest,
@@ -411,8 +615,12 @@ fn check_memory(plan: &Plan, limit: Option<u64>) -> Result<(), PipelineError> {
     let e = &plan.explore.exploration;
     let rows = e.rows();
     let motors = plan.agent().motor_dim();
+    let pose_dim = plan
+        .agent()
+        .ground_truth()
+        .map_or(0, |o| o.pose_space().dim());
     let points = plan.trace.kernel.points;
-    let explored = e.bytes(motors);
+    let explored = e.bytes(motors, pose_dim);
     let sets = plan.trace.kernel.sets_bytes(rows, motors);
     for (what, needed, fix) in [
         (
@@ -438,10 +646,10 @@ fn check_memory(plan: &Plan, limit: Option<u64>) -> Result<(), PipelineError> {
     Ok(())
 }
 
-/// Makes the run folder, writes `config.resolved.toml`, and reads the previous
-/// manifest (the cache).
+/// Makes the run folder, takes its lock and reads the previous manifest (the cache).
+/// Nothing is written yet (see [`runner`]'s docs for when and how it is).
 fn start<'a>(
-    plan: &Plan,
+    plan: &'a Plan,
     options: &'a RunOptions,
     observer: &'a dyn RunObserver,
 ) -> Result<Runner<'a>, PipelineError> {
@@ -453,7 +661,9 @@ fn start<'a>(
     })?;
     // One writer at a time, from before the first file is touched.
     let lock = FolderLock::acquire(&dir, options.busy, |path| observer.waiting_for_folder(path))?;
-    lock::remove_stale_parts(&dir);
+    if lock.access() == lock::Access::Write {
+        lock::remove_stale_parts(&dir);
+    }
     let loaded = &plan.experiment;
     let e = &loaded.experiment;
     let resolved = &plan.report.config_toml;
@@ -479,21 +689,21 @@ fn start<'a>(
         total_seconds: 0.0,
         status: RunStatus::Running,
     };
-    let mut runner = Runner {
+    let matrix_limit_bytes = match (options.memory_limit_bytes, e.metric.memory_limit_bytes) {
+        (Some(run), Some(metric)) => Some(run.min(metric)),
+        (run, metric) => run.or(metric),
+    };
+    Ok(Runner {
         dir,
         options,
         observer,
         previous,
         manifest,
         started,
-        _lock: lock,
-    };
-    // The manifest says "running" (keeping the earlier records) before the new
-    // configuration replaces the old one: a run that dies between the two never leaves
-    // a "complete" manifest next to a configuration it did not run.
-    runner.write_manifest()?;
-    io::write_atomic(&runner.dir.join("config.resolved.toml"), |w| {
-        std::io::Write::write_all(w, resolved.as_bytes())
-    })?;
-    Ok(runner)
+        config_toml: resolved,
+        matrix_limit_bytes,
+        writing: false,
+        config_written: false,
+        lock,
+    })
 }

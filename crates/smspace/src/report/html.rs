@@ -4,8 +4,8 @@
 //! the embedding drawn by plotly.js, whose source (`assets/plotly-2.12.1.min.js`) is
 //! embedded in the library. By default the page loads plotly.js from
 //! `assets/plotly-2.12.1.min.js` and the figures from `figures/`, next to it in the run
-//! folder (the library is written there once, atomically, and reused: 3.6 MB per run
-//! folder instead of per report); a self-contained page inlines both (PNG as `data:`
+//! folder (the library is written there with the report, atomically: 3.6 MB per run
+//! folder instead of inside every page); a self-contained page inlines both (PNG as `data:`
 //! URLs, or the SVG text). Either way it loads nothing from any other place.
 //!
 //! For automated checks (`.ci/browser-check`), a script that runs first records
@@ -14,14 +14,14 @@
 //! `data-errors` (the number of recorded errors) and `data-webgl` (`yes` when a WebGL
 //! canvas of non-zero size exists in the plot's `<div>`).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use base64::Engine;
 use serde_json::{json, Value};
 
-use super::plot::{write_bytes, Rendered};
+use super::plot::Rendered;
 use super::tables::{num, Table};
-use super::{FigureRecord, ReportError, ReportInputs, Warning};
+use super::{FigureRecord, ReportInputs, Warning};
 
 /// plotly.js, MIT licence (see `assets/README.md`).
 static PLOTLY_JS: &str = include_str!("../../assets/plotly-2.12.1.min.js");
@@ -29,24 +29,11 @@ static PLOTLY_JS: &str = include_str!("../../assets/plotly-2.12.1.min.js");
 /// Where a linked page finds plotly.js, relative to the report folder.
 const PLOTLY_PATH: &str = "assets/plotly-2.12.1.min.js";
 
-/// Writes plotly.js to `assets/` of the report folder `dir`, atomically, unless the
-/// same bytes are already there; returns its path relative to `dir`.
-pub(super) fn write_plotly(dir: &Path) -> Result<PathBuf, ReportError> {
-    let relative = PathBuf::from(PLOTLY_PATH);
-    let path = dir.join(&relative);
-    let same = std::fs::read(&path).is_ok_and(|bytes| bytes == PLOTLY_JS.as_bytes());
-    if !same {
-        if let Some(folder) = path.parent() {
-            std::fs::create_dir_all(folder).map_err(|reason| {
-                ReportError::Io(crate::io::IoError::Write {
-                    path: folder.to_owned(),
-                    reason,
-                })
-            })?;
-        }
-        write_bytes(&path, PLOTLY_JS.as_bytes())?;
-    }
-    Ok(relative)
+/// plotly.js as a file of the report: its path relative to the report folder and its
+/// bytes (staged with the report's other files, so written atomically and hashed like
+/// them).
+pub(super) fn plotly_file() -> (PathBuf, Vec<u8>) {
+    (PathBuf::from(PLOTLY_PATH), PLOTLY_JS.as_bytes().to_vec())
 }
 
 /// `n thing` or `n things`.
@@ -165,7 +152,7 @@ fn plot_spec(inputs: &ReportInputs<'_>) -> Value {
         "name": "kernel sets",
         "mode": "markers",
         "customdata": hover_data(inputs),
-        "hovertemplate": HOVER_TEMPLATE,
+        "hovertemplate": if inputs.poses.is_some() { HOVER_TEMPLATE } else { HOVER_TEMPLATE_NO_POSE },
     });
     let layout_axes = place_points(&mut trace, inputs);
     let marker_size = if d >= 3 { 2.5 } else { 4.0 };
@@ -201,17 +188,23 @@ fn round4(v: f64) -> f64 {
     (v * 1e4).round() / 1e4
 }
 
-/// Coordinate `c` (0 = x, 1 = y, 2 = alpha) of the pose of set `i`.
-fn set_pose(inputs: &ReportInputs<'_>, i: usize, c: usize) -> f64 {
-    inputs.poses[[inputs.kept[i], c]]
+/// Coordinate `c` (0 = x, 1 = y, 2 = alpha) of the pose of set `i`, when there are
+/// planar poses.
+fn set_pose(inputs: &ReportInputs<'_>, i: usize, c: usize) -> Option<f64> {
+    inputs.poses.map(|poses| poses[[inputs.kept[i], c]])
 }
 
 /// What hovering a point shows, from its `customdata` ([`hover_data`]).
 const HOVER_TEMPLATE: &str = "set %{pointNumber}, exploration row %{customdata[0]}<br>x = %{customdata[1]} m, y = %{customdata[2]} m<br>alpha = %{customdata[3]} rad (%{customdata[4]}\u{b0})<br>%{customdata[5]}<extra></extra>";
 
+/// What hovering a point shows when there are no planar poses.
+const HOVER_TEMPLATE_NO_POSE: &str =
+    "set %{pointNumber}, exploration row %{customdata[0]}<br>%{customdata[1]}<extra></extra>";
+
 /// The data behind the hover text of every set, as short as it can be (plotly builds
 /// the text from [`HOVER_TEMPLATE`]): its exploration row, pose (4 significant
-/// digits), orientation in degrees and probe label.
+/// digits), orientation in degrees and probe label; without planar poses, its row and
+/// probe label ([`HOVER_TEMPLATE_NO_POSE`]).
 fn hover_data(inputs: &ReportInputs<'_>) -> Vec<Value> {
     let m = inputs.embedding.nrows();
     let pose = |i: usize, c: usize| set_pose(inputs, i, c);
@@ -227,14 +220,17 @@ fn hover_data(inputs: &ReportInputs<'_>) -> Vec<Value> {
             } else {
                 "babbled".to_owned()
             };
-            json!([
-                row,
-                num(pose(i, 0)),
-                num(pose(i, 1)),
-                num(pose(i, 2)),
-                format!("{:.1}", pose(i, 2).to_degrees()),
-                probe
-            ])
+            match (pose(i, 0), pose(i, 1), pose(i, 2)) {
+                (Some(x), Some(y), Some(alpha)) => json!([
+                    row,
+                    num(x),
+                    num(y),
+                    num(alpha),
+                    format!("{:.1}", alpha.to_degrees()),
+                    probe
+                ]),
+                _ => json!([row, probe]),
+            }
         })
         .collect()
 }
@@ -269,15 +265,23 @@ fn place_points(trace: &mut Value, inputs: &ReportInputs<'_>) -> Value {
             "yaxis": {"title": {"text": "q2", "standoff": 12}, "scaleanchor": "x", "automargin": true},
         })
     } else {
-        // A 1-D embedding against the observer's x (paper Fig. 2, left).
+        // A 1-D embedding against the observer's x (paper Fig. 2, left), or against
+        // the set's number when there are no planar poses.
         trace["type"] = json!("scattergl");
-        trace["x"] = json!((0..m)
-            .map(|i| round4(set_pose(inputs, i, 0)))
-            .collect::<Vec<_>>());
+        let (x, x_title): (Vec<f64>, &str) = match inputs.poses {
+            Some(_) => (
+                (0..m)
+                    .map(|i| set_pose(inputs, i, 0).map_or(0.0, round4))
+                    .collect(),
+                "observer's x (m)",
+            ),
+            None => ((0..m).map(|i| i as f64).collect(), "set"),
+        };
+        trace["x"] = json!(x);
         trace["y"] = json!(if d == 1 { column(0) } else { vec![0.0; m] });
         json!({
             "margin": {"l": 70, "r": 20, "t": 60, "b": 60},
-            "xaxis": {"title": {"text": "observer's x (m)"}, "automargin": true},
+            "xaxis": {"title": {"text": x_title}, "automargin": true},
             "yaxis": {"title": {"text": "embedding q1", "standoff": 12}, "automargin": true},
         })
     }
@@ -323,7 +327,13 @@ fn pose_buttons(inputs: &ReportInputs<'_>, marker_size: f64) -> (Vec<Value>, Opt
         .into_iter()
         .enumerate()
     {
-        let values: Vec<f64> = (0..m).map(|i| round4(set_pose(inputs, i, c))).collect();
+        let Some(values) = (0..m)
+            .map(|i| set_pose(inputs, i, c).map(round4))
+            .collect::<Option<Vec<f64>>>()
+        else {
+            // No planar poses: no colouring by pose.
+            break;
+        };
         let (colorscale, cmin, cmax) = pose_color_scale(c, &values);
         let title = format!("{name} ({unit})");
         if first_marker.is_none() {

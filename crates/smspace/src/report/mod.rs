@@ -21,7 +21,7 @@
 //! every figure, to check that none overlaps another.
 //!
 //! **One plotting library per run folder.** `report.html` loads plotly.js from
-//! `assets/` next to it (written once, atomically, and reused) and shows the figures
+//! `assets/` next to it (written with the report, atomically) and shows the figures
 //! from `figures/`; `self_contained = true` embeds both in the page instead.
 //!
 //! This module is the only one that knows every stage: it reads their outputs and
@@ -51,6 +51,7 @@ use crate::analysis::AnalysisReport;
 use crate::embed::EmbedReport;
 use crate::explore::Workspace;
 use crate::invariance::InvarianceReport;
+use crate::io::Outputs;
 use crate::kernel::TraceSummary;
 
 /// Errors of the report stage.
@@ -142,8 +143,9 @@ pub struct ReportInputs<'a> {
     pub workspace: Option<Workspace>,
     /// Explored motor configurations `(M0, N)`.
     pub motors: ArrayView2<'a, f64>,
-    /// Their poses `(M0, 3)` as `(x, y, alpha)`.
-    pub poses: ArrayView2<'a, f64>,
+    /// Their poses `(M0, 3)` as `(x, y, alpha)`, when the agent's ground truth is the
+    /// planar pose; `None` skips the figures of poses (with a sentence).
+    pub poses: Option<ArrayView2<'a, f64>>,
     /// Probe labels `(M0, 3)`: `(orientation, ix, iy)`, `-1` for babbled rows.
     pub probes: ArrayView2<'a, i64>,
     /// The kernel sets `(M, P, N)`, one per kept exploration row.
@@ -264,6 +266,14 @@ pub struct ReportSummary {
 const MAX_PANEL_PIXELS: f64 = 3000.0;
 
 impl ReportParams {
+    /// The size of one panel in pixels, `(width, height)`: its print size times `dpi`
+    /// (a figure is one to four panels).
+    pub fn panel_pixels(&self) -> (u64, u64) {
+        let dpi = f64::from(self.dpi);
+        let pixels = |inches: f64| (inches * dpi).round().max(0.0) as u64;
+        (pixels(self.panel_width_in), pixels(self.panel_height_in))
+    }
+
     /// Checks the parameters.
     pub fn check(&self) -> Result<(), ReportError> {
         if !(72..=1200).contains(&self.dpi) {
@@ -325,7 +335,9 @@ fn check_exploration(inputs: &ReportInputs<'_>) -> Result<(), ReportError> {
             ),
         ));
     }
-    check_per_motor_row("poses", inputs.poses.dim(), rows)?;
+    if let Some(poses) = inputs.poses {
+        check_per_motor_row("poses", poses.dim(), rows)?;
+    }
     check_per_motor_row("probes", inputs.probes.dim(), rows)
 }
 
@@ -465,8 +477,8 @@ fn check_invariance(inv: &InvarianceData) -> Result<(), ReportError> {
 }
 
 /// Draws every figure into `dir/figures/` and writes `dir/report.html` and
-/// `dir/report.md` (and, unless `self_contained`, `dir/assets/` with plotly.js),
-/// atomically.
+/// `dir/report.md` (and, unless `self_contained`, `dir/assets/` with plotly.js): all
+/// of them together or none ([`crate::io::Outputs`]).
 ///
 /// Figures whose inputs are absent are skipped, with the reason in their
 /// [`FigureRecord`]. Figures are drawn in parallel; the output is the same for any
@@ -476,15 +488,59 @@ pub fn write_report(
     params: &ReportParams,
     dir: &Path,
 ) -> Result<ReportSummary, ReportError> {
+    let rendered = render_report(inputs, params)?;
+    let mut outputs = Outputs::new();
+    rendered.write_into(&mut outputs, dir)?;
+    outputs.commit()?;
+    Ok(rendered.summary)
+}
+
+/// A report drawn in memory: what [`write_report`] writes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderedReport {
+    /// What the report holds (the pipeline writes it as `report.json`).
+    pub summary: ReportSummary,
+    /// Every file of the report (plotly.js under `assets/` unless self-contained,
+    /// `report.html`, the figures, `report.md`), relative to the report folder, with
+    /// its bytes.
+    pub files: Vec<(PathBuf, Vec<u8>)>,
+}
+
+impl RenderedReport {
+    /// Stages every file under `dir` into `outputs` (making `dir/figures` and
+    /// `dir/assets`), and removes the figure files of an earlier report that this one
+    /// does not write (a format no longer asked for, a figure now skipped).
+    pub fn write_into(&self, outputs: &mut Outputs, dir: &Path) -> Result<(), ReportError> {
+        let folders: std::collections::BTreeSet<PathBuf> = std::iter::once(dir.join("figures"))
+            .chain(
+                self.files
+                    .iter()
+                    .filter_map(|(relative, _)| dir.join(relative).parent().map(Path::to_owned)),
+            )
+            .collect();
+        for folder in folders {
+            std::fs::create_dir_all(&folder).map_err(|reason| {
+                ReportError::Io(crate::io::IoError::Write {
+                    path: folder.clone(),
+                    reason,
+                })
+            })?;
+        }
+        remove_stale_figures(dir, self.summary.figures.iter());
+        for (relative, bytes) in &self.files {
+            outputs.bytes(&dir.join(relative), bytes)?;
+        }
+        Ok(())
+    }
+}
+
+/// Draws the report in memory (see [`write_report`]).
+pub fn render_report(
+    inputs: &ReportInputs<'_>,
+    params: &ReportParams,
+) -> Result<RenderedReport, ReportError> {
     params.check()?;
     check_inputs(inputs)?;
-    let figures_dir = dir.join("figures");
-    std::fs::create_dir_all(&figures_dir).map_err(|reason| {
-        ReportError::Io(crate::io::IoError::Write {
-            path: figures_dir.clone(),
-            reason,
-        })
-    })?;
     let derived = plan::derive(inputs);
     let planned = plan::plan(inputs, params, &derived);
     let print = plot::Print {
@@ -492,7 +548,7 @@ pub fn write_report(
     };
     let rendered: Vec<Result<plot::Rendered, ReportError>> = planned
         .par_iter()
-        .map(|(name, _, p)| p.render(name, params.formats, print, dir))
+        .map(|(name, _, p)| p.render(name, params.formats, print))
         .collect();
     // The reviewer's check on this run's own data: texts that overlap or leave their
     // figure are reported at the top of the report.
@@ -523,12 +579,13 @@ pub fn write_report(
             r,
         ));
     }
-    remove_stale_figures(dir, figures.iter().map(|(record, _)| record));
-    let assets = if params.self_contained {
-        Vec::new()
-    } else {
-        vec![html::write_plotly(dir)?]
-    };
+    let mut files = Vec::new();
+    let mut assets = Vec::new();
+    if !params.self_contained {
+        let (path, bytes) = html::plotly_file();
+        assets.push(path.clone());
+        files.push((path, bytes));
+    }
     let tables = tables::tables(inputs);
     let page = html::Page {
         inputs,
@@ -538,17 +595,26 @@ pub fn write_report(
         self_contained: params.self_contained,
     };
     let html_path = PathBuf::from("report.html");
-    plot::write_bytes(&dir.join(&html_path), page.html().as_bytes())?;
-    let records: Vec<FigureRecord> = figures.into_iter().map(|(f, _)| f).collect();
+    files.push((html_path.clone(), page.html().into_bytes()));
+    let mut records = Vec::with_capacity(figures.len());
+    for (record, r) in figures {
+        // A figure's files are its PNG then its SVG (see `plot::render`).
+        let bytes = r.png.into_iter().chain(r.svg.map(String::into_bytes));
+        files.extend(record.files.iter().cloned().zip(bytes));
+        records.push(record);
+    }
     let md_text = markdown::markdown(inputs, &tables, &records, &warnings);
     let md_path = PathBuf::from("report.md");
-    plot::write_bytes(&dir.join(&md_path), md_text.as_bytes())?;
-    Ok(ReportSummary {
-        warnings,
-        figures: records,
-        assets,
-        html: html_path,
-        markdown: md_path,
+    files.push((md_path.clone(), md_text.into_bytes()));
+    Ok(RenderedReport {
+        summary: ReportSummary {
+            warnings,
+            figures: records,
+            assets,
+            html: html_path,
+            markdown: md_path,
+        },
+        files,
     })
 }
 

@@ -1,8 +1,6 @@
 //! Which figures a report draws, with what, and their captions: one method per figure,
 //! each deciding from the inputs whether its figure is drawn or skipped (and why).
 
-use std::path::Path;
-
 use ndarray::Array2;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -11,36 +9,48 @@ use super::figures::{self, Panel, Recovery};
 use super::layout::{self, FigureText};
 use super::plot::{self, Print};
 use super::{FigureFormats, InvarianceData, ReportError, ReportInputs, ReportParams};
-use crate::agent::MotorTopology;
+use crate::agent::MotorSpace;
 
 /// What every figure needs besides the inputs.
 pub(super) struct Derived {
-    /// `(M, 3)`: the pose of every set's exploration row.
-    pub(super) set_poses: Array2<f64>,
+    /// `(M, 3)`: the planar pose of every set's exploration row, when there are poses.
+    pub(super) set_poses: Option<Array2<f64>>,
     /// Unit of motor coordinates and of set distances.
     motor_unit: &'static str,
-    topology: MotorTopology,
-    /// The probe sheets, one per orientation.
+    space: MotorSpace,
+    /// The probe sheets, one per orientation (none without planar poses).
     pub(super) surfaces: Vec<figures::ProbeSurface>,
 }
+
+/// Why the figures of poses are skipped when there are none.
+const NO_PLANAR_POSES: &str = "the agent has no planar ground truth (x, y, alpha) to colour or place the sets by, so the figures of poses are skipped";
 
 /// The poses of the sets, the motor unit and the probe sheets.
 pub(super) fn derive(inputs: &ReportInputs<'_>) -> Derived {
     let m = inputs.kept.len();
-    let mut set_poses = Array2::zeros((m, 3));
-    for (i, &row) in inputs.kept.iter().enumerate() {
-        set_poses.row_mut(i).assign(&inputs.poses.row(row));
-    }
-    let topology = inputs.agent.motor_topology();
-    let motor_unit = match topology {
-        MotorTopology::Periodic => "rad",
-        MotorTopology::Bounded { .. } => "m",
+    let set_poses = inputs.poses.map(|poses| {
+        let mut set_poses = Array2::zeros((m, 3));
+        for (i, &row) in inputs.kept.iter().enumerate() {
+            set_poses.row_mut(i).assign(&poses.row(row));
+        }
+        set_poses
+    });
+    let space = inputs.agent.motor_space();
+    let motor_unit = if space.is_hinges() {
+        "rad"
+    } else if space.is_bounded() {
+        "m"
+    } else {
+        "rad or m"
     };
-    let surfaces = figures::probe_surfaces(inputs.probes, inputs.kept, &set_poses);
+    let surfaces = set_poses
+        .as_ref()
+        .map(|poses| figures::probe_surfaces(inputs.probes, inputs.kept, poses))
+        .unwrap_or_default();
     Derived {
         set_poses,
         motor_unit,
-        topology,
+        space,
         surfaces,
     }
 }
@@ -95,16 +105,15 @@ macro_rules! with_figure {
 }
 
 impl Planned<'_> {
-    /// Draws the figure into `figures/` of `dir` (nothing when skipped).
+    /// Draws the figure in memory (nothing when skipped).
     pub(super) fn render(
         &self,
         name: &str,
         formats: FigureFormats,
         print: Print,
-        dir: &Path,
     ) -> Result<plot::Rendered, ReportError> {
         with_figure!(self, Ok(plot::Rendered::default()), |f| plot::render(
-            f, name, formats, print, dir
+            f, name, formats, print
         ))
     }
 
@@ -177,8 +186,9 @@ struct Planner<'a, 'b> {
 
 impl<'a: 'b, 'b> Planner<'a, 'b> {
     /// The observer's `x` for every set.
-    fn set_x(&self) -> Vec<f64> {
-        self.derived.set_poses.column(0).to_vec()
+    fn set_x(&self) -> Option<Vec<f64>> {
+        let poses = self.derived.set_poses.as_ref()?;
+        Some(poses.column(0).to_vec())
     }
 
     /// Fig. 1: the sensory manifolds.
@@ -212,7 +222,7 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
             ))
         } else if sets_sample.is_empty() {
             Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
-        } else {
+        } else if let Some(set_x) = self.set_x() {
             Planned::KernelLines(figures::KernelLines {
                 sets: inputs.sets.reborrow(),
                 starts: sets_sample
@@ -223,12 +233,14 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
                     })
                     .collect(),
                 sample: sets_sample.to_vec(),
-                set_x: self.set_x(),
-                topology: self.derived.topology,
+                set_x,
+                space: self.derived.space.clone(),
                 motor_unit: self.derived.motor_unit,
                 total: inputs.kept.len(),
                 panel: self.panel,
             })
+        } else {
+            Planned::Skip(NO_PLANAR_POSES.to_owned())
         };
         ("fig2-kernel-lines", caption, planned)
     }
@@ -246,11 +258,14 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
         let planned = if m == 0 {
             Planned::Skip("no kernel sets were embedded".to_owned())
         } else if d == 1 || (d >= 2 && n == 2) {
-            Planned::LearnedManifold(figures::LearnedManifold {
-                embedding: self.inputs.embedding.reborrow(),
-                set_x: self.set_x(),
-                panel: self.panel,
-            })
+            match self.set_x() {
+                Some(set_x) => Planned::LearnedManifold(figures::LearnedManifold {
+                    embedding: self.inputs.embedding.reborrow(),
+                    set_x,
+                    panel: self.panel,
+                }),
+                None => Planned::Skip(NO_PLANAR_POSES.to_owned()),
+            }
         } else {
             Planned::Skip(format!(
                 "the embedding has d = {d} and the agent N = {n} motors; see embedding-pose and fig5d-embedding-probes"
@@ -286,18 +301,17 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
                 "the agent {} has no body to draw (Agent::skeleton is empty)",
                 agent.name()
             ))
-        } else {
+        } else if let Some(poses) = inputs.poses {
             Planned::Configurations(figures::Configurations {
-                alphas: picked
-                    .iter()
-                    .map(|&k| inputs.poses[[babbled[k], 2]])
-                    .collect(),
+                alphas: picked.iter().map(|&k| poses[[babbled[k], 2]]).collect(),
                 skeletons,
                 workspace: inputs.workspace,
                 environment: inputs.environments.first().cloned(),
                 explored: babbled.len(),
                 panel: self.panel,
             })
+        } else {
+            Planned::Skip(NO_PLANAR_POSES.to_owned())
         };
         ("fig5a-configurations", caption, planned)
     }
@@ -305,7 +319,7 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
     /// Fig. 5b: the sampled kernel sets in 3-D motor space.
     fn kernel_sets_3d(&self, sample: Vec<usize>) -> PlannedFigure<'b> {
         let n = self.inputs.agent.motor_dim();
-        let periodic = self.derived.topology == MotorTopology::Periodic;
+        let periodic = self.derived.space.is_hinges();
         let caption = format!(
             "Paper Fig. 5b (section 3.3): {} kernel sets M^i in motor space, one colour each, in two 3-D projections (motors m1, m2, m3 and m2, m3, m4).{}",
             sample.len(),
@@ -325,7 +339,7 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
             Planned::KernelSets3d(figures::KernelSets3d {
                 sets: self.inputs.sets.reborrow(),
                 sample,
-                topology: self.derived.topology,
+                space: self.derived.space.clone(),
                 motor_unit: self.derived.motor_unit,
                 panel: self.panel,
             })
@@ -353,6 +367,8 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
             Planned::Skip(format!(
                 "the embedding has d = {d}; probe sheets need d >= 2"
             ))
+        } else if self.derived.set_poses.is_none() {
+            Planned::Skip(NO_PLANAR_POSES.to_owned())
         } else if surfaces.is_empty() {
             Planned::Skip(
                 "no probe rows among the kept sets (explore with probes = \"grid\")".to_owned(),
@@ -371,7 +387,15 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
     fn embedding_pose(&self) -> PlannedFigure<'b> {
         let m = self.inputs.kept.len();
         let d = self.inputs.embedding.ncols();
-        let set_poses = &self.derived.set_poses;
+        let Some(set_poses) = &self.derived.set_poses else {
+            let caption =
+                format!("The embedding of the {m} kernel sets coloured by the observer's pose.");
+            return (
+                "embedding-pose",
+                caption,
+                Planned::Skip(NO_PLANAR_POSES.to_owned()),
+            );
+        };
         let varying: Vec<usize> = (0..3)
             .filter(|&c| {
                 plot::finite_extent(set_poses.column(c).iter().copied())

@@ -12,7 +12,7 @@
 
 use std::error::Error;
 use std::ops::Range;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Once;
 
 use plotters::coord::types::RangedCoordf64;
@@ -22,7 +22,6 @@ use plotters::style::colors::colormaps::ViridisRGB;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::{FigureFormats, ReportError};
-use crate::io::{write_atomic, IoError};
 
 /// DejaVu Sans (Bitstream Vera licence, see `assets/DejaVuSans-LICENSE`): the only
 /// font the figures use, so that PNG text does not depend on the system's fonts.
@@ -201,10 +200,11 @@ pub(super) fn text_width<DB: DrawingBackend>(
 // ---------------------------------------------------------------------------------
 // Rendering and files.
 
-/// A figure written to disk, with its bytes kept for `report.html`.
+/// A figure drawn in memory: its files' names and bytes (written by the report's one
+/// [`crate::io::Outputs`], and kept for `report.html`).
 #[derive(Debug, Default)]
 pub(super) struct Rendered {
-    /// Files written, relative to the report folder.
+    /// Its files, relative to the report folder.
     pub(super) files: Vec<PathBuf>,
     /// The PNG bytes, when PNG was asked for.
     pub(super) png: Option<Vec<u8>>,
@@ -219,14 +219,13 @@ fn draw_error(name: &str, error: PlotError) -> ReportError {
     }
 }
 
-/// Renders `figure` as `figures/<name>.png` and/or `.svg` under `dir`, atomically.
-/// The SVG states its print size in inches (`dpi` pixels per inch).
+/// Renders `figure` as `figures/<name>.png` and/or `.svg`, in memory. The SVG states
+/// its print size in inches (`dpi` pixels per inch).
 pub(super) fn render<F: Figure>(
     figure: &F,
     name: &str,
     formats: FigureFormats,
     print: Print,
-    dir: &Path,
 ) -> Result<Rendered, ReportError> {
     register_font();
     let (width, height) = figure.size();
@@ -250,7 +249,6 @@ pub(super) fn render<F: Figure>(
                 reason,
             })?;
         let relative = PathBuf::from("figures").join(format!("{name}.png"));
-        write_bytes(&dir.join(&relative), &bytes)?;
         rendered.files.push(relative);
         rendered.png = Some(bytes);
     }
@@ -264,7 +262,6 @@ pub(super) fn render<F: Figure>(
         }
         let text = svg_print_size(&text, (width, height), print.dpi);
         let relative = PathBuf::from("figures").join(format!("{name}.svg"));
-        write_bytes(&dir.join(&relative), text.as_bytes())?;
         rendered.files.push(relative);
         rendered.svg = Some(text);
     }
@@ -281,11 +278,6 @@ fn svg_print_size(svg: &str, (width, height): (u32, u32), dpi: f64) -> String {
         f64::from(height) / dpi
     );
     svg.replacen(&pixels, &inches, 1)
-}
-
-/// Writes `bytes` to `path` atomically.
-pub(super) fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
-    write_atomic(path, |writer| std::io::Write::write_all(writer, bytes))
 }
 
 /// Encodes RGB pixels as PNG, with the physical size (`pHYs`) of `dpi`.

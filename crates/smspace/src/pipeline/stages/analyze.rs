@@ -3,14 +3,14 @@
 
 use std::path::Path;
 
-use ndarray::{Array2, Axis};
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput};
 use crate::analysis::{analyze_on, AnalysisParams, AnalysisReport, DimensionSets};
 use crate::explore::Exploration;
-use crate::io;
+use crate::io::Outputs;
 use crate::kernel::TracedSets;
+use crate::metric::DistanceMatrix;
 use crate::pipeline::StageId;
 
 /// The `analyze` stage: the `[analysis]` table.
@@ -28,7 +28,7 @@ pub struct AnalyzeInput<'a> {
     /// Which rows were traced.
     pub traced: &'a Keyed<TracedSets>,
     /// The distances between the traced sets.
-    pub distances: &'a Keyed<Array2<f64>>,
+    pub distances: &'a Keyed<DistanceMatrix>,
 }
 
 impl StageInput for AnalyzeInput<'_> {
@@ -59,10 +59,11 @@ impl Stage for AnalyzeStage {
             .filter(|&(_, &row)| exploration.probes[[row, 0]] < 0)
             .map(|(i, _)| i)
             .collect();
-        let poses = exploration.poses.select(Axis(0), kept);
+        // Without a ground truth there is no agreement to measure (the summary says so).
+        let truth = exploration.ground_truth.as_ref().map(|t| t.select(kept));
         Ok(analyze_on(
-            input.distances.view(),
-            Some(poses.view()),
+            &input.distances.value,
+            truth.as_ref().map(|t| t.view()),
             Some(DimensionSets {
                 rows: &babbled,
                 name: "babbled",
@@ -76,22 +77,22 @@ impl Stage for AnalyzeStage {
         &self,
         _: &AnalyzeInput<'_>,
         report: &AnalysisReport,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        io::write_json(&dir.join(REPORT_FILE), report)?;
-        Ok(vec![REPORT_FILE.to_owned()])
+    ) -> crate::Result<()> {
+        report.write_into(outputs, &dir.join(REPORT_FILE))?;
+        Ok(())
     }
 
     fn load(&self, _: &AnalyzeInput<'_>, dir: &Path) -> crate::Result<AnalysisReport> {
-        Ok(io::read_json(&dir.join(REPORT_FILE), "analysis report")?)
+        Ok(AnalysisReport::load(&dir.join(REPORT_FILE))?)
     }
 
     fn summary(&self, a: &AnalysisReport) -> String {
-        let agreement = a
-            .agreement
-            .as_ref()
-            .map(|g| format!(", Spearman {:.3}", g.spearman))
-            .unwrap_or_default();
+        let agreement = a.agreement.as_ref().map_or_else(
+            || ", no agreement (the agent has no ground truth)".to_owned(),
+            |g| format!(", Spearman {:.3}", g.spearman),
+        );
         format!(
             "betti {:?}, TwoNN {:.2}, MLE {:.2}{agreement}",
             a.betti, a.intrinsic_dimension.twonn, a.intrinsic_dimension.mle

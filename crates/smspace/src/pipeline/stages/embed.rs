@@ -10,7 +10,8 @@ use serde::Serialize;
 use super::{Keyed, Stage, StageContext, StageInput};
 use crate::embed::quality::{measure, Quality};
 use crate::embed::{EmbedFile, EmbedParams, EmbedReport};
-use crate::io;
+use crate::io::{self, Outputs};
+use crate::metric::DistanceMatrix;
 use crate::pipeline::StageId;
 
 /// Pairs of `(dx, dy)` sampled for the CCA `dy–dx` plot (the default of `smspace
@@ -38,7 +39,7 @@ pub struct EmbedStage {
 #[derive(Debug, Clone, Copy)]
 pub struct EmbedInput<'a> {
     /// The `(M, M)` distance matrix.
-    pub distances: &'a Keyed<Array2<f64>>,
+    pub distances: &'a Keyed<DistanceMatrix>,
 }
 
 impl StageInput for EmbedInput<'_> {
@@ -74,14 +75,14 @@ impl Stage for EmbedStage {
         input: &EmbedInput<'_>,
         context: &StageContext<'_>,
     ) -> crate::Result<EmbedOutputs> {
-        let distances = input.distances.view();
+        let distances = &input.distances.value;
         let fitted = self
             .embedding
             .clone()
             .build()?
             .fit(distances, context.progress)?;
         let (quality, dydx) = measure(
-            distances,
+            distances.view(),
             fitted.coordinates.view(),
             self.quality_neighbours,
             self.dydx_pairs,
@@ -95,7 +96,13 @@ impl Stage for EmbedStage {
         })
     }
 
-    fn save(&self, _: &EmbedInput<'_>, y: &EmbedOutputs, dir: &Path) -> crate::Result<Vec<String>> {
+    fn save(
+        &self,
+        _: &EmbedInput<'_>,
+        y: &EmbedOutputs,
+        outputs: &mut Outputs,
+        dir: &Path,
+    ) -> crate::Result<()> {
         // The method's own parameters, as `smspace embed` writes them.
         let params = self.embedding.clone().build()?.params_json();
         let file = EmbedFile {
@@ -107,19 +114,18 @@ impl Stage for EmbedStage {
             extended: None,
             seconds: None,
         };
-        file.write(
+        file.write_into(
+            outputs,
             &dir.join(COORDINATES_FILE),
             y.coordinates.view(),
             Some(y.dydx.view()),
         )?;
-        Ok([COORDINATES_FILE, DYDX_FILE, REPORT_FILE]
-            .map(String::from)
-            .to_vec())
+        Ok(())
     }
 
     fn load(&self, input: &EmbedInput<'_>, dir: &Path) -> crate::Result<EmbedOutputs> {
         let file: EmbedFile = io::read_json(&dir.join(REPORT_FILE), "embedding report")?;
-        let m = input.distances.nrows();
+        let m = input.distances.len();
         let coordinates = io::read_matrix(&dir.join(COORDINATES_FILE), None, "(M, d)")?;
         if coordinates.nrows() != m {
             return Err(io::IoError::Shape {

@@ -2,29 +2,63 @@
 //! environment and compared (paper sections 2.2, 2.3, 3.3; [`crate::invariance`]).
 
 use std::path::Path;
+use std::sync::Arc;
 
 use ndarray::Axis;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput, World};
 use crate::explore::Exploration;
-use crate::invariance::invariance_measured;
-use crate::io;
+use crate::invariance::{invariance_measured, read_invariance, stage_invariance};
+use crate::io::Outputs;
 use crate::kernel::TraceParams;
-use crate::metric::MetricKind;
+use crate::metric::{MetricName, SetMetric};
 use crate::pipeline::StageId;
 use crate::report::InvarianceData;
 
 /// The `invariance` stage: the `[kernel]` table traced with the sensory method, the
-/// number of starts (`[analysis] invariance_starts`) and the metric.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// number of starts (`[analysis] invariance_starts`) and the metric (a built-in one
+/// under the agent's point metric, [`crate::invariance::agent_metric`], or the
+/// registered one the `[metric]` table builds).
+#[derive(Clone, Serialize)]
 pub struct InvarianceStage {
     /// Tracing parameters (the method is `sensory`).
     pub kernel: TraceParams,
     /// The first this many babbled rows are the starts.
     pub starts: usize,
-    /// The set metric.
-    pub metric: MetricKind,
+    /// The set metric's name.
+    pub metric: MetricName,
+    /// The metric.
+    #[serde(skip)]
+    set_metric: Arc<dyn SetMetric>,
+}
+
+impl InvarianceStage {
+    /// The stage comparing `starts` starts traced with `kernel` under `set_metric`
+    /// (called `metric`).
+    pub fn new(
+        kernel: TraceParams,
+        starts: usize,
+        metric: MetricName,
+        set_metric: Arc<dyn SetMetric>,
+    ) -> Self {
+        Self {
+            kernel,
+            starts,
+            metric,
+            set_metric,
+        }
+    }
+}
+
+impl std::fmt::Debug for InvarianceStage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("InvarianceStage")
+            .field("kernel", &self.kernel)
+            .field("starts", &self.starts)
+            .field("metric", &self.metric)
+            .finish()
+    }
 }
 
 /// What `invariance` reads.
@@ -43,14 +77,6 @@ impl StageInput for InvarianceInput<'_> {
 }
 
 const REPORT_FILE: &str = "invariance.json";
-
-fn matrix_file(environment: usize) -> String {
-    format!("invariance-D-{}.npy", environment + 1)
-}
-
-fn sensors_file(environment: usize) -> String {
-    format!("invariance-sensors-{}.npy", environment + 1)
-}
 
 impl Stage for InvarianceStage {
     const ID: StageId = StageId::Invariance;
@@ -80,7 +106,7 @@ impl Stage for InvarianceStage {
             &world.environments,
             world.workspace.as_ref(),
             &self.kernel.check()?,
-            self.metric,
+            self.set_metric.as_ref(),
             context.progress,
         )?;
         Ok(InvarianceData {
@@ -90,37 +116,31 @@ impl Stage for InvarianceStage {
         })
     }
 
+    /// `invariance.json` and the two arrays of every environment, all together.
     fn save(
         &self,
         _: &InvarianceInput<'_>,
         data: &InvarianceData,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        io::write_json(&dir.join(REPORT_FILE), &data.report)?;
-        let mut files = vec![REPORT_FILE.to_owned()];
-        for (i, (d, s)) in data.set_distances.iter().zip(&data.sensors).enumerate() {
-            let (d_file, s_file) = (matrix_file(i), sensors_file(i));
-            io::write_npy(&dir.join(&d_file), d)?;
-            io::write_npy(&dir.join(&s_file), s)?;
-            files.extend([d_file, s_file]);
-        }
-        Ok(files)
+    ) -> crate::Result<()> {
+        stage_invariance(
+            outputs,
+            &dir.join(REPORT_FILE),
+            &data.report,
+            &data.set_distances,
+            &data.sensors,
+        )?;
+        Ok(())
     }
 
     fn load(&self, input: &InvarianceInput<'_>, dir: &Path) -> crate::Result<InvarianceData> {
         let world = &input.world.value;
-        let report = io::read_json(&dir.join(REPORT_FILE), "invariance report")?;
-        let k = world.agent.sensor_dim();
-        let mut set_distances = Vec::new();
-        let mut sensors = Vec::new();
-        for i in 0..world.environments.len() {
-            set_distances.push(io::read_matrix(&dir.join(matrix_file(i)), None, "(C, C)")?);
-            sensors.push(io::read_matrix(
-                &dir.join(sensors_file(i)),
-                Some(k),
-                "(C, K)",
-            )?);
-        }
+        let (report, set_distances, sensors) = read_invariance(
+            &dir.join(REPORT_FILE),
+            world.environments.len(),
+            world.agent.sensor_dim(),
+        )?;
         Ok(InvarianceData {
             report,
             set_distances,

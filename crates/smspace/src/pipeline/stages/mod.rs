@@ -18,7 +18,7 @@
 //! |---|---|---|---|
 //! | `explore` | [`ExploreStage`] | [`World`] | [`Exploration`](crate::explore::Exploration) |
 //! | `trace` | [`TraceStage`] | world, exploration | [`TracedSets`](crate::kernel::TracedSets) |
-//! | `distances` | [`DistancesStage`] | traced sets | `(M, M)` matrix |
+//! | `distances` | [`DistancesStage`] | traced sets | [`DistanceMatrix`](crate::metric::DistanceMatrix) |
 //! | `embed` | [`EmbedStage`] | distances | [`EmbedOutputs`] |
 //! | `analyze` | [`AnalyzeStage`] | exploration, traced sets, distances | [`AnalysisReport`](crate::analysis::AnalysisReport) |
 //! | `invariance` | [`InvarianceStage`] | world, exploration | [`InvarianceData`](crate::report::InvarianceData) |
@@ -40,6 +40,7 @@ use super::manifest::{hash_parts, SMSPACE_VERSION};
 use super::StageId;
 use crate::agent::{Agent, AgentConfig, Environment};
 use crate::explore::Workspace;
+use crate::io::Outputs;
 use crate::progress::Progress;
 use crate::report::StageTiming;
 
@@ -69,14 +70,16 @@ pub trait Stage: Serialize {
         context: &StageContext<'_>,
     ) -> crate::Result<Self::Output>;
 
-    /// Writes the output into the run folder `dir`; returns the files written,
-    /// relative to `dir` (the manifest hashes them).
+    /// Stages the output's files for the run folder `dir` into `outputs` (every path
+    /// inside `dir`). The run renames them into place together with the manifest,
+    /// which records each file with the hash of the bytes staged ([`Outputs::staged`]).
     fn save(
         &self,
         input: &Self::Input<'_>,
         output: &Self::Output,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>>;
+    ) -> crate::Result<()>;
 
     /// Reads back what [`save`](Stage::save) wrote.
     fn load(&self, input: &Self::Input<'_>, dir: &Path) -> crate::Result<Self::Output>;
@@ -94,6 +97,18 @@ pub trait Stage: Serialize {
         ];
         parts.extend(input.keys().into_iter().map(str::as_bytes));
         hash_parts(&parts)
+    }
+
+    /// The part of the key the stage's own parameters make: the hash of its name and
+    /// its struct, without the inputs' keys. Two stages with the same parameter key
+    /// and the same inputs have the same [`key`](Stage::key).
+    fn parameter_key(&self) -> String {
+        let params = json(self);
+        hash_parts(&[
+            SMSPACE_VERSION.as_bytes(),
+            Self::ID.name().as_bytes(),
+            params.as_bytes(),
+        ])
     }
 }
 

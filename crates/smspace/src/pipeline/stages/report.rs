@@ -7,14 +7,14 @@ use ndarray::Array2;
 use serde::Serialize;
 
 use super::{EmbedOutputs, Keyed, Stage, StageContext, StageInput, World};
-use crate::agent::{Agent, Environment, MotorTopology};
+use crate::agent::{Agent, Environment};
 use crate::analysis::AnalysisReport;
 use crate::explore::Exploration;
-use crate::io;
+use crate::io::{self, Outputs};
 use crate::kernel::TracedSets;
 use crate::pipeline::StageId;
 use crate::report::{
-    write_report, InvarianceData, ReportInputs, ReportParams, ReportSummary, SensoryManifold,
+    render_report, InvarianceData, RenderedReport, ReportInputs, ReportParams, SensoryManifold,
 };
 
 /// Motor samples of each raw sensory manifold (paper Fig. 1).
@@ -70,15 +70,15 @@ const SUMMARY_FILE: &str = "report.json";
 impl Stage for ReportStage {
     const ID: StageId = StageId::Report;
     type Input<'a> = ReportInput<'a>;
-    type Output = ReportSummary;
+    type Output = RenderedReport;
 
-    /// Renders the figures, `report.html` and `report.md` straight into the run folder
-    /// (figures are files); [`save`](Stage::save) adds `report.json`.
+    /// Draws the figures, `report.html` and `report.md` in memory;
+    /// [`save`](Stage::save) stages them with `report.json`.
     fn compute(
         &self,
         input: &ReportInput<'_>,
         context: &StageContext<'_>,
-    ) -> crate::Result<ReportSummary> {
+    ) -> crate::Result<RenderedReport> {
         let world = &input.world.value;
         let exploration = &input.exploration.value;
         let traced = &input.traced.value;
@@ -95,7 +95,7 @@ impl Stage for ReportStage {
             environments: &world.environments,
             workspace: world.workspace,
             motors: exploration.motors.view(),
-            poses: exploration.poses.view(),
+            poses: exploration.planar_poses(),
             probes: exploration.probes.view(),
             sets: traced.sets.view(),
             kept: &traced.kept,
@@ -110,39 +110,32 @@ impl Stage for ReportStage {
             stages: context.stage_times,
             warnings: &[],
         };
-        Ok(write_report(&inputs, &self.report, context.dir)?)
+        Ok(render_report(&inputs, &self.report)?)
     }
 
+    /// The figures, `report.html`, `report.md` and `report.json`, all together.
     fn save(
         &self,
         _: &ReportInput<'_>,
-        summary: &ReportSummary,
+        report: &RenderedReport,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        io::write_json(&dir.join(SUMMARY_FILE), summary)?;
-        let mut files: Vec<String> = summary
-            .figures
-            .iter()
-            .flat_map(|f| f.files.iter().map(|p| p.to_string_lossy().into_owned()))
-            .collect();
-        files.extend(
-            summary
-                .assets
-                .iter()
-                .map(|p| p.to_string_lossy().into_owned()),
-        );
-        files.push(summary.html.to_string_lossy().into_owned());
-        files.push(summary.markdown.to_string_lossy().into_owned());
-        files.push(SUMMARY_FILE.to_owned());
-        Ok(files)
+    ) -> crate::Result<()> {
+        report.write_into(outputs, dir)?;
+        outputs.json(&dir.join(SUMMARY_FILE), &report.summary)?;
+        Ok(())
     }
 
-    fn load(&self, _: &ReportInput<'_>, dir: &Path) -> crate::Result<ReportSummary> {
-        Ok(io::read_json(&dir.join(SUMMARY_FILE), "report summary")?)
+    /// `report.json` (the files themselves are checked by their hashes, not read).
+    fn load(&self, _: &ReportInput<'_>, dir: &Path) -> crate::Result<RenderedReport> {
+        Ok(RenderedReport {
+            summary: io::read_json(&dir.join(SUMMARY_FILE), "report summary")?,
+            files: Vec::new(),
+        })
     }
 
-    fn summary(&self, summary: &ReportSummary) -> String {
-        match summary.warnings.len() {
+    fn summary(&self, report: &RenderedReport) -> String {
+        match report.summary.warnings.len() {
             0 => "report.html, report.md and figures/".to_owned(),
             n => format!(
                 "report.html, report.md and figures/; {n} warning{} at the top of the report",
@@ -158,10 +151,7 @@ fn sensory_manifolds(agent: &dyn Agent, environments: &[Environment]) -> Vec<Sen
     if agent.motor_dim() != 1 {
         return Vec::new();
     }
-    let (low, high) = match agent.motor_topology() {
-        MotorTopology::Bounded { low, high } => (low, high),
-        MotorTopology::Periodic => (-std::f64::consts::PI, std::f64::consts::PI),
-    };
+    let (low, high) = agent.motor_space().motor(0).range();
     let motors = Array2::from_shape_fn((SENSORY_SAMPLES, 1), |(t, _)| {
         low + (high - low) * t as f64 / (SENSORY_SAMPLES - 1) as f64
     });

@@ -13,8 +13,8 @@ use super::super::plot::{
     Mark, Valign, DISTINCT,
 };
 use super::super::view3d::{draw_box, draw_scene, BoxAxis, Camera, Item, Projection};
-use super::{motor_range, wrap_curve, Panel};
-use crate::agent::{Environment, MotorTopology};
+use super::{motor_range, periods, wrap_curve, Panel};
+use crate::agent::{Environment, MotorSpace};
 use crate::explore::Workspace;
 
 const ARM: RGBColor = RGBColor(31, 119, 180);
@@ -243,7 +243,7 @@ pub(in crate::report) struct KernelSets3d<'a> {
     pub(in crate::report) sets: ArrayView3<'a, f64>,
     /// The drawn sets, at most [`MAX_LOOPS`].
     pub(in crate::report) sample: Vec<usize>,
-    pub(in crate::report) topology: MotorTopology,
+    pub(in crate::report) space: MotorSpace,
     pub(in crate::report) motor_unit: &'static str,
     pub(in crate::report) panel: Panel,
 }
@@ -262,7 +262,6 @@ impl Figure for KernelSets3d<'_> {
         } else {
             [[0, 1, 2], [0, 1, 2]]
         };
-        let periodic = self.topology == MotorTopology::Periodic;
         let mut legend = Legend::new();
         legend.add(
             Mark::Line(DISTINCT[0], 1.2, Dash::Solid),
@@ -271,10 +270,19 @@ impl Figure for KernelSets3d<'_> {
                 self.sample.len()
             ),
         );
-        if periodic {
+        if self.space.is_hinges() {
             legend.add(
                 Mark::Ring(RGBColor(60, 60, 60), 2.0),
                 "where a set leaves a face of the cube [\u{2212}\u{3c0}, \u{3c0}]\u{b3} and re-enters at the opposite face",
+            );
+        } else if views
+            .iter()
+            .flatten()
+            .any(|&a| self.space.motor(a).is_periodic())
+        {
+            legend.add(
+                Mark::Ring(RGBColor(60, 60, 60), 2.0),
+                "where a set leaves a face of a periodic motor and re-enters at the opposite face",
             );
         }
         let (body, strip) = legend.split(root, print);
@@ -308,7 +316,7 @@ impl KernelSets3d<'_> {
         )?;
         let ranges: [Range<f64>; 3] = axes.map(|a| {
             motor_range(
-                self.topology,
+                self.space.motor(a),
                 self.sample
                     .iter()
                     .flat_map(|&i| self.sets.index_axis(Axis(0), i).column(a).to_vec()),
@@ -342,7 +350,8 @@ impl KernelSets3d<'_> {
         });
         draw_box(area, &projection, &ranges, &box_axes, print)?;
         let mut items = Vec::new();
-        let periodic = self.topology == MotorTopology::Periodic;
+        let periods = periods(&self.space, axes);
+        let closed = !self.space.has_bounds();
         for (k, &i) in self.sample.iter().enumerate() {
             let color = DISTINCT[k % DISTINCT.len()].to_rgba();
             let set = self.sets.index_axis(Axis(0), i);
@@ -351,7 +360,7 @@ impl KernelSets3d<'_> {
                 .into_iter()
                 .map(|r| [r[axes[0]], r[axes[1]], r[axes[2]]])
                 .collect();
-            let curve = wrap_curve(&pts, periodic, periodic);
+            let curve = wrap_curve(&pts, periods, closed);
             for piece in &curve.pieces {
                 for w in piece.windows(2) {
                     items.push(Item::Line(w[0], w[1], print.stroke(1.2), color));

@@ -27,7 +27,6 @@ mod embedding;
 mod toys;
 
 use std::collections::BTreeMap;
-use std::f64::consts::PI;
 use std::ops::Range;
 
 use ndarray::ArrayView2;
@@ -40,7 +39,7 @@ pub(super) use embedding::{
 pub(super) use toys::{KernelLines, LearnedManifold, SensoryManifolds};
 
 use super::plot::{padded, Print};
-use crate::agent::MotorTopology;
+use crate::agent::{wrap_period, Motor, MotorSpace};
 
 /// Most points a scatter draws (evenly spaced rows beyond that), so that SVG files stay
 /// small and drawing stays fast.
@@ -75,12 +74,22 @@ impl Panel {
     }
 }
 
-/// The axis range of motor coordinates: `[−π, π]` for hinges.
-fn motor_range(topology: MotorTopology, values: impl IntoIterator<Item = f64>) -> Range<f64> {
-    match topology {
-        MotorTopology::Periodic => -PI..PI,
-        MotorTopology::Bounded { .. } => padded(values),
+/// The axis range of a motor coordinate: its period's range when periodic (`[−π, π]`
+/// for a hinge), the values' when bounded.
+fn motor_range(motor: Motor, values: impl IntoIterator<Item = f64>) -> Range<f64> {
+    match motor {
+        Motor::Periodic { .. } => {
+            let (low, high) = motor.range();
+            low..high
+        }
+        Motor::Bounded { .. } => padded(values),
     }
+}
+
+/// The periods of the motors `axes` of `space` (`None` for bounded ones), for
+/// [`wrap_curve`].
+fn periods<const K: usize>(space: &MotorSpace, axes: [usize; K]) -> [Option<f64>; K] {
+    axes.map(|a| space.motor(a).period())
 }
 
 /// A curve cut where it crosses the faces `±π` of the motor box (periodic coordinates
@@ -93,14 +102,14 @@ pub(super) struct WrappedCurve<const K: usize> {
     pub(super) crossings: Vec<[f64; K]>,
 }
 
-/// Cuts the curve through `points` (coordinates in `[−π, π)` when `periodic`; a
-/// closed loop when `closed`) at the faces it crosses. A step longer than π in a
-/// coordinate is read as the short way round through the face; the crossing point is
-/// interpolated on the face, so that each piece reaches the face and the next starts
-/// on the opposite one.
+/// Cuts the curve through `points` (coordinate `k` in `[−T/2, T/2)` when
+/// `periods[k] = Some(T)`; a closed loop when `closed`) at the faces of the periodic
+/// coordinates it crosses. A step longer than `T/2` in a periodic coordinate is read as
+/// the short way round through the face; the crossing point is interpolated on the
+/// face, so that each piece reaches the face and the next starts on the opposite one.
 pub(super) fn wrap_curve<const K: usize>(
     points: &[[f64; K]],
-    periodic: bool,
+    periods: [Option<f64>; K],
     closed: bool,
 ) -> WrappedCurve<K> {
     let mut pieces: Vec<Vec<[f64; K]>> = Vec::new();
@@ -115,10 +124,13 @@ pub(super) fn wrap_curve<const K: usize>(
     if let Some(&first) = points.first() {
         current.push(first);
     }
+    let jumps = |a: &[f64; K], b: &[f64; K]| {
+        (0..K).any(|k| periods[k].is_some_and(|t| (b[k] - a[k]).abs() > t / 2.0))
+    };
     for s in 0..steps {
         let (a, b) = (points[s], points[(s + 1) % n]);
-        if periodic && a.iter().zip(&b).any(|(x, y)| (y - x).abs() > PI) {
-            let (leave, enter) = face_crossing(a, b);
+        if jumps(&a, &b) {
+            let (leave, enter) = face_crossing(a, b, periods);
             current.push(leave);
             crossings.push(leave);
             crossings.push(enter);
@@ -138,30 +150,34 @@ pub(super) fn wrap_curve<const K: usize>(
     WrappedCurve { pieces, crossings }
 }
 
-/// Where the step from `a` to `b` (the short way round, through a face) leaves the box,
-/// and where it re-enters at the opposite face.
-fn face_crossing<const K: usize>(a: [f64; K], b: [f64; K]) -> ([f64; K], [f64; K]) {
+/// Where the step from `a` to `b` (the short way round, through a face of a periodic
+/// coordinate) leaves the box, and where it re-enters at the opposite face.
+fn face_crossing<const K: usize>(
+    a: [f64; K],
+    b: [f64; K],
+    periods: [Option<f64>; K],
+) -> ([f64; K], [f64; K]) {
     let mut step = [0.0; K];
     let mut t = 1.0_f64;
     for k in 0..K {
-        step[k] = crate::agent::wrap_angle(b[k] - a[k]);
-        let end = a[k] + step[k];
-        if end > PI {
-            t = t.min((PI - a[k]) / step[k]);
-        } else if end < -PI {
-            t = t.min((-PI - a[k]) / step[k]);
+        step[k] = b[k] - a[k];
+        if let Some(period) = periods[k] {
+            let half = period / 2.0;
+            step[k] = wrap_period(step[k], period);
+            let end = a[k] + step[k];
+            if end > half {
+                t = t.min((half - a[k]) / step[k]);
+            } else if end < -half {
+                t = t.min((-half - a[k]) / step[k]);
+            }
         }
     }
     let t = t.clamp(0.0, 1.0);
     let leave: [f64; K] = std::array::from_fn(|k| a[k] + t * step[k]);
-    let enter: [f64; K] = std::array::from_fn(|k| {
-        if leave[k] >= PI - 1e-12 {
-            leave[k] - 2.0 * PI
-        } else if leave[k] <= -PI + 1e-12 {
-            leave[k] + 2.0 * PI
-        } else {
-            leave[k]
-        }
+    let enter: [f64; K] = std::array::from_fn(|k| match periods[k] {
+        Some(period) if leave[k] >= period / 2.0 - 1e-12 * period => leave[k] - period,
+        Some(period) if leave[k] <= -period / 2.0 + 1e-12 * period => leave[k] + period,
+        _ => leave[k],
     });
     (leave, enter)
 }
@@ -243,6 +259,8 @@ pub(super) fn point3(embedding: ArrayView2<'_, f64>, i: usize) -> [f64; 3] {
 
 #[cfg(test)]
 mod tests {
+    use std::f64::consts::{PI, TAU};
+
     use super::*;
 
     #[test]
@@ -251,7 +269,7 @@ mod tests {
         let pts: Vec<[f64; 2]> = (0..8)
             .map(|k| [crate::agent::wrap_angle(0.5 + k as f64 * PI / 4.0), 0.3])
             .collect();
-        let w = wrap_curve(&pts, true, true);
+        let w = wrap_curve(&pts, [Some(TAU); 2], true);
         assert_eq!(w.pieces.len(), 1, "one piece from face to face");
         assert_eq!(w.crossings.len(), 2);
         let piece = &w.pieces[0];
@@ -260,11 +278,18 @@ mod tests {
         assert!((first[0] + last[0]).abs() < 1e-12, "opposite faces");
         // A loop that crosses no face closes on itself.
         let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
-        let w = wrap_curve(&square, true, true);
+        let w = wrap_curve(&square, [Some(TAU); 2], true);
         assert_eq!((w.pieces.len(), w.pieces[0].len()), (1, 5));
         assert!(w.crossings.is_empty());
         // An open curve is not closed.
-        assert_eq!(wrap_curve(&square, false, false).pieces[0].len(), 4);
+        assert_eq!(wrap_curve(&square, [None; 2], false).pieces[0].len(), 4);
+        // A periodic coordinate of another period wraps at its own faces; a bounded
+        // one beside it never does.
+        let line = [[0.9, 5.0], [-0.9, -5.0]];
+        let w = wrap_curve(&line, [Some(2.0), None], false);
+        assert_eq!((w.pieces.len(), w.crossings.len()), (2, 2));
+        assert!((w.crossings[0][0] - 1.0).abs() < 1e-12 && (w.crossings[1][0] + 1.0).abs() < 1e-12);
+        assert!((w.crossings[0][1] - w.crossings[1][1]).abs() < 1e-12);
     }
 
     #[test]

@@ -10,8 +10,8 @@ use super::super::plot::{
     Dash, Drawn, Figure, Legend, Mark, NumberFormat,
 };
 use super::super::SensoryManifold;
-use super::{motor_range, wrap_curve, Panel, MAX_SCATTER_POINTS};
-use crate::agent::MotorTopology;
+use super::{motor_range, periods, wrap_curve, Panel, MAX_SCATTER_POINTS};
+use crate::agent::MotorSpace;
 
 /// Fig. 1: the sensory manifolds of several environments.
 pub(in crate::report) struct SensoryManifolds<'a> {
@@ -112,7 +112,7 @@ pub(in crate::report) struct KernelLines<'a> {
     pub(in crate::report) starts: Vec<(f64, f64)>,
     pub(in crate::report) sample: Vec<usize>,
     pub(in crate::report) set_x: Vec<f64>,
-    pub(in crate::report) topology: MotorTopology,
+    pub(in crate::report) space: MotorSpace,
     pub(in crate::report) motor_unit: &'static str,
     pub(in crate::report) total: usize,
     pub(in crate::report) panel: Panel,
@@ -150,15 +150,16 @@ impl Figure for KernelLines<'_> {
             &plot,
             print,
             &title,
-            Axis2d::new(motor_range(self.topology, coords(0)), &x_title),
-            Axis2d::new(motor_range(self.topology, coords(1)), &y_title),
+            Axis2d::new(motor_range(self.space.motor(0), coords(0)), &x_title),
+            Axis2d::new(motor_range(self.space.motor(1), coords(1)), &y_title),
         )?;
-        let periodic = self.topology == MotorTopology::Periodic;
+        let periods = periods(&self.space, [0, 1]);
+        let closed = !self.space.has_bounds();
         for &i in &self.sample {
             let color = scale.color(self.set_x[i]);
             let set = self.sets.index_axis(Axis(0), i);
             let pts: Vec<[f64; 2]> = set.rows().into_iter().map(|r| [r[0], r[1]]).collect();
-            for piece in wrap_curve(&pts, periodic, periodic).pieces {
+            for piece in wrap_curve(&pts, periods, closed).pieces {
                 chart.draw_series(LineSeries::new(
                     piece.into_iter().map(|p| (p[0], p[1])),
                     color.stroke_width(print.stroke(1.2)),
