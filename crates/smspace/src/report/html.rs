@@ -42,21 +42,28 @@ pub(super) fn count(n: usize, thing: &str) -> String {
 }
 
 /// The sentence that says which figures were not drawn (their reasons are in
-/// `report.json`), or `None` when every figure was drawn.
+/// `report.json`; without planar poses it says that this is why the figures of poses
+/// are missing), or `None` when every figure was drawn.
 pub(super) fn skipped_sentence<'r>(
+    inputs: &ReportInputs<'_>,
     records: impl Iterator<Item = &'r FigureRecord>,
 ) -> Option<String> {
     let names: Vec<&str> = records
         .filter(|r| r.skipped.is_some())
         .map(|r| r.name.as_str())
         .collect();
+    let why = if inputs.poses.is_none() {
+        "report.json says why; the agent has no planar ground truth (x, y, alpha), so none of the figures of poses is drawn"
+    } else {
+        "report.json says why"
+    };
     match names.as_slice() {
         [] => None,
         [one] => Some(format!(
-            "The figure {one} does not apply to this run (report.json says why)."
+            "The figure {one} does not apply to this run ({why})."
         )),
         [rest @ .., last] => Some(format!(
-            "The figures {} and {last} do not apply to this run (report.json says why).",
+            "The figures {} and {last} do not apply to this run ({why}).",
             rest.join(", ")
         )),
     }
@@ -542,7 +549,7 @@ impl Page<'_, '_> {
     /// The figures with their captions, and one sentence on those not drawn.
     fn figures_html(&self, out: &mut String) {
         out.push_str("<h2 id=\"figures\">Figures</h2>\n");
-        if let Some(sentence) = skipped_sentence(self.figures.iter().map(|(r, _)| r)) {
+        if let Some(sentence) = skipped_sentence(self.inputs, self.figures.iter().map(|(r, _)| r)) {
             out.push_str(&format!("<p class=\"skipped\">{}</p>\n", escape(&sentence)));
         }
         for (record, rendered) in self.figures {

@@ -88,7 +88,7 @@ pub(super) fn markdown(
         table_markdown(t, &mut out);
     }
     out.push_str("## Figures\n\n");
-    if let Some(sentence) = skipped_sentence(figures.iter()) {
+    if let Some(sentence) = skipped_sentence(inputs, figures.iter()) {
         out.push_str(&format!("{sentence}\n\n"));
     }
     for f in figures.iter().filter(|f| f.skipped.is_none()) {
