@@ -960,13 +960,13 @@ fn a_user_defined_metric_runs_through_the_whole_pipeline() {
     // The same run again is read back from the cache; a changed parameter reruns the
     // distances.
     let again = pipeline::run(&plan, &options, &Quiet).unwrap();
-    assert!(computed(&out).is_empty(), "{:?}", computed(&out));
+    assert!(computed(&again).is_empty(), "{:?}", computed(&again));
     assert_eq!(again.analysis, summary.analysis);
     let scaled =
         smspace::config::load_experiment(&file, &["metric.params.scale=3.0".into()]).unwrap();
     let plan = pipeline::check_with(&scaled, &registries).unwrap();
-    pipeline::run(&plan, &options, &Quiet).unwrap();
-    assert!(computed(&out).contains(&"distances".to_owned()));
+    let rerun = pipeline::run(&plan, &options, &Quiet).unwrap();
+    assert!(computed(&rerun).contains(&"distances".to_owned()));
     // An unknown key of its table is an error that names it.
     let bad = smspace::config::load_experiment(&file, &["metric.params.scael=3.0".into()]).unwrap();
     let err = pipeline::check_with(&bad, &registries)

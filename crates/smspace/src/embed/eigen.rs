@@ -490,6 +490,7 @@ impl Triangulation {
 mod tests {
     use super::*;
     use crate::embed::{CcaParams, EmbedParams, Embedding, IsomapParams, MdsParams};
+    use crate::metric::DistanceMatrix;
     use crate::progress::Silent;
 
     /// Distances between 40 points on a noisy circle.
@@ -522,12 +523,19 @@ mod tests {
         let d = circle();
         for method in methods() {
             let name = method.name();
-            let plain = method.fit(d.view(), &Silent).unwrap();
+            let plain = method
+                .fit(&DistanceMatrix::new(d.clone()).unwrap(), &Silent)
+                .unwrap();
             // Exactly scaled by a power of two (1e300 and 1e-300 in size): exactly
             // the scaled coordinates.
             for exponent in [996, -996] {
                 let factor = 2f64.powi(exponent);
-                let fit = method.fit(d.mapv(|x| x * factor).view(), &Silent).unwrap();
+                let fit = method
+                    .fit(
+                        &DistanceMatrix::new(d.mapv(|x| x * factor)).unwrap(),
+                        &Silent,
+                    )
+                    .unwrap();
                 assert_eq!(
                     fit.coordinates,
                     plain.coordinates.mapv(|y| y * factor),
@@ -545,7 +553,12 @@ mod tests {
             }
             // Scaled by 1e300 (not a power of two): finite, and the same embedding up
             // to rounding (distances between the embedded points agree).
-            let fit = method.fit(d.mapv(|x| x * 1e300).view(), &Silent).unwrap();
+            let fit = method
+                .fit(
+                    &DistanceMatrix::new(d.mapv(|x| x * 1e300)).unwrap(),
+                    &Silent,
+                )
+                .unwrap();
             assert!(fit.coordinates.iter().all(|y| y.is_finite()), "{name}");
             let spread = |y: &Array2<f64>, scale: f64| {
                 (0..y.nrows())

@@ -64,16 +64,24 @@ impl Plan {
         self.agent().motor_dim() as u64
     }
 
+    /// Coordinates of the agent's poses (0 without a ground truth).
+    fn pose_dim(&self) -> usize {
+        self.agent()
+            .ground_truth()
+            .map_or(0, |observer| observer.pose_space().dim())
+    }
+
     /// `explore`: its own arrays.
     pub(super) fn explore_peak(&self) -> Peak {
         let e = &self.explore.exploration;
         Peak {
             what: format!(
-                "stage `explore`: {} configurations of {} motors, with poses",
+                "stage `explore`: {} configurations of {} motors, with poses of {} coordinates",
                 e.rows(),
-                self.motors()
+                self.motors(),
+                self.pose_dim()
             ),
-            bytes: e.bytes(self.motors() as usize),
+            bytes: e.bytes(self.motors() as usize, self.pose_dim()),
             fix: "lower exploration.n or the probe grid",
         }
     }

@@ -98,7 +98,7 @@ use crate::agent::{Agent, AgentRegistry};
 use crate::analysis::AnalysisReport;
 use crate::config::{ConfigError, LoadedExperiment};
 use crate::error::InvalidParameter;
-use crate::io::{self, IoError};
+use crate::io::IoError;
 use crate::kernel::{TraceMethod, TraceParams};
 use crate::metric::{MetricError, MetricRegistry, Period};
 use crate::progress::Progress;
