@@ -682,6 +682,16 @@ impl<'t> Axis2d<'t> {
         }
     }
 
+    /// How many ticks the chart's mesh may draw for `count` asked: one per name for
+    /// names (plotters puts tick marks on its own round values, so more would leave
+    /// unlabelled marks between the categories), `count` otherwise.
+    fn mesh_ticks(&self, count: usize) -> usize {
+        match self.ticks {
+            TickStyle::Names(names) => names.len().max(1),
+            TickStyle::Numbers | TickStyle::Decades => count,
+        }
+    }
+
     /// The tick values and labels for `count` ticks, and the suffix of the title.
     fn labels(&self, count: usize) -> (Vec<(f64, String)>, String) {
         let values = ticks(&self.range, count);
@@ -753,8 +763,8 @@ pub(super) fn chart_2d<'a, DB: DrawingBackend>(
         .label_style(print.text())
         .axis_style(axis)
         .set_all_tick_mark_size(tick)
-        .x_labels(X_TICKS)
-        .y_labels(Y_TICKS)
+        .x_labels(x.mesh_ticks(X_TICKS))
+        .y_labels(y.mesh_ticks(Y_TICKS))
         .x_label_formatter(&x_text)
         .y_label_formatter(&y_text)
         .max_light_lines(1)

@@ -500,7 +500,13 @@ impl EmbeddingPose<'_> {
             print,
             "how well each coordinate is recovered",
             Axis2d {
-                range: -0.6..n as f64 - 0.4,
+                // One category alone gets a panel as wide as three would, so that its
+                // bars are as wide as usual.
+                range: if n == 1 {
+                    -1.2..1.2
+                } else {
+                    -0.6..n as f64 - 0.4
+                },
                 title: "pose coordinate",
                 ticks: TickStyle::Names(&names),
             },
