@@ -65,7 +65,7 @@ pub struct FigureText {
 impl FigureText {
     /// What a reviewer would object to, one sentence each: two texts closer than half a
     /// point (overlapping or touching), a text outside the figure, a font smaller than
-    /// [`MIN_FONT_PT`] at the print size. Empty when the figure is clean.
+    /// 9 pt (the smallest text size) at the print size. Empty when the figure is clean.
     pub fn problems(&self) -> Vec<String> {
         let pt = self.dpi / 72.0;
         let margin = (0.25 * pt).ceil() as i32;
