@@ -1,7 +1,9 @@
-//! The report stage on small real runs: every figure file is a valid PNG/SVG, the HTML is
-//! self-contained and carries the figures and numbers, the Markdown has the numbers,
-//! figures without inputs are skipped with a reason, and bad inputs are errors. When
-//! `chromium` is on PATH, the HTML is also opened headless by `.ci/browser-check`.
+//! The report stage on small real runs: every figure file is a valid PNG/SVG at its
+//! print resolution, no two texts of any figure overlap, the HTML loads only files of
+//! its run folder (or none, self-contained) and carries the warnings, figures and
+//! numbers, the Markdown has the numbers, figures without inputs are skipped with a
+//! reason, and bad inputs are errors. When `chromium` is on PATH, the HTML is also
+//! opened headless by `.ci/browser-check`.
 
 use std::path::Path;
 use std::process::Command;
@@ -17,8 +19,8 @@ use smspace::kernel::{trace_sets, TraceMethod, TraceParams, TraceSummary};
 use smspace::metric::{distance_matrix, DistanceParams, Period};
 use smspace::progress::Silent;
 use smspace::report::{
-    write_report, FigureFormats, InvarianceData, ReportError, ReportInputs, ReportParams,
-    ReportSummary, SensoryManifold, StageTiming,
+    figure_texts, write_report, FigureFormats, InvarianceData, ReportError, ReportInputs,
+    ReportParams, ReportSummary, SensoryManifold, StageTiming, Warning,
 };
 
 /// The outputs of a small run of every stage.
@@ -196,6 +198,7 @@ fn inputs(run: &Run) -> ReportInputs<'_> {
         invariance: run.invariance.as_ref(),
         sensory_manifolds: &run.manifolds,
         stages: &run.stages,
+        warnings: &[],
     }
 }
 
@@ -215,12 +218,20 @@ fn check_figure_files(dir: &Path, summary: &ReportSummary) {
                     assert_eq!(&bytes[12..16], b"IHDR", "{file:?}");
                     let width = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
                     let height = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
-                    assert!(width >= 320 && height >= 240, "{file:?}: {width}x{height}");
+                    assert!(width >= 1000 && height >= 700, "{file:?}: {width}x{height}");
                     assert!(bytes.len() > 5000, "{file:?} is nearly empty");
+                    // The physical size: 300 dpi (11811 pixels per metre).
+                    let phys = bytes.windows(4).position(|w| w == b"pHYs").expect("pHYs");
+                    let ppm = u32::from_be_bytes(bytes[phys + 4..phys + 8].try_into().unwrap());
+                    assert_eq!(ppm, 11_811, "{file:?}");
                 }
                 Some("svg") => {
                     let text = String::from_utf8(bytes).unwrap();
-                    assert!(text.contains("<svg") && text.trim_end().ends_with("</svg>"));
+                    assert!(text.contains("<svg width=\"") && text.trim_end().ends_with("</svg>"));
+                    assert!(
+                        text[..200].contains("in\" height=\""),
+                        "{file:?}: no print size"
+                    );
                     assert!(text.contains("<text"), "{file:?} has no text");
                 }
                 other => panic!("unexpected figure file {file:?} ({other:?})"),
@@ -241,6 +252,42 @@ fn without_script_bodies(html: &str) -> String {
         rest = &rest[close..];
     }
     out.push_str(rest);
+    out
+}
+
+/// Every file the page loads (`src` and `href` values), sorted, after checking that it
+/// names nothing outside its folder.
+fn loads(html: &str) -> Vec<String> {
+    let markup = without_script_bodies(html);
+    let lower = markup.to_lowercase();
+    for external in ["http:", "https:", "//", "<link", "url("] {
+        let found = lower
+            .match_indices("src=\"")
+            .chain(lower.match_indices("href=\""))
+            .any(|(i, m)| lower[i + m.len()..].starts_with(external));
+        assert!(!found, "report.html loads {external}");
+        if external == "<link" || external == "url(" {
+            assert!(!lower.contains(external), "report.html has {external}");
+        }
+    }
+    let markup = markup.as_str();
+    let mut out: Vec<String> = ["src=\"", "href=\""]
+        .iter()
+        .flat_map(|attr| {
+            markup.match_indices(attr).map(move |(i, m)| {
+                let rest = &markup[i + m.len()..];
+                rest[..rest.find('"').unwrap()].to_owned()
+            })
+        })
+        .filter(|v| !v.starts_with('#') && !v.starts_with("data:"))
+        .collect();
+    for v in &out {
+        assert!(
+            !v.contains("..") && !v.starts_with('/'),
+            "{v} is outside the folder"
+        );
+    }
+    out.sort();
     out
 }
 
@@ -288,31 +335,41 @@ fn arm_report_has_every_figure_the_numbers_and_an_interactive_view() {
         assert!(figure(&summary, name).skipped.is_some(), "{name}");
     }
 
+    // The page loads plotly.js and the figures from its run folder, nothing else.
     let html = std::fs::read_to_string(dir.path().join(&summary.html)).unwrap();
-    let markup = without_script_bodies(&html).to_lowercase();
-    for external in [
-        "src=\"http",
-        "src='http",
-        "href=\"http",
-        "href='http",
-        "<link",
-        "url(",
-    ] {
-        assert!(!markup.contains(external), "report.html loads {external}");
-    }
-    for tag in markup.match_indices("<script").map(|(i, _)| &markup[i..]) {
-        let open = &tag[..tag.find('>').unwrap()];
-        assert!(!open.contains("src"), "a script loads a file: {open}");
-    }
-    let drawn = summary
+    let drawn: Vec<&str> = summary
         .figures
         .iter()
         .filter(|f| f.skipped.is_none())
-        .count();
-    assert_eq!(markup.matches("data:image/png;base64,").count(), drawn);
-    assert!(html.contains("Plotly.newPlot") && html.contains("plotly.js v2.12.1"));
+        .map(|f| f.name.as_str())
+        .collect();
+    let loaded = loads(&html);
+    let mut expected: Vec<String> = drawn
+        .iter()
+        .map(|name| format!("figures/{name}.png"))
+        .collect();
+    expected.push("assets/plotly-2.12.1.min.js".to_owned());
+    expected.sort();
+    assert_eq!(loaded, expected, "{html}");
+    assert_eq!(
+        summary.assets,
+        vec![Path::new("assets/plotly-2.12.1.min.js")]
+    );
+    let plotly = std::fs::read_to_string(dir.path().join(&summary.assets[0])).unwrap();
+    assert!(plotly.contains("plotly.js v2.12.1"));
+    assert!(!html.contains("plotly.js v2.12.1") && !html.contains("data:image"));
+    assert!(
+        html.len() < 200_000,
+        "a linked page is light: {} bytes",
+        html.len()
+    );
+    assert!(html.contains("Plotly.newPlot"));
     assert!(html.contains("<title>test &lt;report&gt; &amp; co</title>"));
     assert!(html.contains("# &lt;/script&gt; &lt;b&gt;escaped&lt;/b&gt;"));
+    assert!(
+        html.contains("4 motors, 6 sensors; 2 environments;"),
+        "grammar"
+    );
     let betti = format!(
         "[{}]",
         run.analysis
@@ -324,7 +381,31 @@ fn arm_report_has_every_figure_the_numbers_and_an_interactive_view() {
     );
     assert!(html.contains(&betti), "betti {betti} missing");
     assert!(html.contains("0.9877"), "trustworthiness missing");
-    assert!(html.contains("skipped"));
+    // The three toy figures, said once in one sentence.
+    assert_eq!(html.matches("do not apply to this run").count(), 1);
+    assert!(html.contains(
+        "The figures fig1-sensory-manifolds, fig2-kernel-lines and fig2-learned-manifold do not apply"
+    ));
+    assert!(!html.contains("skipped:"));
+
+    // Self-contained: the same page with plotly.js and the figures inside, loading nothing.
+    let whole = tempfile::tempdir().unwrap();
+    let params = ReportParams {
+        self_contained: true,
+        ..ReportParams::default()
+    };
+    let summary_whole = write_report(&inputs, &params, whole.path()).unwrap();
+    assert!(summary_whole.assets.is_empty());
+    assert!(!whole.path().join("assets").exists());
+    let page = std::fs::read_to_string(whole.path().join("report.html")).unwrap();
+    assert!(loads(&page).is_empty(), "{:?}", loads(&page));
+    assert_eq!(
+        without_script_bodies(&page)
+            .matches("data:image/png;base64,")
+            .count(),
+        drawn.len()
+    );
+    assert!(page.contains("plotly.js v2.12.1") && page.len() > 3_000_000);
 
     let md = std::fs::read_to_string(dir.path().join(&summary.markdown)).unwrap();
     assert!(md.contains("](figures/fig5d-embedding-probes.png)"));
@@ -402,7 +483,11 @@ fn figures_without_their_inputs_are_skipped_with_a_reason() {
     let pose = figure(&summary, "embedding-pose");
     assert_eq!(pose.files.len(), 1, "PNG only");
     let md = std::fs::read_to_string(dir.path().join(&summary.markdown)).unwrap();
-    assert!(md.contains("`fig5d-embedding-probes` skipped: no probe rows"));
+    assert!(md.contains("fig5d-embedding-probes"));
+    assert!(
+        !md.contains("no probe rows"),
+        "reasons are in report.json, not the page"
+    );
 }
 
 #[test]
@@ -449,7 +534,11 @@ fn toy_report_draws_the_sensory_manifolds_and_the_kernel_lines() {
         .as_deref()
         .is_some_and(|r| r.contains("no body")));
     let html = std::fs::read_to_string(dir.path().join(&summary.html)).unwrap();
-    assert!(html.contains("<svg"), "SVG figures are inlined");
+    assert!(
+        html.contains("src=\"figures/fig1-sensory-manifolds.svg\""),
+        "SVG figures are linked"
+    );
+    assert!(html.contains("1 motor") || html.contains("2 motors"));
     assert!(html.contains("\"scattergl\""));
 }
 
@@ -467,9 +556,177 @@ fn inputs_that_do_not_fit_are_errors() {
     );
     let inputs = self::inputs(&run);
     let params = ReportParams {
-        panel_width: 10,
+        panel_width_in: 0.5,
         ..ReportParams::default()
     };
     let err = write_report(&inputs, &params, dir.path()).unwrap_err();
-    assert!(err.to_string().contains("panel_width = 10"), "{err}");
+    assert!(err.to_string().contains("panel_width_in = 0.5"), "{err}");
+    let params = ReportParams {
+        dpi: 5000,
+        ..ReportParams::default()
+    };
+    let err = write_report(&inputs, &params, dir.path()).unwrap_err();
+    assert!(err.to_string().contains("dpi = 5000"), "{err}");
+}
+
+/// Every drawn figure of `run` has texts that neither overlap nor leave the figure,
+/// all at least 9 pt at the print size.
+fn assert_clean_text(run: &Run, what: &str) {
+    let inputs = inputs(run);
+    let texts = figure_texts(&inputs, &ReportParams::default()).unwrap();
+    assert!(!texts.is_empty(), "{what}: no figure drawn");
+    let mut problems = Vec::new();
+    for figure in &texts {
+        assert!(
+            figure.boxes.len() >= 3,
+            "{what}: {} has only {} texts",
+            figure.name,
+            figure.boxes.len()
+        );
+        problems.extend(figure.problems());
+    }
+    assert!(problems.is_empty(), "{what}:\n{}", problems.join("\n"));
+}
+
+#[test]
+fn no_two_texts_of_any_figure_overlap() {
+    // The arm with the probe grid and the invariance comparison: every arm figure.
+    assert_clean_text(&run("planar-arm", 40, true, 3, 12), "arm, d = 3");
+    // The arm embedded in 2-D: the planar versions of Fig. 5d and embedding-pose.
+    assert_clean_text(&run("planar-arm", 30, true, 2, 0), "arm, d = 2");
+    // The toys: Fig. 1, Fig. 2 and the 1-D embedding.
+    let mut redundant = run("toy-redundant", 30, false, 1, 12);
+    redundant.manifolds = sweep(&redundant, 50);
+    assert_clean_text(&redundant, "toy-redundant");
+    let mut line = run("toy-line", 40, false, 1, 12);
+    line.manifolds = sweep(&line, 50);
+    assert_clean_text(&line, "toy-line");
+}
+
+/// The check finds overlaps: two texts drawn on top of each other are reported.
+#[test]
+fn overlapping_texts_are_found() {
+    // 9 pt at 300 dpi is an em of 37.5 pixels.
+    let text = |name: &str, left: i32, em_px: f64| smspace::report::TextBox {
+        text: name.to_owned(),
+        left,
+        top: 10,
+        right: left + 40,
+        bottom: 30,
+        em_px,
+    };
+    let figure = smspace::report::FigureText {
+        name: "f".to_owned(),
+        size: (300, 100),
+        dpi: 300.0,
+        boxes: vec![
+            text("a", 10, 40.0),
+            text("b", 45, 40.0),
+            text("c", 270, 40.0),
+            text("d", 150, 30.0),
+        ],
+    };
+    let problems = figure.problems();
+    assert_eq!(problems.len(), 3, "{problems:?}");
+    assert!(problems
+        .iter()
+        .any(|p| p.contains("'a'") && p.contains("'b'") && p.contains("overlap")));
+    assert!(problems
+        .iter()
+        .any(|p| p.contains("'c'") && p.contains("leaves")));
+    assert!(problems
+        .iter()
+        .any(|p| p.contains("'d' is 7.2 pt, less than 9 pt")));
+}
+
+/// The raw sensory manifold of each environment along a sweep of the motors from -1 to 1.
+fn sweep(run: &Run, t: usize) -> Vec<SensoryManifold> {
+    let n = run.agent.motor_dim();
+    let k = run.agent.sensor_dim();
+    let motors = Array2::from_shape_fn((t, n), |(i, _)| -1.0 + 2.0 * i as f64 / (t - 1) as f64);
+    run.environments
+        .iter()
+        .enumerate()
+        .map(|(e, env)| {
+            let mut sensors = Array2::zeros((t, k));
+            for i in 0..t {
+                let mut out = vec![0.0; k];
+                run.agent.sense(env, &motors.row(i).to_vec(), &mut out);
+                sensors.row_mut(i).assign(&ndarray::ArrayView1::from(&out));
+            }
+            SensoryManifold {
+                label: format!("environment {}", e + 1),
+                motors: motors.clone(),
+                sensors,
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn warnings_open_the_report() {
+    let mut run = run("toy-line", 40, false, 1, 0);
+    // An unreliable dimension estimate, as the analysis writes it for lattice data.
+    let twonn = &mut run.analysis.intrinsic_dimension.twonn_detail.reliability;
+    twonn.status = smspace::analysis::dimension::ReliabilityStatus::Unreliable;
+    twonn.reasons = vec![
+        "TwoNN: 80.0 % of the points have their two nearest neighbours equally far".to_owned(),
+    ];
+    let extra = [Warning::new("trace", "a warning passed on by the pipeline")];
+    let mut inputs = inputs(&run);
+    inputs.warnings = &extra;
+    inputs.environments = &run.environments[..1];
+    let dir = tempfile::tempdir().unwrap();
+    let summary = write_report(&inputs, &ReportParams::default(), dir.path()).unwrap();
+    let messages: Vec<&str> = summary
+        .warnings
+        .iter()
+        .map(|w| w.message.as_str())
+        .collect();
+    // toy-line's sets are single points, the estimate above, and the pipeline's warning.
+    assert!(
+        messages.iter().any(|m| m.contains("are single points")),
+        "{messages:?}"
+    );
+    assert!(messages
+        .iter()
+        .any(|m| m.contains("TwoNN intrinsic dimension") && m.contains("80.0 %")));
+    assert!(messages.contains(&"a warning passed on by the pipeline"));
+    let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+    let warnings = html.find("<h2>Warnings</h2>").expect("a Warnings section");
+    assert!(
+        warnings < html.find("id=\"view\"").unwrap(),
+        "warnings come first"
+    );
+    assert!(
+        html.contains("1 motor, 2 sensors; 1 environment;"),
+        "grammar"
+    );
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert!(md.find("## Warnings").unwrap() < md.find("## Numbers").unwrap());
+    assert!(
+        md.lines()
+            .any(|l| l.contains("| TwoNN reliability") && l.contains("| unreliable: 80.0 %")),
+        "{md}"
+    );
+
+    // A run with nothing to flag (every set a closed loop, estimates reliable, one
+    // environment) has no Warnings section.
+    let mut clean = self::run("planar-arm", 30, false, 3, 0);
+    assert_eq!(clean.trace.by_status.keys().collect::<Vec<_>>(), ["closed"]);
+    let d = &mut clean.analysis.intrinsic_dimension;
+    for r in [
+        &mut d.twonn_detail.reliability,
+        &mut d.mle_detail.reliability,
+    ] {
+        r.status = smspace::analysis::dimension::ReliabilityStatus::Reliable;
+        r.reasons.clear();
+    }
+    let mut inputs = self::inputs(&clean);
+    inputs.environments = &clean.environments[..1];
+    let dir = tempfile::tempdir().unwrap();
+    let summary = write_report(&inputs, &ReportParams::default(), dir.path()).unwrap();
+    assert!(summary.warnings.is_empty(), "{:?}", summary.warnings);
+    let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+    assert!(!html.contains("Warnings") && !html.contains("#warnings"));
 }

@@ -197,9 +197,10 @@ impl Plan {
             .sets_bytes(r.sample_sets as u64, self.motors() as usize);
         // Pixels of the figures drawn at once (one per thread, RGB), and the per-set
         // derived data (poses, colours, the 3-D view's points).
+        let (panel_width, panel_height) = r.panel_pixels();
         let pixels = product(&[
-            r.panel_width as u64,
-            r.panel_height as u64,
+            panel_width,
+            panel_height,
             3 * 4,
             rayon::current_num_threads() as u64,
         ]);

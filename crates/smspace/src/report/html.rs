@@ -1,9 +1,12 @@
-//! `report.html`: one self-contained file that works offline.
+//! `report.html`: the run's report, which works offline.
 //!
-//! Everything is inline: the figures (PNG as `data:` URLs, or the SVG text), the
-//! numbers, and an interactive view of the embedding drawn by plotly.js, whose source
-//! (`assets/plotly-2.12.1.min.js`) is embedded in the library and written into the
-//! page. The page loads nothing from anywhere.
+//! The page holds the warnings, the numbers, the figures and an interactive view of
+//! the embedding drawn by plotly.js, whose source (`assets/plotly-2.12.1.min.js`) is
+//! embedded in the library. By default the page loads plotly.js from
+//! `assets/plotly-2.12.1.min.js` and the figures from `figures/`, next to it in the run
+//! folder (the library is written there with the report, atomically: 3.6 MB per run
+//! folder instead of inside every page); a self-contained page inlines both (PNG as `data:`
+//! URLs, or the SVG text). Either way it loads nothing from any other place.
 //!
 //! For automated checks (`.ci/browser-check`), a script that runs first records
 //! `window.onerror`, unhandled rejections and `console.error` calls; once
@@ -11,15 +14,74 @@
 //! `data-errors` (the number of recorded errors) and `data-webgl` (`yes` when a WebGL
 //! canvas of non-zero size exists in the plot's `<div>`).
 
+use std::path::PathBuf;
+
 use base64::Engine;
 use serde_json::{json, Value};
 
 use super::plot::Rendered;
 use super::tables::{num, Table};
-use super::{FigureRecord, ReportInputs};
+use super::{FigureRecord, ReportInputs, Warning};
 
 /// plotly.js, MIT licence (see `assets/README.md`).
 static PLOTLY_JS: &str = include_str!("../../assets/plotly-2.12.1.min.js");
+
+/// Where a linked page finds plotly.js, relative to the report folder.
+const PLOTLY_PATH: &str = "assets/plotly-2.12.1.min.js";
+
+/// plotly.js as a file of the report: its path relative to the report folder and its
+/// bytes (staged with the report's other files, so written atomically and hashed like
+/// them).
+pub(super) fn plotly_file() -> (PathBuf, Vec<u8>) {
+    (PathBuf::from(PLOTLY_PATH), PLOTLY_JS.as_bytes().to_vec())
+}
+
+/// `n thing` or `n things`.
+pub(super) fn count(n: usize, thing: &str) -> String {
+    format!("{n} {thing}{}", if n == 1 { "" } else { "s" })
+}
+
+/// The sentence that says which figures were not drawn (their reasons are in
+/// `report.json`; without planar poses it says that this is why the figures of poses
+/// are missing), or `None` when every figure was drawn.
+pub(super) fn skipped_sentence<'r>(
+    inputs: &ReportInputs<'_>,
+    records: impl Iterator<Item = &'r FigureRecord>,
+) -> Option<String> {
+    let names: Vec<&str> = records
+        .filter(|r| r.skipped.is_some())
+        .map(|r| r.name.as_str())
+        .collect();
+    let why = if inputs.poses.is_none() {
+        "report.json says why; the agent has no planar ground truth (x, y, alpha), so none of the figures of poses is drawn"
+    } else {
+        "report.json says why"
+    };
+    match names.as_slice() {
+        [] => None,
+        [one] => Some(format!(
+            "The figure {one} does not apply to this run ({why})."
+        )),
+        [rest @ .., last] => Some(format!(
+            "The figures {} and {last} do not apply to this run ({why}).",
+            rest.join(", ")
+        )),
+    }
+}
+
+/// One sentence on the agent and the data: `Agent X: 1 motor, 2 sensors; …`.
+pub(super) fn overview(inputs: &ReportInputs<'_>) -> String {
+    format!(
+        "{}, {}; {}; {}, {} of {}, embedding dimension {}.",
+        count(inputs.agent.motor_dim(), "motor"),
+        count(inputs.agent.sensor_dim(), "sensor"),
+        count(inputs.environments.len(), "environment"),
+        count(inputs.motors.nrows(), "explored configuration"),
+        count(inputs.sets.len_of(ndarray::Axis(0)), "kernel set"),
+        count(inputs.sets.len_of(ndarray::Axis(1)), "point"),
+        inputs.embedding.ncols()
+    )
+}
 
 /// Escapes text for HTML content and attribute values.
 pub(super) fn escape(text: &str) -> String {
@@ -82,7 +144,9 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; }
 figure { margin: 1.5em 0; }
 figure img, figure svg { max-width: 100%; height: auto; border: 1px solid #eee; }
 figcaption { font-size: 0.95em; color: #444; margin-top: 0.3em; }
-.skipped { color: #777; }
+.skipped { color: #555; }
+.warnings { border: 1px solid #d9a400; background: #fff8e1; padding: 0.4em 1em; }
+.warnings li { margin: 0.3em 0; }
 pre { background: #f7f7f7; padding: 1em; overflow-x: auto; border: 1px solid #e5e5e5; }
 #embedding-view { width: 100%; height: 680px; border: 1px solid #eee; }
 nav a { margin-right: 1em; }
@@ -94,8 +158,8 @@ fn plot_spec(inputs: &ReportInputs<'_>) -> Value {
     let mut trace = json!({
         "name": "kernel sets",
         "mode": "markers",
-        "text": hover_text(inputs),
-        "hovertemplate": "%{text}<extra></extra>",
+        "customdata": hover_data(inputs),
+        "hovertemplate": if inputs.poses.is_some() { HOVER_TEMPLATE } else { HOVER_TEMPLATE_NO_POSE },
     });
     let layout_axes = place_points(&mut trace, inputs);
     let marker_size = if d >= 3 { 2.5 } else { 4.0 };
@@ -125,9 +189,10 @@ fn plot_spec(inputs: &ReportInputs<'_>) -> Value {
     json!({"data": [trace], "layout": layout})
 }
 
-/// `v` rounded to six decimals, to keep the page small.
-fn round6(v: f64) -> f64 {
-    (v * 1e6).round() / 1e6
+/// `v` rounded to four decimals, to keep the page small (a ten-thousandth of the
+/// embedding's or the pose's units is below what the view can show).
+fn round4(v: f64) -> f64 {
+    (v * 1e4).round() / 1e4
 }
 
 /// Coordinate `c` (0 = x, 1 = y, 2 = alpha) of the pose of set `i`, when there are
@@ -136,35 +201,45 @@ fn set_pose(inputs: &ReportInputs<'_>, i: usize, c: usize) -> Option<f64> {
     inputs.poses.map(|poses| poses[[inputs.kept[i], c]])
 }
 
-/// The hover text of every set: its exploration row, pose and probe label.
-fn hover_text(inputs: &ReportInputs<'_>) -> Vec<String> {
+/// What hovering a point shows, from its `customdata` ([`hover_data`]).
+const HOVER_TEMPLATE: &str = "set %{pointNumber}, exploration row %{customdata[0]}<br>x = %{customdata[1]} m, y = %{customdata[2]} m<br>alpha = %{customdata[3]} rad (%{customdata[4]}\u{b0})<br>%{customdata[5]}<extra></extra>";
+
+/// What hovering a point shows when there are no planar poses.
+const HOVER_TEMPLATE_NO_POSE: &str =
+    "set %{pointNumber}, exploration row %{customdata[0]}<br>%{customdata[1]}<extra></extra>";
+
+/// The data behind the hover text of every set, as short as it can be (plotly builds
+/// the text from [`HOVER_TEMPLATE`]): its exploration row, pose (4 significant
+/// digits), orientation in degrees and probe label; without planar poses, its row and
+/// probe label ([`HOVER_TEMPLATE_NO_POSE`]).
+fn hover_data(inputs: &ReportInputs<'_>) -> Vec<Value> {
     let m = inputs.embedding.nrows();
     let pose = |i: usize, c: usize| set_pose(inputs, i, c);
-    let mut text = Vec::with_capacity(m);
-    for i in 0..m {
-        let row = inputs.kept[i];
-        let label = inputs.probes.row(row);
-        let probe = if label[0] >= 0 {
-            format!(
-                "<br>probe: orientation {}, cell ({}, {})",
-                label[0], label[1], label[2]
-            )
-        } else {
-            "<br>babbled".to_owned()
-        };
-        let pose = match (pose(i, 0), pose(i, 1), pose(i, 2)) {
-            (Some(x), Some(y), Some(alpha)) => format!(
-                "<br>x = {} m, y = {} m<br>alpha = {} rad ({:.1}°)",
-                num(x),
-                num(y),
-                num(alpha),
-                alpha.to_degrees()
-            ),
-            _ => String::new(),
-        };
-        text.push(format!("set {i}, exploration row {row}{pose}{probe}"));
-    }
-    text
+    (0..m)
+        .map(|i| {
+            let row = inputs.kept[i];
+            let label = inputs.probes.row(row);
+            let probe = if label[0] >= 0 {
+                format!(
+                    "probe: orientation {}, cell ({}, {})",
+                    label[0], label[1], label[2]
+                )
+            } else {
+                "babbled".to_owned()
+            };
+            match (pose(i, 0), pose(i, 1), pose(i, 2)) {
+                (Some(x), Some(y), Some(alpha)) => json!([
+                    row,
+                    num(x),
+                    num(y),
+                    num(alpha),
+                    format!("{:.1}", alpha.to_degrees()),
+                    probe
+                ]),
+                _ => json!([row, probe]),
+            }
+        })
+        .collect()
 }
 
 /// Sets the trace's type and coordinates for the embedding's dimension (a 3-D scatter
@@ -173,7 +248,7 @@ fn hover_text(inputs: &ReportInputs<'_>) -> Vec<String> {
 fn place_points(trace: &mut Value, inputs: &ReportInputs<'_>) -> Value {
     let e = inputs.embedding;
     let (m, d) = e.dim();
-    let column = |k: usize| -> Vec<f64> { (0..m).map(|i| round6(e[[i, k]])).collect() };
+    let column = |k: usize| -> Vec<f64> { (0..m).map(|i| round4(e[[i, k]])).collect() };
     if d >= 3 {
         trace["type"] = json!("scatter3d");
         trace["x"] = json!(column(0));
@@ -192,16 +267,29 @@ fn place_points(trace: &mut Value, inputs: &ReportInputs<'_>) -> Value {
         trace["x"] = json!(column(0));
         trace["y"] = json!(column(1));
         json!({
-            "xaxis": {"title": {"text": "q1"}},
-            "yaxis": {"title": {"text": "q2"}, "scaleanchor": "x"},
+            "margin": {"l": 70, "r": 20, "t": 60, "b": 60},
+            "xaxis": {"title": {"text": "q1"}, "automargin": true},
+            "yaxis": {"title": {"text": "q2", "standoff": 12}, "scaleanchor": "x", "automargin": true},
         })
     } else {
+        // A 1-D embedding against the observer's x (paper Fig. 2, left), or against
+        // the set's number when there are no planar poses.
         trace["type"] = json!("scattergl");
-        trace["x"] = json!(if d == 1 { column(0) } else { Vec::new() });
-        trace["y"] = json!((0..m).collect::<Vec<_>>());
+        let (x, x_title): (Vec<f64>, &str) = match inputs.poses {
+            Some(_) => (
+                (0..m)
+                    .map(|i| set_pose(inputs, i, 0).map_or(0.0, round4))
+                    .collect(),
+                "observer's x (m)",
+            ),
+            None => ((0..m).map(|i| i as f64).collect(), "set"),
+        };
+        trace["x"] = json!(x);
+        trace["y"] = json!(if d == 1 { column(0) } else { vec![0.0; m] });
         json!({
-            "xaxis": {"title": {"text": "q1"}},
-            "yaxis": {"title": {"text": "set index"}},
+            "margin": {"l": 70, "r": 20, "t": 60, "b": 60},
+            "xaxis": {"title": {"text": x_title}, "automargin": true},
+            "yaxis": {"title": {"text": "embedding q1", "standoff": 12}, "automargin": true},
         })
     }
 }
@@ -247,7 +335,7 @@ fn pose_buttons(inputs: &ReportInputs<'_>, marker_size: f64) -> (Vec<Value>, Opt
         .enumerate()
     {
         let Some(values) = (0..m)
-            .map(|i| set_pose(inputs, i, c).map(round6))
+            .map(|i| set_pose(inputs, i, c).map(round4))
             .collect::<Option<Vec<f64>>>()
         else {
             // No planar poses: no colouring by pose.
@@ -295,9 +383,11 @@ fn probe_button(inputs: &ReportInputs<'_>) -> Option<Value> {
         .map(|i| {
             let o = orientation(i);
             if o < 0 {
-                "rgba(160,160,160,0.35)".to_owned()
+                "#ddd".to_owned()
             } else {
-                format!("hsl({}, 75%, 45%)", 360 * o / orientations)
+                let alpha = std::f64::consts::TAU * o as f64 / orientations as f64;
+                let c = super::plot::ColorScale::Circular.color(crate::agent::wrap_angle(alpha));
+                format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
             }
         })
         .collect();
@@ -374,87 +464,127 @@ fn inline_svg(svg: &str) -> &str {
     }
 }
 
-/// The whole page.
-pub(super) fn html(
-    inputs: &ReportInputs<'_>,
-    tables: &[Table],
-    figures: &[(FigureRecord, Rendered)],
-) -> String {
-    let mut out = String::with_capacity(PLOTLY_JS.len() + (1 << 20));
-    out.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n");
-    out.push_str(HEAD_SCRIPT);
-    out.push_str(&format!(
-        "\n<title>{}</title>\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n",
-        escape(inputs.name)
-    ));
-    out.push_str(STYLE);
-    out.push_str("\n</head>\n<body data-plot-status=\"pending\">\n");
-    out.push_str(&format!(
-        "<h1>{}</h1>\n<p>{}</p>\n",
-        escape(inputs.name),
-        escape(inputs.description)
-    ));
-    out.push_str(&format!(
-        "<p>Agent <b>{}</b>: {} motors, {} sensors; {} environment(s); {} explored configurations, {} kernel sets of {} points, embedding dimension {}.</p>\n",
-        escape(inputs.agent.name()),
-        inputs.agent.motor_dim(),
-        inputs.agent.sensor_dim(),
-        inputs.environments.len(),
-        inputs.motors.nrows(),
-        inputs.sets.len_of(ndarray::Axis(0)),
-        inputs.sets.len_of(ndarray::Axis(1)),
-        inputs.embedding.ncols()
-    ));
-    out.push_str("<nav><a href=\"#view\">interactive view</a><a href=\"#numbers\">numbers</a><a href=\"#figures\">figures</a><a href=\"#config\">configuration</a></nav>\n");
+/// Everything the page shows.
+pub(super) struct Page<'p, 'a> {
+    pub(super) inputs: &'p ReportInputs<'a>,
+    pub(super) tables: &'p [Table],
+    pub(super) figures: &'p [(FigureRecord, Rendered)],
+    pub(super) warnings: &'p [Warning],
+    /// Inline plotly.js and the figures instead of loading them from the run folder.
+    pub(super) self_contained: bool,
+}
 
-    out.push_str("<h2 id=\"view\">Interactive view of the embedding</h2>\n");
-    out.push_str("<p>Drag to rotate, scroll to zoom; the menu colours the points by a pose coordinate or by probe orientation; hovering a point shows its set, exploration row and pose.</p>\n");
-    out.push_str("<div id=\"embedding-view\"></div>\n");
-
-    out.push_str("<h2 id=\"numbers\">Numbers</h2>\n");
-    for t in tables {
-        table_html(t, &mut out);
-    }
-
-    out.push_str("<h2 id=\"figures\">Figures</h2>\n");
-    for (record, rendered) in figures {
-        let id = escape(&record.name);
-        if let Some(reason) = &record.skipped {
-            out.push_str(&format!(
-                "<p class=\"skipped\" id=\"{id}\"><b>{id}</b> skipped: {}</p>\n",
-                escape(reason)
-            ));
-            continue;
-        }
-        out.push_str(&format!("<figure id=\"{id}\">\n"));
-        if let Some(png) = &rendered.png {
-            out.push_str(&format!(
-                "<img alt=\"{}\" src=\"data:image/png;base64,{}\">\n",
-                escape(&record.caption),
-                base64::engine::general_purpose::STANDARD.encode(png)
-            ));
-        } else if let Some(svg) = &rendered.svg {
-            out.push_str(inline_svg(svg));
-            out.push('\n');
-        }
+impl Page<'_, '_> {
+    /// The whole page.
+    pub(super) fn html(&self) -> String {
+        let inputs = self.inputs;
+        let mut out = String::with_capacity(1 << 20);
+        out.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n");
+        out.push_str(HEAD_SCRIPT);
         out.push_str(&format!(
-            "<figcaption><b>{id}</b>: {}</figcaption>\n</figure>\n",
-            escape(&record.caption)
+            "\n<title>{}</title>\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n",
+            escape(inputs.name)
         ));
+        out.push_str(STYLE);
+        out.push_str("\n</head>\n<body data-plot-status=\"pending\">\n");
+        out.push_str(&format!(
+            "<h1>{}</h1>\n<p>{}</p>\n",
+            escape(inputs.name),
+            escape(inputs.description)
+        ));
+        out.push_str(&format!(
+            "<p>Agent <b>{}</b>: {}</p>\n",
+            escape(inputs.agent.name()),
+            escape(&overview(inputs))
+        ));
+        out.push_str("<nav>");
+        if !self.warnings.is_empty() {
+            out.push_str("<a href=\"#warnings\">warnings</a>");
+        }
+        out.push_str("<a href=\"#view\">interactive view</a><a href=\"#numbers\">numbers</a><a href=\"#figures\">figures</a><a href=\"#config\">configuration</a></nav>\n");
+        self.warnings_html(&mut out);
+        out.push_str("<h2 id=\"view\">Interactive view of the embedding</h2>\n");
+        out.push_str("<p>Drag to rotate, scroll to zoom; the menu colours the points by a pose coordinate or by probe orientation; hovering a point shows its set, exploration row and pose.</p>\n");
+        out.push_str("<div id=\"embedding-view\"></div>\n");
+        out.push_str("<h2 id=\"numbers\">Numbers</h2>\n");
+        for t in self.tables {
+            table_html(t, &mut out);
+        }
+        self.figures_html(&mut out);
+        out.push_str("<h2 id=\"config\">Configuration</h2>\n<pre>");
+        out.push_str(&escape(inputs.config_toml));
+        out.push_str("</pre>\n");
+        out.push_str("<script id=\"embedding-data\" type=\"application/json\">");
+        out.push_str(&script_json(&plot_spec(inputs)));
+        if self.self_contained {
+            out.push_str("</script>\n<script>\n");
+            out.push_str(PLOTLY_JS);
+            out.push_str("\n</script>\n");
+        } else {
+            out.push_str(&format!(
+                "</script>\n<script src=\"{PLOTLY_PATH}\"></script>\n"
+            ));
+        }
+        out.push_str(PLOT_SCRIPT);
+        out.push_str("\n</body>\n</html>\n");
+        out
     }
 
-    out.push_str("<h2 id=\"config\">Configuration</h2>\n<pre>");
-    out.push_str(&escape(inputs.config_toml));
-    out.push_str("</pre>\n");
+    /// The "Warnings" section, first after the overview; nothing without warnings.
+    fn warnings_html(&self, out: &mut String) {
+        if self.warnings.is_empty() {
+            return;
+        }
+        out.push_str("<section class=\"warnings\" id=\"warnings\">\n<h2>Warnings</h2>\n<ul>\n");
+        for w in self.warnings {
+            out.push_str(&format!(
+                "<li><b>{}</b>: {}</li>\n",
+                escape(&w.stage),
+                escape(&w.message)
+            ));
+        }
+        out.push_str("</ul>\n</section>\n");
+    }
 
-    out.push_str("<script id=\"embedding-data\" type=\"application/json\">");
-    out.push_str(&script_json(&plot_spec(inputs)));
-    out.push_str("</script>\n<script>\n");
-    out.push_str(PLOTLY_JS);
-    out.push_str("\n</script>\n");
-    out.push_str(PLOT_SCRIPT);
-    out.push_str("\n</body>\n</html>\n");
-    out
+    /// The figures with their captions, and one sentence on those not drawn.
+    fn figures_html(&self, out: &mut String) {
+        out.push_str("<h2 id=\"figures\">Figures</h2>\n");
+        if let Some(sentence) = skipped_sentence(self.inputs, self.figures.iter().map(|(r, _)| r)) {
+            out.push_str(&format!("<p class=\"skipped\">{}</p>\n", escape(&sentence)));
+        }
+        for (record, rendered) in self.figures {
+            if record.skipped.is_some() {
+                continue;
+            }
+            let id = escape(&record.name);
+            out.push_str(&format!("<figure id=\"{id}\">\n"));
+            let alt = escape(&record.caption);
+            let file = |ext: &str| {
+                record
+                    .files
+                    .iter()
+                    .find(|p| p.extension().is_some_and(|e| e == ext))
+                    .map(|p| p.to_string_lossy().replace('\\', "/"))
+            };
+            if self.self_contained {
+                if let Some(png) = &rendered.png {
+                    out.push_str(&format!(
+                        "<img alt=\"{alt}\" src=\"data:image/png;base64,{}\">\n",
+                        base64::engine::general_purpose::STANDARD.encode(png)
+                    ));
+                } else if let Some(svg) = &rendered.svg {
+                    out.push_str(inline_svg(svg));
+                    out.push('\n');
+                }
+            } else if let Some(path) = file("png").or_else(|| file("svg")) {
+                out.push_str(&format!("<img alt=\"{alt}\" src=\"{}\">\n", escape(&path)));
+            }
+            out.push_str(&format!(
+                "<figcaption><b>{id}</b>: {}</figcaption>\n</figure>\n",
+                escape(&record.caption)
+            ));
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1,8 +1,9 @@
 //! `report.md`: the numbers as Markdown tables and links to the figures, readable in a
 //! terminal.
 
+use super::html::{overview, skipped_sentence};
 use super::tables::Table;
-use super::{FigureRecord, ReportInputs};
+use super::{FigureRecord, ReportInputs, Warning};
 
 /// A table cell: `|` escaped, line breaks turned into spaces.
 fn cell(text: &str) -> String {
@@ -66,43 +67,44 @@ pub(super) fn markdown(
     inputs: &ReportInputs<'_>,
     tables: &[Table],
     figures: &[FigureRecord],
+    warnings: &[Warning],
 ) -> String {
     let mut out = String::new();
     out.push_str(&format!("# {}\n\n{}\n\n", inputs.name, inputs.description));
     out.push_str(&format!(
-        "Agent **{}**: {} motors, {} sensors; {} environment(s); {} explored configurations, {} kernel sets, embedding dimension {}. The interactive 3-D view is in `report.html`.\n\n",
+        "Agent **{}**: {} The interactive 3-D view is in `report.html`.\n\n",
         inputs.agent.name(),
-        inputs.agent.motor_dim(),
-        inputs.agent.sensor_dim(),
-        inputs.environments.len(),
-        inputs.motors.nrows(),
-        inputs.sets.len_of(ndarray::Axis(0)),
-        inputs.embedding.ncols()
+        overview(inputs)
     ));
+    if !warnings.is_empty() {
+        out.push_str("## Warnings\n\n");
+        for w in warnings {
+            out.push_str(&format!("- **{}**: {}\n", w.stage, w.message));
+        }
+        out.push('\n');
+    }
     out.push_str("## Numbers\n\n");
     for t in tables {
         table_markdown(t, &mut out);
     }
     out.push_str("## Figures\n\n");
-    for f in figures {
-        match &f.skipped {
-            Some(reason) => out.push_str(&format!("- `{}` skipped: {reason}\n\n", f.name)),
-            None => {
-                let link = f
-                    .files
-                    .iter()
-                    .find(|p| p.extension().is_some_and(|e| e == "png"))
-                    .or_else(|| f.files.first());
-                if let Some(path) = link {
-                    let path = path.to_string_lossy().replace('\\', "/");
-                    out.push_str(&format!(
-                        "### {}\n\n![{}]({path})\n\n{}\n\n",
-                        f.name,
-                        f.caption.replace(['[', ']'], ""),
-                        f.caption
-                    ));
-                }
-            }
+    if let Some(sentence) = skipped_sentence(inputs, figures.iter()) {
+        out.push_str(&format!("{sentence}\n\n"));
+    }
+    for f in figures.iter().filter(|f| f.skipped.is_none()) {
+        let link = f
+            .files
+            .iter()
+            .find(|p| p.extension().is_some_and(|e| e == "png"))
+            .or_else(|| f.files.first());
+        if let Some(path) = link {
+            let path = path.to_string_lossy().replace('\\', "/");
+            out.push_str(&format!(
+                "### {}\n\n![{}]({path})\n\n{}\n\n",
+                f.name,
+                f.caption.replace(['[', ']'], ""),
+                f.caption
+            ));
         }
     }
     let fence = fence(inputs.config_toml);

@@ -1,33 +1,52 @@
-//! The last stage: figures (PNG and SVG), `report.html` (self-contained, with an
-//! interactive 3-D view of the embedding) and `report.md`, from the outputs of the
-//! earlier stages.
+//! The last stage: figures (PNG and SVG), `report.html` (with an interactive 3-D view
+//! of the embedding) and `report.md`, from the outputs of the earlier stages.
 //!
 //! The report mirrors the paper's figures: Fig. 1 (toy-line's sensory manifolds in two
 //! environments, section 2.2), Fig. 2 (toy-redundant's kernel lines and learned 1-D
 //! manifold, section 2.3), Fig. 5a/5b/5d (the arm's explored configurations, kernel
-//! sets in motor space, the CCA embedding with the probe surfaces, section 3.3), plus
+//! sets in motor space, the CCA embedding with the probe sheets, section 3.3), plus
 //! the embedding coloured by each pose coordinate, the persistence diagram, the CCA
 //! `dy–dx` plot and the environment-invariance comparison. A figure whose inputs are
-//! absent (e.g. no probe grid) is skipped and listed as such in the summary.
+//! absent (e.g. no probe grid) is skipped, with its reason in `report.json`.
+//!
+//! **Warnings first.** Everything the run flagged (sets the tracer could not trace
+//! or kept as single points, dimension estimates the data make unreliable, analyses
+//! that did not run, and any figure of this run whose texts overlap) opens the report,
+//! in a "Warnings" section ([`warnings`]).
+//!
+//! **Print sizes.** A panel prints `panel_width_in × panel_height_in` inches (3.5 ×
+//! 2.8, one journal column; two-panel figures are a page wide), the PNG has `dpi`
+//! (300) pixels per inch and says so, the SVG gives its size in inches, and every text
+//! is at least 9 pt at that size. [`figure_texts`] returns the box of every text of
+//! every figure, to check that none overlaps another.
+//!
+//! **One plotting library per run folder.** `report.html` loads plotly.js from
+//! `assets/` next to it (written with the report, atomically) and shows the figures
+//! from `figures/`; `self_contained = true` embeds both in the page instead.
 //!
 //! This module is the only one that knows every stage: it reads their outputs and
 //! never runs them.
 
 mod figures;
 mod html;
+mod layout;
 mod markdown;
+mod plan;
 mod plot;
 mod tables;
+mod view3d;
+pub mod warnings;
 
 use std::path::{Path, PathBuf};
 
 use ndarray::{Array2, ArrayView2, ArrayView3, Axis};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::agent::{Agent, Environment, MotorSpace};
+pub use layout::{FigureText, TextBox};
+pub use warnings::Warning;
+
+use crate::agent::{Agent, Environment};
 use crate::analysis::AnalysisReport;
 use crate::embed::EmbedReport;
 use crate::explore::Workspace;
@@ -153,6 +172,9 @@ pub struct ReportInputs<'a> {
     pub sensory_manifolds: &'a [SensoryManifold],
     /// Time per stage.
     pub stages: &'a [StageTiming],
+    /// Warnings of the earlier stages that the report does not derive itself from the
+    /// inputs above (it derives those of the trace summary and the analysis).
+    pub warnings: &'a [Warning],
 }
 
 /// Which image files each figure is written as.
@@ -176,14 +198,22 @@ pub struct ReportParams {
     pub formats: FigureFormats,
     /// Explored configurations drawn in Fig. 5a. Default 60.
     pub sample_configurations: usize,
-    /// Kernel sets drawn in Fig. 2 / 5b. Default 40.
+    /// Kernel sets drawn in Fig. 2 (Fig. 5b draws the first 12 of them, one colour
+    /// each). Default 40.
     pub sample_sets: usize,
     /// Seed of the samples above. Default 1.
     pub seed: u64,
-    /// Width of a figure panel in pixels. Default 640.
-    pub panel_width: u32,
-    /// Height of a figure panel in pixels. Default 480.
-    pub panel_height: u32,
+    /// Print width of one figure panel, inches. Default 3.5 (one journal column; a
+    /// figure of two panels side by side is 7 in, a page).
+    pub panel_width_in: f64,
+    /// Print height of one figure panel, inches. Default 2.8.
+    pub panel_height_in: f64,
+    /// Pixels per inch of the PNG figures at their print size. Default 300.
+    pub dpi: u32,
+    /// `true`: `report.html` embeds plotly.js and the figures, one file that works
+    /// anywhere; `false`: it loads them from `assets/` and `figures/` next to it, one
+    /// copy of the plotting library per run folder. Default `false`.
+    pub self_contained: bool,
 }
 
 impl Default for ReportParams {
@@ -193,8 +223,10 @@ impl Default for ReportParams {
             sample_configurations: 60,
             sample_sets: 40,
             seed: 1,
-            panel_width: 640,
-            panel_height: 480,
+            panel_width_in: 3.5,
+            panel_height_in: 2.8,
+            dpi: 300,
+            self_contained: false,
         }
     }
 }
@@ -215,29 +247,55 @@ pub struct FigureRecord {
 /// What [`write_report`] wrote.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ReportSummary {
+    /// What the run flagged, as listed at the top of the report.
+    #[serde(default)]
+    pub warnings: Vec<Warning>,
     /// The figures, in the report's order.
     pub figures: Vec<FigureRecord>,
+    /// Files `report.html` loads, relative to the report folder (`assets/…`; empty
+    /// when self-contained).
+    #[serde(default)]
+    pub assets: Vec<PathBuf>,
     /// `report.html`, relative to the report folder.
     pub html: PathBuf,
     /// `report.md`, relative to the report folder.
     pub markdown: PathBuf,
 }
 
-/// Largest panel side accepted, in pixels.
-const MAX_PANEL_PIXELS: u32 = 4000;
+/// Largest side of a panel accepted, in pixels (`inches × dpi`).
+const MAX_PANEL_PIXELS: f64 = 3000.0;
 
 impl ReportParams {
+    /// The size of one panel in pixels, `(width, height)`: its print size times `dpi`
+    /// (a figure is one to four panels).
+    pub fn panel_pixels(&self) -> (u64, u64) {
+        let dpi = f64::from(self.dpi);
+        let pixels = |inches: f64| (inches * dpi).round().max(0.0) as u64;
+        (pixels(self.panel_width_in), pixels(self.panel_height_in))
+    }
+
     /// Checks the parameters.
     pub fn check(&self) -> Result<(), ReportError> {
+        if !(72..=1200).contains(&self.dpi) {
+            return Err(ReportError::InvalidParameter {
+                name: "dpi",
+                value: self.dpi.to_string(),
+                reason: "must be between 72 and 1200 pixels per inch".to_owned(),
+            });
+        }
         for (name, value, least) in [
-            ("panel_width", self.panel_width, 320),
-            ("panel_height", self.panel_height, 240),
+            ("panel_width_in", self.panel_width_in, 2.0),
+            ("panel_height_in", self.panel_height_in, 1.5),
         ] {
-            if !(least..=MAX_PANEL_PIXELS).contains(&value) {
+            let most = MAX_PANEL_PIXELS / f64::from(self.dpi);
+            if !(value.is_finite() && value >= least && value <= most) {
                 return Err(ReportError::InvalidParameter {
                     name,
                     value: value.to_string(),
-                    reason: format!("must be between {least} and {MAX_PANEL_PIXELS} pixels"),
+                    reason: format!(
+                        "must be between {least} and {most:.2} inches (at most {MAX_PANEL_PIXELS} pixels at dpi = {}); figures with smaller panels cannot hold their 9-point text",
+                        self.dpi
+                    ),
                 });
             }
         }
@@ -418,504 +476,9 @@ fn check_invariance(inv: &InvarianceData) -> Result<(), ReportError> {
     Ok(())
 }
 
-/// What every figure needs besides the inputs.
-struct Derived {
-    /// `(M, 3)`: the planar pose of every set's exploration row, when there are poses.
-    set_poses: Option<Array2<f64>>,
-    /// Unit of motor coordinates and of set distances.
-    motor_unit: &'static str,
-    space: MotorSpace,
-}
-
-/// Why the figures of poses are skipped when there are none.
-const NO_PLANAR_POSES: &str = "the agent has no planar ground truth (x, y, alpha) to colour or place the sets by, so the figures of poses are skipped";
-
-fn derive(inputs: &ReportInputs<'_>) -> Derived {
-    let m = inputs.kept.len();
-    let set_poses = inputs.poses.map(|poses| {
-        let mut set_poses = Array2::zeros((m, 3));
-        for (i, &row) in inputs.kept.iter().enumerate() {
-            set_poses.row_mut(i).assign(&poses.row(row));
-        }
-        set_poses
-    });
-    let space = inputs.agent.motor_space();
-    let motor_unit = if space.is_hinges() {
-        "rad"
-    } else if space.is_bounded() {
-        "m"
-    } else {
-        "rad or m"
-    };
-    Derived {
-        set_poses,
-        motor_unit,
-        space,
-    }
-}
-
-/// A seeded sample of `k` of `0..n` (all when `k ≥ n`), sorted; `stream` separates the
-/// samples of different figures.
-fn sample(n: usize, k: usize, seed: u64, stream: u64) -> Vec<usize> {
-    if k >= n {
-        return (0..n).collect();
-    }
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    rng.set_stream(stream);
-    let mut picked = rand::seq::index::sample(&mut rng, n, k).into_vec();
-    picked.sort_unstable();
-    picked
-}
-
-/// A figure ready to draw, or why it is skipped.
-enum Planned<'a> {
-    Skip(String),
-    SensoryManifolds(figures::SensoryManifolds<'a>),
-    KernelLines(figures::KernelLines<'a>),
-    LearnedManifold(figures::LearnedManifold<'a>),
-    Configurations(figures::Configurations),
-    KernelSets3d(figures::KernelSets3d<'a>),
-    EmbeddingProbes(figures::EmbeddingProbes<'a>),
-    EmbeddingPose(figures::EmbeddingPose<'a>),
-    Persistence(figures::PersistenceDiagram<'a>),
-    DyDx(figures::DyDx<'a>),
-    Invariance(figures::Invariance),
-    Stress(figures::StressTrace<'a>),
-}
-
-impl Planned<'_> {
-    fn render(&self, name: &str, formats: FigureFormats) -> Result<plot::Rendered, ReportError> {
-        use plot::render;
-        match self {
-            Planned::Skip(_) => Ok(plot::Rendered::default()),
-            Planned::SensoryManifolds(f) => render(f, name, formats),
-            Planned::KernelLines(f) => render(f, name, formats),
-            Planned::LearnedManifold(f) => render(f, name, formats),
-            Planned::Configurations(f) => render(f, name, formats),
-            Planned::KernelSets3d(f) => render(f, name, formats),
-            Planned::EmbeddingProbes(f) => render(f, name, formats),
-            Planned::EmbeddingPose(f) => render(f, name, formats),
-            Planned::Persistence(f) => render(f, name, formats),
-            Planned::DyDx(f) => render(f, name, formats),
-            Planned::Invariance(f) => render(f, name, formats),
-            Planned::Stress(f) => render(f, name, formats),
-        }
-    }
-}
-
-/// Removes the files of the report's figures that this report did not write: a format
-/// no longer asked for, a figure now skipped. `figures/` then holds only what the
-/// report shows (files of other names are left alone).
-fn remove_stale_figures<'r>(dir: &Path, records: impl Iterator<Item = &'r FigureRecord>) {
-    for record in records {
-        for extension in ["png", "svg"] {
-            let relative = PathBuf::from("figures").join(format!("{}.{extension}", record.name));
-            if !record.files.contains(&relative) {
-                // Absent is the usual case; a file that cannot be removed stays stale
-                // but is not listed by the report.
-                let _ = std::fs::remove_file(dir.join(&relative));
-            }
-        }
-    }
-}
-
-/// One entry of the figure plan: `(name, caption, plan)`.
-type PlannedFigure<'b> = (&'static str, String, Planned<'b>);
-
-/// The figures of the report in order: `(name, caption, plan)`.
-fn plan<'a: 'b, 'b>(
-    inputs: &ReportInputs<'a>,
-    params: &ReportParams,
-    derived: &'b Derived,
-    surfaces: &'b [figures::ProbeSurface],
-) -> Vec<PlannedFigure<'b>> {
-    let planner = Planner {
-        inputs: *inputs,
-        derived,
-        panel: (params.panel_width, params.panel_height),
-    };
-    let sets_sample = sample(inputs.kept.len(), params.sample_sets, params.seed, 2);
-    vec![
-        planner.sensory_manifolds(),
-        planner.kernel_lines(&sets_sample),
-        planner.learned_manifold(),
-        planner.configurations(params),
-        planner.kernel_sets_3d(sets_sample),
-        planner.embedding_probes(surfaces),
-        planner.embedding_pose(),
-        planner.persistence(),
-        planner.dydx(),
-        planner.invariance(),
-        planner.stress(),
-    ]
-}
-
-/// What the plan of every figure reads: one method per figure, each deciding
-/// whether its figure is drawn and with what.
-struct Planner<'a, 'b> {
-    inputs: ReportInputs<'a>,
-    derived: &'b Derived,
-    /// Size of one panel in pixels, `(width, height)`.
-    panel: (u32, u32),
-}
-
-impl<'a: 'b, 'b> Planner<'a, 'b> {
-    /// The observer's `x` for every set.
-    fn set_x(&self) -> Option<Vec<f64>> {
-        let poses = self.derived.set_poses.as_ref()?;
-        Some(poses.column(0).to_vec())
-    }
-
-    /// Fig. 1: the sensory manifolds.
-    fn sensory_manifolds(&self) -> PlannedFigure<'b> {
-        let caption = "Paper Fig. 1 (section 2.2): the sensory manifold S traced by the sensors as the motors sweep their range, in each environment; it depends on the environment.".to_owned();
-        let planned = if self.inputs.sensory_manifolds.is_empty() {
-            Planned::Skip(
-                "no sensory manifolds were given (they are computed for the toy agents)".to_owned(),
-            )
-        } else {
-            Planned::SensoryManifolds(figures::SensoryManifolds {
-                manifolds: self.inputs.sensory_manifolds,
-                agent: self.inputs.agent.name(),
-                motor_unit: self.derived.motor_unit,
-                size: self.panel,
-            })
-        };
-        ("fig1-sensory-manifolds", caption, planned)
-    }
-
-    /// Fig. 2, right: the sampled kernel sets in the motor plane.
-    fn kernel_lines(&self, sets_sample: &[usize]) -> PlannedFigure<'b> {
-        let inputs = &self.inputs;
-        let n = inputs.agent.motor_dim();
-        let caption = format!(
-            "Paper Fig. 2 right (section 2.3): {} kernel sets M^i in the motor plane, each the motor configurations that give the same sensation as its start (black dot); coloured by the observer's x.",
-            sets_sample.len()
-        );
-        let planned = if n != 2 {
-            Planned::Skip(format!(
-                "the agent has N = {n} motors; kernel lines in the motor plane are drawn for N = 2 (see fig5b-kernel-sets-3d for N >= 3)"
-            ))
-        } else if sets_sample.is_empty() {
-            Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
-        } else if self.set_x().is_none() {
-            Planned::Skip(NO_PLANAR_POSES.to_owned())
-        } else {
-            Planned::KernelLines(figures::KernelLines {
-                sets: inputs.sets.reborrow(),
-                starts: sets_sample
-                    .iter()
-                    .map(|&i| {
-                        let row = inputs.motors.row(inputs.kept[i]);
-                        (row[0], row[1])
-                    })
-                    .collect(),
-                sample: sets_sample.to_vec(),
-                set_x: self.set_x().unwrap_or_default(),
-                space: self.derived.space.clone(),
-                motor_unit: self.derived.motor_unit,
-                total: inputs.kept.len(),
-                size: self.panel,
-            })
-        };
-        ("fig2-kernel-lines", caption, planned)
-    }
-
-    /// Fig. 2, left: the learned manifold against `x`.
-    fn learned_manifold(&self) -> PlannedFigure<'b> {
-        let n = self.inputs.agent.motor_dim();
-        let m = self.inputs.kept.len();
-        let d = self.inputs.embedding.ncols();
-        let caption = if d == 1 {
-            "Paper Fig. 2 left (section 2.3): the learned 1-D manifold, the embedding coordinate q1 of every set against the observer's x: a monotonic curve means the agent has captured x.".to_owned()
-        } else {
-            "Paper Fig. 2 (section 2.3): the learned manifold, the first two embedding coordinates of every set, coloured by the observer's x.".to_owned()
-        };
-        let planned = if m == 0 {
-            Planned::Skip("no kernel sets were embedded".to_owned())
-        } else if self.set_x().is_none() {
-            Planned::Skip(NO_PLANAR_POSES.to_owned())
-        } else if d == 1 || (d >= 2 && n == 2) {
-            Planned::LearnedManifold(figures::LearnedManifold {
-                embedding: self.inputs.embedding.reborrow(),
-                set_x: self.set_x().unwrap_or_default(),
-                size: self.panel,
-            })
-        } else {
-            Planned::Skip(format!(
-                "the embedding has d = {d} and the agent N = {n} motors; see embedding-pose and fig5d-embedding-probes"
-            ))
-        };
-        ("fig2-learned-manifold", caption, planned)
-    }
-
-    /// Fig. 5a: a seeded sample of the babbled configurations of the arm.
-    fn configurations(&self, params: &ReportParams) -> PlannedFigure<'b> {
-        let inputs = &self.inputs;
-        let agent = inputs.agent;
-        let babbled: Vec<usize> = (0..inputs.motors.nrows())
-            .filter(|&r| inputs.probes[[r, 0]] < 0)
-            .collect();
-        let picked = sample(babbled.len(), params.sample_configurations, params.seed, 1);
-        let skeletons: Vec<Vec<[f64; 2]>> = picked
-            .iter()
-            .map(|&k| agent.skeleton(&inputs.motors.row(babbled[k]).to_vec()))
-            .collect();
-        let caption = format!(
-            "Paper Fig. 5a (section 3.3): {} of the {} explored (babbled) configurations of the arm, the sensor's orientation alpha as a red tick, the working space and the lights of environment 1.",
-            picked.len(),
-            babbled.len()
-        );
-        let planned = if picked.is_empty() {
-            Planned::Skip(
-                "no babbled configurations to draw (or sample_configurations = 0)".to_owned(),
-            )
-        } else if skeletons.iter().all(Vec::is_empty) {
-            Planned::Skip(format!(
-                "the agent {} has no body to draw (Agent::skeleton is empty)",
-                agent.name()
-            ))
-        } else if let Some(poses) = inputs.poses {
-            Planned::Configurations(figures::Configurations {
-                alphas: picked.iter().map(|&k| poses[[babbled[k], 2]]).collect(),
-                skeletons,
-                workspace: inputs.workspace,
-                environment: inputs.environments.first().cloned(),
-                agent: agent.name().to_owned(),
-                explored: babbled.len(),
-                size: self.panel,
-            })
-        } else {
-            Planned::Skip(NO_PLANAR_POSES.to_owned())
-        };
-        ("fig5a-configurations", caption, planned)
-    }
-
-    /// Fig. 5b: the sampled kernel sets in 3-D motor space.
-    fn kernel_sets_3d(&self, sets_sample: Vec<usize>) -> PlannedFigure<'b> {
-        let n = self.inputs.agent.motor_dim();
-        let caption = format!(
-            "Paper Fig. 5b (section 3.3): {} kernel sets M^i in motor space, two 3-D projections; each closed curve is one set, coordinates wrapped into [-pi, pi).",
-            sets_sample.len()
-        );
-        let planned = if n < 3 {
-            Planned::Skip(format!(
-                "the agent has N = {n} motors; the 3-D view of kernel sets needs N >= 3"
-            ))
-        } else if sets_sample.is_empty() {
-            Planned::Skip("no kernel sets to draw (no sets traced, or sample_sets = 0)".to_owned())
-        } else {
-            Planned::KernelSets3d(figures::KernelSets3d {
-                sets: self.inputs.sets.reborrow(),
-                sample: sets_sample,
-                space: self.derived.space.clone(),
-                motor_unit: self.derived.motor_unit,
-                panel: self.panel,
-            })
-        };
-        ("fig5b-kernel-sets-3d", caption, planned)
-    }
-
-    /// Fig. 5d: the embedding with one probe surface per orientation.
-    fn embedding_probes(&self, surfaces: &'b [figures::ProbeSurface]) -> PlannedFigure<'b> {
-        let m = self.inputs.kept.len();
-        let d = self.inputs.embedding.ncols();
-        let caption = format!(
-            "Paper Fig. 5d (section 3.3): the embedding of the {m} kernel sets (grey) and, for each probe orientation ({}), the surface of the probe sets connected to their grid neighbours, coloured by the probe's x: translations of the sensor at a fixed orientation form a sheet, one per orientation.",
-            surfaces
-                .iter()
-                .map(|s| format!("{:.0} deg", s.alpha.to_degrees()))
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-        let planned = if d < 2 {
-            Planned::Skip(format!(
-                "the embedding has d = {d}; probe surfaces need d >= 2"
-            ))
-        } else if surfaces.is_empty() {
-            Planned::Skip(
-                "no probe rows among the kept sets (explore with probes = \"grid\")".to_owned(),
-            )
-        } else if let Some(set_poses) = &self.derived.set_poses {
-            Planned::EmbeddingProbes(figures::EmbeddingProbes {
-                embedding: self.inputs.embedding.reborrow(),
-                set_poses,
-                surfaces,
-                size: self.panel,
-            })
-        } else {
-            Planned::Skip(NO_PLANAR_POSES.to_owned())
-        };
-        ("fig5d-embedding-probes", caption, planned)
-    }
-
-    /// The embedding coloured by each pose coordinate that varies over the sets.
-    fn embedding_pose(&self) -> PlannedFigure<'b> {
-        let m = self.inputs.kept.len();
-        let d = self.inputs.embedding.ncols();
-        let Some(set_poses) = &self.derived.set_poses else {
-            let caption =
-                format!("The embedding of the {m} kernel sets coloured by the observer's pose.");
-            return (
-                "embedding-pose",
-                caption,
-                Planned::Skip(NO_PLANAR_POSES.to_owned()),
-            );
-        };
-        let varying: Vec<usize> = (0..3)
-            .filter(|&c| {
-                figures_extent(set_poses.column(c).iter().copied())
-                    .is_some_and(|(lo, hi)| hi - lo > 1e-9)
-            })
-            .collect();
-        let caption = format!(
-            "The embedding of the {m} kernel sets coloured by each varying coordinate of the observer's pose ({}); alpha uses a circular colour map. Smooth colour gradients mean the learned manifold is organised like the sensor's configuration.",
-            varying
-                .iter()
-                .map(|&c| ["x", "y", "alpha"][c])
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-        let planned = if m == 0 || d == 0 {
-            Planned::Skip("no kernel sets were embedded".to_owned())
-        } else if varying.is_empty() {
-            Planned::Skip("every pose coordinate is constant over the sets".to_owned())
-        } else {
-            Planned::EmbeddingPose(figures::EmbeddingPose {
-                embedding: self.inputs.embedding.reborrow(),
-                set_poses,
-                coordinates: varying,
-                panel: self.panel,
-            })
-        };
-        ("embedding-pose", caption, planned)
-    }
-
-    /// The persistence diagram of the analysis.
-    fn persistence(&self) -> PlannedFigure<'b> {
-        let caption = "Vietoris-Rips persistence diagram of the set metric rho (Hausdorff distances between kernel sets): points far above the diagonal are robust features; the Betti numbers read off by the gap rule are in the title (the arm's manifold, a circle of orientations times a disc of positions, gives b = [1, 1]).".to_owned();
-        let planned = match self.inputs.analysis {
-            None => Planned::Skip("no analysis was run".to_owned()),
-            Some(a) if a.persistence.iter().all(Vec::is_empty) => {
-                Planned::Skip("the analysis has no persistence bars".to_owned())
-            }
-            Some(a) => Planned::Persistence(figures::PersistenceDiagram {
-                analysis: a,
-                distance_unit: self.derived.motor_unit,
-                size: self.panel,
-            }),
-        };
-        ("persistence-diagram", caption, planned)
-    }
-
-    /// CCA's `dy–dx` plot.
-    fn dydx(&self) -> PlannedFigure<'b> {
-        let caption = "CCA's dy-dx plot: the distance of two sets in the embedding (dy) against their learned distance (dx); points on the diagonal are preserved, CCA favours the small distances (lower left).".to_owned();
-        let planned = match self.inputs.dydx {
-            Some(p) if p.nrows() > 0 => Planned::DyDx(figures::DyDx {
-                pairs: p.reborrow(),
-                distance_unit: self.derived.motor_unit,
-                size: self.panel,
-            }),
-            _ => Planned::Skip(
-                "no dy-dx sample was given (the embedding method is not CCA, or it was not computed)"
-                    .to_owned(),
-            ),
-        };
-        ("dydx", caption, planned)
-    }
-
-    /// Set and sensor distances in the first two environments.
-    fn invariance(&self) -> PlannedFigure<'b> {
-        let caption = "Environment invariance (section 2.3): for the rows traced in two environments, the learned distances between their kernel sets (left) agree across environments, while the distances between their raw sensor values (right) do not.".to_owned();
-        let planned = match self.inputs.invariance {
-            None => Planned::Skip("no invariance comparison was run".to_owned()),
-            Some(inv) if inv.set_distances.len() < 2 => Planned::Skip(
-                "the invariance comparison has fewer than two environments".to_owned(),
-            ),
-            Some(inv) => {
-                Planned::Invariance(invariance_figure(inv, self.derived.motor_unit, self.panel))
-            }
-        };
-        ("invariance", caption, planned)
-    }
-
-    /// CCA's stress per epoch.
-    fn stress(&self) -> PlannedFigure<'b> {
-        let report = self.inputs.embed_report;
-        let caption =
-            "CCA's stress, accumulated over each epoch, as the neighbourhood width lambda shrinks."
-                .to_owned();
-        let planned = if report.stress_trace.is_empty() {
-            Planned::Skip(format!(
-                "the embedding method {} records no stress per epoch",
-                report.method
-            ))
-        } else {
-            Planned::Stress(figures::StressTrace {
-                stress: &report.stress_trace,
-                size: self.panel,
-            })
-        };
-        ("cca-stress", caption, planned)
-    }
-}
-
-/// The invariance figure of environments 1 and 2 (at least two): an evenly spaced
-/// sample of the pairs of common rows, their set distances and sensor distances in
-/// each environment, and the Mantel correlations of the pair `(0, 1)` (or the first).
-fn invariance_figure(
-    inv: &InvarianceData,
-    distance_unit: &'static str,
-    panel: (u32, u32),
-) -> figures::Invariance {
-    let pair = inv
-        .report
-        .pairs
-        .iter()
-        .find(|p| p.a == 0 && p.b == 1)
-        .or(inv.report.pairs.first());
-    let c = inv.set_distances[0].nrows();
-    let all: Vec<(usize, usize)> = (0..c)
-        .flat_map(|i| (i + 1..c).map(move |j| (i, j)))
-        .collect();
-    let drawn: Vec<(usize, usize)> = plot::stride_sample(all.len(), figures::MAX_SCATTER_POINTS)
-        .into_iter()
-        .map(|k| all[k])
-        .collect();
-    let sensor_distance = |s: &Array2<f64>, i: usize, j: usize| {
-        s.row(i)
-            .iter()
-            .zip(s.row(j))
-            .map(|(a, b)| (a - b) * (a - b))
-            .sum::<f64>()
-            .sqrt()
-    };
-    let (d0, d1) = (&inv.set_distances[0], &inv.set_distances[1]);
-    let (s0, s1) = (&inv.sensors[0], &inv.sensors[1]);
-    figures::Invariance {
-        set_pairs: drawn
-            .iter()
-            .map(|&(i, j)| (d0[[i, j]], d1[[i, j]]))
-            .collect(),
-        sensor_pairs: drawn
-            .iter()
-            .map(|&(i, j)| (sensor_distance(s0, i, j), sensor_distance(s1, i, j)))
-            .collect(),
-        mantel: pair.map_or(f64::NAN, |p| p.mantel),
-        sensor_mantel: pair.map_or(f64::NAN, |p| p.sensor_mantel),
-        environments: (0, 1),
-        distance_unit,
-        panel,
-    }
-}
-
-fn figures_extent(values: impl IntoIterator<Item = f64>) -> Option<(f64, f64)> {
-    plot::finite_extent(values)
-}
-
 /// Draws every figure into `dir/figures/` and writes `dir/report.html` and
-/// `dir/report.md`: all of them together or none ([`crate::io::Outputs`]).
+/// `dir/report.md` (and, unless `self_contained`, `dir/assets/` with plotly.js): all
+/// of them together or none ([`crate::io::Outputs`]).
 ///
 /// Figures whose inputs are absent are skipped, with the reason in their
 /// [`FigureRecord`]. Figures are drawn in parallel; the output is the same for any
@@ -937,23 +500,32 @@ pub fn write_report(
 pub struct RenderedReport {
     /// What the report holds (the pipeline writes it as `report.json`).
     pub summary: ReportSummary,
-    /// Every file of the report (figures, `report.html`, `report.md`), relative to the
-    /// report folder, with its bytes.
+    /// Every file of the report (plotly.js under `assets/` unless self-contained,
+    /// `report.html`, the figures, `report.md`), relative to the report folder, with
+    /// its bytes.
     pub files: Vec<(PathBuf, Vec<u8>)>,
 }
 
 impl RenderedReport {
-    /// Stages every file under `dir` into `outputs` (making `dir/figures`), and removes
-    /// the figure files of an earlier report that this one does not write (a format no
-    /// longer asked for, a figure now skipped).
+    /// Stages every file under `dir` into `outputs` (making `dir/figures` and
+    /// `dir/assets`), and removes the figure files of an earlier report that this one
+    /// does not write (a format no longer asked for, a figure now skipped).
     pub fn write_into(&self, outputs: &mut Outputs, dir: &Path) -> Result<(), ReportError> {
-        let figures_dir = dir.join("figures");
-        std::fs::create_dir_all(&figures_dir).map_err(|reason| {
-            ReportError::Io(crate::io::IoError::Write {
-                path: figures_dir.clone(),
-                reason,
-            })
-        })?;
+        let folders: std::collections::BTreeSet<PathBuf> = std::iter::once(dir.join("figures"))
+            .chain(
+                self.files
+                    .iter()
+                    .filter_map(|(relative, _)| dir.join(relative).parent().map(Path::to_owned)),
+            )
+            .collect();
+        for folder in folders {
+            std::fs::create_dir_all(&folder).map_err(|reason| {
+                ReportError::Io(crate::io::IoError::Write {
+                    path: folder.clone(),
+                    reason,
+                })
+            })?;
+        }
         remove_stale_figures(dir, self.summary.figures.iter());
         for (relative, bytes) in &self.files {
             outputs.bytes(&dir.join(relative), bytes)?;
@@ -969,22 +541,32 @@ pub fn render_report(
 ) -> Result<RenderedReport, ReportError> {
     params.check()?;
     check_inputs(inputs)?;
-    let derived = derive(inputs);
-    let surfaces = derived
-        .set_poses
-        .as_ref()
-        .map(|poses| figures::probe_surfaces(inputs.probes, inputs.kept, poses))
-        .unwrap_or_default();
-    let planned = plan(inputs, params, &derived, &surfaces);
+    let derived = plan::derive(inputs);
+    let planned = plan::plan(inputs, params, &derived);
+    let print = plot::Print {
+        dpi: f64::from(params.dpi),
+    };
     let rendered: Vec<Result<plot::Rendered, ReportError>> = planned
         .par_iter()
-        .map(|(name, _, p)| p.render(name, params.formats))
+        .map(|(name, _, p)| p.render(name, params.formats, print))
         .collect();
+    // The reviewer's check on this run's own data: texts that overlap or leave their
+    // figure are reported at the top of the report.
+    let layout: Vec<Result<Option<FigureText>, ReportError>> = planned
+        .par_iter()
+        .map(|(name, _, p)| p.record(name, print))
+        .collect();
+    let mut warnings = warnings::warnings(inputs);
+    for text in layout {
+        for problem in text?.iter().flat_map(FigureText::problems) {
+            warnings.push(Warning::new("report", format!("figure layout: {problem}")));
+        }
+    }
     let mut figures = Vec::with_capacity(planned.len());
     for ((name, caption, p), r) in planned.into_iter().zip(rendered) {
         let r = r?;
         let skipped = match p {
-            Planned::Skip(reason) => Some(reason),
+            plan::Planned::Skip(reason) => Some(reason),
             _ => None,
         };
         figures.push((
@@ -997,10 +579,23 @@ pub fn render_report(
             r,
         ));
     }
-    let tables = tables::tables(inputs);
-    let html_text = html::html(inputs, &tables, &figures);
-    let html_path = PathBuf::from("report.html");
     let mut files = Vec::new();
+    let mut assets = Vec::new();
+    if !params.self_contained {
+        let (path, bytes) = html::plotly_file();
+        assets.push(path.clone());
+        files.push((path, bytes));
+    }
+    let tables = tables::tables(inputs);
+    let page = html::Page {
+        inputs,
+        tables: &tables,
+        figures: &figures,
+        warnings: &warnings,
+        self_contained: params.self_contained,
+    };
+    let html_path = PathBuf::from("report.html");
+    files.push((html_path.clone(), page.html().into_bytes()));
     let mut records = Vec::with_capacity(figures.len());
     for (record, r) in figures {
         // A figure's files are its PNG then its SVG (see `plot::render`).
@@ -1008,16 +603,59 @@ pub fn render_report(
         files.extend(record.files.iter().cloned().zip(bytes));
         records.push(record);
     }
-    let md_text = markdown::markdown(inputs, &tables, &records);
+    let md_text = markdown::markdown(inputs, &tables, &records, &warnings);
     let md_path = PathBuf::from("report.md");
-    files.push((html_path.clone(), html_text.into_bytes()));
     files.push((md_path.clone(), md_text.into_bytes()));
     Ok(RenderedReport {
         summary: ReportSummary {
+            warnings,
             figures: records,
+            assets,
             html: html_path,
             markdown: md_path,
         },
         files,
     })
+}
+
+/// The text of every figure [`write_report`] would draw with these inputs and
+/// parameters, as drawn in the PNG (skipped figures are left out): for checking that
+/// no two texts overlap, that none leaves its figure and that none is smaller than
+/// 9 pt ([`FigureText::problems`]). Nothing is written.
+pub fn figure_texts(
+    inputs: &ReportInputs<'_>,
+    params: &ReportParams,
+) -> Result<Vec<FigureText>, ReportError> {
+    params.check()?;
+    check_inputs(inputs)?;
+    let derived = plan::derive(inputs);
+    let print = plot::Print {
+        dpi: f64::from(params.dpi),
+    };
+    let recorded: Vec<Result<Option<FigureText>, ReportError>> =
+        plan::plan(inputs, params, &derived)
+            .par_iter()
+            .map(|(name, _, p)| p.record(name, print))
+            .collect();
+    let mut out = Vec::new();
+    for r in recorded {
+        out.extend(r?);
+    }
+    Ok(out)
+}
+
+/// Removes the files of the report's figures that this report did not write: a format
+/// no longer asked for, a figure now skipped. `figures/` then holds only what the
+/// report shows (files of other names are left alone).
+fn remove_stale_figures<'r>(dir: &Path, records: impl Iterator<Item = &'r FigureRecord>) {
+    for record in records {
+        for extension in ["png", "svg"] {
+            let relative = PathBuf::from("figures").join(format!("{}.{extension}", record.name));
+            if !record.files.contains(&relative) {
+                // Absent is the usual case; a file that cannot be removed stays stale
+                // but is not listed by the report.
+                let _ = std::fs::remove_file(dir.join(&relative));
+            }
+        }
+    }
 }

@@ -259,6 +259,15 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
             d.mle_detail.points_used
         ),
     );
+    for (name, estimate) in [
+        ("TwoNN", &d.twonn_detail),
+        ("Levina-Bickel MLE", &d.mle_detail),
+    ] {
+        dim.push(
+            format!("{name} reliability"),
+            reliability(&estimate.reliability),
+        );
+    }
     let mut out = vec![topo, dim];
     if let Some(g) = &a.agreement {
         let mut t = Table::key_value("Agreement with the observer's poses");
@@ -283,6 +292,23 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
         out.push(t);
     }
     out
+}
+
+/// `reliable`, `not checked`, or `unreliable:` and the reasons.
+fn reliability(r: &crate::analysis::dimension::Reliability) -> String {
+    use crate::analysis::dimension::ReliabilityStatus;
+    match r.status {
+        ReliabilityStatus::Reliable => "reliable".to_owned(),
+        ReliabilityStatus::NotChecked => "not checked".to_owned(),
+        ReliabilityStatus::Unreliable => format!(
+            "unreliable: {}",
+            r.reasons
+                .iter()
+                .map(|x| x.split_once(": ").map_or(x.as_str(), |(_, why)| why))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ),
+    }
 }
 
 fn invariance_tables(r: &crate::invariance::InvarianceReport) -> Vec<Table> {

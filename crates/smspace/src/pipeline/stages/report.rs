@@ -1,5 +1,5 @@
-//! `report`: the paper's figures, `report.html` with a 3-D view, `report.md` and
-//! `report.json`.
+//! `report`: the paper's figures, `report.html` with a 3-D view (and the plotly.js it
+//! loads, in `assets/`), `report.md` and `report.json`.
 
 use std::path::Path;
 
@@ -108,6 +108,7 @@ impl Stage for ReportStage {
             invariance: input.invariance.map(|i| &i.value),
             sensory_manifolds: &manifolds,
             stages: context.stage_times,
+            warnings: &[],
         };
         Ok(render_report(&inputs, &self.report)?)
     }
@@ -133,8 +134,14 @@ impl Stage for ReportStage {
         })
     }
 
-    fn summary(&self, _: &RenderedReport) -> String {
-        "report.html, report.md and figures/".to_owned()
+    fn summary(&self, report: &RenderedReport) -> String {
+        match report.summary.warnings.len() {
+            0 => "report.html, report.md and figures/".to_owned(),
+            n => format!(
+                "report.html, report.md and figures/; {n} warning{} at the top of the report",
+                if n == 1 { "" } else { "s" }
+            ),
+        }
     }
 }
 
