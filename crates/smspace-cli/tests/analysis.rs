@@ -204,6 +204,46 @@ fn invariance_of_the_redundant_toy() {
     let sensors: Array2<f64> = ndarray_npy::read_npy(p.join("invariance-sensors-2.npy")).unwrap();
     assert_eq!(sensors.nrows(), common);
 
+    // --starts traces only the first rows (as `[analysis] invariance_starts`).
+    ok(
+        p,
+        &[
+            "invariance",
+            "--agent",
+            "toy-redundant",
+            "--motors",
+            "motors.npy",
+            "--env-seeds",
+            "1,2",
+            "--starts",
+            "5",
+            "--points",
+            "20",
+            "--out",
+            "five.json",
+        ],
+    );
+    let five: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p.join("five.json")).unwrap()).unwrap();
+    assert_eq!(five["starts"], 5, "{five}");
+    let err = fails(
+        p,
+        &[
+            "invariance",
+            "--agent",
+            "toy-redundant",
+            "--motors",
+            "motors.npy",
+            "--env-seeds",
+            "1,2",
+            "--starts",
+            "0",
+            "--out",
+            "zero.json",
+        ],
+    );
+    assert!(err.contains("--starts 0"), "{err}");
+
     let args = |seeds: &'static str, lights: &'static str| {
         vec![
             "invariance",

@@ -27,6 +27,10 @@ pub struct Args {
     /// (default: the agent's).
     #[arg(long, value_name = "L1,L2,...", value_delimiter = ',')]
     lights: Vec<usize>,
+    /// Trace only the first N rows of the motors file (as `[analysis]
+    /// invariance_starts` in `smspace run`); default: every row.
+    #[arg(long, value_name = "N")]
+    starts: Option<usize>,
     /// Points per traced set.
     #[arg(long, default_value_t = smspace::kernel::TraceParams::default().points)]
     points: usize,
@@ -64,6 +68,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .check()?;
     let n = agent.motor_dim();
     let motors = io::read_matrix(&args.motors, Some(n), &format!("(M, {n})"))?;
+    let rows = match args.starts {
+        Some(0) => anyhow::bail!("--starts 0: give at least one start (or leave --starts out to trace every row)"),
+        Some(starts) => starts.min(motors.nrows()),
+        None => motors.nrows(),
+    };
+    let motors = motors.slice(ndarray::s![..rows, ..]);
     let base = spec.environment.clone().unwrap_or_default();
     let environments = args
         .env_seeds
@@ -88,7 +98,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let metric = agent_metric(args.metric.kind(), agent.as_ref());
     let measured = invariance_measured(
         agent.as_ref(),
-        motors.view(),
+        motors,
         &environments,
         workspace.as_ref(),
         &params,
