@@ -489,3 +489,30 @@ fn environments_in_a_volume_are_read_drawn_and_matched_to_the_agent() {
         assert!(err.contains(needle) && err.contains("env.json"), "{err}");
     }
 }
+
+#[test]
+fn the_paper_arm_as_a_chain_explores_and_probes_as_the_planar_arm() {
+    let arm = AgentConfig::preset("planar-arm").unwrap().build().unwrap();
+    let as_chain = chain(PAPER_ARM);
+    let params = smspace::explore::ExploreParams {
+        n: 50,
+        probes: smspace::explore::Probes::Grid,
+        probe_positions: 3,
+        probe_orientations: 4,
+        ..Default::default()
+    };
+    let a = smspace::explore::explore(arm.as_ref(), &params).unwrap();
+    let b = smspace::explore::explore(as_chain.as_ref(), &params).unwrap();
+    assert_eq!(a.motors, b.motors);
+    assert_eq!(a.probes, b.probes);
+    assert_eq!(a.ground_truth, b.ground_truth);
+    // A chain of another shape has no inverse kinematics: no probe grid.
+    let bent = chain(
+        "kind = \"chain\"\njoints = [{ axis = [0, 0, 1], link = [1.0, 0.5, 0] }, { axis = [0, 0, 1], link = [0, 0, 0] }]",
+    );
+    assert!(bent
+        .ground_truth()
+        .unwrap()
+        .inverse_kinematics(&[1.0, 0.0, 0.0])
+        .is_none());
+}

@@ -42,6 +42,11 @@
 //! angle) are `Rᵀ a_j`. In the plane this is `∂(x, y)/∂m_j = σ_j (−Σ_{k≥j} c_k^y,
 //! Σ_{k≥j} c_k^x)` with `c_k = R_k link_k`, and `∂alpha/∂m_j = σ_j`.
 //!
+//! **Probes.** A planar chain shaped as the paper's arm (links `[L_k, 0, 0]` on `+z`
+//! hinges, then a retina hinge without a link) has the arm's inverse kinematics, so the
+//! probe grid (`probes = "grid"`) places it exactly as the arm; other chains have none
+//! (babbled configurations only).
+//!
 //! **Working space and lights.** The working space is `[agent.workspace]` (a box:
 //! `center` and `size` with 2 values in the plane, 3 in 3-D) or, by default, one
 //! derived from the chain's reach `L = Σ‖link_j‖` and its home direction `û` (the
@@ -57,9 +62,9 @@ use nalgebra::{Unit, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::{
-    wrap_angle, Agent, AgentBuilder, AgentError, CoordinateKind, Environment, LightRegion,
-    LightSpace, Motor, MotorSpace, Observer, PoseCoordinate, PoseSpace, Workspace, MAX_LINKS,
-    MAX_RETINA_CELLS,
+    wrap_angle, Agent, AgentBuilder, AgentError, ArmParams, CoordinateKind, Environment,
+    LightRegion, LightSpace, Motor, MotorSpace, Observer, PlanarArm, PoseCoordinate, PoseSpace,
+    Workspace, MAX_LINKS, MAX_RETINA_CELLS,
 };
 use crate::error::{CheckParams, InvalidParameter};
 
@@ -397,6 +402,10 @@ pub struct Chain {
     focal_length: f64,
     workspace: Workspace,
     reach: f64,
+    /// The planar arm this chain is, when it is one (links `[L_k, 0, 0]` with `L_k > 0`
+    /// on counter-clockwise `z` hinges, then a retina hinge without a link): its inverse
+    /// kinematics places the probe grid.
+    arm: Option<PlanarArm>,
 }
 
 /// The frame of the retina in the world.
@@ -430,9 +439,30 @@ impl Chain {
             focal_length: params.focal_length,
             workspace: Workspace::PAPER,
             reach,
+            arm: None,
         };
+        chain.arm = chain.as_planar_arm();
         chain.workspace = params.workspace.unwrap_or_else(|| chain.reach_workspace());
         chain
+    }
+
+    /// The planar arm of the same body, when the chain is shaped as one (links
+    /// `[L_k, 0, 0]`, `L_k > 0`, on `+z` hinges, then a retina hinge without a link).
+    fn as_planar_arm(&self) -> Option<PlanarArm> {
+        let Kinematics::Planar { signs, links } = &self.kinematics else {
+            return None;
+        };
+        let (last, arm_links) = links.split_last()?;
+        let shaped = signs.iter().all(|&s| s == 1.0)
+            && *last == [0.0, 0.0]
+            && !arm_links.is_empty()
+            && arm_links.iter().all(|l| l[0] > 0.0 && l[1] == 0.0);
+        let params = ArmParams {
+            link_lengths: arm_links.iter().map(|l| l[0]).collect(),
+            retina_cells: self.columns.len(),
+            ..ArmParams::default()
+        };
+        shaped.then(|| PlanarArm::new(&params).ok()).flatten()
     }
 
     /// Whether the chain is planar (ground truth `(x, y, alpha)`, lights in the plane).
@@ -767,6 +797,22 @@ impl Observer for Chain {
         } else {
             6
         }
+    }
+
+    /// For a planar chain shaped as the paper's arm, the arm's inverse kinematics
+    /// (the same motors), if they respect the joints' ranges; none otherwise.
+    fn inverse_kinematics(&self, pose: &[f64]) -> Option<Vec<f64>> {
+        let motors = self.arm.as_ref()?.inverse_kinematics(pose)?;
+        let within = self
+            .motors
+            .motors()
+            .iter()
+            .zip(&motors)
+            .all(|(m, &v)| match *m {
+                Motor::Bounded { low, high } => (low..=high).contains(&v),
+                Motor::Periodic { .. } => true,
+            });
+        within.then_some(motors)
     }
 
     /// The geometric Jacobian (module docs).
