@@ -306,7 +306,7 @@ impl ChainParams {
     /// The retina's `(rows, cols)`, checked.
     fn check_retina(&self) -> Result<(usize, usize), AgentError> {
         let (rows, cols) = self.retina.cells.shape();
-        let total = rows.checked_mul(cols).unwrap_or(usize::MAX);
+        let total = rows.saturating_mul(cols);
         if total == 0 || total > MAX_RETINA_CELLS {
             return Err(invalid(
                 "retina.cells",
