@@ -174,12 +174,12 @@ fn a_small_experiment_runs_end_to_end_and_is_cached() {
         assert_eq!(stage(&manifest, name)["cached"], false, "{name}");
     }
 
-    // A second run reuses every stage and changes nothing.
+    // A second run reuses every stage and writes nothing, not even the manifest.
     let before = std::fs::read(run.join("D.npy")).unwrap();
+    let manifest_before = std::fs::read(run.join("manifest.json")).unwrap();
     let out = ok(dir.path(), &["run", "small.toml"]);
     let log = stderr(&out);
     assert!(log.contains("0 of 7 stages computed"), "{log}");
-    let manifest = json(&run.join("manifest.json"));
     for name in [
         "explore",
         "trace",
@@ -188,14 +188,29 @@ fn a_small_experiment_runs_end_to_end_and_is_cached() {
         "analyze",
         "report",
     ] {
-        assert_eq!(stage(&manifest, name)["cached"], true, "{name}: {log}");
+        assert!(
+            log.lines()
+                .any(|l| l.contains(&format!("] {name} ")) && l.contains("reused")),
+            "{name}: {log}"
+        );
     }
     assert_eq!(std::fs::read(run.join("D.npy")).unwrap(), before);
+    assert_eq!(
+        std::fs::read(run.join("manifest.json")).unwrap(),
+        manifest_before
+    );
 
     // A changed embedding parameter recomputes the embedding and what depends on it.
     ok(
         dir.path(),
-        &["run", "small.toml", "--set", "embedding.epochs=5"],
+        &[
+            "run",
+            "small.toml",
+            "--set",
+            "embedding.epochs=5",
+            "--out",
+            "runs/small-arm",
+        ],
     );
     let manifest = json(&run.join("manifest.json"));
     for (name, cached) in [
@@ -213,7 +228,14 @@ fn a_small_experiment_runs_end_to_end_and_is_cached() {
     std::fs::write(run.join("D.npy"), b"not a matrix").unwrap();
     ok(
         dir.path(),
-        &["run", "small.toml", "--set", "embedding.epochs=5"],
+        &[
+            "run",
+            "small.toml",
+            "--set",
+            "embedding.epochs=5",
+            "--out",
+            "runs/small-arm",
+        ],
     );
     let manifest = json(&run.join("manifest.json"));
     assert_eq!(stage(&manifest, "trace")["cached"], true);
@@ -374,7 +396,17 @@ fn a_failing_stage_keeps_the_earlier_outputs_and_names_itself() {
     assert_eq!(manifest["status"]["stage"], "embed");
     assert_eq!(stage(&manifest, "distances")["cached"], false);
     // Fixing the parameter reuses what was done.
-    let out = ok(d, &["run", "fail.toml", "--set", "embedding.dim=2"]);
+    let out = ok(
+        d,
+        &[
+            "run",
+            "fail.toml",
+            "--set",
+            "embedding.dim=2",
+            "--out",
+            "runs/small-arm",
+        ],
+    );
     let log = stderr(&out);
     assert!(log.contains("distances") && log.contains("reused"), "{log}");
 }
@@ -481,4 +513,114 @@ fn the_shipped_experiments_are_valid() {
         }
     }
     assert!(found >= 4, "{found} experiments in {}", root.display());
+}
+
+#[test]
+fn a_run_with_overrides_gets_its_own_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_experiment(d, "small.toml", &tiny_mds(2));
+    ok(d, &["run", "small.toml"]);
+    let plain = d.join("runs/small-arm");
+    let before = std::fs::read(plain.join("Y.npy")).unwrap();
+    let out = ok(d, &["run", "small.toml", "--set", "embedding.dim=3"]);
+    let log = stderr(&out);
+    let folders: Vec<String> = std::fs::read_dir(d.join("runs"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "small-arm")
+        .collect();
+    assert_eq!(folders.len(), 1, "{folders:?}");
+    let own = &folders[0];
+    assert!(
+        own.starts_with("small-arm-") && own.len() == "small-arm-".len() + 8,
+        "{own}"
+    );
+    assert!(
+        log.contains(own.as_str()) && log.contains("its own folder"),
+        "{log}"
+    );
+    // The unmodified experiment's run is untouched; the same overrides find their
+    // folder again (and reuse it).
+    assert_eq!(std::fs::read(plain.join("Y.npy")).unwrap(), before);
+    let y: Array2<f64> = read_npy(d.join("runs").join(own).join("Y.npy")).unwrap();
+    assert_eq!(y.ncols(), 3);
+    let out = ok(d, &["run", "small.toml", "--set", "embedding.dim=3"]);
+    let log = stderr(&out);
+    assert!(log.contains("0 of 7 stages computed"), "{log}");
+}
+
+/// Two runs of different settings into one folder at once, many times: each waits for
+/// the other, and afterwards each configuration's rerun equals a fresh run of it byte
+/// for byte (no output of one is ever recorded under the other's key).
+#[test]
+fn concurrent_runs_into_one_folder_never_mix_their_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    write_experiment(d, "small.toml", &tiny_mds(2));
+    let settings: [&[&str]; 2] = [&[], &["--set", "embedding.method=\"isomap\""]];
+    let args = |extra: &[&str], out: &str| -> Vec<String> {
+        let mut args: Vec<String> = ["run", "small.toml", "--wait", "--out", out]
+            .map(String::from)
+            .to_vec();
+        args.extend(extra.iter().map(|s| s.to_string()));
+        args
+    };
+    for (i, extra) in settings.iter().enumerate() {
+        let fresh = format!("fresh-{i}");
+        let a = args(extra, &fresh);
+        ok(d, &a.iter().map(String::as_str).collect::<Vec<_>>());
+    }
+    for round in 0..20 {
+        let children: Vec<std::process::Child> = settings
+            .iter()
+            .map(|extra| {
+                std::process::Command::new(env!("CARGO_BIN_EXE_smspace"))
+                    .args(args(extra, "shared"))
+                    .current_dir(d)
+                    .stderr(std::process::Stdio::piped())
+                    .spawn()
+                    .unwrap()
+            })
+            .collect();
+        for child in children {
+            let out = child.wait_with_output().unwrap();
+            assert!(out.status.success(), "round {round}: {}", stderr(&out));
+        }
+        // The manifest vouches only for the files as they are.
+        let manifest = json(&d.join("shared/manifest.json"));
+        assert_eq!(manifest["status"]["state"], "complete", "round {round}");
+        for record in manifest["stages"].as_array().unwrap() {
+            for (file, hash) in record["outputs"].as_object().unwrap() {
+                let found = smspace::pipeline::manifest::hash_file(&d.join("shared").join(file));
+                assert_eq!(
+                    found.ok().as_deref(),
+                    hash.as_str(),
+                    "round {round}: {file}"
+                );
+            }
+        }
+    }
+    for (i, extra) in settings.iter().enumerate() {
+        let a = args(extra, "shared");
+        ok(d, &a.iter().map(String::as_str).collect::<Vec<_>>());
+        for file in [
+            "motors.npy",
+            "sets.npy",
+            "D.npy",
+            "Y.npy",
+            "Y.dydx.npy",
+            "Y.embed.json",
+            "analysis.json",
+            "report.json",
+            "config.resolved.toml",
+        ] {
+            let shared = std::fs::read(d.join("shared").join(file)).unwrap();
+            let fresh = std::fs::read(d.join(format!("fresh-{i}")).join(file)).unwrap();
+            assert!(
+                shared == fresh,
+                "settings {i}: {file} differs from a fresh run"
+            );
+        }
+    }
 }

@@ -396,9 +396,23 @@ impl Exploration {
         agent: &AgentConfig,
         params: &ExploreParams,
     ) -> Result<(), IoError> {
-        let [motors, poses, probes, summary] = EXPLORATION_FILES.map(|f| dir.join(f));
         // All or none (see `io::Outputs`).
         let mut outputs = io::Outputs::new();
+        self.write_into(&mut outputs, dir, agent, params)?;
+        outputs.commit()?;
+        Ok(())
+    }
+
+    /// Stages the files of [`save`](Self::save) into `outputs`, to be renamed into place
+    /// with the other files of a command or stage.
+    pub fn write_into(
+        &self,
+        outputs: &mut io::Outputs,
+        dir: &std::path::Path,
+        agent: &AgentConfig,
+        params: &ExploreParams,
+    ) -> Result<(), IoError> {
+        let [motors, poses, probes, summary] = EXPLORATION_FILES.map(|f| dir.join(f));
         outputs.npy(&motors, &self.motors)?;
         if let Some(truth) = &self.ground_truth {
             outputs.npy(&poses, truth.poses())?;
@@ -415,9 +429,7 @@ impl Exploration {
                 "babbled": self.motors.nrows() - probe_rows,
                 "probes": probe_rows,
             }),
-        )?;
-        outputs.commit()?;
-        Ok(())
+        )
     }
 
     /// Reads the arrays [`save`](Self::save) wrote for `agent` (its motors, and its

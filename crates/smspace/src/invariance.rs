@@ -227,13 +227,26 @@ pub fn write_invariance(
     sensors: &[Array2<f64>],
 ) -> Result<Vec<PathBuf>, IoError> {
     let mut outputs = io::Outputs::new();
+    stage_invariance(&mut outputs, path, report, set_distances, sensors)?;
+    outputs.commit()
+}
+
+/// Stages the files of [`write_invariance`] into `outputs`, to be renamed into place
+/// with the other files of a command or stage.
+pub fn stage_invariance(
+    outputs: &mut io::Outputs,
+    path: &Path,
+    report: &InvarianceReport,
+    set_distances: &[Array2<f64>],
+    sensors: &[Array2<f64>],
+) -> Result<(), IoError> {
     outputs.json(path, report)?;
     for (e, (d, s)) in set_distances.iter().zip(sensors).enumerate() {
         let [d_path, s_path] = invariance_files(path, e);
         outputs.npy(&d_path, d)?;
         outputs.npy(&s_path, s)?;
     }
-    outputs.commit()
+    Ok(())
 }
 
 /// What [`write_invariance`] writes: the report, and per environment the distance

@@ -354,11 +354,44 @@ pub(crate) const TEMP_PREFIX: &str = ".smspace-";
 /// End of the name of every temporary file smspace writes.
 pub(crate) const TEMP_SUFFIX: &str = ".part";
 
+/// The writer that `fill` closures of [`write_atomic`] and [`Outputs::file`] write into:
+/// buffered, in front of the temporary file.
+pub type OutputWriter<'a> = BufWriter<Hashing<&'a mut File>>;
+
+/// A writer that passes every byte on to `inner` and hashes (BLAKE3) exactly the bytes
+/// `inner` accepted: the hash of a file is taken while it is written, never by reading
+/// it back (when something else may have replaced it).
+#[derive(Debug)]
+pub struct Hashing<W> {
+    inner: W,
+    hasher: blake3::Hasher,
+}
+
+impl<W: Write> Write for Hashing<W> {
+    fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+        let written = self.inner.write(bytes)?;
+        self.hasher.update(&bytes[..written]);
+        Ok(written)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+/// A file written in full to its temporary name, with the BLAKE3 hash of its bytes.
+#[derive(Debug)]
+struct Staged {
+    temp: tempfile::NamedTempFile,
+    path: PathBuf,
+    blake3: String,
+}
+
 /// Writes `fill`'s bytes into a new temporary file (`.smspace-*.part`) in the folder of
-/// `path`, flushed and synced, ready to be renamed over `path`.
-fn stage<F>(path: &Path, fill: F) -> Result<tempfile::NamedTempFile, IoError>
+/// `path`, flushed and synced, ready to be renamed over `path`; hashes them on the way.
+fn stage<F>(path: &Path, fill: F) -> Result<Staged, IoError>
 where
-    F: FnOnce(&mut BufWriter<&mut File>) -> std::io::Result<()>,
+    F: FnOnce(&mut OutputWriter<'_>) -> std::io::Result<()>,
 {
     let write_error = |reason| IoError::Write {
         path: path.to_owned(),
@@ -374,38 +407,47 @@ where
         builder.permissions(std::fs::Permissions::from_mode(0o644));
     }
     let mut temp = builder.tempfile_in(&folder).map_err(write_error)?;
-    {
-        let mut writer = BufWriter::new(temp.as_file_mut());
+    let hasher = {
+        let mut writer = BufWriter::new(Hashing {
+            inner: temp.as_file_mut(),
+            hasher: blake3::Hasher::new(),
+        });
         fill(&mut writer).map_err(write_error)?;
         writer.flush().map_err(write_error)?;
-    }
+        let hashing = writer
+            .into_inner()
+            .map_err(|e| write_error(e.into_error()))?;
+        hashing.hasher
+    };
     temp.as_file().sync_all().map_err(write_error)?;
-    Ok(temp)
+    Ok(Staged {
+        temp,
+        path: path.to_owned(),
+        blake3: hasher.finalize().to_hex().to_string(),
+    })
 }
 
 /// Writes `path` atomically: `fill` writes into a temporary file in the same folder,
 /// which is renamed over `path` only once it is complete and flushed.
 pub fn write_atomic<F>(path: &Path, fill: F) -> Result<(), IoError>
 where
-    F: FnOnce(&mut BufWriter<&mut File>) -> std::io::Result<()>,
+    F: FnOnce(&mut OutputWriter<'_>) -> std::io::Result<()>,
 {
-    persist(stage(path, fill)?, path)
+    persist(stage(path, fill)?)
 }
 
-/// Renames a staged file over `path`.
-fn persist(temp: tempfile::NamedTempFile, path: &Path) -> Result<(), IoError> {
-    temp.persist(path).map_err(|e| IoError::Write {
-        path: path.to_owned(),
+/// Renames a staged file over its destination.
+fn persist(staged: Staged) -> Result<(), IoError> {
+    let Staged { temp, path, .. } = staged;
+    temp.persist(&path).map_err(|e| IoError::Write {
+        path,
         reason: e.error,
     })?;
     Ok(())
 }
 
 /// Writes `array` as `.npy` bytes.
-fn fill_npy<A, S, D>(
-    writer: &mut BufWriter<&mut File>,
-    array: &ArrayBase<S, D>,
-) -> std::io::Result<()>
+fn fill_npy<A, S, D>(writer: &mut OutputWriter<'_>, array: &ArrayBase<S, D>) -> std::io::Result<()>
 where
     A: WritableElement,
     S: Data<Elem = A>,
@@ -418,7 +460,7 @@ where
 
 /// Writes `value` as pretty-printed JSON and a final newline.
 fn fill_json<T: Serialize + ?Sized>(
-    writer: &mut BufWriter<&mut File>,
+    writer: &mut OutputWriter<'_>,
     value: &T,
 ) -> std::io::Result<()> {
     serde_json::to_writer_pretty(&mut *writer, value).map_err(std::io::Error::other)?;
@@ -428,21 +470,27 @@ fn fill_json<T: Serialize + ?Sized>(
 /// The files of one command or stage, written together: every file is first written
 /// in full to its own temporary file, and only then, once every destination has been
 /// checked to take a file (its folder exists, its name is valid), are they all renamed
-/// into place. A failure before that point (a non-finite array, a full disk, a name
-/// too long) leaves every earlier output as it was.
+/// into place, in the order they were staged. A failure before that point (a
+/// non-finite array, a full disk, a name too long) leaves every earlier output as it
+/// was.
+///
+/// Each file's BLAKE3 hash is taken from the bytes as they are written
+/// ([`staged`](Outputs::staged)), so a record of what was written (the run's manifest)
+/// never depends on reading the files back.
 ///
 /// ```
 /// # let dir = tempfile::tempdir().unwrap();
 /// let mut outputs = smspace::io::Outputs::new();
 /// outputs.npy(&dir.path().join("a.npy"), &ndarray::array![1.0, 2.0])?;
 /// outputs.json(&dir.path().join("a.json"), &serde_json::json!({"rows": 2}))?;
+/// assert_eq!(outputs.staged().count(), 2);
 /// outputs.commit()?;
 /// assert!(dir.path().join("a.npy").is_file() && dir.path().join("a.json").is_file());
 /// # Ok::<(), smspace::io::IoError>(())
 /// ```
 #[derive(Debug, Default)]
 pub struct Outputs {
-    staged: Vec<(tempfile::NamedTempFile, PathBuf)>,
+    staged: Vec<Staged>,
 }
 
 impl Outputs {
@@ -454,11 +502,15 @@ impl Outputs {
     /// Stages `path`, written by `fill`.
     pub fn file<F>(&mut self, path: &Path, fill: F) -> Result<(), IoError>
     where
-        F: FnOnce(&mut BufWriter<&mut File>) -> std::io::Result<()>,
+        F: FnOnce(&mut OutputWriter<'_>) -> std::io::Result<()>,
     {
-        let temp = stage(path, fill)?;
-        self.staged.push((temp, path.to_owned()));
+        self.staged.push(stage(path, fill)?);
         Ok(())
+    }
+
+    /// Stages `bytes` as the content of `path`.
+    pub fn bytes(&mut self, path: &Path, bytes: &[u8]) -> Result<(), IoError> {
+        self.file(path, |writer| writer.write_all(bytes))
     }
 
     /// Stages an array as `.npy`; refuses an array with NaN or an infinity (see
@@ -478,16 +530,24 @@ impl Outputs {
         self.file(path, |writer| fill_json(writer, value))
     }
 
+    /// The files staged so far, in order, each with the hex BLAKE3 hash of the bytes
+    /// written into it.
+    pub fn staged(&self) -> impl Iterator<Item = (&Path, &str)> {
+        self.staged
+            .iter()
+            .map(|s| (s.path.as_path(), s.blake3.as_str()))
+    }
+
     /// Checks every destination, then renames every staged file into place; returns
     /// the destinations in the order they were staged.
     pub fn commit(self) -> Result<Vec<PathBuf>, IoError> {
-        for (_, path) in &self.staged {
-            check_destination(path)?;
+        for staged in &self.staged {
+            check_destination(&staged.path)?;
         }
         let mut written = Vec::with_capacity(self.staged.len());
-        for (temp, path) in self.staged {
-            persist(temp, &path)?;
-            written.push(path);
+        for staged in self.staged {
+            written.push(staged.path.clone());
+            persist(staged)?;
         }
         Ok(written)
     }
@@ -499,6 +559,15 @@ impl Outputs {
 fn check_destination(path: &Path) -> Result<(), IoError> {
     if path.is_file() {
         return Ok(());
+    }
+    if path.is_dir() {
+        return Err(IoError::Write {
+            path: path.to_owned(),
+            reason: std::io::Error::new(
+                std::io::ErrorKind::IsADirectory,
+                "a folder of that name is in the way",
+            ),
+        });
     }
     std::fs::OpenOptions::new()
         .write(true)
@@ -682,6 +751,47 @@ mod tests {
             .is_err());
         drop(outputs);
         assert_eq!(read_f64(&a).unwrap().shape(), &[1]);
+    }
+
+    #[test]
+    fn hashes_are_of_the_bytes_written_never_of_a_re_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("x.bin");
+        let ours = b"what this writer wrote".repeat(1000);
+        let expected = blake3::hash(&ours).to_hex().to_string();
+        // Another program keeps replacing the file while it is written and renamed.
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let intruder = {
+            let (path, stop) = (path.clone(), stop.clone());
+            std::thread::spawn(move || {
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    let _ = std::fs::write(&path, b"someone else's bytes");
+                }
+            })
+        };
+        for _ in 0..200 {
+            let mut outputs = Outputs::new();
+            outputs.bytes(&path, &ours).unwrap();
+            let staged: Vec<(PathBuf, String)> = outputs
+                .staged()
+                .map(|(p, h)| (p.to_owned(), h.to_owned()))
+                .collect();
+            outputs.commit().unwrap();
+            assert_eq!(staged, [(path.clone(), expected.clone())]);
+        }
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        intruder.join().unwrap();
+        // Alone, the file holds exactly the bytes hashed.
+        let mut outputs = Outputs::new();
+        outputs.npy(&path, &array![1.0, 2.0]).unwrap();
+        let hash = outputs.staged().next().unwrap().1.to_owned();
+        outputs.commit().unwrap();
+        assert_eq!(
+            blake3::hash(&std::fs::read(&path).unwrap())
+                .to_hex()
+                .to_string(),
+            hash
+        );
     }
 
     #[test]

@@ -1,7 +1,8 @@
-//! The readers of user files never panic: experiment TOML, `--set` overrides and
-//! environment JSON, fed arbitrary and mutated text (seeded proptest). Each input ends
-//! in a value or an error, and a valid experiment goes on to `pipeline::check`, which
-//! validates every table before anything runs.
+//! The readers of user files never panic: experiment TOML, `--set` overrides,
+//! environment JSON and `.npy` arrays, fed arbitrary and mutated input (seeded
+//! proptest: the bounded run of every CI build; `fuzz/` has the `cargo fuzz` targets
+//! for longer runs). Each input ends in a value or an error, and a valid experiment goes
+//! on to `pipeline::check`, which validates every table before anything runs.
 
 use proptest::prelude::*;
 use smspace::agent::Environment;
@@ -133,6 +134,62 @@ proptest! {
             prop_assert!(!env.lights.is_empty());
             prop_assert!(env.lights.iter().all(|l| l[0].is_finite() && l[1].is_finite()));
         }
+    }
+}
+
+/// A valid `.npy` file of a small array, whose bytes the mutations below corrupt.
+fn npy_bytes(rows: usize, columns: usize) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("a.npy");
+    let array = ndarray::Array2::from_shape_fn((rows, columns), |(i, j)| (i * 10 + j) as f64);
+    smspace::io::write_npy(&path, &array).unwrap();
+    std::fs::read(&path).unwrap()
+}
+
+/// A byte edit: `(position, byte, how)`: overwrite, insert, delete, or truncate there.
+fn edited(mut bytes: Vec<u8>, edits: &[(usize, u8, u8)]) -> Vec<u8> {
+    for &(at, byte, how) in edits {
+        let at = at % (bytes.len() + 1);
+        match how {
+            0 if at < bytes.len() => bytes[at] = byte,
+            1 => bytes.insert(at, byte),
+            2 if at < bytes.len() => {
+                bytes.remove(at);
+            }
+            _ => bytes.truncate(at),
+        }
+    }
+    bytes
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 256,
+        rng_seed: prop::test_runner::RngSeed::Fixed(19),
+        ..ProptestConfig::default()
+    })]
+
+    /// Valid files with a few bytes overwritten, inserted, deleted or cut (most land
+    /// in the header: its text, its length field, the shape), and arbitrary bytes.
+    #[test]
+    fn npy_files_give_an_array_or_an_error(
+        rows in 0usize..5,
+        columns in 1usize..4,
+        edits in prop::collection::vec((0usize..200, any::<u8>(), 0u8..4), 0..4),
+        arbitrary in prop::collection::vec(any::<u8>(), 0..300),
+        mutate in any::<bool>(),
+    ) {
+        let bytes = if mutate { edited(npy_bytes(rows, columns), &edits) } else { arbitrary };
+        let (_dir, path) = in_file("a.npy", "");
+        std::fs::write(&path, &bytes).unwrap();
+        if let Ok(array) = smspace::io::read_f64(&path) {
+            prop_assert!(array.iter().all(|x| x.is_finite()));
+            // Never more values than the file has bytes for.
+            prop_assert!(array.len() * 8 <= bytes.len());
+        }
+        let _ = smspace::io::read_i64(&path);
+        let _ = smspace::io::read_matrix(&path, Some(columns), "(M, C)");
+        let _ = smspace::io::read_cube(&path, "(M, P, N)");
     }
 }
 

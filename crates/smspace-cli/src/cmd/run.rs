@@ -19,7 +19,8 @@ pub struct Args {
     /// The experiment file (TOML), e.g. experiments/paper-arm.toml.
     #[arg(value_name = "EXPERIMENT")]
     experiment: PathBuf,
-    /// Run folder (default: runs/<experiment name>).
+    /// Run folder (default: runs/<experiment name>, or runs/<experiment name>-<hash>
+    /// with --set, so that a run with overrides never replaces the unmodified one).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Override a parameter: stage.key=value, e.g. --set kernel.points=50
@@ -33,6 +34,23 @@ pub struct Args {
     /// of refusing.
     #[arg(long)]
     wait: bool,
+    /// Refuse a stage whose estimated peak memory is more than this many bytes, before
+    /// it starts (default: the memory available, MemAvailable in /proc/meminfo). The
+    /// distance matrix is also held to the experiment's [metric] memory_limit_bytes.
+    #[arg(long, value_name = "BYTES")]
+    max_memory: Option<u64>,
+}
+
+/// The run folder when `--out` is not given: `runs/<name>`, and with overrides
+/// `runs/<name>-<first 8 hex digits of the BLAKE3 hash of the overrides, in order>`.
+fn default_out_dir(name: &str, overrides: &[String]) -> PathBuf {
+    let runs = PathBuf::from("runs");
+    if overrides.is_empty() {
+        return runs.join(name);
+    }
+    let parts: Vec<&[u8]> = overrides.iter().map(|o| o.as_bytes()).collect();
+    let hash = smspace::pipeline::manifest::hash_parts(&parts);
+    runs.join(format!("{name}-{}", &hash[..8]))
 }
 
 /// Prints one line per stage on stderr, with progress bars when it is a terminal.
@@ -77,9 +95,20 @@ impl RunObserver for StageLog {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let loaded = load_experiment(&args.experiment, &args.overrides)?;
     let plan = pipeline::check(&loaded)?;
-    let out_dir = args
-        .out
-        .unwrap_or_else(|| PathBuf::from("runs").join(&loaded.name));
+    let out_dir = match args.out {
+        Some(dir) => dir,
+        None => {
+            let dir = default_out_dir(&loaded.name, &args.overrides);
+            if !args.overrides.is_empty() {
+                eprintln!(
+                    "[smspace] with --set, the run goes to its own folder {} (runs/{} stays the unmodified experiment's; --out chooses another)",
+                    dir.display(),
+                    loaded.name
+                );
+            }
+            dir
+        }
+    };
     let options = RunOptions {
         out_dir,
         recompute: if args.force {
@@ -87,7 +116,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         } else {
             Recompute::Changed
         },
-        memory_limit_bytes: memory_available(),
+        memory_limit_bytes: args.max_memory.or_else(memory_available),
         busy: if args.wait {
             BusyFolder::Wait
         } else {

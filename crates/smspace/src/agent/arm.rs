@@ -177,15 +177,29 @@ impl PlanarArm {
     }
 
     /// The retina's pose `(x, y, alpha)` for motors `m` (see the module docs).
+    ///
+    /// Angles are summed as they are, except that a motor angle beyond `±2^20` rad is
+    /// first reduced to `[0, 2π)` (exactly: `rem_euclid` is exact), so that the sum
+    /// and its trigonometry stay finite for any finite motors (e.g. `1e308`, whose sum
+    /// would overflow). Ordinary angles are untouched, so their poses do not change
+    /// by a bit.
     pub fn planar_pose(&self, motors: &[f64]) -> Pose {
+        const LARGE_ANGLE: f64 = 1_048_576.0;
+        let reduced = |m: f64| {
+            if m.abs() > LARGE_ANGLE {
+                m.rem_euclid(std::f64::consts::TAU)
+            } else {
+                m
+            }
+        };
         let (mut x, mut y, mut theta) = (0.0, 0.0, 0.0);
-        for (length, m) in self.link_lengths.iter().zip(motors) {
-            theta += m;
+        for (length, &m) in self.link_lengths.iter().zip(motors) {
+            theta += reduced(m);
             let (s, c) = theta.sin_cos();
             x += length * c;
             y += length * s;
         }
-        let alpha = wrap_angle(motors.iter().sum());
+        let alpha = wrap_angle(motors.iter().map(|&m| reduced(m)).sum());
         Pose { x, y, alpha }
     }
 
@@ -388,6 +402,42 @@ mod tests {
 
     fn arm() -> PlanarArm {
         PlanarArm::new(&ArmParams::default()).unwrap()
+    }
+
+    #[test]
+    fn huge_motor_angles_give_finite_sensors_and_poses() {
+        let arm = arm();
+        let env = Environment::from_lights(vec![[1.5, 0.3], [2.0, -1.0], [-1.0, 2.0]]);
+        for motors in [
+            [1e308, 1e308, 1e308, 1e308],
+            [-1e308, 3e307, f64::MAX, -f64::MAX],
+            [1e20, 0.5, -2e9, 1e6 + 0.5],
+        ] {
+            let mut sensors = [0.0; 6];
+            arm.sense(&env, &motors, &mut sensors);
+            let pose = arm.planar_pose(&motors);
+            assert!(
+                sensors.iter().all(|s| s.is_finite())
+                    && [pose.x, pose.y, pose.alpha].iter().all(|v| v.is_finite()),
+                "{motors:?}: {sensors:?}, {pose:?}"
+            );
+            // The same as the angles reduced exactly to [0, 2π).
+            let reduced = motors.map(|m| m.rem_euclid(std::f64::consts::TAU));
+            let mut expected = [0.0; 6];
+            arm.sense(&env, &reduced, &mut expected);
+            for (a, b) in sensors.iter().zip(expected) {
+                assert_abs_diff_eq!(*a, b, epsilon = 1e-9);
+            }
+        }
+        // Ordinary angles are used as they are.
+        let motors = [0.3, -1.2, 2.5, 7.0];
+        let mut theta = 0.0;
+        let mut x = 0.0;
+        for (length, m) in [1.0, 1.0, 1.0].iter().zip(motors) {
+            theta += m;
+            x += length * f64::cos(theta);
+        }
+        assert_eq!(arm.planar_pose(&motors).x, x);
     }
 
     #[test]

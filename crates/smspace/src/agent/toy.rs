@@ -226,6 +226,22 @@ mod tests {
     use approx::assert_abs_diff_eq;
 
     #[test]
+    fn huge_motors_give_finite_sensors() {
+        let env = Environment::from_lights(vec![[-0.25, 3.0], [1.0, 2.0]]);
+        for (kind, motors) in [
+            (ToyKind::Line, &[1e308][..]),
+            (ToyKind::Redundant, &[1e308, 1e308][..]),
+            (ToyKind::Redundant, &[-f64::MAX, 1e300][..]),
+        ] {
+            let agent = ToyAgent::new(kind, &ToyParams::default()).unwrap();
+            let mut s = [f64::NAN; 2];
+            agent.sense(&env, motors, &mut s);
+            // Lights infinitely far away in effect: no light reaches the sensors.
+            assert_eq!(s, [0.0, 0.0], "{motors:?}");
+        }
+    }
+
+    #[test]
     fn inverse_square_law() {
         let agent = ToyAgent::new(ToyKind::Line, &ToyParams::default()).unwrap();
         let env = Environment::from_lights(vec![[-0.25, 3.0]]);

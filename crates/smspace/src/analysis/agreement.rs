@@ -26,7 +26,6 @@
 use std::collections::BTreeMap;
 
 use ndarray::ArrayView2;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::AnalysisError;
@@ -237,24 +236,25 @@ pub fn agreement_of(
         }
     }
     pose_pairs.iter_mut().for_each(|p| *p = p.sqrt());
-    let learned_pairs = upper_triangle(learned);
-    let (learned_ranks, pose_ranks) = rayon::join(
-        || average_ranks(&learned_pairs),
-        || average_ranks(&pose_pairs),
-    );
-    let spearman_all =
-        pearson(&learned_ranks, &pose_ranks).ok_or_else(|| AnalysisError::Degenerate {
+    // One ranking at a time, each list dropped once ranked: a ranking of the
+    // M(M − 1)/2 pairs needs 2.5 times the memory of D while it runs (its radix sort's
+    // two buffers and the ranks), so rankings side by side made this the run's peak
+    // (`pipeline::memory`).
+    let learned_ranks = average_ranks(&upper_triangle(learned));
+    let spearman_all = pearson(&learned_ranks, &average_ranks(&pose_pairs)).ok_or_else(|| {
+        AnalysisError::Degenerate {
             what: "agreement",
             reason: "the learned distances are all equal".into(),
-        })?;
+        }
+    })?;
     let per_component: Vec<Option<f64>> = (0..components.len())
-        .into_par_iter()
         .map(|c| {
             (scales[c] > 0.0)
                 .then(|| pearson(&learned_ranks, &average_ranks(&deltas[c])))
                 .flatten()
         })
         .collect();
+    drop((learned_ranks, deltas));
     let mut coordinates = BTreeMap::new();
     let mut pose_scales = BTreeMap::new();
     for (c, component) in components.iter().enumerate() {

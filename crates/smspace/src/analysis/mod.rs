@@ -333,6 +333,16 @@ impl AnalysisReport {
         crate::io::write_json(path, self)
     }
 
+    /// Stages the report for `path` into `outputs`, to be renamed into place with the
+    /// other files of a command or stage (the bytes [`save`](Self::save) writes).
+    pub fn write_into(
+        &self,
+        outputs: &mut crate::io::Outputs,
+        path: &std::path::Path,
+    ) -> Result<(), crate::io::IoError> {
+        outputs.json(path, self)
+    }
+
     /// Reads a report written by [`save`](AnalysisReport::save).
     pub fn load(path: &std::path::Path) -> Result<Self, crate::io::IoError> {
         crate::io::read_json(path, "analysis report")

@@ -40,7 +40,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::eigen::{classical_mds, landmark_mds, EigenSolver};
+use super::eigen::{classical_mds, distance_scale, landmark_mds, rescaled, EigenSolver};
 use super::{check_dim, check_dim_param, check_distances, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
 use crate::error::InvalidParameter;
@@ -308,6 +308,10 @@ impl Embedding for CcaValidParams {
         distances: ArrayView2<'_, f64>,
         progress: &dyn Progress,
     ) -> Result<Embedded, EmbedError> {
+        if let Some(scale) = distance_scale(distances) {
+            let scaled = distances.mapv(|x| x / scale);
+            return Ok(rescaled(self.fit_checked(scaled.view(), progress)?, scale));
+        }
         let n = distances.nrows();
         let p = &self.0;
         let mut init = match p.init_landmarks {
@@ -620,6 +624,12 @@ pub(crate) struct CcaExtender {
 }
 
 impl CcaExtender {
+    /// The extender of the same fit in distances `scale` times larger (see
+    /// [`super::eigen::rescaled`]).
+    pub(super) fn rescale(&mut self, scale: f64) {
+        self.lambda *= scale;
+    }
+
     /// Places each new point against the fixed old layout `old` `(M, d)`.
     pub fn extend(&self, old: ArrayView2<'_, f64>, new_to_old: ArrayView2<'_, f64>) -> Array2<f64> {
         let dim = old.ncols();

@@ -6,6 +6,15 @@
 //! (`partial_self_adjoint_eigen`, the largest in magnitude) for large ones. faer runs
 //! sequentially here and the matrix–vector product is ours (parallel over rows, each
 //! row summed in a fixed order), so that results do not depend on the thread count.
+//!
+//! Distances of any finite size embed without overflow: a matrix whose largest entry
+//! is outside `[2^-64, 2^64]`, whose squares (MDS, Isomap) or `f32` copy (CCA) would
+//! overflow or underflow, is embedded divided by a power of two near that entry
+//! ([`distance_scale`]: exact, every entry keeps its digits) and the results are
+//! multiplied back ([`rescaled`]). Coordinates and widths then come out exactly scaled;
+//! a squared quantity whose true value is beyond `f64` (an eigenvalue or a stress of
+//! distances above about `1e154`) is reported as `±f64::MAX`. Matrices inside that
+//! range are used as they are, so ordinary results do not change by a bit.
 
 use faer::diag::Diag;
 use faer::dyn_stack::{MemBuffer, MemStack};
@@ -52,6 +61,57 @@ pub(crate) struct MdsFit {
     pub used: Vec<f64>,
     /// Column means of the squared distances (for triangulation).
     pub mean_sq: Array1<f64>,
+}
+
+/// Largest distances inside `[2^-SAFE_EXPONENT, 2^SAFE_EXPONENT]` are embedded as they
+/// are (see the module docs).
+const SAFE_EXPONENT: i32 = 64;
+
+/// The power of two to divide `distances` by before embedding: `None` when its largest
+/// entry is inside `[2^-64, 2^64]` (or zero), else the power of two at or below it.
+pub(crate) fn distance_scale<'a>(distances: impl IntoIterator<Item = &'a f64>) -> Option<f64> {
+    let largest = distances.into_iter().fold(0.0_f64, |m, &x| m.max(x.abs()));
+    let safe = 2f64.powi(-SAFE_EXPONENT)..=2f64.powi(SAFE_EXPONENT);
+    if largest == 0.0 || !largest.is_finite() || safe.contains(&largest) {
+        return None;
+    }
+    Some(2f64.powi(largest.log2().floor() as i32))
+}
+
+/// `value · factor`, saturated at `±f64::MAX` when the true product is beyond `f64`.
+fn times(value: f64, factor: f64) -> f64 {
+    let product = value * factor;
+    if product.is_infinite() && value.is_finite() {
+        f64::MAX.copysign(product)
+    } else {
+        product
+    }
+}
+
+/// An embedding of distances divided by `scale` ([`distance_scale`]), brought back to
+/// the distances' own units: lengths times `scale`, squared quantities (eigenvalues,
+/// stress) times `scale²`.
+pub(crate) fn rescaled(mut embedded: super::Embedded, scale: f64) -> super::Embedded {
+    let length = |v: &mut f64| *v = times(*v, scale);
+    let square = |v: &mut f64| *v = times(times(*v, scale), scale);
+    embedded.coordinates.iter_mut().for_each(length);
+    let report = &mut embedded.report;
+    report.stress_trace.iter_mut().for_each(square);
+    report.eigenvalues.iter_mut().for_each(square);
+    report.lambda_end.iter_mut().for_each(length);
+    report.eigenvalue_trace.iter_mut().for_each(square);
+    match &mut embedded.extender {
+        super::Extender::Cca(cca) => cca.rescale(scale),
+        super::Extender::Triangulation(tri) => {
+            tri.landmark_coordinates.iter_mut().for_each(length);
+            tri.eigenvalues.iter_mut().for_each(square);
+            tri.mean_sq.iter_mut().for_each(square);
+            if let Some((geodesic, _)) = &mut tri.geodesic {
+                geodesic.iter_mut().for_each(length);
+            }
+        }
+    }
+    embedded
 }
 
 /// Turns squared distances into `B = −½ J Δ J` in place; returns the column means of Δ.
@@ -423,5 +483,110 @@ impl Triangulation {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::embed::{CcaParams, EmbedParams, Embedding, IsomapParams, MdsParams};
+    use crate::metric::DistanceMatrix;
+    use crate::progress::Silent;
+
+    /// Distances between 40 points on a noisy circle.
+    fn circle() -> Array2<f64> {
+        let points: Vec<[f64; 2]> = (0..40)
+            .map(|i| {
+                let t = i as f64 * 0.157 + 0.01 * ((i * 7) % 5) as f64;
+                [t.cos(), t.sin() * 0.8]
+            })
+            .collect();
+        Array2::from_shape_fn((40, 40), |(i, j)| {
+            let (a, b) = (points[i], points[j]);
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+        })
+    }
+
+    fn methods() -> Vec<Box<dyn Embedding>> {
+        [
+            EmbedParams::Cca(CcaParams::default().dim(2).epochs(10)),
+            EmbedParams::Mds(MdsParams::default().dim(2)),
+            EmbedParams::Isomap(IsomapParams::default().dim(2).k(6)),
+        ]
+        .into_iter()
+        .map(|p| p.build().unwrap())
+        .collect()
+    }
+
+    #[test]
+    fn distances_of_any_finite_size_embed_to_scaled_coordinates() {
+        let d = circle();
+        for method in methods() {
+            let name = method.name();
+            let plain = method
+                .fit(&DistanceMatrix::new(d.clone()).unwrap(), &Silent)
+                .unwrap();
+            // Exactly scaled by a power of two (1e300 and 1e-300 in size): exactly
+            // the scaled coordinates.
+            for exponent in [996, -996] {
+                let factor = 2f64.powi(exponent);
+                let fit = method
+                    .fit(
+                        &DistanceMatrix::new(d.mapv(|x| x * factor)).unwrap(),
+                        &Silent,
+                    )
+                    .unwrap();
+                assert_eq!(
+                    fit.coordinates,
+                    plain.coordinates.mapv(|y| y * factor),
+                    "{name} × 2^{exponent}"
+                );
+                if let (Some(a), Some(b)) = (fit.report.lambda_end, plain.report.lambda_end) {
+                    assert_eq!(a, b * factor, "{name}");
+                }
+                assert!(fit
+                    .report
+                    .eigenvalues
+                    .iter()
+                    .chain(&fit.report.stress_trace)
+                    .all(|v| v.is_finite()));
+            }
+            // Scaled by 1e300 (not a power of two): finite, and the same embedding up
+            // to rounding (distances between the embedded points agree).
+            let fit = method
+                .fit(
+                    &DistanceMatrix::new(d.mapv(|x| x * 1e300)).unwrap(),
+                    &Silent,
+                )
+                .unwrap();
+            assert!(fit.coordinates.iter().all(|y| y.is_finite()), "{name}");
+            let spread = |y: &Array2<f64>, scale: f64| {
+                (0..y.nrows())
+                    .map(|i| (y[[i, 0]] - y[[0, 0]]).hypot(y[[i, 1]] - y[[0, 1]]) / scale)
+                    .collect::<Vec<f64>>()
+            };
+            let (a, b) = (
+                spread(&fit.coordinates, 1e300),
+                spread(&plain.coordinates, 1.0),
+            );
+            let worst = a
+                .iter()
+                .zip(&b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+            assert!(worst < 0.05, "{name}: distances off by {worst}");
+        }
+    }
+
+    #[test]
+    fn ordinary_distances_are_not_scaled() {
+        assert_eq!(distance_scale(&circle()), None);
+        assert_eq!(distance_scale(&[0.0, 0.0]), None);
+        assert_eq!(distance_scale(&[3.0, 1e19]), None);
+        assert_eq!(distance_scale(&[3.0, 1e20]), Some(2f64.powi(66)));
+        assert_eq!(distance_scale(&[3.0, 1e300]), Some(2f64.powi(996)));
+        assert_eq!(distance_scale(&[1e-300]), Some(2f64.powi(-997)));
+        assert_eq!(times(f64::MAX, 4.0), f64::MAX);
+        assert_eq!(times(-f64::MAX, 4.0), -f64::MAX);
     }
 }

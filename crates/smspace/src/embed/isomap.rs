@@ -27,7 +27,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::eigen::{classical_mds, EigenSolver, Triangulation};
+use super::eigen::{classical_mds, distance_scale, rescaled, EigenSolver, Triangulation};
 use super::{check_dim, check_dim_param, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
 use crate::error::InvalidParameter;
@@ -427,6 +427,15 @@ impl IsomapValidParams {
         graph: &KnnGraph,
         progress: &dyn Progress,
     ) -> Result<Embedded, EmbedError> {
+        if let Some(scale) = distance_scale(&graph.knn().distances) {
+            let knn = graph.knn();
+            let scaled = KnnGraph::from_knn(Knn {
+                rows: knn.rows.clone(),
+                indices: knn.indices.clone(),
+                distances: knn.distances.mapv(|x| x / scale),
+            })?;
+            return Ok(rescaled(self.fit_knn(&scaled, progress)?, scale));
+        }
         let p = &self.0;
         let n = graph.points();
         check_dim(p.dim, n)?;

@@ -12,10 +12,10 @@
 use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
 
-use super::eigen::{classical_mds, EigenSolver, Triangulation};
+use super::eigen::{classical_mds, distance_scale, rescaled, EigenSolver, Triangulation};
 use super::{check_dim_param, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
-use crate::progress::Progress;
+use crate::progress::{Progress, Silent};
 
 /// Parameters of classical MDS (unchecked).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -88,6 +88,10 @@ impl Embedding for MdsValidParams {
         distances: ArrayView2<'_, f64>,
         _progress: &dyn Progress,
     ) -> Result<Embedded, EmbedError> {
+        if let Some(scale) = distance_scale(distances) {
+            let scaled = distances.mapv(|x| x / scale);
+            return Ok(rescaled(self.fit_checked(scaled.view(), &Silent)?, scale));
+        }
         let n = distances.nrows();
         let sq: Array2<f64> = distances.mapv(|x| x * x);
         let fit = classical_mds(sq, self.0.dim, self.0.solver, self.0.seed, false)?;

@@ -349,13 +349,26 @@ impl EmbedFile {
     /// `dydx` field naming the sample file (relative to the report). Returns the paths
     /// written. `smspace embed` and the pipeline's embed stage both write through here.
     pub fn write(
-        mut self,
+        self,
         y_path: &std::path::Path,
         coordinates: ArrayView2<'_, f64>,
         dydx: Option<ArrayView2<'_, f64>>,
     ) -> Result<Vec<std::path::PathBuf>, crate::io::IoError> {
         // All files or none (see `io::Outputs`).
         let mut outputs = crate::io::Outputs::new();
+        self.write_into(&mut outputs, y_path, coordinates, dydx)?;
+        outputs.commit()
+    }
+
+    /// Stages the files of [`write`](Self::write) into `outputs`, to be renamed into
+    /// place with the other files of a command or stage.
+    pub fn write_into(
+        mut self,
+        outputs: &mut crate::io::Outputs,
+        y_path: &std::path::Path,
+        coordinates: ArrayView2<'_, f64>,
+        dydx: Option<ArrayView2<'_, f64>>,
+    ) -> Result<(), crate::io::IoError> {
         outputs.npy(y_path, &coordinates)?;
         self.dydx = match dydx {
             Some(pairs) => {
@@ -371,8 +384,7 @@ impl EmbedFile {
             None => None,
         };
         let report = crate::io::sibling(y_path, "embed.json");
-        outputs.json(&report, &self)?;
-        outputs.commit()
+        outputs.json(&report, &self)
     }
 }
 

@@ -618,16 +618,27 @@ impl TracedSets {
     /// Returns the four paths. `smspace trace` and the pipeline's trace stage both
     /// write through here.
     pub fn save(&self, sets_path: &Path) -> Result<[PathBuf; 4], crate::io::IoError> {
-        let files = Self::files(sets_path);
-        let [sets, kept, closed, report] = &files;
         // All four or none (see `io::Outputs`).
         let mut outputs = crate::io::Outputs::new();
+        let files = self.write_into(&mut outputs, sets_path)?;
+        outputs.commit()?;
+        Ok(files)
+    }
+
+    /// Stages the files of [`save`](Self::save) into `outputs`, to be renamed into place
+    /// with the other files of a command or stage; returns their paths.
+    pub fn write_into(
+        &self,
+        outputs: &mut crate::io::Outputs,
+        sets_path: &Path,
+    ) -> Result<[PathBuf; 4], crate::io::IoError> {
+        let files = Self::files(sets_path);
+        let [sets, kept, closed, report] = &files;
         outputs.npy(sets, &self.sets)?;
         let rows: ndarray::Array1<i64> = self.kept.iter().map(|&k| k as i64).collect();
         outputs.npy(kept, &rows)?;
         outputs.npy(closed, &closure_codes(&self.closure))?;
         outputs.json(report, &self.report)?;
-        outputs.commit()?;
         Ok(files)
     }
 

@@ -147,6 +147,12 @@ impl DistanceMatrix {
         io::write_npy(path, &self.values)
     }
 
+    /// Stages the matrix for `path` into `outputs`, to be renamed into place with the
+    /// other files of a command or stage (the bytes [`save`](Self::save) writes).
+    pub fn write_into(&self, outputs: &mut io::Outputs, path: &Path) -> Result<(), IoError> {
+        outputs.npy(path, &self.values)
+    }
+
     /// A matrix the caller built symmetric with a zero diagonal (the metric's):
     /// checked only in debug builds.
     pub(crate) fn from_symmetric(values: Array2<f64>) -> Self {

@@ -1,11 +1,18 @@
 //! One writer per run folder: an advisory lock on `DIR/.smspace.lock`, held from before
-//! `config.resolved.toml` is written until the run returns.
+//! the first file of the folder is touched until the run returns.
 //!
 //! Two `smspace run` into one folder would otherwise interleave their stage files and
 //! manifests, so that a manifest could record another run's output under its own key
 //! and every later run would reuse it. The lock is the operating system's (`flock` on
 //! Unix, `LockFileEx` on Windows, through [`std::fs::File::lock`]), so it is released
 //! when the process ends, however it ends: a killed run never leaves a stale lock.
+//!
+//! A folder whose lock file cannot be opened for writing (a read-only folder or file
+//! system) is opened for reading only ([`Access::ReadOnly`]): the run takes a *shared*
+//! lock on the lock file when there is one (no writer can then hold the folder, and
+//! other readers may), or none when the folder has no lock file (nothing can create
+//! one, so no smspace run can write there either). Such a run writes nothing: it can
+//! only reuse a finished run whose configuration is unchanged.
 
 use std::fs::{File, OpenOptions, TryLockError};
 use std::path::{Path, PathBuf};
@@ -28,15 +35,27 @@ pub enum BusyFolder {
     Wait,
 }
 
+/// What a run may do in its folder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Access {
+    /// The run holds the exclusive lock: it may write.
+    Write,
+    /// The folder cannot be written: the run holds a shared lock (or none, when the
+    /// folder has no lock file) and writes nothing.
+    ReadOnly,
+}
+
 /// The held lock; dropping it releases the folder.
 #[derive(Debug)]
 pub(super) struct FolderLock {
-    _file: File,
+    _file: Option<File>,
+    access: Access,
 }
 
 impl FolderLock {
     /// Takes the lock of `dir` (which exists), waiting or refusing as `busy` says;
-    /// `waiting` is called once before a wait.
+    /// `waiting` is called once before a wait. Exclusive when the lock file can be
+    /// opened for writing, shared (or none) when the folder is read-only.
     pub(super) fn acquire(
         dir: &Path,
         busy: BusyFolder,
@@ -47,13 +66,30 @@ impl FolderLock {
             path: path.clone(),
             reason,
         };
-        let file = OpenOptions::new()
+        let writable = OpenOptions::new()
             .create(true)
             .truncate(false)
             .write(true)
-            .open(&path)
-            .map_err(lock_error)?;
-        match file.try_lock() {
+            .open(&path);
+        let (file, access) = match writable {
+            Ok(file) => (file, Access::Write),
+            Err(reason) if is_read_only(&reason) => match File::open(&path) {
+                Ok(file) => (file, Access::ReadOnly),
+                Err(missing) if missing.kind() == std::io::ErrorKind::NotFound => {
+                    return Ok(Self {
+                        _file: None,
+                        access: Access::ReadOnly,
+                    })
+                }
+                Err(other) => return Err(lock_error(other)),
+            },
+            Err(reason) => return Err(lock_error(reason)),
+        };
+        let tried = match access {
+            Access::Write => file.try_lock(),
+            Access::ReadOnly => file.try_lock_shared(),
+        };
+        match tried {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => match busy {
                 BusyFolder::Refuse => {
@@ -64,13 +100,34 @@ impl FolderLock {
                 }
                 BusyFolder::Wait => {
                     waiting(&path);
-                    file.lock().map_err(lock_error)?;
+                    match access {
+                        Access::Write => file.lock(),
+                        Access::ReadOnly => file.lock_shared(),
+                    }
+                    .map_err(lock_error)?;
                 }
             },
             Err(TryLockError::Error(reason)) => return Err(lock_error(reason)),
         }
-        Ok(Self { _file: file })
+        Ok(Self {
+            _file: Some(file),
+            access,
+        })
     }
+
+    /// Whether the run may write its folder.
+    pub(super) fn access(&self) -> Access {
+        self.access
+    }
+}
+
+/// Whether opening a file for writing failed because the folder or file system is
+/// read-only (rather than missing, say).
+pub(super) fn is_read_only(error: &std::io::Error) -> bool {
+    matches!(
+        error.kind(),
+        std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem
+    )
 }
 
 /// Removes the temporary files (`.smspace-*.part`, see [`crate::io::write_atomic`]) that
@@ -120,6 +177,30 @@ mod tests {
         }
         drop(first);
         FolderLock::acquire(dir.path(), BusyFolder::Refuse, |_| {}).unwrap();
+    }
+
+    #[test]
+    fn readers_share_the_lock_and_keep_writers_out() {
+        let dir = tempfile::tempdir().unwrap();
+        drop(FolderLock::acquire(dir.path(), BusyFolder::Refuse, |_| {}).unwrap());
+        // What `acquire` takes when the lock file cannot be opened for writing.
+        let shared = || {
+            let file = File::open(lock_path(dir.path())).unwrap();
+            file.try_lock_shared().map(|()| file)
+        };
+        let first = shared().unwrap();
+        let second = shared().expect("readers share the folder");
+        let writer = FolderLock::acquire(dir.path(), BusyFolder::Refuse, |_| {});
+        assert!(matches!(writer, Err(PipelineError::Busy { .. })));
+        drop((first, second));
+        let writer = FolderLock::acquire(dir.path(), BusyFolder::Refuse, |_| {}).unwrap();
+        assert_eq!(writer.access(), Access::Write);
+        assert!(shared().is_err(), "no reader while a writer holds it");
+        let read_only = std::io::Error::from(std::io::ErrorKind::ReadOnlyFilesystem);
+        assert!(is_read_only(&read_only));
+        assert!(!is_read_only(&std::io::Error::from(
+            std::io::ErrorKind::NotFound
+        )));
     }
 
     #[test]

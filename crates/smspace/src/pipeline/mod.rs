@@ -22,11 +22,16 @@
 //! `manifest.json` ([`manifest::Manifest`]: version, seeds, configuration hash, time per
 //! stage, output hashes). A stage whose key (the hash of the stage struct, which holds
 //! every parameter its computation reads, and the keys of its inputs) is unchanged and whose outputs are intact is not recomputed
-//! ([`Recompute::Changed`]); its outputs are read back instead. Every file is written
-//! atomically and the manifest after every stage, so a failing or interrupted stage
-//! leaves the earlier stages' outputs and records intact. One process writes a folder at
-//! a time ([`lock`]: a second run refuses, or waits with [`BusyFolder::Wait`]).
-//! `docs/RELIABILITY.md` lists these promises and the tests that check them.
+//! ([`Recompute::Changed`]); its outputs are read back instead. A computed stage's
+//! files, the configuration and the manifest with its record are written together
+//! ([`crate::io::Outputs`], hashed while written), so a failing or interrupted stage
+//! leaves the earlier stages' outputs and records intact; a run that reuses every stage
+//! of an unchanged configuration writes nothing, and so runs from a read-only folder
+//! (the order of the writes is in `runner`'s docs). Each stage's peak memory is
+//! estimated before it starts and held to [`RunOptions::memory_limit_bytes`]. One
+//! process writes a folder at a time ([`lock`]: a second run refuses, or waits with
+//! [`BusyFolder::Wait`]). `docs/RELIABILITY.md` lists these promises and the tests that
+//! check them.
 //!
 //! # Example
 //!
@@ -79,6 +84,7 @@
 
 pub mod lock;
 pub mod manifest;
+mod memory;
 mod runner;
 pub mod stages;
 
@@ -92,7 +98,7 @@ use crate::agent::{Agent, AgentRegistry};
 use crate::analysis::AnalysisReport;
 use crate::config::{ConfigError, LoadedExperiment};
 use crate::error::InvalidParameter;
-use crate::io::{self, IoError};
+use crate::io::IoError;
 use crate::kernel::{TraceMethod, TraceParams};
 use crate::metric::{MetricError, MetricRegistry, Period};
 use crate::progress::Progress;
@@ -142,9 +148,10 @@ pub enum PipelineError {
         /// Its lock file.
         lock: PathBuf,
     },
-    /// The explored configurations or their kernel sets would not fit in memory;
-    /// nothing ran.
-    #[error("the {what} need {} but only {} is available; {fix}", crate::metric::human_bytes(*needed), crate::metric::human_bytes(*available))]
+    /// A stage's estimated peak memory (or, before anything runs, the explored
+    /// configurations or their kernel sets) exceeds the run's limit; the stage did
+    /// not start.
+    #[error("{what}: about {} needed, but the limit is {} (the memory available, or --max-memory); {fix}", crate::metric::human_bytes(*needed), crate::metric::human_bytes(*available))]
     OutOfMemory {
         /// What would not fit, with its size (e.g. `kernel sets (3500 × 100 × 4)`).
         what: String,
@@ -154,6 +161,17 @@ pub enum PipelineError {
         available: u64,
         /// Which keys to lower.
         fix: &'static str,
+    },
+    /// The run folder cannot be written (a read-only folder or file system) and the run
+    /// would have to write it; nothing was written.
+    #[error("{dir} cannot be written, and {what}: a read-only run folder can only be reused as it is (the same experiment and settings, every stage finished); run it into a writable folder with --out{}", reason.as_ref().map(|r| format!(" ({r})")).unwrap_or_default())]
+    ReadOnly {
+        /// The run folder.
+        dir: PathBuf,
+        /// Why the run must write (e.g. "stage `embed` must be computed").
+        what: String,
+        /// The operating system's reason, when a write was tried.
+        reason: Option<std::io::Error>,
     },
     /// The lock file of the run folder cannot be opened or locked.
     #[error("cannot lock the run folder through {path}: {reason}")]
@@ -229,8 +247,11 @@ pub struct RunOptions {
     pub out_dir: PathBuf,
     /// Which stages run again.
     pub recompute: Recompute,
-    /// Refuse a distance matrix larger than this many bytes (the command-line tool
-    /// passes the memory available). `None`: no limit.
+    /// The run's memory limit in bytes (the command-line tool passes `--max-memory`,
+    /// by default the memory available): every stage's estimated peak is checked
+    /// against it before the stage starts, and the distance matrix against the
+    /// smaller of it and the experiment's `[metric] memory_limit_bytes`. `None`: no
+    /// limit but the experiment's.
     pub memory_limit_bytes: Option<u64>,
     /// What to do when another process is writing the run folder ([`lock`]).
     pub busy: BusyFolder,
@@ -514,13 +535,31 @@ pub fn run(
     check_memory(plan, options.memory_limit_bytes)?;
     let mut runner = start(plan, options, observer)?;
     let world = &plan.world;
-    let exploration = runner.run(&plan.explore, &ExploreInput { world })?;
+    let motors = plan.agent().motor_dim() as u64;
+    let exploration = runner.run(&plan.explore, &ExploreInput { world }, plan.explore_peak())?;
     let exploration = &exploration;
-    let traced = runner.run(&plan.trace, &TraceInput { world, exploration })?;
+    let rows = exploration.motors.nrows() as u64;
+    let held = memory::Held::default().plus(memory::exploration_bytes(rows, motors));
+    let traced = runner.run(
+        &plan.trace,
+        &TraceInput { world, exploration },
+        plan.trace_peak(held, rows),
+    )?;
     let traced = &traced;
-    let distances = runner.run(&plan.distances, &DistancesInput { traced })?;
+    let (m, points) = (traced.sets.dim().0 as u64, traced.sets.dim().1 as u64);
+    let held = held.plus(memory::sets_bytes(m, points, motors));
+    let distances = runner.run(
+        &plan.distances,
+        &DistancesInput { traced },
+        plan.distances_peak(held, m),
+    )?;
     let distances = &distances;
-    let embedded = runner.run(&plan.embed, &EmbedInput { distances })?;
+    let held = held.plus(memory::matrix_bytes(m));
+    let embedded = runner.run(
+        &plan.embed,
+        &EmbedInput { distances },
+        plan.embed_peak(held, m),
+    )?;
     let analysis = runner.run(
         &plan.analyze,
         &AnalyzeInput {
@@ -528,10 +567,13 @@ pub fn run(
             traced,
             distances,
         },
+        plan.analyze_peak(held, m),
     )?;
-    let invariance = match &plan.invariance {
-        Some(stage) => Some(runner.run(stage, &InvarianceInput { world, exploration })?),
-        None => {
+    let invariance = match (&plan.invariance, plan.invariance_peak(held)) {
+        (Some(stage), Some(peak)) => {
+            Some(runner.run(stage, &InvarianceInput { world, exploration }, peak)?)
+        }
+        _ => {
             observer.stage_skipped(
                 StageId::Invariance,
                 if world.environments.len() < 2 {
@@ -553,9 +595,9 @@ pub fn run(
             analysis: &analysis,
             invariance: invariance.as_ref(),
         },
+        plan.report_peak(held, m),
     )?;
-    runner.manifest.status = RunStatus::Complete;
-    runner.write_manifest()?;
+    runner.finish()?;
     Ok(RunSummary {
         dir: runner.dir,
         manifest: runner.manifest,
@@ -604,10 +646,10 @@ fn check_memory(plan: &Plan, limit: Option<u64>) -> Result<(), PipelineError> {
     Ok(())
 }
 
-/// Makes the run folder, writes `config.resolved.toml`, and reads the previous
-/// manifest (the cache).
+/// Makes the run folder, takes its lock and reads the previous manifest (the cache).
+/// Nothing is written yet (see [`runner`]'s docs for when and how it is).
 fn start<'a>(
-    plan: &Plan,
+    plan: &'a Plan,
     options: &'a RunOptions,
     observer: &'a dyn RunObserver,
 ) -> Result<Runner<'a>, PipelineError> {
@@ -619,7 +661,9 @@ fn start<'a>(
     })?;
     // One writer at a time, from before the first file is touched.
     let lock = FolderLock::acquire(&dir, options.busy, |path| observer.waiting_for_folder(path))?;
-    lock::remove_stale_parts(&dir);
+    if lock.access() == lock::Access::Write {
+        lock::remove_stale_parts(&dir);
+    }
     let loaded = &plan.experiment;
     let e = &loaded.experiment;
     let resolved = &plan.report.config_toml;
@@ -645,21 +689,21 @@ fn start<'a>(
         total_seconds: 0.0,
         status: RunStatus::Running,
     };
-    let mut runner = Runner {
+    let matrix_limit_bytes = match (options.memory_limit_bytes, e.metric.memory_limit_bytes) {
+        (Some(run), Some(metric)) => Some(run.min(metric)),
+        (run, metric) => run.or(metric),
+    };
+    Ok(Runner {
         dir,
         options,
         observer,
         previous,
         manifest,
         started,
-        _lock: lock,
-    };
-    // The manifest says "running" (keeping the earlier records) before the new
-    // configuration replaces the old one: a run that dies between the two never leaves
-    // a "complete" manifest next to a configuration it did not run.
-    runner.write_manifest()?;
-    io::write_atomic(&runner.dir.join("config.resolved.toml"), |w| {
-        std::io::Write::write_all(w, resolved.as_bytes())
-    })?;
-    Ok(runner)
+        config_toml: resolved,
+        matrix_limit_bytes,
+        writing: false,
+        config_written: false,
+        lock,
+    })
 }

@@ -32,6 +32,7 @@ use crate::analysis::AnalysisReport;
 use crate::embed::EmbedReport;
 use crate::explore::Workspace;
 use crate::invariance::InvarianceReport;
+use crate::io::Outputs;
 use crate::kernel::TraceSummary;
 
 /// Errors of the report stage.
@@ -483,26 +484,21 @@ enum Planned<'a> {
 }
 
 impl Planned<'_> {
-    fn render(
-        &self,
-        name: &str,
-        formats: FigureFormats,
-        dir: &Path,
-    ) -> Result<plot::Rendered, ReportError> {
+    fn render(&self, name: &str, formats: FigureFormats) -> Result<plot::Rendered, ReportError> {
         use plot::render;
         match self {
             Planned::Skip(_) => Ok(plot::Rendered::default()),
-            Planned::SensoryManifolds(f) => render(f, name, formats, dir),
-            Planned::KernelLines(f) => render(f, name, formats, dir),
-            Planned::LearnedManifold(f) => render(f, name, formats, dir),
-            Planned::Configurations(f) => render(f, name, formats, dir),
-            Planned::KernelSets3d(f) => render(f, name, formats, dir),
-            Planned::EmbeddingProbes(f) => render(f, name, formats, dir),
-            Planned::EmbeddingPose(f) => render(f, name, formats, dir),
-            Planned::Persistence(f) => render(f, name, formats, dir),
-            Planned::DyDx(f) => render(f, name, formats, dir),
-            Planned::Invariance(f) => render(f, name, formats, dir),
-            Planned::Stress(f) => render(f, name, formats, dir),
+            Planned::SensoryManifolds(f) => render(f, name, formats),
+            Planned::KernelLines(f) => render(f, name, formats),
+            Planned::LearnedManifold(f) => render(f, name, formats),
+            Planned::Configurations(f) => render(f, name, formats),
+            Planned::KernelSets3d(f) => render(f, name, formats),
+            Planned::EmbeddingProbes(f) => render(f, name, formats),
+            Planned::EmbeddingPose(f) => render(f, name, formats),
+            Planned::Persistence(f) => render(f, name, formats),
+            Planned::DyDx(f) => render(f, name, formats),
+            Planned::Invariance(f) => render(f, name, formats),
+            Planned::Stress(f) => render(f, name, formats),
         }
     }
 }
@@ -919,7 +915,7 @@ fn figures_extent(values: impl IntoIterator<Item = f64>) -> Option<(f64, f64)> {
 }
 
 /// Draws every figure into `dir/figures/` and writes `dir/report.html` and
-/// `dir/report.md`, atomically.
+/// `dir/report.md`: all of them together or none ([`crate::io::Outputs`]).
 ///
 /// Figures whose inputs are absent are skipped, with the reason in their
 /// [`FigureRecord`]. Figures are drawn in parallel; the output is the same for any
@@ -929,15 +925,50 @@ pub fn write_report(
     params: &ReportParams,
     dir: &Path,
 ) -> Result<ReportSummary, ReportError> {
+    let rendered = render_report(inputs, params)?;
+    let mut outputs = Outputs::new();
+    rendered.write_into(&mut outputs, dir)?;
+    outputs.commit()?;
+    Ok(rendered.summary)
+}
+
+/// A report drawn in memory: what [`write_report`] writes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderedReport {
+    /// What the report holds (the pipeline writes it as `report.json`).
+    pub summary: ReportSummary,
+    /// Every file of the report (figures, `report.html`, `report.md`), relative to the
+    /// report folder, with its bytes.
+    pub files: Vec<(PathBuf, Vec<u8>)>,
+}
+
+impl RenderedReport {
+    /// Stages every file under `dir` into `outputs` (making `dir/figures`), and removes
+    /// the figure files of an earlier report that this one does not write (a format no
+    /// longer asked for, a figure now skipped).
+    pub fn write_into(&self, outputs: &mut Outputs, dir: &Path) -> Result<(), ReportError> {
+        let figures_dir = dir.join("figures");
+        std::fs::create_dir_all(&figures_dir).map_err(|reason| {
+            ReportError::Io(crate::io::IoError::Write {
+                path: figures_dir.clone(),
+                reason,
+            })
+        })?;
+        remove_stale_figures(dir, self.summary.figures.iter());
+        for (relative, bytes) in &self.files {
+            outputs.bytes(&dir.join(relative), bytes)?;
+        }
+        Ok(())
+    }
+}
+
+/// Draws the report in memory (see [`write_report`]).
+pub fn render_report(
+    inputs: &ReportInputs<'_>,
+    params: &ReportParams,
+) -> Result<RenderedReport, ReportError> {
     params.check()?;
     check_inputs(inputs)?;
-    let figures_dir = dir.join("figures");
-    std::fs::create_dir_all(&figures_dir).map_err(|reason| {
-        ReportError::Io(crate::io::IoError::Write {
-            path: figures_dir.clone(),
-            reason,
-        })
-    })?;
     let derived = derive(inputs);
     let surfaces = derived
         .set_poses
@@ -947,7 +978,7 @@ pub fn write_report(
     let planned = plan(inputs, params, &derived, &surfaces);
     let rendered: Vec<Result<plot::Rendered, ReportError>> = planned
         .par_iter()
-        .map(|(name, _, p)| p.render(name, params.formats, dir))
+        .map(|(name, _, p)| p.render(name, params.formats))
         .collect();
     let mut figures = Vec::with_capacity(planned.len());
     for ((name, caption, p), r) in planned.into_iter().zip(rendered) {
@@ -966,18 +997,27 @@ pub fn write_report(
             r,
         ));
     }
-    remove_stale_figures(dir, figures.iter().map(|(record, _)| record));
     let tables = tables::tables(inputs);
     let html_text = html::html(inputs, &tables, &figures);
     let html_path = PathBuf::from("report.html");
-    plot::write_bytes(&dir.join(&html_path), html_text.as_bytes())?;
-    let records: Vec<FigureRecord> = figures.into_iter().map(|(f, _)| f).collect();
+    let mut files = Vec::new();
+    let mut records = Vec::with_capacity(figures.len());
+    for (record, r) in figures {
+        // A figure's files are its PNG then its SVG (see `plot::render`).
+        let bytes = r.png.into_iter().chain(r.svg.map(String::into_bytes));
+        files.extend(record.files.iter().cloned().zip(bytes));
+        records.push(record);
+    }
     let md_text = markdown::markdown(inputs, &tables, &records);
     let md_path = PathBuf::from("report.md");
-    plot::write_bytes(&dir.join(&md_path), md_text.as_bytes())?;
-    Ok(ReportSummary {
-        figures: records,
-        html: html_path,
-        markdown: md_path,
+    files.push((html_path.clone(), html_text.into_bytes()));
+    files.push((md_path.clone(), md_text.into_bytes()));
+    Ok(RenderedReport {
+        summary: ReportSummary {
+            figures: records,
+            html: html_path,
+            markdown: md_path,
+        },
+        files,
     })
 }

@@ -8,7 +8,7 @@
 
 use std::error::Error;
 use std::ops::Range;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Once;
 
 use plotters::coord::types::RangedCoordf64;
@@ -18,7 +18,6 @@ use plotters::style::colors::colormaps::ViridisRGB;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::{FigureFormats, ReportError};
-use crate::io::{write_atomic, IoError};
 
 /// DejaVu Sans (Bitstream Vera licence, see `assets/DejaVuSans-LICENSE`): the only
 /// font the figures use, so that PNG text does not depend on the system's fonts.
@@ -58,10 +57,11 @@ pub(super) trait Figure {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn;
 }
 
-/// A figure written to disk, with its bytes kept for `report.html`.
+/// A figure drawn in memory: its files' names and bytes (written by the report's one
+/// [`crate::io::Outputs`], and kept for `report.html`).
 #[derive(Debug, Default)]
 pub(super) struct Rendered {
-    /// Files written, relative to the report folder.
+    /// Its files, relative to the report folder.
     pub(super) files: Vec<PathBuf>,
     /// The PNG bytes, when PNG was asked for.
     pub(super) png: Option<Vec<u8>>,
@@ -76,12 +76,11 @@ fn draw_error(name: &str, error: PlotError) -> ReportError {
     }
 }
 
-/// Renders `figure` as `figures/<name>.png` and/or `.svg` under `dir`, atomically.
+/// Renders `figure` as `figures/<name>.png` and/or `.svg`, in memory.
 pub(super) fn render<F: Figure>(
     figure: &F,
     name: &str,
     formats: FigureFormats,
-    dir: &Path,
 ) -> Result<Rendered, ReportError> {
     register_font();
     let (width, height) = figure.size();
@@ -104,7 +103,6 @@ pub(super) fn render<F: Figure>(
             reason,
         })?;
         let relative = PathBuf::from("figures").join(format!("{name}.png"));
-        write_bytes(&dir.join(&relative), &bytes)?;
         rendered.files.push(relative);
         rendered.png = Some(bytes);
     }
@@ -117,16 +115,10 @@ pub(super) fn render<F: Figure>(
             root.present().map_err(|e| draw_error(name, e.into()))?;
         }
         let relative = PathBuf::from("figures").join(format!("{name}.svg"));
-        write_bytes(&dir.join(&relative), text.as_bytes())?;
         rendered.files.push(relative);
         rendered.svg = Some(text);
     }
     Ok(rendered)
-}
-
-/// Writes `bytes` to `path` atomically.
-pub(super) fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
-    write_atomic(path, |writer| std::io::Write::write_all(writer, bytes))
 }
 
 fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>, String> {

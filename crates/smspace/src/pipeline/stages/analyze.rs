@@ -8,6 +8,7 @@ use serde::Serialize;
 use super::{Keyed, Stage, StageContext, StageInput};
 use crate::analysis::{analyze_on, AnalysisParams, AnalysisReport, DimensionSets};
 use crate::explore::Exploration;
+use crate::io::Outputs;
 use crate::kernel::TracedSets;
 use crate::metric::DistanceMatrix;
 use crate::pipeline::StageId;
@@ -76,10 +77,11 @@ impl Stage for AnalyzeStage {
         &self,
         _: &AnalyzeInput<'_>,
         report: &AnalysisReport,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        report.save(&dir.join(REPORT_FILE))?;
-        Ok(vec![REPORT_FILE.to_owned()])
+    ) -> crate::Result<()> {
+        report.write_into(outputs, &dir.join(REPORT_FILE))?;
+        Ok(())
     }
 
     fn load(&self, _: &AnalyzeInput<'_>, dir: &Path) -> crate::Result<AnalysisReport> {

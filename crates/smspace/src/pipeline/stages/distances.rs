@@ -7,7 +7,7 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use super::{label, Keyed, Stage, StageContext, StageInput};
-use crate::io::IoError;
+use crate::io::{IoError, Outputs};
 use crate::kernel::TracedSets;
 use crate::metric::{
     distance_matrix_with, BuiltMetric, DistanceMatrix, DistanceParams, MetricName, Period,
@@ -94,10 +94,11 @@ impl Stage for DistancesStage {
         &self,
         _: &DistancesInput<'_>,
         d: &DistanceMatrix,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        d.save(&dir.join(MATRIX_FILE))?;
-        Ok(vec![MATRIX_FILE.to_owned()])
+    ) -> crate::Result<()> {
+        d.write_into(outputs, &dir.join(MATRIX_FILE))?;
+        Ok(())
     }
 
     fn load(&self, input: &DistancesInput<'_>, dir: &Path) -> crate::Result<DistanceMatrix> {

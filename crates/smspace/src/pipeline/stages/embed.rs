@@ -10,7 +10,7 @@ use serde::Serialize;
 use super::{Keyed, Stage, StageContext, StageInput};
 use crate::embed::quality::{measure, Quality};
 use crate::embed::{EmbedFile, EmbedParams, EmbedReport};
-use crate::io;
+use crate::io::{self, Outputs};
 use crate::metric::DistanceMatrix;
 use crate::pipeline::StageId;
 
@@ -96,7 +96,13 @@ impl Stage for EmbedStage {
         })
     }
 
-    fn save(&self, _: &EmbedInput<'_>, y: &EmbedOutputs, dir: &Path) -> crate::Result<Vec<String>> {
+    fn save(
+        &self,
+        _: &EmbedInput<'_>,
+        y: &EmbedOutputs,
+        outputs: &mut Outputs,
+        dir: &Path,
+    ) -> crate::Result<()> {
         // The method's own parameters, as `smspace embed` writes them.
         let params = self.embedding.clone().build()?.params_json();
         let file = EmbedFile {
@@ -108,14 +114,13 @@ impl Stage for EmbedStage {
             extended: None,
             seconds: None,
         };
-        file.write(
+        file.write_into(
+            outputs,
             &dir.join(COORDINATES_FILE),
             y.coordinates.view(),
             Some(y.dydx.view()),
         )?;
-        Ok([COORDINATES_FILE, DYDX_FILE, REPORT_FILE]
-            .map(String::from)
-            .to_vec())
+        Ok(())
     }
 
     fn load(&self, input: &EmbedInput<'_>, dir: &Path) -> crate::Result<EmbedOutputs> {

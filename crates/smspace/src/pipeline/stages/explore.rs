@@ -7,6 +7,7 @@ use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput, World};
 use crate::explore::{explore_in, Exploration, ExploreParams};
+use crate::io::Outputs;
 use crate::pipeline::StageId;
 
 /// The `explore` stage: the `[exploration]` table.
@@ -60,17 +61,15 @@ impl Stage for ExploreStage {
         &self,
         input: &ExploreInput<'_>,
         exploration: &Exploration,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
+    ) -> crate::Result<()> {
         let world = &input.world.value;
-        exploration.save(dir, &world.agent_config, &self.exploration)?;
-        let mut files: Vec<String> = exploration.files().into_iter().map(String::from).collect();
+        exploration.write_into(outputs, dir, &world.agent_config, &self.exploration)?;
         for (i, env) in world.environments.iter().enumerate() {
-            let file = environment_file(i);
-            env.save(&dir.join(&file))?;
-            files.push(file);
+            outputs.json(&dir.join(environment_file(i)), env)?;
         }
-        Ok(files)
+        Ok(())
     }
 
     fn load(&self, input: &ExploreInput<'_>, dir: &Path) -> crate::Result<Exploration> {

@@ -9,7 +9,8 @@ use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput, World};
 use crate::explore::Exploration;
-use crate::invariance::{invariance_measured, read_invariance, write_invariance};
+use crate::invariance::{invariance_measured, read_invariance, stage_invariance};
+use crate::io::Outputs;
 use crate::kernel::TraceParams;
 use crate::metric::{MetricName, SetMetric};
 use crate::pipeline::StageId;
@@ -115,23 +116,22 @@ impl Stage for InvarianceStage {
         })
     }
 
+    /// `invariance.json` and the two arrays of every environment, all together.
     fn save(
         &self,
         _: &InvarianceInput<'_>,
         data: &InvarianceData,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        let written = write_invariance(
+    ) -> crate::Result<()> {
+        stage_invariance(
+            outputs,
             &dir.join(REPORT_FILE),
             &data.report,
             &data.set_distances,
             &data.sensors,
         )?;
-        Ok(written
-            .iter()
-            .filter_map(|p| p.file_name())
-            .map(|name| name.to_string_lossy().into_owned())
-            .collect())
+        Ok(())
     }
 
     fn load(&self, input: &InvarianceInput<'_>, dir: &Path) -> crate::Result<InvarianceData> {

@@ -40,6 +40,7 @@ use super::manifest::{hash_parts, SMSPACE_VERSION};
 use super::StageId;
 use crate::agent::{Agent, AgentConfig, Environment};
 use crate::explore::Workspace;
+use crate::io::Outputs;
 use crate::progress::Progress;
 use crate::report::StageTiming;
 
@@ -69,14 +70,16 @@ pub trait Stage: Serialize {
         context: &StageContext<'_>,
     ) -> crate::Result<Self::Output>;
 
-    /// Writes the output into the run folder `dir`; returns the files written,
-    /// relative to `dir` (the manifest hashes them).
+    /// Stages the output's files for the run folder `dir` into `outputs` (every path
+    /// inside `dir`). The run renames them into place together with the manifest,
+    /// which records each file with the hash of the bytes staged ([`Outputs::staged`]).
     fn save(
         &self,
         input: &Self::Input<'_>,
         output: &Self::Output,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>>;
+    ) -> crate::Result<()>;
 
     /// Reads back what [`save`](Stage::save) wrote.
     fn load(&self, input: &Self::Input<'_>, dir: &Path) -> crate::Result<Self::Output>;

@@ -10,11 +10,11 @@ use super::{EmbedOutputs, Keyed, Stage, StageContext, StageInput, World};
 use crate::agent::{Agent, Environment};
 use crate::analysis::AnalysisReport;
 use crate::explore::Exploration;
-use crate::io;
+use crate::io::{self, Outputs};
 use crate::kernel::TracedSets;
 use crate::pipeline::StageId;
 use crate::report::{
-    write_report, InvarianceData, ReportInputs, ReportParams, ReportSummary, SensoryManifold,
+    render_report, InvarianceData, RenderedReport, ReportInputs, ReportParams, SensoryManifold,
 };
 
 /// Motor samples of each raw sensory manifold (paper Fig. 1).
@@ -70,15 +70,15 @@ const SUMMARY_FILE: &str = "report.json";
 impl Stage for ReportStage {
     const ID: StageId = StageId::Report;
     type Input<'a> = ReportInput<'a>;
-    type Output = ReportSummary;
+    type Output = RenderedReport;
 
-    /// Renders the figures, `report.html` and `report.md` straight into the run folder
-    /// (figures are files); [`save`](Stage::save) adds `report.json`.
+    /// Draws the figures, `report.html` and `report.md` in memory;
+    /// [`save`](Stage::save) stages them with `report.json`.
     fn compute(
         &self,
         input: &ReportInput<'_>,
         context: &StageContext<'_>,
-    ) -> crate::Result<ReportSummary> {
+    ) -> crate::Result<RenderedReport> {
         let world = &input.world.value;
         let exploration = &input.exploration.value;
         let traced = &input.traced.value;
@@ -109,32 +109,31 @@ impl Stage for ReportStage {
             sensory_manifolds: &manifolds,
             stages: context.stage_times,
         };
-        Ok(write_report(&inputs, &self.report, context.dir)?)
+        Ok(render_report(&inputs, &self.report)?)
     }
 
+    /// The figures, `report.html`, `report.md` and `report.json`, all together.
     fn save(
         &self,
         _: &ReportInput<'_>,
-        summary: &ReportSummary,
+        report: &RenderedReport,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        io::write_json(&dir.join(SUMMARY_FILE), summary)?;
-        let mut files: Vec<String> = summary
-            .figures
-            .iter()
-            .flat_map(|f| f.files.iter().map(|p| p.to_string_lossy().into_owned()))
-            .collect();
-        files.push(summary.html.to_string_lossy().into_owned());
-        files.push(summary.markdown.to_string_lossy().into_owned());
-        files.push(SUMMARY_FILE.to_owned());
-        Ok(files)
+    ) -> crate::Result<()> {
+        report.write_into(outputs, dir)?;
+        outputs.json(&dir.join(SUMMARY_FILE), &report.summary)?;
+        Ok(())
     }
 
-    fn load(&self, _: &ReportInput<'_>, dir: &Path) -> crate::Result<ReportSummary> {
-        Ok(io::read_json(&dir.join(SUMMARY_FILE), "report summary")?)
+    /// `report.json` (the files themselves are checked by their hashes, not read).
+    fn load(&self, _: &ReportInput<'_>, dir: &Path) -> crate::Result<RenderedReport> {
+        Ok(RenderedReport {
+            summary: io::read_json(&dir.join(SUMMARY_FILE), "report summary")?,
+            files: Vec::new(),
+        })
     }
 
-    fn summary(&self, _: &ReportSummary) -> String {
+    fn summary(&self, _: &RenderedReport) -> String {
         "report.html, report.md and figures/".to_owned()
     }
 }

@@ -7,6 +7,7 @@ use serde::Serialize;
 
 use super::{label, Keyed, Stage, StageContext, StageInput, World};
 use crate::explore::Exploration;
+use crate::io::Outputs;
 use crate::kernel::{trace_sets, KernelError, TraceParams, TracedSets};
 use crate::pipeline::StageId;
 
@@ -71,14 +72,11 @@ impl Stage for TraceStage {
         &self,
         _: &TraceInput<'_>,
         traced: &TracedSets,
+        outputs: &mut Outputs,
         dir: &Path,
-    ) -> crate::Result<Vec<String>> {
-        let files = traced.save(&dir.join(SETS_FILE))?;
-        Ok(files
-            .iter()
-            .filter_map(|p| p.file_name())
-            .map(|n| n.to_string_lossy().into_owned())
-            .collect())
+    ) -> crate::Result<()> {
+        traced.write_into(outputs, &dir.join(SETS_FILE))?;
+        Ok(())
     }
 
     fn load(&self, _: &TraceInput<'_>, dir: &Path) -> crate::Result<TracedSets> {

@@ -1,0 +1,238 @@
+//! The peak memory of each stage, estimated before it starts, so that a run that would
+//! not fit is refused with the key to lower instead of being killed by the system.
+//!
+//! A stage's peak is what the run holds when it starts (the outputs of the earlier
+//! stages, which later stages read: explored configurations, kernel sets, `D`, the
+//! embedding; [`Held`]) plus the stage's own working set at its largest. With `M` sets
+//! and `D = 8 M²` bytes, the working sets are, in float64 (measured peak resident
+//! memory and estimates for the paper's arm: `docs/RELIABILITY.md`):
+//!
+//! | stage | working set |
+//! |---|---|
+//! | `explore` | the exploration's arrays |
+//! | `trace` | the kernel sets `(rows, P, N)`, twice (traced, then stacked) |
+//! | `distances` | `D`, and the prepared sets ([`crate::metric::matrix_bytes`]) |
+//! | `embed` | CCA: `D` in `f32` and the off-diagonal distances (`≈ 1 D`) and its MDS start; MDS: the squared copy and the eigensolver (`≈ 2 D`, `≈ 4 D` dense below 1000 points); Isomap: geodesics and their squares (`≈ 2 D`, landmarks `≈ 2 L M`) |
+//! | `analyze` | the pair lists and ranks of the agreement with the poses, one ranking at a time (`≈ 4 D`), persistence of `max_points` landmarks (`≈ 8 L²`) |
+//! | `invariance` | the starts' sets in every environment and their distance matrices |
+//! | `report` | the sampled sets and figures (small next to `D`) |
+
+use super::Plan;
+use crate::embed::EmbedParams;
+
+/// Bytes of one float64.
+const F64: u64 = 8;
+
+/// A stage's estimated peak.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Peak {
+    /// What needs the memory, with its sizes.
+    pub what: String,
+    /// Bytes at the peak, with what the run holds.
+    pub bytes: u64,
+    /// The keys that lower it.
+    pub fix: &'static str,
+}
+
+/// What the run holds when a stage starts: the earlier stages' outputs.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Held {
+    /// Bytes held.
+    pub bytes: u64,
+}
+
+impl Held {
+    /// Adds `bytes` (saturating).
+    pub fn plus(self, bytes: u64) -> Held {
+        Held {
+            bytes: self.bytes.saturating_add(bytes),
+        }
+    }
+}
+
+fn product(factors: &[u64]) -> u64 {
+    factors.iter().fold(1u64, |a, &b| a.saturating_mul(b))
+}
+
+/// Bytes of `D` for `m` sets.
+fn matrix(m: u64) -> u64 {
+    product(&[m, m, F64])
+}
+
+impl Plan {
+    fn motors(&self) -> u64 {
+        self.agent().motor_dim() as u64
+    }
+
+    /// Coordinates of the agent's poses (0 without a ground truth).
+    fn pose_dim(&self) -> usize {
+        self.agent()
+            .ground_truth()
+            .map_or(0, |observer| observer.pose_space().dim())
+    }
+
+    /// `explore`: its own arrays.
+    pub(super) fn explore_peak(&self) -> Peak {
+        let e = &self.explore.exploration;
+        Peak {
+            what: format!(
+                "stage `explore`: {} configurations of {} motors, with poses of {} coordinates",
+                e.rows(),
+                self.motors(),
+                self.pose_dim()
+            ),
+            bytes: e.bytes(self.motors() as usize, self.pose_dim()),
+            fix: "lower exploration.n or the probe grid",
+        }
+    }
+
+    /// `trace`: the sets of every explored row, twice.
+    pub(super) fn trace_peak(&self, held: Held, rows: u64) -> Peak {
+        let sets = self.trace.kernel.sets_bytes(rows, self.motors() as usize);
+        Peak {
+            what: format!(
+                "stage `trace`: kernel sets ({rows} × {} points × {} motors)",
+                self.trace.kernel.points,
+                self.motors()
+            ),
+            bytes: held.bytes.saturating_add(sets.saturating_mul(2)),
+            fix: "lower exploration.n, the probe grid or kernel.points",
+        }
+    }
+
+    /// `distances`: `D` and the prepared sets of `m` sets.
+    pub(super) fn distances_peak(&self, held: Held, m: u64) -> Peak {
+        let working = crate::metric::matrix_bytes(
+            m as usize,
+            self.trace.kernel.points,
+            self.motors() as usize,
+            m as usize,
+        );
+        Peak {
+            what: format!("stage `distances`: the {m} × {m} distance matrix"),
+            bytes: held.bytes.saturating_add(working),
+            fix: "lower exploration.n or the probe grid (M, the number of sets)",
+        }
+    }
+
+    /// `embed` of `m` sets.
+    pub(super) fn embed_peak(&self, held: Held, m: u64) -> Peak {
+        let d = matrix(m);
+        let (working, method, fix) = match &self.embed.embedding {
+            EmbedParams::Cca(p) => {
+                let start = match p.init_landmarks {
+                    Some(l) if (l as u64) < m => {
+                        product(&[l as u64, m.saturating_add(l as u64), F64])
+                    }
+                    _ => mds_bytes(m),
+                };
+                (
+                    d.saturating_add(start),
+                    "CCA",
+                    "lower exploration.n (M), or keep embedding.init_landmarks small",
+                )
+            }
+            EmbedParams::Mds(_) => (
+                mds_bytes(m),
+                "MDS",
+                "lower exploration.n (M), or embed with method = \"cca\" (landmark MDS start)",
+            ),
+            EmbedParams::Isomap(p) => {
+                let geodesics = match p.landmarks {
+                    Some(l) if (l as u64) < m => product(&[2, l as u64, m, F64]),
+                    _ => d.saturating_add(mds_bytes(m)),
+                };
+                (
+                    geodesics,
+                    "Isomap",
+                    "lower exploration.n (M), or set embedding.landmarks",
+                )
+            }
+        };
+        Peak {
+            what: format!("stage `embed`: {method} of {m} points"),
+            bytes: held.bytes.saturating_add(working),
+            fix,
+        }
+    }
+
+    /// `analyze` of `m` sets.
+    pub(super) fn analyze_peak(&self, held: Held, m: u64) -> Peak {
+        let a = &self.analyze.analysis;
+        let landmarks = m.min(a.max_points as u64);
+        let working = matrix(m)
+            .saturating_mul(5)
+            .saturating_add(matrix(landmarks).saturating_mul(8));
+        Peak {
+            what: format!(
+                "stage `analyze`: agreement of {m} sets with their poses, persistence of {landmarks} landmarks"
+            ),
+            bytes: held.bytes.saturating_add(working),
+            fix: "lower exploration.n (M) or analysis.max_points",
+        }
+    }
+
+    /// `invariance`: the starts in every environment.
+    pub(super) fn invariance_peak(&self, held: Held) -> Option<Peak> {
+        let stage = self.invariance.as_ref()?;
+        let starts = stage.starts as u64;
+        let environments = self.world.environments.len() as u64;
+        let sets = stage.kernel.sets_bytes(starts, self.motors() as usize);
+        let per_environment = sets.saturating_mul(2).saturating_add(matrix(starts));
+        Some(Peak {
+            what: format!("stage `invariance`: {starts} starts in {environments} environments"),
+            bytes: held
+                .bytes
+                .saturating_add(per_environment.saturating_mul(environments)),
+            fix: "lower analysis.invariance_starts",
+        })
+    }
+
+    /// `report` of `m` sets.
+    pub(super) fn report_peak(&self, held: Held, m: u64) -> Peak {
+        let r = &self.report.report;
+        let sampled = self
+            .trace
+            .kernel
+            .sets_bytes(r.sample_sets as u64, self.motors() as usize);
+        // Pixels of the figures drawn at once (one per thread, RGB), and the per-set
+        // derived data (poses, colours, the 3-D view's points).
+        let pixels = product(&[
+            r.panel_width as u64,
+            r.panel_height as u64,
+            3 * 4,
+            rayon::current_num_threads() as u64,
+        ]);
+        Peak {
+            what: format!("stage `report`: figures of {m} sets"),
+            bytes: held
+                .bytes
+                .saturating_add(sampled)
+                .saturating_add(pixels)
+                .saturating_add(product(&[m, 64 * F64])),
+            fix: "lower report.sample_sets or the panel size",
+        }
+    }
+}
+
+/// Classical MDS of `m` points: the squared copy and the eigensolver's matrices (dense
+/// below 1000 points: the matrix, its eigenvectors and the solver's workspace).
+fn mds_bytes(m: u64) -> u64 {
+    let factor = if m <= 1000 { 4 } else { 2 };
+    matrix(m).saturating_mul(factor)
+}
+
+/// Bytes the run holds for `rows` explored configurations of `motors` motors.
+pub(super) fn exploration_bytes(rows: u64, motors: u64) -> u64 {
+    product(&[rows, motors + 6, F64])
+}
+
+/// Bytes of `m` kernel sets of `points` points of `motors` motors, with their records.
+pub(super) fn sets_bytes(m: u64, points: u64, motors: u64) -> u64 {
+    product(&[m, points, motors, F64]).saturating_add(product(&[m, 2 * F64]))
+}
+
+/// Bytes of `D`.
+pub(super) fn matrix_bytes(m: u64) -> u64 {
+    matrix(m)
+}
