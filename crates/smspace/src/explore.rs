@@ -193,7 +193,11 @@ impl CheckParams for ExploreParams {
 
     fn check_params(&self) -> Result<ExploreValidParams, ExploreError> {
         let workspace = match (self.workspace_center, self.workspace_size) {
-            (Some(center), Some(size)) => Some(Workspace { center, size }),
+            (Some(center), Some(size)) => Some(Workspace {
+                center,
+                size,
+                z_range: None,
+            }),
             (None, None) => None,
             (Some(center), None) => {
                 return Err(invalid(

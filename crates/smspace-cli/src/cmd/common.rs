@@ -52,7 +52,11 @@ impl EnvArgs {
         agent: &dyn Agent,
     ) -> anyhow::Result<Option<Environment>> {
         if let Some(path) = &self.env {
-            return Ok(Some(Environment::load(path)?));
+            let environment = Environment::load(path)?;
+            environment
+                .check_for(agent)
+                .with_context(|| format!("environment {}", path.display()))?;
+            return Ok(Some(environment));
         }
         let table = spec.environment.clone();
         if self.env_seed.is_none() && self.lights.is_none() && table.is_none() {
@@ -114,6 +118,7 @@ impl WorkspaceArgs {
                 Ok(Some(Workspace {
                     center: [values[0], values[1]],
                     size: [values[2], values[3]],
+                    z_range: None,
                 }))
             }
         }

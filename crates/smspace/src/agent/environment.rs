@@ -1,4 +1,5 @@
-//! Environments: point lights in the plane, drawn from a seed or loaded from JSON.
+//! Environments: point lights in the plane or in a volume, drawn from a seed or loaded
+//! from JSON.
 //!
 //! A random environment draws `lights` positions in a rectangle (`center ± half_size`)
 //! minus an inner rectangle (`center ± exclusion_half_size`), from a ChaCha8 stream
@@ -6,7 +7,16 @@
 //! are stratified by direction: light `l` of `L` is uniform in the part of the region
 //! seen from the centre at angles `[2πl/L, 2π(l+1)/L)`, so that lights surround the
 //! centre and a sensor looking any way sees some (a rich environment, paper section
-//! 2.3). The JSON form is `{"lights": [[x, y], ...], "seed": 1}`.
+//! 2.3). For an agent that senses lights in a volume ([`LightSpace::Volume`], a 3-D
+//! chain), each accepted light then draws its height `z` uniformly from the agent's
+//! [`default_light_heights`](super::Agent::default_light_heights), from the same
+//! stream: the region is a box minus a vertical column around the working space.
+//!
+//! The JSON form is `{"lights": [[x, y], ...], "seed": 1}` in the plane and
+//! `{"lights": [[x, y, z], ...]}` in a volume: every light has the same number of
+//! coordinates, and an environment whose lights do not live where the agent senses
+//! them (`[x, y]` for a 3-D chain, `[x, y, z]` for a planar agent) is refused by
+//! [`Environment::check_for`].
 
 use std::path::Path;
 
@@ -68,21 +78,105 @@ pub const MAX_RANDOM_LIGHTS: usize = 2_000;
 /// Most draws spent on one random light before the region is declared too small.
 pub const MAX_DRAWS_PER_LIGHT: usize = 10_000_000;
 
+/// Where an environment's lights live (and where an agent senses them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LightSpace {
+    /// In the plane `z = 0`: lights `[x, y]` (the paper's agents, planar chains).
+    Plane,
+    /// In a volume: lights `[x, y, z]` (3-D chains).
+    Volume,
+}
+
+impl LightSpace {
+    /// The number of coordinates of a light: 2 or 3.
+    pub fn coordinates(self) -> usize {
+        match self {
+            LightSpace::Plane => 2,
+            LightSpace::Volume => 3,
+        }
+    }
+}
+
 /// The environment `E`: a set of point lights.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "EnvironmentFile", into = "EnvironmentFile")]
 pub struct Environment {
-    /// Positions `[x, y]` of the point lights.
-    pub lights: Vec<[f64; 2]>,
+    /// Positions `[x, y, z]` of the point lights (`z = 0` in the plane).
+    pub lights: Vec<[f64; 3]>,
+    /// Whether the lights are in the plane (2 coordinates in files) or in a volume.
+    pub space: LightSpace,
     /// The seed the lights were drawn from, if they were drawn.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
 }
 
+/// The JSON form of an [`Environment`]: 2 or 3 coordinates per light.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EnvironmentFile {
+    lights: Vec<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    seed: Option<u64>,
+}
+
+impl TryFrom<EnvironmentFile> for Environment {
+    type Error = String;
+    fn try_from(file: EnvironmentFile) -> Result<Self, String> {
+        let width = file.lights.first().map_or(2, Vec::len);
+        let space = match width {
+            2 => LightSpace::Plane,
+            3 => LightSpace::Volume,
+            n => {
+                return Err(format!(
+                    "light 0 has {n} coordinates; a light is [x, y] (in the plane) or [x, y, z] (in a volume)"
+                ))
+            }
+        };
+        let mut lights = Vec::with_capacity(file.lights.len());
+        for (i, light) in file.lights.iter().enumerate() {
+            if light.len() != width {
+                return Err(format!(
+                    "light {i} has {} coordinates but light 0 has {width}; the lights of one environment are all [x, y] (in the plane) or all [x, y, z] (in a volume)",
+                    light.len()
+                ));
+            }
+            lights.push([light[0], light[1], light.get(2).copied().unwrap_or(0.0)]);
+        }
+        Ok(Self {
+            lights,
+            space,
+            seed: file.seed,
+        })
+    }
+}
+
+impl From<Environment> for EnvironmentFile {
+    fn from(env: Environment) -> Self {
+        let width = env.space.coordinates();
+        Self {
+            lights: env.lights.iter().map(|l| l[..width].to_vec()).collect(),
+            seed: env.seed,
+        }
+    }
+}
+
 impl Environment {
-    /// An environment with the given lights.
+    /// An environment with the given lights in the plane.
     pub fn from_lights(lights: Vec<[f64; 2]>) -> Self {
-        Self { lights, seed: None }
+        Self {
+            lights: lights.into_iter().map(|[x, y]| [x, y, 0.0]).collect(),
+            space: LightSpace::Plane,
+            seed: None,
+        }
+    }
+
+    /// An environment with the given lights in a volume.
+    pub fn from_lights_3d(lights: Vec<[f64; 3]>) -> Self {
+        Self {
+            lights,
+            space: LightSpace::Volume,
+            seed: None,
+        }
     }
 
     /// `count` lights drawn in `region`, stratified by direction from its centre (see
@@ -92,6 +186,36 @@ impl Environment {
     /// sector, so the work grows as `count²`), and at most [`MAX_DRAWS_PER_LIGHT`]
     /// draws per light: a region whose exclusion leaves a sector empty is an error.
     pub fn random(count: usize, seed: u64, region: &LightRegion) -> Result<Self, AgentError> {
+        Self::random_in(count, seed, region, None)
+    }
+
+    /// `count` lights drawn as [`random`](Self::random) in the plane, each then given a
+    /// height `z` drawn uniformly from `heights = [low, high]` (from the same stream):
+    /// lights in a volume.
+    pub fn random_volume(
+        count: usize,
+        seed: u64,
+        region: &LightRegion,
+        heights: [f64; 2],
+    ) -> Result<Self, AgentError> {
+        if !(heights.iter().all(|h| h.is_finite()) && heights[0] < heights[1]) {
+            return Err(InvalidParameter::new(
+                "environment",
+                "heights",
+                format!("{heights:?}"),
+                "the heights of lights in a volume are two finite numbers [low, high] with low < high",
+            )
+            .into());
+        }
+        Self::random_in(count, seed, region, Some(heights))
+    }
+
+    fn random_in(
+        count: usize,
+        seed: u64,
+        region: &LightRegion,
+        heights: Option<[f64; 2]>,
+    ) -> Result<Self, AgentError> {
         region.check()?;
         if count > MAX_RANDOM_LIGHTS {
             return Err(InvalidParameter::new(
@@ -133,12 +257,17 @@ impl Environment {
                 .rem_euclid(2.0 * std::f64::consts::PI);
             let wanted = lights.len() as f64 * sector;
             if !region.contains_excluded(p) && (wanted..wanted + sector).contains(&angle) {
-                lights.push(p);
+                let z = heights.map_or(0.0, |[low, high]| rng.gen_range(low..high));
+                lights.push([p[0], p[1], z]);
                 draws = 0;
             }
         }
         Ok(Self {
             lights,
+            space: match heights {
+                None => LightSpace::Plane,
+                Some(_) => LightSpace::Volume,
+            },
             seed: Some(seed),
         })
     }
@@ -171,13 +300,34 @@ impl Environment {
             .lights
             .iter()
             .enumerate()
-            .find(|(_, l)| !(l[0].is_finite() && l[1].is_finite()))
+            .find(|(_, l)| !l.iter().all(|v| v.is_finite()))
         {
+            let l = &l[..self.space.coordinates()];
             return Err(AgentError::InvalidEnvironment {
                 reason: format!("light {i} is at {l:?}; positions must be finite numbers"),
             });
         }
         Ok(())
+    }
+
+    /// Checks that the lights live where `agent` senses them ([`Agent::light_space`]):
+    /// `[x, y]` for a planar agent, `[x, y, z]` for one in 3-D.
+    pub fn check_for(&self, agent: &dyn Agent) -> Result<(), AgentError> {
+        let wanted = agent.light_space();
+        if self.space == wanted {
+            return Ok(());
+        }
+        let reason = match wanted {
+            LightSpace::Volume => format!(
+                "the {} agent senses lights in a volume but the environment's lights have 2 coordinates [x, y]; write every light as [x, y, z] (z = 0 for lights in the plane)",
+                agent.name()
+            ),
+            LightSpace::Plane => format!(
+                "the {} agent senses lights in the plane z = 0 but the environment's lights have 3 coordinates [x, y, z]; write every light as [x, y]",
+                agent.name()
+            ),
+        };
+        Err(AgentError::InvalidEnvironment { reason })
     }
 }
 
@@ -217,7 +367,12 @@ impl EnvironmentConfig {
             )
             .into());
         }
-        Environment::random(count, self.seed, &region)
+        match agent.light_space() {
+            LightSpace::Plane => Environment::random(count, self.seed, &region),
+            LightSpace::Volume => {
+                Environment::random_volume(count, self.seed, &region, agent.default_light_heights())
+            }
+        }
     }
 }
 

@@ -17,6 +17,7 @@
 //! | [`ToyAgent`] `toy-line` | 2.2, agent 1 | 1 bounded | 2 | `x = m1` |
 //! | [`ToyAgent`] `toy-redundant` | 2.3, agent 2 | 2 bounded | 2 | `x = m1 + m2` |
 //! | [`PlanarArm`] `planar-arm` | 3.1 | links + 1 hinges | `retina_cells` | retina `(x, y, alpha)` |
+//! | [`Chain`] `chain` | 3.1, generalised | one per joint (hinge, or bounded by its `range`) | retina cells | `(x, y, alpha)` planar, `(x, y, z, qw, qx, qy, qz)` in 3-D |
 //!
 //! Build one from its parameter table with [`AgentConfig::build`], or by name with
 //! [`AgentConfig::preset`]; an agent of your own (a simulator in another language, a
@@ -24,6 +25,7 @@
 //! [`AgentRegistry`].
 
 mod arm;
+mod chain;
 mod environment;
 mod ground_truth;
 mod motor_space;
@@ -38,8 +40,11 @@ use ndarray::{ArrayView2, ArrayViewMut2};
 use serde::{Deserialize, Serialize};
 
 pub use arm::{ArmParams, ArmValidParams, PlanarArm, MAX_LINKS, MAX_RETINA_CELLS};
+pub use chain::{
+    Chain, ChainParams, ChainValidParams, ChainWorkspace, JointParams, RetinaCells, RetinaParams,
+};
 pub use environment::{
-    Environment, EnvironmentConfig, LightRegion, MAX_DRAWS_PER_LIGHT, MAX_RANDOM_LIGHTS,
+    Environment, EnvironmentConfig, LightRegion, LightSpace, MAX_DRAWS_PER_LIGHT, MAX_RANDOM_LIGHTS,
 };
 pub use ground_truth::{
     CoordinateKind, GroundTruth, GroundTruthView, Observer, Pose, PoseComponent, PoseCoordinate,
@@ -225,6 +230,21 @@ pub trait Agent: Send + Sync + fmt::Debug {
     /// arm). The default is 10.
     fn default_light_count(&self) -> usize {
         10
+    }
+
+    /// Where the agent senses lights: in the plane (`[x, y]`, the default) or in a
+    /// volume (`[x, y, z]`, a 3-D chain). An environment of the other kind is refused
+    /// ([`Environment::check_for`]).
+    fn light_space(&self) -> LightSpace {
+        LightSpace::Plane
+    }
+
+    /// The interval `[low, high]` of heights `z` random lights are drawn from when the
+    /// agent senses lights in a volume (their `(x, y)` come from
+    /// [`default_light_region`](Agent::default_light_region)). The default is
+    /// `[−3, 3]`; unused in the plane.
+    fn default_light_heights(&self) -> [f64; 2] {
+        [-3.0, 3.0]
     }
 }
 

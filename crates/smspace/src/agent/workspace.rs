@@ -1,6 +1,7 @@
 //! The working space: the rectangle of sensor positions an agent explores, in the
 //! observer's frame (paper section 3.2, step 1). It bounds the first two coordinates
-//! of the observer's pose, which must then be linear (the sensor's position).
+//! of the observer's pose, which must then be linear (the sensor's position); for a
+//! sensor in 3-D it may also bound the third (`z_range`: then a box).
 
 use serde::{Deserialize, Serialize};
 
@@ -15,6 +16,10 @@ pub struct Workspace {
     pub center: [f64; 2],
     /// Full extents `(depth along x, width along y)`.
     pub size: [f64; 2],
+    /// The interval `[low, high]` of heights `z` (the pose's third coordinate) for a
+    /// sensor in 3-D; `None` (the default): any height.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub z_range: Option<[f64; 2]>,
 }
 
 impl Workspace {
@@ -23,6 +28,7 @@ impl Workspace {
     pub const PAPER: Workspace = Workspace {
         center: [1.75, 0.0],
         size: [1.5, 2.0],
+        z_range: None,
     };
 
     /// The working space scaled by `factor` about the origin (centre and extents).
@@ -30,14 +36,18 @@ impl Workspace {
         Workspace {
             center: self.center.map(|c| c * factor),
             size: self.size.map(|s| s * factor),
+            z_range: self.z_range.map(|z| z.map(|v| v * factor)),
         }
     }
 
-    /// Whether the position `(pose[0], pose[1])` lies in the working space (boundary
-    /// included).
+    /// Whether the position `(pose[0], pose[1])` (and `pose[2]` with a `z_range`) lies
+    /// in the working space (boundary included).
     pub fn contains(&self, pose: &[f64]) -> bool {
         (pose[0] - self.center[0]).abs() <= self.size[0] / 2.0
             && (pose[1] - self.center[1]).abs() <= self.size[1] / 2.0
+            && self
+                .z_range
+                .is_none_or(|[low, high]| (low..=high).contains(&pose[2]))
     }
 
     /// Whether poses of `space` can be tested against a working space: their first two
@@ -64,6 +74,16 @@ impl Workspace {
                 format!("{:?}", self.size),
                 "must be two finite numbers greater than zero",
             ));
+        }
+        if let Some(z) = self.z_range {
+            if !(z.iter().all(|v| v.is_finite()) && z[0] < z[1]) {
+                return Err(InvalidParameter::new(
+                    "agent",
+                    "workspace",
+                    format!("z from {} to {}", z[0], z[1]),
+                    "the heights of a working space are two finite numbers [low, high] with low < high",
+                ));
+            }
         }
         Ok(())
     }
