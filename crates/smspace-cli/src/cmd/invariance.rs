@@ -69,11 +69,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let n = agent.motor_dim();
     let motors = io::read_matrix(&args.motors, Some(n), &format!("(M, {n})"))?;
     let rows = match args.starts {
-        Some(0) => anyhow::bail!("--starts 0: give at least one start (or leave --starts out to trace every row)"),
+        Some(0) => anyhow::bail!(
+            "--starts 0: give at least one start (or leave --starts out to trace every row)"
+        ),
         Some(starts) => starts.min(motors.nrows()),
         None => motors.nrows(),
     };
-    let motors = motors.slice(ndarray::s![..rows, ..]);
+    let motors = motors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..rows));
     let base = spec.environment.clone().unwrap_or_default();
     let environments = args
         .env_seeds
