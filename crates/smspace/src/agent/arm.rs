@@ -230,23 +230,13 @@ impl Agent for PlanarArm {
 
     fn sense(&self, environment: &Environment, motors: &[f64], sensors: &mut [f64]) {
         let pose = self.planar_pose(motors);
-        let (sin_a, cos_a) = pose.alpha.sin_cos();
-        sensors.fill(0.0);
-        for light in &environment.lights {
-            let dx = light[0] - pose.x;
-            let dy = light[1] - pose.y;
-            let forward = cos_a * dx + sin_a * dy;
-            if forward <= 0.0 {
-                continue;
-            }
-            let lateral = -sin_a * dx + cos_a * dy;
-            let projection = -self.focal_length * lateral / forward;
-            let inverse_distance = 1.0 / (dx * dx + dy * dy).sqrt();
-            for (s, &cell) in sensors.iter_mut().zip(&self.cell_positions) {
-                let offset = cell - projection;
-                *s += (-offset * offset).exp() * inverse_distance;
-            }
-        }
+        sense_planar_retina(
+            environment,
+            [pose.x, pose.y, pose.alpha],
+            self.focal_length,
+            &self.cell_positions,
+            sensors,
+        );
     }
 
     fn name(&self) -> &str {
@@ -391,6 +381,37 @@ impl Observer for PlanarArm {
             }
         }
         best.map(|(_, motors)| motors)
+    }
+}
+
+/// The planar pinhole retina's law (paper section 3.1): for a retina at `pose =
+/// (x, y, alpha)` looking along `alpha`, cell `c` (at `cells[c]` on the image line, focal
+/// length `focal_length`) senses `Σ_lights exp(−(cell − projection)²) / distance` over
+/// the lights in front (`forward > 0`), with `projection = −focal_length · lateral /
+/// forward`. Shared by the arm and planar chains, so that both sense bit for bit alike.
+pub(crate) fn sense_planar_retina(
+    environment: &Environment,
+    pose: [f64; 3],
+    focal_length: f64,
+    cells: &[f64],
+    sensors: &mut [f64],
+) {
+    let (sin_a, cos_a) = pose[2].sin_cos();
+    sensors.fill(0.0);
+    for light in &environment.lights {
+        let dx = light[0] - pose[0];
+        let dy = light[1] - pose[1];
+        let forward = cos_a * dx + sin_a * dy;
+        if forward <= 0.0 {
+            continue;
+        }
+        let lateral = -sin_a * dx + cos_a * dy;
+        let projection = -focal_length * lateral / forward;
+        let inverse_distance = 1.0 / (dx * dx + dy * dy).sqrt();
+        for (s, &cell) in sensors.iter_mut().zip(cells) {
+            let offset = cell - projection;
+            *s += (-offset * offset).exp() * inverse_distance;
+        }
     }
 }
 

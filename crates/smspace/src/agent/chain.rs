@@ -62,9 +62,8 @@ use nalgebra::{Unit, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::{
-    wrap_angle, Agent, AgentBuilder, AgentError, ArmParams, CoordinateKind, Environment,
-    LightRegion, LightSpace, Motor, MotorSpace, Observer, PlanarArm, PoseCoordinate, PoseSpace,
-    Workspace, MAX_LINKS, MAX_RETINA_CELLS,
+    wrap_angle, Agent, AgentBuilder, AgentError, ArmParams, Environment, LightRegion, LightSpace,
+    Motor, MotorSpace, Observer, PlanarArm, PoseSpace, Workspace, MAX_LINKS, MAX_RETINA_CELLS,
 };
 use crate::error::{CheckParams, InvalidParameter};
 
@@ -550,23 +549,13 @@ impl Chain {
     }
 
     fn sense_planar(&self, environment: &Environment, pose: [f64; 3], sensors: &mut [f64]) {
-        let (sin_a, cos_a) = pose[2].sin_cos();
-        sensors.fill(0.0);
-        for light in &environment.lights {
-            let dx = light[0] - pose[0];
-            let dy = light[1] - pose[1];
-            let forward = cos_a * dx + sin_a * dy;
-            if forward <= 0.0 {
-                continue;
-            }
-            let lateral = -sin_a * dx + cos_a * dy;
-            let projection = -self.focal_length * lateral / forward;
-            let inverse_distance = 1.0 / (dx * dx + dy * dy).sqrt();
-            for (s, &cell) in sensors.iter_mut().zip(&self.columns) {
-                let offset = cell - projection;
-                *s += (-offset * offset).exp() * inverse_distance;
-            }
-        }
+        super::arm::sense_planar_retina(
+            environment,
+            pose,
+            self.focal_length,
+            &self.columns,
+            sensors,
+        );
     }
 
     fn sense_spatial(&self, environment: &Environment, motors: &[f64], sensors: &mut [f64]) {
@@ -674,22 +663,6 @@ fn write_spatial_pose(rotation: &UnitQuaternion<f64>, position: &Vector3<f64>, p
     ]);
 }
 
-/// The 3-D pose space `(x, y, z, qw, qx, qy, qz)`.
-fn spatial_pose_space() -> PoseSpace {
-    let names = ["x", "y", "z", "qw", "qx", "qy", "qz"];
-    let kinds = [CoordinateKind::Linear; 3]
-        .into_iter()
-        .chain([CoordinateKind::Quaternion; 4]);
-    PoseSpace::new(
-        names
-            .iter()
-            .zip(kinds)
-            .map(|(n, k)| PoseCoordinate::new(n, k))
-            .collect(),
-    )
-    .expect("a valid pose layout")
-}
-
 impl Agent for Chain {
     fn motor_dim(&self) -> usize {
         self.axes.len()
@@ -774,7 +747,7 @@ impl Observer for Chain {
     fn pose_space(&self) -> PoseSpace {
         match self.kinematics {
             Kinematics::Planar { .. } => PoseSpace::planar(),
-            Kinematics::Spatial => spatial_pose_space(),
+            Kinematics::Spatial => PoseSpace::spatial(),
         }
     }
 

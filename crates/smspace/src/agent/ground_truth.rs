@@ -189,6 +189,21 @@ impl PoseSpace {
         }
     }
 
+    /// The 3-D pose `(x, y, z, qw, qx, qy, qz)`: the sensor's position in space and
+    /// its orientation as a unit quaternion (one quaternion block).
+    pub fn spatial() -> Self {
+        let kinds = [CoordinateKind::Linear; 3]
+            .into_iter()
+            .chain([CoordinateKind::Quaternion; 4]);
+        Self {
+            coordinates: ["x", "y", "z", "qw", "qx", "qy", "qz"]
+                .iter()
+                .zip(kinds)
+                .map(|(name, kind)| PoseCoordinate::new(name, kind))
+                .collect(),
+        }
+    }
+
     /// Whether this is the planar pose `(x, y, alpha)`.
     pub fn is_planar(&self) -> bool {
         *self == Self::planar()
@@ -504,18 +519,9 @@ mod tests {
     use std::f64::consts::PI;
 
     fn space_3d() -> PoseSpace {
-        let names = ["x", "y", "z", "qw", "qx", "qy", "qz"];
-        let kinds = [CoordinateKind::Linear; 3]
-            .into_iter()
-            .chain([CoordinateKind::Quaternion; 4]);
-        PoseSpace::new(
-            names
-                .iter()
-                .zip(kinds)
-                .map(|(n, k)| PoseCoordinate::new(n, k))
-                .collect(),
-        )
-        .unwrap()
+        let space = PoseSpace::spatial();
+        assert_eq!(PoseSpace::new(space.coordinates().to_vec()).unwrap(), space);
+        space
     }
 
     fn random_unit_quaternion(rng: &mut impl Rng) -> [f64; 4] {
