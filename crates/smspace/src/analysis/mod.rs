@@ -330,7 +330,9 @@ impl AnalysisReport {
     /// Writes the report as JSON to `path` (atomically). `smspace analyze --out` and
     /// the pipeline's analyze stage write through here.
     pub fn save(&self, path: &std::path::Path) -> Result<(), crate::io::IoError> {
-        crate::io::write_json(path, self)
+        let mut outputs = crate::io::Outputs::new();
+        self.write_into(&mut outputs, path)?;
+        outputs.commit().map(drop)
     }
 
     /// Stages the report for `path` into `outputs`, to be renamed into place with the

@@ -231,13 +231,7 @@ fn exact_key_line(text: &str, table: &str, key: &str) -> Option<usize> {
     let mut in_table = table.is_empty();
     for (n, line) in text.lines().enumerate() {
         let t = line.trim();
-        if t.starts_with('[') {
-            let header = t
-                .trim_start_matches('[')
-                .split(']')
-                .next()
-                .unwrap_or("")
-                .trim();
+        if let Some(header) = table_header(t) {
             if header == sub_table {
                 return Some(n + 1);
             }
@@ -252,6 +246,18 @@ fn exact_key_line(text: &str, table: &str, key: &str) -> Option<usize> {
         }
     }
     None
+}
+
+/// The name of the table a trimmed line opens (`[table]` or `[[table]]`), if it is a
+/// table header.
+fn table_header(line: &str) -> Option<&str> {
+    line.starts_with('[').then(|| {
+        line.trim_start_matches('[')
+            .split(']')
+            .next()
+            .unwrap_or("")
+            .trim()
+    })
 }
 
 /// Whether `message` names `key` as a word.
@@ -269,13 +275,7 @@ fn key_line(text: &str, table: &str, message: &str) -> Option<usize> {
     let mut in_table = false;
     for (n, line) in text.lines().enumerate() {
         let t = line.trim();
-        if t.starts_with('[') {
-            let header = t
-                .trim_start_matches('[')
-                .split(']')
-                .next()
-                .unwrap_or("")
-                .trim();
+        if let Some(header) = table_header(t) {
             in_table = header == table || header.starts_with(&format!("{table}."));
             continue;
         }

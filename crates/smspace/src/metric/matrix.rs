@@ -144,7 +144,9 @@ impl DistanceMatrix {
 
     /// Writes the matrix to `path` (atomically, as a C-order float64 `.npy`).
     pub fn save(&self, path: &Path) -> Result<(), IoError> {
-        io::write_npy(path, &self.values)
+        let mut outputs = io::Outputs::new();
+        self.write_into(&mut outputs, path)?;
+        outputs.commit().map(drop)
     }
 
     /// Stages the matrix for `path` into `outputs`, to be renamed into place with the

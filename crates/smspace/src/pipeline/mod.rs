@@ -456,7 +456,7 @@ pub fn check_with(
     } else {
         None
     };
-    metric_period(agent.as_ref(), metric.params.period)
+    check_metric_period(agent.as_ref(), metric.params.period)
         .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
     e.embedding
         .clone()
@@ -509,11 +509,11 @@ pub fn check_with(
 /// a uniform period cannot describe. This is the one place where the agent's
 /// per-coordinate periods ([`MotorSpace::periods`](crate::agent::MotorSpace::periods))
 /// will reach the metric.
-fn metric_period(agent: &dyn Agent, period: Period) -> Result<Period, InvalidParameter> {
+fn check_metric_period(agent: &dyn Agent, period: Period) -> Result<(), InvalidParameter> {
     let space = agent.motor_space();
     let uniform = space.is_hinges() || space.is_bounded();
     if uniform {
-        return Ok(period);
+        return Ok(());
     }
     Err(InvalidParameter::new(
         "metric",
