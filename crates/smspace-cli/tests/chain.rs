@@ -182,3 +182,72 @@ fn bad_chain_files_name_the_joint_and_the_key() {
         }
     }
 }
+
+#[test]
+fn a_3d_chain_with_a_bounded_joint_runs_end_to_end() {
+    let (_guard, dir) = temp();
+    let experiment = format!(
+        "name = \"arm3d\"\n{ARM_3D}\n[exploration]\nn = 40\nseed = 1\n\n[kernel]\nmethod = \"kinematic\"\npoints = 20\n\n[metric]\nmetric = \"curve\"\nperiod = \"motors\"\n\n[embedding]\nmethod = \"mds\"\ndim = 3\n\n[report]\nformats = \"png\"\nsample_configurations = 4\nsample_sets = 3\n"
+    );
+    std::fs::write(dir.join("arm3d.toml"), &experiment).unwrap();
+    // A uniform period cannot describe the bounded wrist: refused, naming the fix.
+    std::fs::write(
+        dir.join("uniform.toml"),
+        experiment.replace("period = \"motors\"", "period = \"2pi\""),
+    )
+    .unwrap();
+    let text = fails(&dir, &["run", "uniform.toml", "--out", "u"]);
+    assert!(text.contains("period = \"motors\""), "{text}");
+    ok(&dir, &["run", "arm3d.toml", "--out", "run"]);
+    let run = dir.join("run");
+    // The wrist's joint is not wrapped, the hinges are.
+    let resolved: String = std::fs::read_to_string(run.join("config.resolved.toml"))
+        .unwrap()
+        .split_whitespace()
+        .collect();
+    assert!(
+        resolved.contains(r#"period=["2pi","2pi","2pi","2pi","2pi","none","2pi",]"#)
+            || resolved.contains(r#"period=["2pi","2pi","2pi","2pi","2pi","none","2pi"]"#),
+        "{resolved}"
+    );
+    // The pose figures are drawn from above, and say so.
+    let report = std::fs::read_to_string(run.join("report.md")).unwrap();
+    assert!(report.contains("seen from above"), "{report}");
+    assert!(run.join("figures/fig5a-configurations.png").is_file());
+    assert!(run.join("figures/embedding-pose.png").is_file());
+    // `analyze --poses` reads the 3-D poses (M, 7) of the kept sets.
+    let poses: Array2<f64> = read_npy(run.join("poses.npy")).unwrap();
+    let kept: ndarray::Array1<i64> = read_npy(run.join("sets.kept.npy")).unwrap();
+    let rows: Vec<usize> = kept.iter().map(|&k| k as usize).collect();
+    let kept_poses = poses.select(ndarray::Axis(0), &rows);
+    assert_eq!(kept_poses.ncols(), 7);
+    ndarray_npy::write_npy(dir.join("p7.npy"), &kept_poses).unwrap();
+    ok(
+        &dir,
+        &[
+            "analyze",
+            "--distances",
+            "run/D.npy",
+            "--poses",
+            "p7.npy",
+            "--out",
+            "a.json",
+        ],
+    );
+    let analysis: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("a.json")).unwrap()).unwrap();
+    assert!(
+        analysis["agreement"]["trustworthiness"].is_number(),
+        "{analysis}"
+    );
+    let five = kept_poses.select(ndarray::Axis(1), &[0, 1, 2, 3, 4]);
+    ndarray_npy::write_npy(dir.join("p5.npy"), &five).unwrap();
+    let text = fails(
+        &dir,
+        &["analyze", "--distances", "run/D.npy", "--poses", "p5.npy"],
+    );
+    assert!(
+        text.contains("5 columns") && text.contains("(M, 7)"),
+        "{text}"
+    );
+}

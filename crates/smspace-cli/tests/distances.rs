@@ -58,6 +58,63 @@ fn writes_the_matrix_equal_to_the_library() {
 }
 
 #[test]
+fn one_period_per_motor_wraps_only_the_hinges() {
+    let dir = tempfile::tempdir().unwrap();
+    // The last coordinate is a slider spread over [0, 6]: differences reach past π.
+    let mut sets = curves(12, 10);
+    for (i, mut set) in sets.outer_iter_mut().enumerate() {
+        for mut point in set.outer_iter_mut() {
+            point[3] = 0.5 * i as f64 + 0.1 * point[3];
+        }
+    }
+    write_npy(dir.path().join("sets.npy"), &sets).unwrap();
+    let out = smspace(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--period",
+            "2pi,2pi,2pi,none",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let d: Array2<f64> = read_npy(dir.path().join("D.npy")).unwrap();
+    let periods = smspace::metric::Periodicity::parse("2pi,2pi,2pi,none").unwrap();
+    let reference =
+        smspace::metric::reference::distance_matrix(sets.view(), MetricKind::Hausdorff, &periods);
+    let worst = (&d - &reference)
+        .mapv(f64::abs)
+        .fold(0.0_f64, |a, &b| a.max(b));
+    assert!(worst < 1e-12, "{worst}");
+    let wrapped = DistanceParams::new().period(Period::TwoPi);
+    assert_ne!(d, distance_matrix(sets.view(), &wrapped, &Silent).unwrap());
+    // A list of the wrong length, a bad entry, and "motors" without an agent.
+    for (period, expected) in [
+        ("2pi,none", "2 periods given for points with 4 coordinates"),
+        ("2pi,abc,2pi,2pi", "entry 1 is \"abc\""),
+        ("motors", "needs an agent"),
+    ] {
+        let text = fails(
+            dir.path(),
+            &[
+                "distances",
+                "--sets",
+                "sets.npy",
+                "--out",
+                "E.npy",
+                "--period",
+                period,
+            ],
+        );
+        assert!(text.contains(expected), "{period}: {text}");
+        assert!(!dir.path().join("E.npy").exists());
+    }
+}
+
+#[test]
 fn row_blocks_and_threads_give_the_same_numbers() {
     let dir = tempfile::tempdir().unwrap();
     write_npy(dir.path().join("sets.npy"), &curves(25, 16)).unwrap();

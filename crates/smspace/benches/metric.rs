@@ -130,7 +130,7 @@ fn versus_brute_force(c: &mut Criterion) {
             b.iter(|| distance_matrix(sets.view(), &params, &Silent).unwrap())
         });
         group.bench_function(format!("brute/{}", kind.name()), |b| {
-            b.iter(|| reference::distance_matrix(sets.view(), kind, params.period))
+            b.iter(|| reference::distance_matrix(sets.view(), kind, &params.period))
         });
     }
     group.finish();

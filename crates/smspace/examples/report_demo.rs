@@ -43,6 +43,7 @@ fn main() -> DemoResult<()> {
         workspace: run.exploration.workspace,
         motors: run.exploration.motors.view(),
         poses: run.exploration.planar_poses(),
+        pose_view: smspace::agent::PlanarView::Planar,
         probes: run.exploration.probes.view(),
         sets: run.traced.sets.view(),
         kept: &run.traced.kept,

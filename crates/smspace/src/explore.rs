@@ -54,7 +54,7 @@ pub enum ExploreError {
         size: [f64; 2],
     },
     /// The agent cannot reach a probe pose.
-    #[error("probe pose (x = {x:.3}, y = {y:.3}, alpha = {alpha:.3}) is out of the agent's reach (or the agent has no inverse kinematics)")]
+    #[error("probe pose (x = {x:.3}, y = {y:.3}, alpha = {alpha:.3}): the observer found no motor configuration for it, so it is out of the agent's reach, or the agent has no inverse kinematics (the probe grid needs one: the planar arm and planar arm-shaped chains have it, other chains and 3-D bodies do not); shrink the working space, or set [exploration] probes = \"none\"")]
     ProbeUnreachable {
         /// Probe x.
         x: f64,

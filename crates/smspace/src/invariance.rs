@@ -29,14 +29,15 @@ use std::path::{Path, PathBuf};
 use ndarray::{Array2, Array3, ArrayView2, Axis};
 use serde::{Deserialize, Serialize};
 
-use crate::agent::{Agent, Environment};
+use crate::agent::{Agent, Environment, MotorSpace};
 use crate::analysis::agreement::{pearson, upper_triangle};
 use crate::error::InvalidParameter;
 use crate::explore::Workspace;
 use crate::io::{self, IoError};
 use crate::kernel::{trace_sets, TraceMethod, TraceValidParams, TracedSets};
 use crate::metric::{
-    distance_matrix_with, Closure, DistanceParams, MetricKind, Period, SetMetric, SetsView,
+    distance_matrix_with, Closure, DistanceParams, MetricKind, Period, Periodicity, Periods,
+    SetMetric, SetsView,
 };
 use crate::progress::Progress;
 
@@ -141,17 +142,21 @@ fn median(mut values: Vec<f64>) -> f64 {
     values.get(values.len() / 2).copied().unwrap_or(0.0)
 }
 
-/// The built-in metric `kind` under the point metric of `agent`'s motors (periodic
-/// hinges: `2π`; otherwise none), as [`invariance`] measures sets with it.
+/// The periods of the point metric for motors of `space`: each hinge (periodic motor)
+/// its period, each bounded motor none; the uniform [`Period`] when all are alike.
+pub fn motor_periodicity(space: &MotorSpace) -> Periodicity {
+    match Periods::new(space.periods()) {
+        Ok(periods) => periods.into(),
+        // A motor space has at least one motor with a checked period.
+        Err(_) => Periodicity::Uniform(Period::None),
+    }
+}
+
+/// The built-in metric `kind` under the point metric of `agent`'s motors
+/// ([`motor_periodicity`]: hinges wrap, bounded motors do not), as [`invariance`]
+/// measures sets with it.
 pub fn agent_metric(kind: MetricKind, agent: &dyn Agent) -> Box<dyn SetMetric> {
-    // Hinges wrap; bounded motors do not. (Mixed motor spaces are refused by the
-    // pipeline's check until per-coordinate periods reach the metric.)
-    let period = if agent.motor_space().is_hinges() {
-        Period::TwoPi
-    } else {
-        Period::None
-    };
-    kind.with_period(period, Closure::Closed)
+    kind.with_period(motor_periodicity(&agent.motor_space()), Closure::Closed)
 }
 
 /// Traces `motors` (any strides) in every environment with `params` (which must use

@@ -131,7 +131,9 @@ fn a_loop_against_itself_sampled_half_a_step_later() {
 /// The point metric for comparisons.
 #[allow(non_snake_case)]
 fn Hausdorff(period: Period) -> smspace::metric::Hausdorff {
-    smspace::metric::Hausdorff { period }
+    smspace::metric::Hausdorff {
+        period: period.into(),
+    }
 }
 
 #[test]
@@ -352,7 +354,7 @@ fn set_metric_pads_sets_of_different_sizes() {
     let fine = array![[0.0, 0.0], [0.5, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
     for closure in [Closure::Closed, Closure::Open] {
         let metric = Curve {
-            period: Period::None,
+            period: Period::None.into(),
             closure,
         };
         assert_eq!(metric.distance(square.view(), fine.view()).unwrap(), 0.0);

@@ -218,10 +218,10 @@ fn periodic_wrap_puts_the_seam_points_together() {
     let a = array![[-PI + eps, 0.5]];
     let b = array![[PI - eps, 0.5]];
     let periodic = Hausdorff {
-        period: Period::TwoPi,
+        period: Period::TwoPi.into(),
     };
     let euclidean = Hausdorff {
-        period: Period::None,
+        period: Period::None.into(),
     };
     assert_abs_diff_eq!(
         periodic.distance(a.view(), b.view()).unwrap(),
@@ -615,7 +615,7 @@ fn a_user_defined_metric_goes_through_the_tiled_threaded_path() {
     let generic = distance_matrix_with(
         sets.view(),
         &Hausdorff {
-            period: Period::TwoPi,
+            period: Period::TwoPi.into(),
         },
         &DistanceParams::new(),
         &Silent,
@@ -882,7 +882,7 @@ fn knn_of_a_user_metric_is_the_top_k_of_its_matrix() {
     // The built-in Hausdorff through knn_with runs on its kernels: the same lists as knn.
     let p = DistanceParams::new();
     let h = Hausdorff {
-        period: Period::TwoPi,
+        period: Period::TwoPi.into(),
     };
     let knn_params = KnnParams::new().k(4);
     assert_eq!(

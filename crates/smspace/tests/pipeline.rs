@@ -10,7 +10,7 @@ use smspace::agent::{
     Agent, AgentError, AgentRegistry, Environment, LightRegion, Motor, MotorSpace, Observer,
     PoseSpace,
 };
-use smspace::metric::{MetricError, MetricRegistry, Period, SetMetric};
+use smspace::metric::{MetricError, MetricRegistry, Periodicity, SetMetric};
 use smspace::pipeline::{self, Recompute, RunObserver, RunOptions, RunSummary};
 use smspace::progress::{Progress, Silent};
 
@@ -809,7 +809,9 @@ fn an_agent_with_only_the_required_methods_runs_through_the_pipeline() {
     );
 }
 
-/// A hinge arm whose last motor is bounded: a mixed motor space.
+/// A hinge and a slider (bounded in [0, 5], so that a difference can exceed π): a
+/// mixed motor space. Its kernels `m2 = s − sin(m1)` are loops or, where they reach a
+/// bound of the slider, open curves.
 #[derive(Debug)]
 struct Mixed;
 
@@ -831,36 +833,109 @@ impl Agent for Mixed {
             Motor::HINGE,
             Motor::Bounded {
                 low: 0.0,
-                high: 1.0,
+                high: 5.0,
             },
         ])
         .unwrap()
     }
 }
 
+const MIXED: &str = r#"
+name = "mixed"
+[agent]
+kind = "mixed"
+[exploration]
+n = 40
+[kernel]
+method = "sensory"
+points = 20
+[metric]
+metric = "hausdorff"
+period = "2pi"
+[embedding]
+method = "mds"
+dim = 2
+[report]
+formats = "png"
+sample_configurations = 3
+sample_sets = 2
+"#;
+
 #[test]
-fn a_mixed_motor_space_is_refused_until_the_metric_takes_per_motor_periods() {
+fn a_mixed_motor_space_runs_with_the_agents_own_periods() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("mixed.toml");
-    std::fs::write(
-        &file,
-        "[agent]\nkind = \"mixed\"\n[kernel]\nmethod = \"sensory\"\n[metric]\nperiod = \"2pi\"\n",
-    )
-    .unwrap();
+    std::fs::write(&file, MIXED).unwrap();
     let mut agents = AgentRegistry::builtin();
     agents.register_params("mixed", "a hinge and a slider", |_: &NoParams| {
         Ok(Box::new(Mixed) as Box<dyn Agent>)
     });
+    // A uniform period cannot describe a hinge and a slider: refused, naming the line,
+    // the motors and the way out.
     let loaded = smspace::config::load_experiment(&file, &[]).unwrap();
     let err = pipeline::check_with(&loaded, &agents)
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("mixed.toml, line 6")
+        err.contains("mixed.toml, line 12")
             && err.contains("[metric]")
-            && err.contains("period")
-            && err.contains("m2 bounded in [0, 1]"),
+            && err.contains("m2 bounded in [0, 5]")
+            && err.contains("period = \"motors\""),
         "{err}"
+    );
+    // A list of the wrong length is refused too.
+    let short =
+        smspace::config::load_experiment(&file, &["metric.period=[\"2pi\"]".into()]).unwrap();
+    let err = pipeline::check_with(&short, &agents)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("1 entries") && err.contains("2 motors"),
+        "{err}"
+    );
+    // "motors": the hinge wraps, the slider does not, and the run records the list.
+    let loaded =
+        smspace::config::load_experiment(&file, &["metric.period=\"motors\"".into()]).unwrap();
+    let plan = pipeline::check_with(&loaded, &agents).unwrap_or_else(|e| panic!("{e}"));
+    let own = Periodicity::parse("2pi,none").unwrap();
+    let out = dir.path().join("run");
+    let options = RunOptions {
+        out_dir: out.clone(),
+        recompute: Recompute::Changed,
+        memory_limit_bytes: None,
+        busy: smspace::pipeline::BusyFolder::Refuse,
+    };
+    pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"));
+    let sets: Array3<f64> = read_npy(out.join("sets.npy")).unwrap();
+    let d: Array2<f64> = read_npy(out.join("D.npy")).unwrap();
+    let reference = smspace::metric::reference::distance_matrix(
+        sets.view(),
+        smspace::metric::MetricKind::Hausdorff,
+        &own,
+    );
+    let worst = (&d - &reference)
+        .mapv(f64::abs)
+        .fold(0.0_f64, |a, &b| a.max(b));
+    assert!(worst < 1e-12, "largest difference to the reference {worst}");
+    // The slider's differences reach past π, where wrapping it would change them.
+    let wrapped = smspace::metric::reference::distance_matrix(
+        sets.view(),
+        smspace::metric::MetricKind::Hausdorff,
+        smspace::metric::Period::TwoPi,
+    );
+    let changed = (&d - &wrapped)
+        .mapv(f64::abs)
+        .fold(0.0_f64, |a, &b| a.max(b));
+    assert!(
+        changed > 0.1,
+        "wrapping the slider changes nothing: {changed}"
+    );
+    let resolved: toml::Table =
+        toml::from_str(&std::fs::read_to_string(out.join("config.resolved.toml")).unwrap())
+            .unwrap();
+    assert_eq!(
+        resolved["metric"]["period"],
+        toml::Value::Array(vec!["2pi".into(), "none".into()])
     );
 }
 
@@ -918,7 +993,7 @@ fn a_user_defined_metric_runs_through_the_whole_pipeline() {
     metrics.register_params(
         "centroids",
         "distance between the sets' centroids",
-        |p: &CentroidParams, _period: Period| -> Result<Box<dyn SetMetric>, MetricError> {
+        |p: &CentroidParams, _period: &Periodicity| -> Result<Box<dyn SetMetric>, MetricError> {
             Ok(Box::new(CentroidMetric { scale: p.scale }))
         },
     );

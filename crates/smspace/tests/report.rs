@@ -186,6 +186,7 @@ fn inputs(run: &Run) -> ReportInputs<'_> {
         workspace: run.exploration.workspace,
         motors: run.exploration.motors.view(),
         poses: run.exploration.planar_poses(),
+        pose_view: smspace::agent::PlanarView::Planar,
         probes: run.exploration.probes.view(),
         sets: run.sets.view(),
         kept: &run.kept,

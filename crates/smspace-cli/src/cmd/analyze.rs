@@ -5,7 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
-use smspace::analysis::{analyze, AnalysisParams};
+use smspace::agent::{GroundTruthView, PoseSpace};
+use smspace::analysis::{analyze_on, AnalysisParams};
 use smspace::io;
 use smspace::metric::DistanceMatrix;
 
@@ -17,8 +18,9 @@ pub struct Args {
     /// Distance matrix (M, M) between kernel sets.
     #[arg(long, value_name = "FILE")]
     distances: PathBuf,
-    /// Observer's poses (M, 3) `(x, y, alpha)` of the same rows, for the agreement
-    /// figures.
+    /// Observer's poses of the same rows, for the agreement with the poses: (M, 3)
+    /// `(x, y, alpha)` of a planar agent, or (M, 7) `(x, y, z, qw, qx, qy, qz)` of a
+    /// 3-D one (as `poses.npy` of a run).
     #[arg(long, value_name = "FILE")]
     poses: Option<PathBuf>,
     /// Highest homology dimension (0, 1 or 2).
@@ -54,22 +56,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .check()?;
     let distances = DistanceMatrix::load(&args.distances)?;
     let poses = match &args.poses {
-        Some(path) => {
-            let poses = io::read_matrix(path, Some(3), "(M, 3)")?;
-            anyhow::ensure!(
-                poses.nrows() == distances.len(),
-                "{} has {} rows but {} has {} points; the poses must be those of the same sets",
-                path.display(),
-                poses.nrows(),
-                args.distances.display(),
-                distances.len()
-            );
-            Some(poses)
-        }
+        Some(path) => Some(read_poses(path, distances.len(), &args.distances)?),
+        None => None,
+    };
+    let truth = match &poses {
+        Some((space, poses)) => Some(GroundTruthView::new(space, poses.view())?),
         None => None,
     };
     let bar = Bar::new();
-    let report = analyze(&distances, poses.as_ref().map(|p| p.view()), &params, &bar)
+    let report = analyze_on(&distances, truth, None, &params, &bar)
         .with_context(|| format!("analysing {}", args.distances.display()))?;
     match &args.out {
         // The analyze stage's writer.
@@ -101,4 +96,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     );
     Ok(())
+}
+
+/// The poses of `path` with their layout, read off the column count: 3 planar, 7 3-D.
+fn read_poses(
+    path: &std::path::Path,
+    sets: usize,
+    distances: &std::path::Path,
+) -> anyhow::Result<(PoseSpace, ndarray::Array2<f64>)> {
+    let poses = io::read_matrix(path, None, "(M, 3) or (M, 7)")?;
+    let space = match poses.ncols() {
+        3 => PoseSpace::planar(),
+        7 => PoseSpace::spatial(),
+        columns => anyhow::bail!(
+            "{} has {columns} columns; poses are (M, 3) (x, y, alpha) of a planar agent or (M, 7) (x, y, z, qw, qx, qy, qz) of a 3-D one",
+            path.display()
+        ),
+    };
+    anyhow::ensure!(
+        poses.nrows() == sets,
+        "{} has {} rows but {} has {} points; the poses must be those of the same sets",
+        path.display(),
+        poses.nrows(),
+        distances.display(),
+        sets
+    );
+    Ok((space, poses))
 }

@@ -14,7 +14,7 @@ use anyhow::Context;
 use clap::ValueEnum;
 use ndarray::{Array3, Axis, Slice};
 use smspace::metric::{
-    self, Closure, DistanceParams, KnnParams, Period, PreparedSets, SetsView, Tile, TileMerge,
+    self, Closure, DistanceParams, KnnParams, Periodicity, PreparedSets, SetsView, Tile, TileMerge,
     TileRecord,
 };
 
@@ -43,10 +43,11 @@ pub struct Args {
     /// polyline, instead of reading SETS.closed.npy (1 closed, 0 open per set).
     #[arg(long, value_enum, value_name = "closed|open")]
     curve: Option<CurveArg>,
-    /// Period of every motor coordinate: 2pi (hinge joints, the paper's metric) or none
-    /// (plain Euclidean).
-    #[arg(long, value_enum, default_value_t = PeriodArg::TwoPi)]
-    period: PeriodArg,
+    /// Period of every motor coordinate: 2pi (hinge joints, the paper's metric), none
+    /// (plain Euclidean), or one entry per motor separated by commas, each 2pi, none or
+    /// a period in radians (e.g. 2pi,2pi,none for two hinges and a bounded motor).
+    #[arg(long, value_name = "2pi|none|LIST", default_value = "2pi", value_parser = parse_period)]
+    period: Periodicity,
     /// Instead of the matrix, the K nearest sets of every set (self excluded, nearest
     /// first, ties by index): knn_indices.npy (M, K) int64 and knn_distances.npy (M, K)
     /// float64, next to --out. Memory O(M·K).
@@ -86,13 +87,15 @@ enum CurveArg {
 }
 
 /// `--period`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum PeriodArg {
-    /// wrap coordinate differences into [-π, π]
-    #[value(name = "2pi")]
-    TwoPi,
-    /// no wrapping
-    None,
+fn parse_period(text: &str) -> Result<Periodicity, String> {
+    match Periodicity::parse(text) {
+        Ok(Periodicity::FromMotors) => Err(
+            "\"motors\" needs an agent; give 2pi, none or one entry per motor (e.g. 2pi,2pi,none)"
+                .to_owned(),
+        ),
+        Ok(period) => Ok(period),
+        Err(err) => Err(err.to_string()),
+    }
 }
 
 fn parse_tile(text: &str) -> Result<Tile, String> {
@@ -155,10 +158,7 @@ impl Input {
         let closure = closure(args, path, sets.dim().0)?;
         let params = DistanceParams::new()
             .metric(args.metric.kind())
-            .period(match args.period {
-                PeriodArg::TwoPi => Period::TwoPi,
-                PeriodArg::None => Period::None,
-            })
+            .period(&args.period)
             .memory_limit_bytes(args.max_memory.or_else(super::common::memory_available));
         Ok(Self {
             path: path.to_owned(),

@@ -412,6 +412,17 @@ impl Pose {
     }
 }
 
+/// How the poses of planar figures were obtained ([`GroundTruth::planar_view`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PlanarView {
+    /// The agent's own planar pose `(x, y, alpha)`.
+    #[default]
+    Planar,
+    /// A 3-D pose seen from above: `(x, y)` and the heading of the optical axis
+    /// projected on the xy plane.
+    TopView,
+}
+
 /// The observer's poses of `M` configurations, `(M, d)`, with their layout: what
 /// `poses.npy` holds. Checked once where it is made: `d` columns for a space of `d`
 /// coordinates.
@@ -469,6 +480,47 @@ impl GroundTruth {
     /// draw).
     pub fn planar(&self) -> Option<ArrayView2<'_, f64>> {
         self.space.is_planar().then(|| self.poses.view())
+    }
+
+    /// The poses drawn in the plane, `(M, 3)` `(x, y, alpha)`, with how they were
+    /// obtained: the planar pose itself, or a 3-D pose ([`PoseSpace::spatial`]) seen
+    /// from above ([`PlanarView::TopView`]). `None` for other layouts.
+    ///
+    /// Seen from above, `alpha` is the heading of the optical axis (`+x` of the sensor's
+    /// frame) projected on the xy plane: with `d = R(q)·e_x`,
+    /// `d = (1 − 2(q_y² + q_z²), 2(q_x q_y + q_w q_z), 2(q_x q_z − q_w q_y))` and
+    /// `alpha = atan2(d_y, d_x)` (undefined, and then whatever `atan2` gives, when the
+    /// axis is vertical).
+    ///
+    /// ```
+    /// use ndarray::array;
+    /// use smspace::agent::{GroundTruth, PlanarView, PoseSpace};
+    /// // At (1, 2, 3), turned by 90° about z: the axis points along +y.
+    /// let h = std::f64::consts::FRAC_1_SQRT_2;
+    /// let truth = GroundTruth::new(PoseSpace::spatial(), array![[1.0, 2.0, 3.0, h, 0.0, 0.0, h]])?;
+    /// let (poses, view) = truth.planar_view().unwrap();
+    /// assert_eq!(view, PlanarView::TopView);
+    /// assert!((poses[[0, 2]] - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    /// assert_eq!((poses[[0, 0]], poses[[0, 1]]), (1.0, 2.0));
+    /// # Ok::<(), smspace::agent::AgentError>(())
+    /// ```
+    pub fn planar_view(&self) -> Option<(Array2<f64>, PlanarView)> {
+        if self.space.is_planar() {
+            return Some((self.poses.clone(), PlanarView::Planar));
+        }
+        if self.space != PoseSpace::spatial() {
+            return None;
+        }
+        let mut out = Array2::zeros((self.poses.nrows(), 3));
+        for (pose, mut row) in self.poses.outer_iter().zip(out.outer_iter_mut()) {
+            let (w, x, y, z) = (pose[3], pose[4], pose[5], pose[6]);
+            let dx = 1.0 - 2.0 * (y * y + z * z);
+            let dy = 2.0 * (x * y + w * z);
+            row[0] = pose[0];
+            row[1] = pose[1];
+            row[2] = dy.atan2(dx);
+        }
+        Some((out, PlanarView::TopView))
     }
 
     /// The poses of the given rows, in that order.

@@ -47,8 +47,8 @@ pub use environment::{
     Environment, EnvironmentConfig, LightRegion, LightSpace, MAX_DRAWS_PER_LIGHT, MAX_RANDOM_LIGHTS,
 };
 pub use ground_truth::{
-    CoordinateKind, GroundTruth, GroundTruthView, Observer, Pose, PoseComponent, PoseCoordinate,
-    PoseSpace,
+    CoordinateKind, GroundTruth, GroundTruthView, Observer, PlanarView, Pose, PoseComponent,
+    PoseCoordinate, PoseSpace,
 };
 pub use motor_space::{wrap_period, Motor, MotorSpace};
 pub use registry::{AgentBuilder, AgentRegistry, BuiltAgent};

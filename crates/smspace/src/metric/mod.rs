@@ -95,7 +95,7 @@ pub use curve::{Closure, CURVE_TOLERANCE};
 pub use kernel::simd_level;
 pub use knn::{knn, knn_prepared, knn_with, Knn, KnnParams, KnnValidParams, MAX_PIVOTS};
 pub use matrix::{DistanceMatrix, MatrixError, SYMMETRY_TOLERANCE};
-pub use period::{CoordinatePeriods, PeriodError, Periods};
+pub use period::{CoordinatePeriods, PeriodError, Periodicity, Periods};
 pub use prepared::PreparedSets;
 pub use registry::{BuiltMetric, MetricBuilder, MetricRegistry};
 pub use tiles::{
@@ -465,9 +465,15 @@ impl MetricKind {
         matches!(self, MetricKind::Curve)
     }
 
-    /// This metric as a [`SetMetric`] object under the point metric `period`. The
-    /// `curve` metric reads both sets as `closure` polylines.
-    pub fn with_period(self, period: Period, closure: Closure) -> Box<dyn SetMetric> {
+    /// This metric as a [`SetMetric`] object under the point metric `period` (a
+    /// uniform [`Period`] or a [`Periodicity`]). The `curve` metric reads both sets as
+    /// `closure` polylines.
+    pub fn with_period(
+        self,
+        period: impl Into<Periodicity>,
+        closure: Closure,
+    ) -> Box<dyn SetMetric> {
+        let period = period.into();
         match self {
             MetricKind::Hausdorff => Box::new(Hausdorff { period }),
             MetricKind::MeanHausdorff => Box::new(MeanHausdorff { period }),
@@ -531,43 +537,43 @@ pub trait SetMetric: Send + Sync {
 }
 
 /// A built-in metric as its SIMD kernels run it ([`SetMetric::kernel`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct KernelMetric {
     /// The metric.
     pub kind: MetricKind,
     /// The point metric's period.
-    pub period: Period,
+    pub period: Periodicity,
     /// For the `curve` metric, how sets given without their closures are joined (sets
     /// given with them, [`SetsView::with_closure`], keep their own).
     pub closure: Closure,
 }
 
 /// The paper's symmetric Hausdorff distance `ρ` under the point metric `g`.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Hausdorff {
     /// Period of the coordinates.
-    pub period: Period,
+    pub period: Periodicity,
 }
 
 /// The mean Hausdorff distance `ρ̄` under the point metric `g`.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct MeanHausdorff {
     /// Period of the coordinates.
-    pub period: Period,
+    pub period: Periodicity,
 }
 
 /// The Hausdorff distance `ρ_c` between two sets read as polylines (see [`mod@curve`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Curve {
     /// Period of the coordinates.
-    pub period: Period,
+    pub period: Periodicity,
     /// How the points of both sets are joined.
     pub closure: Closure,
 }
 
 fn pair_distance(
     kind: MetricKind,
-    period: Period,
+    period: &Periodicity,
     a: ArrayView2<'_, f64>,
     b: ArrayView2<'_, f64>,
 ) -> Result<f64, MetricError> {
@@ -576,7 +582,7 @@ fn pair_distance(
 
 fn pair_distance_closed(
     kind: MetricKind,
-    period: Period,
+    period: &Periodicity,
     a: ArrayView2<'_, f64>,
     b: ArrayView2<'_, f64>,
     closure: Closure,
@@ -646,7 +652,7 @@ impl SetMetric for Hausdorff {
         MetricKind::Hausdorff.name()
     }
     fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
-        pair_distance(MetricKind::Hausdorff, self.period, a, b)
+        pair_distance(MetricKind::Hausdorff, &self.period, a, b)
     }
     fn is_metric(&self) -> bool {
         true
@@ -654,7 +660,7 @@ impl SetMetric for Hausdorff {
     fn kernel(&self) -> Option<KernelMetric> {
         Some(KernelMetric {
             kind: MetricKind::Hausdorff,
-            period: self.period,
+            period: self.period.clone(),
             closure: Closure::Open,
         })
     }
@@ -665,7 +671,7 @@ impl SetMetric for Curve {
         MetricKind::Curve.name()
     }
     fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
-        pair_distance_closed(MetricKind::Curve, self.period, a, b, self.closure)
+        pair_distance_closed(MetricKind::Curve, &self.period, a, b, self.closure)
     }
     fn is_metric(&self) -> bool {
         true
@@ -676,7 +682,7 @@ impl SetMetric for Curve {
     fn kernel(&self) -> Option<KernelMetric> {
         Some(KernelMetric {
             kind: MetricKind::Curve,
-            period: self.period,
+            period: self.period.clone(),
             closure: self.closure,
         })
     }
@@ -687,12 +693,12 @@ impl SetMetric for MeanHausdorff {
         MetricKind::MeanHausdorff.name()
     }
     fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
-        pair_distance(MetricKind::MeanHausdorff, self.period, a, b)
+        pair_distance(MetricKind::MeanHausdorff, &self.period, a, b)
     }
     fn kernel(&self) -> Option<KernelMetric> {
         Some(KernelMetric {
             kind: MetricKind::MeanHausdorff,
-            period: self.period,
+            period: self.period.clone(),
             closure: Closure::Open,
         })
     }
@@ -750,8 +756,10 @@ pub struct DistanceParams {
     /// Set metric, by name: `hausdorff`, `mean-hausdorff`, `curve` ([`MetricKind`]),
     /// or a registered one. Default: `hausdorff`.
     pub metric: MetricName,
-    /// Period of the motor coordinates. Default: [`Period::TwoPi`].
-    pub period: Period,
+    /// Period of the motor coordinates: `"2pi"`, `"none"`, one entry per motor, or
+    /// `"motors"` (the agent's own, resolved by the pipeline). Default: `"2pi"`
+    /// ([`Period::TwoPi`]).
+    pub period: Periodicity,
     /// Refuse to start when the output needs more bytes than this. Default: `None`
     /// (no limit; the command-line tool passes the memory available).
     pub memory_limit_bytes: Option<u64>,
@@ -763,10 +771,10 @@ pub struct DistanceParams {
 
 /// Checked [`DistanceParams`] of a built-in metric: the only form the built-in
 /// matrix and kNN functions run.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct DistanceValidParams {
     kind: MetricKind,
-    period: Period,
+    period: Periodicity,
     memory_limit_bytes: Option<u64>,
 }
 
@@ -782,9 +790,10 @@ impl DistanceParams {
         self
     }
 
-    /// Sets the period of the coordinates (default `2π`).
-    pub fn period(mut self, period: Period) -> Self {
-        self.period = period;
+    /// Sets the period of the coordinates (default `2π`): a uniform [`Period`] or a
+    /// [`Periodicity`].
+    pub fn period(mut self, period: impl Into<Periodicity>) -> Self {
+        self.period = period.into();
         self
     }
 
@@ -816,7 +825,7 @@ impl DistanceParams {
         }
         Ok(DistanceValidParams {
             kind,
-            period: self.period,
+            period: self.period.clone(),
             memory_limit_bytes: self.memory_limit_bytes,
         })
     }
@@ -837,8 +846,8 @@ impl DistanceValidParams {
     }
 
     /// The point metric's period.
-    pub fn period(&self) -> Period {
-        self.period
+    pub fn period(&self) -> &Periodicity {
+        &self.period
     }
 
     /// The memory limit in bytes, if any.
@@ -850,7 +859,7 @@ impl DistanceValidParams {
     /// [`knn_with`]); `curve` sets given without their closures are read as closed
     /// loops.
     pub fn set_metric(&self) -> Box<dyn SetMetric> {
-        self.kind.with_period(self.period, Closure::Closed)
+        self.kind.with_period(&self.period, Closure::Closed)
     }
 }
 
@@ -940,7 +949,7 @@ pub fn distance_rows<'a>(
         m,
         matrix_bytes(m, p, n, rows.len()),
     )?;
-    let measure = tiles::Measure::kernel(sets, params.kind, params.period)?;
+    let measure = tiles::Measure::kernel(sets, params.kind, &params.period)?;
     let mut out = Array2::zeros((rows.len(), m));
     let layout = tiles::Layout::within(Tile::new(rows, 0..m));
     tiles::fill(measure, &layout, out.view_mut(), progress)?;

@@ -12,7 +12,12 @@
 //!
 //! so `|h_n(u)| ≤ T_n / 2`. The uniform [`Period::TwoPi`] and [`Period::None`] are the
 //! shorthands of the command line and the experiment files: every coordinate with
-//! period `2π`, or none wrapped.
+//! period `2π`, or none wrapped. A metric carries a [`Periodicity`]: one of those, a
+//! list with one period per coordinate (hinges and bounded motors mixed), or
+//! `"motors"`, which asks the caller that knows the agent (the pipeline) to put the
+//! agent's own periods in its place.
+
+use serde::{Deserialize, Serialize};
 
 use super::Period;
 
@@ -30,6 +35,19 @@ pub enum PeriodError {
         coord: usize,
         /// The value given.
         value: f64,
+    },
+    /// `"motors"` reached a metric that has no motor space to read it from.
+    #[error("period \"motors\" takes one period per coordinate from the agent's motor space, which only a run with an agent knows (smspace run); give \"2pi\", \"none\" or one period per coordinate")]
+    FromMotors,
+    /// An entry of a per-coordinate list that is neither a period nor a name.
+    #[error(
+        "period entry {coord} is {value:?}; each entry is \"2pi\", \"none\" or a period in radians"
+    )]
+    BadEntry {
+        /// The coordinate.
+        coord: usize,
+        /// The entry given.
+        value: String,
     },
     /// Periods given for another number of coordinates.
     #[error("{periods} periods given for points with {dims} coordinates; give one per coordinate")]
@@ -107,6 +125,218 @@ impl Periods {
         [Period::TwoPi, Period::None]
             .into_iter()
             .find(|&p| *self == Self::uniform(p, self.dims()))
+    }
+}
+
+/// How the point metric `g` wraps coordinates: one period for all of them, one per
+/// coordinate, or the agent's own (resolved by the pipeline).
+///
+/// In files it is a string, `"2pi"`, `"none"` or `"motors"`, or a list with one entry
+/// per coordinate, `"2pi"`, `"none"` or a period in radians:
+///
+/// ```
+/// use smspace::metric::{Period, Periodicity};
+/// #[derive(serde::Deserialize)]
+/// struct Table { period: Periodicity }
+/// let t: Table = toml::from_str("period = \"2pi\"").unwrap();
+/// assert_eq!(t.period, Periodicity::Uniform(Period::TwoPi));
+/// let t: Table = toml::from_str("period = [\"2pi\", \"2pi\", \"none\"]").unwrap();
+/// assert_eq!(t.period.to_string(), "[2pi, 2pi, none]");
+/// let t: Table = toml::from_str("period = \"motors\"").unwrap();
+/// assert_eq!(t.period, Periodicity::FromMotors);
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub enum Periodicity {
+    /// Every coordinate alike: `2π` (hinges, the paper's `h`) or none.
+    Uniform(Period),
+    /// One period per coordinate.
+    PerCoordinate(Periods),
+    /// The periods of the agent's motors (hinges `2π`, bounded motors none): the
+    /// pipeline replaces it by [`Periodicity::Uniform`] or
+    /// [`Periodicity::PerCoordinate`] before any distance is computed.
+    FromMotors,
+}
+
+impl Default for Periodicity {
+    /// `2π` on every coordinate, the paper's hinge joints.
+    fn default() -> Self {
+        Self::Uniform(Period::TwoPi)
+    }
+}
+
+impl From<Period> for Periodicity {
+    fn from(period: Period) -> Self {
+        Self::Uniform(period)
+    }
+}
+
+impl From<&Periodicity> for Periodicity {
+    fn from(period: &Periodicity) -> Self {
+        period.clone()
+    }
+}
+
+impl From<Periods> for Periodicity {
+    /// Per-coordinate periods, written as the uniform [`Period`] they equal if any.
+    fn from(periods: Periods) -> Self {
+        match periods.as_uniform() {
+            Some(uniform) => Self::Uniform(uniform),
+            None => Self::PerCoordinate(periods),
+        }
+    }
+}
+
+impl Periodicity {
+    /// The uniform period, when every coordinate has the same.
+    pub fn as_uniform(&self) -> Option<Period> {
+        match self {
+            Self::Uniform(period) => Some(*period),
+            Self::PerCoordinate(periods) => periods.as_uniform(),
+            Self::FromMotors => None,
+        }
+    }
+
+    /// Parses the command line's form: `2pi`, `none`, `motors`, or a comma-separated
+    /// list with one entry per coordinate (`2pi`, `none` or a period in radians).
+    pub fn parse(text: &str) -> Result<Self, PeriodError> {
+        let text = text.trim();
+        if !text.contains(',') {
+            if let Some(single) = Self::named(text) {
+                return Ok(single);
+            }
+        }
+        let entries = text
+            .split(',')
+            .enumerate()
+            .map(|(coord, entry)| entry_period(coord, entry.trim()))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self::PerCoordinate(Periods::new(entries)?))
+    }
+
+    fn named(text: &str) -> Option<Self> {
+        match text {
+            "2pi" => Some(Self::Uniform(Period::TwoPi)),
+            "none" => Some(Self::Uniform(Period::None)),
+            "motors" => Some(Self::FromMotors),
+            _ => None,
+        }
+    }
+}
+
+fn entry_period(coord: usize, entry: &str) -> Result<Option<f64>, PeriodError> {
+    match entry {
+        "2pi" => Ok(Some(std::f64::consts::TAU)),
+        "none" => Ok(None),
+        _ => match entry.parse::<f64>() {
+            Ok(value) if value.is_finite() && value > 0.0 => Ok(Some(value)),
+            Ok(value) => Err(PeriodError::NotPositive { coord, value }),
+            Err(_) => Err(PeriodError::BadEntry {
+                coord,
+                value: entry.to_owned(),
+            }),
+        },
+    }
+}
+
+fn entry_label(period: Option<f64>) -> String {
+    match period {
+        Some(t) if t == std::f64::consts::TAU => "2pi".to_owned(),
+        Some(t) => format!("{t}"),
+        None => "none".to_owned(),
+    }
+}
+
+impl std::fmt::Display for Periodicity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Uniform(Period::TwoPi) => f.write_str("2pi"),
+            Self::Uniform(Period::None) => f.write_str("none"),
+            Self::FromMotors => f.write_str("motors"),
+            Self::PerCoordinate(periods) => {
+                let entries: Vec<String> =
+                    periods.periods.iter().map(|&p| entry_label(p)).collect();
+                write!(f, "[{}]", entries.join(", "))
+            }
+        }
+    }
+}
+
+/// One entry of a per-coordinate list in a file.
+#[derive(Serialize, Deserialize)]
+#[serde(untagged)]
+enum EntryRepr {
+    Name(String),
+    Radians(f64),
+}
+
+/// A [`Periodicity`] in a file.
+#[derive(Serialize, Deserialize)]
+#[serde(untagged)]
+enum PeriodicityRepr {
+    Name(String),
+    List(Vec<EntryRepr>),
+}
+
+impl Serialize for Periodicity {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let repr = match self {
+            Self::PerCoordinate(periods) => PeriodicityRepr::List(
+                periods
+                    .periods
+                    .iter()
+                    .map(|&p| match p {
+                        Some(t) if t == std::f64::consts::TAU => EntryRepr::Name("2pi".into()),
+                        Some(t) => EntryRepr::Radians(t),
+                        None => EntryRepr::Name("none".into()),
+                    })
+                    .collect(),
+            ),
+            other => PeriodicityRepr::Name(other.to_string()),
+        };
+        repr.serialize(serializer)
+    }
+}
+
+impl<'de> Deserialize<'de> for Periodicity {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        match PeriodicityRepr::deserialize(deserializer)? {
+            PeriodicityRepr::Name(name) => Self::named(&name).ok_or_else(|| {
+                D::Error::custom(format!(
+                    "unknown period {name:?}: give \"2pi\", \"none\", \"motors\" or a list with one entry per motor"
+                ))
+            }),
+            PeriodicityRepr::List(entries) => {
+                let periods = entries
+                    .into_iter()
+                    .enumerate()
+                    .map(|(coord, entry)| match entry {
+                        EntryRepr::Name(name) => entry_period(coord, &name),
+                        EntryRepr::Radians(value) => entry_period(coord, &value.to_string()),
+                    })
+                    .collect::<Result<Vec<_>, _>>()
+                    .map_err(D::Error::custom)?;
+                Ok(Self::PerCoordinate(
+                    Periods::new(periods).map_err(D::Error::custom)?,
+                ))
+            }
+        }
+    }
+}
+
+impl CoordinatePeriods for Periodicity {
+    fn for_dims(&self, dims: usize) -> Result<Periods, PeriodError> {
+        match self {
+            Self::Uniform(period) => period.for_dims(dims),
+            Self::PerCoordinate(periods) => periods.for_dims(dims),
+            Self::FromMotors => Err(PeriodError::FromMotors),
+        }
+    }
+}
+
+impl CoordinatePeriods for &Periodicity {
+    fn for_dims(&self, dims: usize) -> Result<Periods, PeriodError> {
+        (*self).for_dims(dims)
     }
 }
 
@@ -214,6 +444,45 @@ mod tests {
             None
         );
         assert!(Periods::uniform(Period::None, 3).for_dims(4).is_err());
+    }
+
+    #[test]
+    fn periodicity_parses_prints_and_round_trips() {
+        let mixed = Periodicity::parse("2pi, none,3").unwrap();
+        assert_eq!(mixed.to_string(), "[2pi, none, 3]");
+        assert_eq!(
+            mixed.for_dims(3).unwrap(),
+            Periods::new(vec![Some(TAU), None, Some(3.0)]).unwrap()
+        );
+        assert!(mixed.for_dims(2).is_err());
+        // A list keeps its length (checked against the points), even when its entries
+        // are equal; per-coordinate periods that are all alike are the uniform period.
+        let equal = Periodicity::parse("2pi,2pi").unwrap();
+        assert_eq!(equal.as_uniform(), Some(Period::TwoPi));
+        assert!(equal.for_dims(3).is_err());
+        assert_eq!(
+            Periodicity::from(Periods::uniform(Period::TwoPi, 3)),
+            Periodicity::Uniform(Period::TwoPi)
+        );
+        assert_eq!(Periodicity::parse("none").unwrap(), Period::None.into());
+        assert!(matches!(
+            Periodicity::FromMotors.for_dims(2),
+            Err(PeriodError::FromMotors)
+        ));
+        for bad in ["2pi,abc", "1,-2", "tau"] {
+            assert!(Periodicity::parse(bad).is_err(), "{bad}");
+        }
+        for value in [mixed, Periodicity::default(), Periodicity::FromMotors] {
+            let json = serde_json::to_string(&value).unwrap();
+            let back: Periodicity = serde_json::from_str(&json).unwrap();
+            assert_eq!(back, value, "{json}");
+        }
+        // The uniform periods keep the file form of `Period`.
+        assert_eq!(
+            serde_json::to_string(&Periodicity::default()).unwrap(),
+            serde_json::to_string(&Period::TwoPi).unwrap()
+        );
+        assert!(serde_json::from_str::<Periodicity>("\"tau\"").is_err());
     }
 
     #[test]

@@ -12,7 +12,7 @@
 //!
 //! ```
 //! use ndarray::ArrayView2;
-//! use smspace::metric::{DistanceParams, MetricError, MetricRegistry, Period, SetMetric};
+//! use smspace::metric::{DistanceParams, MetricError, MetricRegistry, Periodicity, SetMetric};
 //!
 //! /// The distance between the sets' centroids, scaled.
 //! struct Centroids { scale: f64 }
@@ -30,7 +30,7 @@
 //! impl Default for CentroidParams { fn default() -> Self { Self { scale: 1.0 } } }
 //!
 //! let mut registry = MetricRegistry::builtin();
-//! registry.register_params("centroids", "distance between the centroids", |p: &CentroidParams, _period: Period| {
+//! registry.register_params("centroids", "distance between the centroids", |p: &CentroidParams, _period: &Periodicity| {
 //!     Ok(Box::new(Centroids { scale: p.scale }))
 //! });
 //! let params: DistanceParams = toml::from_str("metric = \"centroids\"\n[params]\nscale = 2.0").unwrap();
@@ -46,7 +46,7 @@ use std::sync::Arc;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-use super::{Closure, DistanceParams, MetricError, MetricKind, Period, SetMetric};
+use super::{Closure, DistanceParams, MetricError, MetricKind, Periodicity, SetMetric};
 
 /// A metric built from its `[metric]` table, with the table resolved (defaults of its
 /// parameters included).
@@ -70,7 +70,7 @@ impl std::fmt::Debug for BuiltMetric {
 /// Builds a metric of one name from its parameter table (`[metric.params]`) and the
 /// point metric's period; returns the metric and the resolved parameters.
 pub type MetricBuilder = Arc<
-    dyn Fn(&toml::Table, Period) -> Result<(Box<dyn SetMetric>, toml::Table), MetricError>
+    dyn Fn(&toml::Table, &Periodicity) -> Result<(Box<dyn SetMetric>, toml::Table), MetricError>
         + Send
         + Sync,
 >;
@@ -150,10 +150,10 @@ impl MetricRegistry {
     pub fn register_params<P, F>(&mut self, name: &str, summary: &str, new: F)
     where
         P: DeserializeOwned + Serialize + 'static,
-        F: Fn(&P, Period) -> Result<Box<dyn SetMetric>, MetricError> + Send + Sync + 'static,
+        F: Fn(&P, &Periodicity) -> Result<Box<dyn SetMetric>, MetricError> + Send + Sync + 'static,
     {
         let metric = name.to_owned();
-        let build = move |table: &toml::Table, period: Period| {
+        let build = move |table: &toml::Table, period: &Periodicity| {
             let params: P =
                 toml::Value::Table(table.clone())
                     .try_into()
@@ -190,7 +190,7 @@ impl MetricRegistry {
                     name: params.metric.to_string(),
                     known: self.names().collect::<Vec<_>>().join(", "),
                 })?;
-        let (metric, resolved) = (entry.build)(&params.params, params.period)?;
+        let (metric, resolved) = (entry.build)(&params.params, &params.period)?;
         Ok(BuiltMetric {
             metric: Arc::from(metric),
             params: DistanceParams {
@@ -204,6 +204,7 @@ impl MetricRegistry {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::metric::Period;
 
     #[test]
     fn the_builtin_metrics_run_on_their_kernels() {
@@ -213,7 +214,7 @@ mod tests {
             let built = registry.build(&params).unwrap();
             assert_eq!(built.metric.name(), kind.name());
             let spec = built.metric.kernel().unwrap();
-            assert_eq!((spec.kind, spec.period), (kind, Period::None));
+            assert_eq!((spec.kind, spec.period), (kind, Period::None.into()));
             assert_eq!(built.params, params);
         }
     }

@@ -58,8 +58,8 @@ use serde::{Deserialize, Serialize};
 
 use super::kernel::{self, Driver, Eval, Scratch};
 use super::{
-    check_metric, closure_for, prepared, Closure, DistanceMatrix, MetricError, MetricKind, Period,
-    PreparedSets, SetMetric, SetsView,
+    check_metric, closure_for, prepared, Closure, DistanceMatrix, MetricError, MetricKind,
+    Periodicity, PreparedSets, SetMetric, SetsView,
 };
 use crate::error::InvalidParameter;
 use crate::io::{self, IoError};
@@ -269,7 +269,7 @@ impl<'a> Measure<'a> {
     pub(crate) fn kernel(
         sets: SetsView<'a>,
         kind: MetricKind,
-        period: Period,
+        period: &Periodicity,
     ) -> Result<Self, MetricError> {
         let prepared = PreparedSets::new(closure_for(sets, kind)?, period)?;
         check_metric(&prepared, kind)?;
@@ -310,7 +310,7 @@ impl<'a> Measure<'a> {
             }
             _ => sets.reborrow(),
         };
-        let prepared = PreparedSets::new(closure_for(sets, spec.kind)?, spec.period)?;
+        let prepared = PreparedSets::new(closure_for(sets, spec.kind)?, &spec.period)?;
         check_metric(&prepared, spec.kind)?;
         Ok(Self::Kernel {
             prepared: Cow::Owned(prepared),

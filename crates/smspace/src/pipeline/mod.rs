@@ -100,7 +100,7 @@ use crate::config::{ConfigError, LoadedExperiment};
 use crate::error::InvalidParameter;
 use crate::io::IoError;
 use crate::kernel::{TraceMethod, TraceParams};
-use crate::metric::{MetricError, MetricRegistry, Period};
+use crate::metric::{DistanceParams, MetricError, MetricRegistry, Periodicity};
 use crate::progress::Progress;
 pub use lock::BusyFolder;
 use lock::FolderLock;
@@ -407,9 +407,11 @@ pub fn check_with(
         .build(&experiment.experiment.agent)
         .map_err(|err| experiment.invalid_error("agent", err.into()))?;
     let agent = built.agent;
+    let metric_table = resolve_metric_period(agent.as_ref(), &experiment.experiment.metric)
+        .map_err(|err| experiment.invalid_error("metric", MetricError::Invalid(err).into()))?;
     let metric = registries
         .metrics
-        .build(&experiment.experiment.metric)
+        .build(&metric_table)
         .map_err(|err| experiment.invalid("metric", crate::Error::from(err)))?;
     // The resolved agent and metric tables (their defaults included) are what the run
     // records.
@@ -456,8 +458,6 @@ pub fn check_with(
     } else {
         None
     };
-    check_metric_period(agent.as_ref(), metric.params.period)
-        .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
     e.embedding
         .clone()
         .build()
@@ -503,27 +503,44 @@ pub fn check_with(
     })
 }
 
-/// Checks the period of the motor coordinates the distance stage uses for `agent`: today the
-/// experiment's uniform `[metric] period` (`2pi` or `none`), refused when the agent's
-/// motors are not all alike (hinges and bounded motors mixed, or another period), which
-/// a uniform period cannot describe. This is the one place where the agent's
-/// per-coordinate periods ([`MotorSpace::periods`](crate::agent::MotorSpace::periods))
-/// will reach the metric.
-fn check_metric_period(agent: &dyn Agent, period: Period) -> Result<(), InvalidParameter> {
+/// The `[metric]` table with its period resolved for `agent`: `"motors"` becomes the
+/// periods of the agent's motors (hinges wrap with their period, bounded motors do
+/// not: [`crate::invariance::motor_periodicity`]), written as `"2pi"` or `"none"` when
+/// all motors are alike, so that a run of hinges records and keys the same table either
+/// way. A uniform period is refused when the motors are not all alike (a uniform
+/// period would wrap a bounded motor or leave a hinge unwrapped), and a per-motor list
+/// must have one entry per motor.
+fn resolve_metric_period(
+    agent: &dyn Agent,
+    table: &DistanceParams,
+) -> Result<DistanceParams, InvalidParameter> {
     let space = agent.motor_space();
-    let uniform = space.is_hinges() || space.is_bounded();
-    if uniform {
-        return Ok(());
-    }
-    Err(InvalidParameter::new(
-        "metric",
-        "period",
-        stages::label(&period),
-        format!(
-            "the {} agent's motors are {space}; a uniform period (\"2pi\" or \"none\") cannot describe them, and per-motor periods are not wired into the pipeline yet",
-            agent.name()
-        ),
-    ))
+    let own = crate::invariance::motor_periodicity(&space);
+    let refuse =
+        |why: String| InvalidParameter::new("metric", "period", table.period.to_string(), why);
+    let period = match &table.period {
+        Periodicity::FromMotors => own,
+        Periodicity::Uniform(_) if space.is_hinges() || space.is_bounded() => table.period.clone(),
+        Periodicity::Uniform(_) => {
+            return Err(refuse(format!(
+                "the {} agent's motors are {space}; a uniform period cannot describe them: set period = \"motors\" (the agent's own: {own}) or one entry per motor",
+                agent.name()
+            )))
+        }
+        Periodicity::PerCoordinate(periods) if periods.dims() != space.dim() => {
+            return Err(refuse(format!(
+                "{} entries for the {} agent's {} motors; give one per motor, or period = \"motors\" ({own})",
+                periods.dims(),
+                agent.name(),
+                space.dim()
+            )))
+        }
+        Periodicity::PerCoordinate(_) => table.period.clone(),
+    };
+    Ok(DistanceParams {
+        period,
+        ..table.clone()
+    })
 }
 
 /// Runs the checked experiment into `options.out_dir` (see the module docs).

@@ -143,9 +143,13 @@ pub struct ReportInputs<'a> {
     pub workspace: Option<Workspace>,
     /// Explored motor configurations `(M0, N)`.
     pub motors: ArrayView2<'a, f64>,
-    /// Their poses `(M0, 3)` as `(x, y, alpha)`, when the agent's ground truth is the
-    /// planar pose; `None` skips the figures of poses (with a sentence).
+    /// Their poses `(M0, 3)` as `(x, y, alpha)`: the agent's planar pose, or a 3-D pose
+    /// seen from above ([`GroundTruth::planar_view`](crate::agent::GroundTruth::planar_view));
+    /// `None` skips the figures of poses (with a sentence).
     pub poses: Option<ArrayView2<'a, f64>>,
+    /// How `poses` were obtained; the captions of the pose figures say so for a 3-D
+    /// agent.
+    pub pose_view: crate::agent::PlanarView,
     /// Probe labels `(M0, 3)`: `(orientation, ix, iy)`, `-1` for babbled rows.
     pub probes: ArrayView2<'a, i64>,
     /// The kernel sets `(M, P, N)`, one per kept exploration row.

@@ -9,7 +9,7 @@ use super::figures::{self, Panel, Recovery};
 use super::layout::{self, FigureText};
 use super::plot::{self, Print};
 use super::{FigureFormats, InvarianceData, ReportError, ReportInputs, ReportParams};
-use crate::agent::MotorSpace;
+use crate::agent::{MotorSpace, PlanarView};
 
 /// What every figure needs besides the inputs.
 pub(super) struct Derived {
@@ -23,7 +23,7 @@ pub(super) struct Derived {
 }
 
 /// Why the figures of poses are skipped when there are none.
-const NO_PLANAR_POSES: &str = "the agent has no planar ground truth (x, y, alpha) to colour or place the sets by, so the figures of poses are skipped";
+const NO_PLANAR_POSES: &str = "the agent has no planar ground truth (x, y, alpha), nor a 3-D one to see from above, to colour or place the sets by, so the figures of poses are skipped";
 
 /// The poses of the sets, the motor unit and the probe sheets.
 pub(super) fn derive(inputs: &ReportInputs<'_>) -> Derived {
@@ -160,7 +160,7 @@ pub(super) fn plan<'a: 'b, 'b>(
         .copied()
         .take(figures::MAX_LOOPS)
         .collect();
-    vec![
+    let mut figures = vec![
         planner.sensory_manifolds(),
         planner.kernel_lines(&sets_sample),
         planner.learned_manifold(),
@@ -172,8 +172,28 @@ pub(super) fn plan<'a: 'b, 'b>(
         planner.dydx(),
         planner.invariance(),
         planner.stress(),
-    ]
+    ];
+    if inputs.pose_view == PlanarView::TopView {
+        for (name, caption, _) in &mut figures {
+            if POSE_FIGURES.contains(name) {
+                caption.push_str(TOP_VIEW_NOTE);
+            }
+        }
+    }
+    figures
 }
+
+/// The figures that place or colour the sets by the planar pose.
+const POSE_FIGURES: [&str; 5] = [
+    "fig2-kernel-lines",
+    "fig2-learned-manifold",
+    "fig5a-configurations",
+    "fig5d-embedding-probes",
+    "embedding-pose",
+];
+
+/// What a pose figure of a 3-D agent shows.
+const TOP_VIEW_NOTE: &str = " The agent is 3-D: its poses are seen from above, x and y the sensor's position and alpha the heading of its optical axis projected on the xy plane (z and the tilt are not drawn; the agreement analysis uses the full 3-D pose).";
 
 /// What the plan of every figure reads: one method per figure, each deciding
 /// whether its figure is drawn and with what.

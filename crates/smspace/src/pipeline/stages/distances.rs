@@ -6,11 +6,11 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use super::{label, Keyed, Stage, StageContext, StageInput};
+use super::{Keyed, Stage, StageContext, StageInput};
 use crate::io::{IoError, Outputs};
 use crate::kernel::TracedSets;
 use crate::metric::{
-    distance_matrix_with, BuiltMetric, DistanceMatrix, DistanceParams, MetricName, Period,
+    distance_matrix_with, BuiltMetric, DistanceMatrix, DistanceParams, MetricName, Periodicity,
     SetMetric, SetsView,
 };
 use crate::pipeline::StageId;
@@ -22,8 +22,8 @@ use crate::pipeline::StageId;
 pub struct DistancesStage {
     /// The set metric's name.
     pub metric: MetricName,
-    /// The period of the motor coordinates.
-    pub period: Period,
+    /// The period of the motor coordinates (resolved: never `"motors"`).
+    pub period: Periodicity,
     /// The metric's own parameters (`[metric.params]`; none for the built-in ones).
     #[serde(skip_serializing_if = "toml::Table::is_empty")]
     pub params: toml::Table,
@@ -37,7 +37,7 @@ impl DistancesStage {
     pub fn new(built: &BuiltMetric) -> Self {
         Self {
             metric: built.params.metric.clone(),
-            period: built.params.period,
+            period: built.params.period.clone(),
             params: built.params.params.clone(),
             set_metric: built.metric.clone(),
         }
@@ -121,7 +121,7 @@ impl Stage for DistancesStage {
             "{0} × {0} matrix ({1}, period {2})",
             d.len(),
             self.metric,
-            label(&self.period)
+            self.period
         )
     }
 }

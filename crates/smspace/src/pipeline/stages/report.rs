@@ -87,6 +87,10 @@ impl Stage for ReportStage {
         let quality = embedded
             .quality
             .map(|q| serde_json::to_value(q).unwrap_or_default());
+        let planar = exploration
+            .ground_truth
+            .as_ref()
+            .and_then(crate::agent::GroundTruth::planar_view);
         let inputs = ReportInputs {
             name: &self.name,
             description: &self.description,
@@ -95,7 +99,8 @@ impl Stage for ReportStage {
             environments: &world.environments,
             workspace: world.workspace,
             motors: exploration.motors.view(),
-            poses: exploration.planar_poses(),
+            poses: planar.as_ref().map(|(poses, _)| poses.view()),
+            pose_view: planar.as_ref().map(|(_, view)| *view).unwrap_or_default(),
             probes: exploration.probes.view(),
             sets: traced.sets.view(),
             kept: &traced.kept,
