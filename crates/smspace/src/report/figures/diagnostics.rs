@@ -178,6 +178,11 @@ impl Figure for DyDx<'_> {
             Axis2d::new(0.0..hi, &x_title),
             Axis2d::new(0.0..hi, "dy: embedded distance"),
         )?;
+        chart.draw_series(
+            rows.iter()
+                .map(|&i| Circle::new((dx[i], dy[i]), print.i(0.9), color.mix(0.45).filled())),
+        )?;
+        // The reference line goes on top, so that dense pairs do not hide it.
         data_line(
             &chart,
             (0.0, 0.0),
@@ -185,10 +190,6 @@ impl Figure for DyDx<'_> {
             red.stroke_width(print.stroke(0.8)),
             Dash::Dashed,
             print,
-        )?;
-        chart.draw_series(
-            rows.iter()
-                .map(|&i| Circle::new((dx[i], dy[i]), print.i(0.9), color.mix(0.45).filled())),
         )?;
         legend.draw(&strip, print)
     }

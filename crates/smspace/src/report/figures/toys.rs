@@ -7,7 +7,7 @@ use plotters::prelude::*;
 
 use super::super::plot::{
     chart_2d, color_bar, padded, series_color, stride_sample, with_color_bar, Axis2d, ColorScale,
-    Dash, Drawn, Figure, Legend, Mark, NumberFormat,
+    Dash, Drawn, Figure, Legend, Mark,
 };
 use super::super::SensoryManifold;
 use super::{motor_range, periods, wrap_curve, Panel, MAX_SCATTER_POINTS};
@@ -42,15 +42,11 @@ impl SensoryManifolds<'_> {
         }
         if let Some(m) = self.manifolds.first() {
             if m.motors.nrows() > 0 {
-                let start = m.motors[[0, 0]];
-                let format = NumberFormat::for_ticks(&[start]);
+                // Two decimals, the precision of the figure (not the tick format's).
+                let start = format!("{:.2}", m.motors[[0, 0]]).replace('-', "\u{2212}");
                 legend.add(
                     Mark::Dot(RGBColor(60, 60, 60), 2.2),
-                    format!(
-                        "start of the sweep, m1 = {} {}",
-                        format.label(start),
-                        self.motor_unit
-                    ),
+                    format!("start of the sweep, m1 = {start} {}", self.motor_unit),
                 );
             }
         }
@@ -88,17 +84,18 @@ impl Figure for SensoryManifolds<'_> {
         let y = Axis2d::new(padded(points.iter().flatten().map(|p| p.1)), &y_title);
         let mut chart = chart_2d(&plot, print, "Fig. 1: sensory manifolds", x, y)?;
         for (i, pts) in points.iter().enumerate() {
-            let color = series_color(i);
             chart.draw_series(LineSeries::new(
                 pts.iter().copied(),
-                color.stroke_width(print.stroke(1.2)),
+                series_color(i).stroke_width(print.stroke(1.2)),
             ))?;
+        }
+        // The start dots after every curve, outlined, so that no curve hides one.
+        for (i, pts) in points.iter().enumerate() {
             if let Some(&start) = pts.first() {
-                chart.draw_series(std::iter::once(Circle::new(
-                    start,
-                    print.i(2.2),
-                    color.filled(),
-                )))?;
+                chart.draw_series([
+                    Circle::new(start, print.i(2.8), WHITE.filled()),
+                    Circle::new(start, print.i(2.2), series_color(i).filled()),
+                ])?;
             }
         }
         legend.draw(&strip, print)
