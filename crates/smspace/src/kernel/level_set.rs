@@ -6,6 +6,7 @@
 //! minimum-norm correction `Δ` with `J Δ = r`.
 
 use nalgebra::{DMatrix, SymmetricEigen};
+use ndarray::{ArrayView2, ArrayViewMut2};
 
 use super::TraceValidParams;
 use crate::agent::{wrap_angle, Agent, Environment, Observer, PoseSpace};
@@ -400,7 +401,8 @@ impl LevelSet for Kinematic<'_> {
 }
 
 /// The sensory level set `{ m | σ_E(m) = σ_E(m⁰) }`, from what the agent measures
-/// alone: `J = ∂s/∂m` by central differences of sensor readings (`2N` readings), the
+/// alone: `J = ∂s/∂m` by central differences of sensor readings (`2N` readings, asked
+/// for with the residual's in one [`Agent::sense_batch`] call), the
 /// eigen-decomposition `Jᵀ J = V Λ Vᵀ` (ascending `λ`), the tangent `t = v₀`, and the
 /// correction `Δ = Σ_{e≥d} v_e (v_eᵀ Jᵀ r) / λ_e` (Gauss–Newton on `‖s(m) − s⁰‖²`
 /// restricted to the rank `N − d` part, `d` the kernel dimension, 1 for curves). The
@@ -424,9 +426,11 @@ pub(crate) struct Sensory<'a> {
     jacobian: Vec<f64>,
     eigenvalues: Vec<f64>,
     eigenvectors: Vec<f64>,
-    plus: Vec<f64>,
-    minus: Vec<f64>,
-    probe: Vec<f64>,
+    /// The `2N + 1` motor rows of one linearisation: `m`, then `m ± h e_j` for each `j`
+    /// (row-major, `(2N + 1) × N`), sensed in one [`Agent::sense_batch`] call.
+    probes: Vec<f64>,
+    /// Their sensor readings, `(2N + 1) × K`.
+    readings: Vec<f64>,
 }
 
 impl<'a> Sensory<'a> {
@@ -457,9 +461,8 @@ impl<'a> Sensory<'a> {
             jacobian: vec![0.0; k * n],
             eigenvalues: vec![0.0; n],
             eigenvectors: vec![0.0; n * n],
-            plus: vec![0.0; k],
-            minus: vec![0.0; k],
-            probe: vec![0.0; n],
+            probes: vec![0.0; (2 * n + 1) * n],
+            readings: vec![0.0; (2 * n + 1) * k],
         }
     }
 }
@@ -489,19 +492,29 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
-        self.residual(m, r);
         let (n, k, h) = (self.n, self.k, self.step);
-        self.probe.copy_from_slice(m);
+        // One batch of the 2N + 1 readings (the residual's and the central differences'),
+        // so that an agent simulated elsewhere is called once per linearisation.
+        for (row, probe) in self.probes.chunks_exact_mut(n).enumerate() {
+            probe.copy_from_slice(m);
+            if row > 0 {
+                let j = (row - 1) / 2;
+                probe[j] = if row % 2 == 1 { m[j] + h } else { m[j] - h };
+            }
+        }
+        let rows = 2 * n + 1;
+        let probes = ArrayView2::from_shape((rows, n), &self.probes).expect("(2N + 1) × N probes");
+        let readings = ArrayViewMut2::from_shape((rows, k), &mut self.readings)
+            .expect("(2N + 1) × K readings");
+        self.agent.sense_batch(self.environment, probes, readings);
+        for ((ri, s), t) in r.iter_mut().zip(&self.readings[..k]).zip(&self.target) {
+            *ri = s - t;
+        }
         for j in 0..n {
-            self.probe[j] = m[j] + h;
-            self.agent
-                .sense(self.environment, &self.probe, &mut self.plus);
-            self.probe[j] = m[j] - h;
-            self.agent
-                .sense(self.environment, &self.probe, &mut self.minus);
-            self.probe[j] = m[j];
+            let plus = &self.readings[(2 * j + 1) * k..(2 * j + 2) * k];
+            let minus = &self.readings[(2 * j + 2) * k..(2 * j + 3) * k];
             for i in 0..k {
-                self.jacobian[i * n + j] = (self.plus[i] - self.minus[i]) / (2.0 * h);
+                self.jacobian[i * n + j] = (plus[i] - minus[i]) / (2.0 * h);
             }
         }
         let mut gram = DMatrix::<f64>::zeros(n, n);

@@ -111,6 +111,7 @@ use stages::{
     ExploreInput, ExploreStage, InvarianceInput, InvarianceStage, Keyed, ReportInput, ReportStage,
     TraceInput, TraceStage, World, DYDX_PAIRS, QUALITY_NEIGHBOURS,
 };
+pub use stages::{DistanceBackend, LocalDistances};
 
 /// Errors of a run.
 #[derive(Debug, thiserror::Error)]
@@ -549,8 +550,19 @@ pub fn run(
     options: &RunOptions,
     observer: &dyn RunObserver,
 ) -> Result<RunSummary, PipelineError> {
+    run_with(plan, options, observer, &LocalDistances)
+}
+
+/// Like [`run`], with the distance stage's matrix computed by `distances` (e.g. on a
+/// cluster) instead of in this process; the outputs and keys are the same.
+pub fn run_with(
+    plan: &Plan,
+    options: &RunOptions,
+    observer: &dyn RunObserver,
+    distances: &dyn DistanceBackend,
+) -> Result<RunSummary, PipelineError> {
     check_memory(plan, options.memory_limit_bytes)?;
-    let mut runner = start(plan, options, observer)?;
+    let mut runner = start(plan, options, observer, distances)?;
     let world = &plan.world;
     let motors = plan.agent().motor_dim() as u64;
     let exploration = runner.run(&plan.explore, &ExploreInput { world }, plan.explore_peak())?;
@@ -669,6 +681,7 @@ fn start<'a>(
     plan: &'a Plan,
     options: &'a RunOptions,
     observer: &'a dyn RunObserver,
+    distances: &'a dyn DistanceBackend,
 ) -> Result<Runner<'a>, PipelineError> {
     let started = Instant::now();
     let dir = options.out_dir.clone();
@@ -722,5 +735,6 @@ fn start<'a>(
         writing: false,
         config_written: false,
         lock,
+        distances,
     })
 }

@@ -23,7 +23,7 @@ use std::time::Instant;
 use super::lock::{Access, FolderLock};
 use super::manifest::{hash_parts, Manifest, RunStatus, StageRecord};
 use super::memory::Peak;
-use super::stages::{Keyed, Stage, StageContext};
+use super::stages::{DistanceBackend, Keyed, Stage, StageContext};
 use super::{PipelineError, Recompute, RunObserver, RunOptions};
 use crate::io::{IoError, Outputs};
 use crate::report::StageTiming;
@@ -52,6 +52,8 @@ pub(super) struct Runner<'a> {
     pub(super) config_written: bool,
     /// The run folder's lock, held as long as the runner lives.
     pub(super) lock: FolderLock,
+    /// Where the distance stage computes its matrix.
+    pub(super) distances: &'a dyn DistanceBackend,
 }
 
 impl Runner<'_> {
@@ -267,6 +269,7 @@ impl Runner<'_> {
             memory_limit_bytes: self.matrix_limit_bytes,
             dir: &self.dir,
             stage_times: &stage_times,
+            distances: self.distances,
         };
         let value = stage.compute(input, &context)?;
         let mut outputs = Outputs::new();

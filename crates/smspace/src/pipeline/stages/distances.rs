@@ -14,6 +14,48 @@ use crate::metric::{
     SetMetric, SetsView,
 };
 use crate::pipeline::StageId;
+use crate::progress::Progress;
+
+/// Where the `distances` stage computes its matrix: in this process
+/// ([`LocalDistances`], what [`run`](crate::pipeline::run) uses) or elsewhere, e.g. on a
+/// cluster's workers ([`run_with`](crate::pipeline::run_with); the Python package's
+/// Dask backend). The stage's key does not depend on it, so every backend must return
+/// the matrix [`distance_matrix_with`] returns, bit for bit (tiles do:
+/// [`crate::metric::fill_tile`]).
+pub trait DistanceBackend: Sync {
+    /// The matrix of `stage`'s metric ([`DistancesStage::set_metric`], built from its
+    /// `metric`, `period` and `params`) between `sets`, refusing a matrix above
+    /// `memory_limit_bytes`, reporting to `progress`.
+    fn distances(
+        &self,
+        stage: &DistancesStage,
+        sets: SetsView<'_>,
+        memory_limit_bytes: Option<u64>,
+        progress: &dyn Progress,
+    ) -> crate::Result<DistanceMatrix>;
+}
+
+/// The matrix in this process, on its threads ([`distance_matrix_with`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct LocalDistances;
+
+impl DistanceBackend for LocalDistances {
+    fn distances(
+        &self,
+        stage: &DistancesStage,
+        sets: SetsView<'_>,
+        memory_limit_bytes: Option<u64>,
+        progress: &dyn Progress,
+    ) -> crate::Result<DistanceMatrix> {
+        let limit = DistanceParams::new().memory_limit_bytes(memory_limit_bytes);
+        Ok(distance_matrix_with(
+            sets,
+            stage.set_metric(),
+            &limit,
+            progress,
+        )?)
+    }
+}
 
 /// The `distances` stage: the `[metric]` table's metric, period and parameters (its
 /// memory limit is the run's, in the [`StageContext`]), and the metric they build
@@ -41,6 +83,11 @@ impl DistancesStage {
             params: built.params.params.clone(),
             set_metric: built.metric.clone(),
         }
+    }
+
+    /// The metric built from the stage's fields.
+    pub fn set_metric(&self) -> &dyn SetMetric {
+        self.set_metric.as_ref()
     }
 }
 
@@ -79,15 +126,11 @@ impl Stage for DistancesStage {
         input: &DistancesInput<'_>,
         context: &StageContext<'_>,
     ) -> crate::Result<DistanceMatrix> {
-        let limit = DistanceParams::new().memory_limit_bytes(context.memory_limit_bytes);
         let traced = &input.traced.value;
         let sets = SetsView::new(traced.sets.view()).with_closure(&traced.closure);
-        Ok(distance_matrix_with(
-            sets,
-            self.set_metric.as_ref(),
-            &limit,
-            context.progress,
-        )?)
+        context
+            .distances
+            .distances(self, sets, context.memory_limit_bytes, context.progress)
     }
 
     fn save(

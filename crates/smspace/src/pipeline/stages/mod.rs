@@ -45,7 +45,7 @@ use crate::progress::Progress;
 use crate::report::StageTiming;
 
 pub use analyze::{AnalyzeInput, AnalyzeStage};
-pub use distances::{DistancesInput, DistancesStage};
+pub use distances::{DistanceBackend, DistancesInput, DistancesStage, LocalDistances};
 pub use embed::{EmbedInput, EmbedOutputs, EmbedStage, DYDX_PAIRS, QUALITY_NEIGHBOURS};
 pub use explore::{ExploreInput, ExploreStage};
 pub use invariance::{InvarianceInput, InvarianceStage};
@@ -144,6 +144,9 @@ pub struct StageContext<'a> {
     pub dir: &'a Path,
     /// The stages run so far, with their times (for the report's table).
     pub stage_times: &'a [StageTiming],
+    /// Where the distance matrix is computed ([`LocalDistances`] unless
+    /// [`run_with`](crate::pipeline::run_with) names another backend).
+    pub distances: &'a dyn DistanceBackend,
 }
 
 /// The agent, its environments and its working space: built from the `[agent]`,

@@ -1,0 +1,423 @@
+"""smspace: a naive sensorimotor agent discovers its own spatial configuration.
+
+The Rust engine of smspace (Laflaquière et al. 2015) from Python, one function per
+stage of the pipeline, on NumPy arrays::
+
+    import smspace
+    agent = smspace.Agent.preset("planar-arm")            # or Agent.from_toml("arm.toml")
+    found = smspace.explore(agent, n=2500, seed=1)        # found.motors, found.poses
+    traced = smspace.trace(agent, found.motors, method="kinematic", points=100)
+    D = smspace.distances(traced, metric="curve")         # (M, M) ndarray
+    Y = smspace.embed(D, method="cca", dim=3, seed=0)     # (M, 3) ndarray
+    report = smspace.analyze(D, poses=found.poses[traced.kept])  # dict: betti, ...
+    run = smspace.run("experiments/paper-arm.toml", out="runs/x",
+                      overrides={"exploration.n": 500})
+
+Arrays come in as float64 arrays of any order or strides (read in place, never
+copied unless the engine must own them, as the validated distance matrix does) and
+go out as NumPy arrays that own the engine's buffers (no copy). Every long
+computation releases the GIL. Errors of the engine are raised as ``ValueError``
+(``OSError`` for files) with the messages of the ``smspace`` command-line tool; bad
+arguments as ``TypeError``/``ValueError`` naming the argument.
+
+Agents written in Python: :class:`PythonAgent` (``sense(motors (B, N)) -> (B, K)``,
+called in batches). Distance matrices on a Dask cluster: :mod:`smspace.dask`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+from . import _core
+from ._core import Agent, CallbackError, PythonAgent
+
+__version__: str = _core.__version__
+
+__all__ = [
+    "Agent",
+    "PythonAgent",
+    "CallbackError",
+    "Exploration",
+    "Traced",
+    "Embedded",
+    "Run",
+    "explore",
+    "trace",
+    "distances",
+    "knn",
+    "embed",
+    "analyze",
+    "run",
+    "tile_plan",
+]
+
+ProgressArg = Union[None, bool, Callable[[str, int, int], Any]]
+
+
+# --- arguments ----------------------------------------------------------------------
+
+
+def _array(value: Any, name: str, ndim: int) -> np.ndarray:
+    """``value`` as a float64 array of ``ndim`` dimensions, without a copy when it is
+    one already (any order or strides); TypeError/ValueError naming ``name``."""
+    array = np.asarray(value)
+    if array.dtype != np.float64:
+        if array.dtype.kind in "iuf" and array.dtype != np.float16:
+            array = array.astype(np.float64)
+        else:
+            raise TypeError(
+                f"{name} must be an array of float64, got dtype {array.dtype}"
+            )
+    if array.ndim != ndim:
+        raise ValueError(
+            f"{name} must have {ndim} dimensions, got shape {array.shape}"
+        )
+    if not array.flags.aligned:
+        # Unpickled buffers (Dask, multiprocessing) may be unaligned: the engine reads
+        # aligned float64 only, so this one case is copied.
+        array = array.copy()
+    return array
+
+
+def _closed_codes(closed: Any, sets: int) -> Optional[np.ndarray]:
+    """The closed/open code of every set (1: closed loop, 0: open polyline)."""
+    if closed is None:
+        return None
+    if isinstance(closed, str):
+        if closed not in ("closed", "open"):
+            raise ValueError(f"closed='{closed}' must be 'closed', 'open' or an array")
+        return np.full(sets, 1 if closed == "closed" else 0, dtype=np.int64)
+    codes = np.asarray(closed)
+    if codes.dtype == np.bool_:
+        codes = codes.astype(np.int64)
+    if codes.dtype.kind not in "iu" or codes.ndim != 1:
+        raise TypeError(
+            f"closed must be a 1-D integer array of codes (1: closed, 0: open), got dtype {codes.dtype} and shape {codes.shape}"
+        )
+    codes = codes.astype(np.int64, copy=False)
+    return codes if codes.flags.aligned else codes.copy()
+
+
+class _Tqdm:
+    """A progress callable drawing a ``tqdm`` bar per stage."""
+
+    def __init__(self) -> None:
+        from tqdm.auto import tqdm
+
+        self._tqdm = tqdm
+        self._bar = None
+        self._stage = None
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if self._bar is None or stage != self._stage or done < self._bar.n:
+            if self._bar is not None:
+                self._bar.close()
+            self._bar = self._tqdm(total=total, desc=stage, leave=False)
+            self._stage = stage
+        self._bar.update(done - self._bar.n)
+        if done >= total and self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+
+def _progress(progress: ProgressArg) -> Optional[Callable[[str, int, int], Any]]:
+    """``None``/``False``: silent; ``True``: a ``tqdm`` bar when tqdm is installed (else
+    silent); a callable: ``progress(stage, done, total)``."""
+    if progress is None or progress is False:
+        return None
+    if progress is True:
+        try:
+            return _Tqdm()
+        except ImportError:
+            return None
+    if not callable(progress):
+        raise TypeError("progress must be None, True or a callable progress(stage, done, total)")
+    return progress
+
+
+def _params(values: Mapping[str, Any]) -> str:
+    """The JSON of the parameters that were given (the others keep the engine's
+    defaults, which are the paper's)."""
+    return json.dumps({k: v for k, v in values.items() if v is not None})
+
+
+# --- results ------------------------------------------------------------------------
+
+
+@dataclass
+class Exploration:
+    """Explored motor configurations: ``motors`` (M, N), the observer's ``poses``
+    (M, d) (None without a ground truth) and ``probes`` (M, 3) int64 (probe grid
+    labels, -1 for babbled rows)."""
+
+    motors: np.ndarray
+    poses: Optional[np.ndarray]
+    probes: np.ndarray
+
+
+@dataclass
+class Traced:
+    """Kernel sets: ``sets`` (M, P, N), ``kept`` (M,) int64 (the motor row of each set),
+    ``closed`` (M,) int64 (1: closed loop, 0: open polyline) and the tracing
+    ``report`` (dict: statuses, steps, residuals per set)."""
+
+    sets: np.ndarray
+    kept: np.ndarray
+    closed: np.ndarray
+    report: dict = field(repr=False)
+
+    def __len__(self) -> int:
+        return int(self.sets.shape[0])
+
+
+@dataclass
+class Embedded:
+    """An embedding's coordinates ``Y`` (M, d) and its fit ``report`` (dict)."""
+
+    Y: np.ndarray
+    report: dict = field(repr=False)
+
+
+@dataclass
+class Run:
+    """A finished run folder: ``dir``, its ``report`` (``analysis.json`` as a dict),
+    ``manifest`` (``manifest.json``) and its arrays by file stem (``arrays["D"]``,
+    ``arrays["sets"]``, ``arrays["Y"]``, ``arrays["motors"]``, ``arrays["poses"]``, ...),
+    also as attributes (``run.D``)."""
+
+    dir: Path
+    report: dict = field(repr=False)
+    manifest: dict = field(repr=False)
+    arrays: dict = field(repr=False)
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        arrays = self.__dict__.get("arrays", {})
+        if name in arrays:
+            return arrays[name]
+        raise AttributeError(name)
+
+
+# --- stages -------------------------------------------------------------------------
+
+
+def explore(
+    agent: Agent,
+    n: int = 2500,
+    seed: int = 1,
+    *,
+    probes: bool = False,
+    workspace: Any = "default",
+    **params: Any,
+) -> Exploration:
+    """Babbles ``n`` motor configurations (seeded), kept inside the agent's working
+    space (``workspace="default"``: the paper's for the arm; ``None``: anywhere;
+    ``(cx, cy, depth, width)``), plus the probe grid with ``probes=True``. Other keys of
+    the ``[exploration]`` table as keyword arguments (``probe_positions=10``, ...)."""
+    if not isinstance(agent, Agent):
+        raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
+    values = dict(params, n=n, seed=seed, probes="grid" if probes else "none")
+    motors, poses, labels = _core._explore(
+        agent,
+        _params(values),
+        _workspace_arg(workspace),
+    )
+    return Exploration(motors=motors, poses=poses, probes=labels)
+
+
+def _workspace_arg(workspace: Any) -> Any:
+    """``"default"``, ``None`` (spelled ``"none"`` for the engine) or four numbers."""
+    return "none" if workspace is None else workspace
+
+
+def trace(
+    agent: Agent,
+    motors: Any,
+    method: str = "kinematic",
+    points: int = 100,
+    *,
+    env: Any = None,
+    workspace: Any = "default",
+    progress: ProgressArg = None,
+    **params: Any,
+) -> Traced:
+    """Traces the kernel set through every motor row ``(M, N)``: ``method="kinematic"``
+    (the observer's pose, the paper's) or ``"sensory"`` (the agent's own sensors, in the
+    environment ``env``: None the agent's default (seed 1, or its TOML file's
+    ``[environment]``), an int seed, or lights ``(L, 2)``; a PythonAgent senses its own
+    world). Other keys of the ``[kernel]`` table as keyword arguments (``step=1e-3``,
+    ``closure_tolerance=1e-2``, ...). Sets that fail are left out (see ``kept`` and
+    ``report``)."""
+    if not isinstance(agent, Agent):
+        raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
+    motors = _array(motors, "motors", 2)
+    values = dict(params, method=method, points=points)
+    sets, kept, closed, report = _core._trace(
+        agent,
+        motors,
+        _params(values),
+        env,
+        _workspace_arg(workspace),
+        _progress(progress),
+    )
+    return Traced(sets=sets, kept=kept, closed=closed, report=json.loads(report))
+
+
+def _sets_args(sets: Any, closed: Any) -> tuple:
+    if isinstance(sets, Traced):
+        return _array(sets.sets, "sets", 3), sets.closed if closed is None else _closed_codes(closed, len(sets))
+    points = _array(sets, "sets", 3)
+    return points, _closed_codes(closed, points.shape[0])
+
+
+def distances(
+    sets: Union[Traced, np.ndarray],
+    metric: str = "curve",
+    period: str = "2pi",
+    *,
+    closed: Any = None,
+    knn: Optional[int] = None,
+    memory_limit_bytes: Optional[int] = None,
+    progress: ProgressArg = None,
+) -> Any:
+    """The ``(M, M)`` matrix of ``metric`` between the kernel sets (``"curve"``: the
+    Hausdorff distance between the sets read as polylines, the pipeline's;
+    ``"hausdorff"``, ``"mean-hausdorff"``: between the sampled points), each motor
+    coordinate periodic ``"2pi"`` or not (``"none"``). ``sets`` is the result of
+    :func:`trace` or an array ``(M, P, N)`` (then ``closed=`` says which sets are
+    closed loops for ``curve``: an array of 1/0 or ``"closed"``/``"open"``). With
+    ``knn=K``, the ``K`` nearest sets of every set instead: ``(indices, distances)``,
+    each ``(M, K)``."""
+    if knn is not None:
+        return globals()["knn"](sets, knn, metric=metric, period=period, closed=closed, progress=progress)
+    points, codes = _sets_args(sets, closed)
+    return _core._distances(points, codes, metric, period, memory_limit_bytes, _progress(progress))
+
+
+def knn(
+    sets: Union[Traced, np.ndarray],
+    k: int,
+    metric: str = "curve",
+    period: str = "2pi",
+    *,
+    closed: Any = None,
+    rows: Optional[tuple] = None,
+    pivots: Optional[int] = None,
+    progress: ProgressArg = None,
+) -> tuple:
+    """The ``k`` nearest sets of every set (or of ``rows=(i0, i1)``) under ``metric``:
+    ``(indices (R, k) int64, distances (R, k))``, nearest first, without the matrix."""
+    points, codes = _sets_args(sets, closed)
+    rows = (0, points.shape[0]) if rows is None else tuple(rows)
+    return _core._knn(points, codes, metric, period, int(k), pivots, rows, _progress(progress))
+
+
+def embed(
+    D: Any,
+    method: str = "cca",
+    dim: int = 3,
+    seed: int = 0,
+    *,
+    report: bool = False,
+    progress: ProgressArg = None,
+    **params: Any,
+) -> Union[np.ndarray, Embedded]:
+    """Coordinates ``(M, dim)`` of the points whose distances are ``D`` (``"cca"``, the
+    paper's; ``"isomap"``; ``"mds"``), seeded. Other keys of the ``[embedding]`` table
+    as keyword arguments (``epochs=50``, ``k=10``, ...). With ``report=True``, an
+    :class:`Embedded` with the fit's diagnostics."""
+    D = _array(D, "D", 2)
+    values = dict(params, method=method, dim=dim, seed=seed)
+    Y, fit = _core._embed(D, _params(values), _progress(progress))
+    return Embedded(Y=Y, report=json.loads(fit)) if report else Y
+
+
+def analyze(
+    D: Any,
+    poses: Any = None,
+    *,
+    progress: ProgressArg = None,
+    **params: Any,
+) -> dict:
+    """Betti numbers and persistence, intrinsic dimension (TwoNN, MLE) and, with the
+    planar ``poses`` (M, 3) of the sets, the agreement of the learned neighbourhoods
+    with them; a dict as ``analysis.json``. Other keys of the ``[analysis]`` table as
+    keyword arguments (``max_points=1000``, ...)."""
+    D = _array(D, "D", 2)
+    poses = None if poses is None else _array(poses, "poses", 2)
+    return json.loads(_core._analyze(D, poses, _params(params), _progress(progress)))
+
+
+def _toml_value(value: Any) -> str:
+    """A Python value as the TOML text of ``--set stage.key=value``."""
+    if isinstance(value, (bool, int, float, str, list, tuple)):
+        return json.dumps(list(value) if isinstance(value, tuple) else value)
+    raise TypeError(f"override value {value!r} must be a bool, number, string or list")
+
+
+def run(
+    path: Union[str, os.PathLike],
+    out: Union[None, str, os.PathLike] = None,
+    overrides: Optional[Mapping[str, Any]] = None,
+    *,
+    force: bool = False,
+    max_memory: Optional[int] = None,
+    client: Any = None,
+    tile: Optional[int] = None,
+    log: Union[None, bool, Callable[[str], Any]] = None,
+    progress: ProgressArg = None,
+) -> Run:
+    """Runs the experiment file ``path`` into ``out`` (default ``runs/<name>``, as
+    ``smspace run``), with ``overrides`` as ``{"stage.key": value}`` (``--set``);
+    unchanged stages are reused from the folder's cache unless ``force``. With a Dask
+    ``client``, the distance stage runs on its cluster in tiles (:mod:`smspace.dask`;
+    the matrix is the same, bit for bit). ``log=True`` prints one line per stage to
+    stderr (or give a callable). Returns the run folder's arrays and reports."""
+    sets = [f"{k}={_toml_value(v)}" for k, v in (overrides or {}).items()]
+    if log is True:
+        log = lambda line: print(line, file=sys.stderr)  # noqa: E731
+    backend = None
+    if client is not None:
+        from . import dask as _dask
+
+        backend = _dask._stage_backend(client, tile)
+    directory, report = _core._run(
+        os.fspath(path),
+        None if out is None else os.fspath(out),
+        sets,
+        force,
+        max_memory,
+        backend,
+        log or None,
+        _progress(progress),
+    )
+    return _load_run(Path(directory), json.loads(report))
+
+
+def _load_run(directory: Path, report: dict) -> Run:
+    arrays = {}
+    for file in sorted(directory.glob("*.npy")):
+        arrays[file.name[: -len(".npy")].replace(".", "_")] = np.load(file)
+    manifest_file = directory / "manifest.json"
+    manifest = json.loads(manifest_file.read_text()) if manifest_file.exists() else {}
+    return Run(dir=directory, report=report, manifest=manifest, arrays=arrays)
+
+
+def tile_plan(sets: int, size: int) -> list:
+    """The triangular tiles ``(r0, r1, c0, c1)`` of a matrix of ``sets`` sets in blocks
+    of ``size``: every pair ``{i, j}`` in exactly one tile (block ``a`` against every
+    block ``b >= a``)."""
+    if sets < 2 or size < 1:
+        raise ValueError(f"a tile plan needs at least 2 sets and a size of at least 1, got {sets} and {size}")
+    blocks = [(start, min(start + size, sets)) for start in range(0, sets, size)]
+    return [
+        (a0, a1, b0, b1)
+        for i, (a0, a1) in enumerate(blocks)
+        for (b0, b1) in blocks[i:]
+    ]

@@ -1,0 +1,118 @@
+"""Type stubs of the extension module ``smspace._core`` (the Rust engine).
+
+Users call the wrappers in ``smspace`` (``smspace.explore``, ``smspace.trace``, ...);
+the underscored functions below take the engine's parameter structs as JSON.
+"""
+
+from os import PathLike
+from typing import Any, Callable, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+F64 = npt.NDArray[np.float64]
+I64 = npt.NDArray[np.int64]
+Progress = Optional[Callable[[str, int, int], Any]]
+Bounds = Tuple[int, int, int, int]
+MotorSpec = Union[str, Tuple[str, float], Tuple[str, float, float]]
+
+class CallbackError(RuntimeError):
+    """A callable of a PythonAgent raised, or returned an array of the wrong type,
+    shape or values."""
+
+class Agent:
+    """A sensorimotor agent: built-in, from a TOML file, or a :class:`PythonAgent`."""
+
+    @staticmethod
+    def preset(name: str, **params: Any) -> Agent:
+        """The built-in agent ``name`` (``planar-arm``, ``toy-line``,
+        ``toy-redundant``, ``chain``) with its ``[agent]`` table's keys as keyword
+        arguments."""
+    @staticmethod
+    def from_toml(path: Union[str, PathLike[str]]) -> Agent:
+        """The agent of a TOML file's ``[agent]`` (and ``[environment]``) table."""
+    @property
+    def name(self) -> str: ...
+    @property
+    def n_motors(self) -> int: ...
+    @property
+    def n_sensors(self) -> int: ...
+    @property
+    def motor_space(self) -> list[Tuple[str, float, float]]:
+        """Each motor: ``("periodic", 0.0, period)`` or ``("bounded", low, high)``."""
+    @property
+    def has_ground_truth(self) -> bool: ...
+    def lights(self, env: Any = None) -> F64:
+        """The lights of the environment ``env`` names: ``(L, 2)`` or ``(L, 3)``."""
+    def sense(self, motors: F64, env: Any = None) -> F64:
+        """Sensor values ``(M, K)`` of the motor rows ``(M, N)``."""
+    def poses(self, motors: F64) -> F64:
+        """The observer's poses ``(M, d)`` of the motor rows ``(M, N)``."""
+
+class PythonAgent(Agent):
+    """An agent whose law is Python: ``sense(motors (B, N)) -> (B, K)`` float64,
+    called in batches, and optionally ``pose(motors (B, N)) -> (B, 3)`` (planar
+    ``(x, y, alpha)``, the ground truth). ``motor_space``: per motor ``"hinge"``,
+    ``("periodic", period)`` or ``("bounded", low, high)``; default ``N`` hinges."""
+
+    def __init__(
+        self,
+        sense: Callable[[F64], F64],
+        n_motors: int,
+        n_sensors: int,
+        motor_space: Optional[Sequence[MotorSpec]] = None,
+        pose: Optional[Callable[[F64], F64]] = None,
+        name: str = "python",
+    ) -> None: ...
+
+def _explore(agent: Agent, params: str, workspace: Any = None) -> Tuple[F64, Optional[F64], I64]: ...
+def _trace(
+    agent: Agent,
+    motors: F64,
+    params: str,
+    env: Any = None,
+    workspace: Any = None,
+    progress: Progress = None,
+) -> Tuple[npt.NDArray[np.float64], I64, I64, str]: ...
+def _distances(
+    sets: npt.NDArray[np.float64],
+    closed: Optional[I64],
+    metric: str,
+    period: str,
+    memory_limit_bytes: Optional[int] = None,
+    progress: Progress = None,
+) -> F64: ...
+def _distance_tile(
+    rows: npt.NDArray[np.float64],
+    rows_closed: Optional[I64],
+    cols: npt.NDArray[np.float64],
+    cols_closed: Optional[I64],
+    tile: Bounds,
+    metric: str,
+    period: str,
+) -> F64: ...
+def _merge_tiles(m: int, tiles: Sequence[Tuple[Bounds, F64]]) -> F64: ...
+def _knn(
+    sets: npt.NDArray[np.float64],
+    closed: Optional[I64],
+    metric: str,
+    period: str,
+    k: int,
+    pivots: Optional[int],
+    rows: Tuple[int, int],
+    progress: Progress = None,
+) -> Tuple[I64, F64]: ...
+def _embed(distances: F64, params: str, progress: Progress = None) -> Tuple[F64, str]: ...
+def _analyze(distances: F64, poses: Optional[F64], params: str, progress: Progress = None) -> str: ...
+def _run(
+    path: Union[str, PathLike[str]],
+    out: Optional[Union[str, PathLike[str]]] = None,
+    overrides: Sequence[str] = ...,
+    force: bool = False,
+    max_memory: Optional[int] = None,
+    distances: Optional[Callable[..., F64]] = None,
+    log: Optional[Callable[[str], Any]] = None,
+    progress: Progress = None,
+) -> Tuple[str, str]: ...

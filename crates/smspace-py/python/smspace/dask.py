@@ -1,0 +1,202 @@
+"""Distance matrices on a Dask cluster (``dask.distributed``).
+
+The matrix of ``M`` kernel sets is cut into triangular tiles: blocks of ``tile`` sets,
+block ``a`` against every block ``b >= a``, so that every pair ``{i, j}`` is computed
+once (:func:`smspace.tile_plan`). Each tile is one task, which calls the engine's tile
+function on the sets of its rows and columns with the GIL released (on all the
+worker's cores); the tiles are merged into the matrix, which is the single-machine
+matrix bit for bit (inside a tile the pair ``{i, j}`` is the very call the whole
+matrix makes). ::
+
+    from dask.distributed import Client
+    import smspace, smspace.dask
+
+    client = Client("tcp://scheduler:8786")              # or Client(LocalCluster(...))
+    D = smspace.dask.distances(traced, client, metric="curve", tile=500)
+    run = smspace.run("experiments/paper-arm.toml", client=client)   # the distance stage there
+
+Memory of one task: its output ``r × c × 8`` bytes (``tile² × 8``: 2 MB for
+``tile=500``) plus the sets it reads, ``(r + c) × P × N × 8`` bytes and about as much
+again for the engine's prepared copies (the curve metric's segments), plus the whole
+``(M, P, N)`` sets array, which is sent once to every worker (``scatter(...,
+broadcast=True)``; 8 MB for the paper's 2500 × 100 × 4). The client holds the merged
+``M × M × 8`` bytes (50 MB for 2500 sets) and the tiles while they arrive.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, Optional, Union
+
+import numpy as np
+
+from . import Traced, _core, _progress, _sets_args, tile_plan
+
+__all__ = ["distances", "knn", "default_tile"]
+
+
+def default_tile(sets: int, workers: int) -> int:
+    """A tile size giving about four tasks per worker (at least 64 sets a side, so
+    that a task's work outweighs its scheduling)."""
+    blocks = max(1, math.isqrt(8 * max(1, workers)))
+    return max(64, math.ceil(sets / blocks))
+
+
+def _workers(client: Any) -> int:
+    try:
+        return max(1, len(client.scheduler_info().get("workers", {})))
+    except Exception:  # noqa: BLE001 (a client of any kind: count one worker)
+        return 1
+
+
+def _aligned(array: np.ndarray) -> np.ndarray:
+    """``array``, copied only when its buffer is unaligned (an unpickled one may be)."""
+    return array if array.flags.aligned else array.copy()
+
+
+def _tile_task(
+    points: np.ndarray,
+    codes: Optional[np.ndarray],
+    bounds: tuple,
+    metric: str,
+    period: str,
+) -> np.ndarray:
+    """One task: the block ``D[r0:r1, c0:c1]`` (runs on a worker)."""
+    from smspace import _core as core
+
+    points, codes = _aligned(points), None if codes is None else _aligned(codes)
+    r0, r1, c0, c1 = bounds
+    rows_codes = None if codes is None else codes[r0:r1]
+    cols_codes = None if codes is None else codes[c0:c1]
+    return core._distance_tile(
+        points[r0:r1], rows_codes, points[c0:c1], cols_codes, bounds, metric, period
+    )
+
+
+def _knn_task(
+    points: np.ndarray,
+    codes: Optional[np.ndarray],
+    rows: tuple,
+    metric: str,
+    period: str,
+    k: int,
+    pivots: Optional[int],
+) -> tuple:
+    """One task: the ``k`` nearest sets of the rows ``r0:r1`` (runs on a worker)."""
+    from smspace import _core as core
+
+    points, codes = _aligned(points), None if codes is None else _aligned(codes)
+    return core._knn(points, codes, metric, period, k, pivots, rows)
+
+
+def _scatter(client: Any, points: np.ndarray, codes: Optional[np.ndarray]) -> tuple:
+    points = np.ascontiguousarray(points)
+    # Unique keys (hash=False): a content key shared with an earlier call could be
+    # released by it while this one still needs it.
+    [points_future] = client.scatter([points], broadcast=True, hash=False)
+    codes_future = None
+    if codes is not None:
+        [codes_future] = client.scatter([np.ascontiguousarray(codes)], broadcast=True, hash=False)
+    return points_future, codes_future
+
+
+def distances(
+    sets: Union[Traced, np.ndarray],
+    client: Any,
+    metric: str = "curve",
+    period: str = "2pi",
+    *,
+    tile: Optional[int] = None,
+    knn: Optional[int] = None,
+    closed: Any = None,
+    progress: Any = None,
+) -> Any:
+    """The ``(M, M)`` matrix of :func:`smspace.distances`, computed in triangular tiles
+    of ``tile`` sets a side (default :func:`default_tile`) on ``client``'s cluster;
+    equal to the local matrix bit for bit. With ``knn=K``: :func:`knn` instead."""
+    if knn is not None:
+        return globals()["knn"](
+            sets, client, knn, metric=metric, period=period, rows=tile, closed=closed, progress=progress
+        )
+    from distributed import as_completed
+
+    points, codes = _sets_args(sets, closed)
+    m = points.shape[0]
+    if metric == "curve" and codes is None:
+        # The engine's error, before anything is sent.
+        _core._distances(points[:2], None, metric, period, None, None)
+    size = tile or default_tile(m, _workers(client))
+    plan = tile_plan(m, size)
+    points_future, codes_future = _scatter(client, points, codes)
+    futures = {
+        client.submit(
+            _tile_task, points_future, codes_future, bounds, metric, period, pure=False
+        ): bounds
+        for bounds in plan
+    }
+    report = _progress(progress)
+    total = sum(
+        (r1 - r0) * (c1 - c0) if r0 != c0 else (r1 - r0) * (r1 - r0 - 1) // 2
+        for r0, r1, c0, c1 in plan
+    )
+    done = 0
+    if report is not None:
+        report("distances", 0, total)
+    tiles = []
+    for future in as_completed(futures):
+        bounds = futures[future]
+        tiles.append((bounds, _aligned(future.result())))
+        r0, r1, c0, c1 = bounds
+        done += (r1 - r0) * (c1 - c0) if r0 != c0 else (r1 - r0) * (r1 - r0 - 1) // 2
+        if report is not None:
+            report("distances", done, total)
+    return _core._merge_tiles(m, tiles)
+
+
+def knn(
+    sets: Union[Traced, np.ndarray],
+    client: Any,
+    k: int,
+    metric: str = "curve",
+    period: str = "2pi",
+    *,
+    rows: Optional[int] = None,
+    pivots: Optional[int] = None,
+    closed: Any = None,
+    progress: Any = None,
+) -> tuple:
+    """The ``k`` nearest sets of every set, as :func:`smspace.knn`, in tasks of
+    ``rows`` query rows each (every task reads all the sets, sent once per worker):
+    ``(indices (M, k) int64, distances (M, k))``, equal to the local search."""
+    points, codes = _sets_args(sets, closed)
+    m = points.shape[0]
+    size = rows or default_tile(m, _workers(client))
+    blocks = [(start, min(start + size, m)) for start in range(0, m, size)]
+    points_future, codes_future = _scatter(client, points, codes)
+    futures = [
+        client.submit(
+            _knn_task, points_future, codes_future, block, metric, period, int(k), pivots, pure=False
+        )
+        for block in blocks
+    ]
+    report = _progress(progress)
+    parts = []
+    for index, future in enumerate(futures):
+        parts.append(future.result())
+        if report is not None:
+            report("knn", blocks[index][1], m)
+    # (np.concatenate copies into fresh, aligned arrays.)
+    indices = np.concatenate([p[0] for p in parts], axis=0)
+    found = np.concatenate([p[1] for p in parts], axis=0)
+    return indices, found
+
+
+def _stage_backend(client: Any, tile: Optional[int]) -> Callable[..., np.ndarray]:
+    """The pipeline's distance stage on ``client`` (``smspace.run(..., client=)``):
+    called by the engine with the traced sets, their closed/open codes, the metric's
+    name and the period."""
+
+    def compute(points: np.ndarray, codes: Optional[np.ndarray], metric: str, period: str) -> np.ndarray:
+        return distances(points, client, metric, period, tile=tile, closed=codes)
+
+    return compute

@@ -1,0 +1,179 @@
+//! `_run`: a whole experiment file into a run folder (`smspace run`), optionally with
+//! the distance stage computed by a Python callable (the Dask backend,
+//! `smspace.run(..., client=client)`) through [`smspace::pipeline::run_with`].
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use numpy::{IntoPyArray, PyReadonlyArray2};
+use pyo3::prelude::*;
+use smspace::config::load_experiment;
+use smspace::metric::{DistanceMatrix, MetricError, SetsView};
+use smspace::pipeline::manifest::{hash_parts, StageRecord};
+use smspace::pipeline::stages::DistancesStage;
+use smspace::pipeline::{
+    self, BusyFolder, DistanceBackend, Recompute, RunObserver, RunOptions, StageId,
+};
+use smspace::progress::Progress;
+
+use crate::progress::PyProgress;
+use crate::to_py_err;
+
+/// The run's events: progress, and one line per stage to `log(line)`.
+struct Observer {
+    progress: PyProgress,
+    log: Option<Py<PyAny>>,
+    error: Mutex<Option<PyErr>>,
+}
+
+impl Observer {
+    fn say(&self, line: String) {
+        let Some(log) = &self.log else {
+            return;
+        };
+        if let Err(e) = Python::attach(|py| log.call1(py, (line,))) {
+            if let Ok(mut first) = self.error.lock() {
+                first.get_or_insert(e);
+            }
+        }
+    }
+}
+
+impl RunObserver for Observer {
+    fn progress(&self) -> &dyn Progress {
+        &self.progress
+    }
+
+    fn stage_finished(&self, stage: StageId, record: &StageRecord, summary: &str) {
+        let how = if record.cached {
+            format!("reused (computed in {:.2} s)", record.compute_seconds)
+        } else {
+            format!("{:.2} s", record.seconds)
+        };
+        self.say(format!("[smspace] {:<10} {how}: {summary}", stage.name()));
+    }
+
+    fn stage_skipped(&self, stage: StageId, why: &str) {
+        self.say(format!("[smspace] {:<10} skipped: {why}", stage.name()));
+    }
+}
+
+/// The distance stage computed by `callable(sets, closed, metric, period) -> (M, M)`.
+struct PythonDistances {
+    callable: Py<PyAny>,
+    error: Mutex<Option<PyErr>>,
+}
+
+impl DistanceBackend for PythonDistances {
+    fn distances(
+        &self,
+        stage: &DistancesStage,
+        sets: SetsView<'_>,
+        _memory_limit_bytes: Option<u64>,
+        _progress: &dyn Progress,
+    ) -> smspace::Result<DistanceMatrix> {
+        let period = match stage.period {
+            smspace::metric::Period::TwoPi => "2pi",
+            smspace::metric::Period::None => "none",
+        };
+        let answer = Python::attach(|py| -> PyResult<DistanceMatrix> {
+            let points = sets.points().to_owned().into_pyarray(py);
+            let closed = sets.closure().map(|c| {
+                c.iter()
+                    .map(|c| c.code())
+                    .collect::<Vec<i64>>()
+                    .into_pyarray(py)
+            });
+            let d = self
+                .callable
+                .call1(py, (points, closed, stage.metric.as_str(), period))?;
+            let d: PyReadonlyArray2<'_, f64> = d.bind(py).extract()?;
+            DistanceMatrix::from_view(d.as_array()).map_err(to_py_err)
+        });
+        answer.map_err(|e| {
+            let text = Python::attach(|py| e.value(py).to_string());
+            if let Ok(mut first) = self.error.lock() {
+                first.get_or_insert(e);
+            }
+            MetricError::InvalidTable {
+                metric: stage.metric.to_string(),
+                reason: format!("the distance backend failed: {text}"),
+            }
+            .into()
+        })
+    }
+}
+
+/// The run folder when `out` is not given, as `smspace run` names it: `runs/<name>`,
+/// and with overrides `runs/<name>-<8 hex digits of the overrides' hash>`.
+fn default_out_dir(name: &str, overrides: &[String]) -> PathBuf {
+    let runs = PathBuf::from("runs");
+    if overrides.is_empty() {
+        return runs.join(name);
+    }
+    let parts: Vec<&[u8]> = overrides.iter().map(|o| o.as_bytes()).collect();
+    runs.join(format!("{name}-{}", &hash_parts(&parts)[..8]))
+}
+
+/// `_run(path, out, overrides, force, max_memory, distances, log, progress)`: runs the
+/// experiment; returns `(run folder, analysis report JSON)`.
+#[pyfunction]
+#[pyo3(signature = (path, out=None, overrides=Vec::new(), force=false, max_memory=None, distances=None, log=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn _run(
+    py: Python<'_>,
+    path: PathBuf,
+    out: Option<PathBuf>,
+    overrides: Vec<String>,
+    force: bool,
+    max_memory: Option<u64>,
+    distances: Option<Py<PyAny>>,
+    log: Option<Py<PyAny>>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<(PathBuf, String)> {
+    let loaded = load_experiment(&path, &overrides).map_err(to_py_err)?;
+    let plan = pipeline::check(&loaded).map_err(to_py_err)?;
+    let options = RunOptions {
+        out_dir: out.unwrap_or_else(|| default_out_dir(&loaded.name, &overrides)),
+        recompute: if force {
+            Recompute::All
+        } else {
+            Recompute::Changed
+        },
+        memory_limit_bytes: max_memory,
+        busy: BusyFolder::Refuse,
+    };
+    let observer = Observer {
+        progress: PyProgress::new(progress),
+        log,
+        error: Mutex::new(None),
+    };
+    let backend = distances.map(|callable| PythonDistances {
+        callable,
+        error: Mutex::new(None),
+    });
+    let summary = py.detach(|| match &backend {
+        Some(b) => pipeline::run_with(&plan, &options, &observer, b),
+        None => pipeline::run(&plan, &options, &observer),
+    });
+    if let Some(e) = backend
+        .as_ref()
+        .and_then(|b| b.error.lock().ok().and_then(|mut e| e.take()))
+    {
+        return Err(e);
+    }
+    if let Some(e) = observer.error.lock().ok().and_then(|mut e| e.take()) {
+        return Err(e);
+    }
+    observer.progress.check()?;
+    let summary = summary.map_err(to_py_err)?;
+    let report =
+        serde_json::to_string(&summary.analysis).map_err(|e| crate::value_error(e.to_string()))?;
+    Ok((summary.dir, report))
+}
+
+/// Adds `_run` to the module.
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(_run, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,435 @@
+//! The stages one by one, on NumPy arrays: `_explore`, `_trace`, `_distances` (and the
+//! tiles a cluster's workers compute, `_distance_tile` and `_merge_tiles`, and
+//! `_knn`), `_embed`, `_analyze`. The package's `smspace.explore`, … wrap them.
+//!
+//! Parameters are the JSON of the library's parameter structs (`ExploreParams`,
+//! `TraceParams`, `EmbedParams`, `AnalysisParams`); arrays in are float64 views of any
+//! layout, arrays out are moved into NumPy. Each computation runs with the GIL released.
+
+use ndarray::{Array1, Array2, ArrayView3};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
+};
+use pyo3::prelude::*;
+use smspace::analysis::{analyze, AnalysisParams};
+use smspace::embed::EmbedParams;
+use smspace::explore::{default_workspace, explore_in, ExploreParams, Workspace};
+use smspace::kernel::{trace_sets, Closure, TraceParams};
+use smspace::metric::{
+    distance_matrix_with, fill_tile, knn_with, BuiltMetric, DistanceMatrix, DistanceParams,
+    KnnParams, MetricRegistry, SetsView, Tile, TileMerge,
+};
+
+use crate::agent::Agent;
+use crate::progress::PyProgress;
+use crate::{from_json, to_py_err, value_error};
+
+/// Raises a `ValueError` naming `argument` at its first non-finite value.
+pub(crate) fn check_finite<'a>(
+    values: impl Iterator<Item = &'a f64>,
+    argument: &str,
+) -> PyResult<()> {
+    match values.enumerate().find(|(_, v)| !v.is_finite()) {
+        Some((index, v)) => Err(value_error(format!(
+            "{argument} holds a non-finite value ({v}) at flat index {index}; every entry must be a finite number"
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The closures of the sets from their codes (1: closed loop, 0: open polyline).
+fn closures(
+    codes: Option<PyReadonlyArray1<'_, i64>>,
+    sets: usize,
+) -> PyResult<Option<Vec<Closure>>> {
+    let Some(codes) = codes else {
+        return Ok(None);
+    };
+    let codes = codes.as_array();
+    if codes.len() != sets {
+        return Err(value_error(format!(
+            "closed has {} entries but there are {sets} sets; give one code per set (1: closed loop, 0: open polyline)",
+            codes.len()
+        )));
+    }
+    codes
+        .iter()
+        .map(|&c| {
+            Closure::from_code(c).ok_or_else(|| {
+                value_error(format!(
+                    "closed holds {c}; each code is 1 (closed loop) or 0 (open polyline)"
+                ))
+            })
+        })
+        .collect::<PyResult<Vec<_>>>()
+        .map(Some)
+}
+
+/// The metric `name` with `period` (`"2pi"` or `"none"`), from the built-in registry.
+fn metric(name: &str, period: &str, memory_limit_bytes: Option<u64>) -> PyResult<BuiltMetric> {
+    let period = from_json(
+        &serde_json::json!(period).to_string(),
+        "period (use \"2pi\" or \"none\")",
+    )?;
+    let params = DistanceParams::new()
+        .metric(name)
+        .period(period)
+        .memory_limit_bytes(memory_limit_bytes);
+    MetricRegistry::builtin().build(&params).map_err(to_py_err)
+}
+
+/// The sets view, with closures when the metric reads them (`curve` needs them).
+fn sets_view<'a>(
+    points: ArrayView3<'a, f64>,
+    closure: Option<&'a [Closure]>,
+    metric: &str,
+) -> PyResult<SetsView<'a>> {
+    match closure {
+        Some(c) => Ok(SetsView::new(points).with_closure(c)),
+        None if metric == "curve" => Err(value_error(
+            "metric='curve' needs to know which sets are closed loops: pass the result of smspace.trace, or closed= (1: closed loop, 0: open polyline per set, or 'closed'/'open' for all)",
+        )),
+        None => Ok(SetsView::new(points)),
+    }
+}
+
+/// `_explore(agent, params_json, workspace)`: the babbled (and probe) configurations,
+/// `(motors (M, N), poses (M, d) or None, probes (M, 3) int64)`.
+#[pyfunction]
+#[pyo3(signature = (agent, params, workspace=None))]
+#[allow(clippy::type_complexity)]
+fn _explore<'py>(
+    py: Python<'py>,
+    agent: &Agent,
+    params: &str,
+    workspace: Option<&Bound<'py, PyAny>>,
+) -> PyResult<(
+    Bound<'py, PyArray2<f64>>,
+    Option<Bound<'py, PyArray2<f64>>>,
+    Bound<'py, PyArray2<i64>>,
+)> {
+    let params: ExploreParams = from_json(params, "exploration parameters")?;
+    let law = agent.law.as_ref();
+    let workspace = match workspace {
+        Some(w) if w.extract::<String>().is_ok_and(|t| t == "default") => {
+            params.workspace(law).map_err(to_py_err)?
+        }
+        w => resolve_workspace(agent, w)?,
+    };
+    let found = py
+        .detach(|| explore_in(law, &params, workspace))
+        .map_err(to_py_err)?;
+    agent.check_callbacks()?;
+    let poses = found
+        .ground_truth
+        .map(|g| g.poses().to_owned().into_pyarray(py));
+    Ok((
+        found.motors.into_pyarray(py),
+        poses,
+        found.probes.into_pyarray(py),
+    ))
+}
+
+/// `"default"` (the agent's), `"none"` or `None` (the whole motor space), or
+/// `(cx, cy, depth, width)`.
+fn resolve_workspace(
+    agent: &Agent,
+    spec: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<Workspace>> {
+    let Some(spec) = spec else {
+        return Ok(None);
+    };
+    if let Ok(text) = spec.extract::<String>() {
+        return match text.as_str() {
+            "default" => Ok(default_workspace(agent.law.as_ref())),
+            "none" => Ok(None),
+            other => Err(value_error(format!(
+                "workspace '{other}' must be 'default', None, or four numbers (cx, cy, depth, width)"
+            ))),
+        };
+    }
+    let (cx, cy, depth, width): (f64, f64, f64, f64) = spec.extract().map_err(|_| {
+        value_error("workspace must be 'default', None, or four numbers (cx, cy, depth, width)")
+    })?;
+    if ![cx, cy, depth, width].iter().all(|v| v.is_finite()) || depth <= 0.0 || width <= 0.0 {
+        return Err(value_error(
+            "workspace: the centre must be finite and depth and width greater than zero",
+        ));
+    }
+    Ok(Some(Workspace {
+        center: [cx, cy],
+        size: [depth, width],
+        z_range: None,
+    }))
+}
+
+/// `_trace(agent, motors, params_json, env, workspace, progress)`: the kernel sets,
+/// `(sets (M, P, N), kept (M,) int64, closed (M,) int64, report_json)`.
+#[pyfunction]
+#[pyo3(signature = (agent, motors, params, env=None, workspace=None, progress=None))]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
+fn _trace<'py>(
+    py: Python<'py>,
+    agent: &Agent,
+    motors: PyReadonlyArray2<'py, f64>,
+    params: &str,
+    env: Option<&Bound<'py, PyAny>>,
+    workspace: Option<&Bound<'py, PyAny>>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<(
+    Bound<'py, PyArray3<f64>>,
+    Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray1<i64>>,
+    String,
+)> {
+    let params: TraceParams = from_json(params, "tracing parameters")?;
+    let params = params.check().map_err(to_py_err)?;
+    let motors = motors.as_array();
+    check_finite(motors.iter(), "motors")?;
+    let sensory = params.method() == smspace::kernel::TraceMethod::Sensory;
+    let environment = if sensory || env.is_some() {
+        Some(agent.environment(env)?)
+    } else {
+        None
+    };
+    let workspace = resolve_workspace(agent, workspace)?;
+    let law = agent.law.as_ref();
+    let progress = PyProgress::new(progress);
+    let traced = py
+        .detach(|| {
+            trace_sets(
+                law,
+                environment.as_ref(),
+                motors,
+                workspace.as_ref(),
+                &params,
+                &progress,
+            )
+        })
+        .map_err(to_py_err);
+    agent.check_callbacks()?;
+    progress.check()?;
+    let traced = traced?;
+    let report = serde_json::to_string(&traced.report).map_err(|e| value_error(e.to_string()))?;
+    let kept: Array1<i64> = traced.kept.iter().map(|&k| k as i64).collect();
+    let closed: Array1<i64> = traced.closure.iter().map(|c| c.code()).collect();
+    Ok((
+        traced.sets.into_pyarray(py),
+        kept.into_pyarray(py),
+        closed.into_pyarray(py),
+        report,
+    ))
+}
+
+/// `_distances(sets, closed, metric, period, memory_limit_bytes, progress)`: the
+/// `(M, M)` matrix.
+#[pyfunction]
+#[pyo3(signature = (sets, closed, metric, period, memory_limit_bytes=None, progress=None))]
+fn _distances<'py>(
+    py: Python<'py>,
+    sets: PyReadonlyArray3<'py, f64>,
+    closed: Option<PyReadonlyArray1<'py, i64>>,
+    metric: &str,
+    period: &str,
+    memory_limit_bytes: Option<u64>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let points = sets.as_array();
+    check_finite(points.iter(), "sets")?;
+    let closure = closures(closed, points.dim().0)?;
+    let built = metric_for(metric, period, memory_limit_bytes)?;
+    let view = sets_view(points, closure.as_deref(), metric)?;
+    let progress = PyProgress::new(progress);
+    let d = py
+        .detach(|| distance_matrix_with(view, built.metric.as_ref(), &built.params, &progress))
+        .map_err(to_py_err);
+    progress.check()?;
+    Ok(d?.into_array().into_pyarray(py))
+}
+
+fn metric_for(name: &str, period: &str, limit: Option<u64>) -> PyResult<BuiltMetric> {
+    metric(name, period, limit)
+}
+
+/// `_distance_tile(rows, rows_closed, cols, cols_closed, tile, metric, period)`: the
+/// block `D[r0:r1, c0:c1]` from the sets of its rows and of its columns only, bit for
+/// bit the block of the whole matrix (what a cluster's task computes).
+#[pyfunction]
+#[pyo3(signature = (rows, rows_closed, cols, cols_closed, tile, metric, period))]
+#[allow(clippy::too_many_arguments)]
+fn _distance_tile<'py>(
+    py: Python<'py>,
+    rows: PyReadonlyArray3<'py, f64>,
+    rows_closed: Option<PyReadonlyArray1<'py, i64>>,
+    cols: PyReadonlyArray3<'py, f64>,
+    cols_closed: Option<PyReadonlyArray1<'py, i64>>,
+    tile: Bounds,
+    metric: &str,
+    period: &str,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let (r, c) = (rows.as_array(), cols.as_array());
+    let (rc, cc) = (
+        closures(rows_closed, r.dim().0)?,
+        closures(cols_closed, c.dim().0)?,
+    );
+    let built = metric_for(metric, period, None)?;
+    let (rv, cv) = (
+        sets_view(r, rc.as_deref(), metric)?,
+        sets_view(c, cc.as_deref(), metric)?,
+    );
+    let tile = Tile::new(tile.0..tile.1, tile.2..tile.3);
+    let mut out = Array2::zeros(tile.shape());
+    py.detach(|| {
+        fill_tile(
+            rv,
+            cv,
+            &tile,
+            built.metric.as_ref(),
+            out.view_mut(),
+            &smspace::progress::Silent,
+        )
+    })
+    .map_err(to_py_err)?;
+    Ok(out.into_pyarray(py))
+}
+
+/// A tile's bounds `(r0, r1, c0, c1)`: the rows `r0:r1` and columns `c0:c1`.
+type Bounds = (usize, usize, usize, usize);
+
+/// `_merge_tiles(m, tiles)`: the `(M, M)` matrix from `[((r0, r1, c0, c1), values)]`,
+/// refusing a pair no tile covers or two tiles that disagree.
+#[pyfunction]
+fn _merge_tiles<'py>(
+    py: Python<'py>,
+    m: usize,
+    tiles: Vec<(Bounds, PyReadonlyArray2<'py, f64>)>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let mut merge = TileMerge::new(m, None).map_err(to_py_err)?;
+    for ((r0, r1, c0, c1), values) in &tiles {
+        merge
+            .add(&Tile::new(*r0..*r1, *c0..*c1), values.as_array())
+            .map_err(to_py_err)?;
+    }
+    let d: DistanceMatrix = merge.finish().map_err(to_py_err)?;
+    Ok(d.into_array().into_pyarray(py))
+}
+
+/// `_knn(sets, closed, metric, period, k, pivots, rows, progress)`: the `k` nearest
+/// sets of the rows `r0:r1`, `(indices (R, k) int64, distances (R, k))`.
+#[pyfunction]
+#[pyo3(signature = (sets, closed, metric, period, k, pivots, rows, progress=None))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn _knn<'py>(
+    py: Python<'py>,
+    sets: PyReadonlyArray3<'py, f64>,
+    closed: Option<PyReadonlyArray1<'py, i64>>,
+    metric: &str,
+    period: &str,
+    k: usize,
+    pivots: Option<usize>,
+    rows: (usize, usize),
+    progress: Option<Py<PyAny>>,
+) -> PyResult<(Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<f64>>)> {
+    let points = sets.as_array();
+    check_finite(points.iter(), "sets")?;
+    let closure = closures(closed, points.dim().0)?;
+    let built = metric_for(metric, period, None)?;
+    let view = sets_view(points, closure.as_deref(), metric)?;
+    let mut params = KnnParams::new().k(k);
+    if let Some(p) = pivots {
+        params = params.pivots(p);
+    }
+    let progress = PyProgress::new(progress);
+    let found = py
+        .detach(|| {
+            knn_with(
+                view,
+                built.metric.as_ref(),
+                &built.params,
+                &params,
+                rows.0..rows.1,
+                &progress,
+            )
+        })
+        .map_err(to_py_err);
+    progress.check()?;
+    let found = found?;
+    let indices = found.indices.mapv(|i| i as i64);
+    Ok((indices.into_pyarray(py), found.distances.into_pyarray(py)))
+}
+
+/// The validated matrix of `distances` (any layout; copied into C order).
+fn matrix(distances: PyReadonlyArray2<'_, f64>) -> PyResult<DistanceMatrix> {
+    DistanceMatrix::from_view(distances.as_array())
+        .map_err(|e| value_error(format!("D: {}", crate::message(&e))))
+}
+
+/// `_embed(D, params_json, progress)`: `(Y (M, d), report_json)`.
+#[pyfunction]
+#[pyo3(signature = (distances, params, progress=None))]
+fn _embed<'py>(
+    py: Python<'py>,
+    distances: PyReadonlyArray2<'py, f64>,
+    params: &str,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, String)> {
+    let params: EmbedParams = from_json(params, "embedding parameters")?;
+    let method = params.build().map_err(to_py_err)?;
+    let d = matrix(distances)?;
+    let progress = PyProgress::new(progress);
+    let embedded = py.detach(|| method.fit(&d, &progress)).map_err(to_py_err);
+    progress.check()?;
+    let embedded = embedded?;
+    let report = serde_json::to_string(&embedded.report).map_err(|e| value_error(e.to_string()))?;
+    Ok((embedded.coordinates.into_pyarray(py), report))
+}
+
+/// `_analyze(D, poses, params_json, progress)`: the report's JSON (Betti numbers,
+/// persistence, intrinsic dimension, agreement with the planar poses `(M, 3)`).
+#[pyfunction]
+#[pyo3(signature = (distances, poses, params, progress=None))]
+fn _analyze<'py>(
+    py: Python<'py>,
+    distances: PyReadonlyArray2<'py, f64>,
+    poses: Option<PyReadonlyArray2<'py, f64>>,
+    params: &str,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<String> {
+    let params: AnalysisParams = from_json(params, "analysis parameters")?;
+    let params = params.check().map_err(to_py_err)?;
+    let d = matrix(distances)?;
+    let poses = poses.as_ref().map(|p| p.as_array());
+    if let Some(p) = &poses {
+        check_finite(p.iter(), "poses")?;
+        if p.nrows() != d.len() {
+            return Err(value_error(format!(
+                "poses has {} rows but D has {} points; the poses must be those of the same sets",
+                p.nrows(),
+                d.len()
+            )));
+        }
+    }
+    let progress = PyProgress::new(progress);
+    let report = py
+        .detach(|| analyze(&d, poses, &params, &progress))
+        .map_err(to_py_err);
+    progress.check()?;
+    serde_json::to_string(&report?).map_err(|e| value_error(e.to_string()))
+}
+
+/// Adds the stage functions to the module.
+pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(_explore, m)?)?;
+    m.add_function(wrap_pyfunction!(_trace, m)?)?;
+    m.add_function(wrap_pyfunction!(_distances, m)?)?;
+    m.add_function(wrap_pyfunction!(_distance_tile, m)?)?;
+    m.add_function(wrap_pyfunction!(_merge_tiles, m)?)?;
+    m.add_function(wrap_pyfunction!(_knn, m)?)?;
+    m.add_function(wrap_pyfunction!(_embed, m)?)?;
+    m.add_function(wrap_pyfunction!(_analyze, m)?)?;
+    m.add(
+        "CallbackError",
+        m.py().get_type::<crate::agent::CallbackError>(),
+    )?;
+    Ok(())
+}

@@ -1,0 +1,81 @@
+"""The Python API against the command-line tool on the same inputs: equal arrays."""
+
+import json
+
+import numpy as np
+
+import smspace
+
+
+def test_stages_equal_the_cli(cli, tmp_path):
+    agent = smspace.Agent.preset("planar-arm")
+    cli("explore", "--agent", "planar-arm", "--n", 30, "--seed", 3, "--out-dir", tmp_path)
+    found = smspace.explore(agent, n=30, seed=3)
+    assert np.array_equal(found.motors, np.load(tmp_path / "motors.npy"))
+    assert np.array_equal(found.poses, np.load(tmp_path / "poses.npy"))
+    assert np.array_equal(found.probes, np.load(tmp_path / "probes.npy"))
+
+    cli("trace", "--agent", "planar-arm", "--motors", tmp_path / "motors.npy",
+        "--points", 25, "--out", tmp_path / "sets.npy")
+    traced = smspace.trace(agent, found.motors, points=25)
+    assert np.array_equal(traced.sets, np.load(tmp_path / "sets.npy"))
+    assert np.array_equal(traced.kept, np.load(tmp_path / "sets.kept.npy"))
+    assert np.array_equal(traced.closed, np.load(tmp_path / "sets.closed.npy"))
+    assert traced.report == json.loads((tmp_path / "sets.trace.json").read_text())
+
+    cli("distances", "--sets", tmp_path / "sets.npy", "--metric", "curve", "--out", tmp_path / "D.npy")
+    D = smspace.distances(traced, metric="curve")
+    assert np.array_equal(D, np.load(tmp_path / "D.npy"))
+
+    cli("embed", "--distances", tmp_path / "D.npy", "--method", "cca", "--dim", 2,
+        "--seed", 4, "--out", tmp_path / "Y.npy")
+    Y = smspace.embed(D, method="cca", dim=2, seed=4)
+    assert np.array_equal(Y, np.load(tmp_path / "Y.npy"))
+
+    poses = found.poses[traced.kept]
+    np.save(tmp_path / "poses.npy", poses)
+    cli("analyze", "--distances", tmp_path / "D.npy", "--poses", tmp_path / "poses.npy",
+        "--out", tmp_path / "analysis.json")
+    report = smspace.analyze(D, poses=poses)
+    assert report == json.loads((tmp_path / "analysis.json").read_text())
+
+
+def test_sensory_trace_equals_the_cli(cli, tmp_path):
+    agent = smspace.Agent.preset("planar-arm")
+    found = smspace.explore(agent, n=12, seed=8)
+    np.save(tmp_path / "motors.npy", found.motors)
+    cli("trace", "--agent", "planar-arm", "--motors", tmp_path / "motors.npy", "--method", "sensory",
+        "--env-seed", 2, "--points", 20, "--out", tmp_path / "sets.npy")
+    traced = smspace.trace(agent, found.motors, method="sensory", env=2, points=20)
+    assert np.array_equal(traced.sets, np.load(tmp_path / "sets.npy"))
+    assert np.array_equal(traced.kept, np.load(tmp_path / "sets.kept.npy"))
+
+
+def test_point_metric_equals_the_cli(cli, tmp_path):
+    sets = np.random.default_rng(1).uniform(-3, 3, size=(9, 7, 3))
+    np.save(tmp_path / "sets.npy", sets)
+    for metric, period in [("hausdorff", "none"), ("mean-hausdorff", "2pi")]:
+        cli("distances", "--sets", tmp_path / "sets.npy", "--metric", metric, "--period", period,
+            "--out", tmp_path / "D.npy")
+        D = smspace.distances(sets, metric=metric, period=period)
+        assert np.array_equal(D, np.load(tmp_path / "D.npy")), metric
+
+
+def test_run_equals_the_cli(cli, root, tmp_path):
+    experiment = root / "experiments" / "paper-toy-redundant.toml"
+    overrides = {"exploration.n": 60, "kernel.points": 12, "report.formats": "svg"}
+    sets = [f"{k}={v}" for k, v in overrides.items()]
+    cli("run", experiment, "--out", tmp_path / "cli", *[a for s in sets for a in ("--set", s)])
+    run = smspace.run(experiment, out=tmp_path / "py", overrides=overrides)
+    assert run.dir == tmp_path / "py"
+    for name in ["motors", "sets", "D", "Y"]:
+        assert np.array_equal(run.arrays[name], np.load(tmp_path / "cli" / f"{name}.npy")), name
+    assert run.report == json.loads((tmp_path / "cli" / "analysis.json").read_text())
+    assert run.report["betti"][0] == 1
+    assert np.array_equal(run.D, run.arrays["D"])
+    # A second run reuses every stage (and says so through log=).
+    lines = []
+    again = smspace.run(experiment, out=tmp_path / "py", overrides=overrides, log=lines.append)
+    assert np.array_equal(again.D, run.D)
+    stages = [line for line in lines if "skipped" not in line]
+    assert len(stages) == 6 and all("reused" in line for line in stages), lines
