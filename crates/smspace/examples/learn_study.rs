@@ -20,7 +20,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let samples: usize = args.get(1).map_or(Ok(100_000), |s| s.parse())?;
     let noise: f64 = args.get(2).map_or(Ok(0.0), |s| s.parse())?;
-    let method = args.get(3).map_or("local-quadratic", String::as_str).parse()?;
+    let method = args
+        .get(3)
+        .map_or("local-quadratic", String::as_str)
+        .parse()?;
     let starts: usize = args.get(4).map_or(Ok(100), |s| s.parse())?;
     let arm = AgentConfig::preset("planar-arm")?.build()?;
     let environment = EnvironmentConfig::default().build(arm.as_ref())?;
@@ -55,8 +58,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let start_motors = log.motors.select(ndarray::Axis(0), &rows);
     let clock = Instant::now();
     let tolerance: f64 = std::env::var("SENSOR_TOLERANCE").map_or(Ok(1e-12), |s| s.parse())?;
+    let closure: f64 = std::env::var("CLOSURE").map_or(Ok(1e-2), |s| s.parse())?;
+    let max_steps: usize = std::env::var("MAX_STEPS").map_or(Ok(3000), |s| s.parse())?;
     let trace_params = TraceParams {
         sensor_tolerance: tolerance,
+        closure_tolerance: closure,
+        max_steps,
         ..TraceParams::default()
     };
     let learned = trace_learned(&law, start_motors.view(), &trace_params, &Silent)?;
@@ -71,7 +78,37 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &Silent,
     )?;
     let errors = set_errors(&learned, &truth, Period::TwoPi).ok();
+    // The learned manifold: the Hausdorff matrix of the learned sets, its topology and
+    // dimension, and its agreement with the poses the simulated log kept aside.
+    let manifold = if std::env::var("MANIFOLD").is_ok() {
+        let distances = smspace::metric::distance_matrix(
+            learned.sets.view(),
+            &smspace::metric::DistanceParams::new(),
+            &Silent,
+        )?;
+        let poses = log
+            .poses
+            .as_ref()
+            .map(|p| p.poses().select(ndarray::Axis(0), &rows));
+        let kept_poses = poses.map(|p| p.select(ndarray::Axis(0), &learned.kept));
+        let params = smspace::analysis::AnalysisParams::default().check()?;
+        let report = smspace::analysis::analyze(
+            &distances,
+            kept_poses.as_ref().map(|p| p.view()),
+            &params,
+            &Silent,
+        )?;
+        serde_json::json!({
+            "betti": report.betti,
+            "twonn": report.intrinsic_dimension.twonn,
+            "trustworthiness": report.agreement.as_ref().map(|a| a.trustworthiness),
+            "continuity": report.agreement.as_ref().map(|a| a.continuity),
+        })
+    } else {
+        serde_json::Value::Null
+    };
     let line = serde_json::json!({
+        "manifold": manifold,
         "samples": samples,
         "noise": noise,
         "method": method,

@@ -68,7 +68,10 @@ impl<'a> Tracer<'a> {
         tracer.dimension = match (declared, agent.sensory_rank()) {
             (Some(dimension), _) => dimension,
             (None, Some(rank)) => {
-                let jacobian = format!("the sensory Jacobian, of rank {rank}: the rank the {} agent gives", agent.name());
+                let jacobian = format!(
+                    "the sensory Jacobian, of rank {rank}: the rank the {} agent gives",
+                    agent.name()
+                );
                 supported_dimension(agent, rank, jacobian)?
             }
             (None, None) => {

@@ -49,12 +49,12 @@ pub fn set_errors(
         if j >= truth.kept.len() || truth.kept[j] != row {
             continue;
         }
-        let closure = if learned.closure[i] == Closure::Closed && truth.closure[j] == Closure::Closed
-        {
-            Closure::Closed
-        } else {
-            Closure::Open
-        };
+        let closure =
+            if learned.closure[i] == Closure::Closed && truth.closure[j] == Closure::Closed {
+                Closure::Closed
+            } else {
+                Closure::Open
+            };
         let metric = MetricKind::Curve.with_period(period, closure);
         let distance = metric
             .distance(

@@ -194,7 +194,8 @@ impl LocalModel {
             .map(|(j, &x)| self.space.motor(j).wrap(x))
             .collect();
         let mut count = 0;
-        self.tree.within(&query, self.bandwidth, |_, _, _| count += 1);
+        self.tree
+            .within(&query, self.bandwidth, |_, _, _| count += 1);
         count >= self.min_count
     }
 }
@@ -452,7 +453,11 @@ pub(crate) fn gap_rank(matrix: &[f64], rows: usize, n: usize) -> usize {
             a[(i, j)] = matrix[i * n + j];
         }
     }
-    let sigma: Vec<f64> = SVD::new(a, false, false).singular_values.iter().copied().collect();
+    let sigma: Vec<f64> = SVD::new(a, false, false)
+        .singular_values
+        .iter()
+        .copied()
+        .collect();
     let mut sigma = sigma;
     sigma.sort_by(|a, b| b.total_cmp(a));
     let largest = sigma.first().copied().unwrap_or(0.0);

@@ -263,7 +263,9 @@ pub(super) fn fit_log(
     for &i in &held_rows {
         is_held[i] = true;
     }
-    let fit: Vec<u32> = (0..samples as u32).filter(|&i| !is_held[i as usize]).collect();
+    let fit: Vec<u32> = (0..samples as u32)
+        .filter(|&i| !is_held[i as usize])
+        .collect();
     let (model, images) = LocalModel::new(log, &fit, params, space)?;
     let k = log.sensors.ncols();
     let errors: Vec<Option<(f64, f64)>> = held_rows

@@ -58,7 +58,9 @@ use crate::error::{CheckParams, InvalidParameter};
 use crate::io::IoError;
 pub use compare::{set_errors, SetErrors};
 pub use law::{FitSupport, LawReport, LearnedLaw, LogReport};
-pub use log::{declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog};
+pub use log::{
+    declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
+};
 pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog};
 pub use tree::KdTree;
 

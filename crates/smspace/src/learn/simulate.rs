@@ -78,7 +78,11 @@ pub fn simulate(
         ..ExploreParams::default()
     };
     let explored = explore_in(agent, &explore, workspace)?;
-    let (s, n, k) = (explored.motors.nrows(), agent.motor_dim(), agent.sensor_dim());
+    let (s, n, k) = (
+        explored.motors.nrows(),
+        agent.motor_dim(),
+        agent.sensor_dim(),
+    );
     let mut sensors = Array2::<f64>::zeros((s, k));
     let motors = explored
         .motors
@@ -112,8 +116,7 @@ fn add_noise(sensors: &mut Array2<f64>, noise: f64, seed: u64) {
         .into_iter()
         .map(|c| {
             let mean = c.mean().unwrap_or(0.0);
-            (c.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / c.len().max(1) as f64)
-                .sqrt()
+            (c.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / c.len().max(1) as f64).sqrt()
         })
         .collect();
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6e6f_6973_65);

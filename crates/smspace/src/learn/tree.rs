@@ -16,8 +16,16 @@ pub const LEAF_SIZE: usize = 16;
 /// A node: a leaf `[start, end)` of the stored points, or a split.
 #[derive(Debug, Clone, Copy)]
 enum Node {
-    Leaf { start: u32, end: u32 },
-    Split { axis: u32, value: f64, left: u32, right: u32 },
+    Leaf {
+        start: u32,
+        end: u32,
+    },
+    Split {
+        axis: u32,
+        value: f64,
+        left: u32,
+        right: u32,
+    },
 }
 
 /// See the module docs.
@@ -35,7 +43,10 @@ impl KdTree {
     /// Builds the tree of `points` (row-major, `dim` values per point) whose rows in the
     /// caller's arrays are `rows` (one per point). At most `u32::MAX` points.
     pub fn new(dim: usize, points: Vec<f64>, rows: Vec<u32>) -> Self {
-        assert!(dim > 0 && points.len() == rows.len() * dim, "one row per point");
+        assert!(
+            dim > 0 && points.len() == rows.len() * dim,
+            "one row per point"
+        );
         let count = rows.len();
         let mut order: Vec<u32> = (0..count as u32).collect();
         let mut nodes = Vec::with_capacity(2 * count / LEAF_SIZE + 1);
@@ -179,7 +190,13 @@ impl KdTree {
 
 /// Builds the subtree of the points `order` (whose first entry is stored at `start`),
 /// pushing its nodes; returns its root's index.
-fn build(points: &[f64], dim: usize, order: &mut [u32], start: usize, nodes: &mut Vec<Node>) -> u32 {
+fn build(
+    points: &[f64],
+    dim: usize,
+    order: &mut [u32],
+    start: usize,
+    nodes: &mut Vec<Node>,
+) -> u32 {
     let index = nodes.len() as u32;
     let count = order.len();
     if count <= LEAF_SIZE {
