@@ -44,6 +44,12 @@ enum Command {
     Analyze(cmd::analyze::Args),
     /// The same starts traced in several environments, compared: invariance.json.
     Invariance(cmd::invariance::Args),
+    /// A sensorimotor log of an agent (motors.npy, sensors.npy), as a robot would
+    /// record it: the input of `smspace learn`.
+    Simulate(cmd::simulate::Args),
+    /// Kernel sets from recorded data: learn the law s(m) from logs and trace the sets
+    /// through starts: sets.npy (as `smspace trace`) and sets.law.json.
+    Learn(cmd::learn::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -58,6 +64,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Embed(args) => cmd::embed::run(args),
         Command::Analyze(args) => cmd::analyze::run(args),
         Command::Invariance(args) => cmd::invariance::run(args),
+        Command::Simulate(args) => cmd::simulate::run(args),
+        Command::Learn(args) => cmd::learn::run(args),
     }
 }
 

@@ -17,6 +17,8 @@
 //! 1. [`agent`]: agents and environments, the sensorimotor law `s = σ_E(m)`;
 //! 2. [`explore`]: motor babbling in a working space, and the probe grid;
 //! 3. [`kernel`]: tracing the sets `M^i` along the Jacobian's null space (appendix A);
+//!    [`learn`]: the same from a recorded log, through a law `ŝ(m)` learned from the data
+//!    (section 3.2, step 2);
 //! 4. [`metric`]: the periodic Hausdorff distance between sets, as a full matrix, a block
 //!    of rows, or the `k` nearest sets (section 3.2, step 3);
 //! 5. [`embed`]: coordinates for the manifold of sets from its distance matrix (CCA,
@@ -47,6 +49,7 @@ pub mod explore;
 pub mod invariance;
 pub mod io;
 pub mod kernel;
+pub mod learn;
 pub mod metric;
 pub mod neighbours;
 #[cfg(feature = "pipeline")]

@@ -7,6 +7,8 @@ pub mod embed;
 pub mod env;
 pub mod explore;
 pub mod invariance;
+pub mod learn;
 pub mod run;
 pub mod sense;
+pub mod simulate;
 pub mod trace;

@@ -195,6 +195,24 @@ pub trait Agent: Send + Sync + fmt::Debug {
         }
     }
 
+    /// The generic rank of the sensory Jacobian `∂s/∂m`, when the agent knows it: a law
+    /// learned from data ([`crate::learn::LearnedLaw`]) estimates it from its fits,
+    /// where finite differences of its values would see the fit's noise as rank. The
+    /// default is `None`: the tracer estimates it at the starts. An agent that gives it
+    /// is read as a fitted law, whose values lie on an image of that rank only up to
+    /// the fit's error: the tracer's sensory level set then holds the residual's part in
+    /// the Jacobian's range at zero.
+    fn sensory_rank(&self) -> Option<usize> {
+        None
+    }
+
+    /// Whether the law is known at `motors`: everywhere for a simulated agent (the
+    /// default); near its samples only for a law learned from data. The tracer ends a
+    /// set that leaves this region (status `left-data`).
+    fn covers(&self, _motors: &[f64]) -> bool {
+        true
+    }
+
     /// The observer's ground truth (the sensor's pose for any motors), for evaluation
     /// only. The default is none.
     fn ground_truth(&self) -> Option<&dyn Observer> {

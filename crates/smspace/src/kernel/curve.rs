@@ -274,6 +274,9 @@ pub(crate) fn trace_branch(
         branch.steps += 1;
         branch.nodes.extend_from_slice(&m);
         branch.tangents.extend_from_slice(&t);
+        if !set.covers(&m) {
+            return Err(SetStatus::LeftData);
+        }
         if adaptive
             && corrected.first_step < 0.025 * h
             && cos_turn.clamp(-1.0, 1.0).acos() < params.max_turn / 4.0

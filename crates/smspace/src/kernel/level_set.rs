@@ -50,6 +50,11 @@ pub(crate) trait LevelSet {
     /// Whether the corrector should re-linearise at every iteration (Newton) rather
     /// than reuse the current linearisation (chord method) while it converges.
     fn newton(&self) -> bool;
+    /// Whether the level set's function is known at `m` (a law learned from data: near
+    /// its samples only).
+    fn covers(&self, _m: &[f64]) -> bool {
+        true
+    }
 }
 
 /// The kinematic level set: the first `C` tangent coordinates of the observer's pose
@@ -410,6 +415,13 @@ impl LevelSet for Kinematic<'_> {
 /// nonzero, is not negligible: `√(λ_d/λ_max)` below the rank tolerance means the
 /// sensors cannot tell some pose change apart (too few lights in view) and the set is
 /// reported as singular instead of traced.
+///
+/// For a law fitted to data (an agent that gives its [`Agent::sensory_rank`]), the
+/// values do not lie exactly on an image of rank `N − d`, so `s(m) = s⁰` has isolated
+/// solutions only; the level set is then `{ m | U(m)ᵀ (s(m) − s⁰) = 0 }`, the part of the
+/// residual in the range `U` of the Jacobian held at zero, and the residual's size is
+/// `‖Uᵀ r‖ = √(Σ_{e≥d} (v_eᵀ Jᵀ r)² / λ_e)` (relative to the same scale), which the
+/// Gauss–Newton correction cancels.
 pub(crate) struct Sensory<'a> {
     agent: &'a dyn Agent,
     environment: &'a Environment,
@@ -423,6 +435,8 @@ pub(crate) struct Sensory<'a> {
     /// The kernel dimension `d`: the null space is spanned by the first `d`
     /// eigenvectors.
     dimension: usize,
+    /// Whether the residual is measured in the Jacobian's range (a fitted law).
+    projected: bool,
     jacobian: Vec<f64>,
     eigenvalues: Vec<f64>,
     eigenvectors: Vec<f64>,
@@ -458,6 +472,7 @@ impl<'a> Sensory<'a> {
             step: params.finite_difference_step,
             rank_tolerance: params.rank_tolerance,
             dimension,
+            projected: agent.sensory_rank().is_some(),
             jacobian: vec![0.0; k * n],
             eigenvalues: vec![0.0; n],
             eigenvectors: vec![0.0; n * n],
@@ -484,7 +499,22 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn residual_norm(&self, r: &[f64]) -> f64 {
-        r.iter().fold(0.0, |acc: f64, v| acc.max(v.abs())) / self.scale
+        if !self.projected {
+            return r.iter().fold(0.0, |acc: f64, v| acc.max(v.abs())) / self.scale;
+        }
+        let n = self.n;
+        let g: Vec<f64> = (0..n)
+            .map(|j| (0..self.k).map(|i| self.jacobian[i * n + j] * r[i]).sum())
+            .collect();
+        let mut squares = 0.0;
+        for e in self.dimension..n {
+            let v = &self.eigenvectors[e * n..(e + 1) * n];
+            let lambda = self.eigenvalues[e];
+            if lambda > 0.0 {
+                squares += dot(v, &g).powi(2) / lambda;
+            }
+        }
+        squares.sqrt() / self.scale
     }
 
     fn tolerance(&self) -> f64 {
@@ -585,5 +615,9 @@ impl LevelSet for Sensory<'_> {
 
     fn newton(&self) -> bool {
         false
+    }
+
+    fn covers(&self, m: &[f64]) -> bool {
+        self.agent.covers(m)
     }
 }

@@ -428,6 +428,9 @@ pub enum SetStatus {
     CorrectorFailed,
     /// The start lies outside the working space.
     OutsideWorkspace,
+    /// The set left the region a law learned from data covers
+    /// ([`Agent::covers`](crate::agent::Agent::covers)); it ends there and is not kept.
+    LeftData,
 }
 
 impl SetStatus {

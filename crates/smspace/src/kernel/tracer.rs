@@ -65,9 +65,16 @@ impl<'a> Tracer<'a> {
             params,
             dimension: 0,
         };
-        tracer.dimension = match declared {
-            Some(dimension) => dimension,
-            None => {
+        tracer.dimension = match (declared, agent.sensory_rank()) {
+            (Some(dimension), _) => dimension,
+            (None, Some(rank)) => {
+                let jacobian = format!(
+                    "the sensory Jacobian, of rank {rank}: the rank the {} agent gives",
+                    agent.name()
+                );
+                supported_dimension(agent, rank, jacobian)?
+            }
+            (None, None) => {
                 let rank = tracer.generic_sensory_rank(starts);
                 let jacobian = format!(
                     "the sensory Jacobian, of rank {rank}: its largest numerical rank over the {} starts (singular values above rank_tolerance = {} times the largest)",
@@ -119,6 +126,10 @@ impl<'a> Tracer<'a> {
                 report.status = SetStatus::OutsideWorkspace;
                 return (None, report);
             }
+        }
+        if !self.agent.covers(start) {
+            report.status = SetStatus::LeftData;
+            return (None, report);
         }
         if self.dimension == 0 {
             report.status = SetStatus::Point;

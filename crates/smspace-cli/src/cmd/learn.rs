@@ -1,0 +1,178 @@
+//! `smspace learn`: kernel sets from recorded sensorimotor data. Learns the law `ŝ(m)`
+//! from one or several logs (motors and sensors files, one pair per environment) and
+//! traces `ŝ(m) = ŝ(m^i)` through each start with the sensory method; writes the files
+//! of `smspace trace` and the law's report beside them.
+
+use std::path::PathBuf;
+
+use clap::Args as ClapArgs;
+use smspace::io;
+use smspace::kernel::TraceParams;
+use smspace::learn::{
+    declared_space, learn, parse_motor_declarations, trace_learned, LawMethod, LawParams, LogFiles,
+    SensorimotorLog,
+};
+
+use crate::ui::Bar;
+
+/// Arguments of `smspace learn`.
+#[derive(Debug, ClapArgs)]
+pub struct Args {
+    /// Motor commands of a log (S, N); repeat with --sensors for several logs (one per
+    /// environment).
+    #[arg(long, value_name = "FILE", required = true)]
+    motors: Vec<PathBuf>,
+    /// Sensor values of a log (S, K), one row per row of its motors file.
+    #[arg(long, value_name = "FILE", required = true)]
+    sensors: Vec<PathBuf>,
+    /// Start configurations (M, N): one kernel set is traced through each row.
+    #[arg(long, value_name = "FILE")]
+    starts: PathBuf,
+    /// Points per resampled set.
+    #[arg(long, default_value_t = TraceParams::default().points)]
+    points: usize,
+    /// The motors: 2pi (hinges), none (bounded by the log's range), a period, a range
+    /// LOW:HIGH, or a comma-separated list of these, one per motor.
+    #[arg(long, default_value = "2pi")]
+    period: String,
+    /// The regression: local-quadratic or local-linear.
+    #[arg(long, default_value = "local-quadratic", value_parser = parse_method)]
+    method: LawMethod,
+    /// Samples a typical fit holds (default 4p + 20, p the fit's coefficients).
+    #[arg(long, value_name = "K")]
+    neighbours: Option<usize>,
+    /// Factor on the bandwidth.
+    #[arg(long, default_value_t = LawParams::default().bandwidth_factor)]
+    bandwidth_factor: f64,
+    /// Step budget of one set (a set on a poor law may wander: it fails as not-closed).
+    #[arg(long, default_value_t = 3000)]
+    max_steps: usize,
+    /// Loop-closure tolerance (torus distance); looser than the simulator's 1e-2, as the
+    /// law's own error is larger.
+    #[arg(long, default_value_t = 0.03)]
+    closure_tolerance: f64,
+    /// Seed of the held-out samples.
+    #[arg(long, default_value_t = LawParams::default().seed)]
+    seed: u64,
+    /// Output sets (M_kept, P, N); next to it `<stem>.kept.npy`, `<stem>.closed.npy`,
+    /// `<stem>.trace.json` (as `smspace trace`) and `<stem>.law.json` (the law).
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Refuse to start when learning needs more than this many bytes (default: the
+    /// memory available, MemAvailable in /proc/meminfo).
+    #[arg(long, value_name = "BYTES")]
+    max_memory: Option<u64>,
+}
+
+fn parse_method(s: &str) -> Result<LawMethod, String> {
+    s.parse()
+}
+
+/// Runs `smspace learn`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.motors.len() == args.sensors.len(),
+        "{} --motors files but {} --sensors files: give one pair per log",
+        args.motors.len(),
+        args.sensors.len()
+    );
+    let declarations = parse_motor_declarations(&args.period)
+        .map_err(|reason| anyhow::anyhow!("--period {}: {reason}", args.period))?;
+    let params = LawParams {
+        method: args.method,
+        neighbours: args.neighbours,
+        bandwidth_factor: args.bandwidth_factor,
+        seed: args.seed,
+        ..LawParams::default()
+    }
+    .check()?;
+    let limit = args.max_memory.or_else(super::common::memory_available);
+    let on_disk: u64 = args
+        .motors
+        .iter()
+        .chain(&args.sensors)
+        .filter_map(|p| std::fs::metadata(p).ok())
+        .map(|m| m.len())
+        .sum();
+    super::common::check_memory(
+        "logs",
+        on_disk,
+        limit,
+        "learn from fewer samples (cut the logs)",
+    )?;
+    let first = io::read_matrix(&args.motors[0], None, "(S, N)")?;
+    let space = declared_space(&declarations, first.view(), &args.motors[0])?;
+    drop(first);
+    let logs = args
+        .motors
+        .iter()
+        .zip(&args.sensors)
+        .map(|(motors, sensors)| {
+            SensorimotorLog::load(
+                LogFiles {
+                    motors: motors.clone(),
+                    sensors: sensors.clone(),
+                },
+                &space,
+            )
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let samples: usize = logs.iter().map(SensorimotorLog::samples).sum();
+    let periodic = space.motors().iter().filter(|m| m.is_periodic()).count();
+    let needed: u64 = logs
+        .iter()
+        .map(|l| params.bytes(l.samples(), space.dim(), l.sensors.ncols(), periodic))
+        .sum();
+    eprintln!(
+        "learning from {samples} samples ({} logs, {space}): at most {} of memory",
+        logs.len(),
+        smspace::metric::human_bytes(needed)
+    );
+    let starts = io::read_matrix(
+        &args.starts,
+        Some(space.dim()),
+        &format!("(M, {})", space.dim()),
+    )?;
+    let trace = TraceParams {
+        points: args.points,
+        max_steps: args.max_steps,
+        closure_tolerance: args.closure_tolerance,
+        ..TraceParams::default()
+    };
+    trace.check()?;
+    super::common::check_memory(
+        "kernel sets",
+        trace.sets_bytes(starts.nrows() as u64, space.dim()),
+        args.max_memory,
+        "trace fewer starts per call, or lower --points",
+    )?;
+    let law = learn(&logs, &space, &params, limit)?;
+    for log in &law.report().logs {
+        eprintln!(
+            "{}: bandwidth {:.4}, held-out error {:.2e} of the sensors' spread ({} samples held out)",
+            log.motors, log.bandwidth, log.held_out_relative_rms, log.held_out
+        );
+    }
+    let bar = Bar::new();
+    let traced = trace_learned(&law, starts.view(), &trace, &bar)?;
+    anyhow::ensure!(
+        !traced.kept.is_empty(),
+        "no set could be traced ({:?}); see the statuses above. Nothing was written.",
+        traced.report.summary.by_status
+    );
+    // The writer of `smspace trace`, and the law's report, all together.
+    let mut outputs = io::Outputs::new();
+    traced.write_into(&mut outputs, &args.out)?;
+    outputs.json(&io::sibling(&args.out, "law.json"), law.report())?;
+    outputs.commit()?;
+    let summary = &traced.report.summary;
+    eprintln!(
+        "traced {} of {} sets on the learned law (rank {}); {} failed {:?}",
+        summary.traced,
+        summary.total,
+        law.report().rank,
+        summary.failed,
+        summary.by_status
+    );
+    Ok(())
+}

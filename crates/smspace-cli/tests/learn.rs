@@ -1,0 +1,193 @@
+//! `smspace simulate` and `smspace learn`: a simulated log learned from, the files of
+//! `smspace trace`, and bad logs refused with the file and the fix.
+
+mod common;
+
+use std::path::PathBuf;
+
+use ndarray::{Array1, Array2, Array3};
+use ndarray_npy::{read_npy, write_npy};
+
+use common::{fails, ok};
+
+fn temp() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().to_owned();
+    (dir, path)
+}
+
+#[test]
+fn simulate_then_learn_writes_the_files_of_trace() {
+    let (_guard, dir) = temp();
+    ok(
+        &dir,
+        &[
+            "simulate",
+            "--agent",
+            "toy-redundant",
+            "--n",
+            "5000",
+            "--noise",
+            "0.001",
+            "--env-seed",
+            "3",
+            "--out-dir",
+            "log",
+        ],
+    );
+    let motors: Array2<f64> = read_npy(dir.join("log/motors.npy")).unwrap();
+    let sensors: Array2<f64> = read_npy(dir.join("log/sensors.npy")).unwrap();
+    let poses: Array2<f64> = read_npy(dir.join("log/poses.npy")).unwrap();
+    assert_eq!(
+        (motors.dim(), sensors.dim(), poses.dim()),
+        ((5000, 2), (5000, 2), (5000, 3))
+    );
+    assert!(dir.join("log/log.json").is_file() && dir.join("log/environment.json").is_file());
+    let starts = motors.slice(ndarray::s![..4, ..]).to_owned();
+    write_npy(dir.join("starts.npy"), &starts).unwrap();
+    ok(
+        &dir,
+        &[
+            "learn",
+            "--motors",
+            "log/motors.npy",
+            "--sensors",
+            "log/sensors.npy",
+            "--starts",
+            "starts.npy",
+            "--period",
+            "none",
+            "--points",
+            "20",
+            "--out",
+            "sets.npy",
+        ],
+    );
+    let sets: Array3<f64> = read_npy(dir.join("sets.npy")).unwrap();
+    let kept: Array1<i64> = read_npy(dir.join("sets.kept.npy")).unwrap();
+    assert_eq!(sets.dim().1, 20);
+    assert_eq!(sets.dim().0, kept.len());
+    // The learned sets keep m1 + m2 of their start (the toy's kernel).
+    for (set, &row) in sets.outer_iter().zip(kept.iter()) {
+        let x = starts[[row as usize, 0]] + starts[[row as usize, 1]];
+        for p in set.outer_iter() {
+            assert!((p[0] + p[1] - x).abs() < 0.05, "{} vs {x}", p[0] + p[1]);
+        }
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sets.trace.json")).unwrap())
+            .unwrap();
+    assert_eq!(report["agent"], "learned");
+    let law: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sets.law.json")).unwrap()).unwrap();
+    assert_eq!(law["rank"], 1);
+    assert!(law["logs"][0]["held_out_relative_rms"].as_f64().unwrap() < 0.05);
+}
+
+#[test]
+fn bad_logs_name_the_file_and_the_fix() {
+    let (_guard, dir) = temp();
+    let motors = Array2::from_shape_fn((400, 2), |(i, j)| {
+        ((i * 7 + j * 3) % 100) as f64 / 20.0 - 2.5
+    });
+    let sensors = Array2::from_shape_fn((400, 2), |(i, j)| (i as f64 * 0.1 + j as f64).sin());
+    write_npy(dir.join("m.npy"), &motors).unwrap();
+    write_npy(dir.join("s.npy"), &sensors).unwrap();
+    write_npy(
+        dir.join("starts.npy"),
+        &motors.slice(ndarray::s![..2, ..]).to_owned(),
+    )
+    .unwrap();
+    let learn = |m: &str, s: &str, extra: &[&str]| {
+        let mut args = vec![
+            "learn",
+            "--motors",
+            m,
+            "--sensors",
+            s,
+            "--starts",
+            "starts.npy",
+            "--out",
+            "sets.npy",
+        ];
+        args.extend_from_slice(extra);
+        fails(&dir, &args)
+    };
+    // Different row counts.
+    write_npy(
+        dir.join("short.npy"),
+        &sensors.slice(ndarray::s![..399, ..]).to_owned(),
+    )
+    .unwrap();
+    let e = learn("m.npy", "short.npy", &[]);
+    assert!(
+        e.contains("m.npy has 400 rows but short.npy has 399"),
+        "{e}"
+    );
+    // NaN.
+    let mut nan = sensors.clone();
+    nan[[5, 0]] = f64::NAN;
+    write_npy(dir.join("nan.npy"), &nan).unwrap();
+    let e = learn("m.npy", "nan.npy", &[]);
+    assert!(e.contains("nan.npy") && e.contains("non-finite"), "{e}");
+    // A constant sensor.
+    let mut constant = sensors.clone();
+    constant.column_mut(1).fill(2.0);
+    write_npy(dir.join("constant.npy"), &constant).unwrap();
+    let e = learn("m.npy", "constant.npy", &[]);
+    assert!(
+        e.contains("sensor column 1 of constant.npy is constant"),
+        "{e}"
+    );
+    // Motors outside their declared range.
+    let e = learn("m.npy", "s.npy", &["--period=-1:1"]);
+    assert!(
+        e.contains("m.npy, row") && e.contains("outside its declared range"),
+        "{e}"
+    );
+    // Too few samples for the method.
+    write_npy(
+        dir.join("m30.npy"),
+        &motors.slice(ndarray::s![..30, ..]).to_owned(),
+    )
+    .unwrap();
+    write_npy(
+        dir.join("s30.npy"),
+        &sensors.slice(ndarray::s![..30, ..]).to_owned(),
+    )
+    .unwrap();
+    let e = learn("m30.npy", "s30.npy", &["--period", "none"]);
+    assert!(
+        e.contains("m30.npy has too few samples (30)") && e.contains("local-linear"),
+        "{e}"
+    );
+    // A bad declaration, mismatched pairs, a missing file.
+    let e = learn("m.npy", "s.npy", &["--period", "circle"]);
+    assert!(
+        e.contains("--period circle") && e.contains("LOW:HIGH"),
+        "{e}"
+    );
+    let e = fails(
+        &dir,
+        &[
+            "learn",
+            "--motors",
+            "m.npy",
+            "--motors",
+            "m.npy",
+            "--sensors",
+            "s.npy",
+            "--starts",
+            "starts.npy",
+            "--out",
+            "x.npy",
+        ],
+    );
+    assert!(e.contains("2 --motors files but 1 --sensors"), "{e}");
+    let e = learn("missing.npy", "s.npy", &[]);
+    assert!(e.contains("missing.npy"), "{e}");
+    // Memory, up front.
+    let e = learn("m.npy", "s.npy", &["--max-memory", "1000"]);
+    assert!(e.contains("--max-memory"), "{e}");
+    assert!(!dir.join("sets.npy").exists());
+}

@@ -1,0 +1,128 @@
+//! Kernel sets learned from a simulated log of the paper's arm, measured against the
+//! true (kinematic) sets: `cargo run --release --example learn_study -- S NOISE METHOD
+//! STARTS` prints one JSON line (held-out error, set errors, timings).
+
+use std::time::Instant;
+
+use rand::seq::index::sample;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use smspace::agent::{AgentConfig, EnvironmentConfig};
+use smspace::kernel::{trace_sets, TraceParams};
+use smspace::learn::{
+    learn, set_errors, simulate, trace_learned, LawParams, LogFiles, SensorimotorLog,
+    SimulateParams,
+};
+use smspace::metric::Period;
+use smspace::progress::Silent;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let samples: usize = args.get(1).map_or(Ok(100_000), |s| s.parse())?;
+    let noise: f64 = args.get(2).map_or(Ok(0.0), |s| s.parse())?;
+    let method = args
+        .get(3)
+        .map_or("local-quadratic", String::as_str)
+        .parse()?;
+    let starts: usize = args.get(4).map_or(Ok(100), |s| s.parse())?;
+    let arm = AgentConfig::preset("planar-arm")?.build()?;
+    let environment = EnvironmentConfig::default().build(arm.as_ref())?;
+    let clock = Instant::now();
+    let log = simulate(
+        arm.as_ref(),
+        &environment,
+        arm.default_workspace(),
+        &SimulateParams {
+            samples,
+            noise,
+            seed: 1,
+        },
+    )?;
+    let simulated = clock.elapsed().as_secs_f64();
+    let space = arm.motor_space();
+    let files = LogFiles {
+        motors: "simulated-motors".into(),
+        sensors: "simulated-sensors".into(),
+    };
+    let checked = SensorimotorLog::new(log.motors.clone(), log.sensors.clone(), files, &space)?;
+    let clock = Instant::now();
+    let params = LawParams {
+        method,
+        ..LawParams::default()
+    }
+    .check()?;
+    let law = learn(&[checked], &space, &params, None)?;
+    let learned_seconds = clock.elapsed().as_secs_f64();
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let rows = sample(&mut rng, samples, starts.min(samples)).into_vec();
+    let start_motors = log.motors.select(ndarray::Axis(0), &rows);
+    let clock = Instant::now();
+    let tolerance: f64 = std::env::var("SENSOR_TOLERANCE").map_or(Ok(1e-12), |s| s.parse())?;
+    let closure: f64 = std::env::var("CLOSURE").map_or(Ok(1e-2), |s| s.parse())?;
+    let max_steps: usize = std::env::var("MAX_STEPS").map_or(Ok(3000), |s| s.parse())?;
+    let trace_params = TraceParams {
+        sensor_tolerance: tolerance,
+        closure_tolerance: closure,
+        max_steps,
+        ..TraceParams::default()
+    };
+    let learned = trace_learned(&law, start_motors.view(), &trace_params, &Silent)?;
+    let traced_seconds = clock.elapsed().as_secs_f64();
+    let truth_params = TraceParams::default().check()?;
+    let truth = trace_sets(
+        arm.as_ref(),
+        Some(&environment),
+        start_motors.view(),
+        None,
+        &truth_params,
+        &Silent,
+    )?;
+    let errors = set_errors(&learned, &truth, Period::TwoPi).ok();
+    // The learned manifold: the Hausdorff matrix of the learned sets, its topology and
+    // dimension, and its agreement with the poses the simulated log kept aside.
+    let manifold = if std::env::var("MANIFOLD").is_ok() {
+        let distances = smspace::metric::distance_matrix(
+            learned.sets.view(),
+            &smspace::metric::DistanceParams::new(),
+            &Silent,
+        )?;
+        let poses = log
+            .poses
+            .as_ref()
+            .map(|p| p.poses().select(ndarray::Axis(0), &rows));
+        let kept_poses = poses.map(|p| p.select(ndarray::Axis(0), &learned.kept));
+        let params = smspace::analysis::AnalysisParams::default().check()?;
+        let report = smspace::analysis::analyze(
+            &distances,
+            kept_poses.as_ref().map(|p| p.view()),
+            &params,
+            &Silent,
+        )?;
+        serde_json::json!({
+            "betti": report.betti,
+            "twonn": report.intrinsic_dimension.twonn,
+            "trustworthiness": report.agreement.as_ref().map(|a| a.trustworthiness),
+            "continuity": report.agreement.as_ref().map(|a| a.continuity),
+        })
+    } else {
+        serde_json::Value::Null
+    };
+    let line = serde_json::json!({
+        "manifold": manifold,
+        "samples": samples,
+        "noise": noise,
+        "method": method,
+        "simulate_s": simulated,
+        "learn_s": learned_seconds,
+        "trace_s": traced_seconds,
+        "starts": starts,
+        "law": law.report(),
+        "learned_status": learned.report.summary.by_status,
+        "truth_status": truth.report.summary.by_status,
+        "median_rad": errors.as_ref().map(|e| e.median),
+        "p90_rad": errors.as_ref().map(|e| e.p90),
+        "compared": errors.as_ref().map(|e| e.compared),
+    });
+    println!("{line}");
+    Ok(())
+}

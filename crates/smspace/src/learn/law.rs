@@ -1,0 +1,510 @@
+//! The learned law `ŝ(m)`: a local polynomial regression of one log's sensor values on
+//! its motor samples, with smooth weights, and the law of several logs side by side.
+
+use std::fmt;
+
+use nalgebra::{DMatrix, SVD};
+use rand::seq::index::sample;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::tree::KdTree;
+use super::{LawMethod, LawValidParams, LearnError, SensorimotorLog};
+use crate::agent::{Agent, Environment, MotorSpace};
+
+/// Most samples whose neighbour distances fix the bandwidth, and at which the rank of
+/// the law's Jacobian is estimated.
+const PROBES: usize = 512;
+
+/// What a fit at one configuration found: its samples within the bandwidth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitSupport {
+    /// Samples closer than the bandwidth.
+    pub count: usize,
+}
+
+/// One log's local regression (see the module docs of [`crate::learn`]).
+pub(crate) struct LocalModel {
+    space: MotorSpace,
+    method: LawMethod,
+    tree: KdTree,
+    /// Sensor values of the fitted rows, `S × K` row-major (rows as in the tree).
+    sensors: Vec<f64>,
+    n: usize,
+    k: usize,
+    bandwidth: f64,
+    min_count: usize,
+    ridge: f64,
+}
+
+/// Number of coefficients of the local polynomial in `n` motors.
+pub(crate) fn parameter_count(method: LawMethod, n: usize) -> usize {
+    match method {
+        LawMethod::LocalLinear => 1 + n,
+        LawMethod::LocalQuadratic => 1 + n + n * (n + 1) / 2,
+    }
+}
+
+impl LocalModel {
+    /// Fits the model to the rows `fit` of `log` (bandwidth from the data's spacing).
+    pub(crate) fn new(
+        log: &SensorimotorLog,
+        fit: &[u32],
+        params: &LawValidParams,
+        space: &MotorSpace,
+    ) -> Result<(Self, f64), LearnError> {
+        let (n, k) = (log.motors.ncols(), log.sensors.ncols());
+        let mut points = Vec::with_capacity(fit.len() * n);
+        for &row in fit {
+            points.extend(log.motors.row(row as usize).iter().copied());
+        }
+        let plain = KdTree::new(n, points, fit.to_vec());
+        let neighbours = params.neighbours(n);
+        let bandwidth = params.bandwidth_factor * median_kth_distance(&plain, neighbours, params);
+        if let Some(period) = space
+            .motors()
+            .iter()
+            .filter_map(|m| m.period())
+            .reduce(f64::min)
+        {
+            if !(bandwidth < period / 4.0) {
+                return Err(LearnError::TooFewSamples {
+                    path: log.files.motors.clone(),
+                    samples: fit.len(),
+                    reason: format!(
+                        "the {neighbours} nearest samples of a typical sample lie within {bandwidth:.3}, more than a quarter period ({:.3}): the data are too sparse for a local fit",
+                        period / 4.0
+                    ),
+                    fix: "record more samples, or lower neighbours",
+                });
+            }
+        }
+        drop(plain);
+        let (points, rows) = periodic_images(log, fit, space, bandwidth);
+        let images = rows.len();
+        let tree = KdTree::new(n, points, rows);
+        let mut sensors = vec![0.0; log.sensors.len()];
+        for (out, row) in sensors.chunks_mut(k).zip(log.sensors.outer_iter()) {
+            out.iter_mut().zip(row).for_each(|(a, &b)| *a = b);
+        }
+        let model = Self {
+            space: space.clone(),
+            method: params.method,
+            tree,
+            sensors,
+            n,
+            k,
+            bandwidth,
+            min_count: params.coverage_neighbours(n),
+            ridge: params.ridge,
+        };
+        Ok((model, images as f64 / fit.len().max(1) as f64))
+    }
+
+    /// The bandwidth `h` (motor units).
+    pub(crate) fn bandwidth(&self) -> f64 {
+        self.bandwidth
+    }
+
+    /// Writes `ŝ(m)` into `value` (length `K`) and, when asked, the fit's slope
+    /// `∂ŝ/∂m` into `jacobian` (`K × N`, row-major); returns the fit's support. With no
+    /// sample within the bandwidth the law is 0 there (and does not cover `m`).
+    pub(crate) fn evaluate(
+        &self,
+        m: &[f64],
+        value: &mut [f64],
+        jacobian: Option<&mut [f64]>,
+    ) -> FitSupport {
+        let (n, k) = (self.n, self.k);
+        let p = parameter_count(self.method, n);
+        let query: Vec<f64> = m
+            .iter()
+            .enumerate()
+            .map(|(j, &x)| self.space.motor(j).wrap(x))
+            .collect();
+        let mut gram = vec![0.0; p * p];
+        let mut rhs = vec![0.0; p * k];
+        let mut basis = vec![0.0; p];
+        let inverse_h = 1.0 / self.bandwidth;
+        let inverse_h2 = inverse_h * inverse_h;
+        let mut count = 0;
+        self.tree
+            .within(&query, self.bandwidth, |row, displacement, d2| {
+                let u = 1.0 - d2 * inverse_h2;
+                let w = u * u * u;
+                self.basis(displacement, inverse_h, &mut basis);
+                for a in 0..p {
+                    let wa = w * basis[a];
+                    for b in a..p {
+                        gram[a * p + b] += wa * basis[b];
+                    }
+                    let s = &self.sensors[row as usize * k..(row as usize + 1) * k];
+                    for (r, &sv) in rhs[a * k..(a + 1) * k].iter_mut().zip(s) {
+                        *r += wa * sv;
+                    }
+                }
+                count += 1;
+            });
+        let support = FitSupport { count };
+        if count == 0 || !solve(&mut gram, &mut rhs, p, k, self.ridge) {
+            value.fill(0.0);
+            if let Some(j) = jacobian {
+                j.fill(0.0);
+            }
+            return support;
+        }
+        value.copy_from_slice(&rhs[..k]);
+        if let Some(jac) = jacobian {
+            for i in 0..k {
+                for j in 0..n {
+                    jac[i * n + j] = rhs[(1 + j) * k + i] * inverse_h;
+                }
+            }
+        }
+        support
+    }
+
+    /// The polynomial basis at a displacement: `1`, `d/h`, and for the quadratic fit
+    /// `d_a d_b / h²` (`a ≤ b`).
+    #[inline]
+    fn basis(&self, displacement: &[f64], inverse_h: f64, out: &mut [f64]) {
+        let n = self.n;
+        out[0] = 1.0;
+        for j in 0..n {
+            out[1 + j] = displacement[j] * inverse_h;
+        }
+        if self.method == LawMethod::LocalQuadratic {
+            let mut at = 1 + n;
+            for a in 0..n {
+                for b in a..n {
+                    out[at] = out[1 + a] * out[1 + b];
+                    at += 1;
+                }
+            }
+        }
+    }
+
+    /// Whether `m` is in the region the data cover (see [`crate::learn`]).
+    pub(crate) fn covers(&self, m: &[f64]) -> bool {
+        let query: Vec<f64> = m
+            .iter()
+            .enumerate()
+            .map(|(j, &x)| self.space.motor(j).wrap(x))
+            .collect();
+        let mut count = 0;
+        self.tree
+            .within(&query, self.bandwidth, |_, _, _| count += 1);
+        count >= self.min_count
+    }
+}
+
+/// Solves `(G + ridge·tr)·C = R` in place (`G` upper triangle given, `p × p`; `R`
+/// `p × k`), the ridge added to the non-constant coefficients relative to the total
+/// weight `G₀₀`. Returns false when the system is not positive definite.
+fn solve(gram: &mut [f64], rhs: &mut [f64], p: usize, k: usize, ridge: f64) -> bool {
+    let total = gram[0];
+    for a in 1..p {
+        gram[a * p + a] += ridge * total;
+    }
+    // Cholesky G = L Lᵀ, L stored in the lower triangle.
+    for i in 0..p {
+        for j in 0..=i {
+            let mut s = gram[j * p + i];
+            for q in 0..j {
+                s -= gram[i * p + q] * gram[j * p + q];
+            }
+            if i == j {
+                if !(s > 1e-300) {
+                    return false;
+                }
+                gram[i * p + i] = s.sqrt();
+            } else {
+                gram[i * p + j] = s / gram[j * p + j];
+            }
+        }
+    }
+    for c in 0..k {
+        for i in 0..p {
+            let mut s = rhs[i * k + c];
+            for q in 0..i {
+                s -= gram[i * p + q] * rhs[q * k + c];
+            }
+            rhs[i * k + c] = s / gram[i * p + i];
+        }
+        for i in (0..p).rev() {
+            let mut s = rhs[i * k + c];
+            for q in i + 1..p {
+                s -= gram[q * p + i] * rhs[q * k + c];
+            }
+            rhs[i * k + c] = s / gram[i * p + i];
+        }
+    }
+    true
+}
+
+/// The median over (at most [`PROBES`]) seeded samples of the distance to their
+/// `neighbours`-th nearest other sample.
+fn median_kth_distance(tree: &KdTree, neighbours: usize, params: &LawValidParams) -> f64 {
+    let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x6b64);
+    let probes = sample(&mut rng, tree.len(), PROBES.min(tree.len())).into_vec();
+    let mut distances: Vec<f64> = probes
+        .par_iter()
+        .map(|&i| {
+            let point = tree.point(i);
+            // The sample itself is its own nearest point.
+            tree.kth_distance(point, neighbours + 1)
+        })
+        .collect();
+    distances.sort_by(f64::total_cmp);
+    distances[distances.len() / 2]
+}
+
+/// The fitted rows and their images shifted by whole periods where a periodic
+/// coordinate lies within `bandwidth` of its range's ends, so that a query in the range
+/// finds every sample within `bandwidth` on the torus as one plain point.
+fn periodic_images(
+    log: &SensorimotorLog,
+    fit: &[u32],
+    space: &MotorSpace,
+    bandwidth: f64,
+) -> (Vec<f64>, Vec<u32>) {
+    let n = log.motors.ncols();
+    let mut points = Vec::with_capacity(fit.len() * n * 3 / 2);
+    let mut rows = Vec::with_capacity(fit.len() * 3 / 2);
+    let mut shifts: Vec<Vec<f64>> = vec![Vec::new(); n];
+    for &row in fit {
+        let x = log.motors.row(row as usize);
+        for j in 0..n {
+            shifts[j].clear();
+            shifts[j].push(0.0);
+            if let Some(period) = space.motor(j).period() {
+                if x[j] < -period / 2.0 + bandwidth {
+                    shifts[j].push(period);
+                }
+                if x[j] >= period / 2.0 - bandwidth {
+                    shifts[j].push(-period);
+                }
+            }
+        }
+        // Every combination of the shifts (mixed radix).
+        let total: usize = shifts.iter().map(Vec::len).product();
+        for combination in 0..total {
+            let mut c = combination;
+            for j in 0..n {
+                let options = &shifts[j];
+                points.push(x[j] + options[c % options.len()]);
+                c /= options.len();
+            }
+            rows.push(row);
+        }
+    }
+    (points, rows)
+}
+
+/// What learning found, written beside the sets (`<stem>.law.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LawReport {
+    /// The regression.
+    pub method: LawMethod,
+    /// Per log: samples, fitted rows, held-out rows, bandwidth, images, error.
+    pub logs: Vec<LogReport>,
+    /// The generic rank of the law's Jacobian (the most frequent numerical rank over
+    /// the probed samples, by the largest gap of singular values).
+    pub rank: usize,
+    /// How often each rank was found at the probed samples (index = rank).
+    pub rank_counts: Vec<usize>,
+}
+
+/// One log's part of the [`LawReport`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LogReport {
+    /// The motors file.
+    pub motors: String,
+    /// The sensors file.
+    pub sensors: String,
+    /// Samples in the log.
+    pub samples: usize,
+    /// Samples the law was fitted to.
+    pub fitted: usize,
+    /// Samples held out to measure its error.
+    pub held_out: usize,
+    /// The bandwidth `h` (motor units, radians for hinges).
+    pub bandwidth: f64,
+    /// Points in the k-d tree per fitted sample (periodic images included).
+    pub images_per_sample: f64,
+    /// Held-out root-mean-square error over every sensor, relative to the root mean
+    /// square of the sensors' standard deviations.
+    pub held_out_relative_rms: f64,
+    /// Largest held-out absolute error of one sensor value.
+    pub held_out_max_abs: f64,
+    /// Held-out samples outside the covered region (not counted in the error).
+    pub held_out_uncovered: usize,
+}
+
+/// The law learned from one or several logs (one per environment): the sensor values
+/// of every log's model side by side, `K = Σ K_e`. It is an [`Agent`] without ground
+/// truth, whose `sense` ignores the environment it is given: the tracer's sensory method
+/// runs on it unchanged.
+pub struct LearnedLaw {
+    space: MotorSpace,
+    models: Vec<LocalModel>,
+    sensor_dim: usize,
+    rank: usize,
+    report: LawReport,
+}
+
+impl fmt::Debug for LearnedLaw {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("LearnedLaw")
+            .field("space", &self.space)
+            .field("sensor_dim", &self.sensor_dim)
+            .field("report", &self.report)
+            .finish()
+    }
+}
+
+impl LearnedLaw {
+    pub(crate) fn new(
+        space: MotorSpace,
+        models: Vec<LocalModel>,
+        method: LawMethod,
+        logs: Vec<LogReport>,
+        seed: u64,
+    ) -> Self {
+        let sensor_dim = models.iter().map(|m| m.k).sum();
+        let mut law = Self {
+            space,
+            models,
+            sensor_dim,
+            rank: 0,
+            report: LawReport {
+                method,
+                logs,
+                rank: 0,
+                rank_counts: Vec::new(),
+            },
+        };
+        let counts = law.rank_counts(seed);
+        let rank = (0..counts.len())
+            .max_by_key(|&r| (counts[r], r))
+            .unwrap_or(0);
+        law.rank = rank;
+        law.report.rank = rank;
+        law.report.rank_counts = counts;
+        law
+    }
+
+    /// What learning found.
+    pub fn report(&self) -> &LawReport {
+        &self.report
+    }
+
+    /// Writes `ŝ(m)` into `sensors` (length `K`) and its Jacobian (the local fits'
+    /// slopes, `K × N` row-major) into `jacobian`.
+    pub fn evaluate_with_jacobian(&self, m: &[f64], sensors: &mut [f64], jacobian: &mut [f64]) {
+        let n = self.space.dim();
+        let mut at = 0;
+        for model in &self.models {
+            model.evaluate(
+                m,
+                &mut sensors[at..at + model.k],
+                Some(&mut jacobian[at * n..(at + model.k) * n]),
+            );
+            at += model.k;
+        }
+    }
+
+    /// Numerical ranks of the law's Jacobian at seeded fitted samples of the first log:
+    /// counts per rank `0..=N`.
+    fn rank_counts(&self, seed: u64) -> Vec<usize> {
+        let n = self.space.dim();
+        let Some(first) = self.models.first() else {
+            return vec![0; n + 1];
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7261);
+        let probes = sample(&mut rng, first.tree.len(), PROBES.min(first.tree.len())).into_vec();
+        let ranks: Vec<usize> = probes
+            .par_iter()
+            .map(|&i| {
+                let m = first.tree.point(i).to_vec();
+                let mut s = vec![0.0; self.sensor_dim];
+                let mut j = vec![0.0; self.sensor_dim * n];
+                self.evaluate_with_jacobian(&m, &mut s, &mut j);
+                gap_rank(&j, self.sensor_dim, n)
+            })
+            .collect();
+        let mut counts = vec![0; n + 1];
+        for r in ranks {
+            counts[r] += 1;
+        }
+        counts
+    }
+}
+
+/// The numerical rank of a `rows × n` matrix by the largest gap of its singular values:
+/// `n` when `σ_n / σ_1 > 0.1`, else the `r < n` with the largest `σ_r / σ_{r+1}` (0 for a
+/// zero matrix).
+pub(crate) fn gap_rank(matrix: &[f64], rows: usize, n: usize) -> usize {
+    let mut a = DMatrix::<f64>::zeros(rows.max(n), n);
+    for i in 0..rows {
+        for j in 0..n {
+            a[(i, j)] = matrix[i * n + j];
+        }
+    }
+    let sigma: Vec<f64> = SVD::new(a, false, false)
+        .singular_values
+        .iter()
+        .copied()
+        .collect();
+    let mut sigma = sigma;
+    sigma.sort_by(|a, b| b.total_cmp(a));
+    let largest = sigma.first().copied().unwrap_or(0.0);
+    if !(largest > 0.0) || !largest.is_finite() {
+        return 0;
+    }
+    if sigma[n - 1] > 0.1 * largest {
+        return n;
+    }
+    (1..n)
+        .max_by(|&a, &b| {
+            let gap = |r: usize| sigma[r - 1] / sigma[r].max(1e-300 * largest);
+            gap(a).total_cmp(&gap(b))
+        })
+        .unwrap_or(n)
+}
+
+impl Agent for LearnedLaw {
+    fn motor_dim(&self) -> usize {
+        self.space.dim()
+    }
+
+    fn sensor_dim(&self) -> usize {
+        self.sensor_dim
+    }
+
+    fn sense(&self, _environment: &Environment, motors: &[f64], sensors: &mut [f64]) {
+        let mut at = 0;
+        for model in &self.models {
+            model.evaluate(motors, &mut sensors[at..at + model.k], None);
+            at += model.k;
+        }
+    }
+
+    fn name(&self) -> &str {
+        "learned"
+    }
+
+    fn motor_space(&self) -> MotorSpace {
+        self.space.clone()
+    }
+
+    fn sensory_rank(&self) -> Option<usize> {
+        Some(self.rank)
+    }
+
+    fn covers(&self, motors: &[f64]) -> bool {
+        self.models.iter().all(|m| m.covers(motors))
+    }
+}

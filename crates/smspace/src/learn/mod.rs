@@ -1,0 +1,426 @@
+//! Kernel sets from recorded sensorimotor data: the law `ŝ(m)` learned from a log of
+//! motor commands and sensor values, with no simulator (paper section 3.2, step 2: "a
+//! more realistic scenario, in which these manifolds are estimated purely on the basis
+//! of unlabelled sensorimotor data", after Laflaquière et al. 2013).
+//!
+//! ## Input
+//!
+//! A log is `motors.npy` `(S, N)` and `sensors.npy` `(S, K)`: `S` samples of babbling in
+//! one environment, row `i` the sensor values read at motor command `i`
+//! ([`SensorimotorLog`]). Several logs (one per environment) give one law whose sensor
+//! vector is theirs side by side. Each motor is declared periodic (a hinge: `2pi`, the
+//! default) or bounded ([`MotorDeclaration`]); nothing else is known: no pose, no
+//! Jacobian, no agent.
+//!
+//! ## The law: local polynomial regression ([`LawMethod`])
+//!
+//! At a configuration `m`, the samples `x_i` within the bandwidth `h` (distance on the
+//! motor torus: periodic coordinates are queried through the samples' images shifted by
+//! whole periods, stored in a k-d tree) get the weights `w_i = (1 − ‖x_i − m‖²/h²)³`,
+//! and the sensor values are fitted by weighted least squares with a polynomial in
+//! `d_i = (x_i − m)/h`: `s ≈ a + B d` (`local-linear`) or `s ≈ a + B d + Σ_{a≤b} c_ab d_a
+//! d_b` (`local-quadratic`), a small ridge `λ Σw` on the non-constant coefficients. Then
+//! `ŝ(m) = a` and its Jacobian is `B / h`. The weights vanish with two derivatives at
+//! `‖x − m‖ = h`, so `ŝ` is twice continuously differentiable: the tracer's Newton
+//! corrector and finite differences see a smooth function. The bandwidth is
+//! `bandwidth_factor` times the median, over 512 seeded samples, of the distance to
+//! their `neighbours`-th nearest sample: the data's own spacing.
+//!
+//! The generic rank of `∂ŝ/∂m` (hence the kernel dimension `k = N − rank`) is the most
+//! frequent numerical rank of the fit's Jacobian at 512 seeded samples, read at the
+//! largest gap of its singular values (`N` when `σ_N/σ_1 > 0.1`).
+//!
+//! ## Coverage (status `left-data`)
+//!
+//! The law is known at `m` when at least `coverage_neighbours` samples lie within the
+//! bandwidth `h`, i.e. when the distance to the `coverage_neighbours`-th nearest sample
+//! is below `h` (default: a quarter of `neighbours`, at least one more than the fit's
+//! coefficients). A traced set that leaves this region ends there, with the status
+//! `left-data` ([`crate::kernel::SetStatus::LeftData`]).
+//!
+//! ## Held-out error
+//!
+//! `holdout` seeded samples of every log are left out of the fit; the law's error on
+//! them (root mean square over samples and sensors, relative to the root mean square of
+//! the sensors' standard deviations) is in the [`LawReport`].
+
+mod compare;
+mod law;
+mod log;
+mod simulate;
+mod tree;
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{CheckParams, InvalidParameter};
+use crate::io::IoError;
+pub use compare::{set_errors, SetErrors};
+pub use law::{FitSupport, LawReport, LearnedLaw, LogReport};
+pub use log::{
+    declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
+};
+pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog};
+pub use tree::KdTree;
+
+/// Errors of learning from data.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LearnError {
+    /// A parameter is out of its domain.
+    #[error(transparent)]
+    Parameter(#[from] InvalidParameter),
+    /// A file could not be read (missing, not float64, NaN: the reader names it).
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// The motors and sensors of a log have different row counts.
+    #[error("{motors} has {motor_rows} rows but {sensors} has {sensor_rows}: a log needs one row of sensor values per row of motor commands; cut both files to the same samples")]
+    RowCount {
+        /// The motors file.
+        motors: PathBuf,
+        /// Its rows.
+        motor_rows: usize,
+        /// The sensors file.
+        sensors: PathBuf,
+        /// Its rows.
+        sensor_rows: usize,
+    },
+    /// A sensor never changes.
+    #[error("sensor column {column} of {path} is constant ({value}) over all {samples} samples: it carries no information on the motors; drop the column (or check the sensor)")]
+    ConstantSensor {
+        /// The sensors file.
+        path: PathBuf,
+        /// The column (0-based).
+        column: usize,
+        /// Its value.
+        value: f64,
+        /// Samples.
+        samples: usize,
+    },
+    /// A bounded motor's value lies outside its declared range.
+    #[error("{path}, row {row}: motor m{motor} is {value}, outside its declared range [{low}, {high}]; fix the declared range (--period / [data] period) or remove the row")]
+    OutOfRange {
+        /// The motors file.
+        path: PathBuf,
+        /// The row (0-based).
+        row: usize,
+        /// The motor (1-based).
+        motor: usize,
+        /// The value.
+        value: f64,
+        /// Declared low.
+        low: f64,
+        /// Declared high.
+        high: f64,
+    },
+    /// Too few samples for the method.
+    #[error("{path} has too few samples ({samples}) for the law: {reason}; {fix}")]
+    TooFewSamples {
+        /// The motors file.
+        path: PathBuf,
+        /// Samples available.
+        samples: usize,
+        /// What does not fit.
+        reason: String,
+        /// What to do.
+        fix: &'static str,
+    },
+    /// The logs do not describe the same motors.
+    #[error("{path} has {found} motor columns but {expected} motors are declared (or the first log has {expected}); every log of one law records the same motors")]
+    MotorColumns {
+        /// The motors file.
+        path: PathBuf,
+        /// Columns found.
+        found: usize,
+        /// Motors expected.
+        expected: usize,
+    },
+    /// Learning would need more memory than allowed.
+    #[error("learning from {samples} samples needs about {} but the limit is {} (the memory available, or --max-memory); {fix}", crate::metric::human_bytes(*needed), crate::metric::human_bytes(*available))]
+    OutOfMemory {
+        /// Samples.
+        samples: usize,
+        /// Bytes needed.
+        needed: u64,
+        /// Bytes allowed.
+        available: u64,
+        /// What to lower.
+        fix: &'static str,
+    },
+    /// No log was given.
+    #[error("no log to learn from: give at least one pair of motors and sensors files")]
+    NoLog,
+    /// The simulation's agent or environment failed.
+    #[error(transparent)]
+    Explore(#[from] crate::explore::ExploreError),
+    /// Tracing on the learned law failed.
+    #[error(transparent)]
+    Kernel(#[from] crate::kernel::KernelError),
+    /// Comparing with the truth needs the same starts.
+    #[error("cannot compare the sets: {reason}")]
+    Compare {
+        /// Why.
+        reason: String,
+    },
+}
+
+impl LearnError {
+    /// The parameter this error is about, when it is one.
+    pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
+        match self {
+            LearnError::Parameter(p) => Some(p),
+            _ => None,
+        }
+    }
+}
+
+/// The regression of the law.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LawMethod {
+    /// A local affine fit `a + B d` (cheaper, more bias).
+    LocalLinear,
+    /// A local quadratic fit (the default: its error is lower at the same data, see
+    /// the README's comparison).
+    #[default]
+    LocalQuadratic,
+}
+
+impl std::str::FromStr for LawMethod {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "local-linear" => Ok(LawMethod::LocalLinear),
+            "local-quadratic" => Ok(LawMethod::LocalQuadratic),
+            other => Err(format!(
+                "unknown law method '{other}'; use local-linear or local-quadratic"
+            )),
+        }
+    }
+}
+
+/// Parameters of the learned law (keys of the `[data]` table).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LawParams {
+    /// The regression. Default `local-quadratic`.
+    pub method: LawMethod,
+    /// Samples a typical fit holds: the bandwidth is the median distance to the
+    /// `neighbours`-th nearest sample. Default `4p + 20` with `p` the fit's
+    /// coefficients (40 for local-linear, 80 for local-quadratic with 4 motors).
+    pub neighbours: Option<usize>,
+    /// Factor on that bandwidth. Default 1.
+    pub bandwidth_factor: f64,
+    /// Samples within the bandwidth for the law to cover a configuration. Default
+    /// `max(p + 1, neighbours / 4)`.
+    pub coverage_neighbours: Option<usize>,
+    /// Samples of each log held out to measure the error. Default `min(S/10, 2000)`.
+    pub holdout: Option<usize>,
+    /// Ridge on the non-constant coefficients, relative to the total weight. Default
+    /// `1e-6`.
+    pub ridge: f64,
+    /// Seed of the held-out samples and of the probes. Default 1.
+    pub seed: u64,
+}
+
+impl Default for LawParams {
+    fn default() -> Self {
+        Self {
+            method: LawMethod::LocalQuadratic,
+            neighbours: None,
+            bandwidth_factor: 1.0,
+            coverage_neighbours: None,
+            holdout: None,
+            ridge: 1e-6,
+            seed: 1,
+        }
+    }
+}
+
+/// Checked [`LawParams`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LawValidParams {
+    pub(crate) method: LawMethod,
+    neighbours: Option<usize>,
+    pub(crate) bandwidth_factor: f64,
+    coverage_neighbours: Option<usize>,
+    holdout: Option<usize>,
+    pub(crate) ridge: f64,
+    pub(crate) seed: u64,
+}
+
+fn invalid(key: &'static str, value: impl std::fmt::Display, reason: &str) -> LearnError {
+    InvalidParameter::new("data", key, value, reason).into()
+}
+
+impl CheckParams for LawParams {
+    type Valid = LawValidParams;
+    type Error = LearnError;
+
+    fn check_params(&self) -> Result<LawValidParams, LearnError> {
+        if !(self.bandwidth_factor.is_finite() && self.bandwidth_factor > 0.0) {
+            return Err(invalid(
+                "bandwidth_factor",
+                self.bandwidth_factor,
+                "must be a finite number greater than zero",
+            ));
+        }
+        if !(self.ridge.is_finite() && (0.0..1.0).contains(&self.ridge)) {
+            return Err(invalid("ridge", self.ridge, "must be in [0, 1)"));
+        }
+        for (key, value) in [
+            ("neighbours", self.neighbours),
+            ("coverage_neighbours", self.coverage_neighbours),
+        ] {
+            if value == Some(0) {
+                return Err(invalid(key, 0, "must be at least 1"));
+            }
+        }
+        if let (Some(n), Some(c)) = (self.neighbours, self.coverage_neighbours) {
+            if c > n {
+                return Err(invalid(
+                    "coverage_neighbours",
+                    c,
+                    "must be at most neighbours (a typical fit must cover its own sample)",
+                ));
+            }
+        }
+        Ok(LawValidParams {
+            method: self.method,
+            neighbours: self.neighbours,
+            bandwidth_factor: self.bandwidth_factor,
+            coverage_neighbours: self.coverage_neighbours,
+            holdout: self.holdout,
+            ridge: self.ridge,
+            seed: self.seed,
+        })
+    }
+}
+
+impl LawParams {
+    /// Validates the parameters ([`CheckParams::check_params`]).
+    pub fn check(&self) -> Result<LawValidParams, LearnError> {
+        self.check_params()
+    }
+}
+
+impl LawValidParams {
+    /// The fit's coefficients for `n` motors.
+    pub fn coefficients(&self, n: usize) -> usize {
+        law::parameter_count(self.method, n)
+    }
+
+    /// Samples a typical fit holds (see [`LawParams::neighbours`]).
+    pub fn neighbours(&self, n: usize) -> usize {
+        self.neighbours.unwrap_or(4 * self.coefficients(n) + 20)
+    }
+
+    /// Samples within the bandwidth that make a configuration covered.
+    pub fn coverage_neighbours(&self, n: usize) -> usize {
+        self.coverage_neighbours
+            .unwrap_or_else(|| (self.coefficients(n) + 1).max(self.neighbours(n) / 4))
+    }
+
+    /// Samples held out of a log of `samples`.
+    pub fn holdout(&self, samples: usize) -> usize {
+        self.holdout
+            .unwrap_or((samples / 10).min(2000))
+            .min(samples)
+    }
+
+    /// Bytes learning from a log of `samples` rows of `n` motors and `k` sensors needs
+    /// at most, the log included: the arrays, the sensors' copy, the plain k-d tree and
+    /// the tree of periodic images (at most `1.5^P` images per sample for `P` periodic
+    /// motors, as the bandwidth is below a quarter period).
+    pub fn bytes(&self, samples: usize, n: usize, k: usize, periodic: usize) -> u64 {
+        let s = samples as u64;
+        let arrays = s.saturating_mul(8 * (n + 2 * k) as u64);
+        let images = (s as f64 * 1.5f64.powi(periodic as i32)).ceil() as u64;
+        arrays
+            .saturating_add(KdTree::bytes(s, n))
+            .saturating_add(KdTree::bytes(images, n))
+    }
+
+    /// The method.
+    pub fn method(&self) -> LawMethod {
+        self.method
+    }
+}
+
+/// Learns the law from `logs` (at least one; every log's motors in `space`), holding
+/// out samples of each to measure its error. `memory_limit` (bytes), when given, is
+/// checked before anything is built.
+pub fn learn(
+    logs: &[SensorimotorLog],
+    space: &crate::agent::MotorSpace,
+    params: &LawValidParams,
+    memory_limit: Option<u64>,
+) -> Result<LearnedLaw, LearnError> {
+    if logs.is_empty() {
+        return Err(LearnError::NoLog);
+    }
+    let n = space.dim();
+    let periodic = space.motors().iter().filter(|m| m.is_periodic()).count();
+    if let Some(available) = memory_limit {
+        let needed = logs
+            .iter()
+            .map(|l| params.bytes(l.samples(), n, l.sensors.ncols(), periodic))
+            .fold(0u64, u64::saturating_add);
+        if needed > available {
+            return Err(LearnError::OutOfMemory {
+                samples: logs.iter().map(SensorimotorLog::samples).sum(),
+                needed,
+                available,
+                fix: "learn from fewer samples (cut the log), or raise --max-memory",
+            });
+        }
+    }
+    let mut models = Vec::with_capacity(logs.len());
+    let mut reports = Vec::with_capacity(logs.len());
+    for log in logs {
+        if log.motors.ncols() != n {
+            return Err(LearnError::MotorColumns {
+                path: log.files.motors.clone(),
+                found: log.motors.ncols(),
+                expected: n,
+            });
+        }
+        let (model, report) = log::fit_log(log, space, params)?;
+        models.push(model);
+        reports.push(report);
+    }
+    Ok(LearnedLaw::new(
+        space.clone(),
+        models,
+        params.method,
+        reports,
+        params.seed,
+    ))
+}
+
+/// Traces the kernel sets `ŝ(m) = ŝ(m^i)` of the learned law through `starts` with the
+/// tracer's sensory method, unchanged (`params.method` is set to `sensory`; the law
+/// ignores the environment, so an empty one is passed). Sets that leave the covered
+/// region have the status `left-data`.
+pub fn trace_learned(
+    law: &LearnedLaw,
+    starts: ndarray::ArrayView2<'_, f64>,
+    params: &crate::kernel::TraceParams,
+    progress: &dyn crate::progress::Progress,
+) -> Result<crate::kernel::TracedSets, LearnError> {
+    let params = crate::kernel::TraceParams {
+        method: crate::kernel::TraceMethod::Sensory,
+        ..params.clone()
+    }
+    .check()?;
+    let unused = crate::agent::Environment::from_lights(Vec::new());
+    Ok(crate::kernel::trace_sets(
+        law,
+        Some(&unused),
+        starts,
+        None,
+        &params,
+        progress,
+    )?)
+}

@@ -1,0 +1,260 @@
+//! Kernel sets from recorded data (the `learn` module): logs checked where they enter,
+//! the learned law against known functions, coverage (`left-data`), and the sets of a
+//! simulated agent against the true ones.
+
+use std::f64::consts::PI;
+use std::path::PathBuf;
+
+use ndarray::{Array2, Axis};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use smspace::agent::{Agent, AgentConfig, Environment, EnvironmentConfig, MotorSpace};
+use smspace::kernel::{trace_sets, SetStatus, TraceParams};
+use smspace::learn::{
+    learn, set_errors, simulate, trace_learned, LawMethod, LawParams, LearnError, LogFiles,
+    SensorimotorLog, SimulateParams,
+};
+use smspace::metric::Period;
+use smspace::progress::Silent;
+
+fn files() -> LogFiles {
+    LogFiles {
+        motors: PathBuf::from("m.npy"),
+        sensors: PathBuf::from("s.npy"),
+    }
+}
+
+/// `S` uniform hinge samples of two motors, `m1` in `[low1, high1)`, and the sensors
+/// `f(m)`.
+fn hinge_log(
+    samples: usize,
+    low1: f64,
+    high1: f64,
+    f: impl Fn(f64, f64) -> Vec<f64>,
+) -> (Array2<f64>, Array2<f64>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let motors = Array2::from_shape_fn((samples, 2), |(_, j)| {
+        if j == 0 {
+            rng.gen_range(low1..high1)
+        } else {
+            rng.gen_range(-PI..PI)
+        }
+    });
+    let k = f(0.0, 0.0).len();
+    let mut sensors = Array2::zeros((samples, k));
+    for (m, mut s) in motors.outer_iter().zip(sensors.outer_iter_mut()) {
+        for (a, b) in s.iter_mut().zip(f(m[0], m[1])) {
+            *a = b;
+        }
+    }
+    (motors, sensors)
+}
+
+fn smooth(m1: f64, m2: f64) -> Vec<f64> {
+    vec![m1.sin() + 0.5 * m2.cos(), (m1 + m2).cos(), 0.3 * m2.sin()]
+}
+
+#[test]
+fn the_law_fits_a_smooth_function_across_the_wrap() {
+    let (motors, sensors) = hinge_log(6000, -PI, PI, smooth);
+    let space = MotorSpace::hinges(2);
+    let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
+    let unused = Environment::from_lights(Vec::new());
+    let mut errors = Vec::new();
+    for method in [LawMethod::LocalLinear, LawMethod::LocalQuadratic] {
+        let params = LawParams {
+            method,
+            ..LawParams::default()
+        }
+        .check()
+        .unwrap();
+        let law = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+        let report = &law.report().logs[0];
+        assert_eq!(report.held_out, 600);
+        assert!(report.held_out_relative_rms < 0.05, "{report:?}");
+        // Near the wrap (m = ±π) as well as inside, and continuous across it.
+        let mut largest: f64 = 0.0;
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for _ in 0..200 {
+            let m = [rng.gen_range(-PI..PI), rng.gen_range(-PI..PI)];
+            let mut s = [0.0; 3];
+            law.sense(&unused, &m, &mut s);
+            for (a, b) in s.iter().zip(smooth(m[0], m[1])) {
+                largest = largest.max((a - b).abs());
+            }
+        }
+        let (mut below, mut above) = ([0.0; 3], [0.0; 3]);
+        law.sense(&unused, &[PI - 1e-9, 0.4], &mut below);
+        law.sense(&unused, &[-PI + 1e-9, 0.4], &mut above);
+        for (a, b) in below.iter().zip(above) {
+            assert!((a - b).abs() < 1e-6, "{below:?} vs {above:?}");
+        }
+        // The same values as unwrapped configurations.
+        let mut shifted = [0.0; 3];
+        law.sense(
+            &unused,
+            &[PI - 1e-9 + 4.0 * PI, 0.4 - 2.0 * PI],
+            &mut shifted,
+        );
+        for (a, b) in below.iter().zip(shifted) {
+            assert!((a - b).abs() < 1e-6);
+        }
+        errors.push(largest);
+    }
+    // Both fit; the quadratic fit is the closer one.
+    assert!(errors[0] < 0.1 && errors[1] < errors[0], "{errors:?}");
+}
+
+/// Sensors that depend on `m2` only: the kernel sets are the loops `m2 = const`.
+fn ring(_m1: f64, m2: f64) -> Vec<f64> {
+    vec![m2.cos(), m2.sin(), 0.5 * (2.0 * m2).sin()]
+}
+
+fn ring_sets(low1: f64) -> (smspace::kernel::TracedSets, Array2<f64>) {
+    let (motors, sensors) = hinge_log(6000, low1, PI, ring);
+    let space = MotorSpace::hinges(2);
+    let starts = ndarray::array![[-0.5, -2.0], [-0.25, 0.3], [-1.0, 1.7]];
+    let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
+    let params = LawParams::default().check().unwrap();
+    let law = learn(&[log], &space, &params, None).unwrap();
+    assert_eq!(law.report().rank, 1, "{:?}", law.report());
+    let traced = trace_learned(&law, starts.view(), &TraceParams::default(), &Silent).unwrap();
+    (traced, starts)
+}
+
+#[test]
+fn learned_sets_follow_the_true_kernel_and_end_where_the_data_end() {
+    let (traced, starts) = ring_sets(-PI);
+    assert_eq!(traced.kept, vec![0, 1, 2], "{:?}", traced.report.summary);
+    for (set, start) in traced.sets.outer_iter().zip(starts.outer_iter()) {
+        assert_eq!(set.nrows(), 100);
+        for point in set.outer_iter() {
+            let off = smspace::agent::wrap_angle(point[1] - start[1]);
+            assert!(off.abs() < 0.02, "m2 moved by {off}");
+        }
+        // The loop goes round m1.
+        let spread = set.column(0).iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        assert!(spread > 3.0);
+    }
+    // The same law learned from data with m1 in [-1.5, π) only: the loops leave the data.
+    let (traced, _) = ring_sets(-1.5);
+    assert!(traced.kept.is_empty(), "{:?}", traced.report.summary);
+    assert!(traced
+        .report
+        .sets
+        .iter()
+        .all(|s| s.status == SetStatus::LeftData));
+    let json = serde_json::to_string(&traced.report).unwrap();
+    assert!(json.contains("\"left-data\""));
+}
+
+#[test]
+fn bad_logs_are_refused_with_the_file_and_the_fix() {
+    let space = MotorSpace::hinges(2);
+    let (motors, sensors) = hinge_log(500, -PI, PI, smooth);
+    let message = |e: LearnError| e.to_string();
+    // Different row counts.
+    let short = sensors.slice(ndarray::s![..499, ..]).to_owned();
+    let e = message(SensorimotorLog::new(motors.clone(), short, files(), &space).unwrap_err());
+    assert!(e.contains("m.npy has 500 rows but s.npy has 499"), "{e}");
+    // NaN.
+    let mut nan = sensors.clone();
+    nan[[7, 1]] = f64::NAN;
+    let e = message(SensorimotorLog::new(motors.clone(), nan, files(), &space).unwrap_err());
+    assert!(e.contains("s.npy") && e.contains("[7, 1]"), "{e}");
+    // A constant sensor.
+    let mut constant = sensors.clone();
+    constant.column_mut(2).fill(0.25);
+    let e = message(SensorimotorLog::new(motors.clone(), constant, files(), &space).unwrap_err());
+    assert!(e.contains("sensor column 2 of s.npy is constant"), "{e}");
+    // A bounded motor outside its declared range.
+    let bounded = MotorSpace::bounded(2, -1.0, 1.0).unwrap();
+    let e = message(
+        SensorimotorLog::new(motors.clone(), sensors.clone(), files(), &bounded).unwrap_err(),
+    );
+    assert!(e.contains("outside its declared range [-1, 1]"), "{e}");
+    // Motor columns that do not fit the declaration.
+    let e = message(
+        SensorimotorLog::new(
+            motors.clone(),
+            sensors.clone(),
+            files(),
+            &MotorSpace::hinges(3),
+        )
+        .unwrap_err(),
+    );
+    assert!(e.contains("2 motor columns but 3"), "{e}");
+    // Too few samples for the method.
+    let small = SensorimotorLog::new(
+        motors.slice(ndarray::s![..40, ..]).to_owned(),
+        sensors.slice(ndarray::s![..40, ..]).to_owned(),
+        files(),
+        &space,
+    )
+    .unwrap();
+    let params = LawParams::default().check().unwrap();
+    let e = message(learn(&[small], &space, &params, None).unwrap_err());
+    assert!(
+        e.contains("too few samples (40)") && e.contains("local-linear"),
+        "{e}"
+    );
+    // Memory, up front.
+    let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
+    let e = message(learn(&[log], &space, &params, Some(1000)).unwrap_err());
+    assert!(e.contains("--max-memory"), "{e}");
+}
+
+#[test]
+fn periodic_motors_are_wrapped_and_learning_is_deterministic() {
+    let (motors, sensors) = hinge_log(3000, -PI, PI, smooth);
+    let space = MotorSpace::hinges(2);
+    let shifted = motors.mapv(|m| m + 2.0 * PI);
+    let a = SensorimotorLog::new(motors, sensors.clone(), files(), &space).unwrap();
+    let b = SensorimotorLog::new(shifted, sensors, files(), &space).unwrap();
+    for (x, y) in a.motors.iter().zip(&b.motors) {
+        assert!((x - y).abs() < 1e-12);
+    }
+    let params = LawParams::default().check().unwrap();
+    let first = learn(&[a.clone()], &space, &params, None).unwrap();
+    let second = learn(&[a], &space, &params, None).unwrap();
+    assert_eq!(first.report(), second.report());
+}
+
+#[test]
+fn a_simulated_arm_log_is_seeded_and_its_law_has_rank_3() {
+    let arm = AgentConfig::preset("planar-arm").unwrap().build().unwrap();
+    let environment = EnvironmentConfig::default().build(arm.as_ref()).unwrap();
+    let params = SimulateParams {
+        samples: 20_000,
+        noise: 0.0,
+        seed: 1,
+    };
+    let log = simulate(arm.as_ref(), &environment, arm.default_workspace(), &params).unwrap();
+    assert_eq!(log.motors.dim(), (20_000, 4));
+    assert_eq!(log.sensors.dim(), (20_000, 6));
+    assert_eq!(log.poses.as_ref().unwrap().poses().nrows(), 20_000);
+    // The same seed, the same log.
+    let again = simulate(arm.as_ref(), &environment, arm.default_workspace(), &params).unwrap();
+    assert_eq!(log.sensors, again.sensors);
+    let space = arm.motor_space();
+    let starts = log.motors.select(Axis(0), &[3, 500, 9000, 15000]);
+    let checked = SensorimotorLog::new(log.motors, log.sensors, files(), &space).unwrap();
+    let law_params = LawParams::default().check().unwrap();
+    let law = learn(&[checked], &space, &law_params, None).unwrap();
+    assert_eq!(law.report().rank, 3, "{:?}", law.report());
+    // The true sets against themselves: zero error (the learned sets against them are
+    // measured by examples/learn_study.rs, too slow for a test).
+    let truth_params = TraceParams::default().check().unwrap();
+    let truth = trace_sets(
+        arm.as_ref(),
+        Some(&environment),
+        starts.view(),
+        None,
+        &truth_params,
+        &Silent,
+    )
+    .unwrap();
+    // A set compared with itself.
+    let zero = set_errors(&truth, &truth, Period::TwoPi).unwrap();
+    assert!(zero.p90 < 1e-9);
+}
