@@ -458,6 +458,16 @@ pub fn check_with(
     };
     check_metric_period(agent.as_ref(), metric.params.period)
         .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
+    if metric.params.metric.kind() == Some(crate::metric::MetricKind::Curve) {
+        if let Ok(Some(k)) = e
+            .kernel
+            .check()
+            .and_then(|p| p.dimension_for(agent.as_ref()))
+        {
+            crate::kernel::check_curve_metric(k)
+                .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
+        }
+    }
     e.embedding
         .clone()
         .build()

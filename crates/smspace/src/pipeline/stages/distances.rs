@@ -81,7 +81,13 @@ impl Stage for DistancesStage {
     ) -> crate::Result<DistanceMatrix> {
         let limit = DistanceParams::new().memory_limit_bytes(context.memory_limit_bytes);
         let traced = &input.traced.value;
-        let sets = SetsView::new(traced.sets.view()).with_closure(&traced.closure);
+        if self.metric.kind() == Some(crate::metric::MetricKind::Curve) {
+            let k = traced.dimensions().into_iter().max().unwrap_or(0);
+            crate::kernel::check_curve_metric(k).map_err(crate::metric::MetricError::Invalid)?;
+        }
+        let sets = SetsView::new(traced.sets.view())
+            .with_closure(&traced.closure)
+            .with_pieces(traced.pieces.view());
         Ok(distance_matrix_with(
             sets,
             self.set_metric.as_ref(),
