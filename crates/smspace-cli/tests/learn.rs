@@ -43,7 +43,7 @@ fn simulate_then_learn_writes_the_files_of_trace() {
         ((5000, 2), (5000, 2), (5000, 3))
     );
     assert!(dir.join("log/log.json").is_file() && dir.join("log/environment.json").is_file());
-    let starts = motors.slice(ndarray::s![..4, ..]).to_owned();
+    let starts = motors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..4)).to_owned();
     write_npy(dir.join("starts.npy"), &starts).unwrap();
     ok(
         &dir,
@@ -95,7 +95,7 @@ fn bad_logs_name_the_file_and_the_fix() {
     write_npy(dir.join("s.npy"), &sensors).unwrap();
     write_npy(
         dir.join("starts.npy"),
-        &motors.slice(ndarray::s![..2, ..]).to_owned(),
+        &motors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..2)).to_owned(),
     )
     .unwrap();
     let learn = |m: &str, s: &str, extra: &[&str]| {
@@ -116,7 +116,7 @@ fn bad_logs_name_the_file_and_the_fix() {
     // Different row counts.
     write_npy(
         dir.join("short.npy"),
-        &sensors.slice(ndarray::s![..399, ..]).to_owned(),
+        &sensors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..399)).to_owned(),
     )
     .unwrap();
     let e = learn("m.npy", "short.npy", &[]);
@@ -148,12 +148,12 @@ fn bad_logs_name_the_file_and_the_fix() {
     // Too few samples for the method.
     write_npy(
         dir.join("m30.npy"),
-        &motors.slice(ndarray::s![..30, ..]).to_owned(),
+        &motors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..30)).to_owned(),
     )
     .unwrap();
     write_npy(
         dir.join("s30.npy"),
-        &sensors.slice(ndarray::s![..30, ..]).to_owned(),
+        &sensors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..30)).to_owned(),
     )
     .unwrap();
     let e = learn("m30.npy", "s30.npy", &["--period", "none"]);

@@ -9,7 +9,7 @@ use smspace::agent::{
 };
 use smspace::explore::{explore, ExploreParams, Workspace};
 use smspace::kernel::{
-    tangent_space, trace_one, trace_sets, Closure, KernelError, SetStatus, StepControl,
+    tangent_space, trace_one, trace_sets, Closure, Components, KernelError, SetStatus, StepControl,
     TraceMethod, TraceParams, TracedSets,
 };
 use smspace::progress::Silent;
@@ -576,34 +576,294 @@ fn without_a_ground_truth_the_sensory_method_traces_and_the_kinematic_one_explai
     assert_eq!(sensory.dimensions(), vec![1, 1, 1]);
 }
 
-#[test]
-fn kernels_of_two_dimensions_are_refused_with_their_dimension() {
-    // Four links and the retina hinge: five motors for a 3-D pose.
-    let arm = AgentConfig {
+/// The planar arm with `links` (unit lengths unless given).
+fn arm_with(links: &str) -> Box<dyn Agent> {
+    AgentConfig {
         kind: "planar-arm".into(),
-        params: toml::from_str("link_lengths = [1.0, 1.0, 1.0, 1.0]").unwrap(),
+        params: toml::from_str(&format!("link_lengths = {links}")).unwrap(),
     }
     .build()
-    .unwrap();
-    let motors = ndarray::array![[0.1, 0.2, 0.3, 0.4, 0.5]];
-    let params = TraceParams::default().check().unwrap();
-    // Known before any start is traced (the pipeline checks it with the experiment).
-    assert!(matches!(
-        params.check_for(arm.as_ref()),
-        Err(KernelError::UnsupportedDimension { dimension: 2, .. })
-    ));
-    let err = trace_sets(arm.as_ref(), None, motors.view(), None, &params, &Silent).unwrap_err();
-    match &err {
-        KernelError::UnsupportedDimension {
-            dimension, rank, ..
-        } => assert_eq!((*dimension, *rank), (2, 3)),
-        other => panic!("{other}"),
+    .unwrap()
+}
+
+/// Motors that put the retina of `arm` at distance `r` from the base, at polar angle
+/// `phi`, looking along `alpha`.
+fn retina_at(arm: &dyn Agent, r: f64, phi: f64, alpha: f64) -> Vec<f64> {
+    arm.ground_truth()
+        .unwrap()
+        .inverse_kinematics(&[r * phi.cos(), r * phi.sin(), alpha])
+        .expect("the pose is reachable")
+}
+
+#[test]
+fn kernels_of_two_dimensions_are_covered_on_their_level_set() {
+    // Four links and the retina hinge: five motors for a 3-D pose, k = 2.
+    let arm = arm_with("[1.0, 1.0, 1.0, 1.0]");
+    let motors = ndarray::array![[0.1, 0.2, 0.3, 0.4, 0.5], [1.0, -0.5, 0.8, 1.2, -2.0]];
+    let params = TraceParams {
+        points: 60,
+        cover_step: 0.4,
+        ..TraceParams::default()
     }
-    let message = err.to_string();
+    .check()
+    .unwrap();
+    // Known before any start is traced (the pipeline checks it with the experiment).
+    assert_eq!(params.dimension_for(arm.as_ref()).unwrap(), Some(2));
+    let traced = trace_sets(arm.as_ref(), None, motors.view(), None, &params, &Silent).unwrap();
+    assert_eq!(traced.sets.dim(), (2, 60, 5));
+    for (s, line) in traced.report.sets.iter().enumerate() {
+        assert_eq!((line.status, line.dimension), (SetStatus::Covered, 2));
+        // Every sampled point keeps the start's pose to 1e-9.
+        let start_pose = pose_of(arm.as_ref(), motors.row(s).as_slice().unwrap());
+        for p in traced.sets.index_axis(Axis(0), s).outer_iter() {
+            let pose = pose_of(arm.as_ref(), p.as_slice().unwrap());
+            for c in 0..3 {
+                assert!(wrap_angle(pose[c] - start_pose[c]).abs() < 1e-9, "{pose:?}");
+            }
+        }
+        assert!(line.max_pose_deviation.unwrap() < 1e-9);
+        let radius = line
+            .covering_radius
+            .expect("a k-D set has a covering radius");
+        assert!(radius > 0.0 && radius < 2.0, "{radius}");
+        // The points are distinct and spread: none closer than a fraction of the radius.
+        let set = traced.sets.index_axis(Axis(0), s);
+        for i in 0..60 {
+            for j in 0..i {
+                let d = torus_distance(
+                    set.row(i).as_slice().unwrap(),
+                    set.row(j).as_slice().unwrap(),
+                );
+                assert!(
+                    d > 0.2 * radius,
+                    "points {i} and {j}: {d} (radius {radius})"
+                );
+            }
+        }
+    }
+    assert_eq!(traced.dimensions(), vec![2, 2]);
+    let summary = &traced.report.summary;
+    let [low, _, high] = summary.covering_radius.unwrap();
+    assert!(low <= high);
+    // The curve metric does not apply: an error naming hausdorff.
+    let message = smspace::kernel::check_curve_metric(2)
+        .unwrap_err()
+        .to_string();
     assert!(
-        message.contains("k = N − rank(J) = 5 − 3 = 2") && message.contains("not implemented"),
+        message.contains("hausdorff") && message.contains("k = 2"),
         "{message}"
     );
+    assert!(smspace::kernel::check_curve_metric(1).is_ok());
+}
+
+#[test]
+fn the_covering_radius_bounds_the_distance_from_a_dense_reference() {
+    let arm = arm_with("[1.0, 1.0, 1.0, 1.0]");
+    let start = [0.4, -0.9, 1.1, 0.6, 0.2];
+    let coarse = TraceParams {
+        points: 80,
+        cover_step: 0.3,
+        ..TraceParams::default()
+    }
+    .check()
+    .unwrap();
+    let (sample, line) = trace_one(arm.as_ref(), None, &start, None, &coarse).unwrap();
+    let sample = sample.unwrap();
+    let radius = line.covering_radius.unwrap();
+    // A reference covering twice as dense, all of its nodes kept.
+    let dense = TraceParams {
+        points: 20_000,
+        cover_step: 0.15,
+        ..TraceParams::default()
+    }
+    .check()
+    .unwrap();
+    let (reference, _) = trace_one(arm.as_ref(), None, &start, None, &dense).unwrap();
+    let reference = reference.unwrap();
+    let farthest = reference
+        .chunks(5)
+        .map(|q| {
+            sample
+                .chunks(5)
+                .map(|p| torus_distance(p, q))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0, f64::max);
+    // Within the radius plus the coarse covering's own spacing.
+    assert!(farthest <= radius + 0.3, "{farthest} vs {radius}");
+    assert!(
+        farthest >= 0.5 * radius,
+        "{farthest} vs {radius}: the radius is not loose"
+    );
+}
+
+#[test]
+fn the_covering_of_a_surface_is_the_same_for_any_thread_count() {
+    let arm = arm_with("[1.0, 1.0, 1.0, 1.0]");
+    let motors = ndarray::array![
+        [0.1, 0.2, 0.3, 0.4, 0.5],
+        [1.0, -0.5, 0.8, 1.2, -2.0],
+        [-2.0, 1.5, 0.2, -0.7, 0.9]
+    ];
+    let params = TraceParams {
+        points: 40,
+        cover_step: 0.4,
+        ..TraceParams::default()
+    };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| trace(arm.as_ref(), None, motors.view(), params.clone()))
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(one.sets, two.sets);
+    assert_eq!(one.report, two.report);
+}
+
+#[test]
+fn the_paper_arm_has_two_pieces_inside_one_link_and_one_outside() {
+    let arm = agent("planar-arm");
+    let distances = [0.5, 0.7, 0.9, 0.95, 1.05, 1.1, 1.3, 1.7, 2.2];
+    let motors: Vec<f64> = distances
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &r)| retina_at(arm.as_ref(), r, 0.3 * i as f64, 1.0 - 0.4 * i as f64))
+        .collect();
+    let motors = Array2::from_shape_vec((distances.len(), 4), motors).unwrap();
+    for components in [Components::All, Components::Connected] {
+        let params = TraceParams {
+            step_control: StepControl::Adaptive,
+            components,
+            ..TraceParams::default()
+        };
+        let traced = trace(arm.as_ref(), None, motors.view(), params);
+        for (line, &r) in traced.report.sets.iter().zip(&distances) {
+            let expected = if r < 1.0 { 2 } else { 1 };
+            assert_eq!(line.pieces, expected, "r = {r}, {components:?}: {line:?}");
+            let unvisited = match components {
+                Components::All => 0,
+                Components::Connected => expected - 1,
+            };
+            assert_eq!(line.unvisited_pieces, unvisited, "r = {r}");
+            let status = match (components, expected) {
+                (Components::All, 2) => SetStatus::Pieces,
+                _ => SetStatus::Closed,
+            };
+            assert_eq!(line.status, status, "r = {r}");
+        }
+        let near = distances.iter().filter(|&&r| r < 1.0).count();
+        let summary = &traced.report.summary;
+        match components {
+            Components::All => {
+                assert_eq!(summary.with_several_pieces, near);
+                assert_eq!(summary.with_unvisited_pieces, 0);
+                // The points are shared between the pieces, each a run; every point
+                // keeps the start's pose.
+                for (s, row) in traced.pieces.outer_iter().enumerate() {
+                    let pieces = 1 + *row.iter().max().unwrap() as usize;
+                    assert_eq!(pieces, traced.report.sets[s].pieces);
+                    let start = pose_of(arm.as_ref(), motors.row(s).as_slice().unwrap());
+                    for p in traced.sets.index_axis(Axis(0), s).outer_iter() {
+                        let pose = pose_of(arm.as_ref(), p.as_slice().unwrap());
+                        for c in 0..3 {
+                            assert!(wrap_angle(pose[c] - start[c]).abs() < 1e-9);
+                        }
+                    }
+                    if pieces == 2 {
+                        // Two congruent pieces (mirror images): about half the points each.
+                        let first = row.iter().filter(|&&c| c == 0).count();
+                        assert!((40..=60).contains(&first), "{first}");
+                    }
+                }
+            }
+            Components::Connected => {
+                assert_eq!(summary.with_unvisited_pieces, near);
+                assert!(traced.pieces.iter().all(|&c| c == 0));
+                let warnings = summary.warnings();
+                assert!(warnings[0].contains("miss pieces"), "{warnings:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn an_arm_with_unequal_links_warns_of_unvisited_pieces() {
+    // Links [1.2, 0.8, 0.6]: for retina distances in (1.0, 1.4) the self-motion has two
+    // pieces (issue 20); the paper's connected mode misses one and says so.
+    let arm = arm_with("[1.2, 0.8, 0.6]");
+    let motors = Array2::from_shape_vec(
+        (2, 4),
+        [
+            retina_at(arm.as_ref(), 1.2, 0.5, 0.3),
+            retina_at(arm.as_ref(), 2.2, -0.5, 0.3),
+        ]
+        .concat(),
+    )
+    .unwrap();
+    let params = TraceParams {
+        step_control: StepControl::Adaptive,
+        ..TraceParams::default()
+    };
+    let traced = trace(arm.as_ref(), None, motors.view(), params);
+    let lines = &traced.report.sets;
+    assert_eq!((lines[0].pieces, lines[0].unvisited_pieces), (2, 1));
+    assert_eq!((lines[1].pieces, lines[1].unvisited_pieces), (1, 0));
+    let warnings = traced.report.summary.warnings();
+    assert_eq!(warnings.len(), 1);
+    assert!(
+        warnings[0].starts_with("1 of 2 sets miss pieces"),
+        "{warnings:?}"
+    );
+    // Without the search nothing is checked, and nothing is said.
+    let unchecked = trace(
+        arm.as_ref(),
+        None,
+        motors.view(),
+        TraceParams {
+            piece_starts: 0,
+            ..TraceParams::default()
+        },
+    );
+    assert!(unchecked.report.summary.warnings().is_empty());
+}
+
+#[test]
+fn a_body_without_redundancy_is_warned_about() {
+    // Two links and the retina: three motors for a 3-D pose, every set a point.
+    let arm = arm_with("[1.0, 1.0]");
+    let motors = Array2::from_shape_vec(
+        (2, 3),
+        [
+            retina_at(arm.as_ref(), 1.2, 0.5, 0.3),
+            retina_at(arm.as_ref(), 1.6, -0.5, 0.3),
+        ]
+        .concat(),
+    )
+    .unwrap();
+    let traced = trace(arm.as_ref(), None, motors.view(), TraceParams::default());
+    assert_eq!(traced.report.summary.by_status.get("point"), Some(&2));
+    let warnings = traced.report.summary.warnings();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("single point") && w.contains("no redundancy")),
+        "{warnings:?}"
+    );
+    // Elbow up and elbow down: the other solution is a second (unvisited) piece.
+    assert!(traced
+        .report
+        .sets
+        .iter()
+        .all(|l| l.pieces == 2 && l.unvisited_pieces == 1));
+}
+
+#[test]
+fn the_tangent_space_of_a_surface_is_two_dimensional() {
+    let arm = arm_with("[1.0, 1.0, 1.0, 1.0]");
+    let motors = ndarray::array![[0.1, 0.2, 0.3, 0.4, 0.5]];
+    let params = TraceParams::default().check().unwrap();
     // The tangent space there is 2-D, orthonormal, and the pose does not change along
     // it to first order.
     let tangent = tangent_space(

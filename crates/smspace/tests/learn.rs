@@ -154,7 +154,7 @@ fn bad_logs_are_refused_with_the_file_and_the_fix() {
     let (motors, sensors) = hinge_log(500, -PI, PI, smooth);
     let message = |e: LearnError| e.to_string();
     // Different row counts.
-    let short = sensors.slice(ndarray::s![..499, ..]).to_owned();
+    let short = sensors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..499)).to_owned();
     let e = message(SensorimotorLog::new(motors.clone(), short, files(), &space).unwrap_err());
     assert!(e.contains("m.npy has 500 rows but s.npy has 499"), "{e}");
     // NaN.
@@ -186,8 +186,8 @@ fn bad_logs_are_refused_with_the_file_and_the_fix() {
     assert!(e.contains("2 motor columns but 3"), "{e}");
     // Too few samples for the method.
     let small = SensorimotorLog::new(
-        motors.slice(ndarray::s![..40, ..]).to_owned(),
-        sensors.slice(ndarray::s![..40, ..]).to_owned(),
+        motors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..40)).to_owned(),
+        sensors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..40)).to_owned(),
         files(),
         &space,
     )

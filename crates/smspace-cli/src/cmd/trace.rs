@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use smspace::io;
-use smspace::kernel::{trace_sets, StepControl, TraceMethod, TraceParams};
+use smspace::kernel::{trace_sets, Components, StepControl, TraceMethod, TraceParams};
 
 use super::common::{AgentArgs, EnvArgs, WorkspaceArgs};
 use crate::ui::Bar;
@@ -36,12 +36,23 @@ pub struct Args {
     /// Loop-closure tolerance (torus distance).
     #[arg(long, default_value_t = TraceParams::default().closure_tolerance, allow_negative_numbers = true)]
     closure_tolerance: f64,
+    /// Which pieces of a level set make a set: connected (the piece through the
+    /// start, the paper's) or all (every piece the multi-start search finds).
+    #[arg(long, default_value = "connected", value_parser = parse_components)]
+    components: Components,
+    /// Seeds of the multi-start search for pieces per set (0: no search, no check).
+    #[arg(long, default_value_t = TraceParams::default().piece_starts)]
+    piece_starts: usize,
+    /// Kernels of dimension k ≥ 2: the tangent step of the dense covering (radians).
+    #[arg(long, default_value_t = TraceParams::default().cover_step, allow_negative_numbers = true)]
+    cover_step: f64,
     #[command(flatten)]
     env: EnvArgs,
     #[command(flatten)]
     workspace: WorkspaceArgs,
     /// Output sets (M_kept, P, N); next to it `<stem>.kept.npy` (the motor row of each
-    /// set), `<stem>.closed.npy` (1: closed loop, 0: open) and `<stem>.trace.json`.
+    /// set), `<stem>.closed.npy` (1: closed loop, 0: open), `<stem>.components.npy`
+    /// (M_kept, P: the piece of every point) and `<stem>.trace.json`.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
     /// Refuse to start when the output needs more than this many bytes (default: the
@@ -51,6 +62,10 @@ pub struct Args {
 }
 
 fn parse_method(s: &str) -> Result<TraceMethod, String> {
+    s.parse()
+}
+
+fn parse_components(s: &str) -> Result<Components, String> {
     s.parse()
 }
 
@@ -75,6 +90,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         step_control: args.step_control,
         max_step: args.max_step,
         closure_tolerance: args.closure_tolerance,
+        components: args.components,
+        piece_starts: args.piece_starts,
+        cover_step: args.cover_step,
         ..TraceParams::default()
     }
     .check()?;
@@ -116,7 +134,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     // The same writer as the pipeline's trace stage: the sets, the kept motor rows, which
     // sets are closed loops (for the curve metric) and the report.
-    let [_, kept_path, _, report_path] = traced.save(&args.out)?;
+    let [_, kept_path, _, _, report_path] = traced.save(&args.out)?;
     let summary = &traced.report.summary;
     eprintln!(
         "traced {} of {} sets ({:?}, {:?} steps); {} failed{}",
@@ -136,5 +154,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             String::new()
         }
     );
+    for warning in summary.warnings() {
+        eprintln!("warning: {warning}");
+    }
     Ok(())
 }

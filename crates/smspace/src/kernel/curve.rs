@@ -24,9 +24,10 @@ pub(crate) struct Branch {
 }
 
 /// Result of one corrector run.
-struct Corrected {
+pub(crate) struct Corrected {
     first_step: f64,
-    residual: f64,
+    /// The residual norm at the corrected point.
+    pub(crate) residual: f64,
     /// Whether the level set is linearised at the corrected point.
     linearized: bool,
 }
@@ -72,7 +73,7 @@ fn norm(v: &[f64]) -> f64 {
 
 /// How the corrector may conclude.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Convergence {
+pub(crate) enum Convergence {
     /// Only a measured residual within the tolerance ends the iteration.
     Measured,
     /// A Newton step shorter than `0.1 √tol` also ends it, without a further
@@ -86,7 +87,7 @@ enum Convergence {
 /// iterate (so on return they are linearised at, or within a negligible Newton step
 /// of, the final `m`); chord level sets reuse the current linearisation and
 /// re-linearise only when convergence stalls.
-fn correct(
+pub(crate) fn correct(
     set: &mut dyn LevelSet,
     m: &mut [f64],
     scratch: &mut Scratch,

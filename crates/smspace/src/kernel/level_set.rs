@@ -55,6 +55,70 @@ pub(crate) trait LevelSet {
     fn covers(&self, _m: &[f64]) -> bool {
         true
     }
+    /// An orthonormal basis of `k` vectors of the null space of the current
+    /// linearisation, written row by row into `basis` (`k × N`). The default
+    /// orthonormalises the rows of `J` (Gram–Schmidt), then the coordinate axes
+    /// against them, keeping the `k` longest remainders in axis order.
+    fn null_basis(&self, k: usize, basis: &mut [f64]) {
+        let n = self.motor_dim();
+        let (jacobian, rows) = self.jacobian();
+        let mut frame: Vec<Vec<f64>> = Vec::with_capacity(n);
+        for row in jacobian.chunks_exact(n).take(rows) {
+            let mut v = row.to_vec();
+            if orthonormalise(&mut v, &frame) {
+                frame.push(v);
+            }
+        }
+        let fixed = frame.len();
+        let mut axes: Vec<(f64, Vec<f64>)> = (0..n)
+            .map(|j| {
+                let mut e = vec![0.0; n];
+                e[j] = 1.0;
+                for f in &frame {
+                    let c = dot(&e, f);
+                    for (x, y) in e.iter_mut().zip(f) {
+                        *x -= c * y;
+                    }
+                }
+                (dot(&e, &e), e)
+            })
+            .collect();
+        // Longest remainders first (stable: ties keep axis order).
+        axes.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for (_, mut e) in axes {
+            if frame.len() == fixed + k {
+                break;
+            }
+            if orthonormalise(&mut e, &frame) {
+                frame.push(e);
+            }
+        }
+        for (a, v) in frame[fixed..].iter().enumerate().take(k) {
+            basis[a * n..(a + 1) * n].copy_from_slice(v);
+        }
+    }
+}
+
+/// Removes from `v` its components along the orthonormal `frame` (twice, for
+/// accuracy) and normalises it; `false` when almost nothing is left.
+fn orthonormalise(v: &mut [f64], frame: &[Vec<f64>]) -> bool {
+    let before = dot(v, v).sqrt();
+    for _ in 0..2 {
+        for f in frame {
+            let c = dot(v, f);
+            for (x, y) in v.iter_mut().zip(f) {
+                *x -= c * y;
+            }
+        }
+    }
+    let after = dot(v, v).sqrt();
+    if !(after > 1e-8 * before.max(f64::MIN_POSITIVE)) {
+        return false;
+    }
+    for x in v.iter_mut() {
+        *x /= after;
+    }
+    true
 }
 
 /// The kinematic level set: the first `C` tangent coordinates of the observer's pose
@@ -611,6 +675,12 @@ impl LevelSet for Sensory<'_> {
 
     fn jacobian(&self) -> (&[f64], usize) {
         (&self.jacobian, self.k)
+    }
+
+    fn null_basis(&self, k: usize, basis: &mut [f64]) {
+        // The eigenvectors of JᵀJ with the smallest eigenvalues.
+        let n = self.n;
+        basis[..k * n].copy_from_slice(&self.eigenvectors[..k * n]);
     }
 
     fn newton(&self) -> bool {

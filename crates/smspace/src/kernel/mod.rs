@@ -44,6 +44,7 @@
 //! projected back onto the set with the corrector. Periodic coordinates are finally
 //! wrapped into their ranges (`[-π, π)` for hinges); bounded ones are left as they are.
 
+mod cover;
 mod curve;
 mod level_set;
 mod tracer;
@@ -219,6 +220,49 @@ pub struct TraceParams {
     /// Sensory method: a set is singular where `σ_{N−1}/σ_max` of the sensory Jacobian
     /// falls below this (too few lights in view). Default `1e-4`.
     pub rank_tolerance: f64,
+    /// Which pieces of a level set make the set `M^i`: `connected` (the paper's: the
+    /// piece through `m^i`) or `all` (every configuration with the sensation of
+    /// `m^i`). Default `connected`.
+    pub components: Components,
+    /// Seeds of the multi-start search for pieces, per set (see the module docs);
+    /// with `connected`, pieces found and not sampled are reported. 0 turns the
+    /// search off. Default 16.
+    pub piece_starts: usize,
+    /// Seed of the random shift of the multi-start design. Default 0.
+    pub piece_seed: u64,
+    /// A projected seed within this distance of a piece found (radians, torus
+    /// distance; plus `cover_step` for k-D kernels) lies on it. Default `1e-2`.
+    pub piece_tolerance: f64,
+    /// Kernels of dimension k ≥ 2: the tangent step of the dense covering (radians).
+    /// Default `0.05`.
+    pub cover_step: f64,
+    /// Kernels of dimension k ≥ 2: most nodes of the dense covering of one set, all
+    /// pieces together (a set needing more fails as `cover-budget`). Default 100 000.
+    pub max_cover_points: usize,
+}
+
+/// Which pieces of a level set are sampled (`[kernel] components`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Components {
+    /// The piece through the start (the paper's method, appendix A).
+    #[default]
+    Connected,
+    /// Every piece the multi-start search finds.
+    All,
+}
+
+impl std::str::FromStr for Components {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "connected" => Ok(Components::Connected),
+            "all" => Ok(Components::All),
+            other => Err(format!(
+                "unknown components '{other}'; use connected (the piece through the start) or all (every piece)"
+            )),
+        }
+    }
 }
 
 impl Default for TraceParams {
@@ -238,6 +282,12 @@ impl Default for TraceParams {
             max_corrector_iterations: 12,
             finite_difference_step: 1e-6,
             rank_tolerance: 1e-4,
+            components: Components::Connected,
+            piece_starts: 16,
+            piece_seed: 0,
+            piece_tolerance: 1e-2,
+            cover_step: 0.05,
+            max_cover_points: 100_000,
         }
     }
 }
@@ -259,6 +309,12 @@ pub struct TraceValidParams {
     pub(crate) max_corrector_iterations: usize,
     pub(crate) finite_difference_step: f64,
     pub(crate) rank_tolerance: f64,
+    pub(crate) components: Components,
+    pub(crate) piece_starts: usize,
+    pub(crate) piece_seed: u64,
+    pub(crate) piece_tolerance: f64,
+    pub(crate) cover_step: f64,
+    pub(crate) max_cover_points: usize,
 }
 
 impl TraceValidParams {
@@ -273,6 +329,10 @@ impl TraceValidParams {
     /// Points per resampled set.
     pub fn points(&self) -> usize {
         self.points
+    }
+    /// Which pieces are sampled.
+    pub fn components(&self) -> Components {
+        self.components
     }
 }
 
@@ -308,11 +368,37 @@ impl TraceValidParams {
         tracer::check_agent_for(agent, self).map(drop)
     }
 
+    /// The kernel dimension `k = N − C` the agent's ground truth implies (after the
+    /// checks of [`check_for`](Self::check_for)); `None` when it is estimated while
+    /// tracing (no ground truth).
+    pub fn dimension_for(&self, agent: &dyn Agent) -> Result<Option<usize>, KernelError> {
+        tracer::check_agent_for(agent, self)
+    }
+
     /// Bytes of the kernel sets traced from `rows` motor rows of an agent with
     /// `motor_dim` motors (see [`TraceParams::sets_bytes`]).
     pub fn sets_bytes(&self, rows: u64, motor_dim: usize) -> u64 {
         sets_bytes(rows, self.points, motor_dim)
     }
+}
+
+/// The `curve` metric reads a set as polylines (its pieces' loops and segments): it
+/// does not apply to kernels of dimension `k ≥ 2`, sampled as point clouds. An error
+/// on the `[metric] metric` key naming the `hausdorff` metric (the point metric, whose
+/// value between two sampled kernels is within their covering radii of the value
+/// between the kernels themselves) when `dimension ≥ 2`.
+pub fn check_curve_metric(dimension: usize) -> Result<(), InvalidParameter> {
+    if dimension < 2 {
+        return Ok(());
+    }
+    Err(InvalidParameter::new(
+        "metric",
+        "metric",
+        "curve",
+        format!(
+            "the kernel sets have dimension k = {dimension}: they are point samples of surfaces, not polylines, so the curve metric does not apply; use metric = \"hausdorff\" (between the sampled points, within the covering radii of the distance between the kernels, see sets.trace.json)"
+        ),
+    ))
 }
 
 /// Most points per kernel set.
@@ -345,6 +431,8 @@ impl CheckParams for TraceParams {
             ("pose_tolerance", self.pose_tolerance),
             ("sensor_tolerance", self.sensor_tolerance),
             ("finite_difference_step", self.finite_difference_step),
+            ("piece_tolerance", self.piece_tolerance),
+            ("cover_step", self.cover_step),
         ] {
             positive(key, value)?;
         }
@@ -359,6 +447,7 @@ impl CheckParams for TraceParams {
             ("points", self.points),
             ("max_steps", self.max_steps),
             ("max_corrector_iterations", self.max_corrector_iterations),
+            ("max_cover_points", self.max_cover_points),
         ] {
             if value == 0 {
                 return Err(invalid(key, 0, "must be at least 1"));
@@ -405,6 +494,12 @@ impl CheckParams for TraceParams {
             max_corrector_iterations: self.max_corrector_iterations,
             finite_difference_step: self.finite_difference_step,
             rank_tolerance: self.rank_tolerance,
+            components: self.components,
+            piece_starts: self.piece_starts,
+            piece_seed: self.piece_seed,
+            piece_tolerance: self.piece_tolerance,
+            cover_step: self.cover_step,
+            max_cover_points: self.max_cover_points,
         })
     }
 }
@@ -419,6 +514,12 @@ pub enum SetStatus {
     Open,
     /// The set is a single point (kernel dimension 0: `rank(J) = N`).
     Point,
+    /// Several pieces (`components = "all"`), each a closed loop or an open segment.
+    Pieces,
+    /// A kernel of dimension k ≥ 2, covered densely and sampled farthest first.
+    Covered,
+    /// The dense covering of a k-D kernel needed more than `max_cover_points` nodes.
+    CoverBudget,
     /// The loop did not close within `max_steps`.
     NotClosed,
     /// The Jacobian lost rank (sensory: too few lights in view; kinematic: a singular
@@ -436,7 +537,14 @@ pub enum SetStatus {
 impl SetStatus {
     /// Whether the set was traced and kept.
     pub fn is_traced(self) -> bool {
-        matches!(self, SetStatus::Closed | SetStatus::Open | SetStatus::Point)
+        matches!(
+            self,
+            SetStatus::Closed
+                | SetStatus::Open
+                | SetStatus::Point
+                | SetStatus::Pieces
+                | SetStatus::Covered
+        )
     }
 }
 
@@ -486,7 +594,9 @@ impl SetStatus {
     pub fn closure(self) -> Option<Closure> {
         match self {
             SetStatus::Closed => Some(Closure::Closed),
-            SetStatus::Open | SetStatus::Point => Some(Closure::Open),
+            SetStatus::Open | SetStatus::Point | SetStatus::Pieces | SetStatus::Covered => {
+                Some(Closure::Open)
+            }
             _ => None,
         }
     }
@@ -544,7 +654,8 @@ pub struct SetReport {
     pub status: SetStatus,
     /// Predictor–corrector steps taken.
     pub steps: usize,
-    /// Arc length of the set in motor space (radians), 0 when not traced.
+    /// Arc length of the set in motor space (radians; the sum over its pieces), 0
+    /// when not traced and for kernels of dimension k ≥ 2 (see `covering_radius`).
     pub length: f64,
     /// Largest corrector residual over traced and resampled points (pose units for
     /// kinematic, relative sensor units for sensory).
@@ -555,6 +666,22 @@ pub struct SetReport {
     pub max_pose_deviation: Option<f64>,
     /// The dimension `k = N − rank(J)` of the kernel set (0: a point, 1: a curve).
     pub dimension: usize,
+    /// Pieces of the level set found (the piece through the start and those the
+    /// multi-start search found; 0 when the set failed).
+    #[serde(default)]
+    pub pieces: usize,
+    /// Pieces of the level set that are not in the sampled set: with `components =
+    /// "connected"` every piece but the start's; with either, pieces found that could
+    /// not be traced. More than 0 means `M^i` misses configurations with the same
+    /// sensation.
+    #[serde(default)]
+    pub unvisited_pieces: usize,
+    /// Kernels of dimension k ≥ 2: the covering radius of the sample, the largest
+    /// distance from a node of the dense covering to its nearest sampled point
+    /// (radians, torus distance; the kernel is within this plus about `cover_step`
+    /// of the sample). `null` for points and curves.
+    #[serde(default)]
+    pub covering_radius: Option<f64>,
 }
 
 /// Counts of sets by status.
@@ -568,6 +695,40 @@ pub struct TraceSummary {
     pub failed: usize,
     /// Count for every status that occurred, by its name.
     pub by_status: std::collections::BTreeMap<String, usize>,
+    /// Sets whose level set has pieces that the sampled set misses
+    /// ([`SetReport::unvisited_pieces`] > 0): their `M^i` is incomplete.
+    #[serde(default)]
+    pub with_unvisited_pieces: usize,
+    /// Traced sets of more than one piece found.
+    #[serde(default)]
+    pub with_several_pieces: usize,
+    /// Kernels of dimension k ≥ 2: the covering radii of the traced sets (smallest,
+    /// median, largest), radians.
+    #[serde(default)]
+    pub covering_radius: Option<[f64; 3]>,
+}
+
+impl TraceSummary {
+    /// What the summary says that a user must know, one sentence each: sets whose
+    /// level set has pieces the sampled sets miss, and sets that are single points
+    /// (no redundancy). Empty when every traced set is a complete curve or covering.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.with_unvisited_pieces > 0 {
+            out.push(format!(
+                "{} of {} sets miss pieces of their level set: other motor configurations give the same sensation and are not in M^i (the multi-start search found them); the sets are incomplete, and the learned manifold can have the wrong topology. Trace with components = \"all\" (smspace trace --components all)",
+                self.with_unvisited_pieces, self.total
+            ));
+        }
+        let points = self.by_status.get("point").copied().unwrap_or(0);
+        if points > 0 && points == self.traced {
+            out.push(format!(
+                "every traced set ({points} of {}) is a single point: the kernel dimension is k = 0 (as many pose coordinates as motors, no redundancy), so the sets carry no shape and the method learns nothing beyond the configurations themselves",
+                self.total
+            ));
+        }
+        out
+    }
 }
 
 /// The trace report, written as `sets.trace.json`.
@@ -596,6 +757,10 @@ pub struct TracedSets {
     pub kept: Vec<usize>,
     /// How the points of every kept set are joined (closed loops, open polylines).
     pub closure: Vec<Closure>,
+    /// `(M_kept, P)`: the piece of every point (0 for sets of one piece). Each piece is
+    /// a run of consecutive points; with several pieces, a closed piece ends with a
+    /// copy of its first point (so that the `curve` metric reads it as a loop).
+    pub pieces: ndarray::Array2<i64>,
     /// Per-set statuses, dimensions and the summary.
     pub report: TraceReport,
 }
@@ -617,11 +782,11 @@ impl TracedSets {
 
     /// Writes the sets to `sets_path` (`(M, P, N)` float64) and, next to it (see
     /// [`crate::io::sibling`]), `<stem>.kept.npy` (`(M,)` int64 motor rows),
-    /// `<stem>.closed.npy` ([`write_closure`]) and `<stem>.trace.json` (the report).
-    /// Returns the four paths. `smspace trace` and the pipeline's trace stage both
-    /// write through here.
-    pub fn save(&self, sets_path: &Path) -> Result<[PathBuf; 4], crate::io::IoError> {
-        // All four or none (see `io::Outputs`).
+    /// `<stem>.closed.npy` ([`write_closure`]), `<stem>.components.npy` (`(M, P)` int64,
+    /// the piece of every point) and `<stem>.trace.json` (the report). Returns the five
+    /// paths. `smspace trace` and the pipeline's trace stage both write through here.
+    pub fn save(&self, sets_path: &Path) -> Result<[PathBuf; 5], crate::io::IoError> {
+        // All five or none (see `io::Outputs`).
         let mut outputs = crate::io::Outputs::new();
         let files = self.write_into(&mut outputs, sets_path)?;
         outputs.commit()?;
@@ -634,22 +799,26 @@ impl TracedSets {
         &self,
         outputs: &mut crate::io::Outputs,
         sets_path: &Path,
-    ) -> Result<[PathBuf; 4], crate::io::IoError> {
+    ) -> Result<[PathBuf; 5], crate::io::IoError> {
         let files = Self::files(sets_path);
-        let [sets, kept, closed, report] = &files;
+        let [sets, kept, closed, components, report] = &files;
         outputs.npy(sets, &self.sets)?;
         let rows: ndarray::Array1<i64> = self.kept.iter().map(|&k| k as i64).collect();
         outputs.npy(kept, &rows)?;
         outputs.npy(closed, &closure_codes(&self.closure))?;
+        outputs.npy(components, &self.pieces)?;
         outputs.json(report, &self.report)?;
         Ok(files)
     }
 
     /// Reads what [`TracedSets::save`] wrote, checking that the records match the sets.
+    /// A missing `<stem>.components.npy` (files written before pieces) reads as one
+    /// piece per set.
     pub fn load(sets_path: &Path) -> Result<Self, crate::io::IoError> {
-        let [sets_file, kept_file, closed_file, report_file] = Self::files(sets_path);
+        let [sets_file, kept_file, closed_file, components_file, report_file] =
+            Self::files(sets_path);
         let sets = crate::io::read_cube(&sets_file, "(M, P, N)")?;
-        let m = sets.dim().0;
+        let (m, p, _) = sets.dim();
         let codes = crate::io::read_i64(&kept_file)?;
         let kept = codes
             .iter()
@@ -661,24 +830,70 @@ impl TracedSets {
                 found: crate::io::shape_string(codes.shape()),
                 expected: format!("({m},) int64 motor rows ≥ 0, one per set"),
             })?;
+        let pieces = read_pieces(&components_file, m, p)?;
         Ok(Self {
             closure: read_closure(&closed_file, m)?,
             sets,
             kept,
+            pieces,
             report: crate::io::read_json(&report_file, "trace report")?,
         })
     }
 
-    /// The sets file and its three companions.
-    fn files(sets_path: &Path) -> [PathBuf; 4] {
+    /// The sets file and its four companions.
+    fn files(sets_path: &Path) -> [PathBuf; 5] {
         let sibling = |suffix| crate::io::sibling(sets_path, suffix);
         [
             sets_path.to_owned(),
             sibling("kept.npy"),
             sibling("closed.npy"),
+            sibling("components.npy"),
             sibling("trace.json"),
         ]
     }
+}
+
+/// Reads `<stem>.components.npy`: `(M, P)` int64 piece indices `≥ 0`, each piece a run
+/// of consecutive points. A missing file is one piece per set (zeros).
+pub fn read_pieces(
+    path: &Path,
+    sets: usize,
+    points: usize,
+) -> Result<ndarray::Array2<i64>, crate::io::IoError> {
+    if !path.exists() {
+        return Ok(ndarray::Array2::zeros((sets, points)));
+    }
+    let codes = crate::io::read_i64(path)?;
+    let shape_error = || crate::io::IoError::Shape {
+        path: path.to_path_buf(),
+        found: crate::io::shape_string(codes.shape()),
+        expected: format!("({sets}, {points}), the piece of every point of the sets file"),
+    };
+    let pieces = codes
+        .clone()
+        .into_dimensionality::<ndarray::Ix2>()
+        .map_err(|_| shape_error())?;
+    if pieces.dim() != (sets, points) {
+        return Err(shape_error());
+    }
+    for (i, row) in pieces.outer_iter().enumerate() {
+        let ordered = row.iter().all(|&c| c >= 0)
+            && row
+                .iter()
+                .zip(row.iter().skip(1))
+                .all(|(a, b)| b == a || *b == a + 1)
+            && row.first().is_none_or(|&c| c == 0);
+        if !ordered {
+            return Err(crate::io::IoError::Invalid {
+                path: path.to_path_buf(),
+                what: "piece record",
+                reason: format!(
+                    "row {i} is not 0, 0, …, 1, 1, … (pieces numbered from 0 in runs of consecutive points)"
+                ),
+            });
+        }
+    }
+    Ok(pieces)
 }
 
 /// Traces and resamples the kernel set through one start `m⁰`. Returns the points
@@ -694,7 +909,8 @@ pub fn trace_one(
     let starts =
         ndarray::ArrayView2::from_shape((1, start.len()), start).expect("one row of N values");
     let tracer = Tracer::new(agent, environment, starts, workspace, params)?;
-    Ok(tracer.trace(start, &mut Scratch::default()))
+    let result = tracer.trace(start, &mut Scratch::default());
+    Ok((result.points, result.report))
 }
 
 /// Traces the kernel set of every motor row, in parallel. Sets are independent and
@@ -732,19 +948,20 @@ pub fn trace_sets(
     let tracer = Tracer::new(agent, environment, motors, workspace, params)?;
     progress.start("trace", motors.nrows() as u64);
     let rows: Vec<Vec<f64>> = motors.outer_iter().map(|r| r.to_vec()).collect();
-    let results: Vec<(Option<Vec<f64>>, SetReport)> = rows
+    let results: Vec<tracer::SetResult> = rows
         .par_iter()
         .enumerate()
         .map_init(Scratch::default, |scratch, (index, start)| {
-            let (points, mut report) = tracer.trace(start, scratch);
-            report.index = index;
+            let mut result = tracer.trace(start, scratch);
+            result.report.index = index;
             progress.advance(1);
-            (points, report)
+            result
         })
         .collect();
     progress.finish();
     let p = params.points;
     let mut data = Vec::new();
+    let mut pieces = Vec::new();
     let mut kept = Vec::new();
     let mut closure = Vec::new();
     let mut reports = Vec::with_capacity(results.len());
@@ -752,12 +969,18 @@ pub fn trace_sets(
         total: results.len(),
         ..TraceSummary::default()
     };
-    for (points, report) in results {
-        if let Some(points) = points {
+    let mut radii = Vec::new();
+    for result in results {
+        let report = result.report;
+        if let Some(points) = result.points {
             data.extend_from_slice(&points);
+            pieces.extend_from_slice(&result.pieces);
             kept.push(report.index);
             closure.push(report.status.closure().expect("a kept set was traced"));
+            summary.with_several_pieces += usize::from(report.pieces > 1);
+            radii.extend(report.covering_radius);
         }
+        summary.with_unvisited_pieces += usize::from(report.unvisited_pieces > 0);
         let name = serde_json::to_value(report.status)
             .ok()
             .and_then(|v| v.as_str().map(str::to_owned))
@@ -765,14 +988,20 @@ pub fn trace_sets(
         *summary.by_status.entry(name).or_default() += 1;
         reports.push(report);
     }
+    radii.sort_by(f64::total_cmp);
+    summary.covering_radius =
+        (!radii.is_empty()).then(|| [radii[0], radii[radii.len() / 2], radii[radii.len() - 1]]);
     summary.traced = kept.len();
     summary.failed = summary.total - summary.traced;
+    let pieces = ndarray::Array2::from_shape_vec((kept.len(), p), pieces)
+        .expect("every kept set has a piece for each of its P points");
     let sets =
         Array3::from_shape_vec((kept.len(), p, n), data).expect("every kept set has P × N values");
     Ok(TracedSets {
         sets,
         kept,
         closure,
+        pieces,
         report: TraceReport {
             agent: agent.name().to_owned(),
             method: params.method,

@@ -14,9 +14,13 @@ use nalgebra::{DMatrix, SVD};
 use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
 
+use super::cover::{
+    cover_piece, farthest_points, piece_seeds, project_seed, share_points, CoverSettings, Covering,
+    Grid,
+};
 use super::curve::{resample, trace_branch, Curve, Scratch};
 use super::level_set::{Kinematic, LevelSet, Sensory};
-use super::{KernelError, SetReport, SetStatus, TraceMethod, TraceValidParams};
+use super::{Components, KernelError, SetReport, SetStatus, TraceMethod, TraceValidParams};
 use crate::agent::{Agent, Environment, MotorSpace, Observer, PoseSpace, Workspace};
 
 /// A checked tracing call (see the module docs).
@@ -30,6 +34,8 @@ pub(super) struct Tracer<'a> {
     params: &'a TraceValidParams,
     /// The kernel dimension `k`.
     dimension: usize,
+    /// The seeds of the multi-start search for pieces (`N` values each).
+    seeds: Vec<f64>,
 }
 
 impl<'a> Tracer<'a> {
@@ -64,7 +70,9 @@ impl<'a> Tracer<'a> {
             workspace,
             params,
             dimension: 0,
+            seeds: Vec::new(),
         };
+        tracer.seeds = piece_seeds(&tracer.space, params.piece_starts, params.piece_seed);
         tracer.dimension = match (declared, agent.sensory_rank()) {
             (Some(dimension), _) => dimension,
             (None, Some(rank)) => {
@@ -100,13 +108,9 @@ impl<'a> Tracer<'a> {
             .unwrap_or(0)
     }
 
-    /// Traces and resamples the set through `start`: its points `(P × N)` when traced,
-    /// and its report line (`index` 0).
-    pub(super) fn trace(
-        &self,
-        start: &[f64],
-        scratch: &mut Scratch,
-    ) -> (Option<Vec<f64>>, SetReport) {
+    /// Traces and resamples the set through `start`: its points `(P × N)` and their
+    /// pieces when traced, and its report line (`index` 0).
+    pub(super) fn trace(&self, start: &[f64], scratch: &mut Scratch) -> SetResult {
         let mut report = SetReport {
             index: 0,
             status: SetStatus::Closed,
@@ -115,6 +119,9 @@ impl<'a> Tracer<'a> {
             max_residual: 0.0,
             max_pose_deviation: self.observer.map(|_| 0.0),
             dimension: self.dimension,
+            pieces: 0,
+            unvisited_pieces: 0,
+            covering_radius: None,
         };
         let start_pose = self.observer.map(|o| {
             let mut pose = vec![0.0; o.pose_space().dim()];
@@ -124,18 +131,12 @@ impl<'a> Tracer<'a> {
         if let (Some(w), Some(pose)) = (self.workspace, &start_pose) {
             if !w.contains(pose) {
                 report.status = SetStatus::OutsideWorkspace;
-                return (None, report);
+                return SetResult::failed(report);
             }
         }
         if !self.agent.covers(start) {
             report.status = SetStatus::LeftData;
-            return (None, report);
-        }
-        if self.dimension == 0 {
-            report.status = SetStatus::Point;
-            let mut points: Vec<f64> = start.repeat(self.params.points);
-            self.space.wrap_points(&mut points);
-            return (Some(points), report);
+            return SetResult::failed(report);
         }
         let mut kinematic;
         let mut sensory;
@@ -150,28 +151,259 @@ impl<'a> Tracer<'a> {
             }
             _ => unreachable!("Tracer::new checked the method's needs"),
         };
-        match trace_set(set, start, self.params, &self.space, scratch) {
-            Ok(mut traced) => {
-                if let Some(pose) = &start_pose {
-                    report.max_pose_deviation = Some(self.pose_deviation(&traced.points, pose));
-                }
-                self.space.wrap_points(&mut traced.points);
-                report.status = if traced.closed {
-                    SetStatus::Closed
-                } else {
-                    SetStatus::Open
-                };
-                report.steps = traced.steps;
-                report.length = traced.length;
-                report.max_residual = traced.max_residual;
-                (Some(traced.points), report)
-            }
+        let found = match self.find_pieces(set, start, scratch) {
+            Ok(found) => found,
             Err((status, steps)) => {
                 report.status = status;
                 report.steps = steps;
-                (None, report)
+                return SetResult::failed(report);
+            }
+        };
+        report.pieces = found.count();
+        report.unvisited_pieces = found.failed
+            + match self.params.components {
+                Components::Connected => found.count() - 1,
+                Components::All => 0,
+            };
+        report.steps = found.steps;
+        match self.sample(set, found, &mut report, scratch) {
+            Ok((mut points, pieces)) => {
+                if let Some(pose) = &start_pose {
+                    report.max_pose_deviation = Some(self.pose_deviation(&points, pose));
+                }
+                self.space.wrap_points(&mut points);
+                SetResult {
+                    points: Some(points),
+                    pieces,
+                    report,
+                }
+            }
+            Err(status) => {
+                report.status = status;
+                SetResult::failed(report)
             }
         }
+    }
+
+    /// The piece through `start`, then (unless `piece_starts` is 0) the pieces the
+    /// multi-start search finds (see [`super::cover`]).
+    fn find_pieces(
+        &self,
+        set: &mut dyn LevelSet,
+        start: &[f64],
+        scratch: &mut Scratch,
+    ) -> Result<Found, (SetStatus, usize)> {
+        let n = start.len();
+        let mut found = Found::new(&self.space, self.params);
+        self.add_piece(set, start, &mut found, scratch)?;
+        let mut r = vec![0.0; set.rows()];
+        let mut delta = vec![0.0; n];
+        let mut m = vec![0.0; n];
+        for seed in self.seeds.chunks_exact(n) {
+            m.copy_from_slice(seed);
+            if !project_seed(set, &mut m, &self.space, &mut r, &mut delta) {
+                continue;
+            }
+            self.space.wrap_points(&mut m);
+            if found.contains(&self.space, &m, self.params) {
+                continue;
+            }
+            if self.add_piece(set, &m, &mut found, scratch).is_err() {
+                // A piece that cannot be traced is still a piece: remember where.
+                found.failed += 1;
+                found.failed_points.extend_from_slice(&m);
+            }
+        }
+        Ok(found)
+    }
+
+    /// Traces (k = 1) or covers (k ≥ 2) the piece through `m`, a point on the level set.
+    fn add_piece(
+        &self,
+        set: &mut dyn LevelSet,
+        m: &[f64],
+        found: &mut Found,
+        scratch: &mut Scratch,
+    ) -> Result<(), (SetStatus, usize)> {
+        match self.dimension {
+            0 => {
+                let mut p = m.to_vec();
+                self.space.wrap_points(&mut p);
+                found.points.extend_from_slice(&p);
+            }
+            1 => {
+                let (curve, steps, residual) =
+                    trace_curve(set, m, self.params, &self.space, scratch)?;
+                found.steps += steps;
+                found.max_residual = found.max_residual.max(residual);
+                found.curves.push(curve);
+            }
+            k => {
+                let settings = CoverSettings {
+                    step: self.params.cover_step,
+                    max_nodes: self.params.max_cover_points,
+                    max_iterations: self.params.max_corrector_iterations,
+                    dimension: k,
+                };
+                let grid = found.grid.get_or_insert_with(|| {
+                    Grid::new(
+                        &self.space,
+                        PIECE_REACH * self.params.cover_step + self.params.piece_tolerance,
+                    )
+                });
+                let before = found.covering.nodes.len();
+                let piece = found.covering.piece.last().map_or(0, |&p| p + 1);
+                let result = cover_piece(
+                    set,
+                    m,
+                    &self.space,
+                    &settings,
+                    grid,
+                    &mut found.covering,
+                    scratch,
+                );
+                found.steps += (found.covering.nodes.len() - before) / m.len();
+                if let Err(status) = result {
+                    return Err((status, found.steps));
+                }
+                found.covering_pieces = piece + 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// Shares the `P` points among the pieces to sample (all with `components =
+    /// "all"`, the first otherwise) and samples them: the points (unwrapped for
+    /// curves) and the piece of every point. Sets the status, length, residual and
+    /// covering radius of `report`.
+    fn sample(
+        &self,
+        set: &mut dyn LevelSet,
+        found: Found,
+        report: &mut SetReport,
+        scratch: &mut Scratch,
+    ) -> Result<(Vec<f64>, Vec<i64>), SetStatus> {
+        let n = self.agent.motor_dim();
+        let p = self.params.points;
+        let used = match self.params.components {
+            Components::All => found.count(),
+            Components::Connected => 1,
+        }
+        .min(p);
+        report.max_residual = found.max_residual.max(found.covering.max_residual);
+        match self.dimension {
+            0 => {
+                report.status = SetStatus::Point;
+                let counts = share_points(p, &vec![1.0; used], &vec![1; used]);
+                let mut points = Vec::with_capacity(p * n);
+                let mut pieces = Vec::with_capacity(p);
+                for (i, &c) in counts.iter().enumerate() {
+                    for _ in 0..c {
+                        points.extend_from_slice(&found.points[i * n..(i + 1) * n]);
+                        pieces.push(i as i64);
+                    }
+                }
+                Ok((points, pieces))
+            }
+            1 => self.sample_curves(set, found.curves, used, report, scratch),
+            _ => {
+                report.status = SetStatus::Covered;
+                Ok(self.sample_covering(&found.covering, used, report))
+            }
+        }
+    }
+
+    /// Resamples the first `used` curves with their share of the points. A single
+    /// piece is resampled as before (`P` points of a loop or a segment); with several,
+    /// a closed piece ends with a copy of its first point, so that each piece is one
+    /// run of consecutive points (the `curve` metric's pieces).
+    fn sample_curves(
+        &self,
+        set: &mut dyn LevelSet,
+        curves: Vec<Curve>,
+        used: usize,
+        report: &mut SetReport,
+        scratch: &mut Scratch,
+    ) -> Result<(Vec<f64>, Vec<i64>), SetStatus> {
+        let n = self.agent.motor_dim();
+        let p = self.params.points;
+        let curves = &curves[..used];
+        let iterations = self.params.max_corrector_iterations;
+        if used == 1 {
+            let (points, length, residual) = resample(set, &curves[0], p, iterations, scratch)?;
+            report.status = if curves[0].closed {
+                SetStatus::Closed
+            } else {
+                SetStatus::Open
+            };
+            report.length = length;
+            report.max_residual = report.max_residual.max(residual);
+            return Ok((points, vec![0; p]));
+        }
+        let lengths: Vec<f64> = curves
+            .iter()
+            .map(|c| polyline_length(&c.nodes, n))
+            .collect();
+        let minimum: Vec<usize> = curves
+            .iter()
+            .map(|c| if c.closed { 2 } else { 1 })
+            .collect();
+        let counts = share_points(p, &lengths, &minimum);
+        let mut points = Vec::with_capacity(p * n);
+        let mut pieces = Vec::with_capacity(p);
+        for (i, (curve, &count)) in curves.iter().zip(&counts).enumerate() {
+            let drawn = if curve.closed { count - 1 } else { count };
+            let (piece, length, residual) = resample(set, curve, drawn, iterations, scratch)?;
+            report.length += length;
+            report.max_residual = report.max_residual.max(residual);
+            points.extend_from_slice(&piece);
+            if curve.closed {
+                points.extend_from_slice(&piece[..n]);
+            }
+            pieces.extend(std::iter::repeat_n(i as i64, count));
+        }
+        report.status = SetStatus::Pieces;
+        Ok((points, pieces))
+    }
+
+    /// Farthest-point samples of the first `used` pieces of the covering, the `P`
+    /// points shared in proportion to their node counts; the covering radius is the
+    /// largest over the pieces.
+    fn sample_covering(
+        &self,
+        covering: &Covering,
+        used: usize,
+        report: &mut SetReport,
+    ) -> (Vec<f64>, Vec<i64>) {
+        let n = self.agent.motor_dim();
+        let p = self.params.points;
+        let mut sizes = vec![0.0; used];
+        for &piece in &covering.piece {
+            if piece < used {
+                sizes[piece] += 1.0;
+            }
+        }
+        let counts = share_points(p, &sizes, &vec![1; used]);
+        let mut points = Vec::with_capacity(p * n);
+        let mut pieces = Vec::with_capacity(p);
+        let mut radius: f64 = 0.0;
+        for (piece, &count) in counts.iter().enumerate() {
+            let members: Vec<usize> = (0..covering.piece.len())
+                .filter(|&i| covering.piece[i] == piece)
+                .collect();
+            let nodes: Vec<f64> = members
+                .iter()
+                .flat_map(|&i| covering.nodes[i * n..(i + 1) * n].iter().copied())
+                .collect();
+            let (picks, r) = farthest_points(&self.space, &nodes, n, 0, count);
+            radius = radius.max(r);
+            for &i in &picks {
+                points.extend_from_slice(&nodes[i * n..(i + 1) * n]);
+            }
+            pieces.extend(std::iter::repeat_n(piece as i64, count));
+        }
+        report.covering_radius = Some(radius);
+        (points, pieces)
     }
 
     /// The largest deviation of a point's pose from `start_pose`, over the tangent
@@ -232,24 +464,14 @@ pub(super) fn check_agent_for(
     supported_dimension(agent, c, jacobian).map(Some)
 }
 
-/// `k = N − rank`, or [`KernelError::UnsupportedDimension`] for `k ≥ 2`.
+/// `k = N − rank` (any `k`: points, curves, and coverings of k-D kernels).
 fn supported_dimension(
     agent: &dyn Agent,
     rank: usize,
-    jacobian: String,
+    _jacobian: String,
 ) -> Result<usize, KernelError> {
     let n = agent.motor_dim();
-    let dimension = n - rank.min(n);
-    if dimension > 1 {
-        return Err(KernelError::UnsupportedDimension {
-            agent: agent.name().to_owned(),
-            motors: n,
-            rank,
-            dimension,
-            jacobian,
-        });
-    }
-    Ok(dimension)
+    Ok(n - rank.min(n))
 }
 
 /// A fixed direction with no special relation to any axis; the first tangent of every
@@ -259,27 +481,19 @@ fn orientation_reference(n: usize) -> Vec<f64> {
     (0..n).map(|k| golden.powi(-(k as i32))).collect()
 }
 
-/// A traced and resampled 1-D set.
-struct Traced {
-    /// `P × N` points, unwrapped.
-    points: Vec<f64>,
-    /// Arc length.
-    length: f64,
-    steps: usize,
-    max_residual: f64,
-    /// A loop (else a segment between two bounds).
-    closed: bool,
-}
+/// A projected seed within this many `cover_step`s (plus `piece_tolerance`) of a
+/// covering's node lies on its piece.
+const PIECE_REACH: f64 = 1.5;
 
-/// Follows a 1-D level set through `start` both ways (or once round a loop) and
-/// resamples it.
-fn trace_set(
+/// Follows a 1-D level set through `start` both ways (or once round a loop): the
+/// curve, the steps taken and the largest corrector residual.
+fn trace_curve(
     set: &mut dyn LevelSet,
     start: &[f64],
     params: &TraceValidParams,
     space: &MotorSpace,
     scratch: &mut Scratch,
-) -> Result<Traced, (SetStatus, usize)> {
+) -> Result<(Curve, usize, f64), (SetStatus, usize)> {
     let n = start.len();
     scratch.prepare(set.rows(), n);
     let mut r = vec![0.0; set.rows()];
@@ -333,24 +547,168 @@ fn trace_set(
             closed: false,
         }
     };
-    let closed = curve.closed;
-    let resampled = resample(
-        set,
-        &curve,
-        params.points,
-        params.max_corrector_iterations,
-        scratch,
-    );
-    scratch.give(curve.nodes);
-    scratch.give(curve.tangents);
-    let (points, length, residual) = resampled.map_err(|status| (status, steps))?;
-    Ok(Traced {
-        points,
-        length,
-        steps,
-        max_residual: max_residual.max(residual),
-        closed,
-    })
+    Ok((curve, steps, max_residual))
+}
+
+/// Length of the polyline through `nodes` (`N` values each, unwrapped).
+fn polyline_length(nodes: &[f64], n: usize) -> f64 {
+    nodes
+        .chunks_exact(n)
+        .zip(nodes.chunks_exact(n).skip(1))
+        .map(|(a, b)| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y) * (x - y))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .sum()
+}
+
+/// The result of one set: its points and their pieces when traced, and its report.
+pub(super) struct SetResult {
+    /// `P × N` points, periodic coordinates wrapped.
+    pub points: Option<Vec<f64>>,
+    /// The piece of every point (`P`), empty when not traced.
+    pub pieces: Vec<i64>,
+    /// The report line (`index` 0).
+    pub report: SetReport,
+}
+
+impl SetResult {
+    fn failed(report: SetReport) -> Self {
+        Self {
+            points: None,
+            pieces: Vec::new(),
+            report,
+        }
+    }
+}
+
+/// The pieces of one level set found so far (one kind of storage per dimension).
+struct Found {
+    /// k = 0: one point per piece (wrapped).
+    points: Vec<f64>,
+    /// k = 1: the traced curves (unwrapped nodes).
+    curves: Vec<Curve>,
+    /// k ≥ 2: the covering of every piece and its grid.
+    covering: Covering,
+    grid: Option<Grid>,
+    covering_pieces: usize,
+    /// Pieces found that could not be traced, and a point of each (wrapped).
+    failed: usize,
+    failed_points: Vec<f64>,
+    steps: usize,
+    max_residual: f64,
+    n: usize,
+}
+
+impl Found {
+    fn new(space: &MotorSpace, _params: &TraceValidParams) -> Self {
+        Self {
+            points: Vec::new(),
+            curves: Vec::new(),
+            covering: Covering::default(),
+            grid: None,
+            covering_pieces: 0,
+            failed: 0,
+            failed_points: Vec::new(),
+            steps: 0,
+            max_residual: 0.0,
+            n: space.dim(),
+        }
+    }
+
+    /// Pieces traced (failed ones not counted).
+    fn count(&self) -> usize {
+        self.points.len() / self.n.max(1) + self.curves.len() + self.covering_pieces
+    }
+
+    /// Whether `m` (wrapped, on the level set) lies on a piece already found: within
+    /// `piece_tolerance` of a traced curve, of a point piece or of a failed piece's
+    /// point, or within `1.5 cover_step + piece_tolerance` of a covering's node (the
+    /// covering leaves no hole wider than about `cover_step`).
+    fn contains(&self, space: &MotorSpace, m: &[f64], params: &TraceValidParams) -> bool {
+        let n = self.n;
+        let tolerance = params.piece_tolerance;
+        let near_point = |points: &[f64]| {
+            points
+                .chunks_exact(n)
+                .any(|p| space.distance(p, m) <= tolerance)
+        };
+        if near_point(&self.points) || near_point(&self.failed_points) {
+            return true;
+        }
+        if self
+            .curves
+            .iter()
+            .any(|c| near_polyline(space, &c.nodes, n, m, tolerance))
+        {
+            return true;
+        }
+        let nodes = &self.covering.nodes;
+        self.grid.as_ref().is_some_and(|grid| {
+            grid.any_near(m, |i| {
+                space.distance(&nodes[i * n..(i + 1) * n], m)
+                    <= PIECE_REACH * params.cover_step + tolerance
+            })
+        })
+    }
+}
+
+/// Whether the polyline through `nodes` (unwrapped) passes within `tolerance` of `m`
+/// (torus distance).
+fn near_polyline(space: &MotorSpace, nodes: &[f64], n: usize, m: &[f64], tolerance: f64) -> bool {
+    let count = nodes.len() / n;
+    let mut image = vec![0.0; n];
+    for i in 0..count {
+        let a = &nodes[i * n..(i + 1) * n];
+        let d = space.distance(a, m);
+        if d <= tolerance {
+            return true;
+        }
+        if i + 1 < count {
+            let b = &nodes[(i + 1) * n..(i + 2) * n];
+            let length = a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| (x - y) * (x - y))
+                .sum::<f64>()
+                .sqrt();
+            if d > tolerance + length {
+                continue;
+            }
+            // The image of m nearest to a, then the segment's closest point.
+            for ((o, &x), (&ai, motor)) in image.iter_mut().zip(m).zip(a.iter().zip(space.motors()))
+            {
+                *o = ai + motor.difference(x, ai);
+            }
+            if closest_on_segment(a, b, &image) <= tolerance {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// Distance from `p` to the segment `[a, b]` (straight coordinates).
+fn closest_on_segment(a: &[f64], b: &[f64], p: &[f64]) -> f64 {
+    let (mut len2, mut dot) = (0.0, 0.0);
+    for ((x, y), q) in a.iter().zip(b).zip(p) {
+        len2 += (y - x) * (y - x);
+        dot += (q - x) * (y - x);
+    }
+    let tau = if len2 > 0.0 {
+        (dot / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    a.iter()
+        .zip(b)
+        .zip(p)
+        .map(|((x, y), q)| (x + tau * (y - x) - q).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// The tangent space of the kernel set at a configuration: the null space of the

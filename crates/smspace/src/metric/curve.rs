@@ -165,6 +165,7 @@ impl CurveLayout {
         dims_pad: usize,
         period: &[f64],
         closure: &[Closure],
+        pieces: Option<ndarray::ArrayView2<'_, i64>>,
     ) -> Self {
         let chunks = points_pad / LANES;
         let per = dims_pad * points_pad;
@@ -182,14 +183,21 @@ impl CurveLayout {
                 Closure::Open => points - 1,
             };
             segments.push(count as u32);
+            // Two consecutive points of different pieces: a segment of length 0 (the
+            // point itself, already in the set), so that no segment joins two pieces.
+            let joins = |i: usize, next: usize| {
+                pieces.is_none_or(|labels| labels[[s, i]] == labels[[s, next]])
+            };
             for i in 0..count {
                 let next = if i + 1 == points { 0 } else { i + 1 };
+                let join = if joins(i, next) { 1.0 } else { 0.0 };
                 let mut len2 = 0.0;
                 for k in 0..dims {
-                    let v = swrap(
-                        block[k * points_pad + next] - block[k * points_pad + i],
-                        period[k],
-                    );
+                    let v = join
+                        * swrap(
+                            block[k * points_pad + next] - block[k * points_pad + i],
+                            period[k],
+                        );
                     dirs[s * per + i * dims_pad + k] = v;
                     dirs_soa[s * per + k * points_pad + i] = v;
                     len2 += v * v;
@@ -214,7 +222,13 @@ impl CurveLayout {
                     let mut y = block[k * points_pad + first];
                     let (mut lo, mut hi) = (y, y);
                     for i in first..last {
-                        y += dirs[s * per + i * dims_pad + k];
+                        let next = if i + 1 == points { 0 } else { i + 1 };
+                        y = if joins(i, next) {
+                            y + dirs[s * per + i * dims_pad + k]
+                        } else {
+                            // A new piece: its own lift (any lift stays within [lo, hi]).
+                            block[k * points_pad + next]
+                        };
                         lo = lo.min(y);
                         hi = hi.max(y);
                     }

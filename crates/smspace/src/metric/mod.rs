@@ -122,6 +122,7 @@ pub use tiles::{
 pub struct SetsView<'a> {
     points: ArrayView3<'a, f64>,
     closure: Option<&'a [Closure]>,
+    pieces: Option<ndarray::ArrayView2<'a, i64>>,
 }
 
 impl<'a> SetsView<'a> {
@@ -130,6 +131,7 @@ impl<'a> SetsView<'a> {
         Self {
             points,
             closure: None,
+            pieces: None,
         }
     }
 
@@ -139,9 +141,23 @@ impl<'a> SetsView<'a> {
         self
     }
 
+    /// The same sets with the piece of every point, `(M, P)` (`sets.components.npy`):
+    /// for the `curve` metric, a set is the union of its pieces, each a run of
+    /// consecutive points joined as the set's closure says (no segment joins two
+    /// pieces; a closed piece of a set of several ends with a copy of its first point).
+    pub fn with_pieces(mut self, pieces: ndarray::ArrayView2<'a, i64>) -> Self {
+        self.pieces = Some(pieces);
+        self
+    }
+
     /// The points `(M, P, N)`.
     pub fn points(&self) -> ArrayView3<'a, f64> {
         self.points
+    }
+
+    /// The pieces of the points, if given.
+    pub fn pieces(&self) -> Option<ndarray::ArrayView2<'a, i64>> {
+        self.pieces
     }
 
     /// The closures, if given.
@@ -157,6 +173,7 @@ impl<'a> SetsView<'a> {
         SetsView {
             points: self.points.reborrow(),
             closure: self.closure,
+            pieces: self.pieces.map(|p| p.reborrow()),
         }
     }
 }

@@ -247,6 +247,14 @@ impl PreparedSets {
                 if p < 2 {
                     return Err(MetricError::TooFewPoints { points: p });
                 }
+                if let Some(pieces) = view.pieces() {
+                    if pieces.dim() != (m, p) {
+                        return Err(MetricError::ClosureLength {
+                            found: pieces.nrows(),
+                            sets: m,
+                        });
+                    }
+                }
                 Some(Box::new(CurveLayout::new(
                     &coords,
                     m,
@@ -256,6 +264,7 @@ impl PreparedSets {
                     dims_pad,
                     &period_pad,
                     closure,
+                    view.pieces(),
                 )))
             }
         };

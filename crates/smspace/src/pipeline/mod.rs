@@ -459,6 +459,16 @@ pub fn check_with(
     } else {
         None
     };
+    if metric.params.metric.kind() == Some(crate::metric::MetricKind::Curve) {
+        if let Ok(Some(k)) = e
+            .kernel
+            .check()
+            .and_then(|p| p.dimension_for(agent.as_ref()))
+        {
+            crate::kernel::check_curve_metric(k)
+                .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
+        }
+    }
     e.embedding
         .clone()
         .build()

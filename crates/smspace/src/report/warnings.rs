@@ -54,7 +54,10 @@ fn trace_warnings(inputs: &ReportInputs<'_>) -> Vec<Warning> {
         ));
     }
     for (status, &count) in &trace.by_status {
-        if count == 0 || status == "closed" || status == "open" {
+        let traced_shapes = ["closed", "open", "pieces", "covered"];
+        // A body whose every set is a point: said once, by the summary's warning below.
+        let all_points = status == "point" && count == trace.traced;
+        if count == 0 || traced_shapes.contains(&status.as_str()) || all_points {
             continue;
         }
         let sets = of_sets(count, trace.total);
@@ -74,10 +77,19 @@ fn trace_warnings(inputs: &ReportInputs<'_>) -> Vec<Warning> {
             "outside-workspace" => format!(
                 "{sets} start outside the working space and were left out"
             ),
+            "cover-budget" => format!(
+                "{sets} were left out because the dense covering of their k-dimensional kernel needed more than max_cover_points nodes (raise cover_step or max_cover_points)"
+            ),
             other => format!("{sets} have status {other} (see sets.trace.json)"),
         };
         out.push(Warning::new("trace", message));
     }
+    out.extend(
+        trace
+            .warnings()
+            .into_iter()
+            .map(|message| Warning::new("trace", message)),
+    );
     out
 }
 

@@ -127,7 +127,13 @@ impl Stage for DistancesStage {
         context: &StageContext<'_>,
     ) -> crate::Result<DistanceMatrix> {
         let traced = &input.traced.value;
-        let sets = SetsView::new(traced.sets.view()).with_closure(&traced.closure);
+        if self.metric.kind() == Some(crate::metric::MetricKind::Curve) {
+            let k = traced.dimensions().into_iter().max().unwrap_or(0);
+            crate::kernel::check_curve_metric(k).map_err(crate::metric::MetricError::Invalid)?;
+        }
+        let sets = SetsView::new(traced.sets.view())
+            .with_closure(&traced.closure)
+            .with_pieces(traced.pieces.view());
         context
             .distances
             .distances(self, sets, context.memory_limit_bytes, context.progress)

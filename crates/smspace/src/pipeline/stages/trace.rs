@@ -83,14 +83,35 @@ impl Stage for TraceStage {
         Ok(TracedSets::load(&dir.join(SETS_FILE))?)
     }
 
+    /// `N of M sets traced (method), P points each`, with the pieces found, the
+    /// covering radii of k-D kernels, and every warning of
+    /// [`TraceSummary::warnings`](crate::kernel::TraceSummary::warnings) (sets missing
+    /// pieces, bodies without redundancy), so that the log never reads as if all were
+    /// fine when it is not.
     fn summary(&self, t: &TracedSets) -> String {
         let s = &t.report.summary;
-        format!(
+        let mut line = format!(
             "{} of {} sets traced ({}), {} points each",
             s.traced,
             s.total,
             label(&self.kernel.method),
             t.sets.dim().1
-        )
+        );
+        if s.with_several_pieces > 0 {
+            line.push_str(&format!(
+                "; {} with several pieces ({})",
+                s.with_several_pieces,
+                label(&self.kernel.components)
+            ));
+        }
+        if let Some([low, median, high]) = s.covering_radius {
+            line.push_str(&format!(
+                "; covering radius {low:.3} / {median:.3} / {high:.3} rad (min / median / max)"
+            ));
+        }
+        for warning in s.warnings() {
+            line.push_str(&format!("; warning: {warning}"));
+        }
+        line
     }
 }
