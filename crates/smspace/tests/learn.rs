@@ -17,6 +17,11 @@ use smspace::learn::{
 use smspace::metric::Period;
 use smspace::progress::Silent;
 
+/// The first `count` rows of `a`.
+fn first_rows(a: &Array2<f64>, count: usize) -> Array2<f64> {
+    a.select(ndarray::Axis(0), &(0..count).collect::<Vec<_>>())
+}
+
 fn files() -> LogFiles {
     LogFiles {
         motors: PathBuf::from("m.npy"),
@@ -154,7 +159,7 @@ fn bad_logs_are_refused_with_the_file_and_the_fix() {
     let (motors, sensors) = hinge_log(500, -PI, PI, smooth);
     let message = |e: LearnError| e.to_string();
     // Different row counts.
-    let short = sensors.slice(ndarray::s![..499, ..]).to_owned();
+    let short = first_rows(&sensors, 499);
     let e = message(SensorimotorLog::new(motors.clone(), short, files(), &space).unwrap_err());
     assert!(e.contains("m.npy has 500 rows but s.npy has 499"), "{e}");
     // NaN.
@@ -186,8 +191,8 @@ fn bad_logs_are_refused_with_the_file_and_the_fix() {
     assert!(e.contains("2 motor columns but 3"), "{e}");
     // Too few samples for the method.
     let small = SensorimotorLog::new(
-        motors.slice(ndarray::s![..40, ..]).to_owned(),
-        sensors.slice(ndarray::s![..40, ..]).to_owned(),
+        first_rows(&motors, 40),
+        first_rows(&sensors, 40),
         files(),
         &space,
     )
