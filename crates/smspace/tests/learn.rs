@@ -166,7 +166,7 @@ fn bad_logs_are_refused_with_the_file_and_the_fix() {
     let mut nan = sensors.clone();
     nan[[7, 1]] = f64::NAN;
     let e = message(SensorimotorLog::new(motors.clone(), nan, files(), &space).unwrap_err());
-    assert!(e.contains("s.npy") && e.contains("[7, 1]"), "{e}");
+    assert!(e.contains("s.npy") && e.contains("(7, 1)"), "{e}");
     // A constant sensor.
     let mut constant = sensors.clone();
     constant.column_mut(2).fill(0.25);
