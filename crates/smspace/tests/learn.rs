@@ -220,7 +220,7 @@ fn periodic_motors_are_wrapped_and_learning_is_deterministic() {
         assert!((x - y).abs() < 1e-12);
     }
     let params = LawParams::default().check().unwrap();
-    let first = learn(&[a.clone()], &space, &params, None).unwrap();
+    let first = learn(std::slice::from_ref(&a), &space, &params, None).unwrap();
     let second = learn(&[a], &space, &params, None).unwrap();
     assert_eq!(first.report(), second.report());
 }
