@@ -10,6 +10,11 @@ use ndarray_npy::{read_npy, write_npy};
 
 use common::{fails, ok};
 
+/// The first `count` rows of `a`.
+fn first_rows(a: &Array2<f64>, count: usize) -> Array2<f64> {
+    a.select(ndarray::Axis(0), &(0..count).collect::<Vec<_>>())
+}
+
 fn temp() -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().to_owned();
@@ -43,7 +48,7 @@ fn simulate_then_learn_writes_the_files_of_trace() {
         ((5000, 2), (5000, 2), (5000, 3))
     );
     assert!(dir.join("log/log.json").is_file() && dir.join("log/environment.json").is_file());
-    let starts = motors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..4)).to_owned();
+    let starts = first_rows(&motors, 4);
     write_npy(dir.join("starts.npy"), &starts).unwrap();
     ok(
         &dir,
@@ -93,11 +98,7 @@ fn bad_logs_name_the_file_and_the_fix() {
     let sensors = Array2::from_shape_fn((400, 2), |(i, j)| (i as f64 * 0.1 + j as f64).sin());
     write_npy(dir.join("m.npy"), &motors).unwrap();
     write_npy(dir.join("s.npy"), &sensors).unwrap();
-    write_npy(
-        dir.join("starts.npy"),
-        &motors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..2)).to_owned(),
-    )
-    .unwrap();
+    write_npy(dir.join("starts.npy"), &first_rows(&motors, 2)).unwrap();
     let learn = |m: &str, s: &str, extra: &[&str]| {
         let mut args = vec![
             "learn",
@@ -114,11 +115,7 @@ fn bad_logs_name_the_file_and_the_fix() {
         fails(&dir, &args)
     };
     // Different row counts.
-    write_npy(
-        dir.join("short.npy"),
-        &sensors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..399)).to_owned(),
-    )
-    .unwrap();
+    write_npy(dir.join("short.npy"), &first_rows(&sensors, 399)).unwrap();
     let e = learn("m.npy", "short.npy", &[]);
     assert!(
         e.contains("m.npy has 400 rows but short.npy has 399"),
@@ -146,16 +143,8 @@ fn bad_logs_name_the_file_and_the_fix() {
         "{e}"
     );
     // Too few samples for the method.
-    write_npy(
-        dir.join("m30.npy"),
-        &motors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..30)).to_owned(),
-    )
-    .unwrap();
-    write_npy(
-        dir.join("s30.npy"),
-        &sensors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..30)).to_owned(),
-    )
-    .unwrap();
+    write_npy(dir.join("m30.npy"), &first_rows(&motors, 30)).unwrap();
+    write_npy(dir.join("s30.npy"), &first_rows(&sensors, 30)).unwrap();
     let e = learn("m30.npy", "s30.npy", &["--period", "none"]);
     assert!(
         e.contains("m30.npy has too few samples (30)") && e.contains("local-linear"),

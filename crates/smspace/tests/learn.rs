@@ -17,6 +17,11 @@ use smspace::learn::{
 use smspace::metric::Period;
 use smspace::progress::Silent;
 
+/// The first `count` rows of `a`.
+fn first_rows(a: &Array2<f64>, count: usize) -> Array2<f64> {
+    a.select(ndarray::Axis(0), &(0..count).collect::<Vec<_>>())
+}
+
 fn files() -> LogFiles {
     LogFiles {
         motors: PathBuf::from("m.npy"),
@@ -154,14 +159,14 @@ fn bad_logs_are_refused_with_the_file_and_the_fix() {
     let (motors, sensors) = hinge_log(500, -PI, PI, smooth);
     let message = |e: LearnError| e.to_string();
     // Different row counts.
-    let short = sensors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..499)).to_owned();
+    let short = first_rows(&sensors, 499);
     let e = message(SensorimotorLog::new(motors.clone(), short, files(), &space).unwrap_err());
     assert!(e.contains("m.npy has 500 rows but s.npy has 499"), "{e}");
     // NaN.
     let mut nan = sensors.clone();
     nan[[7, 1]] = f64::NAN;
     let e = message(SensorimotorLog::new(motors.clone(), nan, files(), &space).unwrap_err());
-    assert!(e.contains("s.npy") && e.contains("[7, 1]"), "{e}");
+    assert!(e.contains("s.npy") && e.contains("(7, 1)"), "{e}");
     // A constant sensor.
     let mut constant = sensors.clone();
     constant.column_mut(2).fill(0.25);
@@ -186,8 +191,8 @@ fn bad_logs_are_refused_with_the_file_and_the_fix() {
     assert!(e.contains("2 motor columns but 3"), "{e}");
     // Too few samples for the method.
     let small = SensorimotorLog::new(
-        motors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..40)).to_owned(),
-        sensors.slice_axis(ndarray::Axis(0), ndarray::Slice::from(..40)).to_owned(),
+        first_rows(&motors, 40),
+        first_rows(&sensors, 40),
         files(),
         &space,
     )
@@ -215,7 +220,7 @@ fn periodic_motors_are_wrapped_and_learning_is_deterministic() {
         assert!((x - y).abs() < 1e-12);
     }
     let params = LawParams::default().check().unwrap();
-    let first = learn(&[a.clone()], &space, &params, None).unwrap();
+    let first = learn(std::slice::from_ref(&a), &space, &params, None).unwrap();
     let second = learn(&[a], &space, &params, None).unwrap();
     assert_eq!(first.report(), second.report());
 }

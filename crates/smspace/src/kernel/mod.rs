@@ -530,7 +530,7 @@ pub enum SetStatus {
     /// The start lies outside the working space.
     OutsideWorkspace,
     /// The set left the region a law learned from data covers
-    /// ([`Agent::covers`](crate::agent::Agent::covers)); it ends there and is not kept.
+    /// ([`Agent::covers`]); it ends there and is not kept.
     LeftData,
 }
 

@@ -69,7 +69,7 @@ impl LocalModel {
             .filter_map(|m| m.period())
             .reduce(f64::min)
         {
-            if !(bandwidth < period / 4.0) {
+            if bandwidth.is_nan() || bandwidth >= period / 4.0 {
                 return Err(LearnError::TooFewSamples {
                     path: log.files.motors.clone(),
                     samples: fit.len(),
@@ -216,7 +216,7 @@ fn solve(gram: &mut [f64], rhs: &mut [f64], p: usize, k: usize, ridge: f64) -> b
                 s -= gram[i * p + q] * gram[j * p + q];
             }
             if i == j {
-                if !(s > 1e-300) {
+                if s.is_nan() || s <= 1e-300 {
                     return false;
                 }
                 gram[i * p + i] = s.sqrt();
@@ -461,7 +461,7 @@ pub(crate) fn gap_rank(matrix: &[f64], rows: usize, n: usize) -> usize {
     let mut sigma = sigma;
     sigma.sort_by(|a, b| b.total_cmp(a));
     let largest = sigma.first().copied().unwrap_or(0.0);
-    if !(largest > 0.0) || !largest.is_finite() {
+    if largest.is_nan() || largest <= 0.0 || !largest.is_finite() {
         return 0;
     }
     if sigma[n - 1] > 0.1 * largest {

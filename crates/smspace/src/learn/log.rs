@@ -105,7 +105,7 @@ pub fn declared_space(
                 let column = motors.column(j);
                 let low = column.iter().copied().fold(f64::INFINITY, f64::min);
                 let high = column.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                if !(low < high) {
+                if low >= high {
                     return Err(InvalidParameter::new(
                         "data",
                         "period",

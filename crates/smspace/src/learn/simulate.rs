@@ -119,7 +119,7 @@ fn add_noise(sensors: &mut Array2<f64>, noise: f64, seed: u64) {
             (c.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / c.len().max(1) as f64).sqrt()
         })
         .collect();
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6e6f_6973_65);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x006e_6f69_7365);
     for mut row in sensors.outer_iter_mut() {
         for (v, sd) in row.iter_mut().zip(&deviations) {
             let u1: f64 = 1.0 - rng.gen::<f64>();
