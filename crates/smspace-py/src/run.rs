@@ -72,10 +72,8 @@ impl DistanceBackend for PythonDistances {
         _memory_limit_bytes: Option<u64>,
         _progress: &dyn Progress,
     ) -> smspace::Result<DistanceMatrix> {
-        let period = match stage.period {
-            smspace::metric::Period::TwoPi => "2pi",
-            smspace::metric::Period::None => "none",
-        };
+        // "2pi", "none" or "[2pi, none, …]", which `Periodicity::parse` reads back.
+        let period = stage.period.to_string();
         let answer = Python::attach(|py| -> PyResult<DistanceMatrix> {
             let points = sets.points().to_owned().into_pyarray(py);
             let closed = sets.closure().map(|c| {
@@ -86,7 +84,7 @@ impl DistanceBackend for PythonDistances {
             });
             let d = self
                 .callable
-                .call1(py, (points, closed, stage.metric.as_str(), period))?;
+                .call1(py, (points, closed, stage.metric.as_str(), period.as_str()))?;
             let d: PyReadonlyArray2<'_, f64> = d.bind(py).extract()?;
             DistanceMatrix::from_view(d.as_array()).map_err(to_py_err)
         });

@@ -65,12 +65,11 @@ fn closures(
         .map(Some)
 }
 
-/// The metric `name` with `period` (`"2pi"` or `"none"`), from the built-in registry.
+/// The metric `name` with `period` (`"2pi"`, `"none"`, or one entry per motor:
+/// `"2pi,2pi,none"`), from the built-in registry.
 fn metric(name: &str, period: &str, memory_limit_bytes: Option<u64>) -> PyResult<BuiltMetric> {
-    let period = from_json(
-        &serde_json::json!(period).to_string(),
-        "period (use \"2pi\" or \"none\")",
-    )?;
+    let period = smspace::metric::Periodicity::parse(period)
+        .map_err(|e| value_error(format!("period: {e}")))?;
     let params = DistanceParams::new()
         .metric(name)
         .period(period)

@@ -198,8 +198,14 @@ impl Periodicity {
 
     /// Parses the command line's form: `2pi`, `none`, `motors`, or a comma-separated
     /// list with one entry per coordinate (`2pi`, `none` or a period in radians).
+    /// The list may be in brackets (`[2pi, none]`, as [`Display`](std::fmt::Display)
+    /// writes it).
     pub fn parse(text: &str) -> Result<Self, PeriodError> {
         let text = text.trim();
+        let text = match text.strip_prefix('[').and_then(|t| t.strip_suffix(']')) {
+            Some(inner) => inner.trim(),
+            None => text,
+        };
         if !text.contains(',') {
             if let Some(single) = Self::named(text) {
                 return Ok(single);
@@ -450,6 +456,7 @@ mod tests {
     fn periodicity_parses_prints_and_round_trips() {
         let mixed = Periodicity::parse("2pi, none,3").unwrap();
         assert_eq!(mixed.to_string(), "[2pi, none, 3]");
+        assert_eq!(Periodicity::parse(&mixed.to_string()).unwrap(), mixed);
         assert_eq!(
             mixed.for_dims(3).unwrap(),
             Periods::new(vec![Some(TAU), None, Some(3.0)]).unwrap()
