@@ -102,11 +102,7 @@ impl Agent {
             };
             return config.build(self.law.as_ref()).map_err(to_py_err);
         }
-        let lights: PyReadonlyArray2<'_, f64> = env.extract().map_err(|_| {
-            PyTypeError::new_err(
-                "env must be None, an int seed, or a float64 array of lights (L, 2) or (L, 3)",
-            )
-        })?;
+        let lights = matrix_arg(env, "env (None, an int seed, or lights (L, 2) or (L, 3))")?;
         let lights = lights.as_array();
         let environment = match lights.ncols() {
             2 => Environment::from_lights(lights.outer_iter().map(|r| [r[0], r[1]]).collect()),
@@ -127,6 +123,34 @@ impl Agent {
             .map_err(to_py_err)?;
         Ok(environment)
     }
+}
+
+/// `value` as an aligned float64 array of 2 dimensions (`numpy.require`: a copy only
+/// when it is not one already, e.g. an unaligned buffer from unpickling), or a
+/// `TypeError`/`ValueError` naming `argument`.
+pub(crate) fn matrix_arg<'py>(
+    value: &Bound<'py, PyAny>,
+    argument: &str,
+) -> PyResult<PyReadonlyArray2<'py, f64>> {
+    let numpy = value.py().import("numpy")?;
+    let array = numpy
+        .call_method1("require", (value, "float64", "A"))
+        .map_err(|e| {
+            PyTypeError::new_err(format!(
+                "{argument} must be an array of float64 numbers: {}",
+                e.value(value.py())
+            ))
+        })?;
+    let ndim: usize = array.getattr("ndim")?.extract()?;
+    if ndim != 2 {
+        return Err(value_error(format!(
+            "{argument} must have 2 dimensions, got shape {}",
+            array.getattr("shape")?
+        )));
+    }
+    array
+        .extract()
+        .map_err(|_| PyTypeError::new_err(format!("{argument} must be a float64 array")))
 }
 
 /// Reads `params` (keyword arguments) as a TOML table, through their JSON.
@@ -233,10 +257,11 @@ impl Agent {
     fn sense<'py>(
         &self,
         py: Python<'py>,
-        motors: PyReadonlyArray2<'py, f64>,
+        motors: &Bound<'py, PyAny>,
         env: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let environment = self.environment(env)?;
+        let motors = matrix_arg(motors, "motors")?;
         let motors = motors.as_array();
         crate::stages::check_finite(motors.iter(), "motors")?;
         let law = self.law.as_ref();
@@ -252,8 +277,9 @@ impl Agent {
     fn poses<'py>(
         &self,
         py: Python<'py>,
-        motors: PyReadonlyArray2<'py, f64>,
+        motors: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let motors = matrix_arg(motors, "motors")?;
         let observer = self.law.ground_truth().ok_or_else(|| {
             value_error(format!("the {} agent has no ground truth", self.law.name()))
         })?;
@@ -450,6 +476,16 @@ impl Callbacks {
             if array.shape() != [expected.0, expected.1] {
                 return Err(wrong());
             }
+            // An unaligned buffer (rare: a view into unpickled bytes) is read from a copy.
+            let aligned: bool = array.getattr("flags")?.getattr("aligned")?.extract()?;
+            let array = if aligned {
+                array.clone()
+            } else {
+                array
+                    .call_method0("copy")?
+                    .cast_into::<PyArray2<f64>>()
+                    .map_err(|_| wrong())?
+            };
             let values = array.readonly();
             let values = values.as_array();
             if let Some((index, v)) = values.indexed_iter().find(|(_, v)| !v.is_finite()) {
