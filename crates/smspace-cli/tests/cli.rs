@@ -485,7 +485,9 @@ fn what_the_agent_cannot_give_is_refused() {
         &ndarray::array![[0.3, -1.0, 0.9, 0.2, 0.1]],
     )
     .unwrap();
-    let stderr = fails(
+    // Five motors for a 3-D pose: 2-D kernels, covered and sampled (status covered,
+    // a covering radius per set).
+    ok(
         &dir,
         &[
             "trace",
@@ -493,15 +495,20 @@ fn what_the_agent_cannot_give_is_refused() {
             "arm5.toml",
             "--motors",
             "five.npy",
+            "--points",
+            "30",
+            "--cover-step",
+            "0.4",
             "--out",
             "s.npy",
         ],
     );
+    let report = std::fs::read_to_string(dir.join("s.trace.json")).unwrap();
     assert!(
-        stderr.contains("kernel sets have dimension k = N − rank(J) = 5 − 3 = 2")
-            && stderr.contains("not implemented yet"),
-        "{stderr}"
+        report.contains("\"covered\"") && report.contains("\"covering_radius\""),
+        "{report}"
     );
+    assert!(dir.join("s.components.npy").exists());
     let stderr = fails(
         &dir,
         &[

@@ -112,7 +112,7 @@ fn orthonormalise(v: &mut [f64], frame: &[Vec<f64>]) -> bool {
         }
     }
     let after = dot(v, v).sqrt();
-    if after.partial_cmp(&(1e-8 * before.max(f64::MIN_POSITIVE))) != Some(std::cmp::Ordering::Greater) {
+    if !exceeds(after, 1e-8 * before.max(f64::MIN_POSITIVE)) {
         return false;
     }
     for x in v.iter_mut() {

@@ -5,9 +5,11 @@
 //! `k = N − rank(J)` (`J` the Jacobian of the level set's function, see
 //! [`tangent_space`]). For the paper's arm (`N = 4` hinges, a 3-D pose) it is a closed
 //! curve on the motor torus; for the redundant toy a segment `m1 + m2 = x` of the
-//! motor box; for the one-motor toy a single point. The tracer samples kernels of
-//! dimension 0 and 1 ([`SetReport::dimension`]); a larger `k` is refused with
-//! [`KernelError::UnsupportedDimension`] (sampling k-D kernels is the next step).
+//! motor box; for the one-motor toy a single point; for a 4-link arm a surface. The
+//! tracer samples points and curves, and covers kernels of dimension `k ≥ 2` densely
+//! and samples them farthest first, with a covering radius per set (see `cover.rs`:
+//! the module docs of the covering, the farthest-point sampling and the multi-start
+//! search for the pieces of a level set, `[kernel] components`).
 //!
 //! ## Tracing (appendix A)
 //!
@@ -88,20 +90,6 @@ pub enum KernelError {
         total: usize,
         /// Count per status.
         by_status: String,
-    },
-    /// The agent's kernel sets have a dimension the tracer does not sample yet.
-    #[error("the {agent} agent's kernel sets have dimension k = N − rank(J) = {motors} − {rank} = {dimension}, with J {jacobian}; the tracer samples kernels of dimension 0 (points) and 1 (curves): sampling k-dimensional kernels is not implemented yet")]
-    UnsupportedDimension {
-        /// The agent's name.
-        agent: String,
-        /// Motors `N`.
-        motors: usize,
-        /// The rank of the method's Jacobian.
-        rank: usize,
-        /// The kernel dimension `k = N − rank`.
-        dimension: usize,
-        /// Which Jacobian, and where its rank comes from.
-        jacobian: String,
     },
     /// The agent has fewer motors than the pose coordinates the kinematic level set
     /// holds fixed.

@@ -7,8 +7,8 @@
 //! generic rank of the sensory Jacobian, estimated as its largest numerical rank over
 //! the starts (singular values above `rank_tolerance` times the largest; a start
 //! where fewer lights are in view has a lower rank, never a higher one). Sets of
-//! dimension 0 are single points, of dimension 1 curves the follower traces; a
-//! larger `k` is refused with [`KernelError::UnsupportedDimension`].
+//! dimension 0 are single points, of dimension 1 curves the follower traces, of
+//! larger dimension surfaces the covering samples (`cover.rs`).
 
 use nalgebra::{DMatrix, SVD};
 use ndarray::{Array2, ArrayView2};
