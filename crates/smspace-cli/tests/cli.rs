@@ -499,6 +499,8 @@ fn what_the_agent_cannot_give_is_refused() {
             "30",
             "--cover-step",
             "0.4",
+            "--workspace",
+            "none",
             "--out",
             "s.npy",
         ],
