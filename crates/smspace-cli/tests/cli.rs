@@ -499,16 +499,18 @@ fn what_the_agent_cannot_give_is_refused() {
             "30",
             "--cover-step",
             "0.4",
+            "--workspace",
+            "none",
             "--out",
-            "s.npy",
+            "surface.npy",
         ],
     );
-    let report = std::fs::read_to_string(dir.join("s.trace.json")).unwrap();
+    let report = std::fs::read_to_string(dir.join("surface.trace.json")).unwrap();
     assert!(
         report.contains("\"covered\"") && report.contains("\"covering_radius\""),
         "{report}"
     );
-    assert!(dir.join("s.components.npy").exists());
+    assert!(dir.join("surface.components.npy").exists());
     let stderr = fails(
         &dir,
         &[

@@ -510,13 +510,13 @@ mod tests {
 
     #[test]
     fn farthest_points_report_the_largest_gap() {
-        // Points 0, 1, …, 10 on a line (a bounded motor): picks 0, 10, 5 leave gaps
-        // of at most 3 (node 2 or 8, …).
+        // Points 0, 1, …, 10 on a line (a bounded motor): picks 0, 10, 5 leave every
+        // node within 2 of a pick (nodes 2, 3, 7, 8 at exactly 2).
         let space = MotorSpace::bounded(1, -100.0, 100.0).unwrap();
         let nodes: Vec<f64> = (0..=10).map(f64::from).collect();
         let (picks, radius) = farthest_points(&space, &nodes, 1, 0, 3);
         assert_eq!(picks, vec![0, 10, 5]);
-        assert!((radius - 3.0).abs() < 1e-12);
+        assert!((radius - 2.0).abs() < 1e-12);
         let (cycled, _) = farthest_points(&space, &nodes[..2], 1, 0, 5);
         assert_eq!(cycled, vec![0, 1, 0, 1, 0]);
     }
