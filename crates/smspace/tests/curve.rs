@@ -630,3 +630,28 @@ fn uniform_periods_equal_their_shorthand_bit_for_bit() {
         }
     }
 }
+
+#[test]
+fn no_segment_joins_two_pieces_of_a_set() {
+    // A: two unit segments, y = 0 and y = 2 (its last point repeated). B: the same
+    // two segments and the point (0.5, 1) as a third piece. Every point of A is on B;
+    // the point (0.5, 1) is at distance 1 from A's segments. Read as one polyline, A's
+    // segment from (1, 0) to (0, 2) would pass through (0.5, 1).
+    let a = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [1.0, 2.0]];
+    let b = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [0.5, 1.0]];
+    let sets = Array3::from_shape_fn(
+        (2, 5, 2),
+        |(s, p, n)| if s == 0 { a[p][n] } else { b[p][n] },
+    );
+    let pieces = array![[0_i64, 0, 1, 1, 1], [0, 0, 1, 1, 2]];
+    let closures = [Closure::Open; 2];
+    let params = DistanceParams::new()
+        .metric(MetricKind::Curve)
+        .period(Period::None);
+    let view = SetsView::new(sets.view()).with_closure(&closures);
+    let with =
+        distance_matrix(view.reborrow().with_pieces(pieces.view()), &params, &Silent).unwrap();
+    assert!((with[[0, 1]] - 1.0).abs() < 1e-9, "{}", with[[0, 1]]);
+    let joined = distance_matrix(view, &params, &Silent).unwrap();
+    assert!((joined[[0, 1]] - 1.0).abs() > 0.1, "{}", joined[[0, 1]]);
+}

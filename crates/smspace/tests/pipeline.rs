@@ -78,7 +78,9 @@ fn run(file: &Path, out: &Path, overrides: &[&str]) -> RunSummary {
         out_dir: out.to_owned(),
         recompute: Recompute::Changed,
         memory_limit_bytes: None,
-        busy: smspace::pipeline::BusyFolder::Refuse,
+        // Wait rather than refuse: a child process another test spawns can hold a dup of
+        // this folder's lock for the instant between its fork and exec.
+        busy: smspace::pipeline::BusyFolder::Wait,
     };
     pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"))
 }

@@ -149,6 +149,8 @@ struct Input {
     path: PathBuf,
     sets: Array3<f64>,
     closure: Option<Vec<Closure>>,
+    /// For `curve`: the piece of every point (`SETS.components.npy`, when there).
+    pieces: Option<ndarray::Array2<i64>>,
     params: DistanceParams,
 }
 
@@ -156,6 +158,15 @@ impl Input {
     fn read(args: &Args, path: &Path) -> anyhow::Result<Self> {
         let sets = smspace::io::read_cube(path, "(M, P, N)")?;
         let closure = closure(args, path, sets.dim().0)?;
+        // The pieces of kernels traced with components = "all": no segment of the curve
+        // metric joins two of them.
+        let record = sibling(path, "components.npy");
+        let pieces = if closure.is_some() && record.exists() {
+            let (m, p, _) = sets.dim();
+            Some(smspace::kernel::read_pieces(&record, m, p)?)
+        } else {
+            None
+        };
         let params = DistanceParams::new()
             .metric(args.metric.kind())
             .period(&args.period)
@@ -164,6 +175,7 @@ impl Input {
             path: path.to_owned(),
             sets,
             closure,
+            pieces,
             params,
         })
     }
@@ -171,9 +183,13 @@ impl Input {
     /// The sets `range` (all of them for `0..M`), with their closures.
     fn view(&self, range: Range<usize>) -> SetsView<'_> {
         let points = self.sets.slice_axis(Axis(0), Slice::from(range.clone()));
-        match &self.closure {
-            Some(c) => SetsView::new(points).with_closure(&c[range]),
+        let view = match &self.closure {
+            Some(c) => SetsView::new(points).with_closure(&c[range.clone()]),
             None => SetsView::new(points),
+        };
+        match &self.pieces {
+            Some(pieces) => view.with_pieces(pieces.slice_axis(Axis(0), Slice::from(range))),
+            None => view,
         }
     }
 
