@@ -265,7 +265,7 @@ fn leaves(value: &Value, path: &mut Vec<String>, out: &mut Vec<(Vec<String>, Val
 /// Values of the same type as `value`, different from it, to try in turn (for a
 /// string, the other names the experiment tables accept; for `null`, numbers).
 fn perturbed(value: &Value) -> Vec<toml::Value> {
-    const NAMES: [&str; 23] = [
+    const NAMES: [&str; 26] = [
         "sensory",
         "kinematic",
         "auto",
@@ -289,6 +289,9 @@ fn perturbed(value: &Value) -> Vec<toml::Value> {
         "maxmin",
         "dense",
         "partial",
+        "all",
+        "connected",
+        "motors",
     ];
     let number = |x: f64| -> Vec<toml::Value> {
         [x * 1.5, x * 0.5, x + 1.0, x + 0.05, 2.0, 0.5]
