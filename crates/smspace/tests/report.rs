@@ -684,9 +684,10 @@ fn warnings_open_the_report() {
         .iter()
         .map(|w| w.message.as_str())
         .collect();
-    // toy-line's sets are single points, the estimate above, and the pipeline's warning.
+    // toy-line's sets are single points (no redundancy), the estimate above, and the
+    // pipeline's warning.
     assert!(
-        messages.iter().any(|m| m.contains("are single points")),
+        messages.iter().any(|m| m.contains("is a single point")),
         "{messages:?}"
     );
     assert!(messages
