@@ -150,6 +150,43 @@ pub(crate) struct CurveRef<'a> {
     pub max_len: f64,
 }
 
+/// The `f32` directions and `1 / |v|²` of every set's segments in ring order (row `r`
+/// holds segment `(r − RING) mod P`, 0 for a missing segment), and each set's longest
+/// segment: the parts of a [`CurveLayout`] read next to [`SetRef::ring32`].
+fn ring_segments(
+    dirs: &[f64],
+    inv_len2: &[f64],
+    lengths: &[f64],
+    segments: &[u32],
+    (points, points_pad, dims_pad): (usize, usize, usize),
+) -> (Vec<f32>, Vec<f32>, Vec<f64>) {
+    let sets = segments.len();
+    let per = dims_pad * points_pad;
+    let rows = points + 2 * RING;
+    let mut dir_ring32 = vec![0.0f32; sets * rows * dims_pad];
+    let mut inv_ring32 = vec![0.0f32; sets * rows];
+    let mut max_len = vec![0.0f64; sets];
+    for s in 0..sets {
+        let count = segments[s] as usize;
+        max_len[s] = lengths[s * points_pad..s * points_pad + count]
+            .iter()
+            .fold(0.0, |m: f64, &x| m.max(x));
+        for r in 0..rows {
+            let j = (r + RING * points - RING) % points;
+            if j >= count {
+                continue;
+            }
+            for k in 0..dims_pad {
+                dir_ring32[(s * rows + r) * dims_pad + k] = dirs[s * per + j * dims_pad + k] as f32;
+            }
+            let inv = inv_len2[s * points_pad + j];
+            // Beyond f32's range a segment counts as its first point (t = 0).
+            inv_ring32[s * rows + r] = if inv < 1e30 { inv as f32 } else { 0.0 };
+        }
+    }
+    (dir_ring32, inv_ring32, max_len)
+}
+
 impl CurveLayout {
     /// Builds the segments of the prepared (wrapped, padded) points.
     #[allow(
@@ -237,29 +274,13 @@ impl CurveLayout {
                 }
             }
         }
-        let rows = points + 2 * RING;
-        let mut dir_ring32 = vec![0.0f32; sets * rows * dims_pad];
-        let mut inv_ring32 = vec![0.0f32; sets * rows];
-        let mut max_len = vec![0.0f64; sets];
-        for s in 0..sets {
-            let count = segments[s] as usize;
-            max_len[s] = lengths[s * points_pad..s * points_pad + count]
-                .iter()
-                .fold(0.0, |m: f64, &x| m.max(x));
-            for r in 0..rows {
-                let j = (r + RING * points - RING) % points;
-                if j >= count {
-                    continue;
-                }
-                for k in 0..dims_pad {
-                    dir_ring32[(s * rows + r) * dims_pad + k] =
-                        dirs[s * per + j * dims_pad + k] as f32;
-                }
-                let inv = inv_len2[s * points_pad + j];
-                // Beyond f32's range a segment counts as its first point (t = 0).
-                inv_ring32[s * rows + r] = if inv < 1e30 { inv as f32 } else { 0.0 };
-            }
-        }
+        let (dir_ring32, inv_ring32, max_len) = ring_segments(
+            &dirs,
+            &inv_len2,
+            &lengths,
+            &segments,
+            (points, points_pad, dims_pad),
+        );
         let inv32 = inv_len2
             .iter()
             .map(|&inv| if inv < 1e30 { inv as f32 } else { 0.0 })
