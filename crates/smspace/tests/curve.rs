@@ -12,9 +12,9 @@ use ndarray::{array, Array2, Array3, Axis};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use smspace::metric::{
-    distance_matrix, distance_rows, fill_rows, knn, reference, Closure, Curve, DistanceParams,
-    KnnParams, MetricError, MetricKind, Period, Periods, PreparedSets, SetMetric, SetsView,
-    CURVE_TOLERANCE,
+    distance_matrix, distance_rows, fill_rows, fill_tile, knn, reference, Closure, Curve,
+    DistanceParams, KnnParams, MetricError, MetricKind, MetricRegistry, Period, Periods,
+    PreparedSets, SetMetric, SetsView, Tile, CURVE_TOLERANCE,
 };
 use smspace::progress::Silent;
 
@@ -654,4 +654,41 @@ fn no_segment_joins_two_pieces_of_a_set() {
     assert!((with[[0, 1]] - 1.0).abs() < 1e-9, "{}", with[[0, 1]]);
     let joined = distance_matrix(view, &params, &Silent).unwrap();
     assert!((joined[[0, 1]] - 1.0).abs() > 0.1, "{}", joined[[0, 1]]);
+}
+
+#[test]
+fn a_tile_keeps_the_pieces_of_its_rows_and_columns() {
+    // The same two sets as above, one in the tile's rows and one in its columns: the
+    // off-diagonal tile reads the pieces of both sides, as the whole matrix does.
+    let a = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [1.0, 2.0]];
+    let b = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [0.5, 1.0]];
+    let sets = Array3::from_shape_fn(
+        (2, 5, 2),
+        |(s, p, n)| if s == 0 { a[p][n] } else { b[p][n] },
+    );
+    let pieces = array![[0_i64, 0, 1, 1, 1], [0, 0, 1, 1, 2]];
+    let closures = [Closure::Open; 2];
+    let params = DistanceParams::new()
+        .metric(MetricKind::Curve)
+        .period(Period::None);
+    let metric = MetricRegistry::builtin().build(&params).unwrap();
+    let view = |range: std::ops::Range<usize>| {
+        SetsView::new(sets.slice_axis(Axis(0), range.clone().into()))
+            .with_closure(&closures[range.clone()])
+            .with_pieces(pieces.slice_axis(Axis(0), range.into()))
+    };
+    let tile = Tile::new(0..1, 1..2);
+    let mut out = Array2::zeros(tile.shape());
+    fill_tile(
+        view(0..1),
+        view(1..2),
+        &tile,
+        metric.metric.as_ref(),
+        out.view_mut(),
+        &Silent,
+    )
+    .unwrap();
+    let whole = distance_matrix(view(0..2), &params, &Silent).unwrap();
+    assert_eq!(out[[0, 0]], whole[[0, 1]]);
+    assert!((out[[0, 0]] - 1.0).abs() < 1e-9, "{}", out[[0, 0]]);
 }

@@ -580,9 +580,34 @@ pub fn fill_tile<'a>(
         (Some(a), Some(b)) => Some([a, b].concat()),
         _ => None,
     };
+    // The pieces of the points (kernels of several pieces): a side without them is one
+    // piece per set.
+    let stacked_pieces = match (rows.pieces(), cols.pieces()) {
+        (None, None) => None,
+        (a, b) => {
+            let one = |sets: &SetsView<'_>| {
+                let (m, p, _) = sets.points().dim();
+                ndarray::Array2::<i64>::zeros((m, p))
+            };
+            let a = a.map_or_else(|| one(&rows), |a| a.to_owned());
+            let b = b.map_or_else(|| one(&cols), |b| b.to_owned());
+            Some(
+                ndarray::concatenate(Axis(0), &[a.view(), b.view()]).map_err(|_| {
+                    MetricError::DimensionMismatch {
+                        a: a.ncols(),
+                        b: b.ncols(),
+                    }
+                })?,
+            )
+        }
+    };
     let stacked = match &stacked_closure {
         Some(c) => SetsView::new(stacked_points.view()).with_closure(c),
         None => SetsView::new(stacked_points.view()),
+    };
+    let stacked = match &stacked_pieces {
+        Some(p) => stacked.with_pieces(p.view()),
+        None => stacked,
     };
     let layout = Layout {
         tile: tile.clone(),
