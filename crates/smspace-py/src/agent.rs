@@ -311,9 +311,11 @@ impl Agent {
 }
 
 /// An agent whose law is Python: `sense(motors (B, N)) -> (B, K)`, called in batches,
-/// and optionally `pose(motors (B, N)) -> (B, 3)`, the planar pose `(x, y, alpha)` of
-/// the sensor (the ground truth: the `kinematic` method, the working space, the
-/// agreement analysis). `motor_space` lists each motor as `("periodic", period)` or
+/// and optionally `pose(motors (B, N)) -> (B, d)`, the pose of the sensor (the ground
+/// truth: the `kinematic` method, the working space, the agreement analysis):
+/// `pose_space="planar"` (the default) for `(x, y, alpha)`, `d = 3`;
+/// `pose_space="spatial"` for `(x, y, z, qw, qx, qy, qz)`, `d = 7`, a position and a
+/// unit quaternion (as a 3-D chain's). `motor_space` lists each motor as `("periodic", period)` or
 /// `("bounded", low, high)`; the default is `N` hinges (periodic `2π`).
 #[pyclass(extends = Agent, frozen, module = "smspace._core")]
 pub struct PythonAgent {}
@@ -321,7 +323,8 @@ pub struct PythonAgent {}
 #[pymethods]
 impl PythonAgent {
     #[new]
-    #[pyo3(signature = (sense, n_motors, n_sensors, motor_space=None, pose=None, name="python"))]
+    #[pyo3(signature = (sense, n_motors, n_sensors, motor_space=None, pose=None, name="python", pose_space="planar"))]
+    #[allow(clippy::too_many_arguments)] // the Python signature's keywords
     fn new(
         py: Python<'_>,
         sense: Py<PyAny>,
@@ -330,6 +333,7 @@ impl PythonAgent {
         motor_space: Option<Vec<Bound<'_, PyAny>>>,
         pose: Option<Py<PyAny>>,
         name: &str,
+        pose_space: &str,
     ) -> PyResult<PyClassInitializer<Self>> {
         if !sense.bind(py).is_callable() {
             return Err(PyTypeError::new_err(
@@ -339,10 +343,19 @@ impl PythonAgent {
         if let Some(p) = &pose {
             if !p.bind(py).is_callable() {
                 return Err(PyTypeError::new_err(
-                    "pose must be None or callable: pose(motors: (B, N) ndarray) -> (B, 3) ndarray",
+                    "pose must be None or callable: pose(motors: (B, N) ndarray) -> (B, d) ndarray",
                 ));
             }
         }
+        let pose_space = match pose_space {
+            "planar" => PoseSpace::planar(),
+            "spatial" => PoseSpace::spatial(),
+            other => {
+                return Err(value_error(format!(
+                    "pose_space '{other}' must be 'planar' (x, y, alpha) or 'spatial' (x, y, z, qw, qx, qy, qz)"
+                )))
+            }
+        };
         let space = match motor_space {
             None => MotorSpace::hinges(n_motors),
             Some(motors) => parse_motor_space(&motors)?,
@@ -352,6 +365,7 @@ impl PythonAgent {
             name: name.to_owned(),
             sense,
             pose,
+            pose_space,
             n: n_motors,
             k: n_sensors,
             space,
@@ -405,6 +419,8 @@ struct Callbacks {
     name: String,
     sense: Py<PyAny>,
     pose: Option<Py<PyAny>>,
+    /// The layout of `pose`'s rows.
+    pose_space: PoseSpace,
     n: usize,
     k: usize,
     space: MotorSpace,
@@ -545,7 +561,7 @@ impl AgentLaw for Callbacks {
 
 impl Observer for Callbacks {
     fn pose_space(&self) -> PoseSpace {
-        PoseSpace::planar()
+        self.pose_space.clone()
     }
 
     fn pose(&self, motors: &[f64], pose: &mut [f64]) {
@@ -554,7 +570,8 @@ impl Observer for Callbacks {
             return;
         };
         let motors = ArrayView2::from_shape((1, self.n), motors).expect("one row of N motors");
-        let pose = ArrayViewMut2::from_shape((1, 3), &mut pose[..3]).expect("one planar pose");
+        let d = self.pose_space.dim();
+        let pose = ArrayViewMut2::from_shape((1, d), &mut pose[..d]).expect("one pose");
         self.call("pose", callable, motors, pose);
     }
 
@@ -576,10 +593,11 @@ impl Observer for Callbacks {
             };
             motors[j] + shift
         });
-        let mut poses = Array2::zeros((rows, 3));
+        let space = &self.pose_space;
+        let d = space.dim();
+        let mut poses = Array2::zeros((rows, d));
         self.call("pose", callable, probes.view(), poses.view_mut());
-        let space = PoseSpace::planar();
-        let mut difference = [0.0; 3];
+        let mut difference = vec![0.0; space.tangent_dim()];
         for j in 0..n {
             let plus = poses.row(2 * j + 1).to_vec();
             let minus = poses.row(2 * j + 2).to_vec();
@@ -588,6 +606,6 @@ impl Observer for Callbacks {
                 jacobian[row * n + j] = v / (2.0 * h);
             }
         }
-        pose[..3].copy_from_slice(&poses.row(0).to_vec());
+        pose[..d].copy_from_slice(&poses.row(0).to_vec());
     }
 }

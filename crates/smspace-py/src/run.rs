@@ -53,12 +53,17 @@ impl RunObserver for Observer {
         self.say(format!("[smspace] {:<10} {how}: {summary}", stage.name()));
     }
 
+    fn stage_note(&self, stage: StageId, note: &str) {
+        self.say(format!("[smspace] {:<10} note: {note}", stage.name()));
+    }
+
     fn stage_skipped(&self, stage: StageId, why: &str) {
         self.say(format!("[smspace] {:<10} skipped: {why}", stage.name()));
     }
 }
 
-/// The distance stage computed by `callable(sets, closed, metric, period) -> (M, M)`.
+/// The distance stage computed by `callable(sets, closed, metric, period, pieces) -> (M, M)`
+/// (`pieces`: the piece of every point, `(M, P)` int64, or `None`).
 struct PythonDistances {
     callable: Py<PyAny>,
     error: Mutex<Option<PyErr>>,
@@ -82,9 +87,17 @@ impl DistanceBackend for PythonDistances {
                     .collect::<Vec<i64>>()
                     .into_pyarray(py)
             });
-            let d = self
-                .callable
-                .call1(py, (points, closed, stage.metric.as_str(), period.as_str()))?;
+            let pieces = sets.pieces().map(|p| p.to_owned().into_pyarray(py));
+            let d = self.callable.call1(
+                py,
+                (
+                    points,
+                    closed,
+                    stage.metric.as_str(),
+                    period.as_str(),
+                    pieces,
+                ),
+            )?;
             let d: PyReadonlyArray2<'_, f64> = d.bind(py).extract()?;
             DistanceMatrix::from_view(d.as_array()).map_err(to_py_err)
         });

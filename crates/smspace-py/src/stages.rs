@@ -13,7 +13,7 @@ use numpy::{
 use pyo3::prelude::*;
 use smspace::analysis::{analyze, AnalysisParams};
 use smspace::embed::EmbedParams;
-use smspace::explore::{default_workspace, explore_in, ExploreParams, Workspace};
+use smspace::explore::{default_workspace, explore_with, ExploreParams, Workspace};
 use smspace::kernel::{trace_sets, Closure, TraceParams};
 use smspace::metric::{
     distance_matrix_with, fill_tile, knn_with, BuiltMetric, DistanceMatrix, DistanceParams,
@@ -77,8 +77,48 @@ fn metric(name: &str, period: &str, memory_limit_bytes: Option<u64>) -> PyResult
     MetricRegistry::builtin().build(&params).map_err(to_py_err)
 }
 
-/// The sets view, with closures when the metric reads them (`curve` needs them).
+/// The piece of every point `(M, P)` int64 (`smspace.trace(..., components="all")`):
+/// checked against the sets' shape.
+fn pieces<'a>(
+    pieces: Option<&'a PyReadonlyArray2<'_, i64>>,
+    points: ArrayView3<'_, f64>,
+    argument: &str,
+) -> PyResult<Option<ndarray::ArrayView2<'a, i64>>> {
+    let Some(pieces) = pieces else {
+        return Ok(None);
+    };
+    let view = pieces.as_array();
+    let (m, p, _) = points.dim();
+    if view.dim() != (m, p) {
+        return Err(value_error(format!(
+            "{argument} has shape {:?} but the sets are ({m}, {p}, N); give the piece of every point, shape (M, P)",
+            view.shape()
+        )));
+    }
+    if let Some(bad) = view.iter().find(|&&v| v < 0) {
+        return Err(value_error(format!(
+            "{argument} holds {bad}; piece indices are 0, 1, ..."
+        )));
+    }
+    Ok(Some(view))
+}
+
+/// The sets view, with closures when the metric reads them (`curve` needs them) and
+/// the pieces of their points when given (no segment joins two pieces).
 fn sets_view<'a>(
+    points: ArrayView3<'a, f64>,
+    closure: Option<&'a [Closure]>,
+    pieces: Option<ndarray::ArrayView2<'a, i64>>,
+    metric: &str,
+) -> PyResult<SetsView<'a>> {
+    let view = sets_view_closed(points, closure, metric)?;
+    Ok(match pieces {
+        Some(p) => view.with_pieces(p),
+        None => view,
+    })
+}
+
+fn sets_view_closed<'a>(
     points: ArrayView3<'a, f64>,
     closure: Option<&'a [Closure]>,
     metric: &str,
@@ -92,16 +132,17 @@ fn sets_view<'a>(
     }
 }
 
-/// `_explore(agent, params_json, workspace)`: the babbled (and probe) configurations,
-/// `(motors (M, N), poses (M, d) or None, probes (M, 3) int64)`.
+/// `_explore(agent, params_json, workspace, progress)`: the babbled (and probe)
+/// configurations, `(motors (M, N), poses (M, d) or None, probes (M, 3) int64)`.
 #[pyfunction]
-#[pyo3(signature = (agent, params, workspace=None))]
+#[pyo3(signature = (agent, params, workspace=None, progress=None))]
 #[allow(clippy::type_complexity)]
 fn _explore<'py>(
     py: Python<'py>,
     agent: &Agent,
     params: &str,
     workspace: Option<&Bound<'py, PyAny>>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<(
     Bound<'py, PyArray2<f64>>,
     Option<Bound<'py, PyArray2<f64>>>,
@@ -115,10 +156,12 @@ fn _explore<'py>(
         }
         w => resolve_workspace(agent, w)?,
     };
+    let progress = PyProgress::new(progress);
     let found = py
-        .detach(|| explore_in(law, &params, workspace))
+        .detach(|| explore_with(law, &params, workspace, &progress))
         .map_err(to_py_err)?;
     agent.check_callbacks()?;
+    progress.check()?;
     let poses = found
         .ground_truth
         .map(|g| g.poses().to_owned().into_pyarray(py));
@@ -163,7 +206,8 @@ fn resolve_workspace(
 }
 
 /// `_trace(agent, motors, params_json, env, workspace, progress)`: the kernel sets,
-/// `(sets (M, P, N), kept (M,) int64, closed (M,) int64, report_json)`.
+/// `(sets (M, P, N), kept (M,) int64, closed (M,) int64, pieces (M, P) int64,
+/// report_json)`.
 #[pyfunction]
 #[pyo3(signature = (agent, motors, params, env=None, workspace=None, progress=None))]
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
@@ -179,6 +223,7 @@ fn _trace<'py>(
     Bound<'py, PyArray3<f64>>,
     Bound<'py, PyArray1<i64>>,
     Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray2<i64>>,
     String,
 )> {
     let params: TraceParams = from_json(params, "tracing parameters")?;
@@ -216,14 +261,16 @@ fn _trace<'py>(
         traced.sets.into_pyarray(py),
         kept.into_pyarray(py),
         closed.into_pyarray(py),
+        traced.pieces.into_pyarray(py),
         report,
     ))
 }
 
-/// `_distances(sets, closed, metric, period, memory_limit_bytes, progress)`: the
-/// `(M, M)` matrix.
+/// `_distances(sets, closed, metric, period, memory_limit_bytes, progress, pieces)`:
+/// the `(M, M)` matrix.
 #[pyfunction]
-#[pyo3(signature = (sets, closed, metric, period, memory_limit_bytes=None, progress=None))]
+#[pyo3(signature = (sets, closed, metric, period, memory_limit_bytes=None, progress=None, pieces=None))]
+#[allow(clippy::too_many_arguments)]
 fn _distances<'py>(
     py: Python<'py>,
     sets: PyReadonlyArray3<'py, f64>,
@@ -232,12 +279,14 @@ fn _distances<'py>(
     period: &str,
     memory_limit_bytes: Option<u64>,
     progress: Option<Py<PyAny>>,
+    pieces: Option<PyReadonlyArray2<'py, i64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let points = sets.as_array();
     check_finite(points.iter(), "sets")?;
     let closure = closures(closed, points.dim().0)?;
     let built = metric_for(metric, period, memory_limit_bytes)?;
-    let view = sets_view(points, closure.as_deref(), metric)?;
+    let pieces = self::pieces(pieces.as_ref(), points, "pieces")?;
+    let view = sets_view(points, closure.as_deref(), pieces, metric)?;
     let progress = PyProgress::new(progress);
     let d = py
         .detach(|| distance_matrix_with(view, built.metric.as_ref(), &built.params, &progress))
@@ -250,11 +299,12 @@ fn metric_for(name: &str, period: &str, limit: Option<u64>) -> PyResult<BuiltMet
     metric(name, period, limit)
 }
 
-/// `_distance_tile(rows, rows_closed, cols, cols_closed, tile, metric, period)`: the
-/// block `D[r0:r1, c0:c1]` from the sets of its rows and of its columns only, bit for
-/// bit the block of the whole matrix (what a cluster's task computes).
+/// `_distance_tile(rows, rows_closed, cols, cols_closed, tile, metric, period,
+/// rows_pieces, cols_pieces)`: the block `D[r0:r1, c0:c1]` from the sets of its rows
+/// and of its columns only, bit for bit the block of the whole matrix (what a
+/// cluster's task computes).
 #[pyfunction]
-#[pyo3(signature = (rows, rows_closed, cols, cols_closed, tile, metric, period))]
+#[pyo3(signature = (rows, rows_closed, cols, cols_closed, tile, metric, period, rows_pieces=None, cols_pieces=None))]
 #[allow(clippy::too_many_arguments)]
 fn _distance_tile<'py>(
     py: Python<'py>,
@@ -265,6 +315,8 @@ fn _distance_tile<'py>(
     tile: Bounds,
     metric: &str,
     period: &str,
+    rows_pieces: Option<PyReadonlyArray2<'py, i64>>,
+    cols_pieces: Option<PyReadonlyArray2<'py, i64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let (r, c) = (rows.as_array(), cols.as_array());
     let (rc, cc) = (
@@ -272,9 +324,13 @@ fn _distance_tile<'py>(
         closures(cols_closed, c.dim().0)?,
     );
     let built = metric_for(metric, period, None)?;
+    let (rp, cp) = (
+        pieces(rows_pieces.as_ref(), r, "rows_pieces")?,
+        pieces(cols_pieces.as_ref(), c, "cols_pieces")?,
+    );
     let (rv, cv) = (
-        sets_view(r, rc.as_deref(), metric)?,
-        sets_view(c, cc.as_deref(), metric)?,
+        sets_view(r, rc.as_deref(), rp, metric)?,
+        sets_view(c, cc.as_deref(), cp, metric)?,
     );
     let tile = Tile::new(tile.0..tile.1, tile.2..tile.3);
     let mut out = Array2::zeros(tile.shape());
@@ -313,10 +369,10 @@ fn _merge_tiles<'py>(
     Ok(d.into_array().into_pyarray(py))
 }
 
-/// `_knn(sets, closed, metric, period, k, pivots, rows, progress)`: the `k` nearest
-/// sets of the rows `r0:r1`, `(indices (R, k) int64, distances (R, k))`.
+/// `_knn(sets, closed, metric, period, k, pivots, rows, progress, pieces)`: the `k`
+/// nearest sets of the rows `r0:r1`, `(indices (R, k) int64, distances (R, k))`.
 #[pyfunction]
-#[pyo3(signature = (sets, closed, metric, period, k, pivots, rows, progress=None))]
+#[pyo3(signature = (sets, closed, metric, period, k, pivots, rows, progress=None, pieces=None))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn _knn<'py>(
     py: Python<'py>,
@@ -328,12 +384,14 @@ fn _knn<'py>(
     pivots: Option<usize>,
     rows: (usize, usize),
     progress: Option<Py<PyAny>>,
+    pieces: Option<PyReadonlyArray2<'py, i64>>,
 ) -> PyResult<(Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<f64>>)> {
     let points = sets.as_array();
     check_finite(points.iter(), "sets")?;
     let closure = closures(closed, points.dim().0)?;
     let built = metric_for(metric, period, None)?;
-    let view = sets_view(points, closure.as_deref(), metric)?;
+    let pieces = self::pieces(pieces.as_ref(), points, "pieces")?;
+    let view = sets_view(points, closure.as_deref(), pieces, metric)?;
     let mut params = KnnParams::new().k(k);
     if let Some(p) = pivots {
         params = params.pivots(p);

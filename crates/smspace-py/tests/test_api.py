@@ -80,6 +80,15 @@ def test_progress_reaches_the_total(arm_sets):
     assert all(done <= total for _, done, total in calls)
 
 
+def test_explore_reports_progress():
+    calls = []
+    arm = smspace.Agent.preset("planar-arm")
+    smspace.explore(arm, n=3000, seed=1, progress=lambda stage, done, total: calls.append((stage, done, total)))
+    assert calls[0] == ("explore", 0, 3000)
+    assert calls[-1] == ("explore", 3000, 3000)
+    assert all(done <= total for _, done, total in calls)
+
+
 def test_a_raising_progress_callback_is_raised(arm_sets):
     def broken(stage, done, total):
         raise KeyError("stop")

@@ -52,3 +52,20 @@ def test_run_computes_the_distance_stage_on_the_cluster(client, root, tmp_path):
 def test_errors_on_the_cluster_are_raised(client):
     with pytest.raises(ValueError, match="which sets are closed loops"):
         smspace.dask.distances(np.zeros((3, 2, 2)), client, metric="curve")
+
+
+def test_pieces_travel_to_the_cluster(client):
+    # Retina within one link of the base: kernels of two pieces (issue 14); the curve
+    # metric joins no two pieces, locally and on the cluster alike.
+    arm = smspace.Agent.preset("planar-arm")
+    found = smspace.explore(arm, n=12, seed=3, workspace=(0.9, 0.0, 1.2, 1.6))
+    traced = smspace.trace(arm, found.motors, points=40, components="all", workspace=None)
+    assert traced.pieces.shape == traced.sets.shape[:2]
+    assert traced.pieces.max() >= 1
+    local = smspace.distances(traced)
+    joined = smspace.distances(traced.sets, closed=traced.closed)
+    assert not np.array_equal(local, joined)
+    assert np.array_equal(smspace.dask.distances(traced, client, tile=5), local)
+    indices, found_d = smspace.dask.distances(traced, client, knn=2, tile=5)
+    local_knn = smspace.distances(traced, knn=2)
+    assert np.array_equal(indices, local_knn[0]) and np.array_equal(found_d, local_knn[1])

@@ -126,3 +126,26 @@ def test_bounded_motors_of_a_python_agent():
     sums = traced.sets.sum(axis=2)
     np.testing.assert_allclose(sums, [[0.3] * 9, [0.2] * 9], atol=1e-6)
     assert list(traced.closed) == [0, 0]
+
+
+def test_a_spatial_pose_of_a_python_agent(root):
+    # The 3-D arm of experiments/arm-3d.toml seen through Python callables: its poses
+    # (x, y, z, qw, qx, qy, qz) and its kinematic kernel sets are the chain's.
+    chain = smspace.Agent.from_toml(root / "experiments" / "arm-3d.toml")
+    agent = smspace.PythonAgent(
+        sense=lambda m: chain.sense(m),
+        n_motors=chain.n_motors,
+        n_sensors=chain.n_sensors,
+        pose=lambda m: chain.poses(m),
+        pose_space="spatial",
+    )
+    motors = np.random.default_rng(3).uniform(-np.pi, np.pi, size=(4, chain.n_motors))
+    assert agent.poses(motors).shape == (4, 7)
+    np.testing.assert_array_equal(agent.poses(motors), chain.poses(motors))
+    ours = smspace.trace(agent, motors, points=20, workspace=None)
+    theirs = smspace.trace(chain, motors, points=20, workspace=None)
+    assert len(theirs) >= 3
+    assert np.array_equal(ours.kept, theirs.kept)
+    np.testing.assert_allclose(ours.sets, theirs.sets, rtol=0, atol=1e-6)
+    with pytest.raises(ValueError, match="pose_space 'sideways'"):
+        smspace.PythonAgent(sense=abs, n_motors=2, n_sensors=3, pose_space="sideways")

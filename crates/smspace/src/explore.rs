@@ -27,6 +27,7 @@ pub use crate::agent::Workspace;
 use crate::agent::{Agent, AgentConfig, AgentError, GroundTruth, Observer, Pose};
 use crate::error::{CheckParams, InvalidParameter};
 use crate::io::{self, IoError};
+use crate::progress::Progress;
 
 /// Errors of exploration.
 #[derive(Debug, thiserror::Error)]
@@ -504,6 +505,17 @@ pub fn explore_in(
     params: &ExploreParams,
     workspace: Option<Workspace>,
 ) -> Result<Exploration, ExploreError> {
+    explore_with(agent, params, workspace, &crate::progress::Silent)
+}
+
+/// Like [`explore_in`], reporting to `progress`: one unit per configuration kept
+/// (babbled or on the probe grid), in batches of [`PROGRESS_BATCH`].
+pub fn explore_with(
+    agent: &dyn Agent,
+    params: &ExploreParams,
+    workspace: Option<Workspace>,
+    progress: &dyn Progress,
+) -> Result<Exploration, ExploreError> {
     let valid = params.check_params()?;
     if let Some(w) = &workspace {
         // An explicit working space of the caller's, checked like the parameters'.
@@ -516,11 +528,27 @@ pub fn explore_in(
     valid.check_for(agent, workspace.as_ref())?;
     let observer = agent.ground_truth();
     let pose_dim = observer.map_or(0, |o| o.pose_space().dim());
-    let mut rows = babble(agent, observer, &valid, workspace.as_ref(), pose_dim)?;
+    let grid = match (valid.probes, observer, &workspace) {
+        (Probes::Grid, Some(_), Some(_)) => {
+            valid.probe_positions * valid.probe_positions * valid.probe_orientations
+        }
+        _ => 0,
+    };
+    progress.start("explore", (valid.n + grid) as u64);
+    let mut rows = babble(
+        agent,
+        observer,
+        &valid,
+        workspace.as_ref(),
+        pose_dim,
+        progress,
+    )?;
     let mut probes = vec![-1_i64; valid.n * 3];
     if let (Probes::Grid, Some(observer), Some(w)) = (valid.probes, observer, &workspace) {
         probe_grid(agent, observer, &valid, w, &mut rows, &mut probes)?;
+        progress.advance(grid as u64);
     }
+    progress.finish();
     let count = probes.len() / 3;
     let to_array = |v: Vec<f64>, cols: usize| {
         Array2::from_shape_vec((count, cols), v).expect("rows × cols values were pushed")
@@ -537,6 +565,9 @@ pub fn explore_in(
     })
 }
 
+/// Kept configurations between two reports to a [`Progress`].
+pub const PROGRESS_BATCH: usize = 1024;
+
 /// Motor rows and their poses, row-major, as they are explored.
 struct Rows {
     motors: Vec<f64>,
@@ -551,6 +582,7 @@ fn babble(
     params: &ExploreValidParams,
     workspace: Option<&Workspace>,
     pose_dim: usize,
+    progress: &dyn Progress,
 ) -> Result<Rows, ExploreError> {
     let ranges: Vec<(f64, f64)> = agent
         .motor_space()
@@ -590,8 +622,12 @@ fn babble(
             rows.motors.extend_from_slice(&m);
             rows.poses.extend_from_slice(&pose);
             kept += 1;
+            if kept % PROGRESS_BATCH == 0 {
+                progress.advance(PROGRESS_BATCH as u64);
+            }
         }
     }
+    progress.advance((kept % PROGRESS_BATCH) as u64);
     Ok(rows)
 }
 

@@ -165,12 +165,15 @@ class Exploration:
 @dataclass
 class Traced:
     """Kernel sets: ``sets`` (M, P, N), ``kept`` (M,) int64 (the motor row of each set),
-    ``closed`` (M,) int64 (1: closed loop, 0: open polyline) and the tracing
-    ``report`` (dict: statuses, steps, residuals per set)."""
+    ``closed`` (M,) int64 (1: closed loop, 0: open polyline), ``pieces`` (M, P) int64
+    (the piece of every point: 0 for sets of one piece; with ``components="all"`` the
+    metrics join no two pieces) and the tracing ``report`` (dict: statuses, steps,
+    residuals per set)."""
 
     sets: np.ndarray
     kept: np.ndarray
     closed: np.ndarray
+    pieces: np.ndarray
     report: dict = field(repr=False)
 
     def __len__(self) -> int:
@@ -214,12 +217,14 @@ def explore(
     *,
     probes: bool = False,
     workspace: Any = "default",
+    progress: ProgressArg = None,
     **params: Any,
 ) -> Exploration:
     """Babbles ``n`` motor configurations (seeded), kept inside the agent's working
     space (``workspace="default"``: the paper's for the arm; ``None``: anywhere;
     ``(cx, cy, depth, width)``), plus the probe grid with ``probes=True``. Other keys of
-    the ``[exploration]`` table as keyword arguments (``probe_positions=10``, ...)."""
+    the ``[exploration]`` table as keyword arguments (``probe_positions=10``, ...).
+    ``progress``: a callable ``(stage, done, total)`` or ``True`` for a tqdm bar."""
     if not isinstance(agent, Agent):
         raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
     values = dict(params, n=n, seed=seed, probes="grid" if probes else "none")
@@ -227,6 +232,7 @@ def explore(
         agent,
         _params(values),
         _workspace_arg(workspace),
+        _progress(progress),
     )
     return Exploration(motors=motors, poses=poses, probes=labels)
 
@@ -258,7 +264,7 @@ def trace(
         raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
     motors = _array(motors, "motors", 2)
     values = dict(params, method=method, points=points)
-    sets, kept, closed, report = _core._trace(
+    sets, kept, closed, pieces, report = _core._trace(
         agent,
         motors,
         _params(values),
@@ -266,14 +272,31 @@ def trace(
         _workspace_arg(workspace),
         _progress(progress),
     )
-    return Traced(sets=sets, kept=kept, closed=closed, report=json.loads(report))
+    return Traced(sets=sets, kept=kept, closed=closed, pieces=pieces, report=json.loads(report))
 
 
-def _sets_args(sets: Any, closed: Any) -> tuple:
+def _sets_args(sets: Any, closed: Any, pieces: Any = None) -> tuple:
+    """``(points, closed codes or None, pieces or None)`` of a :class:`Traced` or an
+    array."""
     if isinstance(sets, Traced):
-        return _array(sets.sets, "sets", 3), sets.closed if closed is None else _closed_codes(closed, len(sets))
+        codes = sets.closed if closed is None else _closed_codes(closed, len(sets))
+        pieces = sets.pieces if pieces is None else pieces
+        return _array(sets.sets, "sets", 3), codes, _pieces(pieces)
     points = _array(sets, "sets", 3)
-    return points, _closed_codes(closed, points.shape[0])
+    return points, _closed_codes(closed, points.shape[0]), _pieces(pieces)
+
+
+def _pieces(pieces: Any) -> Optional[np.ndarray]:
+    """The piece of every point, ``(M, P)`` int64, or None; None too when every set is
+    one piece (the engine's default)."""
+    if pieces is None:
+        return None
+    array = np.asarray(pieces)
+    if array.ndim != 2 or not np.issubdtype(array.dtype, np.integer):
+        raise ValueError(f"pieces must be an (M, P) integer array, got {array.dtype} of shape {array.shape}")
+    if not array.any():
+        return None
+    return np.ascontiguousarray(array, dtype=np.int64)
 
 
 def distances(
@@ -282,6 +305,7 @@ def distances(
     period: str = "2pi",
     *,
     closed: Any = None,
+    pieces: Any = None,
     knn: Optional[int] = None,
     memory_limit_bytes: Optional[int] = None,
     progress: ProgressArg = None,
@@ -291,13 +315,18 @@ def distances(
     ``"hausdorff"``, ``"mean-hausdorff"``: between the sampled points), each motor
     coordinate periodic ``"2pi"`` or not (``"none"``). ``sets`` is the result of
     :func:`trace` or an array ``(M, P, N)`` (then ``closed=`` says which sets are
-    closed loops for ``curve``: an array of 1/0 or ``"closed"``/``"open"``). With
-    ``knn=K``, the ``K`` nearest sets of every set instead: ``(indices, distances)``,
-    each ``(M, K)``."""
+    closed loops for ``curve``: an array of 1/0 or ``"closed"``/``"open"``, and
+    ``pieces=`` the piece of every point, (M, P), for sets traced with
+    ``components="all"``). With ``knn=K``, the ``K`` nearest sets of every set instead:
+    ``(indices, distances)``, each ``(M, K)``."""
     if knn is not None:
-        return globals()["knn"](sets, knn, metric=metric, period=period, closed=closed, progress=progress)
-    points, codes = _sets_args(sets, closed)
-    return _core._distances(points, codes, metric, period, memory_limit_bytes, _progress(progress))
+        return globals()["knn"](
+            sets, knn, metric=metric, period=period, closed=closed, pieces=pieces, progress=progress
+        )
+    points, codes, pieces = _sets_args(sets, closed, pieces)
+    return _core._distances(
+        points, codes, metric, period, memory_limit_bytes, _progress(progress), pieces
+    )
 
 
 def knn(
@@ -307,15 +336,16 @@ def knn(
     period: str = "2pi",
     *,
     closed: Any = None,
+    pieces: Any = None,
     rows: Optional[tuple] = None,
     pivots: Optional[int] = None,
     progress: ProgressArg = None,
 ) -> tuple:
     """The ``k`` nearest sets of every set (or of ``rows=(i0, i1)``) under ``metric``:
     ``(indices (R, k) int64, distances (R, k))``, nearest first, without the matrix."""
-    points, codes = _sets_args(sets, closed)
+    points, codes, pieces = _sets_args(sets, closed, pieces)
     rows = (0, points.shape[0]) if rows is None else tuple(rows)
-    return _core._knn(points, codes, metric, period, int(k), pivots, rows, _progress(progress))
+    return _core._knn(points, codes, metric, period, int(k), pivots, rows, _progress(progress), pieces)
 
 
 def embed(

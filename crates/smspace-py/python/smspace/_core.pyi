@@ -5,7 +5,7 @@ the underscored functions below take the engine's parameter structs as JSON.
 """
 
 from os import PathLike
-from typing import Any, Callable, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -53,9 +53,11 @@ class Agent:
 
 class PythonAgent(Agent):
     """An agent whose law is Python: ``sense(motors (B, N)) -> (B, K)`` float64,
-    called in batches, and optionally ``pose(motors (B, N)) -> (B, 3)`` (planar
-    ``(x, y, alpha)``, the ground truth). ``motor_space``: per motor ``"hinge"``,
-    ``("periodic", period)`` or ``("bounded", low, high)``; default ``N`` hinges."""
+    called in batches, and optionally ``pose(motors (B, N)) -> (B, d)``, the ground
+    truth: ``pose_space="planar"`` ``(x, y, alpha)``, d = 3, or ``"spatial"``
+    ``(x, y, z, qw, qx, qy, qz)``, d = 7 (a position and a unit quaternion).
+    ``motor_space``: per motor ``"hinge"``, ``("periodic", period)`` or
+    ``("bounded", low, high)``; default ``N`` hinges."""
 
     def __init__(
         self,
@@ -65,9 +67,12 @@ class PythonAgent(Agent):
         motor_space: Optional[Sequence[MotorSpec]] = None,
         pose: Optional[Callable[[F64], F64]] = None,
         name: str = "python",
+        pose_space: Literal["planar", "spatial"] = "planar",
     ) -> None: ...
 
-def _explore(agent: Agent, params: str, workspace: Any = None) -> Tuple[F64, Optional[F64], I64]: ...
+def _explore(
+    agent: Agent, params: str, workspace: Any = None, progress: Any = None
+) -> Tuple[F64, Optional[F64], I64]: ...
 def _trace(
     agent: Agent,
     motors: F64,
@@ -75,7 +80,7 @@ def _trace(
     env: Any = None,
     workspace: Any = None,
     progress: Progress = None,
-) -> Tuple[npt.NDArray[np.float64], I64, I64, str]: ...
+) -> Tuple[npt.NDArray[np.float64], I64, I64, I64, str]: ...
 def _distances(
     sets: npt.NDArray[np.float64],
     closed: Optional[I64],
@@ -83,6 +88,7 @@ def _distances(
     period: str,
     memory_limit_bytes: Optional[int] = None,
     progress: Progress = None,
+    pieces: Optional[I64] = None,
 ) -> F64: ...
 def _distance_tile(
     rows: npt.NDArray[np.float64],
@@ -92,6 +98,8 @@ def _distance_tile(
     tile: Bounds,
     metric: str,
     period: str,
+    rows_pieces: Optional[I64] = None,
+    cols_pieces: Optional[I64] = None,
 ) -> F64: ...
 def _merge_tiles(m: int, tiles: Sequence[Tuple[Bounds, F64]]) -> F64: ...
 def _knn(
@@ -103,6 +111,7 @@ def _knn(
     pivots: Optional[int],
     rows: Tuple[int, int],
     progress: Progress = None,
+    pieces: Optional[I64] = None,
 ) -> Tuple[I64, F64]: ...
 def _embed(distances: F64, params: str, progress: Progress = None) -> Tuple[F64, str]: ...
 def _analyze(distances: F64, poses: Optional[F64], params: str, progress: Progress = None) -> str: ...

@@ -57,6 +57,7 @@ def _aligned(array: np.ndarray) -> np.ndarray:
 def _tile_task(
     points: np.ndarray,
     codes: Optional[np.ndarray],
+    pieces: Optional[np.ndarray],
     bounds: tuple,
     metric: str,
     period: str,
@@ -64,18 +65,31 @@ def _tile_task(
     """One task: the block ``D[r0:r1, c0:c1]`` (runs on a worker)."""
     from smspace import _core as core
 
-    points, codes = _aligned(points), None if codes is None else _aligned(codes)
+    points = _aligned(points)
+    codes = None if codes is None else _aligned(codes)
+    pieces = None if pieces is None else _aligned(pieces)
     r0, r1, c0, c1 = bounds
-    rows_codes = None if codes is None else codes[r0:r1]
-    cols_codes = None if codes is None else codes[c0:c1]
+
+    def part(array: Optional[np.ndarray], start: int, end: int) -> Optional[np.ndarray]:
+        return None if array is None else array[start:end]
+
     return core._distance_tile(
-        points[r0:r1], rows_codes, points[c0:c1], cols_codes, bounds, metric, period
+        points[r0:r1],
+        part(codes, r0, r1),
+        points[c0:c1],
+        part(codes, c0, c1),
+        bounds,
+        metric,
+        period,
+        part(pieces, r0, r1),
+        part(pieces, c0, c1),
     )
 
 
 def _knn_task(
     points: np.ndarray,
     codes: Optional[np.ndarray],
+    pieces: Optional[np.ndarray],
     rows: tuple,
     metric: str,
     period: str,
@@ -85,19 +99,24 @@ def _knn_task(
     """One task: the ``k`` nearest sets of the rows ``r0:r1`` (runs on a worker)."""
     from smspace import _core as core
 
-    points, codes = _aligned(points), None if codes is None else _aligned(codes)
-    return core._knn(points, codes, metric, period, k, pivots, rows)
+    points = _aligned(points)
+    codes = None if codes is None else _aligned(codes)
+    pieces = None if pieces is None else _aligned(pieces)
+    return core._knn(points, codes, metric, period, k, pivots, rows, None, pieces)
 
 
-def _scatter(client: Any, points: np.ndarray, codes: Optional[np.ndarray]) -> tuple:
-    points = np.ascontiguousarray(points)
-    # Unique keys (hash=False): a content key shared with an earlier call could be
-    # released by it while this one still needs it.
-    [points_future] = client.scatter([points], broadcast=True, hash=False)
-    codes_future = None
-    if codes is not None:
-        [codes_future] = client.scatter([np.ascontiguousarray(codes)], broadcast=True, hash=False)
-    return points_future, codes_future
+def _scatter(client: Any, *arrays: Optional[np.ndarray]) -> tuple:
+    """Each array sent once to every worker (None stays None)."""
+    futures = []
+    for array in arrays:
+        if array is None:
+            futures.append(None)
+            continue
+        # Unique keys (hash=False): a content key shared with an earlier call could be
+        # released by it while this one still needs it.
+        [future] = client.scatter([np.ascontiguousarray(array)], broadcast=True, hash=False)
+        futures.append(future)
+    return tuple(futures)
 
 
 def distances(
@@ -109,6 +128,7 @@ def distances(
     tile: Optional[int] = None,
     knn: Optional[int] = None,
     closed: Any = None,
+    pieces: Any = None,
     progress: Any = None,
 ) -> Any:
     """The ``(M, M)`` matrix of :func:`smspace.distances`, computed in triangular tiles
@@ -116,21 +136,36 @@ def distances(
     equal to the local matrix bit for bit. With ``knn=K``: :func:`knn` instead."""
     if knn is not None:
         return globals()["knn"](
-            sets, client, knn, metric=metric, period=period, rows=tile, closed=closed, progress=progress
+            sets,
+            client,
+            knn,
+            metric=metric,
+            period=period,
+            rows=tile,
+            closed=closed,
+            pieces=pieces,
+            progress=progress,
         )
     from distributed import as_completed
 
-    points, codes = _sets_args(sets, closed)
+    points, codes, pieces = _sets_args(sets, closed, pieces)
     m = points.shape[0]
     if metric == "curve" and codes is None:
         # The engine's error, before anything is sent.
         _core._distances(points[:2], None, metric, period, None, None)
     size = tile or default_tile(m, _workers(client))
     plan = tile_plan(m, size)
-    points_future, codes_future = _scatter(client, points, codes)
+    points_future, codes_future, pieces_future = _scatter(client, points, codes, pieces)
     futures = {
         client.submit(
-            _tile_task, points_future, codes_future, bounds, metric, period, pure=False
+            _tile_task,
+            points_future,
+            codes_future,
+            pieces_future,
+            bounds,
+            metric,
+            period,
+            pure=False,
         ): bounds
         for bounds in plan
     }
@@ -163,19 +198,29 @@ def knn(
     rows: Optional[int] = None,
     pivots: Optional[int] = None,
     closed: Any = None,
+    pieces: Any = None,
     progress: Any = None,
 ) -> tuple:
     """The ``k`` nearest sets of every set, as :func:`smspace.knn`, in tasks of
     ``rows`` query rows each (every task reads all the sets, sent once per worker):
     ``(indices (M, k) int64, distances (M, k))``, equal to the local search."""
-    points, codes = _sets_args(sets, closed)
+    points, codes, pieces = _sets_args(sets, closed, pieces)
     m = points.shape[0]
     size = rows or default_tile(m, _workers(client))
     blocks = [(start, min(start + size, m)) for start in range(0, m, size)]
-    points_future, codes_future = _scatter(client, points, codes)
+    points_future, codes_future, pieces_future = _scatter(client, points, codes, pieces)
     futures = [
         client.submit(
-            _knn_task, points_future, codes_future, block, metric, period, int(k), pivots, pure=False
+            _knn_task,
+            points_future,
+            codes_future,
+            pieces_future,
+            block,
+            metric,
+            period,
+            int(k),
+            pivots,
+            pure=False,
         )
         for block in blocks
     ]
@@ -194,9 +239,15 @@ def knn(
 def _stage_backend(client: Any, tile: Optional[int]) -> Callable[..., np.ndarray]:
     """The pipeline's distance stage on ``client`` (``smspace.run(..., client=)``):
     called by the engine with the traced sets, their closed/open codes, the metric's
-    name and the period."""
+    name, the period and the piece of every point (or None)."""
 
-    def compute(points: np.ndarray, codes: Optional[np.ndarray], metric: str, period: str) -> np.ndarray:
-        return distances(points, client, metric, period, tile=tile, closed=codes)
+    def compute(
+        points: np.ndarray,
+        codes: Optional[np.ndarray],
+        metric: str,
+        period: str,
+        pieces: Optional[np.ndarray] = None,
+    ) -> np.ndarray:
+        return distances(points, client, metric, period, tile=tile, closed=codes, pieces=pieces)
 
     return compute

@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput, World};
-use crate::explore::{explore_in, Exploration, ExploreParams};
+use crate::explore::{explore_with, Exploration, ExploreParams};
 use crate::io::Outputs;
 use crate::pipeline::StageId;
 
@@ -47,13 +47,14 @@ impl Stage for ExploreStage {
     fn compute(
         &self,
         input: &ExploreInput<'_>,
-        _: &StageContext<'_>,
+        context: &StageContext<'_>,
     ) -> crate::Result<Exploration> {
         let world = &input.world.value;
-        Ok(explore_in(
+        Ok(explore_with(
             world.agent.as_ref(),
             &self.exploration,
             world.workspace,
+            context.progress,
         )?)
     }
 
