@@ -511,6 +511,25 @@ fn what_the_agent_cannot_give_is_refused() {
         "{report}"
     );
     assert!(dir.join("surface.components.npy").exists());
+    // The curve metric reads polylines: on these surfaces `distances` refuses it (its
+    // trace report says k = 2) and names the point metric.
+    let stderr = fails(
+        &dir,
+        &[
+            "distances",
+            "--sets",
+            "surface.npy",
+            "--metric",
+            "curve",
+            "--out",
+            "d.npy",
+        ],
+    );
+    assert!(
+        stderr.contains("k = 2") && stderr.contains("hausdorff"),
+        "{stderr}"
+    );
+    assert!(!dir.join("d.npy").exists());
     let stderr = fails(
         &dir,
         &[

@@ -6,7 +6,11 @@
 //!
 //! ```sh
 //! cargo run --release -p smspace --example chain_study -- experiments/arm-3d.toml OUT.json 1000 2500 5000
+//! cargo run --release -p smspace --example chain_study -- --components=all experiments/arm-3d.toml OUT.json 1000 2500
 //! ```
+//!
+//! `--components=all` traces every piece of each level set (`[kernel] components =
+//! "all"`); the curve metric then joins no two pieces.
 //!
 //! The agent is the `[agent]` table of the file (a chain or any agent with a ground
 //! truth); the exploration seed is 1 and nothing else of the file is read. Timings are
@@ -16,7 +20,7 @@ use std::time::Instant;
 
 use smspace::analysis::dimension::{mle_neighbours, twonn_neighbours};
 use smspace::explore::{explore, ExploreParams};
-use smspace::kernel::{trace_sets, StepControl, TraceMethod, TraceParams};
+use smspace::kernel::{trace_sets, Components, StepControl, TraceMethod, TraceParams};
 use smspace::metric::{knn, DistanceParams, KnnParams, MetricKind, SetsView};
 use smspace::progress::Silent;
 
@@ -32,7 +36,11 @@ struct Row {
     knn_seconds: f64,
 }
 
-fn measure(agent: &dyn smspace::agent::Agent, m: usize) -> Result<Row, Box<dyn std::error::Error>> {
+fn measure(
+    agent: &dyn smspace::agent::Agent,
+    m: usize,
+    components: Components,
+) -> Result<Row, Box<dyn std::error::Error>> {
     let exploration = explore(
         agent,
         &ExploreParams {
@@ -46,6 +54,7 @@ fn measure(agent: &dyn smspace::agent::Agent, m: usize) -> Result<Row, Box<dyn s
         points: 100,
         step_control: StepControl::Adaptive,
         max_step: 0.05,
+        components,
         ..TraceParams::default()
     }
     .check()?;
@@ -59,7 +68,9 @@ fn measure(agent: &dyn smspace::agent::Agent, m: usize) -> Result<Row, Box<dyn s
         &Silent,
     )?;
     let trace_seconds = started.elapsed().as_secs_f64();
-    let view = SetsView::new(traced.sets.view()).with_closure(&traced.closure);
+    let view = SetsView::new(traced.sets.view())
+        .with_closure(&traced.closure)
+        .with_pieces(traced.pieces.view());
     let metric = DistanceParams::new().metric(MetricKind::Curve);
     let started = Instant::now();
     let sets = traced.sets.dim().0;
@@ -75,8 +86,14 @@ fn measure(agent: &dyn smspace::agent::Agent, m: usize) -> Result<Row, Box<dyn s
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: chain_study AGENT.toml OUT.json M1 [M2 …]";
+    let (flags, args): (Vec<String>, Vec<String>) =
+        std::env::args().skip(1).partition(|a| a.starts_with("--"));
+    let usage = "usage: chain_study [--components=all|connected] AGENT.toml OUT.json M1 [M2 …]";
+    let components = match flags.iter().map(String::as_str).next() {
+        None | Some("--components=connected") => Components::Connected,
+        Some("--components=all") => Components::All,
+        Some(other) => return Err(format!("unknown flag {other}; {usage}").into()),
+    };
     let (file, out) = (args.first().ok_or(usage)?, args.get(1).ok_or(usage)?);
     let sizes: Vec<usize> = args[2..]
         .iter()
@@ -85,7 +102,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let agent = smspace::config::load_agent(file)?.agent.build()?;
     let mut rows = Vec::new();
     for &m in &sizes {
-        let row = measure(agent.as_ref(), m)?;
+        let row = measure(agent.as_ref(), m, components)?;
         eprintln!(
             "M = {m}: TwoNN {:.2}, MLE {:.2} (trace {:.1} s, kNN {:.1} s)",
             row.twonn, row.mle, row.trace_seconds, row.knn_seconds
@@ -104,6 +121,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "agent": file,
         "threads": rayon::current_num_threads(),
         "metric": "curve",
+        "components": components,
         "k": K,
         "rows": rows,
     });

@@ -134,6 +134,7 @@ fn closure(args: &Args, path: &Path, sets: usize) -> anyhow::Result<Option<Vec<C
         };
         return Ok(Some(vec![closure; sets]));
     }
+    check_curve_dimension(path)?;
     let record = sibling(path, "closed.npy");
     if !record.exists() {
         anyhow::bail!(
@@ -142,6 +143,21 @@ fn closure(args: &Args, path: &Path, sets: usize) -> anyhow::Result<Option<Vec<C
         );
     }
     Ok(Some(smspace::kernel::read_closure(&record, sets)?))
+}
+
+/// Refuses `--metric curve` on kernels of dimension `k ≥ 2` (point samples of surfaces)
+/// when the trace report `SETS.trace.json` beside the sets says so; sets without a report
+/// are taken as curves.
+fn check_curve_dimension(path: &Path) -> anyhow::Result<()> {
+    let record = sibling(path, "trace.json");
+    if !record.exists() {
+        return Ok(());
+    }
+    let report: smspace::kernel::TraceReport = smspace::io::read_json(&record, "trace report")?;
+    let dimension = report.sets.iter().map(|s| s.dimension).max().unwrap_or(0);
+    smspace::kernel::check_curve_metric(dimension)
+        .with_context(|| format!("{} (from {})", path.display(), record.display()))?;
+    Ok(())
 }
 
 /// The kernel sets, their closures and the metric's parameters.

@@ -79,6 +79,10 @@ impl RunObserver for StageLog {
         eprintln!("[smspace] {:<10} {how}: {summary}", stage.name());
     }
 
+    fn stage_note(&self, stage: StageId, note: &str) {
+        eprintln!("[smspace] {:<10} note: {note}", stage.name());
+    }
+
     fn stage_skipped(&self, stage: StageId, why: &str) {
         eprintln!("[smspace] {:<10} skipped: {why}", stage.name());
     }

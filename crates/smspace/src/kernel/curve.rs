@@ -154,8 +154,9 @@ fn distance(a: &[f64], b: &[f64]) -> f64 {
         .sqrt()
 }
 
-/// Closest approach of the segment `[a, b]` to `p`: `(parameter, distance)`.
-fn closest_on_segment(a: &[f64], b: &[f64], p: &[f64]) -> (f64, f64) {
+/// Closest approach of the segment `[a, b]` to `p` (Euclidean): `(parameter, distance)`,
+/// the parameter `τ ∈ [0, 1]` of the nearest point `a + τ (b − a)`.
+pub(crate) fn closest_on_segment(a: &[f64], b: &[f64], p: &[f64]) -> (f64, f64) {
     let mut len2 = 0.0;
     let mut dot = 0.0;
     for ((x, y), q) in a.iter().zip(b).zip(p) {

@@ -683,32 +683,12 @@ fn near_polyline(space: &MotorSpace, nodes: &[f64], n: usize, m: &[f64], toleran
             {
                 *o = ai + motor.difference(x, ai);
             }
-            if closest_on_segment(a, b, &image) <= tolerance {
+            if super::curve::closest_on_segment(a, b, &image).1 <= tolerance {
                 return true;
             }
         }
     }
     false
-}
-
-/// Distance from `p` to the segment `[a, b]` (straight coordinates).
-fn closest_on_segment(a: &[f64], b: &[f64], p: &[f64]) -> f64 {
-    let (mut len2, mut dot) = (0.0, 0.0);
-    for ((x, y), q) in a.iter().zip(b).zip(p) {
-        len2 += (y - x) * (y - x);
-        dot += (q - x) * (y - x);
-    }
-    let tau = if len2 > 0.0 {
-        (dot / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    a.iter()
-        .zip(b)
-        .zip(p)
-        .map(|((x, y), q)| (x + tau * (y - x) - q).powi(2))
-        .sum::<f64>()
-        .sqrt()
 }
 
 /// The tangent space of the kernel set at a configuration: the null space of the

@@ -267,6 +267,9 @@ pub trait RunObserver: Sync {
     fn stage_started(&self, _stage: StageId) {}
     /// A stage ended (computed or reused); `summary` is one line on what it produced.
     fn stage_finished(&self, _stage: StageId, _record: &StageRecord, _summary: &str) {}
+    /// What a stage says before it is computed ([`Stage::forecast`](stages::Stage::forecast)):
+    /// e.g. that it will take long.
+    fn stage_note(&self, _stage: StageId, _note: &str) {}
     /// A stage is skipped because the experiment does not need it.
     fn stage_skipped(&self, _stage: StageId, _why: &str) {}
     /// Another process holds the run folder and [`BusyFolder::Wait`] waits for it.

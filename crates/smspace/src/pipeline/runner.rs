@@ -211,6 +211,9 @@ impl Runner<'_> {
             });
         }
         self.begin_writing(&format!("stage `{name}` must be computed"))?;
+        if let Some(note) = stage.forecast(input) {
+            self.observer.stage_note(S::ID, &note);
+        }
         match self
             .compute(stage, input, &key, start)
             .and_then(|(value, record, outputs)| {

@@ -87,6 +87,13 @@ pub trait Stage: Serialize {
     /// One line on what the stage produced.
     fn summary(&self, output: &Self::Output) -> String;
 
+    /// What a user should know before the stage is computed (not when it is reused):
+    /// e.g. that it will take long, and why. `None` (the default) when nothing stands
+    /// out. The run hands it to [`RunObserver::stage_note`](crate::pipeline::RunObserver::stage_note).
+    fn forecast(&self, _input: &Self::Input<'_>) -> Option<String> {
+        None
+    }
+
     /// The cache key: the stage's name and parameters and the keys of its inputs.
     fn key(&self, input: &Self::Input<'_>) -> String {
         let params = json(self);
