@@ -140,3 +140,67 @@ fn extend_one(traced: TracedSets, motor: Motor, j: usize, samples: usize) -> Tra
         report,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernel::{Closure, SetReport, SetStatus, StepControl, TraceMethod, TraceReport};
+
+    /// One set of two points in 3 motors, the last bounded in `[0.5, 1.5]`.
+    fn traced() -> TracedSets {
+        let set = SetReport {
+            index: 0,
+            status: SetStatus::Closed,
+            steps: 1,
+            length: 1.0,
+            max_residual: 0.0,
+            max_pose_deviation: None,
+            dimension: 1,
+            pieces: 1,
+            unvisited_pieces: 0,
+            covering_radius: None,
+        };
+        TracedSets {
+            sets: Array3::from_shape_vec((1, 2, 3), vec![0.1, 0.2, 0.9, 0.3, 0.4, 0.9]).unwrap(),
+            kept: vec![0],
+            closure: vec![Closure::Closed],
+            pieces: Array2::zeros((1, 2)),
+            report: TraceReport {
+                agent: "test".into(),
+                method: TraceMethod::Kinematic,
+                step_control: StepControl::Fixed,
+                points: 2,
+                summary: Default::default(),
+                sets: vec![set],
+                extended_along: Vec::new(),
+            },
+        }
+    }
+
+    #[test]
+    fn every_point_is_repeated_along_the_motor_range() {
+        let space = MotorSpace::new(vec![
+            Motor::HINGE,
+            Motor::HINGE,
+            Motor::Bounded {
+                low: 0.5,
+                high: 1.5,
+            },
+        ])
+        .unwrap();
+        let out = extend_along(traced(), &space, &[2], 3).unwrap();
+        assert_eq!(out.sets.dim(), (1, 6, 3));
+        let apertures: Vec<f64> = (0..6).map(|p| out.sets[[0, p, 2]]).collect();
+        assert_eq!(apertures, vec![0.5, 0.5, 1.0, 1.0, 1.5, 1.5]);
+        assert_eq!(out.sets[[0, 3, 0]], 0.3);
+        assert_eq!((out.report.points, out.report.sets[0].dimension), (6, 2));
+        assert_eq!(out.report.extended_along, vec![2]);
+        // Nothing to extend along: the sets as they were.
+        assert_eq!(
+            extend_along(traced(), &space, &[], 3).unwrap().sets,
+            traced().sets
+        );
+        assert!(extend_along(traced(), &space, &[2], 0).is_err());
+        assert!(extend_along(traced(), &space, &[7], 3).is_err());
+    }
+}

@@ -56,7 +56,7 @@ pub(super) fn coordinate_name(c: usize) -> &'static str {
 
 /// The axis label of column `c` of the sets' poses.
 pub(super) fn coordinate_label(c: usize) -> &'static str {
-    POSE_LABELS.get(c).copied().unwrap_or("aperture (motor)")
+    POSE_LABELS.get(c).copied().unwrap_or("aperture")
 }
 
 /// The size of one panel and the print geometry.
