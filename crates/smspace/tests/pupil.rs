@@ -274,3 +274,68 @@ fn an_aperture_is_checked_and_chains_take_one() {
         .unwrap();
     assert!(!resolved.config.params.contains_key("retina"));
 }
+
+/// `experiments/pupil-space.toml`, reduced: 40 babbled sets of 15 points × 3 aperture
+/// values. The sets are spanned along the aperture (motor 4), `analysis.json` holds the
+/// compensability report, and the `curve` metric refuses the 2-D sets.
+#[test]
+fn the_pipeline_spans_the_sets_along_the_aperture() {
+    use smspace::pipeline::{self, Recompute, RunObserver, RunOptions};
+    use smspace::progress::Progress;
+    struct Quiet;
+    impl RunObserver for Quiet {
+        fn progress(&self) -> &dyn Progress {
+            &Silent
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let source = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../experiments/pupil-space.toml"
+    );
+    let overrides: Vec<String> = [
+        "exploration.n=40",
+        "kernel.points=15",
+        "kernel.spatial_samples=3",
+        "analysis.max_points=40",
+        "embedding.epochs=2",
+        "report.sample_configurations=4",
+        "report.sample_sets=3",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let options = RunOptions {
+        out_dir: dir.path().join("run"),
+        recompute: Recompute::Changed,
+        memory_limit_bytes: None,
+        busy: pipeline::BusyFolder::Wait,
+    };
+    let loaded =
+        smspace::config::load_experiment(std::path::Path::new(source), &overrides).unwrap();
+    let plan = pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"));
+    pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"));
+    let sets = smspace::kernel::TracedSets::load(&options.out_dir.join("sets.npy")).unwrap();
+    assert_eq!(sets.sets.dim().1, 45);
+    assert_eq!(sets.report.extended_along, vec![4]);
+    assert!(sets.dimensions().iter().all(|&k| k == 2));
+    let analysis: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(options.out_dir.join("analysis.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(analysis["compensability"]["dimension"], 4);
+    assert_eq!(analysis["compensability"]["spatial_dimension"], 3);
+    // The curve metric reads polylines, not 2-D sets: refused, naming hausdorff.
+    let mut curve = overrides.clone();
+    curve.push("metric.metric=curve".into());
+    let loaded = smspace::config::load_experiment(std::path::Path::new(source), &curve).unwrap();
+    let plan = pipeline::check(&loaded).unwrap();
+    let options = RunOptions {
+        out_dir: dir.path().join("curve"),
+        ..options
+    };
+    let err = pipeline::run(&plan, &options, &Quiet)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("hausdorff"), "{err}");
+}
