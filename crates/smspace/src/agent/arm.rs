@@ -40,6 +40,26 @@ pub struct ArmParams {
     pub retina_half_width: f64,
     /// Distance from the lens to the retina. Default 1.0.
     pub focal_length: f64,
+    /// The `[agent.retina]` table: the pupil. Default: none (the paper's arm).
+    #[serde(skip_serializing_if = "ArmRetinaParams::is_default")]
+    pub retina: ArmRetinaParams,
+}
+
+/// The `[agent.retina]` table of the planar arm (the cells are `retina_cells`,
+/// `retina_half_width` and `focal_length`, the arm's first keys).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ArmRetinaParams {
+    /// A pupil: one more motor, the last, bounded in `[low, high]` (`0 < low < high`),
+    /// that scales every cell's input ([`super::Pupil`]). Default: none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub aperture: Option<[f64; 2]>,
+}
+
+impl ArmRetinaParams {
+    fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
 }
 
 impl Default for ArmParams {
@@ -49,6 +69,7 @@ impl Default for ArmParams {
             retina_cells: 6,
             retina_half_width: 1.0,
             focal_length: 1.0,
+            retina: ArmRetinaParams::default(),
         }
     }
 }
@@ -76,6 +97,7 @@ pub struct ArmValidParams {
     retina_cells: usize,
     retina_half_width: f64,
     focal_length: f64,
+    aperture: Option<[f64; 2]>,
 }
 
 impl CheckParams for ArmParams {
@@ -124,19 +146,36 @@ impl CheckParams for ArmParams {
         }
         check_positive("retina_half_width", self.retina_half_width)?;
         check_positive("focal_length", self.focal_length)?;
+        if let Some(range) = self.retina.aperture {
+            super::pupil::check_aperture("retina.aperture", range)?;
+        }
         Ok(ArmValidParams {
             link_lengths: self.link_lengths.clone(),
             retina_cells: self.retina_cells,
             retina_half_width: self.retina_half_width,
             focal_length: self.focal_length,
+            aperture: self.retina.aperture,
         })
     }
 }
 
 impl PlanarArm {
-    /// Validates `params` and builds the arm.
+    /// Validates `params` and builds the arm (without its pupil: see
+    /// [`PlanarArm::build`]).
     pub fn new(params: &ArmParams) -> Result<Self, AgentError> {
         Ok(Self::from_valid(params.check_params()?))
+    }
+
+    /// The agent of `params`: the arm, or the arm with its pupil when
+    /// `[agent.retina] aperture` is given ([`super::Pupil`]).
+    pub fn build(params: &ArmParams) -> Result<Box<dyn Agent>, AgentError> {
+        let valid = params.check_params()?;
+        let aperture = valid.aperture;
+        let arm = Self::from_valid(valid);
+        Ok(match aperture {
+            None => Box::new(arm),
+            Some(range) => Box::new(super::Pupil::new(arm, range)?),
+        })
     }
 
     /// The arm of checked parameters.
@@ -199,7 +238,8 @@ impl PlanarArm {
             x += length * c;
             y += length * s;
         }
-        let alpha = wrap_angle(motors.iter().map(|&m| reduced(m)).sum());
+        let hinges = &motors[..motors.len().min(self.link_lengths.len() + 1)];
+        let alpha = wrap_angle(hinges.iter().map(|&m| reduced(m)).sum());
         Pose { x, y, alpha }
     }
 
@@ -388,7 +428,8 @@ impl Observer for PlanarArm {
 /// (x, y, alpha)` looking along `alpha`, cell `c` (at `cells[c]` on the image line, focal
 /// length `focal_length`) senses `Σ_lights exp(−(cell − projection)²) / distance` over
 /// the lights in front (`forward > 0`), with `projection = −focal_length · lateral /
-/// forward`. Shared by the arm and planar chains, so that both sense bit for bit alike.
+/// forward`, each light's term times its intensity (`1` by default, bit for bit the
+/// paper's law). Shared by the arm and planar chains, so that both sense bit for bit alike.
 pub(crate) fn sense_planar_retina(
     environment: &Environment,
     pose: [f64; 3],
@@ -398,7 +439,7 @@ pub(crate) fn sense_planar_retina(
 ) {
     let (sin_a, cos_a) = pose[2].sin_cos();
     sensors.fill(0.0);
-    for light in &environment.lights {
+    for (l, light) in environment.lights.iter().enumerate() {
         let dx = light[0] - pose[0];
         let dy = light[1] - pose[1];
         let forward = cos_a * dx + sin_a * dy;
@@ -407,7 +448,7 @@ pub(crate) fn sense_planar_retina(
         }
         let lateral = -sin_a * dx + cos_a * dy;
         let projection = -focal_length * lateral / forward;
-        let inverse_distance = 1.0 / (dx * dx + dy * dy).sqrt();
+        let inverse_distance = environment.intensity(l) / (dx * dx + dy * dy).sqrt();
         for (s, &cell) in sensors.iter_mut().zip(cells) {
             let offset = cell - projection;
             *s += (-offset * offset).exp() * inverse_distance;

@@ -42,6 +42,9 @@
 //! angle) are `Rᵀ a_j`. In the plane this is `∂(x, y)/∂m_j = σ_j (−Σ_{k≥j} c_k^y,
 //! Σ_{k≥j} c_k^x)` with `c_k = R_k link_k`, and `∂alpha/∂m_j = σ_j`.
 //!
+//! **Pupil.** `[agent.retina] aperture = [low, high]` adds the aperture motor of
+//! [`super::Pupil`], the last, after the joints.
+//!
 //! **Probes.** A planar chain shaped as the paper's arm (links `[L_k, 0, 0]` on `+z`
 //! hinges, then a retina hinge without a link) has the arm's inverse kinematics, so the
 //! probe grid (`probes = "grid"`) places it exactly as the arm; other chains have none
@@ -115,6 +118,10 @@ pub struct RetinaParams {
     pub half_width: f64,
     /// Distance from the lens to the image plane. Default 1.0.
     pub focal_length: f64,
+    /// A pupil: one more motor, the last, bounded in `[low, high]` (`0 < low < high`),
+    /// that scales every cell's input ([`super::Pupil`]). Default: none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub aperture: Option<[f64; 2]>,
 }
 
 impl Default for RetinaParams {
@@ -123,6 +130,7 @@ impl Default for RetinaParams {
             cells: RetinaCells::Row(6),
             half_width: 1.0,
             focal_length: 1.0,
+            aperture: None,
         }
     }
 }
@@ -324,6 +332,9 @@ impl ChainParams {
                     "must be a finite number greater than zero",
                 ));
             }
+        }
+        if let Some(range) = self.retina.aperture {
+            super::pupil::check_aperture("retina.aperture", range)?;
         }
         Ok((rows, cols))
     }
@@ -568,7 +579,7 @@ impl Chain {
         );
         sensors.fill(0.0);
         let cols = self.columns.len();
-        for light in &environment.lights {
+        for (l, light) in environment.lights.iter().enumerate() {
             let d = Vector3::from(*light) - frames.position;
             let forward = ex.dot(&d);
             if forward <= 0.0 {
@@ -576,7 +587,7 @@ impl Chain {
             }
             let a = -self.focal_length * ey.dot(&d) / forward;
             let b = -self.focal_length * ez.dot(&d) / forward;
-            let inverse_distance = 1.0 / d.norm();
+            let inverse_distance = environment.intensity(l) / d.norm();
             for (row, &cell_b) in sensors.chunks_exact_mut(cols).zip(&self.rows) {
                 let vertical = (-(cell_b - b) * (cell_b - b)).exp() * inverse_distance;
                 for (s, &cell_a) in row.iter_mut().zip(&self.columns) {
@@ -804,10 +815,14 @@ pub(super) fn builder() -> AgentBuilder {
     Arc::new(|table: &toml::Table| {
         let params = ChainParams::from_table(table)?;
         let chain = Chain::new(&params)?;
+        let agent: Box<dyn Agent> = match params.retina.aperture {
+            None => Box::new(chain),
+            Some(range) => Box::new(super::Pupil::new(chain, range)?),
+        };
         let resolved = match toml::Value::try_from(&params) {
             Ok(toml::Value::Table(t)) => t,
             _ => table.clone(),
         };
-        Ok((Box::new(chain) as Box<dyn Agent>, resolved))
+        Ok((agent, resolved))
     })
 }

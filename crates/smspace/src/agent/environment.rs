@@ -17,6 +17,15 @@
 //! coordinates, and an environment whose lights do not live where the agent senses
 //! them (`[x, y]` for a 3-D chain, `[x, y, z]` for a planar agent) is refused by
 //! [`Environment::check_for`].
+//!
+//! **Intensities and changes of the environment** (issue 15). Every light has an
+//! intensity, a factor on its contribution to every sensor (`1` by default: the JSON
+//! form then has no `intensities` key, and every sensation is bit for bit what it was
+//! without intensities). The changes an agent can experience without moving are
+//! [`Environment::displaced`] (a rigid displacement of the whole scene: a rotation then a
+//! translation of every light) and [`Environment::scaled`] (a common scaling of all
+//! intensities, a change of luminance); [`Environment::with_intensities`] sets each
+//! light's own.
 
 use std::path::Path;
 
@@ -108,6 +117,9 @@ pub struct Environment {
     pub space: LightSpace,
     /// The seed the lights were drawn from, if they were drawn.
     pub seed: Option<u64>,
+    /// Each light's intensity (a factor on its contribution to every sensor); empty:
+    /// all `1` (the paper's lights).
+    pub intensities: Vec<f64>,
 }
 
 /// The JSON form of an [`Environment`]: 2 or 3 coordinates per light.
@@ -117,6 +129,8 @@ struct EnvironmentFile {
     lights: Vec<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     seed: Option<u64>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    intensities: Vec<f64>,
 }
 
 impl TryFrom<EnvironmentFile> for Environment {
@@ -142,10 +156,18 @@ impl TryFrom<EnvironmentFile> for Environment {
             }
             lights.push([light[0], light[1], light.get(2).copied().unwrap_or(0.0)]);
         }
+        if !file.intensities.is_empty() && file.intensities.len() != lights.len() {
+            return Err(format!(
+                "{} intensities for {} lights; give one intensity per light (or none: all 1)",
+                file.intensities.len(),
+                lights.len()
+            ));
+        }
         Ok(Self {
             lights,
             space,
             seed: file.seed,
+            intensities: file.intensities,
         })
     }
 }
@@ -156,6 +178,7 @@ impl From<Environment> for EnvironmentFile {
         Self {
             lights: env.lights.iter().map(|l| l[..width].to_vec()).collect(),
             seed: env.seed,
+            intensities: env.intensities,
         }
     }
 }
@@ -167,6 +190,7 @@ impl Environment {
             lights: lights.into_iter().map(|[x, y]| [x, y, 0.0]).collect(),
             space: LightSpace::Plane,
             seed: None,
+            intensities: Vec::new(),
         }
     }
 
@@ -176,6 +200,7 @@ impl Environment {
             lights,
             space: LightSpace::Volume,
             seed: None,
+            intensities: Vec::new(),
         }
     }
 
@@ -269,7 +294,63 @@ impl Environment {
                 Some(_) => LightSpace::Volume,
             },
             seed: Some(seed),
+            intensities: Vec::new(),
         })
+    }
+
+    /// The intensity of light `l` (`1` when the environment gives none).
+    #[inline]
+    pub fn intensity(&self, l: usize) -> f64 {
+        self.intensities.get(l).copied().unwrap_or(1.0)
+    }
+
+    /// The same lights with these intensities (one per light).
+    pub fn with_intensities(&self, intensities: Vec<f64>) -> Result<Self, AgentError> {
+        if intensities.len() != self.lights.len() || !intensities.iter().all(|v| v.is_finite()) {
+            return Err(AgentError::InvalidEnvironment {
+                reason: format!(
+                    "{} intensities for {} lights; give one finite intensity per light",
+                    intensities.len(),
+                    self.lights.len()
+                ),
+            });
+        }
+        Ok(Self {
+            intensities,
+            ..self.clone()
+        })
+    }
+
+    /// The scene displaced rigidly: every light `q` goes to `R q + t`, with `rotation`
+    /// the row-major matrix `R` (a rotation) and `translation` `t` (in the plane, use a
+    /// rotation about `z` and `t_z = 0`). Intensities are kept.
+    pub fn displaced(&self, rotation: &[[f64; 3]; 3], translation: [f64; 3]) -> Self {
+        let lights = self
+            .lights
+            .iter()
+            .map(|q| {
+                let mut p = translation;
+                for (pi, row) in p.iter_mut().zip(rotation) {
+                    *pi += row[0] * q[0] + row[1] * q[1] + row[2] * q[2];
+                }
+                p
+            })
+            .collect();
+        Self {
+            lights,
+            ..self.clone()
+        }
+    }
+
+    /// Every light's intensity multiplied by `factor` (a common change of luminance).
+    pub fn scaled(&self, factor: f64) -> Self {
+        let intensities = (0..self.lights.len())
+            .map(|l| factor * self.intensity(l))
+            .collect();
+        Self {
+            intensities,
+            ..self.clone()
+        }
     }
 
     /// Reads an environment from its JSON file and checks it.
@@ -305,6 +386,18 @@ impl Environment {
             let l = &l[..self.space.coordinates()];
             return Err(AgentError::InvalidEnvironment {
                 reason: format!("light {i} is at {l:?}; positions must be finite numbers"),
+            });
+        }
+        if let Some((i, v)) = self
+            .intensities
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+        {
+            return Err(AgentError::InvalidEnvironment {
+                reason: format!(
+                    "light {i} has intensity {v}; intensities must be finite and non-negative"
+                ),
             });
         }
         Ok(())

@@ -19,6 +19,10 @@
 //! | [`PlanarArm`] `planar-arm` | 3.1 | links + 1 hinges | `retina_cells` | retina `(x, y, alpha)` |
 //! | [`Chain`] `chain` | 3.1, generalised | one per joint (hinge, or bounded by its `range`) | retina cells | `(x, y, alpha)` planar, `(x, y, z, qw, qx, qy, qz)` in 3-D |
 //!
+//! Either of the last two may have a pupil ([`Pupil`], `[agent.retina] aperture =
+//! [low, high]`, the paper's conclusion): one more motor, the last, bounded, scaling
+//! every cell's input; the pose stays the retina's.
+//!
 //! Build one from its parameter table with [`AgentConfig::build`], or by name with
 //! [`AgentConfig::preset`]; an agent of your own (a simulator in another language, a
 //! robot) implements the four required methods of [`Agent`] and registers in an
@@ -29,6 +33,7 @@ mod chain;
 mod environment;
 mod ground_truth;
 mod motor_space;
+mod pupil;
 mod registry;
 mod toy;
 mod workspace;
@@ -39,7 +44,7 @@ use std::fmt;
 use ndarray::{ArrayView2, ArrayViewMut2};
 use serde::{Deserialize, Serialize};
 
-pub use arm::{ArmParams, ArmValidParams, PlanarArm, MAX_LINKS, MAX_RETINA_CELLS};
+pub use arm::{ArmParams, ArmRetinaParams, ArmValidParams, PlanarArm, MAX_LINKS, MAX_RETINA_CELLS};
 pub use chain::{
     Chain, ChainParams, ChainValidParams, ChainWorkspace, JointParams, RetinaCells, RetinaParams,
 };
@@ -51,6 +56,7 @@ pub use ground_truth::{
     PoseCoordinate, PoseSpace,
 };
 pub use motor_space::{wrap_period, Motor, MotorSpace};
+pub use pupil::Pupil;
 pub use registry::{AgentBuilder, AgentRegistry, BuiltAgent};
 pub use toy::{ToyAgent, ToyKind, ToyParams, ToyValidParams};
 pub use workspace::Workspace;
@@ -219,6 +225,23 @@ pub trait Agent: Send + Sync + fmt::Debug {
         None
     }
 
+    /// The configuration the sensations determine, which tracing holds fixed on a
+    /// kernel set (both methods: its `configuration_dim` gives `k = N − C`, and the
+    /// `kinematic` method constrains its pose). The default is the
+    /// [`ground_truth`](Agent::ground_truth): the motors only move the sensor. A
+    /// [`Pupil`] gives the retina's pose and the aperture, which changes the sensations
+    /// without moving the retina.
+    fn sensed_configuration(&self) -> Option<&dyn Observer> {
+        self.ground_truth()
+    }
+
+    /// The motors that change an attribute of the sensor rather than its place (a
+    /// pupil's aperture), as the observer knows them: for figures and tests only (the
+    /// compensability analysis finds them from the sensations). The default is none.
+    fn attribute_motors(&self) -> Vec<usize> {
+        Vec::new()
+    }
+
     /// The working space this agent explores when the experiment names none: a
     /// rectangle of sensor positions it can reach (it needs a
     /// [`ground_truth`](Agent::ground_truth) whose first two coordinates are the
@@ -301,7 +324,10 @@ pub fn check_agent(agent: &dyn Agent) -> Result<(), AgentError> {
             "it has a default working space, which bounds the sensor's position, but no ground truth with a position first".into(),
         );
     }
-    if let Some(observer) = agent.ground_truth() {
+    for observer in [agent.ground_truth(), agent.sensed_configuration()]
+        .into_iter()
+        .flatten()
+    {
         let poses = observer.pose_space();
         let c = observer.configuration_dim();
         if c == 0 || c > poses.tangent_dim() {

@@ -26,7 +26,7 @@ use std::sync::Arc;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-use super::{Agent, AgentConfig, AgentError, ArmParams, PlanarArm, ToyAgent, ToyKind, ToyParams};
+use super::{Agent, AgentConfig, AgentError, PlanarArm, ToyAgent, ToyKind, ToyParams};
 
 /// An agent built from its table, with the table resolved (defaults included).
 #[derive(Debug)]
@@ -82,7 +82,7 @@ impl AgentRegistry {
         r.register_params(
             "planar-arm",
             "paper section 3.1: a planar arm with a pinhole retina at its end",
-            |p: &ArmParams| Ok(Box::new(PlanarArm::new(p)?)),
+            PlanarArm::build,
         );
         r.register("chain", "a kinematic chain of your own, planar or 3-D, with a pinhole retina at its end (issue 14)", super::chain::builder());
         r

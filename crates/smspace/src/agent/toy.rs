@@ -150,7 +150,10 @@ impl Agent for ToyAgent {
             *s = environment
                 .lights
                 .iter()
-                .map(|l| 1.0 / ((l[0] - p[0]).powi(2) + (l[1] - p[1]).powi(2)))
+                .enumerate()
+                .map(|(i, l)| {
+                    environment.intensity(i) / ((l[0] - p[0]).powi(2) + (l[1] - p[1]).powi(2))
+                })
                 .sum();
         }
     }

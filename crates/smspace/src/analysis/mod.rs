@@ -26,6 +26,7 @@
 //! (2 cores); the long-lived classes of a sampled manifold cost time roughly like `M⁴`.
 
 pub mod agreement;
+pub mod compensability;
 pub mod dimension;
 pub mod homology;
 
@@ -85,6 +86,9 @@ pub enum AnalysisError {
     /// A neighbour computation refused its input.
     #[error(transparent)]
     Neighbours(#[from] NeighboursError),
+    /// The compensability analysis refused its input.
+    #[error(transparent)]
+    Compensability(#[from] compensability::CompensabilityError),
     /// The computation would be too large.
     #[error("{what} is too large to compute: the limit is {limit}")]
     TooLarge {
@@ -100,6 +104,9 @@ impl AnalysisError {
     pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
         match self {
             AnalysisError::Invalid(p) => Some(p),
+            AnalysisError::Compensability(compensability::CompensabilityError::Invalid(p)) => {
+                Some(p)
+            }
             _ => None,
         }
     }
@@ -129,6 +136,11 @@ pub struct AnalysisParams {
     /// environment): how many babbled starts are traced with the `sensory` method in
     /// every environment and compared ([`crate::invariance`]). `0` turns it off. Default 300.
     pub invariance_starts: usize,
+    /// The compensability analysis (`[analysis.compensability]`, issue 15;
+    /// [`compensability`]): run by `smspace run` on the babbled configurations when
+    /// the table is given. Default: not run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compensability: Option<compensability::CompensabilityParams>,
 }
 
 impl Default for AnalysisParams {
@@ -143,6 +155,7 @@ impl Default for AnalysisParams {
             mle_neighbors: 20,
             neighbors: 10,
             invariance_starts: 300,
+            compensability: None,
         }
     }
 }
@@ -324,6 +337,10 @@ pub struct AnalysisReport {
     pub intrinsic_dimension: IntrinsicDimension,
     /// Agreement with the poses; `null` when no poses were given.
     pub agreement: Option<Agreement>,
+    /// The compensability analysis (`compensability.dimension`, its histogram, the
+    /// ambiguous base points), when `[analysis.compensability]` asks for it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compensability: Option<compensability::CompensabilityReport>,
 }
 
 impl AnalysisReport {
@@ -446,6 +463,7 @@ pub fn analyze_on(
         },
         intrinsic_dimension,
         agreement,
+        compensability: None,
     })
 }
 

@@ -49,6 +49,7 @@
 mod cover;
 mod curve;
 mod level_set;
+pub mod spatial;
 mod tracer;
 
 use std::path::{Path, PathBuf};
@@ -62,6 +63,7 @@ use crate::agent::{Agent, Environment};
 use crate::error::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
 use curve::Scratch;
+pub use spatial::{extend_along, Spatial};
 use tracer::Tracer;
 pub use tracer::{tangent_space, TangentSpace};
 
@@ -227,6 +229,22 @@ pub struct TraceParams {
     /// Kernels of dimension k ≥ 2: most nodes of the dense covering of one set, all
     /// pieces together (a set needing more fails as `cover-budget`). Default 100 000.
     pub max_cover_points: usize,
+    /// Which sets the pipeline compares: `kernel` (the traced sets, the paper's) or
+    /// `compensable` (each extended along the motors the compensability analysis finds
+    /// non-spatial, [`spatial`]). Default `kernel`.
+    #[serde(skip_serializing_if = "Spatial::is_kernel")]
+    pub spatial: Spatial,
+    /// With `spatial = "compensable"`: values of each non-spatial motor every traced
+    /// point is repeated at ([`spatial`]). Default 8.
+    #[serde(skip_serializing_if = "is_default_spatial_samples")]
+    pub spatial_samples: usize,
+}
+
+/// Default of [`TraceParams::spatial_samples`].
+pub const DEFAULT_SPATIAL_SAMPLES: usize = 8;
+
+fn is_default_spatial_samples(samples: &usize) -> bool {
+    *samples == DEFAULT_SPATIAL_SAMPLES
 }
 
 /// Which pieces of a level set are sampled (`[kernel] components`).
@@ -276,6 +294,8 @@ impl Default for TraceParams {
             piece_tolerance: 1e-2,
             cover_step: 0.05,
             max_cover_points: 100_000,
+            spatial: Spatial::Kernel,
+            spatial_samples: DEFAULT_SPATIAL_SAMPLES,
         }
     }
 }
@@ -734,6 +754,10 @@ pub struct TraceReport {
     pub summary: TraceSummary,
     /// One line per motor row, in order.
     pub sets: Vec<SetReport>,
+    /// With `spatial = "compensable"`: the motors the sets were extended along
+    /// ([`spatial`]), from 0. Empty otherwise.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub extended_along: Vec<usize>,
 }
 
 /// The traced sets.
@@ -997,6 +1021,7 @@ pub fn trace_sets(
             points: p,
             summary,
             sets: reports,
+            extended_along: Vec::new(),
         },
     })
 }

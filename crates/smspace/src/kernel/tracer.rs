@@ -3,7 +3,9 @@
 //!
 //! With a ground truth, `rank(J)` is the number `C` of pose coordinates the motors
 //! change ([`Observer::configuration_dim`]), for both methods: the sensors determine
-//! the pose (paper section 2.1). Without one (the `sensory` method only), it is the
+//! the pose (paper section 2.1). The observer read is
+//! [`Agent::sensed_configuration`], the ground truth unless the motors also change an
+//! attribute of the sensor (a pupil's aperture, held fixed with the pose). Without one (the `sensory` method only), it is the
 //! generic rank of the sensory Jacobian, estimated as its largest numerical rank over
 //! the starts (singular values above `rank_tolerance` times the largest; a start
 //! where fewer lights are in view has a lower rank, never a higher one). Sets of
@@ -50,7 +52,7 @@ impl<'a> Tracer<'a> {
         params: &'a TraceValidParams,
     ) -> Result<Self, KernelError> {
         let declared = check_agent_for(agent, params)?;
-        let observer = agent.ground_truth();
+        let observer = agent.sensed_configuration();
         if params.method == TraceMethod::Sensory && environment.is_none() {
             return Err(KernelError::MissingEnvironment);
         }
@@ -436,7 +438,7 @@ pub(super) fn check_agent_for(
     params: &TraceValidParams,
 ) -> Result<Option<usize>, KernelError> {
     crate::agent::check_agent(agent)?;
-    let Some(observer) = agent.ground_truth() else {
+    let Some(observer) = agent.sensed_configuration() else {
         if params.method == TraceMethod::Kinematic {
             return Err(KernelError::NoGroundTruth {
                 agent: agent.name().to_owned(),
@@ -738,11 +740,13 @@ pub fn tangent_space(
     let mut sensory;
     let (set, tolerance): (&mut dyn LevelSet, f64) = match params.method {
         TraceMethod::Kinematic => {
-            let observer = agent.ground_truth().ok_or(KernelError::NoGroundTruth {
-                agent: agent.name().to_owned(),
-                needs: "the kinematic method",
-                fix: "use method = \"sensory\" (the agent's own sensors)",
-            })?;
+            let observer = agent
+                .sensed_configuration()
+                .ok_or(KernelError::NoGroundTruth {
+                    agent: agent.name().to_owned(),
+                    needs: "the kinematic method",
+                    fix: "use method = \"sensory\" (the agent's own sensors)",
+                })?;
             kinematic = Kinematic::new(observer, motors, params.pose_tolerance);
             (&mut kinematic, 1e-7)
         }

@@ -494,9 +494,7 @@ pub fn check_with(
         explore: ExploreStage {
             exploration: e.exploration.clone(),
         },
-        trace: TraceStage {
-            kernel: e.kernel.clone(),
-        },
+        trace: TraceStage::new(e.kernel.clone(), e.analysis.compensability.as_ref()),
         distances: DistancesStage::new(&metric),
         embed: EmbedStage {
             embedding: e.embedding.clone(),
@@ -608,6 +606,12 @@ pub fn run_with(
             exploration,
             traced,
             distances,
+            world: plan
+                .analyze
+                .analysis
+                .compensability
+                .is_some()
+                .then_some(world),
         },
         plan.analyze_peak(held, m),
     )?;

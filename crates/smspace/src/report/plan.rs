@@ -13,7 +13,8 @@ use crate::agent::{MotorSpace, PlanarView};
 
 /// What every figure needs besides the inputs.
 pub(super) struct Derived {
-    /// `(M, 3)`: the planar pose of every set's exploration row, when there are poses.
+    /// `(M, 3 + A)`: the planar pose of every set's exploration row, when there are
+    /// poses, then its `A` attribute motors ([`crate::agent::Agent::attribute_motors`]).
     pub(super) set_poses: Option<Array2<f64>>,
     /// Unit of motor coordinates and of set distances.
     motor_unit: &'static str,
@@ -28,10 +29,18 @@ const NO_PLANAR_POSES: &str = "the agent has no planar ground truth (x, y, alpha
 /// The poses of the sets, the motor unit and the probe sheets.
 pub(super) fn derive(inputs: &ReportInputs<'_>) -> Derived {
     let m = inputs.kept.len();
+    // The planar pose, then the attribute motors at each set's start (a pupil's
+    // aperture, constant on a kernel set): the embedding is coloured by every column.
+    let attributes = inputs.agent.attribute_motors();
     let set_poses = inputs.poses.map(|poses| {
-        let mut set_poses = Array2::zeros((m, 3));
+        let mut set_poses = Array2::zeros((m, 3 + attributes.len()));
         for (i, &row) in inputs.kept.iter().enumerate() {
-            set_poses.row_mut(i).assign(&poses.row(row));
+            for c in 0..3 {
+                set_poses[[i, c]] = poses[[row, c]];
+            }
+            for (a, &j) in attributes.iter().enumerate() {
+                set_poses[[i, 3 + a]] = inputs.motors[[row, j]];
+            }
         }
         set_poses
     });
@@ -416,18 +425,18 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
                 Planned::Skip(NO_PLANAR_POSES.to_owned()),
             );
         };
-        let varying: Vec<usize> = (0..3)
+        let varying: Vec<usize> = (0..set_poses.ncols())
             .filter(|&c| {
                 plot::finite_extent(set_poses.column(c).iter().copied())
                     .is_some_and(|(lo, hi)| hi - lo > 1e-9)
             })
             .collect();
         let spearman = |c: usize| {
-            let name = crate::analysis::agreement::POSE_COORDINATES[c];
+            let name = crate::analysis::agreement::POSE_COORDINATES.get(c)?;
             self.inputs
                 .analysis
                 .and_then(|a| a.agreement.as_ref())
-                .and_then(|g| g.coordinates.get(name).copied().flatten())
+                .and_then(|g| g.coordinates.get(*name).copied().flatten())
         };
         let recovery = if m > 1 && d > 0 {
             figures::recovery(self.inputs.embedding, set_poses, &varying, spearman)
@@ -526,7 +535,6 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
 /// well, in numbers: locally (the neighbours' `R²`) and at all scales (the analysis'
 /// Spearman correlation of the learned distance with each coordinate's difference).
 fn pose_caption(m: usize, recovery: &[Recovery]) -> String {
-    let names = ["x", "y", "alpha"];
     let list = |items: Vec<String>| match items.as_slice() {
         [] => String::new(),
         [one] => one.clone(),
@@ -535,7 +543,13 @@ fn pose_caption(m: usize, recovery: &[Recovery]) -> String {
     let local = list(
         recovery
             .iter()
-            .map(|r| format!("{} (R\u{b2} = {:.2})", names[r.coordinate], r.r2))
+            .map(|r| {
+                format!(
+                    "{} (R\u{b2} = {:.2})",
+                    figures::coordinate_name(r.coordinate),
+                    r.r2
+                )
+            })
             .collect(),
     );
     let neighbours = recovery
@@ -554,8 +568,13 @@ fn pose_caption(m: usize, recovery: &[Recovery]) -> String {
         recovery
             .iter()
             .filter_map(|r| {
-                r.spearman
-                    .map(|s| format!("{} {} (Spearman {s:.2})", band(s), names[r.coordinate]))
+                r.spearman.map(|s| {
+                    format!(
+                        "{} {} (Spearman {s:.2})",
+                        band(s),
+                        figures::coordinate_name(r.coordinate)
+                    )
+                })
             })
             .collect(),
     );

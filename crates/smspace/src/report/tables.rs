@@ -291,7 +291,73 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
         }
         out.push(t);
     }
+    out.extend(a.compensability.as_ref().map(compensability_table));
     out
+}
+
+/// The compensability analysis (issue 15): `d` and its spread over the base points.
+fn compensability_table(c: &crate::analysis::compensability::CompensabilityReport) -> Table {
+    let mut t = Table::key_value(
+        "Compensability: sensory changes of the agent's movements that changes of the environment also make",
+    );
+    let counts = |h: &[usize]| {
+        let parts: Vec<String> = h
+            .iter()
+            .enumerate()
+            .filter(|&(_, &n)| n > 0)
+            .map(|(d, n)| format!("d = {d}: {n}"))
+            .collect();
+        if parts.is_empty() {
+            "none".to_owned()
+        } else {
+            parts.join(", ")
+        }
+    };
+    let changes: Vec<String> = c
+        .changes
+        .iter()
+        .map(|k| serde_json::to_value(k).map_or_else(|_| format!("{k:?}"), |v| scalar(&v)))
+        .collect();
+    t.push(
+        "environment changes",
+        format!(
+            "{} ({} parameters)",
+            changes.join(" + "),
+            c.environment_parameters
+        ),
+    );
+    let show = |d: Option<usize>| {
+        d.map_or_else(|| "none (every point ambiguous)".into(), |d| d.to_string())
+    };
+    t.push(
+        "dimension d of T_M ∩ T_E (most frequent)",
+        show(c.dimension),
+    );
+    t.push("d per base point", counts(&c.histogram));
+    t.push(
+        "spatial dimension (d minus commuting directions)",
+        show(c.spatial_dimension),
+    );
+    t.push(
+        "spatial dimension per base point",
+        counts(&c.spatial_histogram),
+    );
+    t.push(
+        "ambiguous base points (no clear gap; not counted above)",
+        format!("{} of {}", c.ambiguous, c.base_points),
+    );
+    t.push(
+        "non-spatial motors",
+        if c.non_spatial_motors.is_empty() {
+            "none".to_owned()
+        } else {
+            list(c.non_spatial_motors.iter().map(|j| format!("motor {j}")))
+        },
+    );
+    if let Some(reason) = c.points.iter().find_map(|b| b.ambiguous.first()) {
+        t.note = Some(format!("First ambiguity: {reason}."));
+    }
+    t
 }
 
 /// `reliable`, `not checked`, or `unreliable:` and the reasons.

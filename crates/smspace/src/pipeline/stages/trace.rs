@@ -6,16 +6,82 @@ use std::path::Path;
 use serde::Serialize;
 
 use super::{label, Keyed, Stage, StageContext, StageInput, World};
+use crate::analysis::compensability::{compensability, CompensabilityParams};
+use crate::analysis::AnalysisError;
+use crate::error::InvalidParameter;
 use crate::explore::Exploration;
 use crate::io::Outputs;
-use crate::kernel::{trace_sets, KernelError, TraceParams, TracedSets};
+use crate::kernel::{extend_along, trace_sets, KernelError, Spatial, TraceParams, TracedSets};
 use crate::pipeline::StageId;
 
-/// The `trace` stage: the `[kernel]` table.
+/// The `trace` stage: the `[kernel]` table (and, with `spatial = "compensable"`, the
+/// `[analysis.compensability]` table that finds the non-spatial motors).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TraceStage {
     /// Tracing parameters.
     pub kernel: TraceParams,
+    /// With `spatial = "compensable"`: the analysis that finds the motors to extend
+    /// the sets along (none otherwise, and then not in the key).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub compensability: Option<CompensabilityParams>,
+}
+
+impl TraceStage {
+    /// The stage of the `[kernel]` table; `analysis` is the `[analysis.compensability]`
+    /// table (its defaults when absent), read only with `spatial = "compensable"`.
+    pub fn new(kernel: TraceParams, analysis: Option<&CompensabilityParams>) -> Self {
+        let compensability =
+            (kernel.spatial == Spatial::Compensable).then(|| analysis.cloned().unwrap_or_default());
+        Self {
+            kernel,
+            compensability,
+        }
+    }
+
+    /// With `spatial = "compensable"`: the non-spatial motors the compensability
+    /// analysis finds at the babbled starts, and the sets extended along them.
+    fn spatial_sets(
+        &self,
+        traced: TracedSets,
+        world: &World,
+        exploration: &Exploration,
+    ) -> crate::Result<TracedSets> {
+        let Some(params) = &self.compensability else {
+            return Ok(traced);
+        };
+        let environment = world
+            .environments
+            .first()
+            .ok_or(KernelError::MissingEnvironment)?;
+        let babbled: Vec<usize> = (0..exploration.motors.nrows())
+            .filter(|&row| exploration.probes[[row, 0]] < 0)
+            .collect();
+        let starts = exploration.motors.select(ndarray::Axis(0), &babbled);
+        let report = compensability(
+            world.agent.as_ref(),
+            environment,
+            starts.view(),
+            &params.check().map_err(AnalysisError::from)?,
+        )
+        .map_err(AnalysisError::from)?;
+        let removed = report.dimension.zip(report.spatial_dimension);
+        if report.non_spatial_motors.is_empty() && removed.is_some_and(|(d, s)| s < d) {
+            return Err(KernelError::from(InvalidParameter::new(
+                "kernel",
+                "spatial",
+                "compensable",
+                "the compensability analysis found non-spatial directions that are not the axis of one motor; only motors whose axis is non-spatial (a pupil's aperture) can be spanned",
+            ))
+            .into());
+        }
+        let space = world.agent.motor_space();
+        Ok(extend_along(
+            traced,
+            &space,
+            &report.non_spatial_motors,
+            self.kernel.spatial_samples,
+        )?)
+    }
 }
 
 /// What `trace` reads.
@@ -65,7 +131,7 @@ impl Stage for TraceStage {
             }
             .into());
         }
-        Ok(traced)
+        self.spatial_sets(traced, world, &input.exploration.value)
     }
 
     fn save(
@@ -102,6 +168,12 @@ impl Stage for TraceStage {
                 "; {} with several pieces ({})",
                 s.with_several_pieces,
                 label(&self.kernel.components)
+            ));
+        }
+        if !t.report.extended_along.is_empty() {
+            line.push_str(&format!(
+                "; extended along the non-spatial motors {:?} (spatial = \"compensable\")",
+                t.report.extended_along
             ));
         }
         if let Some([low, median, high]) = s.covering_radius {

@@ -27,7 +27,7 @@ use super::super::plot::{
     ColorScale, Drawn, Figure, Legend, Mark, Print, TickStyle, Valign, GREY,
 };
 use super::super::view3d::{draw_box, draw_scene, BoxAxis, Camera, Frame, Item, Projection, V3};
-use super::{point3, Panel, ProbeSurface, MAX_SCATTER_POINTS, POSE_LABELS};
+use super::{point3, Panel, ProbeSurface, MAX_SCATTER_POINTS};
 use crate::agent::wrap_angle;
 
 /// Neighbours of the recovery measure: `M / 50` sets, between 3 and 10 (a fixed 10
@@ -396,7 +396,7 @@ impl EmbeddingPose<'_> {
         } else {
             ColorScale::linear(values.iter().copied())
         };
-        let name = ["x", "y", "alpha"][c];
+        let name = super::coordinate_name(c);
         let r2 = self
             .recovery
             .iter()
@@ -410,7 +410,7 @@ impl EmbeddingPose<'_> {
                 area,
                 print,
                 &title,
-                Axis2d::new(padded(values.iter().copied()), POSE_LABELS[c]),
+                Axis2d::new(padded(values.iter().copied()), super::coordinate_label(c)),
                 Axis2d::new(padded(e.column(0).iter().copied()), "embedding q1"),
             )?;
             chart.draw_series(rows.iter().map(|&i| {
@@ -456,7 +456,7 @@ impl EmbeddingPose<'_> {
                 )
             }))?;
         }
-        color_bar(&bar, print, scale, POSE_LABELS[c])
+        color_bar(&bar, print, scale, super::coordinate_label(c))
     }
 
     /// The recovery panel: per coordinate, `R²` of the neighbours' prediction and the
@@ -493,7 +493,7 @@ impl EmbeddingPose<'_> {
             .recovery
             .iter()
             .enumerate()
-            .map(|(k, r)| (k as f64, ["x", "y", "alpha"][r.coordinate]))
+            .map(|(k, r)| (k as f64, super::coordinate_name(r.coordinate)))
             .collect();
         let mut chart = chart_2d(
             &plot,

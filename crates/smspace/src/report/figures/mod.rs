@@ -48,6 +48,17 @@ pub(super) const MAX_SCATTER_POINTS: usize = 20_000;
 /// The names of the pose coordinates, with units.
 pub(super) const POSE_LABELS: [&str; 3] = ["x (m)", "y (m)", "alpha (rad)"];
 
+/// The name of column `c` of the sets' poses: `x`, `y`, `alpha`, then the attribute
+/// motors the agent declares (a pupil's `aperture`, [`crate::agent::Agent::attribute_motors`]).
+pub(super) fn coordinate_name(c: usize) -> &'static str {
+    ["x", "y", "alpha"].get(c).copied().unwrap_or("aperture")
+}
+
+/// The axis label of column `c` of the sets' poses.
+pub(super) fn coordinate_label(c: usize) -> &'static str {
+    POSE_LABELS.get(c).copied().unwrap_or("aperture")
+}
+
 /// The size of one panel and the print geometry.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Panel {
