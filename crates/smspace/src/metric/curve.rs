@@ -1966,7 +1966,7 @@ fn directed<S: Lanes, const N: usize>(
     let mut open = std::mem::take(&mut scratch.open);
     open.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     for &(value, i, ends) in &open {
-        // The window's tests again with the final c2, before a scan of all of B.
+        // The window's tests again with the final c2, before a scan of B (its chunks near the segment).
         if value <= pass.segment_threshold(c2) || pass.lipschitz_settles(i as usize, ends, c2) {
             continue;
         }

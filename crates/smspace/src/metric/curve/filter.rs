@@ -268,17 +268,21 @@ fn box_gaps<S: Lanes, const N: usize>(
     }
 }
 
+/// Per coordinate, the chunks of eight starts and of eight directions of the segments
+/// of `B`, and the chunks of their `1 / |v|²`.
+type ChunkRows<'a, const N: usize> = (
+    &'a [&'a [[f32; LANES]]; N],
+    &'a [&'a [[f32; LANES]]; N],
+    &'a [[f32; LANES]],
+);
+
 /// The lifted squared distances `(e(x), e(x + v), crossing)` of the eight segments of
 /// chunk `q` (see [`segment_scan`]).
 #[inline(always)]
 fn scan_chunk<S: Lanes, const N: usize, const ENDS: bool>(
     s: S,
     (xs, vs): (&[S::V; N], &[S::V; N]),
-    (points, dirs, inverse): (
-        &[&[[f32; LANES]]; N],
-        &[&[[f32; LANES]]; N],
-        &[[f32; LANES]],
-    ),
+    (points, dirs, inverse): ChunkRows<'_, N>,
     q: usize,
     (wraps, half): (&Wraps<S, N>, &[S::V; N]),
 ) -> (S::V, S::V, u32) {
