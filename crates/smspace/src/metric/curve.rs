@@ -41,7 +41,10 @@
 //!    vertex of `B` within `c` settles a lane (`d_B ≤ g(a, b_j)`), else a segment of
 //!    `B` within `c` (a window of segments around the nearest chunk), else the lane's
 //!    exact `d_B` is found and raises `c`. Every vertex ends with an upper bound `u_i`
-//!    of `d_B(a_i)` and a segment of `B` that reached it.
+//!    of `d_B(a_i)` and a segment of `B` that reached it. The `f32` scans of `B` behind
+//!    exact values skip whole chunks of eight segments of `B` by their boxes: a chunk
+//!    whose box is farther from the segment of `A` than an upper bound already found
+//!    (plus what the later tests need) cannot change any result.
 //! 2. **Segments, quick tests.** `d_B` is 1-Lipschitz along a segment (`g` is at most
 //!    the length travelled), so `max_t d_B(a_i + t v_i) ≤ (u_i + u_{i+1} + |v_i|)/2`:
 //!    at most `c` settles the segment (eight at a time). Else, for one segment `s_j`
@@ -76,7 +79,9 @@ mod filter;
 
 use std::cell::Cell;
 
-use self::filter::{segment_scan, segment_window, vertex_window, SegmentBlock, Wraps};
+use self::filter::{
+    segment_scan, segment_window, vertex_window, ScanChunk, SegmentBlock, Skip, Wraps,
+};
 use super::kernel::{
     cut_above, far_first, threshold, Frame, Lanes, Portable, Scratch, Simd, RING_WINDOW,
 };
@@ -130,6 +135,11 @@ pub(crate) struct CurveLayout {
     pub inv32: Vec<f32>,
     /// `[set]`: the longest segment `max_i |v_i|`.
     pub max_len: Vec<f64>,
+    /// `[set][2][n][chunk]`: the boxes of `centers` and `widths` in the `f32` frame of
+    /// the coordinates (centres shifted like them, half-widths rounded up; a chunk
+    /// without segments holds the last point), chunks padded to a multiple of eight
+    /// (see [`filter::segment_scan`]).
+    pub boxes32: Vec<f32>,
 }
 
 /// One set's segments, as the kernels see them.
@@ -148,6 +158,7 @@ pub(crate) struct CurveRef<'a> {
     pub inv_ring32: &'a [f32],
     pub inv32: &'a [f32],
     pub max_len: f64,
+    pub boxes32: &'a [f32],
 }
 
 /// The `f32` directions and `1 / |v|²` of every set's segments in ring order (row `r`
@@ -187,8 +198,48 @@ fn ring_segments(
     (dir_ring32, inv_ring32, max_len)
 }
 
+/// The chunk boxes `centers`, `widths` (`[set][chunk][n]`, `f64`) in the `f32` frame of
+/// the coordinates (`offset` subtracted), laid out `[set][2][n][chunk]` with the chunks
+/// padded to a multiple of eight; a chunk without segments gets the last point of its
+/// set (the padding lanes of the kernels repeat it).
+fn chunk_boxes32(
+    coords: &[f64],
+    (centers, widths): (&[f64], &[f64]),
+    segments: &[u32],
+    offset: &[f64],
+    (points, points_pad, dims_pad): (usize, usize, usize),
+) -> Vec<f32> {
+    let chunks = points_pad / LANES;
+    let slots = chunks.div_ceil(LANES) * LANES;
+    let per = 2 * dims_pad * slots;
+    let mut boxes = vec![0.0f32; segments.len() * per];
+    for (s, &count) in segments.iter().enumerate() {
+        let out = &mut boxes[s * per..(s + 1) * per];
+        for q in 0..chunks {
+            let at = (s * chunks + q) * dims_pad;
+            let empty = q * LANES >= count as usize;
+            for k in 0..dims_pad {
+                let (center, width) = if empty {
+                    (coords[(s * dims_pad + k) * points_pad + points - 1], 0.0)
+                } else {
+                    (centers[at + k], widths[at + k])
+                };
+                let width32 = width as f32;
+                out[k * slots + q] = (center - offset[k]) as f32;
+                out[(dims_pad + k) * slots + q] = if f64::from(width32) < width {
+                    width32.next_up()
+                } else {
+                    width32
+                };
+            }
+        }
+    }
+    boxes
+}
+
 impl CurveLayout {
-    /// Builds the segments of the prepared (wrapped, padded) points.
+    /// Builds the segments of the prepared (wrapped, padded) points; `offset` is the
+    /// shift of the `f32` frame of every coordinate.
     #[allow(
         clippy::too_many_arguments,
         reason = "the prepared layout's shape, passed while it is built"
@@ -203,6 +254,7 @@ impl CurveLayout {
         period: &[f64],
         closure: &[Closure],
         pieces: Option<ndarray::ArrayView2<'_, i64>>,
+        offset: &[f64],
     ) -> Self {
         let chunks = points_pad / LANES;
         let per = dims_pad * points_pad;
@@ -285,7 +337,15 @@ impl CurveLayout {
             .iter()
             .map(|&inv| if inv < 1e30 { inv as f32 } else { 0.0 })
             .collect();
+        let boxes32 = chunk_boxes32(
+            coords,
+            (&centers, &widths),
+            &segments,
+            offset,
+            (points, points_pad, dims_pad),
+        );
         Self {
+            boxes32,
             segments,
             closure: closure.to_vec(),
             inv32,
@@ -310,7 +370,8 @@ impl CurveLayout {
             + (self.dirs32.len()
                 + self.dir_ring32.len()
                 + self.inv_ring32.len()
-                + self.inv32.len())
+                + self.inv32.len()
+                + self.boxes32.len())
                 * 4
             + self.segments.len() * 13) as u64
     }
@@ -323,10 +384,11 @@ impl CurveLayout {
         dims_pad: usize,
     ) -> u64 {
         let chunks = points_pad / LANES;
+        let slots = chunks.div_ceil(LANES) * LANES;
         let rows = points + 2 * RING;
         (sets as u64)
             * ((2 * points_pad * dims_pad + 2 * points_pad + 2 * chunks * dims_pad) * 8
-                + (points_pad * (dims_pad + 1) + rows * (dims_pad + 1)) * 4
+                + (points_pad * (dims_pad + 1) + rows * (dims_pad + 1) + 2 * dims_pad * slots) * 4
                 + 13) as u64
     }
 }
@@ -341,7 +403,9 @@ impl PreparedSets {
         let per = dims_pad * points_pad;
         let chunks = self.chunks();
         let rows = self.points() + 2 * RING;
+        let boxes = 2 * dims_pad * chunks.div_ceil(LANES) * LANES;
         CurveRef {
+            boxes32: &layout.boxes32[s * boxes..(s + 1) * boxes],
             set: self.set(s),
             segments: layout.segments[s] as usize,
             dirs: &layout.dirs[s * per..(s + 1) * per],
@@ -1359,16 +1423,20 @@ pub(crate) struct CurveScratch {
     scan: Vec<ScanChunk>,
     /// The same for the vertex whose exact distance is computed.
     vertex_scan: Vec<ScanChunk>,
+    /// The box gaps of the chunks of `B` in a scan.
+    lower: Vec<f32>,
+    /// How far from the segment of `scan` its skipped chunks are at least (see
+    /// [`Pass::scan_segment`]).
+    scan_reach: f64,
+    /// The smallest `f32` lifted squared distance from the end of that segment to the
+    /// segments of `B` it computed: a hint for the exact value there.
+    scan_min1: f32,
     stack: Vec<Piece>,
 }
 
 /// A segment of `A` left open by the `f32` passes: `(test value, index, (m0, m1))`, see
 /// [`CurveScratch::open`].
 type OpenSegment = (f32, u32, (f32, f32));
-
-/// One chunk of a [`segment_scan`]: the lifted squared distances from both ends and
-/// the segments that cross the seam.
-type ScanChunk = ([f32; LANES], [f32; LANES], u32);
 
 /// One direction `A → B` of the curve kernel.
 struct Pass<'a, S: Lanes, const N: usize> {
@@ -1426,9 +1494,10 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
     /// The exact `d_B(a_i)²` of vertex `i` of `A` and its nearest segment of `B` (the
     /// lowest index among ties), computed once per pass.
     #[inline(always)]
-    fn vertex(&self, i: usize, scratch: &mut CurveScratch) -> (f64, u32) {
+    fn vertex(&self, i: usize, hint: f32, scratch: &mut CurveScratch) -> (f64, u32) {
         if scratch.vertex[i].0.is_nan() {
-            scratch.vertex[i] = self.exact_vertex(i, &mut scratch.vertex_scan);
+            scratch.vertex[i] =
+                self.exact_vertex(i, hint, (&mut scratch.vertex_scan, &mut scratch.lower));
         }
         scratch.vertex[i]
     }
@@ -1439,7 +1508,12 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
     /// so only the segments at the vertices whose `f32` value allows that
     /// ([`cut_above`]) are computed, exactly ([`segment_distance2`]).
     #[inline(always)]
-    fn exact_vertex(&self, i: usize, scan: &mut Vec<ScanChunk>) -> (f64, u32) {
+    fn exact_vertex(
+        &self,
+        i: usize,
+        hint: f32,
+        (scan, lower): (&mut Vec<ScanChunk>, &mut Vec<f32>),
+    ) -> (f64, u32) {
         let (a, b, frame) = (self.a, self.b, self.frame);
         let x = load::<N>(a.set.points, i);
         let exact = |j: usize| point_segment2::<N>(&x, b, j, &frame.period);
@@ -1456,7 +1530,8 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
             return best;
         }
         let x32: [f32; N] = std::array::from_fn(|k| a.set.coords32[k * frame.points_pad + i]);
-        let (smallest, _, _) = self.scan::<false>(&x32, &[0.0; N], scan);
+        let (smallest, _, _) =
+            self.scan::<false>(&x32, &[0.0; N], (hint, 0.0), (&mut *scan, lower));
         self.nearest_from_scan(i, smallest, scan)
     }
 
@@ -1499,23 +1574,34 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         best
     }
 
-    /// [`segment_scan`] over the segments of `B` from the point `x` (and `x + v`).
+    /// [`segment_scan`] over the segments of `B` from the point `x` (and `x + v`),
+    /// skipping the chunks farther than `upper(hint) + extra` from every point of
+    /// `[x, x + v]` (`hint` a test value known of some segment of `B`, see
+    /// [`Self::upper`] and [`Skip`]).
     #[inline(always)]
     fn scan<const ENDS: bool>(
         &self,
         x: &[f32; N],
         v: &[f32; N],
-        out: &mut Vec<ScanChunk>,
+        (hint, extra): (f32, f64),
+        (out, lower): (&mut Vec<ScanChunk>, &mut Vec<f32>),
     ) -> (f32, f32, f32) {
         let (b, frame) = (self.b, self.frame);
         out.resize(frame.chunks, ([0.0; LANES], [0.0; LANES], 0));
+        let skip = Skip {
+            rel: frame.rel,
+            segment_delta: frame.segment_delta,
+            margin: 2.0 * (frame.segment_delta + frame.delta),
+            extra,
+        };
         segment_scan::<S, N, ENDS>(
             self.s,
             (x, v),
-            (b.set.coords32, b.dirs32, b.inv32),
+            (b.set.coords32, b.dirs32, b.inv32, b.boxes32),
             frame.chunks,
-            &self.wraps,
-            &self.half,
+            (&self.wraps, &self.half),
+            (skip, hint),
+            lower,
             out,
         )
     }
@@ -1534,8 +1620,8 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
     ) -> Option<f64> {
         let (a, b, period) = (self.a, self.b, &self.frame.period);
         let next = if i + 1 == self.frame.points { 0 } else { i + 1 };
-        let (d0, j0) = self.vertex(i, scratch);
-        let (d1, j1) = self.vertex(next, scratch);
+        let (d0, j0) = self.vertex(i, f32::INFINITY, scratch);
+        let (d1, j1) = self.vertex(next, scratch.scan_min1, scratch);
         c2 = c2.max(d0).max(d1);
         if c2 > abort2 {
             return None;
@@ -1554,7 +1640,9 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         }
         let stride = self.frame.points_pad;
         let mut images = [(0u32, [0.0; N]); MAX_IMAGES];
-        let found = if self.wide || upper >= self.image_reach {
+        // The scan of this segment skipped chunks beyond `scan_reach` only.
+        let reach = upper * (1.0 + 4.0 * BOUND_MARGIN) + 1e-12;
+        let found = if self.wide || upper >= self.image_reach || reach > scratch.scan_reach {
             near_images::<N>(a, b, i, upper, period, stride, &mut images)
         } else {
             self.near_images_scanned(i, upper, &scratch.scan, &mut images)
@@ -1582,7 +1670,8 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
     /// convex along segment `i` and changes at most `|v_i|` from end to end, so its
     /// minimum is at least `(E_j(0) + E_j(1) − |v_i|)/2`; only segments where that can be
     /// `≤ upper` are kept. Valid when `upper` is below `image_reach`: then no image
-    /// but the one nearest to `a_i` can come within `upper`.
+    /// but the one nearest to `a_i` can come within `upper`; and within the scan's
+    /// `scan_reach`: the chunks it skipped are farther than that from the segment.
     #[inline(always)]
     fn near_images_scanned(
         &self,
@@ -1627,22 +1716,35 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
     /// Whether a [`segment_scan`] of segment `i` of `A` settles it for the running `c2`:
     /// both ends within `√c2` of one lifted segment of `B` (convexity), or the Lipschitz
     /// bound `(d_B(a_i) + d_B(a_{i+1}) + |v_i|)/2 ≤ √c2` with the upper bounds of the
-    /// scan. Records the exact `d_B(a_i)` it gives for free.
+    /// scan. Records the exact `d_B(a_i)` it gives for free. `hint` is the segment's
+    /// `f32` test value in its window.
     #[inline(always)]
-    fn scan_settles(&self, i: usize, c2: f64, scratch: &mut CurveScratch) -> bool {
-        !self.wide && self.scan_segment(i, c2, false, scratch)
+    fn scan_settles(&self, i: usize, c2: f64, hint: f32, scratch: &mut CurveScratch) -> bool {
+        !self.wide && self.scan_segment(i, c2, (false, hint), scratch)
     }
 
     /// The [`segment_scan`] of segment `i` of `A` (see [`Self::scan_settles`]): whether it
     /// settles the segment for `max(c2, d_B(a_i)²)`, with the exact `d_B(a_i)` recorded
     /// when it is still unknown and `vertex` asks for it or the segment stays open.
+    /// `hint` is a test value `max(e(a_i), e(a_{i+1}))` known of some segment of `B` (or
+    /// `+∞`): chunks farther than it allows are skipped (see [`Self::scan`]).
     #[inline(always)]
-    fn scan_segment(&self, i: usize, c2: f64, vertex: bool, scratch: &mut CurveScratch) -> bool {
+    fn scan_segment(
+        &self,
+        i: usize,
+        c2: f64,
+        (vertex, hint): (bool, f32),
+        scratch: &mut CurveScratch,
+    ) -> bool {
         let (a, frame) = (self.a, self.frame);
         let x: [f32; N] = std::array::from_fn(|k| a.set.coords32[k * frame.points_pad + i]);
         let v: [f32; N] = std::array::from_fn(|k| a.dirs32[k * frame.points_pad + i]);
         let mut scan = std::mem::take(&mut scratch.scan);
-        let (min0, min1, min_max) = self.scan::<true>(&x, &v, &mut scan);
+        let extra = 0.5 * a.lengths[i];
+        let (min0, min1, min_max) =
+            self.scan::<true>(&x, &v, (hint, extra), (&mut scan, &mut scratch.lower));
+        scratch.scan_reach = self.upper(hint) + extra;
+        scratch.scan_min1 = min1;
         let mut c2 = c2;
         if vertex && scratch.vertex[i].0.is_nan() {
             scratch.vertex[i] = self.nearest_from_scan(i, min0, &scan);
@@ -1670,26 +1772,18 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         abort2: f64,
         scratch: &mut CurveScratch,
     ) -> Option<f64> {
-        let (s, a, b, frame) = (self.s, self.a, self.b, self.frame);
+        let (s, a) = (self.s, self.a);
         let live = (1u32 << a.segments.saturating_sub(alpha * LANES).min(LANES)) - 1;
         if live == 0 {
             return Some(c2);
         }
-        let block = SegmentBlock::load(s, a.set.coords32, a.dirs32, frame.chunks, alpha);
-        let start = (near * LANES + LANES / 2).min(frame.points - 1);
-        let rows = start..start + 2 * RING + 1;
-        let ring = &b.set.ring32.as_chunks::<N>().0[rows.clone()];
-        let length = frame.points.min(RING_WINDOW.len());
-        let (best_segment, best_vertex) = if self.wide {
-            (s.splat(f32::INFINITY), s.splat(f32::INFINITY))
-        } else {
-            let theta = self.segment_threshold(c2);
-            vertex_window(s, &block, ring, &self.wraps, (theta, live, length))
-        };
-        // Vertices whose window value does not prove them within c: exact values, from
+        let mut window = self.windows(alpha, near, c2, live);
+        // Vertices whose window values do not prove them within c: exact values, from
         // the scan of their segment, which may settle it too.
-        let mut values = s.array(best_vertex);
-        let mut open = s.gt(best_vertex, s.splat(self.segment_threshold(c2))) & live;
+        let bound = s.min(window.vertex, window.ends0);
+        let mut values = s.array(bound);
+        let hints = s.array(window.segment);
+        let mut open = s.gt(bound, s.splat(self.segment_threshold(c2))) & live;
         let mut scanned = 0u32;
         while open != 0 {
             let l = largest(&values, open);
@@ -1697,9 +1791,9 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
             values[l] = f32::NEG_INFINITY;
             let i = alpha * LANES + l;
             let d2 = if self.wide {
-                self.vertex(i, scratch).0
+                self.vertex(i, f32::INFINITY, scratch).0
             } else {
-                if self.scan_segment(i, c2, true, scratch) {
+                if self.scan_segment(i, c2, (true, hints[l]), scratch) {
                     scanned |= 1 << l;
                 }
                 scratch.vertex[i].0
@@ -1712,26 +1806,18 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
                 open &= s.gt(s.load(&values), s.splat(self.segment_threshold(c2)));
             }
         }
-        // Segments: the window of vertices, then of segments of B.
+        // Segments: the window of segments of B, unless it ran already.
         let theta = self.segment_threshold(c2);
-        let mut open = s.gt(best_segment, s.splat(theta)) & live & !scanned;
-        let mut best = best_segment;
-        let infinity = s.splat(f32::INFINITY);
-        let (mut ends0, mut ends1) = (infinity, infinity);
-        if open != 0 && !self.wide {
-            let dirs = &b.dir_ring32.as_chunks::<N>().0[rows.clone()];
-            let inverse = &b.inv_ring32[rows];
-            (best, ends0, ends1) = segment_window(
-                s,
-                &block,
-                (ring, dirs, inverse),
-                &self.wraps,
-                (theta, open, length),
-                best,
-            );
-            open = s.gt(best, s.splat(theta)) & live;
+        let mut open = s.gt(window.segment, s.splat(theta)) & live & !scanned;
+        if open != 0 && !self.wide && !window.segments_done {
+            window = self.segment_window(alpha, near, theta, open, window);
+            open = s.gt(window.segment, s.splat(theta)) & live & !scanned;
         }
-        let (values, ends0, ends1) = (s.array(best), s.array(ends0), s.array(ends1));
+        let (values, ends0, ends1) = (
+            s.array(window.segment),
+            s.array(window.ends0),
+            s.array(window.ends1),
+        );
         while open != 0 {
             let l = open.trailing_zeros() as usize;
             open &= open - 1;
@@ -1741,6 +1827,104 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         }
         Some(c2)
     }
+
+    /// The windows of block `alpha` of `A` around the chunk `near` of `B`: the window of
+    /// vertices of `B`, and when it leaves a vertex of `A` open for `c2`, the window of
+    /// segments too (its lifted distances bound `d_B` at the vertices more tightly than
+    /// the nearest vertex, which spares exact values).
+    #[inline(always)]
+    fn windows(&self, alpha: usize, near: usize, c2: f64, live: u32) -> Window<S> {
+        let s = self.s;
+        let infinity = s.splat(f32::INFINITY);
+        let mut window = Window {
+            segment: infinity,
+            vertex: infinity,
+            ends0: infinity,
+            ends1: infinity,
+            segments_done: false,
+        };
+        if self.wide {
+            return window;
+        }
+        let theta = self.segment_threshold(c2);
+        let block = SegmentBlock::load(
+            s,
+            self.a.set.coords32,
+            self.a.dirs32,
+            self.frame.chunks,
+            alpha,
+        );
+        let ring = &self.b.set.ring32.as_chunks::<N>().0[self.rows(near)];
+        let length = self.frame.points.min(RING_WINDOW.len());
+        (window.segment, window.vertex) =
+            vertex_window(s, &block, ring, &self.wraps, (theta, live, length));
+        let vertex_open = s.gt(window.vertex, s.splat(theta)) & live;
+        if vertex_open != 0 {
+            let open = s.gt(window.segment, s.splat(theta)) & live;
+            window = self.segment_window(alpha, near, theta, open, window);
+        }
+        window
+    }
+
+    /// The rows of the rings of `B` in the window around chunk `near`.
+    #[inline(always)]
+    fn rows(&self, near: usize) -> std::ops::Range<usize> {
+        let start = (near * LANES + LANES / 2).min(self.frame.points - 1);
+        start..start + 2 * RING + 1
+    }
+
+    /// [`segment_window`] for the lanes `open` of block `alpha` of `A`.
+    #[inline(always)]
+    fn segment_window(
+        &self,
+        alpha: usize,
+        near: usize,
+        theta: f32,
+        open: u32,
+        window: Window<S>,
+    ) -> Window<S> {
+        let (s, b) = (self.s, self.b);
+        let block = SegmentBlock::load(
+            s,
+            self.a.set.coords32,
+            self.a.dirs32,
+            self.frame.chunks,
+            alpha,
+        );
+        let rows = self.rows(near);
+        let ring = &b.set.ring32.as_chunks::<N>().0[rows.clone()];
+        let dirs = &b.dir_ring32.as_chunks::<N>().0[rows.clone()];
+        let inverse = &b.inv_ring32[rows];
+        let length = self.frame.points.min(RING_WINDOW.len());
+        let (segment, ends0, ends1) = segment_window(
+            s,
+            &block,
+            (ring, dirs, inverse),
+            &self.wraps,
+            (theta, open, length),
+            window.segment,
+        );
+        Window {
+            segment,
+            vertex: window.vertex,
+            ends0,
+            ends1,
+            segments_done: true,
+        }
+    }
+}
+
+/// The window values of one block of `A` (lanes over its segments), `f32` squared:
+/// the segment test (`max` over both ends, smallest over the window), the nearest
+/// vertex of `B` to `a_i` in the window, and the nearest lifted segment of `B` to `a_i`
+/// and to `a_{i+1}` (`+∞` until the window of segments ran).
+#[derive(Clone, Copy)]
+struct Window<S: Lanes> {
+    segment: S::V,
+    vertex: S::V,
+    ends0: S::V,
+    ends1: S::V,
+    segments_done: bool,
 }
 
 /// The lane of `mask` with the largest value (the lowest among ties).
@@ -1782,11 +1966,11 @@ fn directed<S: Lanes, const N: usize>(
     let mut open = std::mem::take(&mut scratch.open);
     open.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
     for &(value, i, ends) in &open {
-        // The window's tests again with the final c2, before a scan of all of B.
+        // The window's tests again with the final c2, before a scan of B (its chunks near the segment).
         if value <= pass.segment_threshold(c2) || pass.lipschitz_settles(i as usize, ends, c2) {
             continue;
         }
-        if pass.scan_settles(i as usize, c2, scratch) {
+        if pass.scan_settles(i as usize, c2, value, scratch) {
             continue;
         }
         match pass.exact_segment(i as usize, c2, abort2, scratch) {

@@ -265,6 +265,7 @@ impl PreparedSets {
                     &period_pad,
                     closure,
                     view.pieces(),
+                    &filter.offset,
                 )))
             }
         };

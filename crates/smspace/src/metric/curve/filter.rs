@@ -22,6 +22,8 @@ pub(super) struct Wraps<S: Lanes, const N: usize> {
     pub period: [S::V; N],
     /// `1/T` (`0` when not wrapped).
     pub inverse: [S::V; N],
+    /// The period for [`Lanes::fold`] (`+∞` when not wrapped).
+    pub fold: [S::V; N],
 }
 
 impl<S: Lanes, const N: usize> Wraps<S, N> {
@@ -42,6 +44,7 @@ impl<S: Lanes, const N: usize> Wraps<S, N> {
                     0.0
                 })
             }),
+            fold: std::array::from_fn(|k| s.splat(period[k] as f32)),
         }
     }
 }
@@ -158,22 +161,36 @@ pub(super) fn segment_window<S: Lanes, const N: usize>(
     (best, best0, best1)
 }
 
+/// One chunk of a [`segment_scan`]: the lifted squared distances from both ends and
+/// the segments that cross the seam.
+pub(super) type ScanChunk = ([f32; LANES], [f32; LANES], u32);
+
 /// The lifted squared distances from the point `x` (and, with `ENDS`, from `x + v`, in
 /// the image of `x`) to every segment of `B`, eight segments per vector: per chunk
 /// `(e(x), e(x + v), crossing)` into `out`, where bit `l` of `crossing` marks a segment
 /// that crosses the seam relative to `x` (its lifted `e(x)` is then only an upper bound
 /// of the periodic distance). Returns the smallest `e(x)`, the smallest `e(x + v)` and
-/// the smallest `max(e(x), e(x + v))` over all segments.
+/// the smallest `max(e(x), e(x + v))` over the chunks computed.
+///
+/// Chunks far from the segment `[x, x + v]` are skipped: every chunk of `B` has a box
+/// (`boxes32`, see [`CurveLayout`](super::CurveLayout)), and the gap between it and the
+/// box of `[x, x + v]` (per coordinate, periodic) bounds from below the distance from
+/// any point of the segment to any point of the chunk's segments. A chunk is skipped
+/// when its `f32` squared gap exceeds `skip.threshold(hint)`, where `hint` is an `f32`
+/// test value already known of some segment of `B` (`max(e(x), e(x + v))` with `ENDS`,
+/// else `e(x)`, or `+∞`): nothing in such a chunk can matter (see [`Skip`]). A
+/// skipped chunk reads `(+∞, +∞, 0)`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn segment_scan<S: Lanes, const N: usize, const ENDS: bool>(
     s: S,
     (x, v): (&[f32; N], &[f32; N]),
-    (coords32, dirs32, inv32): (&[f32], &[f32], &[f32]),
+    (coords32, dirs32, inv32, boxes32): (&[f32], &[f32], &[f32], &[f32]),
     chunks: usize,
-    wraps: &Wraps<S, N>,
-    half: &[S::V; N],
-    out: &mut [([f32; LANES], [f32; LANES], u32)],
+    (wraps, half): (&Wraps<S, N>, &[S::V; N]),
+    (skip, hint): (Skip, f32),
+    lower: &mut Vec<f32>,
+    out: &mut [ScanChunk],
 ) -> (f32, f32, f32) {
     let (points, _) = coords32.as_chunks::<LANES>();
     let (dirs, _) = dirs32.as_chunks::<LANES>();
@@ -183,46 +200,155 @@ pub(super) fn segment_scan<S: Lanes, const N: usize, const ENDS: bool>(
     let dirs: [&[[f32; LANES]]; N] = std::array::from_fn(|k| &dirs[k * chunks..(k + 1) * chunks]);
     let inverse = &inverse[..chunks];
     let out = &mut out[..chunks];
+    box_gaps::<S, N>(s, (x, v), boxes32, chunks, wraps, lower);
     let xs: [S::V; N] = std::array::from_fn(|k| s.splat(x[k]));
     let vs: [S::V; N] = std::array::from_fn(|k| s.splat(v[k]));
-    let (zero, one) = (s.splat(0.0), s.splat(1.0));
+    let chunk = (&points, &dirs, inverse);
     let infinity = s.splat(f32::INFINITY);
     let (mut min0, mut min1, mut min_max) = (infinity, infinity, infinity);
-    for q in 0..chunks {
-        let mut w0 = [zero; N];
-        let mut w1 = [zero; N];
-        let mut dir = [zero; N];
-        let (mut dot0, mut dot1) = (zero, zero);
-        let mut crossing = 0u32;
-        for k in 0..N {
-            dir[k] = s.load(&dirs[k][q]);
-            let u = s.sub(xs[k], s.load(&points[k][q]));
-            w0[k] = s.swrap(u, wraps.period[k], wraps.inverse[k]);
-            crossing |= s.gt(s.abs(s.sub(w0[k], dir[k])), half[k]);
-            dot0 = s.mul_add(w0[k], dir[k], dot0);
+    let limit = s.splat(skip.threshold(hint));
+    let (gaps, _) = lower.as_chunks::<LANES>();
+    for (g, gap) in gaps.iter().enumerate() {
+        let mut kept = s.le(s.load(gap), limit);
+        let mut skipped = !kept & ((1u32 << (chunks - g * LANES).min(LANES)) - 1);
+        while skipped != 0 {
+            let q = g * LANES + skipped.trailing_zeros() as usize;
+            skipped &= skipped - 1;
+            out[q] = ([f32::INFINITY; LANES], [f32::INFINITY; LANES], 0);
+        }
+        while kept != 0 {
+            let q = g * LANES + kept.trailing_zeros() as usize;
+            kept &= kept - 1;
+            if q >= chunks {
+                break;
+            }
+            let (e0, e1, crossing) =
+                scan_chunk::<S, N, ENDS>(s, (&xs, &vs), chunk, q, (wraps, half));
+            out[q] = (s.array(e0), s.array(e1), crossing);
+            min0 = s.min(e0, min0);
             if ENDS {
-                w1[k] = s.add(w0[k], vs[k]);
-                dot1 = s.mul_add(w1[k], dir[k], dot1);
+                min1 = s.min(e1, min1);
+                min_max = s.min(s.max(e0, e1), min_max);
             }
         }
-        let inv = s.load(&inverse[q]);
-        let t0 = s.max(s.min(s.mul(dot0, inv), one), zero);
-        let t1 = s.max(s.min(s.mul(dot1, inv), one), zero);
-        let (mut e0, mut e1) = (zero, zero);
-        for k in 0..N {
-            let r0 = s.neg_mul_add(t0, dir[k], w0[k]);
-            e0 = s.mul_add(r0, r0, e0);
-            if ENDS {
-                let r1 = s.neg_mul_add(t1, dir[k], w1[k]);
-                e1 = s.mul_add(r1, r1, e1);
-            }
-        }
-        min0 = s.min(e0, min0);
-        if ENDS {
-            min1 = s.min(e1, min1);
-            min_max = s.min(s.max(e0, e1), min_max);
-        }
-        out[q] = (s.array(e0), s.array(e1), crossing);
     }
     (s.hmin(min0), s.hmin(min1), s.hmin(min_max))
+}
+
+/// Per chunk of `B` (`lower[q]`), the `f32` squared gap between the box of the segment
+/// `[x, x + v]` (its middle, half of `|v_n|` on either side) and the chunk's box in
+/// `boxes32` (`[n][chunk]` centres, then `[n][chunk]` half-widths, eight chunks per
+/// vector): `Σ_n max(fold(m_n − c_n) − w_n − |v_n|/2, 0)²`.
+#[inline(always)]
+fn box_gaps<S: Lanes, const N: usize>(
+    s: S,
+    (x, v): (&[f32; N], &[f32; N]),
+    boxes32: &[f32],
+    chunks: usize,
+    wraps: &Wraps<S, N>,
+    lower: &mut Vec<f32>,
+) {
+    let groups = chunks.div_ceil(LANES);
+    let (rows, _) = boxes32.as_chunks::<LANES>();
+    lower.resize(groups * LANES, 0.0);
+    let (gaps, _) = lower.as_chunks_mut::<LANES>();
+    let mid: [S::V; N] = std::array::from_fn(|k| s.splat(x[k] + 0.5 * v[k]));
+    let spread: [S::V; N] = std::array::from_fn(|k| s.splat(0.5 * v[k].abs()));
+    let zero = s.splat(0.0);
+    for (g, gap) in gaps.iter_mut().enumerate().take(groups) {
+        let mut acc = zero;
+        for k in 0..N {
+            let center = s.load(&rows[k * groups + g]);
+            let width = s.load(&rows[(N + k) * groups + g]);
+            let d = s.fold(s.sub(mid[k], center), wraps.fold[k]);
+            let d = s.max(s.sub(s.sub(d, width), spread[k]), zero);
+            acc = s.mul_add(d, d, acc);
+        }
+        *gap = s.array(acc);
+    }
+}
+
+/// Per coordinate, the chunks of eight starts and of eight directions of the segments
+/// of `B`, and the chunks of their `1 / |v|²`.
+type ChunkRows<'a, const N: usize> = (
+    &'a [&'a [[f32; LANES]]; N],
+    &'a [&'a [[f32; LANES]]; N],
+    &'a [[f32; LANES]],
+);
+
+/// The lifted squared distances `(e(x), e(x + v), crossing)` of the eight segments of
+/// chunk `q` (see [`segment_scan`]).
+#[inline(always)]
+fn scan_chunk<S: Lanes, const N: usize, const ENDS: bool>(
+    s: S,
+    (xs, vs): (&[S::V; N], &[S::V; N]),
+    (points, dirs, inverse): ChunkRows<'_, N>,
+    q: usize,
+    (wraps, half): (&Wraps<S, N>, &[S::V; N]),
+) -> (S::V, S::V, u32) {
+    let (mut w0, mut w1, mut dir) = ([s.splat(0.0); N], [s.splat(0.0); N], [s.splat(0.0); N]);
+    let (mut dot0, mut dot1) = (s.splat(0.0), s.splat(0.0));
+    let mut crossing = 0u32;
+    for k in 0..N {
+        dir[k] = s.load(&dirs[k][q]);
+        let u = s.sub(xs[k], s.load(&points[k][q]));
+        w0[k] = s.swrap(u, wraps.period[k], wraps.inverse[k]);
+        crossing |= s.gt(s.abs(s.sub(w0[k], dir[k])), half[k]);
+        dot0 = s.mul_add(w0[k], dir[k], dot0);
+        if ENDS {
+            w1[k] = s.add(w0[k], vs[k]);
+            dot1 = s.mul_add(w1[k], dir[k], dot1);
+        }
+    }
+    let (zero, one) = (s.splat(0.0), s.splat(1.0));
+    let inv = s.load(&inverse[q]);
+    let t0 = s.max(s.min(s.mul(dot0, inv), one), zero);
+    let t1 = s.max(s.min(s.mul(dot1, inv), one), zero);
+    let (mut e0, mut e1) = (zero, zero);
+    for k in 0..N {
+        let r0 = s.neg_mul_add(t0, dir[k], w0[k]);
+        e0 = s.mul_add(r0, r0, e0);
+        if ENDS {
+            let r1 = s.neg_mul_add(t1, dir[k], w1[k]);
+            e1 = s.mul_add(r1, r1, e1);
+        }
+    }
+    (e0, e1, crossing)
+}
+
+/// When a [`segment_scan`] skips a chunk of `B`: the chunks farther than
+/// `upper(m) + extra` from every point of the segment `[x, x + v]`, where `m` is the
+/// `f32` test value of some segment of `B` and
+/// `upper(m) = √(m·(1 + rel))·(1 + 10⁻¹²) + δ_segment` bounds the exact distance whose
+/// lifted `f32` square is `m` (see [`FilterBounds`](crate::metric::prepared::FilterBounds)).
+///
+/// Such a chunk holds no segment nearest to `x` (that one is within `upper(m)`), nor one
+/// within `extra` more; the smallest test values of the scan stay upper bounds of the
+/// exact ones (over fewer segments). The box gap is an `f32` value whose error is below `margin`
+/// (`2(δ_segment + δ_point)`: rounded inputs, the middle and spread of the segment, the
+/// fold, two subtractions) and whose sum of squares is within `rel`; the threshold
+/// adds both, with a relative `10⁻⁶` to spare.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Skip {
+    pub rel: f64,
+    pub segment_delta: f64,
+    pub margin: f64,
+    pub extra: f64,
+}
+
+impl Skip {
+    /// The largest `f32` squared box gap of a chunk that is not skipped, given the
+    /// smallest test value `m` so far.
+    #[inline(always)]
+    fn threshold(self, m: f32) -> f32 {
+        let upper = (f64::from(m) * (1.0 + self.rel)).sqrt() * (1.0 + 1e-12) + self.segment_delta;
+        let reach = (upper + self.extra + self.margin) * (1.0 + 1e-6);
+        let x = reach * reach * (1.0 + self.rel);
+        let t = x as f32;
+        if f64::from(t) < x {
+            t.next_up()
+        } else {
+            t
+        }
+    }
 }
