@@ -9,8 +9,8 @@ use clap::Args as ClapArgs;
 use smspace::io;
 use smspace::kernel::TraceParams;
 use smspace::learn::{
-    declared_space, learn, parse_motor_declarations, trace_learned, LawMethod, LawParams, LogFiles,
-    SensorimotorLog,
+    declared_space, law_trace_params, learn, parse_motor_declarations, trace_learned, LawMethod,
+    LawParams, LogFiles, SensorimotorLog,
 };
 
 use crate::ui::Bar;
@@ -137,7 +137,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         points: args.points,
         max_steps: args.max_steps,
         closure_tolerance: args.closure_tolerance,
-        ..TraceParams::default()
+        ..law_trace_params()
     };
     trace.check()?;
     super::common::check_memory(

@@ -504,6 +504,17 @@ impl Agent for LearnedLaw {
         Some(self.rank)
     }
 
+    fn sense_with_jacobian(
+        &self,
+        _environment: &Environment,
+        motors: &[f64],
+        sensors: &mut [f64],
+        jacobian: &mut [f64],
+    ) -> bool {
+        self.evaluate_with_jacobian(motors, sensors, jacobian);
+        true
+    }
+
     fn covers(&self, motors: &[f64]) -> bool {
         self.models.iter().all(|m| m.covers(motors))
     }
