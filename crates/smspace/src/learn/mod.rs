@@ -38,6 +38,17 @@
 //! coefficients). A traced set that leaves this region ends there, with the status
 //! `left-data` ([`crate::kernel::SetStatus::LeftData`]).
 //!
+//! ## Tracing on the law
+//!
+//! [`trace_learned`] runs the tracer's sensory method on the law, with the fit's slope
+//! as the Jacobian ([`crate::agent::Agent::sense_with_jacobian`]: one fit per
+//! linearisation instead of the `2N + 1` of central differences) and the sensor
+//! tolerance [`LAW_SENSOR_TOLERANCE`] (`10⁻⁸`, which the least-squares solve can honour;
+//! the simulator's `10⁻¹²` is at its rounding level). The queries of one traced curve
+//! lie a fraction of `h` apart: each worker thread keeps the samples within `1.5 h` of
+//! its last refill and answers the next queries from them ([`KdTree::within_near`],
+//! the same answer bit for bit).
+//!
 //! ## Held-out error
 //!
 //! `holdout` seeded samples of every log are left out of the fit; the law's error on
@@ -62,7 +73,7 @@ pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
 };
 pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog};
-pub use tree::KdTree;
+pub use tree::{Candidates, KdTree};
 
 /// Errors of learning from data.
 #[derive(Debug, thiserror::Error)]
