@@ -217,6 +217,6 @@ fn truth_errors(
             "--truth-sets compares sets of all-hinge (2pi) or all-bounded motors; these motors are {space}"
         );
     };
-    Ok(smspace::learn::set_errors(traced, &truth, period)
-        .map_err(|e| anyhow::anyhow!("--truth-sets {}: {e}", path.display()))?)
+    smspace::learn::set_errors(traced, &truth, period)
+        .map_err(|e| anyhow::anyhow!("--truth-sets {}: {e}", path.display()))
 }
