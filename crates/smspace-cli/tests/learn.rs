@@ -87,6 +87,51 @@ fn simulate_then_learn_writes_the_files_of_trace() {
         serde_json::from_str(&std::fs::read_to_string(dir.join("sets.law.json")).unwrap()).unwrap();
     assert_eq!(law["rank"], 1);
     assert!(law["logs"][0]["held_out_relative_rms"].as_f64().unwrap() < 0.05);
+    // Against the true sets through the same starts.
+    ok(
+        &dir,
+        &[
+            "trace",
+            "--agent",
+            "toy-redundant",
+            "--motors",
+            "starts.npy",
+            "--points",
+            "20",
+            "--out",
+            "truth.npy",
+        ],
+    );
+    let out = ok(
+        &dir,
+        &[
+            "learn",
+            "--motors",
+            "log/motors.npy",
+            "--sensors",
+            "log/sensors.npy",
+            "--starts",
+            "starts.npy",
+            "--period",
+            "none",
+            "--points",
+            "20",
+            "--truth-sets",
+            "truth.npy",
+            "--out",
+            "sets.npy",
+        ],
+    );
+    let errors: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sets.errors.json")).unwrap())
+            .unwrap();
+    let median = errors["median"].as_f64().unwrap();
+    assert!(errors["compared"].as_u64().unwrap() >= 1, "{errors}");
+    assert!(
+        median < 0.05 && errors["p90"].as_f64().unwrap() >= median,
+        "{errors}"
+    );
+    assert!(common::stderr(&out).contains("set error against the truth"));
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! Kernel sets learned from a simulated log of the paper's arm, measured against the
 //! true (kinematic) sets: `cargo run --release --example learn_study -- S NOISE METHOD
-//! STARTS` prints one JSON line (held-out error, set errors, timings).
+//! STARTS` prints one JSON line (held-out error, set errors, timings, and the angle
+//! between the learned and the true kernel direction at 200 log samples).
 
 use std::time::Instant;
 
@@ -57,14 +58,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let rows = sample(&mut rng, samples, starts.min(samples)).into_vec();
     let start_motors = log.motors.select(ndarray::Axis(0), &rows);
     let clock = Instant::now();
-    let tolerance: f64 = std::env::var("SENSOR_TOLERANCE").map_or(Ok(1e-12), |s| s.parse())?;
-    let closure: f64 = std::env::var("CLOSURE").map_or(Ok(1e-2), |s| s.parse())?;
+    let tolerance: f64 = std::env::var("SENSOR_TOLERANCE")
+        .map_or(Ok(smspace::learn::LAW_SENSOR_TOLERANCE), |s| s.parse())?;
+    let closure: f64 = std::env::var("CLOSURE").map_or(Ok(3e-2), |s| s.parse())?;
     let max_steps: usize = std::env::var("MAX_STEPS").map_or(Ok(3000), |s| s.parse())?;
     let trace_params = TraceParams {
         sensor_tolerance: tolerance,
         closure_tolerance: closure,
         max_steps,
-        ..TraceParams::default()
+        ..smspace::learn::law_trace_params()
     };
     let learned = trace_learned(&law, start_motors.view(), &trace_params, &Silent)?;
     let traced_seconds = clock.elapsed().as_secs_f64();
@@ -80,7 +82,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let errors = set_errors(&learned, &truth, Period::TwoPi).ok();
     // The learned manifold: the Hausdorff matrix of the learned sets, its topology and
     // dimension, and its agreement with the poses the simulated log kept aside.
-    let manifold = if std::env::var("MANIFOLD").is_ok() {
+    let manifold = if std::env::var("MANIFOLD").is_ok() && learned.kept.len() >= 20 {
         let distances = smspace::metric::distance_matrix(
             learned.sets.view(),
             &smspace::metric::DistanceParams::new(),
@@ -107,7 +109,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     } else {
         serde_json::Value::Null
     };
+    let tangent_angles = tangent_angles(&law, arm.as_ref(), log.motors.view(), 200);
     let line = serde_json::json!({
+        "tangent_angle_rad": tangent_angles,
         "manifold": manifold,
         "samples": samples,
         "noise": noise,
@@ -125,4 +129,60 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     });
     println!("{line}");
     Ok(())
+}
+
+/// The angle (radians) between the learned kernel direction (the right singular vector
+/// of the law's Jacobian with the smallest singular value) and the true one (the null
+/// vector of the arm's pose Jacobian, by central differences) at `count` seeded log
+/// samples: median and 90th percentile.
+fn tangent_angles(
+    law: &smspace::learn::LearnedLaw,
+    arm: &dyn smspace::agent::Agent,
+    motors: ndarray::ArrayView2<'_, f64>,
+    count: usize,
+) -> serde_json::Value {
+    use smspace::agent::Agent as _;
+    let Some(observer) = arm.ground_truth() else {
+        return serde_json::Value::Null;
+    };
+    let n = law.motor_dim();
+    let k = law.sensor_dim();
+    let d = observer.pose_space().dim();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let rows = sample(&mut rng, motors.nrows(), count.min(motors.nrows())).into_vec();
+    let smallest = |matrix: Vec<f64>, r: usize| {
+        let a = nalgebra::DMatrix::from_row_slice(r, n, &matrix);
+        let gram = a.transpose() * a;
+        let eigen = nalgebra::SymmetricEigen::new(gram);
+        let i = eigen.eigenvalues.imin();
+        eigen.eigenvectors.column(i).into_owned()
+    };
+    let mut angles: Vec<f64> = rows
+        .iter()
+        .map(|&row| {
+            let m: Vec<f64> = motors.row(row).to_vec();
+            let mut s = vec![0.0; k];
+            let mut j = vec![0.0; k * n];
+            law.evaluate_with_jacobian(&m, &mut s, &mut j);
+            let learned = smallest(j, k);
+            let mut pose_jacobian = vec![0.0; d * n];
+            let (mut plus, mut minus) = (vec![0.0; d], vec![0.0; d]);
+            let h = 1e-6;
+            for c in 0..n {
+                let mut a = m.clone();
+                a[c] += h;
+                observer.pose(&a, &mut plus);
+                a[c] -= 2.0 * h;
+                observer.pose(&a, &mut minus);
+                for r in 0..d {
+                    pose_jacobian[r * n + c] = (plus[r] - minus[r]) / (2.0 * h);
+                }
+            }
+            let truth = smallest(pose_jacobian, d);
+            learned.dot(&truth).abs().min(1.0).acos()
+        })
+        .collect();
+    angles.sort_by(f64::total_cmp);
+    let at = |q: f64| angles[((angles.len() - 1) as f64 * q).round() as usize];
+    serde_json::json!({ "median": at(0.5), "p90": at(0.9) })
 }

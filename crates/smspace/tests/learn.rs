@@ -153,6 +153,47 @@ fn learned_sets_follow_the_true_kernel_and_end_where_the_data_end() {
     assert!(json.contains("\"left-data\""));
 }
 
+/// A curved level-set function on the 2-torus: `u = sin m1 + cos m2` (critical values
+/// ±2 and 0), read through three nonlinear sensors (rank 1).
+fn bowl(m1: f64, m2: f64) -> Vec<f64> {
+    let u = m1.sin() + m2.cos();
+    vec![u, u * u * u / 3.0, (1.5 * u).sin()]
+}
+
+#[test]
+fn a_learned_smooth_law_traces_its_curved_level_sets_quickly_and_closely() {
+    let (motors, sensors) = hinge_log(8000, -PI, PI, bowl);
+    let space = MotorSpace::hinges(2);
+    let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
+    let law = learn(&[log], &space, &LawParams::default().check().unwrap(), None).unwrap();
+    assert_eq!(law.report().rank, 1, "{:?}", law.report());
+    // Loops around the maximum (π/2, 0) and the minimum (−π/2, π), away from the
+    // saddles' level 0.
+    let starts = ndarray::array![[PI / 2.0, 1.2], [PI / 2.0 + 0.8, 0.3], [-PI / 2.0, 2.0]];
+    let params = smspace::learn::law_trace_params();
+    let traced = trace_learned(&law, starts.view(), &params, &Silent).unwrap();
+    assert_eq!(traced.kept, vec![0, 1, 2], "{:?}", traced.report.summary);
+    for ((set, start), report) in traced
+        .sets
+        .outer_iter()
+        .zip(starts.outer_iter())
+        .zip(&traced.report.sets)
+    {
+        assert_eq!(report.status, SetStatus::Closed, "{report:?}");
+        // A loop of length ≤ 2π·√2 in adaptive steps of up to 0.05: a few hundred
+        // steps, not the thousands of a corrector that cannot converge.
+        assert!(report.steps < 600, "{report:?}");
+        let target = bowl(start[0], start[1])[0];
+        for point in set.outer_iter() {
+            let (m1, m2) = (point[0], point[1]);
+            let gradient = m1.cos().hypot(m2.sin());
+            // The distance to the true level set, to first order.
+            let off = (bowl(m1, m2)[0] - target).abs() / gradient;
+            assert!(off < 0.01, "{point} is {off} rad off the true set");
+        }
+    }
+}
+
 #[test]
 fn bad_logs_are_refused_with_the_file_and_the_fix() {
     let space = MotorSpace::hinges(2);

@@ -9,8 +9,8 @@ use clap::Args as ClapArgs;
 use smspace::io;
 use smspace::kernel::TraceParams;
 use smspace::learn::{
-    declared_space, learn, parse_motor_declarations, trace_learned, LawMethod, LawParams, LogFiles,
-    SensorimotorLog,
+    declared_space, law_trace_params, learn, parse_motor_declarations, trace_learned, LawMethod,
+    LawParams, LogFiles, SensorimotorLog,
 };
 
 use crate::ui::Bar;
@@ -58,6 +58,12 @@ pub struct Args {
     /// `<stem>.trace.json` (as `smspace trace`) and `<stem>.law.json` (the law).
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
+    /// The true sets through the same starts (as written by `smspace trace` on the
+    /// simulated agent): the Hausdorff distance between each learned set and its true
+    /// one (curve metric, radians) is printed (median, 90th percentile) and written to
+    /// `<stem>.errors.json`.
+    #[arg(long, value_name = "FILE")]
+    truth_sets: Option<PathBuf>,
     /// Refuse to start when learning needs more than this many bytes (default: the
     /// memory available, MemAvailable in /proc/meminfo).
     #[arg(long, value_name = "BYTES")]
@@ -137,7 +143,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         points: args.points,
         max_steps: args.max_steps,
         closure_tolerance: args.closure_tolerance,
-        ..TraceParams::default()
+        ..law_trace_params()
     };
     trace.check()?;
     super::common::check_memory(
@@ -160,11 +166,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "no set could be traced ({:?}); see the statuses above. Nothing was written.",
         traced.report.summary.by_status
     );
+    let errors = match &args.truth_sets {
+        Some(path) => Some(truth_errors(&traced, path, &space)?),
+        None => None,
+    };
     // The writer of `smspace trace`, and the law's report, all together.
     let mut outputs = io::Outputs::new();
     traced.write_into(&mut outputs, &args.out)?;
     outputs.json(&io::sibling(&args.out, "law.json"), law.report())?;
+    if let Some(errors) = &errors {
+        outputs.json(&io::sibling(&args.out, "errors.json"), errors)?;
+    }
     outputs.commit()?;
+    if let Some(errors) = &errors {
+        eprintln!(
+            "set error against the truth ({} sets in both): median {:.4} rad, 90th percentile {:.4} rad",
+            errors.compared, errors.median, errors.p90
+        );
+    }
     let summary = &traced.report.summary;
     eprintln!(
         "traced {} of {} sets on the learned law (rank {}); {} failed {:?}",
@@ -175,4 +194,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         summary.by_status
     );
     Ok(())
+}
+
+/// The set errors of the learned sets against the true ones in `path` (the same
+/// starts), under the motors' period (all hinges: `2pi`; no periodic motor: `none`).
+fn truth_errors(
+    traced: &smspace::kernel::TracedSets,
+    path: &std::path::Path,
+    space: &smspace::agent::MotorSpace,
+) -> anyhow::Result<smspace::learn::SetErrors> {
+    let truth = smspace::kernel::TracedSets::load(path)?;
+    let periods = space.periods();
+    let period = if periods
+        .iter()
+        .all(|p| p.is_some_and(|p| (p - std::f64::consts::TAU).abs() < 1e-12))
+    {
+        smspace::metric::Period::TwoPi
+    } else if periods.iter().all(Option::is_none) {
+        smspace::metric::Period::None
+    } else {
+        anyhow::bail!(
+            "--truth-sets compares sets of all-hinge (2pi) or all-bounded motors; these motors are {space}"
+        );
+    };
+    smspace::learn::set_errors(traced, &truth, period)
+        .map_err(|e| anyhow::anyhow!("--truth-sets {}: {e}", path.display()))
 }

@@ -212,6 +212,22 @@ pub trait Agent: Send + Sync + fmt::Debug {
         None
     }
 
+    /// Writes the sensor values at `motors` into `sensors` (length `K`) and their
+    /// Jacobian `∂s/∂m` (`K × N`, row-major) into `jacobian`, when the agent has it in
+    /// closed form (a learned law: the local fit's slope, one fit instead of the `2N`
+    /// of central differences); returns whether it did. The default returns `false`
+    /// and writes nothing: the tracer then takes central differences of
+    /// [`sense_batch`](Agent::sense_batch).
+    fn sense_with_jacobian(
+        &self,
+        _environment: &Environment,
+        _motors: &[f64],
+        _sensors: &mut [f64],
+        _jacobian: &mut [f64],
+    ) -> bool {
+        false
+    }
+
     /// Whether the law is known at `motors`: everywhere for a simulated agent (the
     /// default); near its samples only for a law learned from data. The tracer ends a
     /// set that leaves this region (status `left-data`).

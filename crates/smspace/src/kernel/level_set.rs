@@ -471,7 +471,8 @@ impl LevelSet for Kinematic<'_> {
 
 /// The sensory level set `{ m | σ_E(m) = σ_E(m⁰) }`, from what the agent measures
 /// alone: `J = ∂s/∂m` by central differences of sensor readings (`2N` readings, asked
-/// for with the residual's in one [`Agent::sense_batch`] call), the
+/// for with the residual's in one [`Agent::sense_batch`] call; or the agent's own, when
+/// [`Agent::sense_with_jacobian`] gives it, as a learned law does), the
 /// eigen-decomposition `Jᵀ J = V Λ Vᵀ` (ascending `λ`), the tangent `t = v₀`, and the
 /// correction `Δ = Σ_{e≥d} v_e (v_eᵀ Jᵀ r) / λ_e` (Gauss–Newton on `‖s(m) − s⁰‖²`
 /// restricted to the rank `N − d` part, `d` the kernel dimension, 1 for curves). The
@@ -544,6 +545,75 @@ impl<'a> Sensory<'a> {
             readings: vec![0.0; (2 * n + 1) * k],
         }
     }
+
+    /// The residual and `J` by central differences: one batch of the `2N + 1`
+    /// readings (the residual's and the differences'), so that an agent simulated
+    /// elsewhere is called once per linearisation.
+    fn difference_jacobian(&mut self, m: &[f64], r: &mut [f64]) {
+        let (n, k, h) = (self.n, self.k, self.step);
+        for (row, probe) in self.probes.chunks_exact_mut(n).enumerate() {
+            probe.copy_from_slice(m);
+            if row > 0 {
+                let j = (row - 1) / 2;
+                probe[j] = if row % 2 == 1 { m[j] + h } else { m[j] - h };
+            }
+        }
+        let rows = 2 * n + 1;
+        let probes = ArrayView2::from_shape((rows, n), &self.probes).expect("(2N + 1) × N probes");
+        let readings = ArrayViewMut2::from_shape((rows, k), &mut self.readings)
+            .expect("(2N + 1) × K readings");
+        self.agent.sense_batch(self.environment, probes, readings);
+        for ((ri, s), t) in r.iter_mut().zip(&self.readings[..k]).zip(&self.target) {
+            *ri = s - t;
+        }
+        for j in 0..n {
+            let plus = &self.readings[(2 * j + 1) * k..(2 * j + 2) * k];
+            let minus = &self.readings[(2 * j + 2) * k..(2 * j + 3) * k];
+            for i in 0..k {
+                self.jacobian[i * n + j] = (plus[i] - minus[i]) / (2.0 * h);
+            }
+        }
+    }
+
+    /// The eigen-decomposition of `JᵀJ` (ascending), singular when the smallest
+    /// eigenvalue that should be nonzero is negligible.
+    fn decompose(&mut self) -> Result<(), Singular> {
+        let (n, k) = (self.n, self.k);
+        let mut gram = DMatrix::<f64>::zeros(n, n);
+        for a in 0..n {
+            for b in 0..=a {
+                let s: f64 = (0..k)
+                    .map(|i| self.jacobian[i * n + a] * self.jacobian[i * n + b])
+                    .sum();
+                gram[(a, b)] = s;
+                gram[(b, a)] = s;
+            }
+        }
+        let eigen = SymmetricEigen::new(gram);
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+        for (dst, &src) in order.iter().enumerate() {
+            self.eigenvalues[dst] = eigen.eigenvalues[src];
+            for row in 0..n {
+                self.eigenvectors[dst * n + row] = eigen.eigenvectors[(row, src)];
+            }
+        }
+        let largest = self.eigenvalues[n - 1];
+        let smallest_nonzero = if n > self.dimension {
+            self.eigenvalues[self.dimension]
+        } else {
+            largest
+        };
+        let ratio = if largest > 0.0 {
+            (smallest_nonzero.max(0.0) / largest).sqrt()
+        } else {
+            0.0
+        };
+        if !exceeds(ratio, self.rank_tolerance) {
+            return Err(Singular);
+        }
+        Ok(())
+    }
 }
 
 impl LevelSet for Sensory<'_> {
@@ -586,65 +656,20 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
-        let (n, k, h) = (self.n, self.k, self.step);
-        // One batch of the 2N + 1 readings (the residual's and the central differences'),
-        // so that an agent simulated elsewhere is called once per linearisation.
-        for (row, probe) in self.probes.chunks_exact_mut(n).enumerate() {
-            probe.copy_from_slice(m);
-            if row > 0 {
-                let j = (row - 1) / 2;
-                probe[j] = if row % 2 == 1 { m[j] + h } else { m[j] - h };
+        let k = self.k;
+        if self.agent.sense_with_jacobian(
+            self.environment,
+            m,
+            &mut self.readings[..k],
+            &mut self.jacobian,
+        ) {
+            for ((ri, s), t) in r.iter_mut().zip(&self.readings[..k]).zip(&self.target) {
+                *ri = s - t;
             }
-        }
-        let rows = 2 * n + 1;
-        let probes = ArrayView2::from_shape((rows, n), &self.probes).expect("(2N + 1) × N probes");
-        let readings = ArrayViewMut2::from_shape((rows, k), &mut self.readings)
-            .expect("(2N + 1) × K readings");
-        self.agent.sense_batch(self.environment, probes, readings);
-        for ((ri, s), t) in r.iter_mut().zip(&self.readings[..k]).zip(&self.target) {
-            *ri = s - t;
-        }
-        for j in 0..n {
-            let plus = &self.readings[(2 * j + 1) * k..(2 * j + 2) * k];
-            let minus = &self.readings[(2 * j + 2) * k..(2 * j + 3) * k];
-            for i in 0..k {
-                self.jacobian[i * n + j] = (plus[i] - minus[i]) / (2.0 * h);
-            }
-        }
-        let mut gram = DMatrix::<f64>::zeros(n, n);
-        for a in 0..n {
-            for b in 0..=a {
-                let s: f64 = (0..k)
-                    .map(|i| self.jacobian[i * n + a] * self.jacobian[i * n + b])
-                    .sum();
-                gram[(a, b)] = s;
-                gram[(b, a)] = s;
-            }
-        }
-        let eigen = SymmetricEigen::new(gram);
-        let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
-        for (dst, &src) in order.iter().enumerate() {
-            self.eigenvalues[dst] = eigen.eigenvalues[src];
-            for row in 0..n {
-                self.eigenvectors[dst * n + row] = eigen.eigenvectors[(row, src)];
-            }
-        }
-        let largest = self.eigenvalues[n - 1];
-        let smallest_nonzero = if n > self.dimension {
-            self.eigenvalues[self.dimension]
         } else {
-            largest
-        };
-        let ratio = if largest > 0.0 {
-            (smallest_nonzero.max(0.0) / largest).sqrt()
-        } else {
-            0.0
-        };
-        if !exceeds(ratio, self.rank_tolerance) {
-            return Err(Singular);
+            self.difference_jacobian(m, r);
         }
-        Ok(())
+        self.decompose()
     }
 
     fn null_vector(&self, reference: &[f64], t: &mut [f64]) {

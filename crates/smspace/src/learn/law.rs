@@ -10,13 +10,50 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::tree::KdTree;
+use super::tree::{Candidates, KdTree};
 use super::{LawMethod, LawValidParams, LearnError, SensorimotorLog};
 use crate::agent::{Agent, Environment, MotorSpace};
 
 /// Most samples whose neighbour distances fix the bandwidth, and at which the rank of
 /// the law's Jacobian is estimated.
 const PROBES: usize = 512;
+
+/// A query's candidates are the samples within `(1 + CANDIDATE_MARGIN) h` of an
+/// earlier query: the queries of a traced curve, a fraction of `h` apart, reuse them
+/// (see [`KdTree::within_near`]; the answers are those of a fresh query, bit for bit).
+const CANDIDATE_MARGIN: f64 = 0.5;
+
+thread_local! {
+    /// Each worker thread's candidates, one list per tree it queried last.
+    static CANDIDATES: std::cell::RefCell<Vec<Candidates>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Most candidate lists a thread keeps (one per log's tree).
+const CANDIDATE_LISTS: usize = 8;
+
+/// [`KdTree::within_near`] with the calling thread's candidates for `tree`.
+fn within_cached(tree: &KdTree, query: &[f64], radius: f64, visit: impl FnMut(u32, &[f64], f64)) {
+    CANDIDATES.with(|lists| {
+        let mut lists = lists.borrow_mut();
+        let at = match lists.iter().position(|c| c.belongs_to(tree)) {
+            Some(at) => at,
+            None => {
+                if lists.len() >= CANDIDATE_LISTS {
+                    lists.remove(0);
+                }
+                lists.push(Candidates::default());
+                lists.len() - 1
+            }
+        };
+        tree.within_near(
+            query,
+            radius,
+            CANDIDATE_MARGIN * radius,
+            &mut lists[at],
+            visit,
+        );
+    });
+}
 
 /// What a fit at one configuration found: its samples within the bandwidth.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -130,8 +167,11 @@ impl LocalModel {
         let inverse_h = 1.0 / self.bandwidth;
         let inverse_h2 = inverse_h * inverse_h;
         let mut count = 0;
-        self.tree
-            .within(&query, self.bandwidth, |row, displacement, d2| {
+        within_cached(
+            &self.tree,
+            &query,
+            self.bandwidth,
+            |row, displacement, d2| {
                 let u = 1.0 - d2 * inverse_h2;
                 let w = u * u * u;
                 self.basis(displacement, inverse_h, &mut basis);
@@ -146,7 +186,8 @@ impl LocalModel {
                     }
                 }
                 count += 1;
-            });
+            },
+        );
         let support = FitSupport { count };
         if count == 0 || !solve(&mut gram, &mut rhs, p, k, self.ridge) {
             value.fill(0.0);
@@ -194,8 +235,7 @@ impl LocalModel {
             .map(|(j, &x)| self.space.motor(j).wrap(x))
             .collect();
         let mut count = 0;
-        self.tree
-            .within(&query, self.bandwidth, |_, _, _| count += 1);
+        within_cached(&self.tree, &query, self.bandwidth, |_, _, _| count += 1);
         count >= self.min_count
     }
 }
@@ -502,6 +542,17 @@ impl Agent for LearnedLaw {
 
     fn sensory_rank(&self) -> Option<usize> {
         Some(self.rank)
+    }
+
+    fn sense_with_jacobian(
+        &self,
+        _environment: &Environment,
+        motors: &[f64],
+        sensors: &mut [f64],
+        jacobian: &mut [f64],
+    ) -> bool {
+        self.evaluate_with_jacobian(motors, sensors, jacobian);
+        true
     }
 
     fn covers(&self, motors: &[f64]) -> bool {

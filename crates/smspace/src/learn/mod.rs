@@ -38,6 +38,17 @@
 //! coefficients). A traced set that leaves this region ends there, with the status
 //! `left-data` ([`crate::kernel::SetStatus::LeftData`]).
 //!
+//! ## Tracing on the law
+//!
+//! [`trace_learned`] runs the tracer's sensory method on the law, with the fit's slope
+//! as the Jacobian ([`crate::agent::Agent::sense_with_jacobian`]: one fit per
+//! linearisation instead of the `2N + 1` of central differences) and the sensor
+//! tolerance [`LAW_SENSOR_TOLERANCE`] (`10⁻⁸`, which the least-squares solve can honour;
+//! the simulator's `10⁻¹²` is at its rounding level). The queries of one traced curve
+//! lie a fraction of `h` apart: each worker thread keeps the samples within `1.5 h` of
+//! its last refill and answers the next queries from them ([`KdTree::within_near`],
+//! the same answer bit for bit).
+//!
 //! ## Held-out error
 //!
 //! `holdout` seeded samples of every log are left out of the fit; the law's error on
@@ -62,7 +73,7 @@ pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
 };
 pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog};
-pub use tree::KdTree;
+pub use tree::{Candidates, KdTree};
 
 /// Errors of learning from data.
 #[derive(Debug, thiserror::Error)]
@@ -399,10 +410,37 @@ pub fn learn(
     ))
 }
 
+/// The sensor tolerance a learned law can honour (relative to the largest sensor value
+/// at the start, as [`crate::kernel::TraceParams::sensor_tolerance`]): the fit's value
+/// is a weighted least-squares solve whose rounding error is about `10⁻¹³` of the
+/// sensors' size, so the simulator's `10⁻¹²` cannot be met reliably and a corrector
+/// asked for it fails and halves the step again and again. `10⁻⁸` moves a point by
+/// about `10⁻⁸` of the sensors' scale over the Jacobian's size (below `10⁻⁷` rad on the
+/// arm), far below the law's own error.
+pub const LAW_SENSOR_TOLERANCE: f64 = 1e-8;
+
+/// Tracing parameters suited to a learned law: the sensory method, the sensor
+/// tolerance [`LAW_SENSOR_TOLERANCE`], a loop-closure tolerance of `0.03` (the law's
+/// error makes a loop return to its start less exactly than a simulator's), a budget
+/// of 3000 steps (a set on a poor law may wander: it fails as `not-closed`), and no
+/// multi-start search for other pieces (`piece_starts = 0`: seeds drawn on the whole
+/// motor torus lie mostly where the log has no data).
+pub fn law_trace_params() -> crate::kernel::TraceParams {
+    crate::kernel::TraceParams {
+        method: crate::kernel::TraceMethod::Sensory,
+        sensor_tolerance: LAW_SENSOR_TOLERANCE,
+        closure_tolerance: 0.03,
+        max_steps: 3000,
+        piece_starts: 0,
+        ..crate::kernel::TraceParams::default()
+    }
+}
+
 /// Traces the kernel sets `ŝ(m) = ŝ(m^i)` of the learned law through `starts` with the
-/// tracer's sensory method, unchanged (`params.method` is set to `sensory`; the law
-/// ignores the environment, so an empty one is passed). Sets that leave the covered
-/// region have the status `left-data`.
+/// tracer's sensory method, unchanged (`params.method` is set to `sensory`, and the
+/// sensor tolerance to at least [`LAW_SENSOR_TOLERANCE`]; the law ignores the
+/// environment, so an empty one is passed). Sets that leave the covered region have the
+/// status `left-data`. [`law_trace_params`] gives parameters suited to a learned law.
 pub fn trace_learned(
     law: &LearnedLaw,
     starts: ndarray::ArrayView2<'_, f64>,
@@ -411,6 +449,7 @@ pub fn trace_learned(
 ) -> Result<crate::kernel::TracedSets, LearnError> {
     let params = crate::kernel::TraceParams {
         method: crate::kernel::TraceMethod::Sensory,
+        sensor_tolerance: params.sensor_tolerance.max(LAW_SENSOR_TOLERANCE),
         ..params.clone()
     }
     .check()?;

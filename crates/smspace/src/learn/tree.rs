@@ -28,9 +28,14 @@ enum Node {
     },
 }
 
+/// Identities of trees, for [`Candidates`].
+static NEXT_TREE: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
 /// See the module docs.
 #[derive(Debug, Clone)]
 pub struct KdTree {
+    /// This tree's identity (a [`Candidates`] list belongs to one tree).
+    id: u64,
     dim: usize,
     /// Points in tree order, row-major.
     points: Vec<f64>,
@@ -58,6 +63,7 @@ impl KdTree {
         }
         let rows = order.iter().map(|&i| rows[i as usize]).collect();
         Self {
+            id: NEXT_TREE.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             dim,
             points: sorted,
             rows,
@@ -137,6 +143,101 @@ impl KdTree {
         }
     }
 
+    /// [`within`](KdTree::within) answered from `candidates`, the points within a
+    /// larger radius of an earlier query, when they hold every point within `radius`
+    /// of this one (`‖query − centre‖ + radius ≤ reach`); else the candidates are
+    /// refilled with the points within `radius + margin` of `query`. The points are
+    /// visited in the tree's order and their displacements computed as `within` does,
+    /// so the answer is the same, bit for bit, whatever the candidates held before: a
+    /// run of nearby queries (a traced curve) scans a few hundred candidates instead
+    /// of the tree's leaves.
+    pub fn within_near(
+        &self,
+        query: &[f64],
+        radius: f64,
+        margin: f64,
+        candidates: &mut Candidates,
+        mut visit: impl FnMut(u32, &[f64], f64),
+    ) {
+        let dim = self.dim;
+        let inside = candidates.tree == self.id
+            && candidates.centre.len() == dim
+            && candidates
+                .centre
+                .iter()
+                .zip(query)
+                .map(|(c, q)| (c - q) * (c - q))
+                .sum::<f64>()
+                .sqrt()
+                + radius
+                <= candidates.reach;
+        if !inside {
+            candidates.tree = self.id;
+            candidates.centre.clear();
+            candidates.centre.extend_from_slice(query);
+            candidates.reach = radius + margin;
+            candidates.indices.clear();
+            let indices = &mut candidates.indices;
+            self.within_stored(query, radius + margin, |p| indices.push(p));
+        }
+        let r2 = radius * radius;
+        let mut displacement = vec![0.0; dim];
+        for &p in &candidates.indices {
+            let p = p as usize;
+            let point = &self.points[p * dim..(p + 1) * dim];
+            let mut d2 = 0.0;
+            for ((d, &x), &q) in displacement.iter_mut().zip(point).zip(query) {
+                *d = x - q;
+                d2 += *d * *d;
+            }
+            if d2 < r2 {
+                visit(self.rows[p], &displacement, d2);
+            }
+        }
+    }
+
+    /// Calls `visit(stored index)` for every point closer than `radius` to `query`, in
+    /// the tree's order.
+    fn within_stored(&self, query: &[f64], radius: f64, mut visit: impl FnMut(u32)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let r2 = radius * radius;
+        let dim = self.dim;
+        let mut stack = vec![0u32];
+        while let Some(node) = stack.pop() {
+            match self.nodes[node as usize] {
+                Node::Leaf { start, end } => {
+                    for p in start as usize..end as usize {
+                        let point = &self.points[p * dim..(p + 1) * dim];
+                        let d2: f64 = point
+                            .iter()
+                            .zip(query)
+                            .map(|(x, q)| (x - q) * (x - q))
+                            .sum();
+                        if d2 < r2 {
+                            visit(p as u32);
+                        }
+                    }
+                }
+                Node::Split {
+                    axis,
+                    value,
+                    left,
+                    right,
+                } => {
+                    let offset = query[axis as usize] - value;
+                    if offset > -radius {
+                        stack.push(right);
+                    }
+                    if offset < radius {
+                        stack.push(left);
+                    }
+                }
+            }
+        }
+    }
+
     /// The distance from `query` to its `k`-th nearest point (`k ≥ 1`; infinite when the
     /// tree holds fewer than `k` points).
     pub fn kth_distance(&self, query: &[f64], k: usize) -> f64 {
@@ -185,6 +286,23 @@ impl KdTree {
                 }
             }
         }
+    }
+}
+
+/// The points of a tree within `reach` of `centre` (stored indices, in the tree's
+/// order): the cache of [`KdTree::within_near`]. Empty by default.
+#[derive(Debug, Clone, Default)]
+pub struct Candidates {
+    tree: u64,
+    centre: Vec<f64>,
+    reach: f64,
+    indices: Vec<u32>,
+}
+
+impl Candidates {
+    /// Whether these are candidates of `tree`.
+    pub fn belongs_to(&self, tree: &KdTree) -> bool {
+        self.tree == tree.id
     }
 }
 
@@ -256,6 +374,7 @@ mod tests {
             let rows: Vec<u32> = (0..count as u32).map(|i| i * 3).collect();
             let tree = KdTree::new(dim, points.clone(), rows);
             let queries = random_points(20, dim, 99);
+            let mut candidates = Candidates::default();
             for q in queries.chunks(dim) {
                 let mut distances: Vec<f64> = points
                     .chunks(dim)
@@ -284,6 +403,16 @@ mod tests {
                     assert!((kth - distances[k - 1].sqrt()).abs() < 1e-12);
                 }
                 assert!(tree.kth_distance(q, count + 1).is_infinite());
+                // The cached query answers the same, from a fresh or a reused cache.
+                for margin in [0.0, 0.3] {
+                    let mut cached = Vec::new();
+                    tree.within_near(q, radius, margin, &mut candidates, |row, d, d2| {
+                        cached.push((row, d.to_vec(), d2));
+                    });
+                    let mut direct = Vec::new();
+                    tree.within(q, radius, |row, d, d2| direct.push((row, d.to_vec(), d2)));
+                    assert_eq!(cached, direct);
+                }
             }
         }
     }
