@@ -168,7 +168,7 @@ impl Stage for DistancesStage {
     /// For kernels of dimension `k ≥ 2` (surfaces sampled by `P` points): the point
     /// metric between two of them compares every point with every point, almost without
     /// the early exits that make loops fast, about `M (M − 1) P²` point distances in
-    /// all; said with the time it takes at [`SURFACE_POINT_DISTANCES_PER_CORE_SECOND`]
+    /// all; said with the time it takes at `SURFACE_POINT_DISTANCES_PER_CORE_SECOND`
     /// when it exceeds about a minute on one core.
     fn forecast(&self, input: &DistancesInput<'_>) -> Option<String> {
         let traced = &input.traced.value;
