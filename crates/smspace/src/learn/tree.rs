@@ -102,28 +102,30 @@ impl KdTree {
     /// Calls `visit(row, displacement, squared distance)` for every point `x` with
     /// `‖x − query‖ < radius`, `displacement = x − query`, in the tree's order.
     pub fn within(&self, query: &[f64], radius: f64, mut visit: impl FnMut(u32, &[f64], f64)) {
+        let r2 = radius * radius;
+        let mut displacement = vec![0.0; self.dim];
+        self.leaves_near(query, radius, |stored| {
+            for p in stored {
+                self.visit_if_within(p, query, r2, &mut displacement, &mut visit);
+            }
+        });
+    }
+
+    /// Calls `leaf(stored indices)` for every leaf whose cell can hold a point closer
+    /// than `radius` to `query`, in the tree's order (left child first).
+    fn leaves_near(
+        &self,
+        query: &[f64],
+        radius: f64,
+        mut leaf: impl FnMut(std::ops::Range<usize>),
+    ) {
         if self.nodes.is_empty() {
             return;
         }
-        let r2 = radius * radius;
-        let dim = self.dim;
-        let mut displacement = vec![0.0; dim];
         let mut stack = vec![0u32];
         while let Some(node) = stack.pop() {
             match self.nodes[node as usize] {
-                Node::Leaf { start, end } => {
-                    for p in start as usize..end as usize {
-                        let point = &self.points[p * dim..(p + 1) * dim];
-                        let mut d2 = 0.0;
-                        for ((d, &x), &q) in displacement.iter_mut().zip(point).zip(query) {
-                            *d = x - q;
-                            d2 += *d * *d;
-                        }
-                        if d2 < r2 {
-                            visit(self.rows[p], &displacement, d2);
-                        }
-                    }
-                }
+                Node::Leaf { start, end } => leaf(start as usize..end as usize),
                 Node::Split {
                     axis,
                     value,
@@ -140,6 +142,28 @@ impl KdTree {
                     }
                 }
             }
+        }
+    }
+
+    /// The stored point `p`: `displacement = x − query` and, when `‖x − query‖² < r2`,
+    /// `visit(row, displacement, squared distance)`. The one place where a point's
+    /// distance is computed, so that every query answers bit for bit alike.
+    fn visit_if_within(
+        &self,
+        p: usize,
+        query: &[f64],
+        r2: f64,
+        displacement: &mut [f64],
+        visit: &mut impl FnMut(u32, &[f64], f64),
+    ) {
+        let point = &self.points[p * self.dim..(p + 1) * self.dim];
+        let mut d2 = 0.0;
+        for ((d, &x), &q) in displacement.iter_mut().zip(point).zip(query) {
+            *d = x - q;
+            d2 += *d * *d;
+        }
+        if d2 < r2 {
+            visit(self.rows[p], displacement, d2);
         }
     }
 
@@ -183,59 +207,22 @@ impl KdTree {
         let r2 = radius * radius;
         let mut displacement = vec![0.0; dim];
         for &p in &candidates.indices {
-            let p = p as usize;
-            let point = &self.points[p * dim..(p + 1) * dim];
-            let mut d2 = 0.0;
-            for ((d, &x), &q) in displacement.iter_mut().zip(point).zip(query) {
-                *d = x - q;
-                d2 += *d * *d;
-            }
-            if d2 < r2 {
-                visit(self.rows[p], &displacement, d2);
-            }
+            self.visit_if_within(p as usize, query, r2, &mut displacement, &mut visit);
         }
     }
 
     /// Calls `visit(stored index)` for every point closer than `radius` to `query`, in
     /// the tree's order.
     fn within_stored(&self, query: &[f64], radius: f64, mut visit: impl FnMut(u32)) {
-        if self.nodes.is_empty() {
-            return;
-        }
         let r2 = radius * radius;
-        let dim = self.dim;
-        let mut stack = vec![0u32];
-        while let Some(node) = stack.pop() {
-            match self.nodes[node as usize] {
-                Node::Leaf { start, end } => {
-                    for p in start as usize..end as usize {
-                        let point = &self.points[p * dim..(p + 1) * dim];
-                        let d2: f64 = point
-                            .iter()
-                            .zip(query)
-                            .map(|(x, q)| (x - q) * (x - q))
-                            .sum();
-                        if d2 < r2 {
-                            visit(p as u32);
-                        }
-                    }
-                }
-                Node::Split {
-                    axis,
-                    value,
-                    left,
-                    right,
-                } => {
-                    let offset = query[axis as usize] - value;
-                    if offset > -radius {
-                        stack.push(right);
-                    }
-                    if offset < radius {
-                        stack.push(left);
-                    }
-                }
+        let mut displacement = vec![0.0; self.dim];
+        self.leaves_near(query, radius, |stored| {
+            for p in stored {
+                self.visit_if_within(p, query, r2, &mut displacement, &mut |_, _, _| {
+                    visit(p as u32)
+                });
             }
-        }
+        });
     }
 
     /// The distance from `query` to its `k`-th nearest point (`k ≥ 1`; infinite when the
