@@ -19,8 +19,8 @@ use pyo3::exceptions::{PyRuntimeError, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use smspace::agent::{
-    check_agent, Agent as AgentLaw, AgentConfig, Environment, EnvironmentConfig, Motor, MotorSpace,
-    Observer, PoseSpace,
+    check_agent, Agent as AgentLaw, AgentConfig, Calling, Environment, EnvironmentConfig, Motor,
+    MotorSpace, Observer, PoseSpace,
 };
 use smspace::config::{load_agent, AgentSpec};
 
@@ -317,13 +317,16 @@ impl Agent {
 /// `pose_space="spatial"` for `(x, y, z, qw, qx, qy, qz)`, `d = 7`, a position and a
 /// unit quaternion (as a 3-D chain's). `motor_space` lists each motor as `("periodic", period)` or
 /// `("bounded", low, high)`; the default is `N` hinges (periodic `2π`).
+/// `concurrent_sets` kernel sets are traced at once by the `sensory` method, their
+/// readings gathered into one call of `sense` per round ([`Calling::Gathered`]): each
+/// call then carries up to `concurrent_sets × (2N + 1)` rows instead of `2N + 1`.
 #[pyclass(extends = Agent, frozen, module = "smspace._core")]
 pub struct PythonAgent {}
 
 #[pymethods]
 impl PythonAgent {
     #[new]
-    #[pyo3(signature = (sense, n_motors, n_sensors, motor_space=None, pose=None, name="python", pose_space="planar"))]
+    #[pyo3(signature = (sense, n_motors, n_sensors, motor_space=None, pose=None, name="python", pose_space="planar", concurrent_sets=DEFAULT_CONCURRENT_SETS))]
     #[allow(clippy::too_many_arguments)] // the Python signature's keywords
     fn new(
         py: Python<'_>,
@@ -334,7 +337,13 @@ impl PythonAgent {
         pose: Option<Py<PyAny>>,
         name: &str,
         pose_space: &str,
+        concurrent_sets: usize,
     ) -> PyResult<PyClassInitializer<Self>> {
+        if !(1..=MAX_CONCURRENT_SETS).contains(&concurrent_sets) {
+            return Err(value_error(format!(
+                "concurrent_sets = {concurrent_sets} must be 1 to {MAX_CONCURRENT_SETS} (each set being traced at once has a thread); the default is {DEFAULT_CONCURRENT_SETS}"
+            )));
+        }
         if !sense.bind(py).is_callable() {
             return Err(PyTypeError::new_err(
                 "sense must be callable: sense(motors: (B, N) ndarray) -> (B, K) ndarray",
@@ -369,6 +378,7 @@ impl PythonAgent {
             n: n_motors,
             k: n_sensors,
             space,
+            concurrent_sets,
             failure: failure.clone(),
         };
         check_agent(&law).map_err(to_py_err)?;
@@ -424,8 +434,18 @@ struct Callbacks {
     n: usize,
     k: usize,
     space: MotorSpace,
+    /// How many sets the sensory tracer traces at once, gathering their readings.
+    concurrent_sets: usize,
     failure: Arc<Failure>,
 }
+
+/// How many kernel sets a [`PythonAgent`] has traced at once by default: enough that
+/// one call of `sense` carries thousands of rows (`256 × (2N + 1)`), so that the
+/// per-call cost of Python is spread over them.
+const DEFAULT_CONCURRENT_SETS: usize = 256;
+
+/// The most sets traced at once (one thread each).
+const MAX_CONCURRENT_SETS: usize = 4096;
 
 impl std::fmt::Debug for Callbacks {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -557,6 +577,12 @@ impl AgentLaw for Callbacks {
     fn ground_truth(&self) -> Option<&dyn Observer> {
         self.pose.as_ref().map(|_| self as &dyn Observer)
     }
+
+    fn calling(&self) -> Calling {
+        Calling::Gathered {
+            callers: self.concurrent_sets,
+        }
+    }
 }
 
 impl Observer for Callbacks {
@@ -573,6 +599,14 @@ impl Observer for Callbacks {
         let d = self.pose_space.dim();
         let pose = ArrayViewMut2::from_shape((1, d), &mut pose[..d]).expect("one pose");
         self.call("pose", callable, motors, pose);
+    }
+
+    /// All rows in one call.
+    fn pose_batch(&self, motors: ArrayView2<'_, f64>, mut poses: ArrayViewMut2<'_, f64>) {
+        match &self.pose {
+            Some(callable) => self.call("pose", callable, motors, poses),
+            None => poses.fill(f64::NAN),
+        }
     }
 
     /// Central differences as the default, with the `2N + 1` poses in one call.

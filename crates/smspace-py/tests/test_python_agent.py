@@ -62,6 +62,41 @@ def test_the_tracer_asks_for_a_jacobian_in_one_batch(arms, numpy_arm_module):
     assert max(batches) == 9 and batches.count(9) > 10
 
 
+def test_concurrent_sets_gather_many_sets_into_one_call(arms, numpy_arm_module):
+    builtin, _, lights = arms
+    sense = numpy_arm_module.make_sense(lights)
+    found = smspace.explore(builtin, n=12, seed=3)
+
+    def traced_with(concurrent_sets):
+        batches = []
+
+        def counted(motors):
+            batches.append(motors.shape[0])
+            return sense(motors)
+
+        agent = smspace.PythonAgent(
+            sense=counted, n_motors=4, n_sensors=6, pose=numpy_arm_module.pose,
+            concurrent_sets=concurrent_sets,
+        )
+        return smspace.trace(agent, found.motors, method="sensory", points=20), batches
+
+    alone, alone_batches = traced_with(1)
+    together, together_batches = traced_with(12)
+    # The same sets bit for bit, in far fewer calls: the first rounds carry every
+    # set's rows (12 sets' targets, then their 12 Jacobians of 9 rows).
+    assert np.array_equal(alone.kept, together.kept)
+    assert np.array_equal(alone.sets, together.sets)
+    assert max(alone_batches) == 9
+    assert max(together_batches) == 12 * 9
+    assert 4 * len(together_batches) < len(alone_batches)
+
+
+def test_concurrent_sets_is_checked():
+    for bad in (0, 5000):
+        with pytest.raises(ValueError, match=f"concurrent_sets = {bad} must be 1 to 4096"):
+            smspace.PythonAgent(sense=abs, n_motors=2, n_sensors=3, concurrent_sets=bad)
+
+
 def test_the_whole_pipeline_runs_on_a_python_agent(arms):
     _, agent, _ = arms
     found = smspace.explore(agent, n=30, seed=1, workspace=(1.75, 0.0, 1.5, 2.0))

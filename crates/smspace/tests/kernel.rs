@@ -4,8 +4,8 @@ use approx::assert_abs_diff_eq;
 use ndarray::{Array2, ArrayView2, Axis};
 use proptest::prelude::*;
 use smspace::agent::{
-    wrap_angle, Agent, AgentConfig, Environment, EnvironmentConfig, LightRegion, Motor, MotorSpace,
-    Observer, PoseSpace,
+    wrap_angle, Agent, AgentConfig, Calling, Environment, EnvironmentConfig, LightRegion, Motor,
+    MotorSpace, Observer, PoseSpace,
 };
 use smspace::explore::{explore, ExploreParams, Workspace};
 use smspace::kernel::{
@@ -228,6 +228,108 @@ fn sensory_and_kinematic_tracing_give_the_same_sets() {
                 line.status,
                 SetStatus::Singular | SetStatus::CorrectorFailed
             ));
+        }
+    }
+}
+
+/// The arm's law behind a costly interface: its calls counted, gathered or not, and
+/// its ground truth hidden or not.
+#[derive(Debug)]
+struct Remote {
+    arm: Box<dyn Agent>,
+    calling: Calling,
+    truth: bool,
+    calls: std::sync::atomic::AtomicUsize,
+}
+
+impl Remote {
+    fn new(calling: Calling, truth: bool) -> Self {
+        Self {
+            arm: agent("planar-arm"),
+            calling,
+            truth,
+            calls: Default::default(),
+        }
+    }
+
+    fn calls(&self) -> usize {
+        self.calls.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl Agent for Remote {
+    fn motor_dim(&self) -> usize {
+        self.arm.motor_dim()
+    }
+    fn sensor_dim(&self) -> usize {
+        self.arm.sensor_dim()
+    }
+    fn sense(&self, env: &Environment, m: &[f64], s: &mut [f64]) {
+        let m = ArrayView2::from_shape((1, m.len()), m).unwrap();
+        let k = s.len();
+        self.sense_batch(
+            env,
+            m,
+            ndarray::ArrayViewMut2::from_shape((1, k), s).unwrap(),
+        );
+    }
+    fn name(&self) -> &str {
+        "remote-arm"
+    }
+    fn sense_batch(
+        &self,
+        env: &Environment,
+        m: ArrayView2<'_, f64>,
+        s: ndarray::ArrayViewMut2<'_, f64>,
+    ) {
+        self.calls
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.arm.sense_batch(env, m, s);
+    }
+    fn calling(&self) -> Calling {
+        self.calling
+    }
+    fn ground_truth(&self) -> Option<&dyn Observer> {
+        self.truth.then(|| self.arm.ground_truth()).flatten()
+    }
+}
+
+#[test]
+fn gathered_calls_trace_the_same_sets_in_far_fewer_calls() {
+    let env = EnvironmentConfig::default()
+        .build(agent("planar-arm").as_ref())
+        .unwrap();
+    let motors = arm_starts(24, 5);
+    let sensory = || TraceParams {
+        method: TraceMethod::Sensory,
+        points: 40,
+        ..TraceParams::default()
+    };
+    for truth in [true, false] {
+        let direct = Remote::new(Calling::Direct, truth);
+        let expected = trace(&direct, Some(&env), motors.view(), sensory());
+        for callers in [1, 7, 64] {
+            let gathered = Remote::new(Calling::Gathered { callers }, truth);
+            let traced = trace(&gathered, Some(&env), motors.view(), sensory());
+            assert_eq!(traced.kept, expected.kept, "{callers} callers");
+            assert_eq!(
+                traced.sets, expected.sets,
+                "{callers} callers: not bit for bit"
+            );
+            assert_eq!(traced.pieces, expected.pieces);
+            let steps = |t: &TracedSets| t.report.sets.iter().map(|s| s.steps).collect::<Vec<_>>();
+            assert_eq!(steps(&traced), steps(&expected));
+            // One caller makes every call alone; more share each round.
+            if callers == 1 {
+                assert_eq!(gathered.calls(), direct.calls());
+            } else {
+                assert!(
+                    gathered.calls() * 4 < direct.calls(),
+                    "{callers} callers: {} calls, {} direct",
+                    gathered.calls(),
+                    direct.calls()
+                );
+            }
         }
     }
 }

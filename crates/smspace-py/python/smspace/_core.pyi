@@ -57,7 +57,10 @@ class PythonAgent(Agent):
     truth: ``pose_space="planar"`` ``(x, y, alpha)``, d = 3, or ``"spatial"``
     ``(x, y, z, qw, qx, qy, qz)``, d = 7 (a position and a unit quaternion).
     ``motor_space``: per motor ``"hinge"``, ``("periodic", period)`` or
-    ``("bounded", low, high)``; default ``N`` hinges."""
+    ``("bounded", low, high)``; default ``N`` hinges. ``concurrent_sets`` kernel
+    sets (1 to 4096) are traced at once by the sensory method, their readings gathered
+    into one call of ``sense`` per round: ``sense`` must answer each row independently
+    of the others in its batch."""
 
     def __init__(
         self,
@@ -68,6 +71,7 @@ class PythonAgent(Agent):
         pose: Optional[Callable[[F64], F64]] = None,
         name: str = "python",
         pose_space: Literal["planar", "spatial"] = "planar",
+        concurrent_sets: int = 256,
     ) -> None: ...
 
 def _explore(

@@ -20,7 +20,7 @@
 //! [`Agent::ground_truth`](super::Agent::ground_truth); the poses of many
 //! configurations travel between stages as [`GroundTruth`] (`poses.npy`, `(M, d)`).
 
-use ndarray::{Array2, ArrayView2, Axis};
+use ndarray::{Array2, ArrayView2, ArrayViewMut2, Axis};
 use serde::{Deserialize, Serialize};
 
 use super::{wrap_angle, AgentError};
@@ -330,6 +330,19 @@ pub trait Observer: Send + Sync {
     /// Writes the pose for motors `m` (length `N`) into `pose` (length `d`).
     fn pose(&self, motors: &[f64], pose: &mut [f64]);
 
+    /// Writes the poses of many motor rows: `motors` is `(M, N)`, `poses` `(M, d)`. The
+    /// default calls [`pose`](Observer::pose) row by row; an observer that is costly to
+    /// call (a simulator in another language) overrides it to answer all rows at once.
+    fn pose_batch(&self, motors: ArrayView2<'_, f64>, mut poses: ArrayViewMut2<'_, f64>) {
+        let mut m = vec![0.0; motors.ncols()];
+        let mut pose = vec![0.0; poses.ncols()];
+        for (row, mut out) in motors.outer_iter().zip(poses.outer_iter_mut()) {
+            m.iter_mut().zip(row.iter()).for_each(|(a, &b)| *a = b);
+            self.pose(&m, &mut pose);
+            out.iter_mut().zip(&pose).for_each(|(a, &b)| *a = b);
+        }
+    }
+
     /// How many leading tangent coordinates of the pose the motors can change (1 for
     /// the toys, whose pose is `(x, 0, 0)`; 3 for the arm). The `kinematic` tracer
     /// holds these fixed. The default is every tangent coordinate.
@@ -455,13 +468,7 @@ impl GroundTruth {
     pub fn observe(observer: &dyn Observer, motors: ArrayView2<'_, f64>) -> Self {
         let space = observer.pose_space();
         let mut poses = Array2::zeros((motors.nrows(), space.dim()));
-        let mut m = vec![0.0; motors.ncols()];
-        let mut pose = vec![0.0; space.dim()];
-        for (row, mut out) in motors.outer_iter().zip(poses.outer_iter_mut()) {
-            m.iter_mut().zip(row.iter()).for_each(|(a, &b)| *a = b);
-            observer.pose(&m, &mut pose);
-            out.iter_mut().zip(&pose).for_each(|(a, &b)| *a = b);
-        }
+        observer.pose_batch(motors, poses.view_mut());
         Self { space, poses }
     }
 

@@ -201,6 +201,15 @@ pub trait Agent: Send + Sync + fmt::Debug {
         }
     }
 
+    /// How tracing calls the agent from many kernel sets at once. The default,
+    /// [`Calling::Direct`], suits an agent that is cheap to call (every built-in one);
+    /// an agent with a large fixed cost per call (a simulator behind an interpreter
+    /// lock or a process boundary) asks for [`Calling::Gathered`], so that the rows of
+    /// many sets reach its [`sense_batch`](Agent::sense_batch) in one call.
+    fn calling(&self) -> Calling {
+        Calling::Direct
+    }
+
     /// The generic rank of the sensory Jacobian `∂s/∂m`, when the agent knows it: a law
     /// learned from data ([`crate::learn::LearnedLaw`]) estimates it from its fits,
     /// where finite differences of its values would see the fit's noise as rank. The
@@ -303,6 +312,30 @@ pub trait Agent: Send + Sync + fmt::Debug {
     fn default_light_heights(&self) -> [f64; 2] {
         [-3.0, 3.0]
     }
+}
+
+/// How the sensory tracer calls an agent ([`Agent::calling`]).
+///
+/// Tracing a set asks for small batches: the `2N + 1` rows of one finite-difference
+/// Jacobian, or one row for a residual. For an agent whose every call costs a fixed
+/// overhead `c` (a Python function: the interpreter lock, the array conversions) on top
+/// of a cost per row, `S` steps of `M` sets cost about `S · M · c` in overheads. With
+/// [`Gathered`](Calling::Gathered), `callers` sets are traced at once, each on its own
+/// thread, and every round of requests (one from each set still being traced) is
+/// answered by one `sense_batch` call of all their rows: the overhead falls to about
+/// `S · M · c / callers`. The kernel sets do not change, provided the agent answers
+/// each row independently of the others in its batch (as the [`Agent::sense_batch`]
+/// contract asks).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Calling {
+    /// Each set calls the agent when it needs a reading, on the rayon pool's threads.
+    Direct,
+    /// `callers` sets are traced at once and their readings gathered into one call per
+    /// round (at least 1; more callers than sets is the same as one per set).
+    Gathered {
+        /// How many sets are traced at once.
+        callers: usize,
+    },
 }
 
 /// Checks that an agent's parts agree: a motor space of `N` motors, at least one

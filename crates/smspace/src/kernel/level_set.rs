@@ -8,6 +8,7 @@
 use nalgebra::{DMatrix, SymmetricEigen};
 use ndarray::{ArrayView2, ArrayViewMut2};
 
+use super::gather::Caller;
 use super::TraceValidParams;
 use crate::agent::{wrap_angle, Agent, Environment, Observer, PoseSpace};
 
@@ -487,9 +488,13 @@ impl LevelSet for Kinematic<'_> {
 /// residual in the range `U` of the Jacobian held at zero, and the residual's size is
 /// `‖Uᵀ r‖ = √(Σ_{e≥d} (v_eᵀ Jᵀ r)² / λ_e)` (relative to the same scale), which the
 /// Gauss–Newton correction cancels.
+///
+/// Every reading goes to the agent directly, or through a [`Caller`] of a gathered
+/// round when the agent asks for [`crate::agent::Calling::Gathered`].
 pub(crate) struct Sensory<'a> {
     agent: &'a dyn Agent,
     environment: &'a Environment,
+    caller: Option<&'a Caller<'a, 'a>>,
     n: usize,
     k: usize,
     target: Vec<f64>,
@@ -515,20 +520,23 @@ pub(crate) struct Sensory<'a> {
 impl<'a> Sensory<'a> {
     /// The level set through `start` for kernels of dimension `dimension` (at least 1),
     /// with the sensory tolerances of `params`.
+    /// Readings go through `caller` when given.
     pub(crate) fn new(
         agent: &'a dyn Agent,
         environment: &'a Environment,
+        caller: Option<&'a Caller<'a, 'a>>,
         start: &[f64],
         params: &TraceValidParams,
         dimension: usize,
     ) -> Self {
         let (n, k) = (agent.motor_dim(), agent.sensor_dim());
         let mut target = vec![0.0; k];
-        agent.sense(environment, start, &mut target);
+        read_one(agent, environment, caller, start, &mut target);
         let scale = target.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
         Self {
             agent,
             environment,
+            caller,
             n,
             k,
             target,
@@ -562,7 +570,10 @@ impl<'a> Sensory<'a> {
         let probes = ArrayView2::from_shape((rows, n), &self.probes).expect("(2N + 1) × N probes");
         let readings = ArrayViewMut2::from_shape((rows, k), &mut self.readings)
             .expect("(2N + 1) × K readings");
-        self.agent.sense_batch(self.environment, probes, readings);
+        match self.caller {
+            Some(caller) => caller.sense_batch(probes, readings),
+            None => self.agent.sense_batch(self.environment, probes, readings),
+        }
         for ((ri, s), t) in r.iter_mut().zip(&self.readings[..k]).zip(&self.target) {
             *ri = s - t;
         }
@@ -616,6 +627,25 @@ impl<'a> Sensory<'a> {
     }
 }
 
+/// The readings at one motor row: directly, or as a one-row request of `caller`.
+fn read_one(
+    agent: &dyn Agent,
+    environment: &Environment,
+    caller: Option<&Caller<'_, '_>>,
+    motors: &[f64],
+    sensors: &mut [f64],
+) {
+    match caller {
+        Some(caller) => {
+            let (n, k) = (motors.len(), sensors.len());
+            let motors = ArrayView2::from_shape((1, n), motors).expect("one row of N motors");
+            let sensors = ArrayViewMut2::from_shape((1, k), sensors).expect("one row of K");
+            caller.sense_batch(motors, sensors);
+        }
+        None => agent.sense(environment, motors, sensors),
+    }
+}
+
 impl LevelSet for Sensory<'_> {
     fn motor_dim(&self) -> usize {
         self.n
@@ -626,7 +656,7 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn residual(&mut self, m: &[f64], r: &mut [f64]) {
-        self.agent.sense(self.environment, m, r);
+        read_one(self.agent, self.environment, self.caller, m, r);
         for (ri, t) in r.iter_mut().zip(&self.target) {
             *ri -= t;
         }

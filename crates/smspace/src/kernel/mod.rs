@@ -48,6 +48,7 @@
 
 mod cover;
 mod curve;
+mod gather;
 mod level_set;
 pub mod spatial;
 mod tracer;
@@ -55,7 +56,6 @@ mod tracer;
 use std::path::{Path, PathBuf};
 
 use ndarray::{Array3, ArrayView2};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::agent::Workspace;
@@ -921,7 +921,7 @@ pub fn trace_one(
     let starts =
         ndarray::ArrayView2::from_shape((1, start.len()), start).expect("one row of N values");
     let tracer = Tracer::new(agent, environment, starts, workspace, params)?;
-    let result = tracer.trace(start, &mut Scratch::default());
+    let result = tracer.trace(start, None, &mut Scratch::default());
     Ok((result.points, result.report))
 }
 
@@ -960,16 +960,15 @@ pub fn trace_sets(
     let tracer = Tracer::new(agent, environment, motors, workspace, params)?;
     progress.start("trace", motors.nrows() as u64);
     let rows: Vec<Vec<f64>> = motors.outer_iter().map(|r| r.to_vec()).collect();
-    let results: Vec<tracer::SetResult> = rows
-        .par_iter()
-        .enumerate()
-        .map_init(Scratch::default, |scratch, (index, start)| {
-            let mut result = tracer.trace(start, scratch);
-            result.report.index = index;
-            progress.advance(1);
-            result
-        })
-        .collect();
+    let results: Vec<tracer::SetResult> = tracer.map_starts(&rows, |caller, scratch, start| {
+        let result = tracer.trace(start, caller, scratch);
+        progress.advance(1);
+        result
+    });
+    let results = results.into_iter().enumerate().map(|(index, mut result)| {
+        result.report.index = index;
+        result
+    });
     progress.finish();
     let p = params.points;
     let mut data = Vec::new();

@@ -21,9 +21,10 @@ use super::cover::{
     Grid,
 };
 use super::curve::{resample, trace_branch, Curve, Scratch};
+use super::gather::{self, Caller};
 use super::level_set::{Kinematic, LevelSet, Sensory};
 use super::{Components, KernelError, SetReport, SetStatus, TraceMethod, TraceValidParams};
-use crate::agent::{Agent, Environment, MotorSpace, Observer, PoseSpace, Workspace};
+use crate::agent::{Agent, Calling, Environment, MotorSpace, Observer, PoseSpace, Workspace};
 
 /// A checked tracing call (see the module docs).
 pub(super) struct Tracer<'a> {
@@ -101,18 +102,48 @@ impl<'a> Tracer<'a> {
     /// is not finite).
     fn generic_sensory_rank(&self, starts: ArrayView2<'_, f64>) -> usize {
         let rows: Vec<Vec<f64>> = starts.outer_iter().map(|r| r.to_vec()).collect();
-        rows.par_iter()
-            .map(|start| {
-                tangent_space(self.agent, self.environment, start, self.params)
-                    .map_or(0, |t| t.rank)
-            })
-            .max()
-            .unwrap_or(0)
+        let rank = |caller: Option<&Caller<'_, '_>>, _: &mut Scratch, start: &[f64]| {
+            tangent_space_via(self.agent, self.environment, caller, start, self.params)
+                .map_or(0, |t| t.rank)
+        };
+        self.map_starts(&rows, rank).into_iter().max().unwrap_or(0)
+    }
+
+    /// `work` on every row, in the rows' order, with a scratch space per thread: on the
+    /// rayon pool, or on the callers of a gathered round ([`gather`]) when the agent
+    /// asks for it ([`Calling::Gathered`]) and the method senses.
+    pub(super) fn map_starts<T: Send>(
+        &self,
+        rows: &[Vec<f64>],
+        work: impl Fn(Option<&Caller<'_, '_>>, &mut Scratch, &[f64]) -> T + Sync,
+    ) -> Vec<T> {
+        match (self.agent.calling(), self.params.method, self.environment) {
+            (Calling::Gathered { callers }, TraceMethod::Sensory, Some(environment)) => {
+                gather::map_gathered(
+                    self.agent,
+                    environment,
+                    callers,
+                    rows.len(),
+                    Scratch::default,
+                    |caller, scratch, i| work(Some(caller), scratch, &rows[i]),
+                )
+            }
+            _ => rows
+                .par_iter()
+                .map_init(Scratch::default, |scratch, row| work(None, scratch, row))
+                .collect(),
+        }
     }
 
     /// Traces and resamples the set through `start`: its points `(P × N)` and their
     /// pieces when traced, and its report line (`index` 0).
-    pub(super) fn trace(&self, start: &[f64], scratch: &mut Scratch) -> SetResult {
+    /// Readings go through `caller` when given (a gathered round).
+    pub(super) fn trace(
+        &self,
+        start: &[f64],
+        caller: Option<&Caller<'_, '_>>,
+        scratch: &mut Scratch,
+    ) -> SetResult {
         let mut report = SetReport {
             index: 0,
             status: SetStatus::Closed,
@@ -148,7 +179,14 @@ impl<'a> Tracer<'a> {
                 &mut kinematic
             }
             (_, _, Some(environment)) => {
-                sensory = Sensory::new(self.agent, environment, start, self.params, self.dimension);
+                sensory = Sensory::new(
+                    self.agent,
+                    environment,
+                    caller,
+                    start,
+                    self.params,
+                    self.dimension,
+                );
                 &mut sensory
             }
             _ => unreachable!("Tracer::new checked the method's needs"),
@@ -415,12 +453,15 @@ impl<'a> Tracer<'a> {
             return 0.0;
         };
         let c = observer.configuration_dim();
-        let mut pose = vec![0.0; poses.dim()];
+        let n = self.agent.motor_dim();
+        let motors = ArrayView2::from_shape((points.len() / n, n), points).expect("P × N points");
+        let mut all = Array2::zeros((motors.nrows(), poses.dim()));
+        observer.pose_batch(motors, all.view_mut());
         let mut difference = vec![0.0; poses.tangent_dim()];
         let mut deviation: f64 = 0.0;
-        for p in points.chunks_exact(self.agent.motor_dim()) {
-            observer.pose(p, &mut pose);
-            poses.difference(&pose, start_pose, &mut difference);
+        for pose in all.outer_iter() {
+            let pose = pose.as_slice().expect("a standard-layout row");
+            poses.difference(pose, start_pose, &mut difference);
             for v in &difference[..c] {
                 deviation = deviation.max(v.abs());
             }
@@ -734,6 +775,17 @@ pub fn tangent_space(
     motors: &[f64],
     params: &TraceValidParams,
 ) -> Result<TangentSpace, KernelError> {
+    tangent_space_via(agent, environment, None, motors, params)
+}
+
+/// [`tangent_space`], the `sensory` method's readings through `caller` when given.
+fn tangent_space_via<'a>(
+    agent: &'a dyn Agent,
+    environment: Option<&'a Environment>,
+    caller: Option<&'a Caller<'a, 'a>>,
+    motors: &[f64],
+    params: &TraceValidParams,
+) -> Result<TangentSpace, KernelError> {
     crate::agent::check_motor_count(agent, motors.len())?;
     let n = motors.len();
     let mut kinematic;
@@ -752,7 +804,7 @@ pub fn tangent_space(
         }
         TraceMethod::Sensory => {
             let environment = environment.ok_or(KernelError::MissingEnvironment)?;
-            sensory = Sensory::new(agent, environment, motors, params, 1);
+            sensory = Sensory::new(agent, environment, caller, motors, params, 1);
             (&mut sensory, params.rank_tolerance)
         }
     };
