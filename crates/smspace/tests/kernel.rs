@@ -319,12 +319,14 @@ fn gathered_calls_trace_the_same_sets_in_far_fewer_calls() {
             assert_eq!(traced.pieces, expected.pieces);
             let steps = |t: &TracedSets| t.report.sets.iter().map(|s| s.steps).collect::<Vec<_>>();
             assert_eq!(steps(&traced), steps(&expected));
-            // One caller makes every call alone; more share each round.
+            // One caller makes every call alone; more share each round (in two
+            // groups of callers: 4 + 3, then 12 + 12 for the 24 sets).
             if callers == 1 {
                 assert_eq!(gathered.calls(), direct.calls());
             } else {
+                let fewer = if callers == 7 { 2 } else { 4 };
                 assert!(
-                    gathered.calls() * 4 < direct.calls(),
+                    gathered.calls() * fewer < direct.calls(),
                     "{callers} callers: {} calls, {} direct",
                     gathered.calls(),
                     direct.calls()

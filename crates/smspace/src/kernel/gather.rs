@@ -7,8 +7,10 @@
 //! posted: the last one to post (or the last one to leave, when a caller runs out of
 //! sets while the others wait) calls the agent's [`Agent::sense_batch`] once with all
 //! the posted rows, in the callers' order of posting, and hands each caller its rows'
-//! readings. Exactly one call is in flight at a time, and no thread waits for another
-//! that is computing: a round is answered as soon as its last request arrives.
+//! readings. A round is answered as soon as its last request arrives, with one call
+//! in flight per rendezvous; the callers are dealt into two rendezvous, so that one's
+//! call overlaps the other's stepping. A waiting caller is parked on its own flag and
+//! woken alone when its readings are written.
 //!
 //! The readings of a row do not depend on the rows beside it (the `sense_batch`
 //! contract), so every set is traced exactly as with direct calls, whatever `C` and
@@ -19,31 +21,41 @@
 //! fail), and the panic goes on in the calling thread.
 
 use std::panic::{self, AssertUnwindSafe};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Mutex, MutexGuard, OnceLock, PoisonError};
+use std::thread::{self, Thread};
 
 use ndarray::{ArrayView2, ArrayViewMut2};
 
 use crate::agent::{Agent, Environment};
 
 /// The rendezvous of `C` callers (see the module docs).
+///
+/// A caller waits parked on its own flag, not on a shared lock: the round's answerer
+/// writes each caller's readings into its slot and wakes that caller alone, so a round
+/// of `C` callers costs `C` wake-ups and no contention.
 pub(super) struct Gather<'a> {
     agent: &'a dyn Agent,
     environment: &'a Environment,
-    state: Mutex<Rounds>,
-    answered: Condvar,
-    /// How many calls of the agent were made (for tests and reports).
+    rounds: Mutex<Rounds>,
+    slots: Vec<Slot>,
+    /// How many calls of the agent were made.
     calls: AtomicUsize,
 }
 
-/// What the callers share.
+/// Who is in the current round.
 struct Rounds {
     /// Callers that have not left.
     live: usize,
     /// The callers with a posted request, in the order they posted.
     posted: Vec<usize>,
-    /// One request per caller.
-    requests: Vec<Request>,
+}
+
+/// One caller's place: its request, whether it is answered, and its thread.
+struct Slot {
+    request: Mutex<Request>,
+    answered: AtomicBool,
+    thread: OnceLock<Thread>,
 }
 
 /// One caller's rows and, once its round is answered, their readings.
@@ -52,7 +64,11 @@ struct Request {
     motors: Vec<f64>,
     rows: usize,
     readings: Vec<f64>,
-    answered: bool,
+}
+
+/// Locks `mutex`, whatever a panicking holder left (every holder leaves it consistent).
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 impl<'a> Gather<'a> {
@@ -62,18 +78,26 @@ impl<'a> Gather<'a> {
         Self {
             agent,
             environment,
-            state: Mutex::new(Rounds {
+            rounds: Mutex::new(Rounds {
                 live: callers,
                 posted: Vec::with_capacity(callers),
-                requests: (0..callers).map(|_| Request::default()).collect(),
             }),
-            answered: Condvar::new(),
+            slots: (0..callers)
+                .map(|_| Slot {
+                    request: Mutex::new(Request::default()),
+                    answered: AtomicBool::new(false),
+                    thread: OnceLock::new(),
+                })
+                .collect(),
             calls: AtomicUsize::new(0),
         }
     }
 
-    /// The handle of caller `slot` (below the `callers` given to [`Gather::new`]).
+    /// The handle of caller `slot` (below the `callers` given to [`Gather::new`]), to
+    /// be used on the calling thread only.
     pub(super) fn caller(&self, slot: usize) -> Caller<'_, 'a> {
+        // A slot serves one thread: a second handle keeps the first thread.
+        let _ = self.slots[slot].thread.set(thread::current());
         Caller { gather: self, slot }
     }
 
@@ -83,10 +107,6 @@ impl<'a> Gather<'a> {
         self.calls.load(Ordering::Relaxed)
     }
 
-    fn lock(&self) -> MutexGuard<'_, Rounds> {
-        self.state.lock().unwrap_or_else(PoisonError::into_inner)
-    }
-
     /// Posts caller `slot`'s rows, waits for its round, and writes the readings.
     fn sense_batch(
         &self,
@@ -94,50 +114,53 @@ impl<'a> Gather<'a> {
         motors: ArrayView2<'_, f64>,
         mut sensors: ArrayViewMut2<'_, f64>,
     ) {
-        let mut rounds = self.lock();
+        let place = &self.slots[slot];
         {
-            let request = &mut rounds.requests[slot];
+            let mut request = lock(&place.request);
             request.motors.clear();
             request.motors.extend(motors.iter());
             request.rows = motors.nrows();
-            request.answered = false;
         }
-        rounds.posted.push(slot);
-        if rounds.posted.len() == rounds.live {
-            rounds = self.answer(rounds);
+        place.answered.store(false, Ordering::Release);
+        let round = {
+            let mut rounds = lock(&self.rounds);
+            rounds.posted.push(slot);
+            (rounds.posted.len() == rounds.live).then(|| std::mem::take(&mut rounds.posted))
+        };
+        if let Some(posted) = round {
+            self.answer(&posted);
         }
-        while !rounds.requests[slot].answered {
-            rounds = self
-                .answered
-                .wait(rounds)
-                .unwrap_or_else(PoisonError::into_inner);
+        while !place.answered.load(Ordering::Acquire) {
+            thread::park();
         }
-        let readings = &rounds.requests[slot].readings;
-        for (out, &v) in sensors.iter_mut().zip(readings) {
+        let request = lock(&place.request);
+        for (out, &v) in sensors.iter_mut().zip(&request.readings) {
             *out = v;
         }
     }
 
     /// Caller `slot` leaves; if the others all wait, their round is answered now.
     fn leave(&self) {
-        let mut rounds = self.lock();
-        rounds.live -= 1;
-        if !rounds.posted.is_empty() && rounds.posted.len() == rounds.live {
-            drop(self.answer(rounds));
+        let round = {
+            let mut rounds = lock(&self.rounds);
+            rounds.live -= 1;
+            (!rounds.posted.is_empty() && rounds.posted.len() == rounds.live)
+                .then(|| std::mem::take(&mut rounds.posted))
+        };
+        if let Some(posted) = round {
+            self.answer(&posted);
         }
     }
 
-    /// Answers the posted requests with one call of the agent (the lock is released
-    /// during the call), and wakes their callers.
-    fn answer<'g>(&'g self, mut rounds: MutexGuard<'g, Rounds>) -> MutexGuard<'g, Rounds> {
+    /// Answers the `posted` requests with one call of the agent and wakes their
+    /// callers; a panic of the agent answers NaN, then goes on.
+    fn answer(&self, posted: &[usize]) {
         let (n, k) = (self.agent.motor_dim(), self.agent.sensor_dim());
-        let posted = std::mem::take(&mut rounds.posted);
-        let rows: usize = posted.iter().map(|&s| rounds.requests[s].rows).sum();
-        let mut motors = Vec::with_capacity(rows * n);
-        for &slot in &posted {
-            motors.extend_from_slice(&rounds.requests[slot].motors);
+        let mut motors = Vec::new();
+        for &slot in posted {
+            motors.extend_from_slice(&lock(&self.slots[slot].request).motors);
         }
-        drop(rounds);
+        let rows = motors.len() / n;
         let mut readings = vec![0.0; rows * k];
         let call = panic::catch_unwind(AssertUnwindSafe(|| {
             let motors = ArrayView2::from_shape((rows, n), &motors).expect("rows × N motors");
@@ -149,37 +172,39 @@ impl<'a> Gather<'a> {
         if call.is_err() {
             readings.fill(f64::NAN);
         }
-        let mut rounds = self.lock();
         let mut offset = 0;
-        for &slot in &posted {
-            let request = &mut rounds.requests[slot];
-            let length = request.rows * k;
-            request.readings.clear();
-            request
-                .readings
-                .extend_from_slice(&readings[offset..offset + length]);
-            request.answered = true;
-            offset += length;
+        for &slot in posted {
+            let place = &self.slots[slot];
+            {
+                let mut request = lock(&place.request);
+                let length = request.rows * k;
+                request.readings.clear();
+                request
+                    .readings
+                    .extend_from_slice(&readings[offset..offset + length]);
+                offset += length;
+            }
+            place.answered.store(true, Ordering::Release);
+            if let Some(thread) = place.thread.get() {
+                thread.unpark();
+            }
         }
-        if rounds.posted.is_empty() {
-            // Keep the allocation (no caller can post while its round is in flight).
-            let mut reuse = posted;
-            reuse.clear();
-            rounds.posted = reuse;
-        }
-        self.answered.notify_all();
         if let Err(payload) = call {
-            drop(rounds);
             panic::resume_unwind(payload);
         }
-        rounds
     }
 }
 
+/// How many independent rendezvous the callers are dealt into: while one group's
+/// round is in the agent's call (a Python call holds the interpreter lock, one core),
+/// the other group's sets step on the other cores.
+const GROUPS: usize = 2;
+
 /// `work(caller, state, i)` for every `i` below `count`, on `callers` threads (at most
-/// `count`, at least 1) that share one [`Gather`] of `agent` in `environment`, each
-/// with its own `state` from `init`; the results in the order of `i`. Each thread takes
-/// the next `i` when it is done with one, so the threads stay busy until the last items.
+/// `count`, at least 1) dealt into [`GROUPS`] rendezvous ([`Gather`]s) of `agent` in
+/// `environment`, each thread with its own `state` from `init`; the results in the
+/// order of `i`. Each thread takes the next `i` when it is done with one, so the
+/// threads stay busy until the last items.
 pub(super) fn map_gathered<S, T: Send>(
     agent: &dyn Agent,
     environment: &Environment,
@@ -189,14 +214,17 @@ pub(super) fn map_gathered<S, T: Send>(
     work: impl Fn(&Caller<'_, '_>, &mut S, usize) -> T + Sync,
 ) -> Vec<T> {
     let threads = callers.clamp(1, count.max(1));
-    let gather = Gather::new(agent, environment, threads);
+    let groups = threads.min(GROUPS);
+    let gathers: Vec<Gather<'_>> = (0..groups)
+        .map(|g| Gather::new(agent, environment, (threads - g).div_ceil(groups)))
+        .collect();
     let next = AtomicUsize::new(0);
     let mut done: Vec<(usize, T)> = std::thread::scope(|scope| {
         let handles: Vec<_> = (0..threads)
-            .map(|slot| {
-                let (gather, next, init, work) = (&gather, &next, &init, &work);
+            .map(|t| {
+                let (gather, next, init, work) = (&gathers[t % groups], &next, &init, &work);
                 scope.spawn(move || {
-                    let caller = gather.caller(slot);
+                    let caller = gather.caller(t / groups);
                     let mut state = init();
                     let mut done = Vec::new();
                     loop {
