@@ -1,272 +1,311 @@
-//! Gathered sensing ([`Calling::Gathered`]): many kernel sets traced at once, their
-//! readings answered together.
+//! Gathered sensing ([`Calling::Gathered`](crate::agent::Calling::Gathered)): many
+//! kernel sets traced in lockstep, their readings answered together.
 //!
-//! Each of `C` caller threads traces sets one after another. When a set needs readings
-//! (the `2N + 1` rows of a finite-difference Jacobian, one row for a residual), its
-//! thread posts the rows and waits. A *round* ends when every caller still tracing has
-//! posted: the last one to post (or the last one to leave, when a caller runs out of
-//! sets while the others wait) calls the agent's [`Agent::sense_batch`] once with all
-//! the posted rows, in the callers' order of posting, and hands each caller its rows'
-//! readings. A round is answered as soon as its last request arrives, with one call
-//! in flight per rendezvous; the callers are dealt into two rendezvous, so that one's
-//! call overlaps the other's stepping. A waiting caller is parked on its own flag and
-//! woken alone when its readings are written.
+//! The `C` callers are dealt into [`GROUPS`] groups, one thread each. On its thread,
+//! each caller is a coroutine (a stack of its own, `corosensei`) that traces sets one
+//! after another. When a set needs readings (the `2N + 1` rows of a finite-difference
+//! Jacobian, one row for a residual) or poses, its coroutine posts the rows and
+//! suspends. A *round* ends when every coroutine of the group has posted (or run out
+//! of sets): the group's thread then calls the agent's
+//! [`Agent::sense_batch`](crate::agent::Agent::sense_batch) once with all the posted
+//! rows (and the observer's [`Observer::pose_batch`] once with the posted poses'
+//! rows), in the order of the callers, and resumes each caller with its rows'
+//! answers. Switching between coroutines is a function call, not a wake-up of a
+//! thread by the kernel; while one group's call runs (a Python call holds the
+//! interpreter lock, one core), the other group's sets step on the other core.
+//!
+//! Every call of the agent and the observer, and every progress report, is made on
+//! the group's own thread stack, never on a coroutine's: an interpreter that checks
+//! its stack depth sees an ordinary thread.
 //!
 //! The readings of a row do not depend on the rows beside it (the `sense_batch`
 //! contract), so every set is traced exactly as with direct calls, whatever `C` and
-//! whatever the order of posting: the tracer's output is identical (tested).
-//!
-//! A caller that panics leaves on unwinding, so the others are never stranded; a
-//! panic in the agent's call is caught, the round is answered with NaN (its sets then
-//! fail), and the panic goes on in the calling thread.
+//! however the rows are gathered: the tracer's output is identical (tested).
 
-use std::panic::{self, AssertUnwindSafe};
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Mutex, MutexGuard, OnceLock, PoisonError};
-use std::thread::{self, Thread};
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
+use corosensei::stack::DefaultStack;
+use corosensei::{CoroutineResult, ScopedCoroutine, ScopedCoroutineRef, Yielder};
 use ndarray::{ArrayView2, ArrayViewMut2};
 
-use crate::agent::{Agent, Environment};
+use super::KernelError;
+use crate::agent::{Agent, Environment, Observer};
 
-/// The rendezvous of `C` callers (see the module docs).
-///
-/// A caller waits parked on its own flag, not on a shared lock: the round's answerer
-/// writes each caller's readings into its slot and wakes that caller alone, so a round
-/// of `C` callers costs `C` wake-ups and no contention.
-pub(super) struct Gather<'a> {
-    agent: &'a dyn Agent,
-    environment: &'a Environment,
-    rounds: Mutex<Rounds>,
-    slots: Vec<Slot>,
-    /// How many calls of the agent were made.
-    calls: AtomicUsize,
+/// How many groups (threads) the callers are dealt into.
+pub(super) const GROUPS: usize = 2;
+
+/// The stack of a group's thread, bytes, before the nested scopes of its coroutines.
+const GROUP_STACK_BYTES: usize = 2 << 20;
+
+/// The thread stack taken by the scope of one coroutine, bytes (a generous bound).
+const SCOPE_STACK_BYTES: usize = 4 << 10;
+
+/// The stack of each caller's coroutine, bytes (reserved, touched only as used; the
+/// tracer's deepest call chain needs a few tens of kilobytes).
+const COROUTINE_STACK_BYTES: usize = 1 << 20;
+
+/// What a caller's coroutine posts to its group's thread.
+enum Request {
+    /// Sensor readings of these motor rows (row-major, `N` per row).
+    Sense(Vec<f64>),
+    /// Poses of these motor rows.
+    Pose(Vec<f64>),
+    /// One item is done (for the progress report); nothing to answer.
+    Finished,
 }
 
-/// Who is in the current round.
-struct Rounds {
-    /// Callers that have not left.
-    live: usize,
-    /// The callers with a posted request, in the order they posted.
-    posted: Vec<usize>,
+/// The answer to a request: the readings or poses, row-major.
+type Answer = Vec<f64>;
+
+/// A caller's coroutine.
+type Coroutine<'c> = ScopedCoroutine<'c, Answer, Request, (), DefaultStack>;
+/// A caller's coroutine within its scope.
+type Running<'s> = ScopedCoroutineRef<'s, Answer, Request, (), DefaultStack>;
+
+/// One caller: the handle through which its coroutine asks its group for readings.
+pub(super) struct Caller<'y> {
+    yielder: &'y Yielder<Answer, Request>,
 }
 
-/// One caller's place: its request, whether it is answered, and its thread.
-struct Slot {
-    request: Mutex<Request>,
-    answered: AtomicBool,
-    thread: OnceLock<Thread>,
-}
-
-/// One caller's rows and, once its round is answered, their readings.
-#[derive(Default)]
-struct Request {
-    motors: Vec<f64>,
-    rows: usize,
-    readings: Vec<f64>,
-}
-
-/// Locks `mutex`, whatever a panicking holder left (every holder leaves it consistent).
-fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
-    mutex.lock().unwrap_or_else(PoisonError::into_inner)
-}
-
-impl<'a> Gather<'a> {
-    /// A rendezvous for `callers` callers of `agent` in `environment`: every caller
-    /// counts as live from the start, and leaves when its [`Caller`] is dropped.
-    pub(super) fn new(agent: &'a dyn Agent, environment: &'a Environment, callers: usize) -> Self {
-        Self {
-            agent,
-            environment,
-            rounds: Mutex::new(Rounds {
-                live: callers,
-                posted: Vec::with_capacity(callers),
-            }),
-            slots: (0..callers)
-                .map(|_| Slot {
-                    request: Mutex::new(Request::default()),
-                    answered: AtomicBool::new(false),
-                    thread: OnceLock::new(),
-                })
-                .collect(),
-            calls: AtomicUsize::new(0),
-        }
+impl Caller<'_> {
+    /// Writes the readings of the motor rows `(B, N)` into `sensors` `(B, K)`, in this
+    /// caller's next round.
+    pub(super) fn sense_batch(&self, motors: ArrayView2<'_, f64>, sensors: ArrayViewMut2<'_, f64>) {
+        let answer = self
+            .yielder
+            .suspend(Request::Sense(motors.iter().copied().collect()));
+        assign(sensors, &answer);
     }
 
-    /// The handle of caller `slot` (below the `callers` given to [`Gather::new`]), to
-    /// be used on the calling thread only.
-    pub(super) fn caller(&self, slot: usize) -> Caller<'_, 'a> {
-        // A slot serves one thread: a second handle keeps the first thread.
-        let _ = self.slots[slot].thread.set(thread::current());
-        Caller { gather: self, slot }
-    }
-
-    /// How many times the agent was called.
-    #[cfg(test)]
-    pub(super) fn calls(&self) -> usize {
-        self.calls.load(Ordering::Relaxed)
-    }
-
-    /// Posts caller `slot`'s rows, waits for its round, and writes the readings.
-    fn sense_batch(
-        &self,
-        slot: usize,
-        motors: ArrayView2<'_, f64>,
-        mut sensors: ArrayViewMut2<'_, f64>,
-    ) {
-        let place = &self.slots[slot];
-        {
-            let mut request = lock(&place.request);
-            request.motors.clear();
-            request.motors.extend(motors.iter());
-            request.rows = motors.nrows();
-        }
-        place.answered.store(false, Ordering::Release);
-        let round = {
-            let mut rounds = lock(&self.rounds);
-            rounds.posted.push(slot);
-            (rounds.posted.len() == rounds.live).then(|| std::mem::take(&mut rounds.posted))
-        };
-        if let Some(posted) = round {
-            self.answer(&posted);
-        }
-        while !place.answered.load(Ordering::Acquire) {
-            thread::park();
-        }
-        let request = lock(&place.request);
-        for (out, &v) in sensors.iter_mut().zip(&request.readings) {
-            *out = v;
-        }
-    }
-
-    /// Caller `slot` leaves; if the others all wait, their round is answered now.
-    fn leave(&self) {
-        let round = {
-            let mut rounds = lock(&self.rounds);
-            rounds.live -= 1;
-            (!rounds.posted.is_empty() && rounds.posted.len() == rounds.live)
-                .then(|| std::mem::take(&mut rounds.posted))
-        };
-        if let Some(posted) = round {
-            self.answer(&posted);
-        }
-    }
-
-    /// Answers the `posted` requests with one call of the agent and wakes their
-    /// callers; a panic of the agent answers NaN, then goes on.
-    fn answer(&self, posted: &[usize]) {
-        let (n, k) = (self.agent.motor_dim(), self.agent.sensor_dim());
-        let mut motors = Vec::new();
-        for &slot in posted {
-            motors.extend_from_slice(&lock(&self.slots[slot].request).motors);
-        }
-        let rows = motors.len() / n;
-        let mut readings = vec![0.0; rows * k];
-        let call = panic::catch_unwind(AssertUnwindSafe(|| {
-            let motors = ArrayView2::from_shape((rows, n), &motors).expect("rows × N motors");
-            let sensors =
-                ArrayViewMut2::from_shape((rows, k), &mut readings).expect("rows × K readings");
-            self.agent.sense_batch(self.environment, motors, sensors);
-        }));
-        self.calls.fetch_add(1, Ordering::Relaxed);
-        if call.is_err() {
-            readings.fill(f64::NAN);
-        }
-        let mut offset = 0;
-        for &slot in posted {
-            let place = &self.slots[slot];
-            {
-                let mut request = lock(&place.request);
-                let length = request.rows * k;
-                request.readings.clear();
-                request
-                    .readings
-                    .extend_from_slice(&readings[offset..offset + length]);
-                offset += length;
-            }
-            place.answered.store(true, Ordering::Release);
-            if let Some(thread) = place.thread.get() {
-                thread.unpark();
-            }
-        }
-        if let Err(payload) = call {
-            panic::resume_unwind(payload);
-        }
+    /// Writes the observer's poses of the motor rows `(B, N)` into `poses` `(B, d)`, in
+    /// this caller's next round.
+    pub(super) fn pose_batch(&self, motors: ArrayView2<'_, f64>, poses: ArrayViewMut2<'_, f64>) {
+        let answer = self
+            .yielder
+            .suspend(Request::Pose(motors.iter().copied().collect()));
+        assign(poses, &answer);
     }
 }
 
-/// How many independent rendezvous the callers are dealt into: while one group's
-/// round is in the agent's call (a Python call holds the interpreter lock, one core),
-/// the other group's sets step on the other cores.
-const GROUPS: usize = 2;
+fn assign(mut out: ArrayViewMut2<'_, f64>, answer: &[f64]) {
+    for (o, &v) in out.iter_mut().zip(answer) {
+        *o = v;
+    }
+}
 
-/// `work(caller, state, i)` for every `i` below `count`, on `callers` threads (at most
-/// `count`, at least 1) dealt into [`GROUPS`] rendezvous ([`Gather`]s) of `agent` in
-/// `environment`, each thread with its own `state` from `init`; the results in the
-/// order of `i`. Each thread takes the next `i` when it is done with one, so the
-/// threads stay busy until the last items.
+/// `work(caller, state, i)` for every `i` below `count`, on `callers` coroutines (at
+/// most `count`, at least 1) dealt into [`GROUPS`] threads that gather their requests
+/// to `agent` in `environment` (and to `observer`), each coroutine with its own
+/// `state` from `init`; `done` is called after each item, on a group's thread. The
+/// results come in the order of `i`. Each coroutine takes the next `i` when it is done
+/// with one, so the callers stay busy until the last items.
+#[allow(clippy::too_many_arguments)] // the two calls' inputs, then the work's parts
 pub(super) fn map_gathered<S, T: Send>(
     agent: &dyn Agent,
     environment: &Environment,
+    observer: Option<&dyn Observer>,
     callers: usize,
     count: usize,
     init: impl Fn() -> S + Sync,
-    work: impl Fn(&Caller<'_, '_>, &mut S, usize) -> T + Sync,
-) -> Vec<T> {
-    let threads = callers.clamp(1, count.max(1));
-    let groups = threads.min(GROUPS);
-    let gathers: Vec<Gather<'_>> = (0..groups)
-        .map(|g| Gather::new(agent, environment, (threads - g).div_ceil(groups)))
-        .collect();
+    work: impl Fn(&Caller<'_>, &mut S, usize) -> T + Sync,
+    done: &(dyn Fn() + Sync),
+) -> Result<Vec<T>, KernelError> {
+    let callers = callers.clamp(1, count.max(1));
+    let groups = callers.min(GROUPS);
     let next = AtomicUsize::new(0);
-    let mut done: Vec<(usize, T)> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..threads)
-            .map(|t| {
-                let (gather, next, init, work) = (&gathers[t % groups], &next, &init, &work);
-                scope.spawn(move || {
-                    let caller = gather.caller(t / groups);
-                    let mut state = init();
-                    let mut done = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        if i >= count {
-                            return done;
-                        }
-                        done.push((i, work(&caller, &mut state, i)));
-                    }
-                })
+    let group = Group {
+        agent,
+        environment,
+        observer,
+        next: &next,
+        count,
+    };
+    let parts: Vec<Result<Vec<(usize, T)>, KernelError>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..groups)
+            .map(|g| {
+                let (group, init, work) = (&group, &init, &work);
+                let slots = (callers - g).div_ceil(groups);
+                // The coroutines' scopes nest, a few frames each.
+                std::thread::Builder::new()
+                    .stack_size(GROUP_STACK_BYTES + slots * SCOPE_STACK_BYTES)
+                    .spawn_scoped(scope, move || group.run(slots, init, work, done))
+                    .map_err(|source| KernelError::CoroutineStack {
+                        bytes: GROUP_STACK_BYTES + slots * SCOPE_STACK_BYTES,
+                        source,
+                    })
             })
             .collect();
         handles
             .into_iter()
-            .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|payload| panic::resume_unwind(payload))
+            .map(|h| {
+                h?.join()
+                    .unwrap_or_else(|payload| std::panic::resume_unwind(payload))
             })
             .collect()
     });
-    done.sort_by_key(|(i, _)| *i);
-    done.into_iter().map(|(_, t)| t).collect()
+    let mut results = Vec::with_capacity(count);
+    for part in parts {
+        results.extend(part?);
+    }
+    results.sort_by_key(|(i, _)| *i);
+    Ok(results.into_iter().map(|(_, t)| t).collect())
 }
 
-/// One caller of a [`Gather`]: its sensing goes through the rendezvous, and dropping
-/// it (also on unwinding) leaves.
-pub(super) struct Caller<'g, 'a> {
-    gather: &'g Gather<'a>,
-    slot: usize,
+/// What the groups share.
+struct Group<'a> {
+    agent: &'a dyn Agent,
+    environment: &'a Environment,
+    observer: Option<&'a dyn Observer>,
+    next: &'a AtomicUsize,
+    count: usize,
 }
 
-impl Caller<'_, '_> {
-    /// Writes the readings of the motor rows `(B, N)` into `sensors` `(B, K)`, in this
-    /// caller's next round.
-    pub(super) fn sense_batch(&self, motors: ArrayView2<'_, f64>, sensors: ArrayViewMut2<'_, f64>) {
-        self.gather.sense_batch(self.slot, motors, sensors);
+impl Group<'_> {
+    /// Runs `slots` coroutines on this thread until the items are done.
+    fn run<S, T>(
+        &self,
+        slots: usize,
+        init: &(impl Fn() -> S + Sync),
+        work: &(impl Fn(&Caller<'_>, &mut S, usize) -> T + Sync),
+        done: &(dyn Fn() + Sync),
+    ) -> Result<Vec<(usize, T)>, KernelError> {
+        let results = RefCell::new(Vec::new());
+        let mut coroutines: Vec<Coroutine<'_>> = Vec::with_capacity(slots);
+        for _ in 0..slots {
+            let stack = DefaultStack::new(COROUTINE_STACK_BYTES).map_err(|source| {
+                KernelError::CoroutineStack {
+                    bytes: COROUTINE_STACK_BYTES,
+                    source,
+                }
+            })?;
+            let (results, next, count) = (&results, self.next, self.count);
+            coroutines.push(ScopedCoroutine::with_stack(
+                stack,
+                move |yielder: &Yielder<Answer, Request>, _: Answer| {
+                    let caller = Caller { yielder };
+                    let mut state = init();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        if i >= count {
+                            return;
+                        }
+                        let t = work(&caller, &mut state, i);
+                        results.borrow_mut().push((i, t));
+                        yielder.suspend(Request::Finished);
+                    }
+                },
+            ));
+        }
+        in_scope(coroutines, Vec::new(), &mut |running| {
+            self.rounds(running, done)
+        });
+        Ok(results.into_inner())
+    }
+
+    /// Resumes every caller with its answer until it posts again, and answers each
+    /// round with one call, until every caller has returned.
+    fn rounds(&self, running: &mut [Running<'_>], done: &(dyn Fn() + Sync)) {
+        let mut answers: Vec<Option<Answer>> = running.iter().map(|_| Some(Vec::new())).collect();
+        loop {
+            let mut sense = Posted::default();
+            let mut pose = Posted::default();
+            for (slot, coroutine) in running.iter_mut().enumerate() {
+                let Some(mut answer) = answers[slot].take() else {
+                    continue;
+                };
+                loop {
+                    match coroutine.as_mut().resume(answer) {
+                        CoroutineResult::Yield(Request::Finished) => {
+                            done();
+                            answer = Vec::new();
+                        }
+                        CoroutineResult::Yield(Request::Sense(rows)) => {
+                            sense.post(slot, rows);
+                            break;
+                        }
+                        CoroutineResult::Yield(Request::Pose(rows)) => {
+                            pose.post(slot, rows);
+                            break;
+                        }
+                        CoroutineResult::Return(()) => break,
+                    }
+                }
+            }
+            if sense.slots.is_empty() && pose.slots.is_empty() {
+                return;
+            }
+            let n = self.agent.motor_dim();
+            sense.answer(n, self.agent.sensor_dim(), &mut answers, |m, s| {
+                self.agent.sense_batch(self.environment, m, s)
+            });
+            let d = self.observer.map_or(0, |o| o.pose_space().dim());
+            pose.answer(n, d, &mut answers, |m, mut p| match self.observer {
+                Some(observer) => observer.pose_batch(m, p),
+                None => p.fill(f64::NAN),
+            });
+        }
     }
 }
 
-impl Drop for Caller<'_, '_> {
-    fn drop(&mut self) {
-        self.gather.leave();
+/// The requests of one kind in a round: the callers, in order, and their rows.
+#[derive(Default)]
+struct Posted {
+    slots: Vec<(usize, usize)>,
+    rows: Vec<f64>,
+}
+
+impl Posted {
+    fn post(&mut self, slot: usize, rows: Vec<f64>) {
+        self.slots.push((slot, rows.len()));
+        self.rows.extend_from_slice(&rows);
+    }
+
+    /// One call `f(motors (R, n), out (R, width))` for all the posted rows, each
+    /// caller's part of `out` into its answer.
+    fn answer(
+        self,
+        n: usize,
+        width: usize,
+        answers: &mut [Option<Answer>],
+        f: impl FnOnce(ArrayView2<'_, f64>, ArrayViewMut2<'_, f64>),
+    ) {
+        if self.slots.is_empty() {
+            return;
+        }
+        let rows = self.rows.len() / n;
+        let mut out = vec![0.0; rows * width];
+        f(
+            ArrayView2::from_shape((rows, n), &self.rows).expect("rows × N motors"),
+            ArrayViewMut2::from_shape((rows, width), &mut out).expect("rows × width answers"),
+        );
+        let mut offset = 0;
+        for (slot, values) in self.slots {
+            let length = values / n * width;
+            answers[slot] = Some(out[offset..offset + length].to_vec());
+            offset += length;
+        }
+    }
+}
+
+/// Enters the scope of every coroutine (one inside the other), then runs `f` on them
+/// all: a scoped coroutine runs only within its scope.
+fn in_scope<'c>(
+    mut pending: Vec<Coroutine<'c>>,
+    running: Vec<Running<'_>>,
+    f: &mut dyn FnMut(&mut [Running<'_>]),
+) {
+    match pending.pop() {
+        None => {
+            let mut running = running;
+            running.reverse();
+            f(&mut running);
+        }
+        Some(coroutine) => coroutine.scope(move |entered| {
+            let mut running: Vec<Running<'_>> = running;
+            running.push(entered);
+            in_scope(pending, running, f);
+        }),
     }
 }
 
@@ -314,42 +353,51 @@ mod tests {
     }
 
     #[test]
-    fn every_caller_gets_its_own_rows_and_rounds_are_gathered() {
+    fn every_item_gets_its_own_rows_and_rounds_are_gathered() {
         let agent = Counting::default();
         let environment = Environment::from_lights(Vec::new());
-        let callers = 6;
-        let gather = Gather::new(&agent, &environment, callers);
-        // Caller c makes c + 1 requests of c + 1 rows each: callers leave at different
-        // rounds, so the last rounds are answered by leaving callers too.
-        std::thread::scope(|scope| {
-            for c in 0..callers {
-                let gather = &gather;
-                scope.spawn(move || {
-                    let caller = gather.caller(c);
-                    for round in 0..=c {
-                        let rows = c + 1;
-                        let motors = ndarray::Array2::from_shape_fn((rows, 2), |(i, j)| {
-                            (c * 100 + round * 10 + i) as f64 + j as f64 * 0.5
-                        });
-                        let mut sensors = ndarray::Array2::zeros((rows, 2));
-                        caller.sense_batch(motors.view(), sensors.view_mut());
-                        for (m, s) in motors.outer_iter().zip(sensors.outer_iter()) {
-                            assert_eq!(s[0], m[0] + 2.0 * m[1]);
-                            assert_eq!(s[1], m[0] * m[1]);
-                        }
-                    }
+        let finished = AtomicUsize::new(0);
+        // Item i makes i % 4 + 1 requests of i % 3 + 1 rows each.
+        let requests = |i: usize| i % 4 + 1;
+        let work = |caller: &Caller<'_>, calls: &mut usize, i: usize| {
+            let rows = i % 3 + 1;
+            for round in 0..requests(i) {
+                let motors = ndarray::Array2::from_shape_fn((rows, 2), |(r, j)| {
+                    (i * 100 + round * 10 + r) as f64 + j as f64 * 0.5
                 });
+                let mut sensors = ndarray::Array2::zeros((rows, 2));
+                caller.sense_batch(motors.view(), sensors.view_mut());
+                for (m, s) in motors.outer_iter().zip(sensors.outer_iter()) {
+                    assert_eq!(s[0], m[0] + 2.0 * m[1]);
+                    assert_eq!(s[1], m[0] * m[1]);
+                }
+                *calls += 1;
             }
-        });
-        // Round r holds every caller with more than r requests: 6 rounds, the first
-        // of all 21 rows.
-        assert_eq!(agent.calls.load(Ordering::Relaxed), callers);
-        assert_eq!(gather.calls(), callers);
-        assert_eq!(agent.largest.load(Ordering::Relaxed), 21);
+            (i, *calls)
+        };
+        let done = || {
+            finished.fetch_add(1, Ordering::Relaxed);
+        };
+        let results = map_gathered(&agent, &environment, None, 6, 30, || 0, work, &done).unwrap();
+        assert_eq!(results.len(), 30);
+        assert!(results.iter().enumerate().all(|(i, &(j, _))| i == j));
+        assert_eq!(finished.load(Ordering::Relaxed), 30);
+        let asked: usize = (0..30).map(requests).sum();
+        let calls = agent.calls.load(Ordering::Relaxed);
+        // Two groups of 3 callers: each round of a group answers up to 3 requests.
+        assert!(
+            3 * calls >= asked && 2 * calls < asked,
+            "{calls} calls for {asked}"
+        );
+        // One caller per item: every request alone.
+        let alone = Counting::default();
+        map_gathered(&alone, &environment, None, 1, 30, || 0, work, &done).unwrap();
+        assert_eq!(alone.calls.load(Ordering::Relaxed), asked);
+        assert_eq!(alone.largest.load(Ordering::Relaxed), 3);
     }
 
     #[test]
-    fn a_panicking_agent_strands_no_caller() {
+    fn a_panicking_agent_panics_the_caller() {
         #[derive(Debug)]
         struct Failing;
         impl Agent for Failing {
@@ -367,21 +415,13 @@ mod tests {
             }
         }
         let environment = Environment::from_lights(Vec::new());
-        let gather = Gather::new(&Failing, &environment, 3);
-        let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
-            std::thread::scope(|scope| {
-                for c in 0..3 {
-                    let gather = &gather;
-                    scope.spawn(move || {
-                        let caller = gather.caller(c);
-                        let mut s = ndarray::Array2::zeros((1, 1));
-                        caller.sense_batch(ndarray::array![[1.0]].view(), s.view_mut());
-                        assert!(s[[0, 0]].is_nan(), "a failed round reads NaN");
-                    });
-                }
-            });
-        }));
+        let work = |caller: &Caller<'_>, _: &mut (), _: usize| {
+            let mut s = ndarray::Array2::zeros((1, 1));
+            caller.sense_batch(ndarray::array![[1.0]].view(), s.view_mut());
+        };
+        let outcome = std::panic::catch_unwind(|| {
+            map_gathered(&Failing, &environment, None, 4, 8, || (), work, &|| {})
+        });
         assert!(outcome.is_err(), "the agent's panic goes on");
-        assert_eq!(gather.calls(), 1);
     }
 }

@@ -494,7 +494,7 @@ impl LevelSet for Kinematic<'_> {
 pub(crate) struct Sensory<'a> {
     agent: &'a dyn Agent,
     environment: &'a Environment,
-    caller: Option<&'a Caller<'a, 'a>>,
+    caller: Option<&'a Caller<'a>>,
     n: usize,
     k: usize,
     target: Vec<f64>,
@@ -524,7 +524,7 @@ impl<'a> Sensory<'a> {
     pub(crate) fn new(
         agent: &'a dyn Agent,
         environment: &'a Environment,
-        caller: Option<&'a Caller<'a, 'a>>,
+        caller: Option<&'a Caller<'a>>,
         start: &[f64],
         params: &TraceValidParams,
         dimension: usize,
@@ -631,7 +631,7 @@ impl<'a> Sensory<'a> {
 fn read_one(
     agent: &dyn Agent,
     environment: &Environment,
-    caller: Option<&Caller<'_, '_>>,
+    caller: Option<&Caller<'_>>,
     motors: &[f64],
     sensors: &mut [f64],
 ) {

@@ -83,6 +83,14 @@ pub enum KernelError {
     /// The sensory method needs an environment.
     #[error("the sensory method needs an environment (give --env FILE or --env-seed S)")]
     MissingEnvironment,
+    /// The stack of a coroutine for gathered tracing could not be reserved.
+    #[error("could not reserve the {bytes}-byte stack of a set traced in lockstep ({source}); trace fewer sets at once (a Python agent's concurrent_sets)")]
+    CoroutineStack {
+        /// The stack's size.
+        bytes: usize,
+        /// Why.
+        source: std::io::Error,
+    },
     /// Too few sets were traced for the later stages (a distance matrix needs two).
     #[error("only {traced} of {total} sets could be traced (statuses: {by_status}); check the working space, the environment (sensory method) and the tolerances")]
     NothingTraced {
@@ -960,11 +968,12 @@ pub fn trace_sets(
     let tracer = Tracer::new(agent, environment, motors, workspace, params)?;
     progress.start("trace", motors.nrows() as u64);
     let rows: Vec<Vec<f64>> = motors.outer_iter().map(|r| r.to_vec()).collect();
-    let results: Vec<tracer::SetResult> = tracer.map_starts(&rows, |caller, scratch, start| {
-        let result = tracer.trace(start, caller, scratch);
-        progress.advance(1);
-        result
-    });
+    let done = || progress.advance(1);
+    let results: Vec<tracer::SetResult> = tracer.map_starts(
+        &rows,
+        |caller, scratch, start| tracer.trace(start, caller, scratch),
+        &done,
+    )?;
     let results = results.into_iter().enumerate().map(|(index, mut result)| {
         result.report.index = index;
         result

@@ -13,7 +13,7 @@
 //! larger dimension surfaces the covering samples (`cover.rs`).
 
 use nalgebra::{DMatrix, SVD};
-use ndarray::{Array2, ArrayView2};
+use ndarray::{Array2, ArrayView2, ArrayViewMut2};
 use rayon::prelude::*;
 
 use super::cover::{
@@ -102,36 +102,46 @@ impl<'a> Tracer<'a> {
     /// is not finite).
     fn generic_sensory_rank(&self, starts: ArrayView2<'_, f64>) -> usize {
         let rows: Vec<Vec<f64>> = starts.outer_iter().map(|r| r.to_vec()).collect();
-        let rank = |caller: Option<&Caller<'_, '_>>, _: &mut Scratch, start: &[f64]| {
+        let rank = |caller: Option<&Caller<'_>>, _: &mut Scratch, start: &[f64]| {
             tangent_space_via(self.agent, self.environment, caller, start, self.params)
                 .map_or(0, |t| t.rank)
         };
-        self.map_starts(&rows, rank).into_iter().max().unwrap_or(0)
+        // A start whose coroutine could not be given a stack counts as rank 0.
+        self.map_starts(&rows, rank, &|| {})
+            .map_or(0, |ranks| ranks.into_iter().max().unwrap_or(0))
     }
 
-    /// `work` on every row, in the rows' order, with a scratch space per thread: on the
-    /// rayon pool, or on the callers of a gathered round ([`gather`]) when the agent
-    /// asks for it ([`Calling::Gathered`]) and the method senses.
+    /// `work` on every row, in the rows' order, with a scratch space per caller, and
+    /// `done` after each: on the rayon pool, or on the callers of gathered rounds
+    /// ([`gather`]) when the agent asks for it ([`Calling::Gathered`]) and the method
+    /// senses.
     pub(super) fn map_starts<T: Send>(
         &self,
         rows: &[Vec<f64>],
-        work: impl Fn(Option<&Caller<'_, '_>>, &mut Scratch, &[f64]) -> T + Sync,
-    ) -> Vec<T> {
+        work: impl Fn(Option<&Caller<'_>>, &mut Scratch, &[f64]) -> T + Sync,
+        done: &(dyn Fn() + Sync),
+    ) -> Result<Vec<T>, KernelError> {
         match (self.agent.calling(), self.params.method, self.environment) {
             (Calling::Gathered { callers }, TraceMethod::Sensory, Some(environment)) => {
                 gather::map_gathered(
                     self.agent,
                     environment,
+                    self.observer,
                     callers,
                     rows.len(),
                     Scratch::default,
                     |caller, scratch, i| work(Some(caller), scratch, &rows[i]),
+                    done,
                 )
             }
-            _ => rows
+            _ => Ok(rows
                 .par_iter()
-                .map_init(Scratch::default, |scratch, row| work(None, scratch, row))
-                .collect(),
+                .map_init(Scratch::default, |scratch, row| {
+                    let result = work(None, scratch, row);
+                    done();
+                    result
+                })
+                .collect()),
         }
     }
 
@@ -141,7 +151,7 @@ impl<'a> Tracer<'a> {
     pub(super) fn trace(
         &self,
         start: &[f64],
-        caller: Option<&Caller<'_, '_>>,
+        caller: Option<&Caller<'_>>,
         scratch: &mut Scratch,
     ) -> SetResult {
         let mut report = SetReport {
@@ -158,7 +168,16 @@ impl<'a> Tracer<'a> {
         };
         let start_pose = self.observer.map(|o| {
             let mut pose = vec![0.0; o.pose_space().dim()];
-            o.pose(start, &mut pose);
+            match caller {
+                Some(caller) => {
+                    let motors =
+                        ArrayView2::from_shape((1, start.len()), start).expect("one start");
+                    let d = pose.len();
+                    let rows = ArrayViewMut2::from_shape((1, d), &mut pose).expect("one pose");
+                    caller.pose_batch(motors, rows);
+                }
+                None => o.pose(start, &mut pose),
+            }
             pose
         });
         if let (Some(w), Some(pose)) = (self.workspace, &start_pose) {
@@ -209,7 +228,7 @@ impl<'a> Tracer<'a> {
         match self.sample(set, found, &mut report, scratch) {
             Ok((mut points, pieces)) => {
                 if let Some(pose) = &start_pose {
-                    report.max_pose_deviation = Some(self.pose_deviation(&points, pose));
+                    report.max_pose_deviation = Some(self.pose_deviation(&points, pose, caller));
                 }
                 self.space.wrap_points(&mut points);
                 SetResult {
@@ -448,7 +467,12 @@ impl<'a> Tracer<'a> {
 
     /// The largest deviation of a point's pose from `start_pose`, over the tangent
     /// coordinates the motors change (the observer's check of a traced set).
-    fn pose_deviation(&self, points: &[f64], start_pose: &[f64]) -> f64 {
+    fn pose_deviation(
+        &self,
+        points: &[f64],
+        start_pose: &[f64],
+        caller: Option<&Caller<'_>>,
+    ) -> f64 {
         let (Some(observer), Some(poses)) = (self.observer, &self.poses) else {
             return 0.0;
         };
@@ -456,7 +480,10 @@ impl<'a> Tracer<'a> {
         let n = self.agent.motor_dim();
         let motors = ArrayView2::from_shape((points.len() / n, n), points).expect("P × N points");
         let mut all = Array2::zeros((motors.nrows(), poses.dim()));
-        observer.pose_batch(motors, all.view_mut());
+        match caller {
+            Some(caller) => caller.pose_batch(motors, all.view_mut()),
+            None => observer.pose_batch(motors, all.view_mut()),
+        }
         let mut difference = vec![0.0; poses.tangent_dim()];
         let mut deviation: f64 = 0.0;
         for pose in all.outer_iter() {
@@ -782,7 +809,7 @@ pub fn tangent_space(
 fn tangent_space_via<'a>(
     agent: &'a dyn Agent,
     environment: Option<&'a Environment>,
-    caller: Option<&'a Caller<'a, 'a>>,
+    caller: Option<&'a Caller<'a>>,
     motors: &[f64],
     params: &TraceValidParams,
 ) -> Result<TangentSpace, KernelError> {
