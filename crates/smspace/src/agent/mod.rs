@@ -320,11 +320,13 @@ pub trait Agent: Send + Sync + fmt::Debug {
 /// Jacobian, or one row for a residual. For an agent whose every call costs a fixed
 /// overhead `c` (a Python function: the interpreter lock, the array conversions) on top
 /// of a cost per row, `S` steps of `M` sets cost about `S · M · c` in overheads. With
-/// [`Gathered`](Calling::Gathered), `callers` sets are traced at once, each on its own
-/// thread, and every round of requests (one from each set still being traced) is
-/// answered by one `sense_batch` call of all their rows: the overhead falls to about
-/// `S · M · c / callers`. The kernel sets do not change, provided the agent answers
-/// each row independently of the others in its batch (as the [`Agent::sense_batch`]
+/// [`Gathered`](Calling::Gathered), `callers` sets are traced at once in lockstep (as
+/// coroutines on two threads), and every round of requests (one from each set still
+/// being traced) is answered by one `sense_batch` call of all their rows: the overhead
+/// falls to about `S · M · c / callers`. The agent (and its observer's
+/// [`Observer::pose_batch`]) is then called on those two threads only, never on a
+/// coroutine's stack. The kernel sets do not change, provided the agent answers each
+/// row independently of the others in its batch (as the [`Agent::sense_batch`]
 /// contract asks).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Calling {
