@@ -276,8 +276,11 @@ fn an_aperture_is_checked_and_chains_take_one() {
 }
 
 /// `experiments/pupil-space.toml`, reduced: 40 babbled sets of 15 points × 3 aperture
-/// values. The sets are spanned along the aperture (motor 4), `analysis.json` holds the
-/// compensability report, and the `curve` metric refuses the 2-D sets.
+/// values. The sets are spanned along the aperture (motor 4), each slice its own piece
+/// (15 points and the loop's closing copy), `analysis.json` holds the compensability
+/// report, and the `curve` metric reads the slices as polylines: its matrix is that
+/// between the traced loops at one common aperture (`kernel::spatial`'s module docs),
+/// the same in two runs.
 #[test]
 fn the_pipeline_spans_the_sets_along_the_aperture() {
     use smspace::pipeline::{self, Recompute, RunObserver, RunOptions};
@@ -316,8 +319,12 @@ fn the_pipeline_spans_the_sets_along_the_aperture() {
     let plan = pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"));
     pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"));
     let sets = smspace::kernel::TracedSets::load(&options.out_dir.join("sets.npy")).unwrap();
-    assert_eq!(sets.sets.dim().1, 45);
+    assert_eq!(sets.sets.dim().1, 48);
     assert_eq!(sets.report.extended_along, vec![4]);
+    for row in sets.pieces.outer_iter() {
+        let expected: Vec<i64> = (0..3).flat_map(|t| [t; 16]).collect();
+        assert_eq!(row.to_vec(), expected);
+    }
     assert!(sets.dimensions().iter().all(|&k| k == 2));
     let analysis: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(options.out_dir.join("analysis.json")).unwrap(),
@@ -325,17 +332,34 @@ fn the_pipeline_spans_the_sets_along_the_aperture() {
     .unwrap();
     assert_eq!(analysis["compensability"]["dimension"], 4);
     assert_eq!(analysis["compensability"]["spatial_dimension"], 3);
-    // The curve metric reads polylines, not 2-D sets: refused, naming hausdorff.
+    // The curve metric reads each slice as a polyline: the matrix is that of the
+    // first slices alone (the traced loops, all at the lowest aperture), and the same
+    // in a second run.
     let mut curve = overrides.clone();
     curve.push("metric.metric=curve".into());
     let loaded = smspace::config::load_experiment(std::path::Path::new(source), &curve).unwrap();
     let plan = pipeline::check(&loaded).unwrap();
-    let options = RunOptions {
-        out_dir: dir.path().join("curve"),
-        ..options
+    let run = |name: &str| {
+        let options = RunOptions {
+            out_dir: dir.path().join(name),
+            ..options.clone()
+        };
+        pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"));
+        smspace::metric::DistanceMatrix::load(&options.out_dir.join("D.npy")).unwrap()
     };
-    let err = pipeline::run(&plan, &options, &Quiet)
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("hausdorff"), "{err}");
+    let d = run("curve");
+    assert_eq!(run("again").view(), d.view());
+    let first = sets.sets.slice_axis(Axis(1), (0..16).into()).to_owned();
+    let closure = vec![smspace::kernel::Closure::Open; first.dim().0];
+    let tau = Some(std::f64::consts::TAU);
+    let periods = smspace::metric::Periods::new(vec![tau, tau, tau, tau, None]).unwrap();
+    let params = smspace::metric::DistanceParams::new()
+        .metric(smspace::metric::MetricKind::Curve)
+        .period(smspace::metric::Periodicity::PerCoordinate(periods));
+    let view = smspace::metric::SetsView::new(first.view()).with_closure(&closure);
+    let direct = smspace::metric::distance_matrix(view, &params, &Silent).unwrap();
+    for (a, b) in d.view().iter().zip(direct.view().iter()) {
+        assert!((a - b).abs() < 1e-9, "{a} {b}");
+    }
+    assert!(direct.view().iter().any(|&x| x > 0.01));
 }

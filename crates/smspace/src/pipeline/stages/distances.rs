@@ -128,8 +128,11 @@ impl Stage for DistancesStage {
     ) -> crate::Result<DistanceMatrix> {
         let traced = &input.traced.value;
         if self.metric.kind() == Some(crate::metric::MetricKind::Curve) {
-            let k = traced.dimensions().into_iter().max().unwrap_or(0);
+            // Spatial sets are read slice by slice (`kernel::spatial`): polylines when
+            // the traced kernels are curves.
+            let k = crate::kernel::spatial::curve_dimension(&traced.report);
             crate::kernel::check_curve_metric(k).map_err(crate::metric::MetricError::Invalid)?;
+            crate::kernel::spatial::check_slices(traced)?;
         }
         let sets = SetsView::new(traced.sets.view())
             .with_closure(&traced.closure)
