@@ -363,3 +363,141 @@ fn the_pipeline_spans_the_sets_along_the_aperture() {
     }
     assert!(direct.view().iter().any(|&x| x > 0.01));
 }
+
+/// The 7-joint arm in 3-D of `experiments/arm-3d.toml` (4 × 4 retina, 30 lights in a
+/// volume), with `retina` lines added to its `[retina]` table.
+fn arm_3d(retina: &str) -> (Box<dyn Agent>, Environment) {
+    let text = format!(
+        r#"
+kind = "chain"
+joints = [
+    {{ axis = [0, 0, 1], link = [0, 0, 0.5] }},
+    {{ axis = [0, 1, 0], link = [0, 0, 0] }},
+    {{ axis = [1, 0, 0], link = [1.0, 0, 0] }},
+    {{ axis = [0, 1, 0], link = [1.0, 0, 0] }},
+    {{ axis = [1, 0, 0], link = [0, 0, 0] }},
+    {{ axis = [0, 1, 0], link = [0.5, 0, 0] }},
+    {{ axis = [0, 0, 1], link = [0, 0, 0] }},
+]
+[retina]
+cells = [4, 4]
+{retina}
+"#
+    );
+    let agent = toml::from_str::<AgentConfig>(&text)
+        .unwrap()
+        .build()
+        .unwrap();
+    let environment = EnvironmentConfig {
+        lights: Some(30),
+        ..Default::default()
+    }
+    .build(agent.as_ref())
+    .unwrap();
+    (agent, environment)
+}
+
+/// The compensability of `agent` in `environment` at 40 babbled configurations.
+fn analyse_in(
+    agent: &dyn Agent,
+    environment: &Environment,
+    changes: &[SceneChange],
+) -> CompensabilityReport {
+    let explored = explore(
+        agent,
+        &ExploreParams {
+            n: 40,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let params = CompensabilityParams {
+        changes: changes.to_vec(),
+        ..Default::default()
+    }
+    .check()
+    .unwrap();
+    compensability(agent, environment, explored.motors.view(), &params).unwrap()
+}
+
+/// Rigid displacements in 3-D (6 parameters: rotations about x, y, z and translations).
+/// The sensation depends on the scene only through the lights' positions in the
+/// retina's frame, `R^T (l − p)`: displacing every light by `(R_e, t_e)` senses as
+/// displacing the retina by the inverse, so `T_E` is the space of sensory changes of
+/// small retina displacements. The 7 joints move the retina with a Jacobian of rank 6
+/// away from singular postures, so `T_M` is that same space: `T_M = T_E`, `d = 6`, the
+/// dimension of the retina's configuration space (Philipona et al. 2003, Table 1: 6
+/// for rigid motion in 3-D). The Lie algebra se(3) has no centre (no displacement
+/// commutes with every other), so none is removed: spatial dimension 6.
+#[test]
+fn a_three_dimensional_arm_compensates_the_six_rigid_displacements() {
+    let (agent, environment) = arm_3d("");
+    assert_eq!(agent.motor_dim(), 7);
+    let report = analyse_in(agent.as_ref(), &environment, &[SceneChange::Rigid]);
+    assert_eq!(report.environment_parameters, 6);
+    assert_dimension(&report, 6, 6);
+    assert!(report.non_spatial_motors.is_empty());
+    let point = report
+        .points
+        .iter()
+        .find(|b| b.ambiguous.is_empty())
+        .unwrap();
+    assert_eq!((point.motor_rank, point.environment_rank), (6, 6));
+    assert_eq!(point.joint_rank, 6);
+}
+
+/// The same arm with a pupil (an eighth motor, the aperture, scaling every cell) and a
+/// common change of luminance: the aperture's sensory change `∂s/∂a = s/a` is the
+/// luminance change's `∂s/∂λ = s`, so both add the same direction to `T_M` and `T_E`:
+/// `d = 7` (Philipona et al. 2003, Table 1: 7 when a controlled diaphragm can mimic a
+/// common change of all luminances). Luminance commutes with every displacement (the
+/// intensities ride with the lights) and se(3) has no centre, so exactly that
+/// direction is removed: spatial dimension 6, and the non-spatial motor is the
+/// aperture (motor 7).
+#[test]
+fn a_three_dimensional_pupil_arm_compensates_seven_and_keeps_six() {
+    let (agent, environment) = arm_3d("aperture = [0.5, 1.5]");
+    assert_eq!(agent.motor_dim(), 8);
+    let report = analyse_in(
+        agent.as_ref(),
+        &environment,
+        &[SceneChange::Rigid, SceneChange::Luminance],
+    );
+    assert_eq!(report.environment_parameters, 7);
+    assert_dimension(&report, 7, 6);
+    assert_eq!(report.non_spatial_motors, vec![7]);
+}
+
+/// Per-light intensities (one parameter per light) add no compensable direction. The
+/// compensable changes lie in `T_M`, so `d ≤ rank T_M`: the sensations depend on the
+/// motors only through the retina's pose (3 in the plane) and, with a pupil, the
+/// aperture (`s = a · f(pose)`), so `rank T_M` is 3 without a pupil and 4 with one.
+/// With rigid displacements alone `T_M`'s pose directions are already in `T_E`, and
+/// the aperture's direction `s` is the sum of the per-light directions
+/// (`Σ_l ∂s/∂λ_l = s` for intensities `exp(λ_l)`): every motor direction is
+/// compensable, `d = rank T_M` (3, 4), and more environment parameters cannot raise
+/// it. (The spatial dimension is not asserted here: with 13 environment parameters
+/// and 6 cells, the environment direction of a compensable change, `J_E⁺ u`, is one
+/// of many, so the commutation test reads a particular mixture.)
+#[test]
+fn per_light_intensities_add_no_compensable_direction() {
+    let changes = [SceneChange::Rigid, SceneChange::Intensities];
+    let paper = analyse(&paper_arm(), &base_points(0, [0.0, 1.0]), &changes);
+    assert_eq!(paper.environment_parameters, 3 + environment().lights.len());
+    assert_eq!(paper.dimension, Some(3), "{:?}", paper.histogram);
+    let agent = pupil_arm();
+    let pupil = analyse(agent.as_ref(), &base_points(1, [0.5, 1.5]), &changes);
+    assert_eq!(pupil.dimension, Some(4), "{:?}", pupil.histogram);
+    // Every clear base point: d = rank T_M, whatever the intensities.
+    for report in [&paper, &pupil] {
+        let clear: Vec<_> = report
+            .points
+            .iter()
+            .filter(|b| b.ambiguous.is_empty())
+            .collect();
+        assert!(clear.len() * 4 >= report.base_points * 3, "{}", clear.len());
+        for b in clear {
+            assert_eq!(b.dimension, b.motor_rank, "{b:?}");
+        }
+    }
+}
