@@ -314,8 +314,11 @@ fn the_pipeline_spans_the_sets_along_the_aperture() {
         memory_limit_bytes: None,
         busy: pipeline::BusyFolder::Wait,
     };
+    // First the point metric (the slices' points, the loops' closing copies included).
+    let mut hausdorff = overrides.clone();
+    hausdorff.push("metric.metric=hausdorff".into());
     let loaded =
-        smspace::config::load_experiment(std::path::Path::new(source), &overrides).unwrap();
+        smspace::config::load_experiment(std::path::Path::new(source), &hausdorff).unwrap();
     let plan = pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"));
     pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"));
     let sets = smspace::kernel::TracedSets::load(&options.out_dir.join("sets.npy")).unwrap();
