@@ -1,5 +1,5 @@
 //! `smspace compare`: two small runs (the pupil arm and its spatial sets) side by side,
-//! and bad run folders.
+//! and bad run folders; `smspace distances --metric curve` on the spatial sets of a run.
 
 mod common;
 
@@ -87,6 +87,25 @@ fn two_runs_share_one_page() {
     assert!(page.contains("spatial sets: spanned along motor(s) [4]"));
     // Both embeddings, embedded in the page.
     assert_eq!(page.matches("data:image/png;base64,").count(), 2);
+    // `smspace distances` reads the spatial sets' slices as the run did (their trace
+    // report says they were extended: the curve metric applies to the slices).
+    ok(
+        d,
+        &[
+            "distances",
+            "--sets",
+            "pupil-space/sets.npy",
+            "--metric",
+            "curve",
+            "--period",
+            "2pi,2pi,2pi,2pi,none",
+            "--out",
+            "D.npy",
+        ],
+    );
+    let cli: ndarray::Array2<f64> = ndarray_npy::read_npy(d.join("D.npy")).unwrap();
+    let run: ndarray::Array2<f64> = ndarray_npy::read_npy(d.join("pupil-space/D.npy")).unwrap();
+    assert_eq!(cli, run);
 }
 
 #[test]
