@@ -50,6 +50,9 @@ enum Command {
     /// Kernel sets from recorded data: learn the law s(m) from logs and trace the sets
     /// through starts: sets.npy (as `smspace trace`) and sets.law.json.
     Learn(cmd::learn::Args),
+    /// Runs side by side on one page: dimension, Betti numbers, agreement with the
+    /// poses, compensability d per base point and the embeddings (compare.html).
+    Compare(cmd::compare::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -66,6 +69,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Invariance(args) => cmd::invariance::run(args),
         Command::Simulate(args) => cmd::simulate::run(args),
         Command::Learn(args) => cmd::learn::run(args),
+        Command::Compare(args) => cmd::compare::run(args),
     }
 }
 

@@ -276,8 +276,11 @@ fn an_aperture_is_checked_and_chains_take_one() {
 }
 
 /// `experiments/pupil-space.toml`, reduced: 40 babbled sets of 15 points × 3 aperture
-/// values. The sets are spanned along the aperture (motor 4), `analysis.json` holds the
-/// compensability report, and the `curve` metric refuses the 2-D sets.
+/// values. The sets are spanned along the aperture (motor 4), each slice its own piece
+/// (15 points and the loop's closing copy), `analysis.json` holds the compensability
+/// report, and the `curve` metric reads the slices as polylines: its matrix is that
+/// between the traced loops at one common aperture (`kernel::spatial`'s module docs),
+/// the same in two runs.
 #[test]
 fn the_pipeline_spans_the_sets_along_the_aperture() {
     use smspace::pipeline::{self, Recompute, RunObserver, RunOptions};
@@ -311,13 +314,20 @@ fn the_pipeline_spans_the_sets_along_the_aperture() {
         memory_limit_bytes: None,
         busy: pipeline::BusyFolder::Wait,
     };
+    // First the point metric (the slices' points, the loops' closing copies included).
+    let mut hausdorff = overrides.clone();
+    hausdorff.push("metric.metric=hausdorff".into());
     let loaded =
-        smspace::config::load_experiment(std::path::Path::new(source), &overrides).unwrap();
+        smspace::config::load_experiment(std::path::Path::new(source), &hausdorff).unwrap();
     let plan = pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"));
     pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"));
     let sets = smspace::kernel::TracedSets::load(&options.out_dir.join("sets.npy")).unwrap();
-    assert_eq!(sets.sets.dim().1, 45);
+    assert_eq!(sets.sets.dim().1, 48);
     assert_eq!(sets.report.extended_along, vec![4]);
+    for row in sets.pieces.outer_iter() {
+        let expected: Vec<i64> = (0..3).flat_map(|t| [t; 16]).collect();
+        assert_eq!(row.to_vec(), expected);
+    }
     assert!(sets.dimensions().iter().all(|&k| k == 2));
     let analysis: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(options.out_dir.join("analysis.json")).unwrap(),
@@ -325,17 +335,172 @@ fn the_pipeline_spans_the_sets_along_the_aperture() {
     .unwrap();
     assert_eq!(analysis["compensability"]["dimension"], 4);
     assert_eq!(analysis["compensability"]["spatial_dimension"], 3);
-    // The curve metric reads polylines, not 2-D sets: refused, naming hausdorff.
+    // The curve metric reads each slice as a polyline: the matrix is that of the
+    // first slices alone (the traced loops, all at the lowest aperture), and the same
+    // in a second run.
     let mut curve = overrides.clone();
     curve.push("metric.metric=curve".into());
     let loaded = smspace::config::load_experiment(std::path::Path::new(source), &curve).unwrap();
     let plan = pipeline::check(&loaded).unwrap();
-    let options = RunOptions {
-        out_dir: dir.path().join("curve"),
-        ..options
+    let run = |name: &str| {
+        let options = RunOptions {
+            out_dir: dir.path().join(name),
+            ..options.clone()
+        };
+        pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"));
+        smspace::metric::DistanceMatrix::load(&options.out_dir.join("D.npy")).unwrap()
     };
-    let err = pipeline::run(&plan, &options, &Quiet)
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("hausdorff"), "{err}");
+    let d = run("curve");
+    assert_eq!(run("again").view(), d.view());
+    let first = sets.sets.slice_axis(Axis(1), (0..16).into()).to_owned();
+    let closure = vec![smspace::kernel::Closure::Open; first.dim().0];
+    let tau = Some(std::f64::consts::TAU);
+    let periods = smspace::metric::Periods::new(vec![tau, tau, tau, tau, None]).unwrap();
+    let params = smspace::metric::DistanceParams::new()
+        .metric(smspace::metric::MetricKind::Curve)
+        .period(smspace::metric::Periodicity::PerCoordinate(periods));
+    let view = smspace::metric::SetsView::new(first.view()).with_closure(&closure);
+    let direct = smspace::metric::distance_matrix(view, &params, &Silent).unwrap();
+    for (a, b) in d.view().iter().zip(direct.view().iter()) {
+        assert!((a - b).abs() < 1e-9, "{a} {b}");
+    }
+    assert!(direct.view().iter().any(|&x| x > 0.01));
+}
+
+/// The 7-joint arm in 3-D of `experiments/arm-3d.toml` (4 × 4 retina, 30 lights in a
+/// volume), with `retina` lines added to its `[retina]` table.
+fn arm_3d(retina: &str) -> (Box<dyn Agent>, Environment) {
+    let text = format!(
+        r#"
+kind = "chain"
+joints = [
+    {{ axis = [0, 0, 1], link = [0, 0, 0.5] }},
+    {{ axis = [0, 1, 0], link = [0, 0, 0] }},
+    {{ axis = [1, 0, 0], link = [1.0, 0, 0] }},
+    {{ axis = [0, 1, 0], link = [1.0, 0, 0] }},
+    {{ axis = [1, 0, 0], link = [0, 0, 0] }},
+    {{ axis = [0, 1, 0], link = [0.5, 0, 0] }},
+    {{ axis = [0, 0, 1], link = [0, 0, 0] }},
+]
+[retina]
+cells = [4, 4]
+{retina}
+"#
+    );
+    let agent = toml::from_str::<AgentConfig>(&text)
+        .unwrap()
+        .build()
+        .unwrap();
+    let environment = EnvironmentConfig {
+        lights: Some(30),
+        ..Default::default()
+    }
+    .build(agent.as_ref())
+    .unwrap();
+    (agent, environment)
+}
+
+/// The compensability of `agent` in `environment` at 40 babbled configurations.
+fn analyse_in(
+    agent: &dyn Agent,
+    environment: &Environment,
+    changes: &[SceneChange],
+) -> CompensabilityReport {
+    let explored = explore(
+        agent,
+        &ExploreParams {
+            n: 40,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let params = CompensabilityParams {
+        changes: changes.to_vec(),
+        ..Default::default()
+    }
+    .check()
+    .unwrap();
+    compensability(agent, environment, explored.motors.view(), &params).unwrap()
+}
+
+/// Rigid displacements in 3-D (6 parameters: rotations about x, y, z and translations).
+/// The sensation depends on the scene only through the lights' positions in the
+/// retina's frame, `R^T (l − p)`: displacing every light by `(R_e, t_e)` senses as
+/// displacing the retina by the inverse, so `T_E` is the space of sensory changes of
+/// small retina displacements. The 7 joints move the retina with a Jacobian of rank 6
+/// away from singular postures, so `T_M` is that same space: `T_M = T_E`, `d = 6`, the
+/// dimension of the retina's configuration space (Philipona et al. 2003, Table 1: 6
+/// for rigid motion in 3-D). The Lie algebra se(3) has no centre (no displacement
+/// commutes with every other), so none is removed: spatial dimension 6.
+#[test]
+fn a_three_dimensional_arm_compensates_the_six_rigid_displacements() {
+    let (agent, environment) = arm_3d("");
+    assert_eq!(agent.motor_dim(), 7);
+    let report = analyse_in(agent.as_ref(), &environment, &[SceneChange::Rigid]);
+    assert_eq!(report.environment_parameters, 6);
+    assert_dimension(&report, 6, 6);
+    assert!(report.non_spatial_motors.is_empty());
+    let point = report
+        .points
+        .iter()
+        .find(|b| b.ambiguous.is_empty())
+        .unwrap();
+    assert_eq!((point.motor_rank, point.environment_rank), (6, 6));
+    assert_eq!(point.joint_rank, 6);
+}
+
+/// The same arm with a pupil (an eighth motor, the aperture, scaling every cell) and a
+/// common change of luminance: the aperture's sensory change `∂s/∂a = s/a` is the
+/// luminance change's `∂s/∂λ = s`, so both add the same direction to `T_M` and `T_E`:
+/// `d = 7` (Philipona et al. 2003, Table 1: 7 when a controlled diaphragm can mimic a
+/// common change of all luminances). Luminance commutes with every displacement (the
+/// intensities ride with the lights) and se(3) has no centre, so exactly that
+/// direction is removed: spatial dimension 6, and the non-spatial motor is the
+/// aperture (motor 7).
+#[test]
+fn a_three_dimensional_pupil_arm_compensates_seven_and_keeps_six() {
+    let (agent, environment) = arm_3d("aperture = [0.5, 1.5]");
+    assert_eq!(agent.motor_dim(), 8);
+    let report = analyse_in(
+        agent.as_ref(),
+        &environment,
+        &[SceneChange::Rigid, SceneChange::Luminance],
+    );
+    assert_eq!(report.environment_parameters, 7);
+    assert_dimension(&report, 7, 6);
+    assert_eq!(report.non_spatial_motors, vec![7]);
+}
+
+/// Per-light intensities (one parameter per light) add no compensable direction. The
+/// compensable changes lie in `T_M`, so `d ≤ rank T_M`: the sensations depend on the
+/// motors only through the retina's pose (3 in the plane) and, with a pupil, the
+/// aperture (`s = a · f(pose)`), so `rank T_M` is 3 without a pupil and 4 with one.
+/// With rigid displacements alone `T_M`'s pose directions are already in `T_E`, and
+/// the aperture's direction `s` is the sum of the per-light directions
+/// (`Σ_l ∂s/∂λ_l = s` for intensities `exp(λ_l)`): every motor direction is
+/// compensable, `d = rank T_M` (3, 4), and more environment parameters cannot raise
+/// it. (The spatial dimension is not asserted here: with 13 environment parameters
+/// and 6 cells, the environment direction of a compensable change, `J_E⁺ u`, is one
+/// of many, so the commutation test reads a particular mixture.)
+#[test]
+fn per_light_intensities_add_no_compensable_direction() {
+    let changes = [SceneChange::Rigid, SceneChange::Intensities];
+    let paper = analyse(&paper_arm(), &base_points(0, [0.0, 1.0]), &changes);
+    assert_eq!(paper.environment_parameters, 3 + environment().lights.len());
+    assert_eq!(paper.dimension, Some(3), "{:?}", paper.histogram);
+    let agent = pupil_arm();
+    let pupil = analyse(agent.as_ref(), &base_points(1, [0.5, 1.5]), &changes);
+    assert_eq!(pupil.dimension, Some(4), "{:?}", pupil.histogram);
+    // Every clear base point: d = rank T_M, whatever the intensities.
+    for report in [&paper, &pupil] {
+        let clear: Vec<_> = report
+            .points
+            .iter()
+            .filter(|b| b.ambiguous.is_empty())
+            .collect();
+        assert!(clear.len() * 4 >= report.base_points * 3, "{}", clear.len());
+        for b in clear {
+            assert_eq!(b.dimension, b.motor_rank, "{b:?}");
+        }
+    }
 }

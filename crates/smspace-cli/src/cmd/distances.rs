@@ -154,7 +154,7 @@ fn check_curve_dimension(path: &Path) -> anyhow::Result<()> {
         return Ok(());
     }
     let report: smspace::kernel::TraceReport = smspace::io::read_json(&record, "trace report")?;
-    let dimension = report.sets.iter().map(|s| s.dimension).max().unwrap_or(0);
+    let dimension = smspace::kernel::spatial::curve_dimension(&report);
     smspace::kernel::check_curve_metric(dimension)
         .with_context(|| format!("{} (from {})", path.display(), record.display()))?;
     Ok(())

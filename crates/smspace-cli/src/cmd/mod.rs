@@ -2,6 +2,7 @@
 
 pub mod analyze;
 pub mod common;
+pub mod compare;
 pub mod distances;
 pub mod embed;
 pub mod env;

@@ -422,9 +422,10 @@ pub const MAX_POINTS: usize = 100_000;
 
 impl TraceParams {
     /// Bytes of the kernel sets `(rows, points, N)` float64 traced from `rows` motor
-    /// rows of an agent with `motor_dim` motors (saturating).
+    /// rows of an agent with `motor_dim` motors, with the points of spatial sets
+    /// ([`TraceParams::stored_points`]) (saturating).
     pub fn sets_bytes(&self, rows: u64, motor_dim: usize) -> u64 {
-        sets_bytes(rows, self.points, motor_dim)
+        sets_bytes(rows, self.stored_points(), motor_dim)
     }
 
     /// Validates the parameters and resolves `auto` step control

@@ -92,7 +92,7 @@ impl Plan {
         Peak {
             what: format!(
                 "stage `trace`: kernel sets ({rows} × {} points × {} motors)",
-                self.trace.kernel.points,
+                self.trace.kernel.stored_points(),
                 self.motors()
             ),
             bytes: held.bytes.saturating_add(sets.saturating_mul(2)),
@@ -104,7 +104,7 @@ impl Plan {
     pub(super) fn distances_peak(&self, held: Held, m: u64) -> Peak {
         let working = crate::metric::matrix_bytes(
             m as usize,
-            self.trace.kernel.points,
+            self.trace.kernel.stored_points(),
             self.motors() as usize,
             m as usize,
         );

@@ -665,7 +665,7 @@ fn check_memory(plan: &Plan, limit: Option<u64>) -> Result<(), PipelineError> {
         .agent()
         .ground_truth()
         .map_or(0, |o| o.pose_space().dim());
-    let points = plan.trace.kernel.points;
+    let points = plan.trace.kernel.stored_points();
     let explored = e.bytes(motors, pose_dim);
     let sets = plan.trace.kernel.sets_bytes(rows, motors);
     for (what, needed, fix) in [

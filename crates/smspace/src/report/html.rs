@@ -133,7 +133,8 @@ const HEAD_SCRIPT: &str = r#"<script>
 })();
 </script>"#;
 
-const STYLE: &str = r#"<style>
+/// The page style of the reports (and of the comparison page, [`super::compare`]).
+pub(super) const STYLE: &str = r#"<style>
 body { font-family: "DejaVu Sans", Verdana, sans-serif; margin: 2em auto; max-width: 1320px; padding: 0 1em; color: #222; line-height: 1.45; }
 h1 { margin-bottom: 0.2em; }
 h2 { border-bottom: 1px solid #ccc; padding-bottom: 0.2em; margin-top: 2em; }

@@ -27,6 +27,7 @@
 //! This module is the only one that knows every stage: it reads their outputs and
 //! never runs them.
 
+pub mod compare;
 mod figures;
 mod html;
 mod layout;
@@ -82,6 +83,14 @@ pub enum ReportError {
         /// The value given.
         value: String,
         /// Why it is refused.
+        reason: String,
+    },
+    /// A run folder to compare cannot be read ([`compare`]).
+    #[error("run folder {}: {reason}", folder.display())]
+    Run {
+        /// The folder given.
+        folder: PathBuf,
+        /// What is missing or wrong, and the fix.
         reason: String,
     },
     /// Writing a file failed.

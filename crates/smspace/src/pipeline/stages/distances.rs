@@ -128,8 +128,11 @@ impl Stage for DistancesStage {
     ) -> crate::Result<DistanceMatrix> {
         let traced = &input.traced.value;
         if self.metric.kind() == Some(crate::metric::MetricKind::Curve) {
-            let k = traced.dimensions().into_iter().max().unwrap_or(0);
+            // Spatial sets are read slice by slice (`kernel::spatial`): polylines when
+            // the traced kernels are curves.
+            let k = crate::kernel::spatial::curve_dimension(&traced.report);
             crate::kernel::check_curve_metric(k).map_err(crate::metric::MetricError::Invalid)?;
+            crate::kernel::spatial::check_slices(traced)?;
         }
         let sets = SetsView::new(traced.sets.view())
             .with_closure(&traced.closure)
@@ -165,13 +168,18 @@ impl Stage for DistancesStage {
         Ok(d)
     }
 
-    /// For kernels of dimension `k ≥ 2` (surfaces sampled by `P` points): the point
-    /// metric between two of them compares every point with every point, almost without
+    /// For kernels of dimension `k ≥ 2` (surfaces sampled by `P` points) under a metric
+    /// other than `curve` (which reads spatial sets as polylines): the point metric
+    /// between two of them compares every point with every point, almost without
     /// the early exits that make loops fast, about `M (M − 1) P²` point distances in
     /// all; said with the time it takes at `SURFACE_POINT_DISTANCES_PER_CORE_SECOND`
     /// when it exceeds about a minute on one core.
     fn forecast(&self, input: &DistancesInput<'_>) -> Option<String> {
         let traced = &input.traced.value;
+        if self.metric.kind() == Some(crate::metric::MetricKind::Curve) {
+            // The curve metric reads spatial sets slice by slice, as polylines.
+            return None;
+        }
         let k = traced.dimensions().into_iter().max().unwrap_or(0);
         let (m, p, _) = traced.sets.dim();
         surface_forecast(k, m, p)
