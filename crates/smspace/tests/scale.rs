@@ -202,3 +202,165 @@ fn one_and_two_threads_agree() {
     };
     assert_eq!(with(1), with(2));
 }
+
+mod pipeline_paths {
+    use std::path::Path;
+
+    use smspace::pipeline::{self, BusyFolder, Recompute, RunObserver, RunOptions, RunSummary};
+    use smspace::progress::{Progress, Silent};
+
+    /// The paper's arm, small: 240 babbled configurations and a 3 × 3 × 3 probe grid,
+    /// the curve metric, CCA, homology of every set (`max_points` above `M`).
+    const SMALL_ARM: &str = r#"
+[agent]
+kind = "planar-arm"
+[environment]
+lights = 10
+seed = 1
+[exploration]
+n = 240
+seed = 1
+workspace_center = [1.75, 0.0]
+workspace_size = [1.5, 2.0]
+probes = "grid"
+probe_positions = 3
+probe_orientations = 3
+[kernel]
+method = "kinematic"
+points = 30
+[metric]
+metric = "curve"
+period = "2pi"
+[embedding]
+method = "cca"
+dim = 3
+epochs = 10
+[analysis]
+max_points = 400
+mle_neighbors = 10
+[report]
+formats = "svg"
+sample_configurations = 5
+sample_sets = 3
+"#;
+
+    struct Quiet;
+    impl RunObserver for Quiet {
+        fn progress(&self) -> &dyn Progress {
+            &Silent
+        }
+    }
+
+    fn run(dir: &Path, name: &str, overrides: &[&str]) -> RunSummary {
+        let file = dir.join("small-arm.toml");
+        std::fs::write(&file, SMALL_ARM).unwrap();
+        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        let loaded = smspace::config::load_experiment(&file, &overrides).unwrap();
+        let plan = pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"));
+        let options = RunOptions {
+            out_dir: dir.join(name),
+            recompute: Recompute::Changed,
+            memory_limit_bytes: None,
+            busy: BusyFolder::Refuse,
+        };
+        pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn coordinates(summary: &RunSummary) -> ndarray::Array2<f64> {
+        smspace::io::read_matrix(&summary.dir.join("Y.npy"), Some(3), "(M, 3)").unwrap()
+    }
+
+    fn bars(summary: &RunSummary, dim: usize) -> Vec<(f64, Option<f64>)> {
+        let mut bars = summary.analysis.persistence[dim].clone();
+        bars.sort_by(|a, b| {
+            a.0.total_cmp(&b.0).then(
+                a.1.unwrap_or(f64::INFINITY)
+                    .total_cmp(&b.1.unwrap_or(f64::INFINITY)),
+            )
+        });
+        bars
+    }
+
+    /// The landmark path with every set a landmark gives the dense path's numbers: the
+    /// embedding bit for bit, the persistence bars, TwoNN, MLE and the agreement
+    /// exactly; with 100 landmarks, the same
+    /// Betti numbers and dimension, and trustworthiness within 0.05. It writes no D.npy.
+    #[test]
+    fn the_landmark_path_agrees_with_the_dense_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let dense = run(dir.path(), "dense", &[]);
+        let m = dense.analysis.points;
+        assert!(dense.dir.join("D.npy").is_file());
+        assert!(dense.analysis.scale.is_none());
+        let all = run(
+            dir.path(),
+            "all",
+            &["scale.path=landmarks", "scale.landmarks=20000"],
+        );
+        assert!(!all.dir.join("D.npy").exists());
+        assert!(all.dir.join("D.to-landmarks.npy").is_file());
+        let scale = all.analysis.scale.as_ref().unwrap();
+        assert_eq!((scale.sets, scale.landmarks), (m, m));
+        assert_eq!(coordinates(&all), coordinates(&dense));
+        assert_eq!(all.analysis.betti, dense.analysis.betti);
+        for dim in 0..2 {
+            assert_eq!(bars(&all, dim), bars(&dense, dim), "H{dim}");
+        }
+        let (a, d) = (
+            &all.analysis.intrinsic_dimension,
+            &dense.analysis.intrinsic_dimension,
+        );
+        assert_eq!((a.twonn, a.mle, a.sets_used), (d.twonn, d.mle, d.sets_used));
+        let (a, d) = (
+            all.analysis.agreement.as_ref().unwrap(),
+            dense.analysis.agreement.as_ref().unwrap(),
+        );
+        assert_eq!(
+            (a.spearman, a.trustworthiness, a.continuity),
+            (d.spearman, d.trustworthiness, d.continuity)
+        );
+
+        let some = run(
+            dir.path(),
+            "some",
+            &["scale.path=landmarks", "scale.landmarks=100"],
+        );
+        assert_eq!(some.analysis.scale.as_ref().unwrap().landmarks, 100);
+        assert_eq!(some.analysis.betti, dense.analysis.betti);
+        let (s, d) = (
+            &some.analysis.intrinsic_dimension,
+            &dense.analysis.intrinsic_dimension,
+        );
+        assert_eq!(s.twonn, d.twonn);
+        let (s, d) = (
+            some.analysis.agreement.as_ref().unwrap(),
+            dense.analysis.agreement.as_ref().unwrap(),
+        );
+        assert!(
+            (s.trustworthiness - d.trustworthiness).abs() < 0.05,
+            "{} {}",
+            s.trustworthiness,
+            d.trustworthiness
+        );
+        assert_eq!(coordinates(&some).nrows(), m);
+        // The run reads back what it wrote.
+        let again = run(
+            dir.path(),
+            "some",
+            &["scale.path=landmarks", "scale.landmarks=100"],
+        );
+        assert!(again.manifest.stages.iter().all(|s| s.cached));
+    }
+
+    /// A kNN graph too small for the dimension estimates is refused before anything
+    /// runs, naming the key.
+    #[test]
+    fn too_few_nearest_sets_are_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("small-arm.toml");
+        std::fs::write(&file, SMALL_ARM).unwrap();
+        let loaded = smspace::config::load_experiment(&file, &["scale.knn=5".to_owned()]).unwrap();
+        let err = pipeline::check(&loaded).unwrap_err().to_string();
+        assert!(err.contains("scale") && err.contains("knn"), "{err}");
+    }
+}

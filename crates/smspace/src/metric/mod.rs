@@ -94,7 +94,7 @@ use crate::progress::Progress;
 
 pub use curve::{Closure, CURVE_TOLERANCE};
 pub use kernel::simd_level;
-pub use knn::{knn, knn_prepared, knn_with, Knn, KnnParams, KnnValidParams, MAX_PIVOTS};
+pub use knn::{knn, knn_bytes, knn_prepared, knn_with, Knn, KnnParams, KnnValidParams, MAX_PIVOTS};
 pub use matrix::{DistanceMatrix, MatrixError, SYMMETRY_TOLERANCE};
 pub use period::{CoordinatePeriods, PeriodError, Periodicity, Periods};
 pub use prepared::PreparedSets;
