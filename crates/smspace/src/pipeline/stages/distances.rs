@@ -286,8 +286,8 @@ impl Stage for DistancesStage {
             ChosenPath::Landmarks => {
                 let l = self.scale.landmarks.min(m);
                 Some(format!(
-                    "landmark path (scale.path = {:?}, {m} sets, above = {}): {l} {} landmarks, {} set pairs to them, and the {} nearest of every babbled set; no {m} × {m} matrix",
-                    self.scale.path,
+                    "landmark path (scale.path = {}, {m} sets, above = {}): {l} {} landmarks, {} set pairs to them, and the {} nearest of every babbled set; no {m} × {m} matrix",
+                    super::label(&self.scale.path),
                     self.scale.above,
                     self.scale.selection,
                     (l * m).saturating_sub(l * (l + 1) / 2),
