@@ -317,7 +317,7 @@ pub struct IntrinsicDimension {
     pub sets_used: usize,
 }
 
-fn all_sets() -> String {
+pub(crate) fn all_sets() -> String {
     "all".to_owned()
 }
 
@@ -341,6 +341,32 @@ pub struct AnalysisReport {
     /// ambiguous base points), when `[analysis.compensability]` asks for it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub compensability: Option<compensability::CompensabilityReport>,
+    /// The landmark path's samples (issue 18), when the run took it: which sets the
+    /// homology, the dimension and the agreement were computed on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<ScaleSummary>,
+}
+
+/// What the landmark path computed each figure on (`analysis.json` `scale`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ScaleSummary {
+    /// Sets `M`.
+    pub sets: usize,
+    /// Landmarks `L` and how they were chosen (`max-min` or `random`, seeded).
+    pub landmarks: usize,
+    /// `max-min` or `random`.
+    pub selection: String,
+    /// The largest distance of a set to its nearest of the `L` landmarks.
+    pub covering_radius: f64,
+    /// The homology's points: the first `min(L, max_points)` landmarks in the order
+    /// chosen (their covering radius over all sets is `homology.subsampling`'s).
+    pub homology_points: usize,
+    /// Sets whose kNN lists gave the intrinsic dimension, and the lists' `k`.
+    pub dimension_sets: usize,
+    /// `k` of the kNN graph.
+    pub knn: usize,
+    /// The agreement's sample: the `L` landmarks.
+    pub agreement_sets: usize,
 }
 
 impl AnalysisReport {
@@ -464,6 +490,7 @@ pub fn analyze_on(
         intrinsic_dimension,
         agreement,
         compensability: None,
+        scale: None,
     })
 }
 
@@ -526,7 +553,7 @@ fn homology_of(
 
 /// The five longest bar lengths of every dimension, longest first (infinite bars cut
 /// at the threshold).
-fn longest_bars(persistence: &Persistence) -> Vec<Vec<f64>> {
+pub(crate) fn longest_bars(persistence: &Persistence) -> Vec<Vec<f64>> {
     persistence
         .diagrams
         .iter()

@@ -120,10 +120,14 @@ pub struct Experiment {
     /// Figures and report.
     #[serde(default)]
     pub report: ReportParams,
+    /// The dense or landmark path through distances, embedding and analysis (issue
+    /// 18; [`crate::pipeline::scale`]).
+    #[serde(default)]
+    pub scale: crate::pipeline::scale::ScaleParams,
 }
 
 /// The tables of an experiment file, for error messages.
-pub const EXPERIMENT_TABLES: [&str; 8] = [
+pub const EXPERIMENT_TABLES: [&str; 9] = [
     "agent",
     "environment",
     "exploration",
@@ -132,6 +136,7 @@ pub const EXPERIMENT_TABLES: [&str; 8] = [
     "embedding",
     "analysis",
     "report",
+    "scale",
 ];
 
 /// An experiment read from its file, with the `--set` overrides applied.

@@ -30,6 +30,7 @@
 pub mod cca;
 mod eigen;
 pub mod isomap;
+pub mod landmarks;
 pub mod mds;
 pub mod quality;
 

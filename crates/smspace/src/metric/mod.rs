@@ -76,6 +76,7 @@
 pub mod curve;
 mod kernel;
 mod knn;
+pub mod landmarks;
 mod matrix;
 mod period;
 mod prepared;
@@ -93,7 +94,7 @@ use crate::progress::Progress;
 
 pub use curve::{Closure, CURVE_TOLERANCE};
 pub use kernel::simd_level;
-pub use knn::{knn, knn_prepared, knn_with, Knn, KnnParams, KnnValidParams, MAX_PIVOTS};
+pub use knn::{knn, knn_bytes, knn_prepared, knn_with, Knn, KnnParams, KnnValidParams, MAX_PIVOTS};
 pub use matrix::{DistanceMatrix, MatrixError, SYMMETRY_TOLERANCE};
 pub use period::{CoordinatePeriods, PeriodError, Periodicity, Periods};
 pub use prepared::PreparedSets;
@@ -287,6 +288,18 @@ pub enum MetricError {
     /// A parameter is out of its range.
     #[error(transparent)]
     Invalid(#[from] crate::error::InvalidParameter),
+    /// The landmark distances would not fit in the memory available.
+    #[error("the distances of {sets} sets to {landmarks} landmarks need {} but only {} is available; lower scale.landmarks", human_bytes(*needed), human_bytes(*available))]
+    LandmarksOutOfMemory {
+        /// `M`.
+        sets: usize,
+        /// `L`.
+        landmarks: usize,
+        /// Bytes the table, the landmark matrix and the prepared sets need.
+        needed: u64,
+        /// Bytes available.
+        available: u64,
+    },
     /// The nearest-set search would not fit in the memory available.
     #[error("the {k} nearest sets of {sets} sets need {} but only {} is available; use fewer pivots (--pivots), or compute blocks of rows in turn (--rows)", human_bytes(*needed), human_bytes(*available))]
     KnnOutOfMemory {

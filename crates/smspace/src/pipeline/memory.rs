@@ -16,7 +16,15 @@
 //! | `analyze` | the pair lists and ranks of the agreement with the poses, one ranking at a time (`≈ 4 D`), persistence of `max_points` landmarks (`≈ 8 L²`) |
 //! | `invariance` | the starts' sets in every environment and their distance matrices |
 //! | `report` | the sampled sets and figures (small next to `D`) |
+//!
+//! On the landmark path ([`super::scale`]) no stage holds `D`: `distances` holds the
+//! `(M, L)` table, the `(L, L)` matrix and the kNN lists
+//! ([`crate::metric::landmarks::landmark_bytes`], [`crate::metric::knn_bytes`]);
+//! `embed` the method's working set on `L` points and a block of the extension;
+//! `analyze` the agreement on the `L` landmarks (`≈ 5 · 8 L²`) and the persistence of
+//! `min(L, max_points)` of them.
 
+use super::scale::ChosenPath;
 use super::Plan;
 use crate::embed::EmbedParams;
 
@@ -100,8 +108,31 @@ impl Plan {
         }
     }
 
-    /// `distances`: `D` and the prepared sets of `m` sets.
+    /// `distances`: `D` and the prepared sets of `m` sets, or the landmark path's
+    /// table and kNN lists.
     pub(super) fn distances_peak(&self, held: Held, m: u64) -> Peak {
+        let (points, motors) = (self.trace.kernel.points, self.motors() as usize);
+        if self.distances.path(m as usize) == ChosenPath::Landmarks {
+            let scale = &self.distances.scale;
+            let l = (scale.landmarks as u64).min(m);
+            let working =
+                crate::metric::landmarks::landmark_bytes(m as usize, points, motors, l as usize)
+                    .saturating_add(crate::metric::knn_bytes(
+                        m as usize,
+                        points,
+                        motors,
+                        m as usize,
+                        &scale.knn_params(),
+                    ));
+            return Peak {
+                what: format!(
+                    "stage `distances` (landmark path): {m} sets to {l} landmarks, and their {} nearest",
+                    scale.knn
+                ),
+                bytes: held.bytes.saturating_add(working),
+                fix: "lower scale.landmarks (L) or scale.knn, or exploration.n (M)",
+            };
+        }
         let working = crate::metric::matrix_bytes(
             m as usize,
             self.trace.kernel.stored_points(),
@@ -115,8 +146,52 @@ impl Plan {
         }
     }
 
-    /// `embed` of `m` sets.
+    /// What the run holds after `distances` of `m` sets: `D`, or the landmark table,
+    /// matrix and kNN lists.
+    pub(super) fn distances_held(&self, m: u64) -> u64 {
+        match self.distances.path(m as usize) {
+            ChosenPath::Dense => matrix(m),
+            ChosenPath::Landmarks => {
+                let scale = &self.distances.scale;
+                let l = (scale.landmarks as u64).min(m);
+                product(&[m, l, F64])
+                    .saturating_add(matrix(l))
+                    .saturating_add(product(&[m, scale.knn as u64, 2 * F64]))
+            }
+        }
+    }
+
+    /// `embed` of `m` sets: the method on all of them, or on the landmarks with the
+    /// extension's coordinates and block.
     pub(super) fn embed_peak(&self, held: Held, m: u64) -> Peak {
+        if self.distances.path(m as usize) == ChosenPath::Landmarks {
+            let l = (self.distances.scale.landmarks as u64).min(m);
+            let dim = self.embed.embedding.clone().build().map_or(3, |e| e.dim()) as u64;
+            let block = crate::embed::landmarks::EXTEND_BLOCK as u64;
+            let on_landmarks = self.embed_working(l).0;
+            let extension = product(&[m, dim, F64]).saturating_add(product(&[block, l, F64]));
+            return Peak {
+                what: format!(
+                    "stage `embed` (landmark path): fit on {l} landmarks, {m} sets placed"
+                ),
+                bytes: held
+                    .bytes
+                    .saturating_add(on_landmarks)
+                    .saturating_add(extension),
+                fix: "lower scale.landmarks (L)",
+            };
+        }
+        let (working, method, fix) = self.embed_working(m);
+        Peak {
+            what: format!("stage `embed`: {method} of {m} points"),
+            bytes: held.bytes.saturating_add(working),
+            fix,
+        }
+    }
+
+    /// The embedding method's working set on `m` points, its name and the keys that
+    /// lower it.
+    fn embed_working(&self, m: u64) -> (u64, &'static str, &'static str) {
         let d = matrix(m);
         let (working, method, fix) = match &self.embed.embedding {
             EmbedParams::Cca(p) => {
@@ -149,16 +224,26 @@ impl Plan {
                 )
             }
         };
-        Peak {
-            what: format!("stage `embed`: {method} of {m} points"),
-            bytes: held.bytes.saturating_add(working),
-            fix,
-        }
+        (working, method, fix)
     }
 
     /// `analyze` of `m` sets.
     pub(super) fn analyze_peak(&self, held: Held, m: u64) -> Peak {
         let a = &self.analyze.analysis;
+        if self.distances.path(m as usize) == ChosenPath::Landmarks {
+            let l = (self.distances.scale.landmarks as u64).min(m);
+            let homology = l.min(a.max_points as u64);
+            let working = matrix(l)
+                .saturating_mul(5)
+                .saturating_add(matrix(homology).saturating_mul(8));
+            return Peak {
+                what: format!(
+                    "stage `analyze` (landmark path): agreement of {l} landmarks with their poses, persistence of {homology}"
+                ),
+                bytes: held.bytes.saturating_add(working),
+                fix: "lower scale.landmarks (L) or analysis.max_points",
+            };
+        }
         let landmarks = m.min(a.max_points as u64);
         let working = matrix(m)
             .saturating_mul(5)
@@ -231,9 +316,4 @@ pub(super) fn exploration_bytes(rows: u64, motors: u64) -> u64 {
 /// Bytes of `m` kernel sets of `points` points of `motors` motors, with their records.
 pub(super) fn sets_bytes(m: u64, points: u64, motors: u64) -> u64 {
     product(&[m, points, motors, F64]).saturating_add(product(&[m, 2 * F64]))
-}
-
-/// Bytes of `D`.
-pub(super) fn matrix_bytes(m: u64) -> u64 {
-    matrix(m)
 }

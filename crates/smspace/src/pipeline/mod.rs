@@ -86,6 +86,7 @@ pub mod lock;
 pub mod manifest;
 mod memory;
 mod runner;
+pub mod scale;
 pub mod stages;
 
 use std::path::{Path, PathBuf};
@@ -482,6 +483,9 @@ pub fn check_with(
     e.report
         .check()
         .map_err(|err| invalid("report")(err.into()))?;
+    e.scale
+        .check(e.analysis.mle_neighbors)
+        .map_err(|err| invalid("scale")(err.into()))?;
     let world = World {
         agent_config: e.agent.clone(),
         agent,
@@ -495,7 +499,8 @@ pub fn check_with(
             exploration: e.exploration.clone(),
         },
         trace: TraceStage::new(e.kernel.clone(), e.analysis.compensability.as_ref()),
-        distances: DistancesStage::new(&metric),
+        distances: DistancesStage::new(&metric)
+            .with_scale(e.scale.clone(), e.analysis.mle_neighbors),
         embed: EmbedStage {
             embedding: e.embedding.clone(),
             quality_neighbours: QUALITY_NEIGHBOURS,
@@ -590,11 +595,14 @@ pub fn run_with(
     let held = held.plus(memory::sets_bytes(m, points, motors));
     let distances = runner.run(
         &plan.distances,
-        &DistancesInput { traced },
+        &DistancesInput {
+            traced,
+            exploration,
+        },
         plan.distances_peak(held, m),
     )?;
     let distances = &distances;
-    let held = held.plus(memory::matrix_bytes(m));
+    let held = held.plus(plan.distances_held(m));
     let embedded = runner.run(
         &plan.embed,
         &EmbedInput { distances },

@@ -211,6 +211,15 @@ impl Runner<'_> {
             });
         }
         self.begin_writing(&format!("stage `{name}` must be computed"))?;
+        self.observer.stage_note(
+            S::ID,
+            &format!(
+                "memory: about {} at the peak ({}; {})",
+                crate::metric::human_bytes(peak.bytes),
+                peak.what,
+                peak.fix
+            ),
+        );
         if let Some(note) = stage.forecast(input) {
             self.observer.stage_note(S::ID, &note);
         }

@@ -1,19 +1,31 @@
 //! `analyze`: topology, dimension and agreement with the poses of the learned metric
-//! (paper section 3.3).
+//! (paper section 3.3). On the landmark path ([`crate::pipeline::scale`]): persistent
+//! homology of the first `min(L, max_points)` landmarks in the order chosen (their
+//! covering radius over every set reported), TwoNN and MLE from the kNN lists of the
+//! babbled sets (the lists the dense path sorts out of `D`: the same estimates), and
+//! the agreement with the poses on the `L` landmarks (`analysis.json` `scale`).
 
 use std::path::Path;
 
 use serde::Serialize;
 
-use super::{Keyed, Stage, StageContext, StageInput, World};
+use ndarray::{Axis, Slice};
+use rayon::prelude::*;
+
+use super::{Keyed, LandmarkGraph, SetDistances, Stage, StageContext, StageInput, World};
+use crate::agent::GroundTruth;
 use crate::analysis::compensability::compensability;
-use crate::analysis::AnalysisError;
-use crate::analysis::{analyze_on, AnalysisParams, AnalysisReport, DimensionSets};
+use crate::analysis::dimension::{mle_neighbours, twonn_neighbours};
+use crate::analysis::{
+    agreement, analyze_on, rips_persistence, AnalysisError, AnalysisParams, AnalysisReport,
+    AnalysisValidParams, DimensionSets, HomologySummary, IntrinsicDimension, ScaleSummary,
+    Subsampling,
+};
 use crate::explore::Exploration;
 use crate::io::Outputs;
 use crate::kernel::TracedSets;
-use crate::metric::DistanceMatrix;
 use crate::pipeline::StageId;
+use crate::progress::Progress;
 
 /// The `analyze` stage: the `[analysis]` table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -29,8 +41,8 @@ pub struct AnalyzeInput<'a> {
     pub exploration: &'a Keyed<Exploration>,
     /// Which rows were traced.
     pub traced: &'a Keyed<TracedSets>,
-    /// The distances between the traced sets.
-    pub distances: &'a Keyed<DistanceMatrix>,
+    /// The distances between the traced sets (either path).
+    pub distances: &'a Keyed<SetDistances>,
     /// The agent and its environment, read only by the compensability analysis
     /// (`[analysis.compensability]`; none otherwise, and then not in the key).
     pub world: Option<&'a Keyed<World>>,
@@ -71,17 +83,32 @@ impl Stage for AnalyzeStage {
             .map(|(i, _)| i)
             .collect();
         // Without a ground truth there is no agreement to measure (the summary says so).
-        let truth = exploration.ground_truth.as_ref().map(|t| t.select(kept));
-        let mut report = analyze_on(
-            &input.distances.value,
-            truth.as_ref().map(|t| t.view()),
-            Some(DimensionSets {
-                rows: &babbled,
-                name: "babbled",
-            }),
-            &self.analysis.check()?,
-            context.progress,
-        )?;
+        let params = self.analysis.check()?;
+        let mut report = match &input.distances.value {
+            SetDistances::Dense(distances) => {
+                let truth = exploration.ground_truth.as_ref().map(|t| t.select(kept));
+                analyze_on(
+                    distances,
+                    truth.as_ref().map(|t| t.view()),
+                    Some(DimensionSets {
+                        rows: &babbled,
+                        name: "babbled",
+                    }),
+                    &params,
+                    context.progress,
+                )?
+            }
+            SetDistances::Landmarks(graph) => {
+                // The landmarks' poses by increasing set index (the agreement's order).
+                let truth = exploration.ground_truth.as_ref().map(|t| {
+                    let mut rows: Vec<usize> = graph.landmarks.rows.clone();
+                    rows.sort_unstable();
+                    let rows: Vec<usize> = rows.iter().map(|&r| kept[r]).collect();
+                    t.select(&rows)
+                });
+                analyze_landmarks(graph, truth.as_ref(), &params, context.progress)?
+            }
+        };
         if let (Some(params), Some(world)) = (&self.analysis.compensability, input.world) {
             let environment = world
                 .value
@@ -122,6 +149,12 @@ impl Stage for AnalyzeStage {
     }
 
     fn summary(&self, a: &AnalysisReport) -> String {
+        let on = a.scale.as_ref().map_or_else(String::new, |s| {
+            format!(
+                " (landmark path: homology of {} landmarks, dimension from the {}-NN of {} sets, agreement on {} landmarks)",
+                s.homology_points, s.knn, s.dimension_sets, s.agreement_sets
+            )
+        });
         let agreement = a.agreement.as_ref().map_or_else(
             || ", no agreement (the agent has no ground truth)".to_owned(),
             |g| format!(", Spearman {:.3}", g.spearman),
@@ -137,8 +170,123 @@ impl Stage for AnalyzeStage {
             )
         });
         format!(
-            "betti {:?}, TwoNN {:.2}, MLE {:.2}{agreement}{compensable}",
+            "betti {:?}, TwoNN {:.2}, MLE {:.2}{agreement}{compensable}{on}",
             a.betti, a.intrinsic_dimension.twonn, a.intrinsic_dimension.mle
         )
     }
+}
+
+/// The analysis on the landmark path (module docs); `truth` holds the landmarks' poses
+/// by increasing set index.
+fn analyze_landmarks(
+    graph: &LandmarkGraph,
+    truth: Option<&GroundTruth>,
+    params: &AnalysisValidParams,
+    progress: &dyn Progress,
+) -> Result<AnalysisReport, AnalysisError> {
+    let p = params.params();
+    let l = &graph.landmarks;
+    let count = l.len().min(p.max_points);
+    let first = l.landmarks.view();
+    let first = first
+        .slice_axis_move(Axis(0), Slice::from(..count))
+        .slice_axis_move(Axis(1), Slice::from(..count));
+    let persistence = rips_persistence(first, p.max_homology_dim, p.threshold, progress)?;
+    // The covering radius of those landmarks over every set.
+    let covering_radius = (0..l.sets())
+        .into_par_iter()
+        .map(|j| {
+            l.to_landmarks
+                .row(j)
+                .iter()
+                .take(count)
+                .copied()
+                .fold(f64::INFINITY, f64::min)
+        })
+        .reduce(|| 0.0, f64::max);
+    let near = graph.knn.distances.view();
+    progress.start("dimension", 2);
+    let columns = |k: usize| near.slice_axis(Axis(1), Slice::from(..k.min(near.ncols())));
+    let twonn = twonn_neighbours(columns(2), p.twonn_discard)?;
+    progress.advance(1);
+    let mle = mle_neighbours(columns(p.mle_neighbors))?;
+    progress.advance(1);
+    progress.finish();
+    // On the landmarks by increasing set index: with every set a landmark, the dense
+    // path's pairs in its order (ties in ranks go to the smaller index alike).
+    let agreement = match truth {
+        Some(t) => {
+            let mut order: Vec<usize> = (0..l.len()).collect();
+            order.sort_unstable_by_key(|&a| l.rows[a]);
+            let sorted = l
+                .landmarks
+                .view()
+                .select(Axis(0), &order)
+                .select(Axis(1), &order);
+            Some(agreement::agreement_of(
+                sorted.view(),
+                t.view(),
+                p.neighbors,
+            )?)
+        }
+        None => None,
+    };
+    let rule = params.betti_rule();
+    let all = graph.knn_sets.len() == l.sets();
+    Ok(AnalysisReport {
+        points: l.sets(),
+        betti: rule.betti(&persistence),
+        persistence: persistence
+            .diagrams
+            .iter()
+            .map(|bars| bars.iter().map(|b| (b.birth, b.death)).collect())
+            .collect(),
+        homology: HomologySummary {
+            max_dim: p.max_homology_dim,
+            threshold: persistence.threshold,
+            threshold_rule: if p.threshold.is_some() {
+                "given"
+            } else {
+                "enclosing-radius"
+            }
+            .into(),
+            subsampling: Subsampling {
+                method: format!(
+                    "landmarks ({}, the first {count} of {})",
+                    l.selection,
+                    l.len()
+                ),
+                points: count,
+                covering_radius,
+            },
+            rule,
+            longest_bars: crate::analysis::longest_bars(&persistence),
+        },
+        intrinsic_dimension: IntrinsicDimension {
+            twonn: twonn.dimension,
+            mle: mle.dimension,
+            twonn_detail: twonn,
+            mle_detail: mle,
+            twonn_discard: p.twonn_discard,
+            mle_neighbors: p.mle_neighbors,
+            sets: if all {
+                crate::analysis::all_sets()
+            } else {
+                "babbled".to_owned()
+            },
+            sets_used: graph.knn_sets.len(),
+        },
+        agreement,
+        compensability: None,
+        scale: Some(ScaleSummary {
+            sets: l.sets(),
+            landmarks: l.len(),
+            selection: l.selection.to_string(),
+            covering_radius: l.covering_radius,
+            homology_points: count,
+            dimension_sets: graph.knn_sets.len(),
+            knn: graph.knn.k(),
+            agreement_sets: l.len(),
+        }),
+    })
 }

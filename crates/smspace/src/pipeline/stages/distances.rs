@@ -1,5 +1,7 @@
 //! `distances`: the set metric between every pair of kernel sets (paper section 3.2,
-//! step 3).
+//! step 3), or on the landmark path ([`crate::pipeline::scale`]) the distances of every
+//! set to `L` landmark sets and the exact kNN graph of the babbled sets, never the
+//! `M × M` matrix.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -7,12 +9,15 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput};
-use crate::io::{IoError, Outputs};
+use crate::explore::Exploration;
+use crate::io::{self, IoError, Outputs};
 use crate::kernel::TracedSets;
+use crate::metric::landmarks::{landmark_distances_with, LandmarkDistances, LandmarkSelection};
 use crate::metric::{
-    distance_matrix_with, BuiltMetric, DistanceMatrix, DistanceParams, MetricName, Periodicity,
-    SetMetric, SetsView,
+    distance_matrix_with, knn_with, BuiltMetric, DistanceMatrix, DistanceParams, Knn, MetricName,
+    Periodicity, SetMetric, SetsView,
 };
+use crate::pipeline::scale::{ChosenPath, ScaleParams};
 use crate::pipeline::StageId;
 use crate::progress::Progress;
 
@@ -69,20 +74,45 @@ pub struct DistancesStage {
     /// The metric's own parameters (`[metric.params]`; none for the built-in ones).
     #[serde(skip_serializing_if = "toml::Table::is_empty")]
     pub params: toml::Table,
+    /// The `[scale]` table: dense or landmark path (keyed only when not the default,
+    /// so that the default's key is the one from before the table existed).
+    #[serde(skip_serializing_if = "ScaleParams::is_default")]
+    pub scale: ScaleParams,
+    /// The `[analysis] mle_neighbors`: the kNN graph of the landmark path serves the
+    /// dimension estimates (checked `≤ scale.knn`; not keyed, it changes no output).
+    #[serde(skip)]
+    pub mle_neighbors: usize,
     /// The metric built from the fields above.
     #[serde(skip)]
     set_metric: Arc<dyn SetMetric>,
 }
 
 impl DistancesStage {
-    /// The stage of a metric built from its `[metric]` table.
+    /// The stage of a metric built from its `[metric]` table, on the dense path for
+    /// every `M` (see [`DistancesStage::with_scale`]).
     pub fn new(built: &BuiltMetric) -> Self {
         Self {
             metric: built.params.metric.clone(),
             period: built.params.period.clone(),
             params: built.params.params.clone(),
+            scale: ScaleParams::default(),
+            mle_neighbors: 2,
             set_metric: built.metric.clone(),
         }
+    }
+
+    /// The stage with the `[scale]` table (checked by [`ScaleParams::check`]).
+    pub fn with_scale(self, scale: ScaleParams, mle_neighbors: usize) -> Self {
+        Self {
+            scale,
+            mle_neighbors,
+            ..self
+        }
+    }
+
+    /// The path taken for `m` sets.
+    pub fn path(&self, m: usize) -> ChosenPath {
+        self.scale.choose(m)
     }
 
     /// The metric built from the stage's fields.
@@ -97,6 +127,7 @@ impl std::fmt::Debug for DistancesStage {
             .field("metric", &self.metric)
             .field("period", &self.period)
             .field("params", &self.params)
+            .field("scale", &self.scale)
             .finish()
     }
 }
@@ -106,6 +137,9 @@ impl std::fmt::Debug for DistancesStage {
 pub struct DistancesInput<'a> {
     /// The kernel sets and which of them are closed loops.
     pub traced: &'a Keyed<TracedSets>,
+    /// Which sets are babbled (the landmark path's kNN graph joins those); not among
+    /// the keys: the traced sets' key already holds the exploration's.
+    pub exploration: &'a Keyed<Exploration>,
 }
 
 impl StageInput for DistancesInput<'_> {
@@ -114,18 +148,75 @@ impl StageInput for DistancesInput<'_> {
     }
 }
 
+/// The distances between the sets, on either path ([`crate::pipeline::scale`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum SetDistances {
+    /// The `M × M` matrix.
+    Dense(DistanceMatrix),
+    /// Landmarks and the kNN graph.
+    Landmarks(Box<LandmarkGraph>),
+}
+
+impl SetDistances {
+    /// Number of sets `M`.
+    pub fn sets(&self) -> usize {
+        match self {
+            Self::Dense(d) => d.len(),
+            Self::Landmarks(g) => g.landmarks.sets(),
+        }
+    }
+
+    /// The `M × M` matrix, on the dense path.
+    pub fn dense(&self) -> Option<&DistanceMatrix> {
+        match self {
+            Self::Dense(d) => Some(d),
+            Self::Landmarks(_) => None,
+        }
+    }
+}
+
+/// The landmark path's distances: landmarks and the kNN graph of the babbled sets.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LandmarkGraph {
+    /// The landmarks, their matrix and every set's distances to them.
+    pub landmarks: LandmarkDistances,
+    /// The sets the kNN graph joins (the babbled ones; all sets without a probe grid),
+    /// increasing.
+    pub knn_sets: Vec<usize>,
+    /// The `k` nearest of each of them among them (indices into `knn_sets`).
+    pub knn: Knn,
+}
+
+/// What `landmarks.json` records beside the arrays.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+struct LandmarkRecord {
+    sets: usize,
+    landmarks: usize,
+    selection: LandmarkSelection,
+    covering_radius: f64,
+    knn_sets: usize,
+    k: usize,
+}
+
 const MATRIX_FILE: &str = "D.npy";
+const LANDMARK_ROWS_FILE: &str = "landmarks.npy";
+const LANDMARK_MATRIX_FILE: &str = "D.landmarks.npy";
+const TO_LANDMARKS_FILE: &str = "D.to-landmarks.npy";
+const LANDMARK_RECORD_FILE: &str = "landmarks.json";
+const KNN_SETS_FILE: &str = "knn_sets.npy";
+const KNN_INDICES_FILE: &str = "knn_indices.npy";
+const KNN_DISTANCES_FILE: &str = "knn_distances.npy";
 
 impl Stage for DistancesStage {
     const ID: StageId = StageId::Distances;
     type Input<'a> = DistancesInput<'a>;
-    type Output = DistanceMatrix;
+    type Output = SetDistances;
 
     fn compute(
         &self,
         input: &DistancesInput<'_>,
         context: &StageContext<'_>,
-    ) -> crate::Result<DistanceMatrix> {
+    ) -> crate::Result<SetDistances> {
         let traced = &input.traced.value;
         if self.metric.kind() == Some(crate::metric::MetricKind::Curve) {
             // Spatial sets are read slice by slice (`kernel::spatial`): polylines when
@@ -137,25 +228,39 @@ impl Stage for DistancesStage {
         let sets = SetsView::new(traced.sets.view())
             .with_closure(&traced.closure)
             .with_pieces(traced.pieces.view());
-        context
-            .distances
-            .distances(self, sets, context.memory_limit_bytes, context.progress)
+        match self.path(traced.kept.len()) {
+            ChosenPath::Dense => Ok(SetDistances::Dense(context.distances.distances(
+                self,
+                sets,
+                context.memory_limit_bytes,
+                context.progress,
+            )?)),
+            ChosenPath::Landmarks => Ok(SetDistances::Landmarks(Box::new(
+                self.landmark_graph(input, sets, context)?,
+            ))),
+        }
     }
 
     fn save(
         &self,
         _: &DistancesInput<'_>,
-        d: &DistanceMatrix,
+        d: &SetDistances,
         outputs: &mut Outputs,
         dir: &Path,
     ) -> crate::Result<()> {
-        d.write_into(outputs, &dir.join(MATRIX_FILE))?;
+        match d {
+            SetDistances::Dense(d) => d.write_into(outputs, &dir.join(MATRIX_FILE))?,
+            SetDistances::Landmarks(g) => save_graph(g, outputs, dir)?,
+        }
         Ok(())
     }
 
-    fn load(&self, input: &DistancesInput<'_>, dir: &Path) -> crate::Result<DistanceMatrix> {
-        let path = dir.join(MATRIX_FILE);
+    fn load(&self, input: &DistancesInput<'_>, dir: &Path) -> crate::Result<SetDistances> {
         let m = input.traced.kept.len();
+        if self.path(m) == ChosenPath::Landmarks {
+            return Ok(SetDistances::Landmarks(Box::new(load_graph(dir, m)?)));
+        }
+        let path = dir.join(MATRIX_FILE);
         let d = DistanceMatrix::load(&path).map_err(crate::metric::MetricError::from)?;
         if d.len() != m {
             return Err(IoError::Shape {
@@ -165,7 +270,7 @@ impl Stage for DistancesStage {
             }
             .into());
         }
-        Ok(d)
+        Ok(SetDistances::Dense(d))
     }
 
     /// For kernels of dimension `k ≥ 2` (surfaces sampled by `P` points) under a metric
@@ -174,6 +279,8 @@ impl Stage for DistancesStage {
     /// the early exits that make loops fast, about `M (M − 1) P²` point distances in
     /// all; said with the time it takes at `SURFACE_POINT_DISTANCES_PER_CORE_SECOND`
     /// when it exceeds about a minute on one core.
+    ///
+    /// On the landmark path: the path, its sizes and its pairs.
     fn forecast(&self, input: &DistancesInput<'_>) -> Option<String> {
         let traced = &input.traced.value;
         if self.metric.kind() == Some(crate::metric::MetricKind::Curve) {
@@ -182,17 +289,217 @@ impl Stage for DistancesStage {
         }
         let k = traced.dimensions().into_iter().max().unwrap_or(0);
         let (m, p, _) = traced.sets.dim();
-        surface_forecast(k, m, p)
+        let landmarks = match self.path(m) {
+            ChosenPath::Dense => None,
+            ChosenPath::Landmarks => {
+                let l = self.scale.landmarks.min(m);
+                Some(format!(
+                    "landmark path (scale.path = {}, {m} sets, above = {}): {l} {} landmarks, {} set pairs to them, and the {} nearest of every babbled set; no {m} × {m} matrix",
+                    super::label(&self.scale.path),
+                    self.scale.above,
+                    self.scale.selection,
+                    (l * m).saturating_sub(l * (l + 1) / 2),
+                    self.scale.knn
+                ))
+            }
+        };
+        match (landmarks, surface_forecast(k, m, p)) {
+            (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+            (a, b) => a.or(b),
+        }
     }
 
-    fn summary(&self, d: &DistanceMatrix) -> String {
-        format!(
-            "{0} × {0} matrix ({1}, period {2})",
-            d.len(),
-            self.metric,
-            self.period
-        )
+    fn summary(&self, d: &SetDistances) -> String {
+        match d {
+            SetDistances::Dense(d) => format!(
+                "{0} × {0} matrix ({1}, period {2})",
+                d.len(),
+                self.metric,
+                self.period
+            ),
+            SetDistances::Landmarks(g) => format!(
+                "{} sets to {} {} landmarks (covering radius {:.4}) and the {} nearest of {} babbled sets ({}, period {})",
+                g.landmarks.sets(),
+                g.landmarks.len(),
+                g.landmarks.selection,
+                g.landmarks.covering_radius,
+                g.knn.k(),
+                g.knn_sets.len(),
+                self.metric,
+                self.period
+            ),
+        }
     }
+}
+
+impl DistancesStage {
+    /// The landmark path: landmarks of every set, then the kNN graph of the babbled
+    /// sets, both with the stage's metric in this process.
+    fn landmark_graph(
+        &self,
+        input: &DistancesInput<'_>,
+        sets: SetsView<'_>,
+        context: &StageContext<'_>,
+    ) -> crate::Result<LandmarkGraph> {
+        let traced = &input.traced.value;
+        let params = self.scale.check(self.mle_neighbors)?;
+        let landmarks = landmark_distances_with(
+            sets.reborrow(),
+            self.set_metric(),
+            &params,
+            context.memory_limit_bytes,
+            context.progress,
+        )?;
+        let probes = &input.exploration.value.probes;
+        let knn_sets: Vec<usize> = (0..traced.kept.len())
+            .filter(|&i| probes[[traced.kept[i], 0]] < 0)
+            .collect();
+        let limit = DistanceParams::new().memory_limit_bytes(context.memory_limit_bytes);
+        let knn = if knn_sets.len() == traced.kept.len() {
+            knn_with(
+                sets,
+                self.set_metric(),
+                &limit,
+                &self.scale.knn_params(),
+                0..knn_sets.len(),
+                context.progress,
+            )?
+        } else {
+            let points = traced.sets.select(ndarray::Axis(0), &knn_sets);
+            let closure: Vec<_> = knn_sets.iter().map(|&i| traced.closure[i]).collect();
+            let pieces = traced.pieces.select(ndarray::Axis(0), &knn_sets);
+            let babbled = SetsView::new(points.view())
+                .with_closure(&closure)
+                .with_pieces(pieces.view());
+            knn_with(
+                babbled,
+                self.set_metric(),
+                &limit,
+                &self.scale.knn_params(),
+                0..knn_sets.len(),
+                context.progress,
+            )?
+        };
+        Ok(LandmarkGraph {
+            landmarks,
+            knn_sets,
+            knn,
+        })
+    }
+}
+
+/// Stages the landmark path's files.
+fn save_graph(g: &LandmarkGraph, outputs: &mut Outputs, dir: &Path) -> Result<(), IoError> {
+    let l = &g.landmarks;
+    let rows = ndarray::Array1::from_iter(l.rows.iter().map(|&r| r as i64));
+    outputs.npy(&dir.join(LANDMARK_ROWS_FILE), &rows)?;
+    outputs.npy(&dir.join(LANDMARK_MATRIX_FILE), &l.landmarks.view())?;
+    outputs.npy(&dir.join(TO_LANDMARKS_FILE), &l.to_landmarks)?;
+    let knn_sets = ndarray::Array1::from_iter(g.knn_sets.iter().map(|&r| r as i64));
+    outputs.npy(&dir.join(KNN_SETS_FILE), &knn_sets)?;
+    outputs.npy(
+        &dir.join(KNN_INDICES_FILE),
+        &g.knn.indices.mapv(|j| j as i64),
+    )?;
+    outputs.npy(&dir.join(KNN_DISTANCES_FILE), &g.knn.distances)?;
+    let record = LandmarkRecord {
+        sets: l.sets(),
+        landmarks: l.len(),
+        selection: l.selection,
+        covering_radius: l.covering_radius,
+        knn_sets: g.knn_sets.len(),
+        k: g.knn.k(),
+    };
+    outputs.json(&dir.join(LANDMARK_RECORD_FILE), &record)
+}
+
+/// Reads back [`save_graph`]'s files for `m` sets, checking their shapes.
+fn load_graph(dir: &Path, m: usize) -> crate::Result<LandmarkGraph> {
+    let record: LandmarkRecord = io::read_json(&dir.join(LANDMARK_RECORD_FILE), "landmark record")?;
+    let shape_error = |file: &str, found: &[usize], expected: String| IoError::Shape {
+        path: dir.join(file),
+        found: io::shape_string(found),
+        expected,
+    };
+    let index = |file: &str, len: usize, bound: usize| -> crate::Result<Vec<usize>> {
+        let path = dir.join(file);
+        let values = io::read_i64(&path)?;
+        if values.ndim() != 1
+            || values.len() != len
+            || values.iter().any(|&v| v < 0 || v as usize >= bound)
+        {
+            return Err(shape_error(
+                file,
+                values.shape(),
+                format!("({len},) set rows below {bound}, as landmarks.json says"),
+            )
+            .into());
+        }
+        Ok(values.iter().map(|&v| v as usize).collect())
+    };
+    if record.sets != m {
+        return Err(shape_error(
+            LANDMARK_RECORD_FILE,
+            &[record.sets],
+            format!("{m} sets, one per set of sets.npy"),
+        )
+        .into());
+    }
+    let rows = index(LANDMARK_ROWS_FILE, record.landmarks, m)?;
+    let knn_sets = index(KNN_SETS_FILE, record.knn_sets, m)?;
+    let landmarks = DistanceMatrix::load(&dir.join(LANDMARK_MATRIX_FILE))
+        .map_err(crate::metric::MetricError::from)?;
+    let to_landmarks = io::read_matrix(
+        &dir.join(TO_LANDMARKS_FILE),
+        Some(record.landmarks),
+        "(M, L)",
+    )?;
+    let indices = io::read_i64(&dir.join(KNN_INDICES_FILE))?;
+    let indices = match indices.into_dimensionality::<ndarray::Ix2>() {
+        Ok(indices) if indices.ncols() == record.k => indices,
+        Ok(indices) => {
+            return Err(shape_error(
+                KNN_INDICES_FILE,
+                indices.shape(),
+                format!("(sets, {})", record.k),
+            )
+            .into())
+        }
+        Err(_) => {
+            return Err(shape_error(KNN_INDICES_FILE, &[], format!("(sets, {})", record.k)).into())
+        }
+    };
+    let distances = io::read_matrix(&dir.join(KNN_DISTANCES_FILE), Some(record.k), "(M, k)")?;
+    if landmarks.len() != record.landmarks
+        || to_landmarks.nrows() != m
+        || indices.nrows() != record.knn_sets
+        || distances.nrows() != record.knn_sets
+        || indices
+            .iter()
+            .any(|&j| j < 0 || j as usize >= record.knn_sets)
+    {
+        return Err(shape_error(
+            TO_LANDMARKS_FILE,
+            to_landmarks.shape(),
+            "the shapes landmarks.json records".into(),
+        )
+        .into());
+    }
+    Ok(LandmarkGraph {
+        landmarks: LandmarkDistances {
+            rows,
+            selection: record.selection,
+            covering_radius: record.covering_radius,
+            landmarks,
+            to_landmarks,
+        },
+        knn: Knn {
+            rows: 0..record.knn_sets,
+            indices: indices.mapv(|j| j as usize),
+            distances,
+        },
+        knn_sets,
+    })
 }
 
 /// Point distances per second and core of the point metric between surfaces sampled

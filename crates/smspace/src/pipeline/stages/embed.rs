@@ -1,17 +1,20 @@
 //! `embed`: coordinates of the manifold of sets from its distance matrix (paper
 //! section 3.2, step 4), with the embedding's quality against `D` and the `dy–dx`
-//! sample of CCA.
+//! sample of CCA. On the landmark path ([`crate::pipeline::scale`]) the method is
+//! fitted on the landmarks and every other set placed out of sample
+//! ([`crate::embed::landmarks`]); the quality and the `dy–dx` sample are then those of
+//! the landmarks' fit against their `L × L` matrix (said in `Y.embed.json`'s `input`).
 
 use std::path::Path;
 
 use ndarray::Array2;
 use serde::Serialize;
 
-use super::{Keyed, Stage, StageContext, StageInput};
+use super::{Keyed, SetDistances, Stage, StageContext, StageInput};
+use crate::embed::landmarks::fit_on_landmarks;
 use crate::embed::quality::{measure, Quality};
 use crate::embed::{EmbedFile, EmbedParams, EmbedReport};
 use crate::io::{self, Outputs};
-use crate::metric::DistanceMatrix;
 use crate::pipeline::StageId;
 
 /// Pairs of `(dx, dy)` sampled for the CCA `dy–dx` plot (the default of `smspace
@@ -38,8 +41,8 @@ pub struct EmbedStage {
 /// What `embed` reads.
 #[derive(Debug, Clone, Copy)]
 pub struct EmbedInput<'a> {
-    /// The `(M, M)` distance matrix.
-    pub distances: &'a Keyed<DistanceMatrix>,
+    /// The `(M, M)` distance matrix, or the landmarks.
+    pub distances: &'a Keyed<SetDistances>,
 }
 
 impl StageInput for EmbedInput<'_> {
@@ -75,22 +78,46 @@ impl Stage for EmbedStage {
         input: &EmbedInput<'_>,
         context: &StageContext<'_>,
     ) -> crate::Result<EmbedOutputs> {
-        let distances = &input.distances.value;
-        let fitted = self
-            .embedding
-            .clone()
-            .build()?
-            .fit(distances, context.progress)?;
-        let (quality, dydx) = measure(
-            distances.view(),
-            fitted.coordinates.view(),
-            self.quality_neighbours,
-            self.dydx_pairs,
-            self.dydx_seed,
-        )?;
+        let method = self.embedding.clone().build()?;
+        let (coordinates, report, quality, dydx) = match &input.distances.value {
+            SetDistances::Dense(distances) => {
+                let fitted = method.fit(distances, context.progress)?;
+                let (quality, dydx) = measure(
+                    distances.view(),
+                    fitted.coordinates.view(),
+                    self.quality_neighbours,
+                    self.dydx_pairs,
+                    self.dydx_seed,
+                )?;
+                (fitted.coordinates, fitted.report, quality, dydx)
+            }
+            SetDistances::Landmarks(graph) => {
+                let l = &graph.landmarks;
+                let fit = fit_on_landmarks(method.as_ref(), l, context.progress)?;
+                // The landmarks' matrix in the fit's order (increasing set index).
+                let mut order: Vec<usize> = (0..l.len()).collect();
+                order.sort_unstable_by_key(|&a| l.rows[a]);
+                let sorted = l.landmarks.view();
+                let sorted = sorted
+                    .select(ndarray::Axis(0), &order)
+                    .select(ndarray::Axis(1), &order);
+                let (quality, dydx) = measure(
+                    sorted.view(),
+                    fit.fitted.coordinates.view(),
+                    self.quality_neighbours,
+                    self.dydx_pairs,
+                    self.dydx_seed,
+                )?;
+                let report = EmbedReport {
+                    points: l.sets(),
+                    ..fit.fitted.report
+                };
+                (fit.coordinates, report, quality, dydx)
+            }
+        };
         Ok(EmbedOutputs {
-            coordinates: fitted.coordinates,
-            report: fitted.report,
+            coordinates,
+            report,
             quality,
             dydx: dydx.unwrap_or_else(|| Array2::zeros((0, 2))),
         })
@@ -98,7 +125,7 @@ impl Stage for EmbedStage {
 
     fn save(
         &self,
-        _: &EmbedInput<'_>,
+        input: &EmbedInput<'_>,
         y: &EmbedOutputs,
         outputs: &mut Outputs,
         dir: &Path,
@@ -108,7 +135,14 @@ impl Stage for EmbedStage {
         let file = EmbedFile {
             report: y.report.clone(),
             params,
-            input: serde_json::json!({ "distances": "D.npy" }),
+            input: match &input.distances.value {
+                SetDistances::Dense(_) => serde_json::json!({ "distances": "D.npy" }),
+                SetDistances::Landmarks(g) => serde_json::json!({
+                    "landmarks": "D.landmarks.npy",
+                    "to_landmarks": "D.to-landmarks.npy",
+                    "fitted_on": format!("the {} landmarks (quality and dy-dx of their fit); every other set placed out of sample", g.landmarks.len()),
+                }),
+            },
             quality: y.quality,
             dydx: None,
             extended: None,
@@ -125,13 +159,13 @@ impl Stage for EmbedStage {
 
     fn load(&self, input: &EmbedInput<'_>, dir: &Path) -> crate::Result<EmbedOutputs> {
         let file: EmbedFile = io::read_json(&dir.join(REPORT_FILE), "embedding report")?;
-        let m = input.distances.len();
+        let m = input.distances.sets();
         let coordinates = io::read_matrix(&dir.join(COORDINATES_FILE), None, "(M, d)")?;
         if coordinates.nrows() != m {
             return Err(io::IoError::Shape {
                 path: dir.join(COORDINATES_FILE),
                 found: io::shape_string(coordinates.shape()),
-                expected: format!("({m}, d), one row per row of D.npy"),
+                expected: format!("({m}, d), one row per set"),
             }
             .into());
         }

@@ -18,7 +18,7 @@
 //! |---|---|---|---|
 //! | `explore` | [`ExploreStage`] | [`World`] | [`Exploration`](crate::explore::Exploration) |
 //! | `trace` | [`TraceStage`] | world, exploration | [`TracedSets`](crate::kernel::TracedSets) |
-//! | `distances` | [`DistancesStage`] | traced sets | [`DistanceMatrix`](crate::metric::DistanceMatrix) |
+//! | `distances` | [`DistancesStage`] | traced sets (exploration: which are babbled) | [`SetDistances`]: the [`DistanceMatrix`](crate::metric::DistanceMatrix), or landmarks and the kNN graph ([`crate::pipeline::scale`]) |
 //! | `embed` | [`EmbedStage`] | distances | [`EmbedOutputs`] |
 //! | `analyze` | [`AnalyzeStage`] | exploration, traced sets, distances | [`AnalysisReport`](crate::analysis::AnalysisReport) |
 //! | `invariance` | [`InvarianceStage`] | world, exploration | [`InvarianceData`](crate::report::InvarianceData) |
@@ -45,7 +45,9 @@ use crate::progress::Progress;
 use crate::report::StageTiming;
 
 pub use analyze::{AnalyzeInput, AnalyzeStage};
-pub use distances::{DistanceBackend, DistancesInput, DistancesStage, LocalDistances};
+pub use distances::{
+    DistanceBackend, DistancesInput, DistancesStage, LandmarkGraph, LocalDistances, SetDistances,
+};
 pub use embed::{EmbedInput, EmbedOutputs, EmbedStage, DYDX_PAIRS, QUALITY_NEIGHBOURS};
 pub use explore::{ExploreInput, ExploreStage};
 pub use invariance::{InvarianceInput, InvarianceStage};
