@@ -113,6 +113,10 @@ impl DistanceBackend for PythonDistances {
             .into()
         })
     }
+
+    fn remote(&self) -> Option<String> {
+        Some("the Dask cluster of the client given".to_owned())
+    }
 }
 
 /// The run folder when `out` is not given, as `smspace run` names it: `runs/<name>`,

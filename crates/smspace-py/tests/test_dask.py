@@ -49,6 +49,14 @@ def test_run_computes_the_distance_stage_on_the_cluster(client, root, tmp_path):
     assert here.report == there.report
 
 
+def test_the_landmark_path_is_refused_on_the_cluster(client, root, tmp_path):
+    # The landmark path computes in this process: a client is refused, not ignored.
+    experiment = root / "experiments" / "paper-toy-redundant.toml"
+    overrides = {"exploration.n": 50, "kernel.points": 10, "scale.path": "landmarks"}
+    with pytest.raises(ValueError, match=r"scale.path.*computes in this process, not on the Dask cluster"):
+        smspace.run(experiment, out=tmp_path / "there", overrides=overrides, client=client)
+
+
 def test_errors_on_the_cluster_are_raised(client):
     with pytest.raises(ValueError, match="which sets are closed loops"):
         smspace.dask.distances(np.zeros((3, 2, 2)), client, metric="curve")

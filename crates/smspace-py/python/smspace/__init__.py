@@ -407,7 +407,9 @@ def run(
     ``smspace run``), with ``overrides`` as ``{"stage.key": value}`` (``--set``);
     unchanged stages are reused from the folder's cache unless ``force``. With a Dask
     ``client``, the distance stage runs on its cluster in tiles (:mod:`smspace.dask`;
-    the matrix is the same, bit for bit). ``log=True`` prints one line per stage to
+    the matrix is the same, bit for bit); the landmark path of large runs
+    (``[scale]``) computes in this process only, and is refused with a client
+    (``scale.path = "dense"`` puts the whole matrix on the cluster). ``log=True`` prints one line per stage to
     stderr (or give a callable). Returns the run folder's arrays and reports."""
     sets = [f"{k}={_toml_value(v)}" for k, v in (overrides or {}).items()]
     if log is True:

@@ -38,6 +38,14 @@ pub trait DistanceBackend: Sync {
         memory_limit_bytes: Option<u64>,
         progress: &dyn Progress,
     ) -> crate::Result<DistanceMatrix>;
+
+    /// Where the backend computes, when not in this process (e.g. "the Dask cluster
+    /// of the client given"). The landmark path ([`ScaleParams`]) computes in this
+    /// process only, and refuses a remote backend rather than ignore it. The default
+    /// is `None`: this process.
+    fn remote(&self) -> Option<String> {
+        None
+    }
 }
 
 /// The matrix in this process, on its threads ([`distance_matrix_with`]).
@@ -235,9 +243,23 @@ impl Stage for DistancesStage {
                 context.memory_limit_bytes,
                 context.progress,
             )?)),
-            ChosenPath::Landmarks => Ok(SetDistances::Landmarks(Box::new(
-                self.landmark_graph(input, sets, context)?,
-            ))),
+            ChosenPath::Landmarks => {
+                if let Some(remote) = context.distances.remote() {
+                    let refused = crate::error::InvalidParameter::new(
+                        "scale",
+                        "path",
+                        super::label(&self.scale.path),
+                        format!(
+                            "the landmark path for {} sets computes in this process, not on {remote}; set scale.path = \"dense\" to compute the {0} × {0} matrix there, or run without it",
+                            traced.kept.len()
+                        ),
+                    );
+                    return Err(crate::metric::MetricError::Invalid(refused).into());
+                }
+                Ok(SetDistances::Landmarks(Box::new(
+                    self.landmark_graph(input, sets, context)?,
+                )))
+            }
         }
     }
 
@@ -283,11 +305,14 @@ impl Stage for DistancesStage {
     /// On the landmark path: the path, its sizes and its pairs.
     fn forecast(&self, input: &DistancesInput<'_>) -> Option<String> {
         let traced = &input.traced.value;
-        if self.metric.kind() == Some(crate::metric::MetricKind::Curve) {
-            // The curve metric reads spatial sets slice by slice, as polylines.
-            return None;
-        }
-        let k = traced.dimensions().into_iter().max().unwrap_or(0);
+        // The curve metric reads spatial sets slice by slice, as polylines: no surface
+        // forecast for it.
+        let curve = self.metric.kind() == Some(crate::metric::MetricKind::Curve);
+        let k = if curve {
+            0
+        } else {
+            traced.dimensions().into_iter().max().unwrap_or(0)
+        };
         let (m, p, _) = traced.sets.dim();
         let landmarks = match self.path(m) {
             ChosenPath::Dense => None,
