@@ -53,7 +53,7 @@ def test_the_landmark_path_is_refused_on_the_cluster(client, root, tmp_path):
     # The landmark path computes in this process: a client is refused, not ignored.
     experiment = root / "experiments" / "paper-toy-redundant.toml"
     overrides = {"exploration.n": 50, "kernel.points": 10, "scale.path": "landmarks"}
-    with pytest.raises(ValueError, match=r"scale.path.*computes in this process, not on the Dask cluster"):
+    with pytest.raises(ValueError, match=r"scale parameter path = landmarks: .*computes in this process, not on the Dask cluster"):
         smspace.run(experiment, out=tmp_path / "there", overrides=overrides, client=client)
 
 

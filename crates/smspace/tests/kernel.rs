@@ -337,6 +337,30 @@ fn gathered_calls_trace_the_same_sets_in_far_fewer_calls() {
 }
 
 #[test]
+fn a_set_out_of_steps_reports_the_steps_it_took() {
+    // A step budget far too small to close the arm's loops: every set fails as
+    // not-closed, and says how far it got instead of 0.
+    let arm = agent("planar-arm");
+    let motors = arm_starts(3, 7);
+    let params = TraceParams {
+        max_steps: 7,
+        min_steps: 1,
+        ..TraceParams::default()
+    }
+    .check()
+    .unwrap();
+    let traced = trace_sets(arm.as_ref(), None, motors.view(), None, &params, &Silent);
+    let report = match traced {
+        Ok(t) => t.report,
+        Err(e) => panic!("{e}"),
+    };
+    for line in &report.sets {
+        assert_eq!(line.status, SetStatus::NotClosed);
+        assert_eq!(line.steps, 7, "the forward branch's 7 steps");
+    }
+}
+
+#[test]
 fn sensory_tracing_reports_a_blind_retina_as_singular() {
     // One light behind the working space: the retina sees too little to tell its pose.
     let arm = agent("planar-arm");

@@ -179,8 +179,8 @@ pub(crate) fn closest_on_segment(a: &[f64], b: &[f64], p: &[f64]) -> (f64, f64) 
 }
 
 /// Traces from `start` along `direction` until the curve closes (back at an image of
-/// the start), reaches a bound of a bounded coordinate, or fails. The level set must
-/// be linearised at `start`.
+/// the start), reaches a bound of a bounded coordinate, or fails: then the status and
+/// the steps taken before the failure. The level set must be linearised at `start`.
 pub(crate) fn trace_branch(
     set: &mut dyn LevelSet,
     start: &[f64],
@@ -188,14 +188,35 @@ pub(crate) fn trace_branch(
     params: &TraceValidParams,
     space: &MotorSpace,
     scratch: &mut Scratch,
-) -> Result<Branch, SetStatus> {
-    let n = start.len();
-    let adaptive = params.step_control == StepControl::Adaptive;
+) -> Result<Branch, (SetStatus, usize)> {
     let mut branch = Branch {
         nodes: scratch.take(),
         tangents: scratch.take(),
         ..Branch::default()
     };
+    match follow(set, start, direction, params, space, scratch, &mut branch) {
+        Ok(()) => Ok(branch),
+        Err(status) => {
+            let steps = branch.steps;
+            scratch.give(branch.nodes);
+            scratch.give(branch.tangents);
+            Err((status, steps))
+        }
+    }
+}
+
+/// The steps of [`trace_branch`], into `branch`.
+fn follow(
+    set: &mut dyn LevelSet,
+    start: &[f64],
+    direction: &[f64],
+    params: &TraceValidParams,
+    space: &MotorSpace,
+    scratch: &mut Scratch,
+    branch: &mut Branch,
+) -> Result<(), SetStatus> {
+    let n = start.len();
+    let adaptive = params.step_control == StepControl::Adaptive;
     branch.nodes.extend_from_slice(start);
     branch.tangents.extend_from_slice(direction);
     let mut m = start.to_vec();
@@ -294,10 +315,10 @@ pub(crate) fn trace_branch(
                 branch.tangents.truncate(branch.tangents.len() - n);
             }
             branch.closes_at = Some(watch.image.clone());
-            return Ok(branch);
+            return Ok(());
         }
         if bounded && stops_on_bound(space, &previous, &m, &mut branch.nodes) {
-            return Ok(branch);
+            return Ok(());
         }
     }
 }

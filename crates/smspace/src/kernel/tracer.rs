@@ -571,8 +571,7 @@ fn trace_curve(
         .map_err(|_| (SetStatus::Singular, 0))?;
     let mut t0 = vec![0.0; n];
     set.null_vector(&orientation_reference(n), &mut t0);
-    let forward =
-        trace_branch(set, start, &t0, params, space, scratch).map_err(|status| (status, 0))?;
+    let forward = trace_branch(set, start, &t0, params, space, scratch)?;
     let mut steps = forward.steps;
     let mut max_residual = forward.max_residual;
     let curve = if let Some(image) = forward.closes_at {
@@ -591,7 +590,7 @@ fn trace_curve(
             .map_err(|_| (SetStatus::Singular, steps))?;
         let backward_direction: Vec<f64> = t0.iter().map(|x| -x).collect();
         let backward = trace_branch(set, start, &backward_direction, params, space, scratch)
-            .map_err(|status| (status, steps))?;
+            .map_err(|(status, taken)| (status, steps + taken))?;
         steps += backward.steps;
         max_residual = max_residual.max(backward.max_residual);
         let mut nodes = Vec::with_capacity(forward.nodes.len() + backward.nodes.len());
