@@ -292,6 +292,40 @@ pub struct HomologySummary {
     pub longest_bars: Vec<Vec<f64>>,
 }
 
+impl HomologySummary {
+    /// The summary of `persistence`, computed with `p` on the points of `subsampling`
+    /// and read with `rule`.
+    pub(crate) fn of(
+        persistence: &Persistence,
+        p: &AnalysisParams,
+        subsampling: Subsampling,
+        rule: BettiRule,
+    ) -> Self {
+        Self {
+            max_dim: p.max_homology_dim,
+            threshold: persistence.threshold,
+            threshold_rule: if p.threshold.is_some() {
+                "given"
+            } else {
+                "enclosing-radius"
+            }
+            .into(),
+            subsampling,
+            rule,
+            longest_bars: longest_bars(persistence),
+        }
+    }
+}
+
+/// The bars `(birth, death)` of every diagram of `persistence` (`None`: never dies).
+pub(crate) fn bars(persistence: &Persistence) -> Vec<Vec<(f64, Option<f64>)>> {
+    persistence
+        .diagrams
+        .iter()
+        .map(|bars| bars.iter().map(|b| (b.birth, b.death)).collect())
+        .collect()
+}
+
 /// Intrinsic-dimension estimates.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct IntrinsicDimension {
@@ -469,24 +503,8 @@ pub fn analyze_on(
     Ok(AnalysisReport {
         points: distances.nrows(),
         betti: rule.betti(&persistence),
-        persistence: persistence
-            .diagrams
-            .iter()
-            .map(|bars| bars.iter().map(|b| (b.birth, b.death)).collect())
-            .collect(),
-        homology: HomologySummary {
-            max_dim: p.max_homology_dim,
-            threshold: persistence.threshold,
-            threshold_rule: if p.threshold.is_some() {
-                "given"
-            } else {
-                "enclosing-radius"
-            }
-            .into(),
-            subsampling,
-            rule,
-            longest_bars: longest_bars(&persistence),
-        },
+        persistence: bars(&persistence),
+        homology: HomologySummary::of(&persistence, p, subsampling, rule),
         intrinsic_dimension,
         agreement,
         compensability: None,

@@ -236,21 +236,11 @@ fn analyze_landmarks(
     Ok(AnalysisReport {
         points: l.sets(),
         betti: rule.betti(&persistence),
-        persistence: persistence
-            .diagrams
-            .iter()
-            .map(|bars| bars.iter().map(|b| (b.birth, b.death)).collect())
-            .collect(),
-        homology: HomologySummary {
-            max_dim: p.max_homology_dim,
-            threshold: persistence.threshold,
-            threshold_rule: if p.threshold.is_some() {
-                "given"
-            } else {
-                "enclosing-radius"
-            }
-            .into(),
-            subsampling: Subsampling {
+        persistence: crate::analysis::bars(&persistence),
+        homology: HomologySummary::of(
+            &persistence,
+            p,
+            Subsampling {
                 method: format!(
                     "landmarks ({}, the first {count} of {})",
                     l.selection,
@@ -260,8 +250,7 @@ fn analyze_landmarks(
                 covering_radius,
             },
             rule,
-            longest_bars: crate::analysis::longest_bars(&persistence),
-        },
+        ),
         intrinsic_dimension: IntrinsicDimension {
             twonn: twonn.dimension,
             mle: mle.dimension,
