@@ -14,7 +14,7 @@ use smspace::agent::{
     Agent, AgentConfig, ArmParams, Environment, EnvironmentConfig, Motor, MotorSpace, PlanarArm,
 };
 use smspace::analysis::compensability::{
-    compensability, CompensabilityParams, CompensabilityReport, SceneChange,
+    compensability, BasePoint, CompensabilityParams, CompensabilityReport, SceneChange,
 };
 use smspace::explore::{explore, ExploreParams};
 use smspace::kernel::{trace_sets, StepControl, TraceMethod, TraceParams};
@@ -67,6 +67,12 @@ fn analyse(
 }
 
 /// `d` is the report's value, held by most points, with few ambiguous ones.
+/// The first base point whose ranks were clear.
+fn first_clear(report: &CompensabilityReport) -> &BasePoint {
+    let clear = report.points.iter().find(|b| b.ambiguous.is_empty());
+    clear.expect("a base point with clear ranks")
+}
+
 fn assert_dimension(report: &CompensabilityReport, d: usize, spatial: usize) {
     let clear = report.base_points - report.ambiguous;
     assert!(
@@ -104,11 +110,7 @@ fn the_paper_arm_compensates_rigid_displacements_in_three_dimensions() {
     );
     assert_dimension(&report, 3, 3);
     assert!(report.non_spatial_motors.is_empty());
-    let point = report
-        .points
-        .iter()
-        .find(|b| b.ambiguous.is_empty())
-        .unwrap();
+    let point = first_clear(&report);
     assert_eq!((point.motor_rank, point.environment_rank), (3, 4));
     assert_eq!(point.joint_rank, 4);
 }
@@ -129,7 +131,7 @@ fn the_pupil_arm_compensates_displacements_in_three_and_luminance_in_four() {
     // compensable change, and its motor direction is the aperture's axis.
     assert_dimension(&both, 4, 3);
     assert_eq!(both.non_spatial_motors, vec![4]);
-    let point = both.points.iter().find(|b| b.ambiguous.is_empty()).unwrap();
+    let point = first_clear(&both);
     assert_eq!(point.compensable_directions.len(), 4);
     assert!(point.non_spatial_directions[0][4].abs() > 0.999);
 }
@@ -440,11 +442,7 @@ fn a_three_dimensional_arm_compensates_the_six_rigid_displacements() {
     assert_eq!(report.environment_parameters, 6);
     assert_dimension(&report, 6, 6);
     assert!(report.non_spatial_motors.is_empty());
-    let point = report
-        .points
-        .iter()
-        .find(|b| b.ambiguous.is_empty())
-        .unwrap();
+    let point = first_clear(&report);
     assert_eq!((point.motor_rank, point.environment_rank), (6, 6));
     assert_eq!(point.joint_rank, 6);
 }
