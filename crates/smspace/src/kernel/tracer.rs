@@ -13,7 +13,7 @@
 //! larger dimension surfaces the covering samples (`cover.rs`).
 
 use nalgebra::{DMatrix, SVD};
-use ndarray::{Array2, ArrayView2, ArrayViewMut2};
+use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
 
 use super::cover::{
@@ -167,18 +167,8 @@ impl<'a> Tracer<'a> {
             covering_radius: None,
         };
         let start_pose = self.observer.map(|o| {
-            let mut pose = vec![0.0; o.pose_space().dim()];
-            match caller {
-                Some(caller) => {
-                    let motors =
-                        ArrayView2::from_shape((1, start.len()), start).expect("one start");
-                    let d = pose.len();
-                    let rows = ArrayViewMut2::from_shape((1, d), &mut pose).expect("one pose");
-                    caller.pose_batch(motors, rows);
-                }
-                None => o.pose(start, &mut pose),
-            }
-            pose
+            let motors = ArrayView2::from_shape((1, start.len()), start).expect("one start");
+            self.poses(o, caller, motors).row(0).to_vec()
         });
         if let (Some(w), Some(pose)) = (self.workspace, &start_pose) {
             if !w.contains(pose) {
@@ -465,6 +455,22 @@ impl<'a> Tracer<'a> {
         (points, pieces)
     }
 
+    /// The observer's poses of the motor rows `(B, N)`, `(B, d)`: in one call of the
+    /// observer, or of a gathered round through `caller`.
+    fn poses(
+        &self,
+        observer: &dyn Observer,
+        caller: Option<&Caller<'_>>,
+        motors: ArrayView2<'_, f64>,
+    ) -> Array2<f64> {
+        let mut poses = Array2::zeros((motors.nrows(), observer.pose_space().dim()));
+        match caller {
+            Some(caller) => caller.pose_batch(motors, poses.view_mut()),
+            None => observer.pose_batch(motors, poses.view_mut()),
+        }
+        poses
+    }
+
     /// The largest deviation of a point's pose from `start_pose`, over the tangent
     /// coordinates the motors change (the observer's check of a traced set).
     fn pose_deviation(
@@ -479,11 +485,7 @@ impl<'a> Tracer<'a> {
         let c = observer.configuration_dim();
         let n = self.agent.motor_dim();
         let motors = ArrayView2::from_shape((points.len() / n, n), points).expect("P × N points");
-        let mut all = Array2::zeros((motors.nrows(), poses.dim()));
-        match caller {
-            Some(caller) => caller.pose_batch(motors, all.view_mut()),
-            None => observer.pose_batch(motors, all.view_mut()),
-        }
+        let all = self.poses(observer, caller, motors);
         let mut difference = vec![0.0; poses.tangent_dim()];
         let mut deviation: f64 = 0.0;
         for pose in all.outer_iter() {
