@@ -2,8 +2,11 @@
 //! pipeline` runs `experiments/paper-arm.toml` (3500 sets: 2500 babbled + the probe
 //! grid; figures and report included) `SMSPACE_BENCH_RUNS` times (default 3) with every
 //! stage recomputed, into a temporary folder, and prints the time of each stage and of
-//! the whole run (best and median). `SMSPACE_BENCH_EXPERIMENT=path.toml` times another
-//! experiment. The issue's target for paper-arm is 15 s on 2 cores.
+//! the whole run (best and median), with the peak resident memory of the process and the
+//! SIMD level of the metric kernels. `SMSPACE_BENCH_EXPERIMENT=path.toml` times another
+//! experiment, e.g. `SMSPACE_BENCH_EXPERIMENT=experiments/arm-100k.toml
+//! SMSPACE_BENCH_RUNS=1`. Issue 18's targets on 2 cores with AVX2: paper-arm at most 5 s,
+//! arm-100k at most 10 minutes and 4 GiB.
 
 use std::path::PathBuf;
 
@@ -39,9 +42,10 @@ fn main() {
     let plan = pipeline::check(&loaded).expect("the experiment is valid");
     let dir = tempfile::tempdir().expect("a temporary folder");
     println!(
-        "pipeline of {} ({} threads), {runs} runs, every stage recomputed",
+        "pipeline of {} ({} threads, metric kernels: {}), {runs} runs, every stage recomputed",
         experiment.display(),
-        rayon::current_num_threads()
+        rayon::current_num_threads(),
+        smspace::metric::simd_level()
     );
     let mut totals = Vec::new();
     let mut per_stage: Vec<(String, Vec<f64>)> = Vec::new();
@@ -74,4 +78,15 @@ fn main() {
         "  {:<11} best {best:7.3} s   median {median:7.3} s",
         "total"
     );
+    // Peak resident memory of this process (all runs), from /proc/self/status.
+    if let Some(peak) = std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .map(|l| l.trim_start_matches("VmHWM:").trim().to_owned())
+        })
+    {
+        println!("  peak resident memory {peak}");
+    }
 }

@@ -28,10 +28,14 @@ fn landmarks_of(
     points: &Array2<f64>,
     count: usize,
     selection: LandmarkSelection,
+    nearest: usize,
 ) -> LandmarkDistances {
     let sets = as_sets(points);
     let metric = euclidean().check().unwrap().set_metric();
-    let params = LandmarkParams::new(count, selection, 7).check().unwrap();
+    let params = LandmarkParams::new(count, selection, 7)
+        .nearest(nearest)
+        .check()
+        .unwrap();
     landmark_distances_with(sets.view(), metric.as_ref(), &params, None, &Silent).unwrap()
 }
 
@@ -86,15 +90,21 @@ fn error_after_similarity(truth: &Array2<f64>, y: &Array2<f64>, landmarks: &[usi
 
 /// Each method fitted on 60 max–min landmarks of a flat 20 × 15 grid places the 240
 /// other points within a stated distance of their true positions, up to the similarity
-/// fitted on the landmarks: MDS exactly (Euclidean distances of rank 2), Isomap within
-/// 0.6 spacings (the geodesics zigzag through the graph of 60 landmarks about 2.2
-/// spacings apart), CCA within 0.25 spacings.
+/// fitted on the landmarks: MDS exactly with every landmark measured (Euclidean
+/// distances of rank 2) and within 0.5 spacings with the 16 nearest measured (the rest
+/// bounded through them), Isomap within 0.6 spacings (the geodesics zigzag through the
+/// graph of 60 landmarks about 2.2 spacings apart), CCA within 0.25 spacings.
 #[test]
 fn landmark_fits_place_a_flat_grid() {
     let truth = grid(20, 15, 1);
-    let l = landmarks_of(&truth, 60, LandmarkSelection::MaxMin);
+    let every = landmarks_of(&truth, 60, LandmarkSelection::MaxMin, 60);
+    let mds = MdsParams::default().dim(2).check().unwrap();
+    let fit = fit_on_landmarks(&mds, &every, &Silent).unwrap();
+    let error = error_after_similarity(&truth, &fit.coordinates, &fit.fitted_rows);
+    assert!(error < 1e-9, "mds, every landmark measured: {error}");
+    let l = landmarks_of(&truth, 60, LandmarkSelection::MaxMin, 16);
     let methods: [(Box<dyn Embedding>, f64); 3] = [
-        (Box::new(MdsParams::default().dim(2).check().unwrap()), 1e-9),
+        (Box::new(MdsParams::default().dim(2).check().unwrap()), 0.5),
         (
             Box::new(IsomapParams::default().dim(2).k(8).check().unwrap()),
             0.6,
@@ -134,7 +144,7 @@ fn landmark_isomap_unrolls_an_arc_like_the_full_fit() {
         }
     });
     let isomap = IsomapParams::default().dim(1).k(3).check().unwrap();
-    let l = landmarks_of(&points, 40, LandmarkSelection::MaxMin);
+    let l = landmarks_of(&points, 40, LandmarkSelection::MaxMin, 16);
     let fit = fit_on_landmarks(&isomap, &l, &Silent).unwrap();
     let y: Vec<f64> = fit.coordinates.column(0).to_vec();
     let full = isomap
@@ -167,7 +177,7 @@ fn landmark_isomap_unrolls_an_arc_like_the_full_fit() {
 fn every_set_a_landmark_is_the_dense_fit() {
     let points = grid(9, 7, 2);
     let d = distance_matrix(as_sets(&points).view(), &euclidean(), &Silent).unwrap();
-    let l = landmarks_of(&points, 63, LandmarkSelection::MaxMin);
+    let l = landmarks_of(&points, 63, LandmarkSelection::Random, 16);
     let methods: [Box<dyn Embedding>; 3] = [
         Box::new(MdsParams::default().dim(2).check().unwrap()),
         Box::new(IsomapParams::default().dim(2).k(6).check().unwrap()),
@@ -190,7 +200,7 @@ fn one_and_two_threads_agree() {
             .build()
             .unwrap()
             .install(|| {
-                let l = landmarks_of(&points, 40, LandmarkSelection::MaxMin);
+                let l = landmarks_of(&points, 40, LandmarkSelection::Random, 16);
                 let cca = CcaParams::default().dim(2).epochs(10).check().unwrap();
                 let isomap = IsomapParams::default().dim(2).k(6).check().unwrap();
                 (
@@ -298,7 +308,8 @@ sample_sets = 3
             &["scale.path=landmarks", "scale.landmarks=20000"],
         );
         assert!(!all.dir.join("D.npy").exists());
-        assert!(all.dir.join("D.to-landmarks.npy").is_file());
+        assert!(all.dir.join("D.nearest-landmarks.npy").is_file());
+        assert!(all.dir.join("landmarks.nearest.npy").is_file());
         let scale = all.analysis.scale.as_ref().unwrap();
         assert_eq!((scale.sets, scale.landmarks), (m, m));
         assert_eq!(coordinates(&all), coordinates(&dense));
@@ -350,6 +361,48 @@ sample_sets = 3
             &["scale.path=landmarks", "scale.landmarks=100"],
         );
         assert!(again.manifest.stages.iter().all(|s| s.cached));
+    }
+
+    /// Above `report.max_sets` the figures are drawn from a sample that the report
+    /// names: every probe-grid set and seeded babbled sets, the same for the same seed.
+    #[test]
+    fn a_large_run_is_drawn_from_a_named_sample() {
+        let dir = tempfile::tempdir().unwrap();
+        let sampled = run(
+            dir.path(),
+            "sampled",
+            &[
+                "scale.path=landmarks",
+                "scale.landmarks=60",
+                "report.max_sets=100",
+            ],
+        );
+        let m = sampled.analysis.points;
+        assert!(m > 100);
+        let html = std::fs::read_to_string(sampled.dir.join("report.html")).unwrap();
+        let note = format!(
+            "drawn from a sample of 100 of the {m} sets: every probe-grid set (27) and 73 babbled sets"
+        );
+        assert!(html.contains(&note), "{note}");
+        let whole = run(
+            dir.path(),
+            "whole",
+            &["scale.path=landmarks", "scale.landmarks=60"],
+        );
+        let html = std::fs::read_to_string(whole.dir.join("report.html")).unwrap();
+        assert!(!html.contains("drawn from a sample"));
+        let err = smspace::config::load_experiment(
+            &dir.path().join("small-arm.toml"),
+            &["report.max_sets=10".to_owned()],
+        )
+        .map_err(|e| e.to_string())
+        .and_then(|loaded| {
+            pipeline::check(&loaded)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        })
+        .unwrap_err();
+        assert!(err.contains("max_sets"), "{err}");
     }
 
     /// A kNN graph too small for the dimension estimates is refused before anything

@@ -13,7 +13,8 @@ matrix makes). ::
 
     client = Client("tcp://scheduler:8786")              # or Client(LocalCluster(...))
     D = smspace.dask.distances(traced, client, metric="curve", tile=500)
-    run = smspace.run("experiments/paper-arm.toml", client=client)   # the distance stage there
+    run = smspace.run("experiments/paper-arm.toml", client=client,   # the distance stage there
+                      overrides={"scale.path": "dense"})             # (the dense path's tiles)
 
 Memory of one task: its output ``r × c × 8`` bytes (``tile² × 8``: 2 MB for
 ``tile=500``) plus the sets it reads, ``(r + c) × P × N × 8`` bytes and about as much

@@ -7,7 +7,9 @@
 //!    `(L, L)`, rows in increasing set index (so that with every set a landmark, `Δ` is
 //!    the full matrix and the coordinates are the dense fit's, bit for bit).
 //! 2. **Extend.** Every set that is not a landmark is placed from its distances
-//!    `δ = (ρ(j, l_1), …, ρ(j, l_L))` by the fitted method's out-of-sample map
+//!    `δ = (ρ(j, l_1), …, ρ(j, l_L))` (exact to its nearest landmarks, the triangle
+//!    bound through them to the others:
+//!    [`LandmarkDistances::distances_from`]) by the fitted method's out-of-sample map
 //!    ([`Embedded::extend`]), the landmarks staying where the fit put them:
 //!    - **MDS**: the landmark-MDS triangulation (de Silva & Tenenbaum 2004). With the
 //!      fit's `d` largest eigenpairs `(λ_c, v_c)` of `B = −½ J Δ^{∘2} J`, landmark
@@ -42,6 +44,7 @@
 //! the methods' seeds whatever the number of threads (each point is placed on its own).
 
 use ndarray::{Array2, Axis};
+use rayon::prelude::*;
 
 use super::{EmbedError, Embedded, Embedding};
 use crate::metric::landmarks::LandmarkDistances;
@@ -88,9 +91,21 @@ pub fn fit_on_landmarks(
     let others: Vec<usize> = (0..m).filter(|&j| is_landmark[j].is_none()).collect();
     progress.start("extend", others.len() as u64);
     for block in others.chunks(EXTEND_BLOCK) {
-        let to_old = Array2::from_shape_fn((block.len(), order.len()), |(r, a)| {
-            landmarks.to_landmarks[[block[r], order[a]]]
-        });
+        let mut to_old = Array2::zeros((block.len(), order.len()));
+        to_old
+            .as_slice_mut()
+            .expect("a new array is in standard layout")
+            .par_chunks_mut(order.len())
+            .zip(block.par_iter())
+            .for_each_init(
+                || vec![0.0; order.len()],
+                |row_in_chosen_order, (row, &j)| {
+                    landmarks.distances_from(j, row_in_chosen_order);
+                    for (slot, &a) in row.iter_mut().zip(&order) {
+                        *slot = row_in_chosen_order[a];
+                    }
+                },
+            );
         let placed = fitted.extend(to_old.view())?;
         for (r, &j) in block.iter().enumerate() {
             coordinates.row_mut(j).assign(&placed.row(r));

@@ -1,32 +1,92 @@
-//! Distances to landmark sets: the `M × L` distances of every set to `L` landmarks and
-//! the landmarks' own `L × L` matrix, without the `M × M` matrix (issue 18, the scale
-//! path).
+//! Distances to landmark sets: the landmarks' own `L × L` matrix and every set's `q`
+//! nearest landmarks, without the `M × M` matrix (issue 18, the scale path).
 //!
 //! # Landmarks
 //!
 //! `L ≤ M` landmark sets are chosen by one of two rules ([`LandmarkSelection`]):
 //!
+//! - **random** (the default): `L` distinct sets drawn uniformly (seeded; in the order
+//!   drawn), an unbiased sample of the sets. Costs nothing to choose.
 //! - **max–min** (farthest first, Gonzalez 1985; [`crate::neighbours`]): a seeded
 //!   start `l_1` drawn uniformly from `0..M`, then
 //!   `l_{t+1} = argmax_j min_{u ≤ t} ρ(l_u, j)` (smallest `j` on ties). The landmarks
-//!   spread evenly over the manifold of sets; the covering radius
-//!   `r = max_j min_u ρ(l_u, j)` is at most twice the best any `L` sets achieve.
-//! - **random**: `L` distinct sets drawn uniformly (seeded; in the order drawn), an
-//!   unbiased sample of the sets (what statistics over sets want).
+//!   spread evenly over the manifold of sets and the covering radius is at most twice the
+//!   best any `L` sets achieve, but choosing them measures every set against every
+//!   landmark: `L·M` distances (hours at `M = 10⁵`).
 //!
-//! Either way the covering radius is reported: a feature of the manifold shorter than
-//! about `2r` is not resolved by the landmarks.
+//! Either way the covering radius `r = max_j min_u ρ(l_u, j)` is reported (exact): a
+//! feature of the manifold shorter than about `2r` is not resolved by the landmarks.
 //!
-//! # Cost and exactness
+//! # What is measured
 //!
-//! Landmark `t`'s column `ρ(l_t, j)` for every `j` is computed in parallel (rayon, in
-//! fixed chunks) as the same call `ρ(M^min(l,j), M^max(l,j))` that
+//! - `Δ = (ρ(l_a, l_b))`, the `L × L` matrix of the landmarks;
+//! - for every set `j`, its `q` nearest landmarks ([`LandmarkParams::nearest`]) with
+//!   their distances, nearest first, ties by the landmark's position: the first `q`
+//!   entries of the row `(ρ(j, l_1), …, ρ(j, l_L))` sorted by `(distance, position)`,
+//!   exactly.
+//!
+//! With random landmarks the lists are found like [`super::knn`]'s, with the landmarks
+//! as the only candidates: `T` = [`LANDMARK_PIVOTS`] pivots among the landmarks (farthest
+//! first in `Δ` from the first one) are measured against every set (`T·M` distances);
+//! then for set `j`, `ρ(j, l_a) ≥ max_t |ρ(j, p_t) − Δ(p_t, l_a)|` bounds every landmark,
+//! the `q` of smallest bound are measured, and the others only while their bound is
+//! below the `q`-th distance so far (each with an early exit). With max–min landmarks
+//! the selection's columns give the lists directly.
+//!
+//! Every distance is the same call `ρ(M^min(l,j), M^max(l,j))` that
 //! [`distance_matrix`](super::distance_matrix) makes, so every entry equals the full
-//! matrix's bit for bit, for any number of threads. A pair of two landmarks is computed
-//! once (in the column of the later one, copied from the earlier column). Work:
-//! `L·M − L(L+1)/2` pairs; memory: the `(M, L)` table `8 M L` bytes, one column `8 M`
-//! bytes per call, the prepared sets and the `(L, L)` matrix `8 L²` bytes
-//! ([`landmark_bytes`]).
+//! matrix's bit for bit, for any number of threads.
+//!
+//! # Distances to the other landmarks
+//!
+//! An out-of-sample map reads a whole row `δ_a = ρ(j, l_a)`.
+//! [`LandmarkDistances::distances_from`] gives it exactly on the `q` nearest landmarks
+//! and, for the others, the triangle-inequality bound through them,
+//!
+//! ```text
+//! δ_a ≤ δ̂_a = min_{u ∈ near(j)} (ρ(j, l_u) + Δ(u, a)),
+//! ```
+//!
+//! which is within `2 ρ(j, l_near)` of the truth (`ρ(j, l_near)`, the distance to the
+//! nearest landmark, at most the covering radius), small against the distance of a far
+//! landmark. With `q ≥ L` every entry is exact.
+//!
+//! # The `k` nearest sets through the landmarks
+//!
+//! [`landmarks_and_knn_with`] also finds the exact `k` nearest of every member set
+//! among the members (the kNN graph of the scale path) without the `O(M²)` pivot
+//! bounds of [`super::knn`]. The members are grouped into clusters by their nearest
+//! landmark; `r_j = ρ(j, l_{c(j)})`. For a query `i`, lower bounds of its distance to
+//! every landmark,
+//!
+//! ```text
+//! lb(i, a) = max( δ_q(i),  max_t |ρ(i, p_t) − Δ(p_t, a)|,  max_{u ∈ near(i)} Δ(u, a) − ρ(i, l_u) ),
+//! ```
+//!
+//! exact on `near(i)` (`δ_q(i)`, its `q`-th nearest landmark distance, bounds every
+//! landmark not in its list), give for every member `j`
+//!
+//! ```text
+//! ρ(i, j) ≥ max( max_t |ρ(i, p_t) − ρ(j, p_t)|,  max_{a ∈ near(j)} lb(i, a) − ρ(j, l_a) )
+//! ```
+//!
+//! (`|ρ(i, l_a) − ρ(j, l_a)|` where both are known). The members of the clusters of
+//! `near(i)` are the first candidates: the `k` of smallest bound are measured, then the
+//! others while their bound is within the `k`-th distance `τ`. Every other cluster `a`
+//! is skipped when `lb(i, a) − max_{j ∈ a} r_j > τ`, and within a cluster (members by
+//! decreasing `r_j`) the scan stops at the first `lb(i, a) − r_j > τ`; the rest pass
+//! the member bound before they are measured (with an early exit at `τ`). Every skip is
+//! proven by the triangle inequality (with margins for rounding), so the lists equal
+//! [`super::knn_with`]'s on the members: nearest first, ties by the smaller index.
+//!
+//! # Cost
+//!
+//! Random: `L(L − 1)/2 + T·M` distances, plus about `q` to `3q` per set (the
+//! `q` landmarks of smallest pivot bound first; the nearest few found then tighten the
+//! others' bounds through `Δ`); memory `8 L² + 8 T M + 16 q M` bytes and the prepared
+//! sets. Max–min: `L·M − L(L+1)/2` distances and `8 M L` more bytes for the columns
+//! ([`landmark_bytes`]). The nearest sets: `O(L (T + q))` per query for the bounds, and
+//! the distances the bounds do not rule out.
 
 use ndarray::Array2;
 use rand::seq::index::sample;
@@ -37,22 +97,38 @@ use serde::{Deserialize, Serialize};
 
 use super::kernel::{Driver, Eval, Scratch};
 use super::tiles::Measure;
-use super::{DistanceMatrix, MetricError, PreparedSets, SetMetric, SetsView};
+use super::{DistanceMatrix, Knn, MetricError, PreparedSets, SetMetric, SetsView};
 use crate::error::{CheckParams, InvalidParameter};
 use crate::neighbours::FarthestFirst;
 use crate::progress::Progress;
 
+mod through;
+
 /// Sets per parallel task of a landmark's column.
 const COLUMN_CHUNK: usize = 64;
+
+/// Sets per parallel task of the nearest-landmark search.
+const SEARCH_CHUNK: usize = 16;
+
+/// Pivots of the nearest-landmark search among random landmarks (fewer when there are
+/// fewer landmarks).
+pub const LANDMARK_PIVOTS: usize = 24;
+
+/// Nearest landmarks found first that tighten the bounds of the others in the
+/// nearest-landmark search.
+const NEAR_PIVOTS: usize = 4;
+
+/// Relative safety margin on the pivot lower bounds (rounding of the distances).
+const PIVOT_MARGIN: f64 = 1e-10;
 
 /// How landmarks are chosen (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum LandmarkSelection {
-    /// Farthest first from a seeded start.
-    #[default]
+    /// Farthest first from a seeded start (`L·M` distances to choose).
     MaxMin,
     /// Uniformly at random, seeded.
+    #[default]
     Random,
 }
 
@@ -71,18 +147,21 @@ impl std::fmt::Display for LandmarkSelection {
 pub struct LandmarkParams {
     /// Number of landmarks `L` (at most `M`: all sets when `M ≤ L`). Default 2000.
     pub count: usize,
-    /// How they are chosen. Default max–min.
+    /// How they are chosen. Default random.
     pub selection: LandmarkSelection,
     /// Seed of the start (max–min) or of the draw (random). Default 0.
     pub seed: u64,
+    /// Nearest landmarks `q` measured exactly for every set (module docs). Default 16.
+    pub nearest: usize,
 }
 
 impl Default for LandmarkParams {
     fn default() -> Self {
         Self {
             count: 2000,
-            selection: LandmarkSelection::MaxMin,
+            selection: LandmarkSelection::Random,
             seed: 0,
+            nearest: 16,
         }
     }
 }
@@ -102,23 +181,41 @@ impl std::ops::Deref for LandmarkValidParams {
 }
 
 impl LandmarkParams {
-    /// `count` landmarks chosen by `selection` from `seed`.
+    /// `count` landmarks chosen by `selection` from `seed`, each set's 16 nearest
+    /// measured.
     pub fn new(count: usize, selection: LandmarkSelection, seed: u64) -> Self {
         Self {
             count,
             selection,
             seed,
+            ..Self::default()
         }
     }
 
-    /// Checks `3 ≤ count ≤` [`MAX_LANDMARKS`] (errors name `[scale] landmarks`).
+    /// Sets the number of nearest landmarks measured per set (default 16).
+    pub fn nearest(mut self, nearest: usize) -> Self {
+        self.nearest = nearest;
+        self
+    }
+
+    /// Checks `3 ≤ count ≤` [`MAX_LANDMARKS`] and `nearest ≥ 1` (errors name the
+    /// `[scale]` keys).
     pub fn check(&self) -> Result<LandmarkValidParams, MetricError> {
         if !(3..=MAX_LANDMARKS).contains(&self.count) {
             return Err(InvalidParameter::new(
                 "scale",
                 "landmarks",
                 self.count,
-                format!("between 3 and {MAX_LANDMARKS} landmark sets (2000 to 4000 cover the paper's arm; each costs M distances and 8·M bytes)"),
+                format!("between 3 and {MAX_LANDMARKS} landmark sets (2000 to 4000 cover the paper's arm; each costs L distances and 8·L bytes)"),
+            )
+            .into());
+        }
+        if !(1..=MAX_LANDMARKS).contains(&self.nearest) {
+            return Err(InvalidParameter::new(
+                "scale",
+                "nearest",
+                self.nearest,
+                "at least 1 nearest landmark per set (16 places sets well; every one costs a distance per set)",
             )
             .into());
         }
@@ -134,7 +231,7 @@ impl CheckParams for LandmarkParams {
     }
 }
 
-/// The landmarks and every set's distances to them.
+/// The landmarks, their matrix and every set's nearest landmarks.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LandmarkDistances {
     /// The landmark sets (rows of the sets), in the order chosen.
@@ -145,8 +242,11 @@ pub struct LandmarkDistances {
     pub covering_radius: f64,
     /// `(L, L)`: the landmarks' distance matrix, `landmarks[a, b] = ρ(l_a, l_b)`.
     pub landmarks: DistanceMatrix,
-    /// `(M, L)`: `to_landmarks[j, a] = ρ(j, l_a)` (zero at `j = l_a`).
-    pub to_landmarks: Array2<f64>,
+    /// `(M, q)`: the positions (in [`LandmarkDistances::rows`]) of every set's `q`
+    /// nearest landmarks, nearest first (a landmark's first is itself).
+    pub nearest: Array2<usize>,
+    /// `(M, q)`: their distances, `nearest_distances[j, c] = ρ(j, l_nearest[j, c])`.
+    pub nearest_distances: Array2<f64>,
 }
 
 impl LandmarkDistances {
@@ -162,26 +262,94 @@ impl LandmarkDistances {
 
     /// Number of sets `M`.
     pub fn sets(&self) -> usize {
-        self.to_landmarks.nrows()
+        self.nearest.nrows()
+    }
+
+    /// Nearest landmarks measured per set, `min(q, L)`.
+    pub fn measured(&self) -> usize {
+        self.nearest.ncols()
+    }
+
+    /// The distances of set `j` to every landmark, `out[a]` for landmark `a` (in the
+    /// order of [`LandmarkDistances::rows`]): exact for its nearest landmarks, the
+    /// triangle bound through them for the others (module docs).
+    pub fn distances_from(&self, j: usize, out: &mut [f64]) {
+        out.fill(f64::INFINITY);
+        for (&u, &d) in self
+            .nearest
+            .row(j)
+            .iter()
+            .zip(self.nearest_distances.row(j))
+        {
+            for (slot, &far) in out.iter_mut().zip(self.landmarks.row(u)) {
+                *slot = slot.min(d + far);
+            }
+        }
+        for (&u, &d) in self
+            .nearest
+            .row(j)
+            .iter()
+            .zip(self.nearest_distances.row(j))
+        {
+            out[u] = d;
+        }
+    }
+
+    /// The covering radius of the first `count` landmarks over every set: exact when
+    /// `count = L`, else the triangle bound through each set's nearest landmarks, an
+    /// upper bound.
+    pub fn covering_radius_of_first(&self, count: usize) -> f64 {
+        if count >= self.len() {
+            return self.covering_radius;
+        }
+        // Each landmark's distance to the first `count` landmarks.
+        let to_first: Vec<f64> = (0..self.len())
+            .map(|u| {
+                self.landmarks
+                    .row(u)
+                    .iter()
+                    .take(count)
+                    .copied()
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        (0..self.sets())
+            .into_par_iter()
+            .map(|j| {
+                self.nearest
+                    .row(j)
+                    .iter()
+                    .zip(self.nearest_distances.row(j))
+                    .map(|(&u, &d)| if u < count { d } else { d + to_first[u] })
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .reduce(|| 0.0, f64::max)
     }
 }
 
 /// Bytes [`landmark_distances_with`] needs for `sets` sets of `points` points of `dims`
-/// coordinates and `landmarks` landmarks: the `(M, L)` table, the `(L, L)` matrix, one
-/// column per call and the prepared sets.
-pub fn landmark_bytes(sets: usize, points: usize, dims: usize, landmarks: usize) -> u64 {
-    let (m, l) = (sets as u64, landmarks.min(sets) as u64);
-    m.saturating_mul(l)
-        .saturating_add(l.saturating_mul(l))
+/// coordinates and `params`: the `(L, L)` matrix, the nearest lists, the pivot table
+/// (random) or the `(M, L)` columns (max–min), and the prepared sets.
+pub fn landmark_bytes(sets: usize, points: usize, dims: usize, params: &LandmarkParams) -> u64 {
+    let (m, l) = (sets as u64, params.count.min(sets) as u64);
+    let q = (params.nearest as u64).min(l);
+    let search = match params.selection {
+        LandmarkSelection::Random => (LANDMARK_PIVOTS as u64).min(l).saturating_mul(m),
+        LandmarkSelection::MaxMin => m.saturating_mul(l),
+    };
+    l.saturating_mul(l)
+        .saturating_add(search)
+        .saturating_add(m.saturating_mul(2 * q))
         .saturating_add(2 * m)
         .saturating_mul(8)
         .saturating_add(PreparedSets::estimate_bytes_with_curves(sets, points, dims))
 }
 
-/// The landmarks of `sets` `(M, P, N)` under `metric` and every set's distance to them
-/// (module docs); `min(L, M)` landmarks. Refused before any work when
-/// [`landmark_bytes`] exceeds `memory_limit_bytes`. `progress` sees one stage,
-/// "landmarks", counted in landmarks.
+/// The landmarks of `sets` `(M, P, N)` under `metric`, their matrix and every set's
+/// nearest landmarks (module docs); `min(L, M)` landmarks. Refused before any work when
+/// [`landmark_bytes`] exceeds `memory_limit_bytes`. `progress` sees the stages
+/// "landmarks" (counted in landmarks) and, for random landmarks, "nearest landmarks"
+/// (counted in sets).
 ///
 /// ```
 /// use smspace::metric::landmarks::{landmark_distances_with, LandmarkParams, LandmarkSelection};
@@ -191,14 +359,16 @@ pub fn landmark_bytes(sets: usize, points: usize, dims: usize, landmarks: usize)
 /// let sets = ndarray::Array3::from_shape_fn((5, 1, 1), |(i, _, _)| [0.0, 1.0, 3.0, 7.0, 8.0][i]);
 /// let params = DistanceParams::new().period(Period::None);
 /// let metric = params.check()?.set_metric();
-/// let chosen = LandmarkParams::new(3, LandmarkSelection::MaxMin, 0).check()?;
+/// let chosen = LandmarkParams::new(3, LandmarkSelection::Random, 0).nearest(2).check()?;
 /// let l = landmark_distances_with(sets.view(), metric.as_ref(), &chosen, None, &Silent)?;
-/// assert_eq!(l.to_landmarks.dim(), (5, 3));
+/// assert_eq!(l.nearest.dim(), (5, 2));
 /// let d = distance_matrix(sets.view(), &params, &Silent)?;
-/// for (a, &row) in l.rows.iter().enumerate() {
-///     for j in 0..5 {
-///         assert_eq!(l.to_landmarks[[j, a]], d[[j, row]]);
-///     }
+/// for j in 0..5 {
+///     // The nearest landmark of every set, and its distance, as the full matrix says.
+///     let a = l.nearest[[j, 0]];
+///     let best = l.rows.iter().map(|&r| d[[j, r]]).fold(f64::INFINITY, f64::min);
+///     assert_eq!(l.nearest_distances[[j, 0]], best);
+///     assert_eq!(d[[j, l.rows[a]]], best);
 /// }
 /// # Ok::<(), smspace::metric::MetricError>(())
 /// ```
@@ -215,7 +385,7 @@ pub fn landmark_distances_with<'a>(
     if m < 2 {
         return Err(MetricError::TooFewSets { sets: m });
     }
-    let needed = landmark_bytes(m, p, n, params.count);
+    let needed = landmark_bytes(m, p, n, params);
     if let Some(available) = memory_limit_bytes.filter(|&a| needed > a) {
         return Err(MetricError::LandmarksOutOfMemory {
             sets: m,
@@ -225,29 +395,149 @@ pub fn landmark_distances_with<'a>(
         });
     }
     let measure = Measure::new(sets, metric)?;
-    let found = select_and_measure(&measure, params, progress);
+    let (found, _) = select(&measure, params, progress);
     measure.failure(|s| s)?;
     Ok(found)
 }
 
-/// The landmark loop: each landmark's column, then the next landmark.
-fn select_and_measure(
+/// The landmarks of `sets` as [`landmark_distances_with`] finds them, and the `k`
+/// nearest of each of `members` (set rows, increasing) among `members`, found through
+/// the landmarks (module docs, "The `k` nearest sets through the landmarks"): equal to
+/// [`knn_with`](super::knn_with) on the sets `members` (indices into `members`,
+/// nearest first, ties by the smaller index). Without the triangle inequality
+/// ([`SetMetric::is_metric`] false) the search measures every pair instead.
+/// `progress` also sees "neighbours", counted in members.
+pub fn landmarks_and_knn_with<'a>(
+    sets: impl Into<SetsView<'a>>,
+    metric: &dyn SetMetric,
+    params: &LandmarkValidParams,
+    members: &[usize],
+    k: usize,
+    memory_limit_bytes: Option<u64>,
+    progress: &dyn Progress,
+) -> Result<(LandmarkDistances, Knn), MetricError> {
+    let sets: SetsView<'a> = sets.into();
+    let sets = sets.reborrow();
+    let (m, p, n) = sets.points().dim();
+    if m < 2 {
+        return Err(MetricError::TooFewSets { sets: m });
+    }
+    if let Some(&bad) = members.iter().find(|&&j| j >= m) {
+        return Err(InvalidParameter::new(
+            "knn",
+            "members",
+            bad,
+            format!("set rows below {m}, the number of sets"),
+        )
+        .into());
+    }
+    if let Some(w) = members.windows(2).find(|w| w[0] >= w[1]) {
+        return Err(InvalidParameter::new(
+            "knn",
+            "members",
+            format!("{} then {}", w[0], w[1]),
+            "increasing set rows",
+        )
+        .into());
+    }
+    if k == 0 || k >= members.len() {
+        return Err(MetricError::BadK {
+            k,
+            max: members.len().saturating_sub(1),
+        });
+    }
+    let needed = landmark_bytes(m, p, n, params)
+        .saturating_add((members.len() as u64).saturating_mul(k as u64 * 16 + 16));
+    if let Some(available) = memory_limit_bytes.filter(|&a| needed > a) {
+        return Err(MetricError::LandmarksOutOfMemory {
+            sets: m,
+            landmarks: params.count.min(m),
+            needed,
+            available,
+        });
+    }
+    let measure = Measure::new(sets, metric)?;
+    let (found, pivots) = select(&measure, params, progress);
+    let knn = through::knn_through(&measure, &found, &pivots, members, k, progress);
+    measure.failure(|s| s)?;
+    Ok((found, knn))
+}
+
+/// Pivots among the landmarks (positions) and their distances to every set,
+/// `table[t · M + j]`.
+struct PivotTable {
+    pivots: Vec<usize>,
+    table: Vec<f64>,
+}
+
+fn select(
     measure: &Measure<'_>,
     params: &LandmarkValidParams,
     progress: &dyn Progress,
-) -> LandmarkDistances {
+) -> (LandmarkDistances, PivotTable) {
+    match params.selection {
+        LandmarkSelection::MaxMin => max_min(measure, params, progress),
+        LandmarkSelection::Random => random(measure, params, progress),
+    }
+}
+
+/// The best `q` landmarks of one set so far, sorted by `(distance, position)`.
+struct Best {
+    entries: Vec<(f64, usize)>,
+    q: usize,
+}
+
+impl Best {
+    fn new(q: usize) -> Self {
+        Self {
+            entries: Vec::with_capacity(q + 1),
+            q,
+        }
+    }
+
+    /// The `q`-th distance (infinite until there are `q` entries).
+    fn radius(&self) -> f64 {
+        if self.entries.len() < self.q {
+            f64::INFINITY
+        } else {
+            self.entries[self.q - 1].0
+        }
+    }
+
+    fn offer(&mut self, d: f64, a: usize) {
+        if self.entries.len() == self.q {
+            let last = self.entries[self.q - 1];
+            if !(d < last.0 || (d == last.0 && a < last.1)) {
+                return;
+            }
+            self.entries.pop();
+        }
+        let at = self
+            .entries
+            .partition_point(|e| e.0 < d || (e.0 == d && e.1 < a));
+        self.entries.insert(at, (d, a));
+    }
+
+    fn write(&self, index: &mut [usize], distance: &mut [f64]) {
+        for (e, &(d, a)) in self.entries.iter().enumerate() {
+            index[e] = a;
+            distance[e] = d;
+        }
+    }
+}
+
+/// Max–min landmarks: each landmark's column, then the next landmark; the nearest lists
+/// are the first `q` of every row of the columns.
+fn max_min(
+    measure: &Measure<'_>,
+    params: &LandmarkValidParams,
+    progress: &dyn Progress,
+) -> (LandmarkDistances, PivotTable) {
     let m = measure.len();
     let l = params.count.min(m);
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
-    let mut picker = match params.selection {
-        LandmarkSelection::MaxMin => Picker::MaxMin(
-            FarthestFirst::new(m, rng.gen_range(0..m)).expect("the start is drawn in 0..M"),
-        ),
-        LandmarkSelection::Random => Picker::Random {
-            order: sample(&mut rng, m, l).into_vec(),
-            nearest: vec![f64::INFINITY; m],
-        },
-    };
+    let mut traversal =
+        FarthestFirst::new(m, rng.gen_range(0..m)).expect("the start is drawn in 0..M");
     // Column of each landmark among the landmarks, by set.
     let mut position: Vec<Option<usize>> = vec![None; m];
     let mut rows = Vec::with_capacity(l);
@@ -255,7 +545,7 @@ fn select_and_measure(
     let mut column = vec![0.0; m];
     progress.start("landmarks", l as u64);
     for t in 0..l {
-        let landmark = picker.next(t);
+        let landmark = traversal.next_landmark();
         column
             .par_chunks_mut(COLUMN_CHUNK)
             .enumerate()
@@ -278,55 +568,187 @@ fn select_and_measure(
         }
         position[landmark] = Some(t);
         rows.push(landmark);
-        picker.add(&column);
+        traversal.add(&column);
         progress.advance(1);
     }
     progress.finish();
-    let covering_radius = picker.covering_radius();
+    let covering_radius = traversal.finish().covering_radius;
     let landmarks = Array2::from_shape_fn((l, l), |(a, b)| table[[rows[a], b]]);
-    LandmarkDistances {
-        rows,
-        selection: params.selection,
-        covering_radius,
-        landmarks: DistanceMatrix::from_symmetric(landmarks),
-        to_landmarks: table,
+    let q = params.nearest.min(l);
+    let mut nearest = Array2::zeros((m, q));
+    let mut nearest_distances = Array2::zeros((m, q));
+    nearest
+        .as_slice_mut()
+        .expect("a new array is in standard layout")
+        .par_chunks_mut(q)
+        .zip(
+            nearest_distances
+                .as_slice_mut()
+                .expect("a new array is in standard layout")
+                .par_chunks_mut(q),
+        )
+        .enumerate()
+        .for_each(|(j, (index, distance))| {
+            let mut best = Best::new(q);
+            for (a, &d) in table.row(j).iter().enumerate() {
+                best.offer(d, a);
+            }
+            best.write(index, distance);
+        });
+    // The first landmarks (farthest first) are the pivots.
+    let pivots: Vec<usize> = if measure.bounds().0 {
+        (0..LANDMARK_PIVOTS.min(l)).collect()
+    } else {
+        Vec::new()
+    };
+    let mut pivot_table = vec![0.0; pivots.len() * m];
+    for (t, column) in pivot_table.chunks_mut(m).enumerate() {
+        for (j, slot) in column.iter_mut().enumerate() {
+            *slot = table[[j, t]];
+        }
     }
+    (
+        LandmarkDistances {
+            rows,
+            selection: LandmarkSelection::MaxMin,
+            covering_radius,
+            landmarks: DistanceMatrix::from_symmetric(landmarks),
+            nearest,
+            nearest_distances,
+        },
+        PivotTable {
+            pivots,
+            table: pivot_table,
+        },
+    )
 }
 
-/// The rule that picks the next landmark, with the distance of every set to its nearest
-/// landmark so far.
-enum Picker {
-    MaxMin(FarthestFirst),
-    Random {
-        order: Vec<usize>,
-        nearest: Vec<f64>,
-    },
-}
-
-impl Picker {
-    fn next(&self, t: usize) -> usize {
-        match self {
-            Self::MaxMin(traversal) => traversal.next_landmark(),
-            Self::Random { order, .. } => order[t],
-        }
+/// Random landmarks: their matrix, the pivots' columns, then every set's search.
+fn random(
+    measure: &Measure<'_>,
+    params: &LandmarkValidParams,
+    progress: &dyn Progress,
+) -> (LandmarkDistances, PivotTable) {
+    let m = measure.len();
+    let l = params.count.min(m);
+    let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
+    let rows = sample(&mut rng, m, l).into_vec();
+    let mut position: Vec<Option<usize>> = vec![None; m];
+    for (a, &row) in rows.iter().enumerate() {
+        position[row] = Some(a);
     }
-
-    fn add(&mut self, column: &[f64]) {
-        match self {
-            Self::MaxMin(traversal) => traversal.add(column),
-            Self::Random { nearest, .. } => nearest
-                .iter_mut()
-                .zip(column)
-                .for_each(|(near, &d)| *near = near.min(d)),
+    // The landmarks' matrix, row by row (each pair once, in the upper triangle).
+    progress.start("landmarks", l as u64);
+    let mut upper = Array2::<f64>::zeros((l, l));
+    upper
+        .as_slice_mut()
+        .expect("a new array is in standard layout")
+        .par_chunks_mut(l)
+        .enumerate()
+        .for_each_init(Scratch::default, |scratch, (a, out)| {
+            measure.drive(
+                scratch,
+                PairsDriver {
+                    from: rows[a],
+                    to: &rows[a + 1..],
+                    out: &mut out[a + 1..],
+                },
+            );
+            progress.advance(1);
+        });
+    progress.finish();
+    let landmarks = Array2::from_shape_fn((l, l), |(a, b)| match a.cmp(&b) {
+        std::cmp::Ordering::Less => upper[[a, b]],
+        std::cmp::Ordering::Greater => upper[[b, a]],
+        std::cmp::Ordering::Equal => 0.0,
+    });
+    drop(upper);
+    let (is_metric, tolerance) = measure.bounds();
+    // Pivots: farthest first among the landmarks, from the first one.
+    let pivots: Vec<usize> = if is_metric {
+        let count = LANDMARK_PIVOTS.min(l);
+        let mut chosen = vec![0];
+        let mut near: Vec<f64> = landmarks.row(0).to_vec();
+        while chosen.len() < count {
+            let next = (0..l).fold(0, |best, a| if near[a] > near[best] { a } else { best });
+            if near[next] == 0.0 {
+                break;
+            }
+            chosen.push(next);
+            for (n, &d) in near.iter_mut().zip(landmarks.row(next)) {
+                *n = n.min(d);
+            }
         }
+        chosen
+    } else {
+        Vec::new()
+    };
+    // `[t][j]`: distance of pivot t to set j.
+    let mut table = vec![0.0; pivots.len() * m];
+    for (t, column) in table.chunks_mut(m.max(1)).enumerate().take(pivots.len()) {
+        let landmark = rows[pivots[t]];
+        column
+            .par_chunks_mut(COLUMN_CHUNK)
+            .enumerate()
+            .for_each_init(Scratch::default, |scratch, (c, out)| {
+                let driver = LandmarkColumn {
+                    landmark,
+                    first: c * COLUMN_CHUNK,
+                    known: &[],
+                    out,
+                };
+                measure.drive(scratch, driver);
+            });
     }
-
-    fn covering_radius(self) -> f64 {
-        match self {
-            Self::MaxMin(traversal) => traversal.finish().covering_radius,
-            Self::Random { nearest, .. } => nearest.iter().copied().fold(0.0, f64::max),
-        }
-    }
+    let q = params.nearest.min(l);
+    let mut nearest = Array2::zeros((m, q));
+    let mut nearest_distances = Array2::zeros((m, q));
+    let index_rows = nearest.as_slice_mut().expect("a new array");
+    let distance_rows = nearest_distances.as_slice_mut().expect("a new array");
+    progress.start("nearest landmarks", m as u64);
+    index_rows
+        .par_chunks_mut(q * SEARCH_CHUNK)
+        .zip(distance_rows.par_chunks_mut(q * SEARCH_CHUNK))
+        .enumerate()
+        .for_each_init(
+            || (Scratch::default(), Vec::new(), Vec::new()),
+            |(scratch, bounds, candidates), (c, (index, distance))| {
+                let driver = SearchDriver {
+                    first: c * SEARCH_CHUNK,
+                    q,
+                    margin: 3.0 * tolerance,
+                    rows: &rows,
+                    position: &position,
+                    landmarks: &landmarks,
+                    pivots: &pivots,
+                    table: &table,
+                    bounds,
+                    candidates,
+                    index,
+                    distance,
+                };
+                let sets = driver.index.len() / q;
+                measure.drive(scratch, driver);
+                progress.advance(sets as u64);
+            },
+        );
+    progress.finish();
+    let covering_radius = nearest_distances
+        .column(0)
+        .iter()
+        .copied()
+        .fold(0.0, f64::max);
+    (
+        LandmarkDistances {
+            rows,
+            selection: LandmarkSelection::Random,
+            covering_radius,
+            landmarks: DistanceMatrix::from_symmetric(landmarks),
+            nearest,
+            nearest_distances,
+        },
+        PivotTable { pivots, table },
+    )
 }
 
 /// Distances from one landmark to the sets `first..first + out.len()`, each pair as
@@ -346,12 +768,159 @@ impl Driver for LandmarkColumn<'_> {
         let l = self.landmark;
         for (c, slot) in self.out.iter_mut().enumerate() {
             let j = self.first + c;
-            *slot = if j == l || self.known[j].is_some() {
+            *slot = if j == l || self.known.get(j).is_some_and(Option::is_some) {
                 0.0
             } else {
                 eval.distance(l.min(j), l.max(j), f64::INFINITY)
                     .unwrap_or(f64::INFINITY)
             };
+        }
+    }
+}
+
+/// Distances from set `from` to each of the sets `to`, each pair as `ρ(min, max)`.
+struct PairsDriver<'a> {
+    from: usize,
+    to: &'a [usize],
+    out: &'a mut [f64],
+}
+
+impl Driver for PairsDriver<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn drive<E: Eval>(self, eval: &mut E) {
+        let i = self.from;
+        for (slot, &j) in self.out.iter_mut().zip(self.to) {
+            *slot = eval
+                .distance(i.min(j), i.max(j), f64::INFINITY)
+                .unwrap_or(f64::INFINITY);
+        }
+    }
+}
+
+/// The nearest-landmark search of the sets `first..`, one row of `q` per set.
+struct SearchDriver<'a> {
+    first: usize,
+    q: usize,
+    /// Absolute widening of the pivot bounds (three times the metric's tolerance).
+    margin: f64,
+    rows: &'a [usize],
+    position: &'a [Option<usize>],
+    landmarks: &'a Array2<f64>,
+    pivots: &'a [usize],
+    table: &'a [f64],
+    bounds: &'a mut Vec<f64>,
+    candidates: &'a mut Vec<(f64, u32)>,
+    index: &'a mut [usize],
+    distance: &'a mut [f64],
+}
+
+impl Driver for SearchDriver<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn drive<E: Eval>(self, eval: &mut E) {
+        let SearchDriver {
+            first,
+            q,
+            margin,
+            rows,
+            position,
+            landmarks,
+            pivots,
+            table,
+            bounds,
+            candidates,
+            index,
+            distance,
+        } = self;
+        let l = rows.len();
+        let m = position.len();
+        let mut measure = |j: usize, a: usize, limit: f64| {
+            let row = rows[a];
+            eval.distance(j.min(row), j.max(row), limit)
+        };
+        for (r, (index, distance)) in index.chunks_mut(q).zip(distance.chunks_mut(q)).enumerate() {
+            let j = first + r;
+            let mut best = Best::new(q);
+            if let Some(a) = position[j] {
+                // A landmark: its row of the landmarks' matrix.
+                for (b, &d) in landmarks.row(a).iter().enumerate() {
+                    best.offer(d, b);
+                }
+            } else if pivots.is_empty() {
+                for a in 0..l {
+                    if let Some(d) = measure(j, a, best.radius()) {
+                        best.offer(d, a);
+                    }
+                }
+            } else {
+                bounds.clear();
+                bounds.resize(l, 0.0);
+                for (t, &p) in pivots.iter().enumerate() {
+                    let x = table[t * m + j];
+                    for (bound, &y) in bounds.iter_mut().zip(landmarks.row(p)) {
+                        let gap = (x - y).abs() - PIVOT_MARGIN * (x + y) - margin;
+                        if gap > *bound {
+                            *bound = gap;
+                        }
+                    }
+                }
+                // The pivots' own distances are known.
+                for (t, &p) in pivots.iter().enumerate() {
+                    best.offer(table[t * m + j], p);
+                    bounds[p] = f64::INFINITY;
+                }
+                candidates.clear();
+                candidates.extend(
+                    bounds
+                        .iter()
+                        .enumerate()
+                        .filter(|&(_, &b)| b.is_finite())
+                        .map(|(a, &b)| (b, a as u32)),
+                );
+                let order =
+                    |x: &(f64, u32), y: &(f64, u32)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
+                let first_q = q.min(candidates.len());
+                if first_q > 0 && first_q < candidates.len() {
+                    candidates.select_nth_unstable_by(first_q - 1, order);
+                }
+                for &(_, a) in &candidates[..first_q] {
+                    let a = a as usize;
+                    let d = measure(j, a, f64::INFINITY).unwrap_or(f64::INFINITY);
+                    best.offer(d, a);
+                }
+                // The nearest landmarks found tighten the others' bounds through `Δ`.
+                let radius = best.radius();
+                let rest = &mut candidates[first_q..];
+                for &(d, u) in best.entries.iter().take(NEAR_PIVOTS) {
+                    for (bound, a) in rest.iter_mut() {
+                        let y = landmarks[[u, *a as usize]];
+                        let gap = (d - y).abs() - PIVOT_MARGIN * (d + y) - margin;
+                        if gap > *bound {
+                            *bound = gap;
+                        }
+                    }
+                }
+                let mut kept = 0;
+                for e in 0..rest.len() {
+                    if rest[e].0 <= radius {
+                        rest.swap(kept, e);
+                        kept += 1;
+                    }
+                }
+                let rest = &mut rest[..kept];
+                rest.sort_unstable_by(order);
+                for &(bound, a) in rest.iter() {
+                    let radius = best.radius();
+                    if bound > radius {
+                        break;
+                    }
+                    if let Some(d) = measure(j, a as usize, radius) {
+                        best.offer(d, a as usize);
+                    }
+                }
+            }
+            best.write(index, distance);
         }
     }
 }
@@ -401,29 +970,136 @@ mod tests {
         let view = SetsView::new(sets.view()).with_closure(&closure);
         let d = distance_matrix(view, &curve(), &Silent).unwrap();
         for selection in [LandmarkSelection::MaxMin, LandmarkSelection::Random] {
-            let l = run(m, 9, selection, 5);
-            assert_eq!(l.len(), 9);
-            for (a, &row) in l.rows.iter().enumerate() {
+            for q in [1, 3, 9, 40] {
+                let (sets, closure) = loops(m);
+                let view = SetsView::new(sets.view()).with_closure(&closure);
+                let metric = curve().check().unwrap().set_metric();
+                let params = LandmarkParams::new(9, selection, 5)
+                    .nearest(q)
+                    .check()
+                    .unwrap();
+                let l =
+                    landmark_distances_with(view, metric.as_ref(), &params, None, &Silent).unwrap();
+                assert_eq!(l.len(), 9);
+                assert_eq!(l.measured(), q.min(9));
+                for (a, &row) in l.rows.iter().enumerate() {
+                    for (b, &other) in l.rows.iter().enumerate() {
+                        assert_eq!(l.landmarks[[a, b]], d[[row, other]]);
+                    }
+                }
+                let mut out = vec![0.0; 9];
                 for j in 0..m {
-                    assert_eq!(l.to_landmarks[[j, a]], d[[j, row]], "{selection} {j} {row}");
-                }
-                for (b, &other) in l.rows.iter().enumerate() {
-                    assert_eq!(l.landmarks[[a, b]], d[[row, other]]);
-                }
-            }
-            let radius = (0..m)
-                .map(|j| {
-                    l.rows
+                    // The first q of the row to the landmarks, by (distance, position).
+                    let mut row: Vec<(f64, usize)> = l
+                        .rows
                         .iter()
-                        .map(|&r| d[[j, r]])
-                        .fold(f64::INFINITY, f64::min)
-                })
-                .fold(0.0, f64::max);
-            assert_eq!(l.covering_radius, radius);
+                        .enumerate()
+                        .map(|(a, &r)| (d[[j, r]], a))
+                        .collect();
+                    row.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+                    for c in 0..l.measured() {
+                        assert_eq!(
+                            (l.nearest_distances[[j, c]], l.nearest[[j, c]]),
+                            row[c],
+                            "{selection} q {q} set {j} rank {c}"
+                        );
+                    }
+                    // Exact on the nearest, an upper bound within twice the nearest
+                    // distance elsewhere, exact everywhere once q = L.
+                    l.distances_from(j, &mut out);
+                    let near = row[0].0;
+                    for (a, &r) in l.rows.iter().enumerate() {
+                        let truth = d[[j, r]];
+                        if q >= 9 || l.nearest.row(j).iter().any(|&u| u == a) {
+                            assert_eq!(out[a], truth);
+                        } else {
+                            assert!(out[a] >= truth - 1e-9 && out[a] <= truth + 2.0 * near + 1e-9);
+                        }
+                    }
+                }
+                let radius = (0..m)
+                    .map(|j| {
+                        l.rows
+                            .iter()
+                            .map(|&r| d[[j, r]])
+                            .fold(f64::INFINITY, f64::min)
+                    })
+                    .fold(0.0, f64::max);
+                assert_eq!(l.covering_radius, radius);
+                // The first 4 landmarks cover at most as the bound says.
+                let first4 = (0..m)
+                    .map(|j| {
+                        l.rows[..4]
+                            .iter()
+                            .map(|&r| d[[j, r]])
+                            .fold(f64::INFINITY, f64::min)
+                    })
+                    .fold(0.0, f64::max);
+                assert!(l.covering_radius_of_first(4) >= first4 - 1e-12);
+                assert_eq!(l.covering_radius_of_first(9), radius);
+            }
         }
         // All sets as landmarks: the landmark matrix is D, reordered.
         let all = run(m, 200, LandmarkSelection::MaxMin, 1);
         assert_eq!(all.landmarks, d.select(&all.rows));
+        let all = run(m, 200, LandmarkSelection::Random, 1);
+        assert_eq!(all.landmarks, d.select(&all.rows));
+    }
+
+    #[test]
+    fn the_nearest_sets_through_landmarks_are_knn_s() {
+        let m = 160;
+        let (sets, closure) = loops(m);
+        let members: Vec<usize> = (0..m).filter(|j| j % 5 != 3).collect();
+        let sub = sets.select(ndarray::Axis(0), &members);
+        let sub_closure: Vec<_> = members.iter().map(|&j| closure[j]).collect();
+        let metric = curve().check().unwrap().set_metric();
+        for k in [1, 6] {
+            let expected = crate::metric::knn_with(
+                SetsView::new(sub.view()).with_closure(&sub_closure),
+                metric.as_ref(),
+                &curve(),
+                &crate::metric::KnnParams::new().k(k),
+                0..members.len(),
+                &Silent,
+            )
+            .unwrap();
+            for selection in [LandmarkSelection::Random, LandmarkSelection::MaxMin] {
+                for (count, q) in [(12, 1), (12, 3), (30, 4), (9, 9)] {
+                    let params = LandmarkParams::new(count, selection, 2)
+                        .nearest(q)
+                        .check()
+                        .unwrap();
+                    let view = SetsView::new(sets.view()).with_closure(&closure);
+                    let (_, knn) = landmarks_and_knn_with(
+                        view,
+                        metric.as_ref(),
+                        &params,
+                        &members,
+                        k,
+                        None,
+                        &Silent,
+                    )
+                    .unwrap();
+                    assert_eq!(
+                        knn.indices, expected.indices,
+                        "{selection} L {count} q {q} k {k}"
+                    );
+                    assert_eq!(knn.distances, expected.distances);
+                }
+            }
+        }
+        // Bad members and k are refused.
+        let params = LandmarkParams::new(5, LandmarkSelection::Random, 0)
+            .check()
+            .unwrap();
+        for (members, k) in [(vec![0, 2, 1], 1), (vec![0, 1, m], 1), (vec![0, 1, 2], 3)] {
+            let view = SetsView::new(sets.view()).with_closure(&closure);
+            let err =
+                landmarks_and_knn_with(view, metric.as_ref(), &params, &members, k, None, &Silent)
+                    .unwrap_err();
+            assert!(!err.to_string().is_empty());
+        }
     }
 
     #[test]
@@ -452,7 +1128,12 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| run(150, 20, LandmarkSelection::MaxMin, 9))
+                .install(|| {
+                    (
+                        run(150, 20, LandmarkSelection::MaxMin, 9),
+                        run(150, 20, LandmarkSelection::Random, 9),
+                    )
+                })
         };
         assert_eq!(with(1), with(2));
     }

@@ -115,15 +115,13 @@ impl Plan {
         if self.distances.path(m as usize) == ChosenPath::Landmarks {
             let scale = &self.distances.scale;
             let l = (scale.landmarks as u64).min(m);
-            let working =
-                crate::metric::landmarks::landmark_bytes(m as usize, points, motors, l as usize)
-                    .saturating_add(crate::metric::knn_bytes(
-                        m as usize,
-                        points,
-                        motors,
-                        m as usize,
-                        &scale.knn_params(),
-                    ));
+            let working = crate::metric::landmarks::landmark_bytes(
+                m as usize,
+                points,
+                motors,
+                &scale.landmark_params(),
+            )
+            .saturating_add(m.saturating_mul(scale.knn as u64 * 16 + 16));
             return Peak {
                 what: format!(
                     "stage `distances` (landmark path): {m} sets to {l} landmarks, and their {} nearest",

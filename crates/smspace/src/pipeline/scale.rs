@@ -55,10 +55,13 @@ pub struct ScaleParams {
     pub above: usize,
     /// Number of landmark sets `L`. Default 2000.
     pub landmarks: usize,
-    /// `"max-min"` (default) or `"random"`.
+    /// `"random"` (default) or `"max-min"` (`L·M` distances to choose: for small `M`).
     pub selection: LandmarkSelection,
     /// Seed of the landmarks. Default 0.
     pub seed: u64,
+    /// Nearest landmarks measured exactly per set, for the out-of-sample map (the
+    /// others through them, [`crate::metric::landmarks`]). Default 16.
+    pub nearest: usize,
     /// Nearest sets per babbled set in the kNN graph (at least `analysis.mle_neighbors`
     /// and 2). Default 20.
     pub knn: usize,
@@ -70,8 +73,9 @@ impl Default for ScaleParams {
             path: ScalePath::Auto,
             above: 5000,
             landmarks: 2000,
-            selection: LandmarkSelection::MaxMin,
+            selection: LandmarkSelection::Random,
             seed: 0,
+            nearest: 16,
             knn: 20,
         }
     }
@@ -90,7 +94,7 @@ impl ScaleParams {
 
     /// The landmark parameters.
     pub fn landmark_params(&self) -> LandmarkParams {
-        LandmarkParams::new(self.landmarks, self.selection, self.seed)
+        LandmarkParams::new(self.landmarks, self.selection, self.seed).nearest(self.nearest)
     }
 
     /// The kNN parameters (the search's default pivots).

@@ -227,6 +227,10 @@ pub struct ReportParams {
     /// anywhere; `false`: it loads them from `assets/` and `figures/` next to it, one
     /// copy of the plotting library per run folder. Default `false`.
     pub self_contained: bool,
+    /// Most sets the figures and the 3-D view of a pipeline run draw: above it they
+    /// are drawn from a sample (every probe-grid set and babbled sets drawn at random
+    /// with `seed`), named at the top of the report. Default 5000.
+    pub max_sets: usize,
 }
 
 impl Default for ReportParams {
@@ -240,6 +244,7 @@ impl Default for ReportParams {
             panel_height_in: 2.8,
             dpi: 300,
             self_contained: false,
+            max_sets: 5000,
         }
     }
 }
@@ -289,6 +294,14 @@ impl ReportParams {
 
     /// Checks the parameters.
     pub fn check(&self) -> Result<(), ReportError> {
+        if self.max_sets < 100 {
+            return Err(ReportError::InvalidParameter {
+                name: "max_sets",
+                value: self.max_sets.to_string(),
+                reason: "must be at least 100 sets (the figures need that many to show a manifold)"
+                    .to_owned(),
+            });
+        }
         if !(72..=1200).contains(&self.dpi) {
             return Err(ReportError::InvalidParameter {
                 name: "dpi",

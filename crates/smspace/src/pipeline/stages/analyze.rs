@@ -10,7 +10,6 @@ use std::path::Path;
 use serde::Serialize;
 
 use ndarray::{Axis, Slice};
-use rayon::prelude::*;
 
 use super::{Keyed, LandmarkGraph, SetDistances, Stage, StageContext, StageInput, World};
 use crate::agent::GroundTruth;
@@ -193,17 +192,7 @@ fn analyze_landmarks(
         .slice_axis_move(Axis(1), Slice::from(..count));
     let persistence = rips_persistence(first, p.max_homology_dim, p.threshold, progress)?;
     // The covering radius of those landmarks over every set.
-    let covering_radius = (0..l.sets())
-        .into_par_iter()
-        .map(|j| {
-            l.to_landmarks
-                .row(j)
-                .iter()
-                .take(count)
-                .copied()
-                .fold(f64::INFINITY, f64::min)
-        })
-        .reduce(|| 0.0, f64::max);
+    let covering_radius = l.covering_radius_of_first(count);
     let near = graph.knn.distances.view();
     progress.start("dimension", 2);
     let columns = |k: usize| near.slice_axis(Axis(1), Slice::from(..k.min(near.ncols())));
@@ -241,11 +230,15 @@ fn analyze_landmarks(
             &persistence,
             p,
             Subsampling {
-                method: format!(
-                    "landmarks ({}, the first {count} of {})",
-                    l.selection,
-                    l.len()
-                ),
+                method: if count < l.len() {
+                    format!(
+                        "landmarks ({}, the first {count} of {}; covering radius: an upper bound through each set's nearest landmarks)",
+                        l.selection,
+                        l.len()
+                    )
+                } else {
+                    format!("landmarks ({}, all {count})", l.selection)
+                },
                 points: count,
                 covering_radius,
             },

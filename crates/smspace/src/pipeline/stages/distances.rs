@@ -12,9 +12,9 @@ use super::{Keyed, Stage, StageContext, StageInput};
 use crate::explore::Exploration;
 use crate::io::{self, IoError, Outputs};
 use crate::kernel::TracedSets;
-use crate::metric::landmarks::{landmark_distances_with, LandmarkDistances, LandmarkSelection};
+use crate::metric::landmarks::{landmarks_and_knn_with, LandmarkDistances, LandmarkSelection};
 use crate::metric::{
-    distance_matrix_with, knn_with, BuiltMetric, DistanceMatrix, DistanceParams, Knn, MetricName,
+    distance_matrix_with, BuiltMetric, DistanceMatrix, DistanceParams, Knn, MetricName,
     Periodicity, SetMetric, SetsView,
 };
 use crate::pipeline::scale::{ChosenPath, ScaleParams};
@@ -202,6 +202,8 @@ struct LandmarkRecord {
     landmarks: usize,
     selection: LandmarkSelection,
     covering_radius: f64,
+    /// Nearest landmarks measured per set.
+    nearest: usize,
     knn_sets: usize,
     k: usize,
 }
@@ -209,7 +211,8 @@ struct LandmarkRecord {
 const MATRIX_FILE: &str = "D.npy";
 const LANDMARK_ROWS_FILE: &str = "landmarks.npy";
 const LANDMARK_MATRIX_FILE: &str = "D.landmarks.npy";
-const TO_LANDMARKS_FILE: &str = "D.to-landmarks.npy";
+const NEAREST_FILE: &str = "landmarks.nearest.npy";
+const NEAREST_DISTANCES_FILE: &str = "D.nearest-landmarks.npy";
 const LANDMARK_RECORD_FILE: &str = "landmarks.json";
 const KNN_SETS_FILE: &str = "knn_sets.npy";
 const KNN_INDICES_FILE: &str = "knn_indices.npy";
@@ -318,12 +321,23 @@ impl Stage for DistancesStage {
             ChosenPath::Dense => None,
             ChosenPath::Landmarks => {
                 let l = self.scale.landmarks.min(m);
+                let pairs = match self.scale.selection {
+                    LandmarkSelection::MaxMin => format!(
+                        "{} set pairs to choose them",
+                        (l * m).saturating_sub(l * (l + 1) / 2)
+                    ),
+                    LandmarkSelection::Random => format!(
+                        "{} pairs among them and about {} from the sets to their {} nearest",
+                        l * l.saturating_sub(1) / 2,
+                        m * self.scale.nearest.min(l),
+                        self.scale.nearest.min(l)
+                    ),
+                };
                 Some(format!(
-                    "landmark path (scale.path = {}, {m} sets, above = {}): {l} {} landmarks, {} set pairs to them, and the {} nearest of every babbled set; no {m} × {m} matrix",
+                    "landmark path (scale.path = {}, {m} sets, above = {}): {l} {} landmarks, {pairs}, and the {} nearest of every babbled set (found through the landmarks); no {m} × {m} matrix",
                     super::label(&self.scale.path),
                     self.scale.above,
                     self.scale.selection,
-                    (l * m).saturating_sub(l * (l + 1) / 2),
                     self.scale.knn
                 ))
             }
@@ -343,8 +357,9 @@ impl Stage for DistancesStage {
                 self.period
             ),
             SetDistances::Landmarks(g) => format!(
-                "{} sets to {} {} landmarks (covering radius {:.4}) and the {} nearest of {} babbled sets ({}, period {})",
+                "{} sets to their {} nearest of {} {} landmarks (covering radius {:.4}) and the {} nearest of {} babbled sets ({}, period {})",
                 g.landmarks.sets(),
+                g.landmarks.measured(),
                 g.landmarks.len(),
                 g.landmarks.selection,
                 g.landmarks.covering_radius,
@@ -368,43 +383,19 @@ impl DistancesStage {
     ) -> crate::Result<LandmarkGraph> {
         let traced = &input.traced.value;
         let params = self.scale.check(self.mle_neighbors)?;
-        let landmarks = landmark_distances_with(
-            sets.reborrow(),
-            self.set_metric(),
-            &params,
-            context.memory_limit_bytes,
-            context.progress,
-        )?;
         let probes = &input.exploration.value.probes;
         let knn_sets: Vec<usize> = (0..traced.kept.len())
             .filter(|&i| probes[[traced.kept[i], 0]] < 0)
             .collect();
-        let limit = DistanceParams::new().memory_limit_bytes(context.memory_limit_bytes);
-        let knn = if knn_sets.len() == traced.kept.len() {
-            knn_with(
-                sets,
-                self.set_metric(),
-                &limit,
-                &self.scale.knn_params(),
-                0..knn_sets.len(),
-                context.progress,
-            )?
-        } else {
-            let points = traced.sets.select(ndarray::Axis(0), &knn_sets);
-            let closure: Vec<_> = knn_sets.iter().map(|&i| traced.closure[i]).collect();
-            let pieces = traced.pieces.select(ndarray::Axis(0), &knn_sets);
-            let babbled = SetsView::new(points.view())
-                .with_closure(&closure)
-                .with_pieces(pieces.view());
-            knn_with(
-                babbled,
-                self.set_metric(),
-                &limit,
-                &self.scale.knn_params(),
-                0..knn_sets.len(),
-                context.progress,
-            )?
-        };
+        let (landmarks, knn) = landmarks_and_knn_with(
+            sets,
+            self.set_metric(),
+            &params,
+            &knn_sets,
+            self.scale.knn,
+            context.memory_limit_bytes,
+            context.progress,
+        )?;
         Ok(LandmarkGraph {
             landmarks,
             knn_sets,
@@ -419,7 +410,8 @@ fn save_graph(g: &LandmarkGraph, outputs: &mut Outputs, dir: &Path) -> Result<()
     let rows = ndarray::Array1::from_iter(l.rows.iter().map(|&r| r as i64));
     outputs.npy(&dir.join(LANDMARK_ROWS_FILE), &rows)?;
     outputs.npy(&dir.join(LANDMARK_MATRIX_FILE), &l.landmarks.view())?;
-    outputs.npy(&dir.join(TO_LANDMARKS_FILE), &l.to_landmarks)?;
+    outputs.npy(&dir.join(NEAREST_FILE), &l.nearest.mapv(|a| a as i64))?;
+    outputs.npy(&dir.join(NEAREST_DISTANCES_FILE), &l.nearest_distances)?;
     let knn_sets = ndarray::Array1::from_iter(g.knn_sets.iter().map(|&r| r as i64));
     outputs.npy(&dir.join(KNN_SETS_FILE), &knn_sets)?;
     outputs.npy(
@@ -432,6 +424,7 @@ fn save_graph(g: &LandmarkGraph, outputs: &mut Outputs, dir: &Path) -> Result<()
         landmarks: l.len(),
         selection: l.selection,
         covering_radius: l.covering_radius,
+        nearest: l.measured(),
         knn_sets: g.knn_sets.len(),
         k: g.knn.k(),
     };
@@ -474,11 +467,36 @@ fn load_graph(dir: &Path, m: usize) -> crate::Result<LandmarkGraph> {
     let knn_sets = index(KNN_SETS_FILE, record.knn_sets, m)?;
     let landmarks = DistanceMatrix::load(&dir.join(LANDMARK_MATRIX_FILE))
         .map_err(crate::metric::MetricError::from)?;
-    let to_landmarks = io::read_matrix(
-        &dir.join(TO_LANDMARKS_FILE),
-        Some(record.landmarks),
-        "(M, L)",
+    let nearest_distances = io::read_matrix(
+        &dir.join(NEAREST_DISTANCES_FILE),
+        Some(record.nearest),
+        "(M, q)",
     )?;
+    let nearest = io::read_i64(&dir.join(NEAREST_FILE))?;
+    let nearest = match nearest.into_dimensionality::<ndarray::Ix2>() {
+        Ok(nearest)
+            if nearest.dim() == (m, record.nearest)
+                && nearest
+                    .iter()
+                    .all(|&a| a >= 0 && (a as usize) < record.landmarks) =>
+        {
+            nearest.mapv(|a| a as usize)
+        }
+        Ok(nearest) => {
+            return Err(shape_error(
+                NEAREST_FILE,
+                nearest.shape(),
+                format!(
+                    "({m}, {}) landmark positions below {}",
+                    record.nearest, record.landmarks
+                ),
+            )
+            .into())
+        }
+        Err(_) => {
+            return Err(shape_error(NEAREST_FILE, &[], format!("({m}, {})", record.nearest)).into())
+        }
+    };
     let indices = io::read_i64(&dir.join(KNN_INDICES_FILE))?;
     let indices = match indices.into_dimensionality::<ndarray::Ix2>() {
         Ok(indices) if indices.ncols() == record.k => indices,
@@ -496,7 +514,7 @@ fn load_graph(dir: &Path, m: usize) -> crate::Result<LandmarkGraph> {
     };
     let distances = io::read_matrix(&dir.join(KNN_DISTANCES_FILE), Some(record.k), "(M, k)")?;
     if landmarks.len() != record.landmarks
-        || to_landmarks.nrows() != m
+        || nearest_distances.nrows() != m
         || indices.nrows() != record.knn_sets
         || distances.nrows() != record.knn_sets
         || indices
@@ -504,8 +522,8 @@ fn load_graph(dir: &Path, m: usize) -> crate::Result<LandmarkGraph> {
             .any(|&j| j < 0 || j as usize >= record.knn_sets)
     {
         return Err(shape_error(
-            TO_LANDMARKS_FILE,
-            to_landmarks.shape(),
+            NEAREST_DISTANCES_FILE,
+            nearest_distances.shape(),
             "the shapes landmarks.json records".into(),
         )
         .into());
@@ -516,7 +534,8 @@ fn load_graph(dir: &Path, m: usize) -> crate::Result<LandmarkGraph> {
             selection: record.selection,
             covering_radius: record.covering_radius,
             landmarks,
-            to_landmarks,
+            nearest,
+            nearest_distances,
         },
         knn: Knn {
             rows: 0..record.knn_sets,

@@ -139,7 +139,8 @@ impl Stage for EmbedStage {
                 SetDistances::Dense(_) => serde_json::json!({ "distances": "D.npy" }),
                 SetDistances::Landmarks(g) => serde_json::json!({
                     "landmarks": "D.landmarks.npy",
-                    "to_landmarks": "D.to-landmarks.npy",
+                    "nearest_landmarks": "landmarks.nearest.npy",
+                    "nearest_landmark_distances": "D.nearest-landmarks.npy",
                     "fitted_on": format!("the {} landmarks (quality and dy-dx of their fit); every other set placed out of sample", g.landmarks.len()),
                 }),
             },

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use ndarray::Array2;
+use ndarray::{Array2, Axis};
 use serde::Serialize;
 
 use super::{EmbedOutputs, Keyed, Stage, StageContext, StageInput, World};
@@ -91,29 +91,94 @@ impl Stage for ReportStage {
             .ground_truth
             .as_ref()
             .and_then(crate::agent::GroundTruth::planar_view);
-        let inputs = ReportInputs {
-            name: &self.name,
-            description: &self.description,
-            config_toml: &self.config_toml,
-            agent: world.agent.as_ref(),
-            environments: &world.environments,
-            workspace: world.workspace,
-            motors: exploration.motors.view(),
-            poses: planar.as_ref().map(|(poses, _)| poses.view()),
-            pose_view: planar.as_ref().map(|(_, view)| *view).unwrap_or_default(),
-            probes: exploration.probes.view(),
-            sets: traced.sets.view(),
-            kept: &traced.kept,
-            trace: &traced.report.summary,
-            embedding: embedded.coordinates.view(),
-            embed_report: &embedded.report,
-            embed_quality: quality.as_ref(),
-            dydx: Some(embedded.dydx.view()),
-            analysis: Some(&input.analysis.value),
-            invariance: input.invariance.map(|i| &i.value),
-            sensory_manifolds: &manifolds,
-            stages: context.stage_times,
-            warnings: &[],
+        let m = traced.kept.len();
+        // Above `max_sets`, the figures and the 3-D view are drawn from a named sample.
+        let sample = (m > self.report.max_sets).then(|| {
+            sample_rows(
+                &traced.kept,
+                exploration.probes.view(),
+                self.report.max_sets,
+                self.report.seed,
+            )
+        });
+        let (motor_rows, set_rows): (Vec<usize>, Vec<usize>) = match &sample {
+            Some(rows) => rows.iter().map(|&r| (traced.kept[r], r)).unzip(),
+            None => (Vec::new(), Vec::new()),
+        };
+        let pick = |a: ndarray::ArrayView2<'_, f64>, rows: &[usize]| a.select(Axis(0), rows);
+        let sampled = sample.as_ref().map(|rows| {
+            let probes = exploration.probes.select(Axis(0), &motor_rows);
+            let babbled = probes.rows().into_iter().filter(|p| p[0] < 0).count();
+            (
+                pick(exploration.motors.view(), &motor_rows),
+                planar
+                    .as_ref()
+                    .map(|(poses, _)| pick(poses.view(), &motor_rows)),
+                probes,
+                traced.sets.select(Axis(0), &set_rows),
+                (0..rows.len()).collect::<Vec<usize>>(),
+                pick(embedded.coordinates.view(), &set_rows),
+                vec![crate::report::Warning::new(
+                    "report",
+                    format!(
+                        "the figures and the 3-D view are drawn from a sample of {} of the {m} sets: every probe-grid set ({}) and {babbled} babbled sets drawn at random (report.seed = {}); the tables and the analysis are of all sets. report.max_sets = {} sets the sample's size",
+                        rows.len(),
+                        rows.len() - babbled,
+                        self.report.seed,
+                        self.report.max_sets
+                    ),
+                )],
+            )
+        });
+        let inputs = match &sampled {
+            Some((motors, poses, probes, sets, kept, embedding, notes)) => ReportInputs {
+                name: &self.name,
+                description: &self.description,
+                config_toml: &self.config_toml,
+                agent: world.agent.as_ref(),
+                environments: &world.environments,
+                workspace: world.workspace,
+                motors: motors.view(),
+                poses: poses.as_ref().map(|p| p.view()),
+                pose_view: planar.as_ref().map(|(_, view)| *view).unwrap_or_default(),
+                probes: probes.view(),
+                sets: sets.view(),
+                kept,
+                trace: &traced.report.summary,
+                embedding: embedding.view(),
+                embed_report: &embedded.report,
+                embed_quality: quality.as_ref(),
+                dydx: Some(embedded.dydx.view()),
+                analysis: Some(&input.analysis.value),
+                invariance: input.invariance.map(|i| &i.value),
+                sensory_manifolds: &manifolds,
+                stages: context.stage_times,
+                warnings: notes,
+            },
+            None => ReportInputs {
+                name: &self.name,
+                description: &self.description,
+                config_toml: &self.config_toml,
+                agent: world.agent.as_ref(),
+                environments: &world.environments,
+                workspace: world.workspace,
+                motors: exploration.motors.view(),
+                poses: planar.as_ref().map(|(poses, _)| poses.view()),
+                pose_view: planar.as_ref().map(|(_, view)| *view).unwrap_or_default(),
+                probes: exploration.probes.view(),
+                sets: traced.sets.view(),
+                kept: &traced.kept,
+                trace: &traced.report.summary,
+                embedding: embedded.coordinates.view(),
+                embed_report: &embedded.report,
+                embed_quality: quality.as_ref(),
+                dydx: Some(embedded.dydx.view()),
+                analysis: Some(&input.analysis.value),
+                invariance: input.invariance.map(|i| &i.value),
+                sensory_manifolds: &manifolds,
+                stages: context.stage_times,
+                warnings: &[],
+            },
         };
         Ok(render_report(&inputs, &self.report)?)
     }
@@ -174,4 +239,27 @@ fn sensory_manifolds(agent: &dyn Agent, environments: &[Environment]) -> Vec<Sen
             }
         })
         .collect()
+}
+
+/// The traced rows a report draws when there are more than `most` sets: every
+/// probe-grid set, then babbled sets drawn uniformly (seeded) up to `most`, increasing.
+fn sample_rows(
+    kept: &[usize],
+    probes: ndarray::ArrayView2<'_, i64>,
+    most: usize,
+    seed: u64,
+) -> Vec<usize> {
+    use rand::SeedableRng;
+    let (grid, babbled): (Vec<usize>, Vec<usize>) =
+        (0..kept.len()).partition(|&r| probes[[kept[r], 0]] >= 0);
+    let room = most.saturating_sub(grid.len()).min(babbled.len());
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut rows = grid;
+    rows.extend(
+        rand::seq::index::sample(&mut rng, babbled.len(), room)
+            .into_iter()
+            .map(|b| babbled[b]),
+    );
+    rows.sort_unstable();
+    rows
 }
