@@ -56,7 +56,7 @@ impl smspace::progress::Progress for Bar {
     fn start(&self, stage: &str, total: u64) {
         let bar = ProgressBar::new(total);
         bar.set_style(
-            ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} ({eta})")
+            ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} {per_sec} (eta {eta})")
                 .expect("the template is valid")
                 .progress_chars("=> "),
         );

@@ -265,7 +265,7 @@ fn leaves(value: &Value, path: &mut Vec<String>, out: &mut Vec<(Vec<String>, Val
 /// Values of the same type as `value`, different from it, to try in turn (for a
 /// string, the other names the experiment tables accept; for `null`, numbers).
 fn perturbed(value: &Value) -> Vec<toml::Value> {
-    const NAMES: [&str; 26] = [
+    const NAMES: [&str; 27] = [
         "sensory",
         "kinematic",
         "auto",
@@ -287,6 +287,7 @@ fn perturbed(value: &Value) -> Vec<toml::Value> {
         "exp",
         "step",
         "maxmin",
+        "max-min",
         "dense",
         "partial",
         "all",
