@@ -287,14 +287,22 @@ impl Plan {
             3 * 4,
             rayon::current_num_threads() as u64,
         ]);
+        // Above `max_sets` the figures draw a sample: its sets are copied once.
+        let drawn = m.min(r.max_sets as u64);
+        let copied = if drawn < m {
+            self.trace.kernel.sets_bytes(drawn, self.motors() as usize)
+        } else {
+            0
+        };
         Peak {
-            what: format!("stage `report`: figures of {m} sets"),
+            what: format!("stage `report`: figures of {drawn} of {m} sets"),
             bytes: held
                 .bytes
                 .saturating_add(sampled)
+                .saturating_add(copied)
                 .saturating_add(pixels)
-                .saturating_add(product(&[m, 64 * F64])),
-            fix: "lower report.sample_sets or the panel size",
+                .saturating_add(product(&[drawn, 64 * F64])),
+            fix: "lower report.max_sets, report.sample_sets or the panel size",
         }
     }
 }
