@@ -368,15 +368,28 @@ struct QueryDriver<'a> {
     out_distance: &'a mut [f64],
 }
 
-/// The best `k` so far, sorted by `(distance, index)`.
-struct Best {
-    entries: Vec<(f64, usize)>,
+/// The best `k` so far, sorted by `(distance, index)`: the running answer of the
+/// nearest-set searches (here and through the landmarks, [`super::landmarks`]).
+pub(super) struct Best {
+    pub(super) entries: Vec<(f64, usize)>,
     k: usize,
 }
 
+/// Candidates `(lower bound, index)` by increasing bound, ties by index.
+fn by_bound(x: &(f64, u32), y: &(f64, u32)) -> std::cmp::Ordering {
+    x.0.total_cmp(&y.0).then(x.1.cmp(&y.1))
+}
+
 impl Best {
+    pub(super) fn new(k: usize) -> Self {
+        Self {
+            entries: Vec::with_capacity(k + 1),
+            k,
+        }
+    }
+
     /// The `k`-th distance (infinite until there are `k` entries).
-    fn radius(&self) -> f64 {
+    pub(super) fn radius(&self) -> f64 {
         if self.entries.len() < self.k {
             f64::INFINITY
         } else {
@@ -384,7 +397,7 @@ impl Best {
         }
     }
 
-    fn offer(&mut self, d: f64, j: usize) {
+    pub(super) fn offer(&mut self, d: f64, j: usize) {
         let before = |e: &(f64, usize)| e.0 < d || (e.0 == d && e.1 < j);
         if self.entries.len() == self.k {
             let last = self.entries[self.k - 1];
@@ -395,6 +408,62 @@ impl Best {
         }
         let at = self.entries.partition_point(before);
         self.entries.insert(at, (d, j));
+    }
+
+    /// Writes the entries, nearest first.
+    pub(super) fn write(&self, index: &mut [usize], distance: &mut [f64]) {
+        for (e, &(d, j)) in self.entries.iter().enumerate() {
+            index[e] = j;
+            distance[e] = d;
+        }
+    }
+
+    /// Measures the `k` candidates `(lower bound, index)` of smallest bound in full
+    /// (`measure(j, limit)`, here without a limit) and returns the others.
+    pub(super) fn measure_smallest<'c>(
+        &mut self,
+        candidates: &'c mut [(f64, u32)],
+        mut measure: impl FnMut(usize, f64) -> Option<f64>,
+    ) -> &'c mut [(f64, u32)] {
+        let first = self.k.min(candidates.len());
+        if first > 0 && first < candidates.len() {
+            candidates.select_nth_unstable_by(first - 1, by_bound);
+        }
+        let (smallest, rest) = candidates.split_at_mut(first);
+        for &(_, j) in smallest.iter() {
+            let d = measure(j as usize, f64::INFINITY).unwrap_or(f64::INFINITY);
+            self.offer(d, j as usize);
+        }
+        rest
+    }
+
+    /// Measures the candidates whose bound is within the `k`-th distance, by
+    /// increasing bound while it stays within it (the distance shrinks as better ones
+    /// come), each with an early exit at it.
+    pub(super) fn measure_within(
+        &mut self,
+        rest: &mut [(f64, u32)],
+        mut measure: impl FnMut(usize, f64) -> Option<f64>,
+    ) {
+        let radius = self.radius();
+        let mut kept = 0;
+        for e in 0..rest.len() {
+            if rest[e].0 <= radius {
+                rest.swap(kept, e);
+                kept += 1;
+            }
+        }
+        let rest = &mut rest[..kept];
+        rest.sort_unstable_by(by_bound);
+        for &(bound, j) in rest.iter() {
+            let radius = self.radius();
+            if bound > radius {
+                break;
+            }
+            if let Some(d) = measure(j as usize, radius) {
+                self.offer(d, j as usize);
+            }
+        }
     }
 }
 
@@ -414,10 +483,7 @@ impl Driver for QueryDriver<'_> {
             out_index,
             out_distance,
         } = self;
-        let mut best = Best {
-            entries: Vec::with_capacity(k + 1),
-            k,
-        };
+        let mut best = Best::new(k);
         if pivots == 0 {
             for j in (0..sets).filter(|&j| j != query) {
                 let limit = best.radius();
@@ -446,39 +512,10 @@ impl Driver for QueryDriver<'_> {
                     .filter(|&(j, _)| j != query)
                     .map(|(j, &b)| (b, j as u32)),
             );
-            let order = |x: &(f64, u32), y: &(f64, u32)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
-            candidates.select_nth_unstable_by(k - 1, order);
-            for &(_, j) in &candidates[..k] {
-                let j = j as usize;
-                let d = eval
-                    .distance(query, j, f64::INFINITY)
-                    .unwrap_or(f64::INFINITY);
-                best.offer(d, j);
-            }
-            let radius = best.radius();
-            let rest = &mut candidates[k..];
-            let mut kept = 0;
-            for e in 0..rest.len() {
-                if rest[e].0 <= radius {
-                    rest.swap(kept, e);
-                    kept += 1;
-                }
-            }
-            let rest = &mut rest[..kept];
-            rest.sort_unstable_by(order);
-            for &(bound, j) in rest.iter() {
-                let radius = best.radius();
-                if bound > radius {
-                    break;
-                }
-                if let Some(d) = eval.distance(query, j as usize, radius) {
-                    best.offer(d, j as usize);
-                }
-            }
+            let mut measure = |j: usize, limit: f64| eval.distance(query, j, limit);
+            let rest = best.measure_smallest(candidates, &mut measure);
+            best.measure_within(rest, &mut measure);
         }
-        for (e, &(d, j)) in best.entries.iter().enumerate() {
-            out_index[e] = j;
-            out_distance[e] = d;
-        }
+        best.write(out_index, out_distance);
     }
 }

@@ -96,6 +96,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::kernel::{Driver, Eval, Scratch};
+use super::knn::Best;
 use super::tiles::Measure;
 use super::{DistanceMatrix, Knn, MetricError, PreparedSets, SetMetric, SetsView};
 use crate::error::{CheckParams, InvalidParameter};
@@ -385,15 +386,12 @@ pub fn landmark_distances_with<'a>(
     if m < 2 {
         return Err(MetricError::TooFewSets { sets: m });
     }
-    let needed = landmark_bytes(m, p, n, params);
-    if let Some(available) = memory_limit_bytes.filter(|&a| needed > a) {
-        return Err(MetricError::LandmarksOutOfMemory {
-            sets: m,
-            landmarks: params.count.min(m),
-            needed,
-            available,
-        });
-    }
+    check_memory(
+        m,
+        params,
+        landmark_bytes(m, p, n, params),
+        memory_limit_bytes,
+    )?;
     let measure = Measure::new(sets, metric)?;
     let (found, _) = select(&measure, params, progress);
     measure.failure(|s| s)?;
@@ -446,21 +444,32 @@ pub fn landmarks_and_knn_with<'a>(
             max: members.len().saturating_sub(1),
         });
     }
-    let needed = landmark_bytes(m, p, n, params)
-        .saturating_add((members.len() as u64).saturating_mul(k as u64 * 16 + 16));
-    if let Some(available) = memory_limit_bytes.filter(|&a| needed > a) {
-        return Err(MetricError::LandmarksOutOfMemory {
-            sets: m,
-            landmarks: params.count.min(m),
-            needed,
-            available,
-        });
-    }
+    let lists = (members.len() as u64).saturating_mul(k as u64 * 16 + 16);
+    let needed = landmark_bytes(m, p, n, params).saturating_add(lists);
+    check_memory(m, params, needed, memory_limit_bytes)?;
     let measure = Measure::new(sets, metric)?;
     let (found, pivots) = select(&measure, params, progress);
     let knn = through::knn_through(&measure, &found, &pivots, members, k, progress);
     measure.failure(|s| s)?;
     Ok((found, knn))
+}
+
+/// Refuses `needed` bytes above the memory limit, before any work.
+fn check_memory(
+    sets: usize,
+    params: &LandmarkValidParams,
+    needed: u64,
+    memory_limit_bytes: Option<u64>,
+) -> Result<(), MetricError> {
+    match memory_limit_bytes {
+        Some(available) if needed > available => Err(MetricError::LandmarksOutOfMemory {
+            sets,
+            landmarks: params.count.min(sets),
+            needed,
+            available,
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// Pivots among the landmarks (positions) and their distances to every set,
@@ -478,51 +487,6 @@ fn select(
     match params.selection {
         LandmarkSelection::MaxMin => max_min(measure, params, progress),
         LandmarkSelection::Random => random(measure, params, progress),
-    }
-}
-
-/// The best `q` landmarks of one set so far, sorted by `(distance, position)`.
-struct Best {
-    entries: Vec<(f64, usize)>,
-    q: usize,
-}
-
-impl Best {
-    fn new(q: usize) -> Self {
-        Self {
-            entries: Vec::with_capacity(q + 1),
-            q,
-        }
-    }
-
-    /// The `q`-th distance (infinite until there are `q` entries).
-    fn radius(&self) -> f64 {
-        if self.entries.len() < self.q {
-            f64::INFINITY
-        } else {
-            self.entries[self.q - 1].0
-        }
-    }
-
-    fn offer(&mut self, d: f64, a: usize) {
-        if self.entries.len() == self.q {
-            let last = self.entries[self.q - 1];
-            if !(d < last.0 || (d == last.0 && a < last.1)) {
-                return;
-            }
-            self.entries.pop();
-        }
-        let at = self
-            .entries
-            .partition_point(|e| e.0 < d || (e.0 == d && e.1 < a));
-        self.entries.insert(at, (d, a));
-    }
-
-    fn write(&self, index: &mut [usize], distance: &mut [f64]) {
-        for (e, &(d, a)) in self.entries.iter().enumerate() {
-            index[e] = a;
-            distance[e] = d;
-        }
     }
 }
 
@@ -878,20 +842,9 @@ impl Driver for SearchDriver<'_> {
                         .filter(|&(_, &b)| b.is_finite())
                         .map(|(a, &b)| (b, a as u32)),
                 );
-                let order =
-                    |x: &(f64, u32), y: &(f64, u32)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
-                let first_q = q.min(candidates.len());
-                if first_q > 0 && first_q < candidates.len() {
-                    candidates.select_nth_unstable_by(first_q - 1, order);
-                }
-                for &(_, a) in &candidates[..first_q] {
-                    let a = a as usize;
-                    let d = measure(j, a, f64::INFINITY).unwrap_or(f64::INFINITY);
-                    best.offer(d, a);
-                }
+                let mut to_set = |a: usize, limit: f64| measure(j, a, limit);
+                let rest = best.measure_smallest(candidates, &mut to_set);
                 // The nearest landmarks found tighten the others' bounds through `Δ`.
-                let radius = best.radius();
-                let rest = &mut candidates[first_q..];
                 for &(d, u) in best.entries.iter().take(NEAR_PIVOTS) {
                     for (bound, a) in rest.iter_mut() {
                         let y = landmarks[[u, *a as usize]];
@@ -901,24 +854,7 @@ impl Driver for SearchDriver<'_> {
                         }
                     }
                 }
-                let mut kept = 0;
-                for e in 0..rest.len() {
-                    if rest[e].0 <= radius {
-                        rest.swap(kept, e);
-                        kept += 1;
-                    }
-                }
-                let rest = &mut rest[..kept];
-                rest.sort_unstable_by(order);
-                for &(bound, a) in rest.iter() {
-                    let radius = best.radius();
-                    if bound > radius {
-                        break;
-                    }
-                    if let Some(d) = measure(j, a as usize, radius) {
-                        best.offer(d, a as usize);
-                    }
-                }
+                best.measure_within(rest, &mut to_set);
             }
             best.write(index, distance);
         }

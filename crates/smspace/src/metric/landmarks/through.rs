@@ -5,8 +5,9 @@
 use ndarray::Array2;
 use rayon::prelude::*;
 
-use super::{Best, LandmarkDistances, PivotTable, PIVOT_MARGIN};
+use super::{LandmarkDistances, PivotTable, PIVOT_MARGIN};
 use crate::metric::kernel::{Driver, Eval, Scratch};
+use crate::metric::knn::Best;
 use crate::metric::tiles::Measure;
 use crate::metric::Knn;
 use crate::progress::Progress;
@@ -269,35 +270,8 @@ impl Driver for KnnDriver<'_> {
                     }
                 }
             }
-            let order = |x: &(f64, u32), y: &(f64, u32)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
-            let first_k = k.min(local.candidates.len());
-            if first_k > 0 && first_k < local.candidates.len() {
-                local.candidates.select_nth_unstable_by(first_k - 1, order);
-            }
-            for &(_, r) in &local.candidates[..first_k] {
-                let d = measure(r as usize, f64::INFINITY).unwrap_or(f64::INFINITY);
-                best.offer(d, r as usize);
-            }
-            let radius = best.radius();
-            let rest = &mut local.candidates[first_k..];
-            let mut kept = 0;
-            for e in 0..rest.len() {
-                if rest[e].0 <= radius {
-                    rest.swap(kept, e);
-                    kept += 1;
-                }
-            }
-            let rest = &mut rest[..kept];
-            rest.sort_unstable_by(order);
-            for &(bound, r) in rest.iter() {
-                let radius = best.radius();
-                if bound > radius {
-                    break;
-                }
-                if let Some(d) = measure(r as usize, radius) {
-                    best.offer(d, r as usize);
-                }
-            }
+            let rest = best.measure_smallest(&mut local.candidates, &mut measure);
+            best.measure_within(rest, &mut measure);
             // The other clusters: a member `r` of the cluster of landmark `a` is at
             // least `lb(i, a) − ρ(r, a)` away; clusters by their farthest member, then
             // members by decreasing distance to their landmark.
