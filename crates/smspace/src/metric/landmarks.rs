@@ -510,18 +510,7 @@ fn max_min(
     progress.start("landmarks", l as u64);
     for t in 0..l {
         let landmark = traversal.next_landmark();
-        column
-            .par_chunks_mut(COLUMN_CHUNK)
-            .enumerate()
-            .for_each_init(Scratch::default, |scratch, (c, out)| {
-                let driver = LandmarkColumn {
-                    landmark,
-                    first: c * COLUMN_CHUNK,
-                    known: &position,
-                    out,
-                };
-                measure.drive(scratch, driver);
-            });
+        measure_column(measure, landmark, &position, &mut column);
         // Pairs with earlier landmarks were measured in their columns.
         for (u, &earlier) in rows.iter().enumerate() {
             column[earlier] = table[[landmark, u]];
@@ -628,41 +617,21 @@ fn random(
     });
     drop(upper);
     let (is_metric, tolerance) = measure.bounds();
-    // Pivots: farthest first among the landmarks, from the first one.
-    let pivots: Vec<usize> = if is_metric {
-        let count = LANDMARK_PIVOTS.min(l);
-        let mut chosen = vec![0];
-        let mut near: Vec<f64> = landmarks.row(0).to_vec();
-        while chosen.len() < count {
-            let next = (0..l).fold(0, |best, a| if near[a] > near[best] { a } else { best });
-            if near[next] == 0.0 {
-                break;
-            }
-            chosen.push(next);
-            for (n, &d) in near.iter_mut().zip(landmarks.row(next)) {
-                *n = n.min(d);
-            }
+    // Pivots: farthest first among the landmarks, from the first one (until every
+    // landmark duplicates a pivot).
+    let mut pivots = Vec::new();
+    if is_metric {
+        let mut picker = FarthestFirst::new(l, 0).expect("there are at least 3 landmarks");
+        while pivots.len() < LANDMARK_PIVOTS.min(l) && !pivots.contains(&picker.next_landmark()) {
+            let next = picker.next_landmark();
+            pivots.push(next);
+            picker.add(landmarks.row(next));
         }
-        chosen
-    } else {
-        Vec::new()
-    };
+    }
     // `[t][j]`: distance of pivot t to set j.
     let mut table = vec![0.0; pivots.len() * m];
     for (t, column) in table.chunks_mut(m.max(1)).enumerate().take(pivots.len()) {
-        let landmark = rows[pivots[t]];
-        column
-            .par_chunks_mut(COLUMN_CHUNK)
-            .enumerate()
-            .for_each_init(Scratch::default, |scratch, (c, out)| {
-                let driver = LandmarkColumn {
-                    landmark,
-                    first: c * COLUMN_CHUNK,
-                    known: &[],
-                    out,
-                };
-                measure.drive(scratch, driver);
-            });
+        measure_column(measure, rows[pivots[t]], &[], column);
     }
     let q = params.nearest.min(l);
     let mut nearest = Array2::zeros((m, q));
@@ -713,6 +682,28 @@ fn random(
         },
         PivotTable { pivots, table },
     )
+}
+
+/// Distances from `landmark` to every set into `column` (in parallel, fixed chunks);
+/// sets marked in `known` are left at 0 for the caller to fill.
+fn measure_column(
+    measure: &Measure<'_>,
+    landmark: usize,
+    known: &[Option<usize>],
+    column: &mut [f64],
+) {
+    column
+        .par_chunks_mut(COLUMN_CHUNK)
+        .enumerate()
+        .for_each_init(Scratch::default, |scratch, (c, out)| {
+            let driver = LandmarkColumn {
+                landmark,
+                first: c * COLUMN_CHUNK,
+                known,
+                out,
+            };
+            measure.drive(scratch, driver);
+        });
 }
 
 /// Distances from one landmark to the sets `first..first + out.len()`, each pair as
