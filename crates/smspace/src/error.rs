@@ -38,6 +38,9 @@ pub enum Error {
     /// The environment-invariance experiment failed.
     #[error(transparent)]
     Invariance(#[from] crate::invariance::InvarianceError),
+    /// Learning the law from a log, or reading the log, failed.
+    #[error(transparent)]
+    Learn(#[from] crate::learn::LearnError),
     /// Writing the figures and report failed.
     #[cfg(feature = "pipeline")]
     #[error(transparent)]
@@ -54,6 +57,7 @@ impl Error {
             Error::Explore(e) => e.invalid_parameter(),
             Error::Kernel(e) => e.invalid_parameter(),
             Error::Metric(MetricError::Invalid(p)) => Some(p),
+            Error::Learn(e) => e.invalid_parameter(),
             _ => None,
         }
     }

@@ -97,8 +97,14 @@ pub struct Experiment {
     /// What the experiment shows (the report's first paragraph).
     #[serde(default)]
     pub description: String,
-    /// The agent (paper section 2.2, 2.3 or 3.1).
-    pub agent: AgentConfig,
+    /// The agent (paper section 2.2, 2.3 or 3.1). Required, except in a run from
+    /// logged files (`[data]` with `motors` and `sensors`), which has no agent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub agent: Option<AgentConfig>,
+    /// A run from a sensorimotor log instead of a simulator
+    /// ([`crate::pipeline::data`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data: Option<crate::pipeline::data::DataParams>,
     /// The environments.
     #[serde(default)]
     pub environment: ExperimentEnvironment,
@@ -127,8 +133,9 @@ pub struct Experiment {
 }
 
 /// The tables of an experiment file, for error messages.
-pub const EXPERIMENT_TABLES: [&str; 9] = [
+pub const EXPERIMENT_TABLES: [&str; 10] = [
     "agent",
+    "data",
     "environment",
     "exploration",
     "kernel",

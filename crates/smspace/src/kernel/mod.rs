@@ -767,6 +767,10 @@ pub struct TraceReport {
     /// ([`spatial`]), from 0. Empty otherwise.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub extended_along: Vec<usize>,
+    /// Sets traced on a law learned from a log: the law's report (held-out error,
+    /// rank; [`crate::learn::LawReport`] as JSON). `None` otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub law: Option<serde_json::Value>,
 }
 
 /// The traced sets.
@@ -1031,6 +1035,7 @@ pub fn trace_sets(
             summary,
             sets: reports,
             extended_along: Vec::new(),
+            law: None,
         },
     })
 }

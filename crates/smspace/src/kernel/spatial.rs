@@ -298,6 +298,7 @@ mod tests {
                 summary: Default::default(),
                 sets,
                 extended_along: Vec::new(),
+                law: None,
             },
         }
     }

@@ -82,6 +82,17 @@ impl Plan {
     /// `explore`: its own arrays.
     pub(super) fn explore_peak(&self) -> Peak {
         let e = &self.explore.exploration;
+        if let Some(data) = &self.world.data {
+            return Peak {
+                what: format!(
+                    "stage `explore`: {} reference samples picked from {} logged samples",
+                    e.n,
+                    data.samples()
+                ),
+                bytes: data.bytes(),
+                fix: "learn from fewer samples ([data.simulate] samples, or a shorter log)",
+            };
+        }
         Peak {
             what: format!(
                 "stage `explore`: {} configurations of {} motors, with poses of {} coordinates",
@@ -97,14 +108,26 @@ impl Plan {
     /// `trace`: the sets of every explored row, twice.
     pub(super) fn trace_peak(&self, held: Held, rows: u64) -> Peak {
         let sets = self.trace.kernel.sets_bytes(rows, self.motors() as usize);
-        Peak {
-            what: format!(
-                "stage `trace`: kernel sets ({rows} × {} points × {} motors)",
-                self.trace.kernel.stored_points(),
-                self.motors()
-            ),
-            bytes: held.bytes.saturating_add(sets.saturating_mul(2)),
-            fix: "lower exploration.n, the probe grid or kernel.points",
+        let what = format!(
+            "stage `trace`: kernel sets ({rows} × {} points × {} motors)",
+            self.trace.kernel.stored_points(),
+            self.motors()
+        );
+        let bytes = held.bytes.saturating_add(sets.saturating_mul(2));
+        match &self.world.data {
+            Some(data) => Peak {
+                what: format!(
+                    "{what}, and the law learned from {} logged samples",
+                    data.samples()
+                ),
+                bytes: bytes.saturating_add(data.bytes()),
+                fix: "learn from fewer samples ([data.simulate] samples, or a shorter log), or lower exploration.n or kernel.points",
+            },
+            None => Peak {
+                what,
+                bytes,
+                fix: "lower exploration.n, the probe grid or kernel.points",
+            },
         }
     }
 

@@ -33,6 +33,10 @@
 //! [`BusyFolder::Wait`]). `docs/RELIABILITY.md` lists these promises and the tests that
 //! check them.
 //!
+//! With a `[data]` table ([`data`]) the run starts from a sensorimotor log: `explore`
+//! picks reference samples of it instead of babbling, and `trace` traces the sets on
+//! the law learned from it (`sets.trace.json` then has the law's report under `law`).
+//!
 //! # Example
 //!
 //! A tiny experiment (the redundant toy of section 2.3) from the library:
@@ -82,6 +86,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod data;
 pub mod lock;
 pub mod manifest;
 mod memory;
@@ -407,11 +412,10 @@ pub fn check_with(
     registries: impl Into<Registries>,
 ) -> Result<Plan, ConfigError> {
     let registries: Registries = registries.into();
-    let built = registries
-        .agents
-        .build(&experiment.experiment.agent)
-        .map_err(|err| experiment.invalid_error("agent", err.into()))?;
-    let agent = built.agent;
+    let (agent, agent_config, data) = world_parts(experiment, &registries)?;
+    if data.is_some() {
+        check_data_tables(experiment)?;
+    }
     let metric_table = resolve_metric_period(agent.as_ref(), &experiment.experiment.metric)
         .map_err(|err| experiment.invalid_error("metric", MetricError::Invalid(err).into()))?;
     let metric = registries
@@ -421,7 +425,9 @@ pub fn check_with(
     // The resolved agent and metric tables (their defaults included) are what the run
     // records.
     let mut experiment = experiment.clone();
-    experiment.experiment.agent = built.config;
+    if experiment.experiment.agent.is_some() {
+        experiment.experiment.agent = Some(agent_config.clone());
+    }
     experiment.experiment.metric = metric.params.clone();
     let experiment = &experiment;
     let e = &experiment.experiment;
@@ -487,10 +493,11 @@ pub fn check_with(
         .check(e.analysis.mle_neighbors)
         .map_err(|err| invalid("scale")(err.into()))?;
     let world = World {
-        agent_config: e.agent.clone(),
+        agent_config,
         agent,
         environments,
         workspace,
+        data,
     };
     Ok(Plan {
         experiment: experiment.clone(),
@@ -518,6 +525,103 @@ pub fn check_with(
             report: e.report.clone(),
         },
     })
+}
+
+/// The agent, its resolved table and the run's data: the `[agent]` table's agent, or,
+/// for a run from logged files without one, the [`data::LoggedBody`] of the log.
+#[allow(clippy::type_complexity)]
+fn world_parts(
+    experiment: &LoadedExperiment,
+    registries: &Registries,
+) -> Result<
+    (
+        Box<dyn Agent>,
+        crate::agent::AgentConfig,
+        Option<Arc<data::RunData>>,
+    ),
+    ConfigError,
+> {
+    let e = &experiment.experiment;
+    let built = match &e.agent {
+        Some(table) => Some(
+            registries
+                .agents
+                .build(table)
+                .map_err(|err| experiment.invalid_error("agent", err.into()))?,
+        ),
+        None => None,
+    };
+    let data = match &e.data {
+        Some(params) => {
+            let base = experiment.path.parent().unwrap_or(Path::new("."));
+            let checked =
+                data::RunData::check(params, base, built.as_ref().map(|b| b.agent.as_ref()))
+                    .map_err(|err| experiment.invalid_error("data", err.into()))?;
+            Some(Arc::new(checked))
+        }
+        None => None,
+    };
+    match (built, data) {
+        (Some(built), data) => {
+            if let Some(data) = &data {
+                let (log, agent) = (data.motor_space().dim(), built.agent.motor_dim());
+                if log != agent {
+                    return Err(experiment.invalid_parameter(&InvalidParameter::new(
+                        "data",
+                        "motors",
+                        format!("{log} motor columns"),
+                        format!(
+                            "the [agent] has {agent} motors: a log of that agent has one column per motor (or leave [agent] out to learn from the log alone)"
+                        ),
+                    )));
+                }
+            }
+            Ok((built.agent, built.config, data))
+        }
+        (None, Some(data)) => {
+            let mut params = toml::Table::new();
+            params.insert(
+                "source".to_owned(),
+                toml::Value::String("the [data] table's log".to_owned()),
+            );
+            let config = crate::agent::AgentConfig {
+                kind: "learned".to_owned(),
+                params,
+            };
+            Ok((
+                Box::new(data::LoggedBody::new(data.clone())),
+                config,
+                Some(data),
+            ))
+        }
+        (None, None) => Err(ConfigError::MissingTable {
+            path: experiment.path.clone(),
+            table: "agent",
+        }),
+    }
+}
+
+/// The tables a run from a log constrains: the references are samples of the log (no
+/// probe grid), and the sets are traced by the sensory method (the log has no poses).
+fn check_data_tables(experiment: &LoadedExperiment) -> Result<(), ConfigError> {
+    let e = &experiment.experiment;
+    if e.exploration.probes != crate::explore::Probes::None {
+        return Err(experiment.invalid_parameter(&InvalidParameter::new(
+            "exploration",
+            "probes",
+            "grid",
+            "with [data] the references are samples of the log, which has no probe grid: set probes = \"none\"",
+        )));
+    }
+    if e.kernel.method != TraceMethod::Sensory {
+        return Err(experiment.invalid_parameter(&InvalidParameter::new(
+            "kernel",
+            "method",
+            "kinematic",
+            "with [data] the sets are traced on the learned law, by what the agent senses: set method = \"sensory\"",
+        )));
+    }
+    Ok(())
 }
 
 /// The `[metric]` table with its period resolved for `agent`: `"motors"` becomes the

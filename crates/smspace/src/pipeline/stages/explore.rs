@@ -6,9 +6,12 @@ use std::path::Path;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput, World};
+use crate::agent::GroundTruth;
 use crate::explore::{explore_with, Exploration, ExploreParams};
 use crate::io::Outputs;
+use crate::pipeline::data::RunData;
 use crate::pipeline::StageId;
+use ndarray::Array2;
 
 /// The `explore` stage: the `[exploration]` table.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -28,6 +31,28 @@ impl StageInput for ExploreInput<'_> {
     fn keys(&self) -> Vec<&str> {
         vec![&self.world.key]
     }
+}
+
+/// With `[data]`: `exploration.n` reference samples of the log (seeded by
+/// `exploration.seed`) instead of babbling; their poses when the agent has a ground
+/// truth (a simulated log), for evaluation only.
+fn pick_references(
+    world: &World,
+    data: &RunData,
+    exploration: &ExploreParams,
+) -> crate::Result<Exploration> {
+    let motors = data.pick(world, exploration.n, exploration.seed)?;
+    let ground_truth = world
+        .agent
+        .ground_truth()
+        .map(|observer| GroundTruth::observe(observer, motors.view()));
+    let probes = Array2::from_elem((motors.nrows(), 3), -1);
+    Ok(Exploration {
+        motors,
+        ground_truth,
+        probes,
+        workspace: world.workspace,
+    })
 }
 
 /// The file of environment `i` (0: the main one).
@@ -50,6 +75,9 @@ impl Stage for ExploreStage {
         context: &StageContext<'_>,
     ) -> crate::Result<Exploration> {
         let world = &input.world.value;
+        if let Some(data) = &world.data {
+            return pick_references(world, data, &self.exploration);
+        }
         Ok(explore_with(
             world.agent.as_ref(),
             &self.exploration,

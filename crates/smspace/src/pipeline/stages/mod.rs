@@ -171,13 +171,23 @@ pub struct World {
     pub environments: Vec<Environment>,
     /// The working space the agent explores, if it has one.
     pub workspace: Option<Workspace>,
+    /// With a `[data]` table: the log the run learns the law from (explore picks its
+    /// reference samples, trace traces on the learned law).
+    pub data: Option<std::sync::Arc<crate::pipeline::data::RunData>>,
 }
 
 impl World {
     /// The world with its key: the agent's description, the environments' lights and
-    /// the working space.
+    /// the working space, and with `[data]` the log's source (files by content) and the
+    /// law's parameters.
     pub fn keyed(self) -> Keyed<World> {
-        let description = json(&(&self.agent_config, &self.environments, &self.workspace));
+        let data = self.data.as_ref().map(|d| (&d.source, &d.law_params));
+        let description = json(&(
+            &self.agent_config,
+            &self.environments,
+            &self.workspace,
+            data,
+        ));
         let key = hash_parts(&[b"world", description.as_bytes()]);
         Keyed { value: self, key }
     }

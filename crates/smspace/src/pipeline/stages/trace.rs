@@ -12,6 +12,7 @@ use crate::error::InvalidParameter;
 use crate::explore::Exploration;
 use crate::io::Outputs;
 use crate::kernel::{extend_along, trace_sets, KernelError, Spatial, TraceParams, TracedSets};
+use crate::learn::trace_learned;
 use crate::pipeline::StageId;
 
 /// The `trace` stage: the `[kernel]` table (and, with `spatial = "compensable"`, the
@@ -115,14 +116,23 @@ impl Stage for TraceStage {
         let world = &input.world.value;
         let params = self.kernel.check()?;
         let motors = input.exploration.motors.view();
-        let traced = trace_sets(
-            world.agent.as_ref(),
-            world.environments.first(),
-            motors,
-            world.workspace.as_ref(),
-            &params,
-            context.progress,
-        )?;
+        let traced = match &world.data {
+            Some(data) => {
+                let law = data.law(world, context.memory_limit_bytes)?;
+                let mut traced = trace_learned(&law, motors, &self.kernel, context.progress)?;
+                // A report of numbers and names always serialises.
+                traced.report.law = serde_json::to_value(law.report()).ok();
+                traced
+            }
+            None => trace_sets(
+                world.agent.as_ref(),
+                world.environments.first(),
+                motors,
+                world.workspace.as_ref(),
+                &params,
+                context.progress,
+            )?,
+        };
         if traced.kept.len() < 2 {
             return Err(KernelError::NothingTraced {
                 traced: traced.kept.len(),
