@@ -304,3 +304,104 @@ fn a_simulated_arm_log_is_seeded_and_its_law_has_rank_3() {
     let zero = set_errors(&truth, &truth, Period::TwoPi).unwrap();
     assert!(zero.p90 < 1e-9);
 }
+
+#[test]
+fn the_law_jacobian_is_the_derivative_of_its_value() {
+    // A noisy log of a smooth law: the fit's residuals are not zero, so the slope alone
+    // differs from the derivative of the value by the moving weights' terms.
+    let (motors, mut sensors) = hinge_log(6000, -PI, PI, |a, b| {
+        vec![a.sin() + (2.0 * b).cos(), (a + b).sin() * 0.5]
+    });
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    for v in sensors.iter_mut() {
+        *v += 0.02 * (rng.gen::<f64>() - 0.5);
+    }
+    let space = MotorSpace::hinges(2);
+    let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
+    for method in [LawMethod::LocalLinear, LawMethod::LocalQuadratic] {
+        let params = LawParams {
+            method,
+            ridge: 0.0,
+            ..LawParams::default()
+        }
+        .check()
+        .unwrap();
+        let law = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+        let environment = Environment::from_lights(Vec::new());
+        let h = 1e-6;
+        let mut worst: f64 = 0.0;
+        for q in 0..20 {
+            let m = [-2.5 + 0.25 * q as f64, 1.9 - 0.2 * q as f64];
+            let (mut s, mut jac) = (vec![0.0; 2], vec![0.0; 4]);
+            law.evaluate_with_jacobian(&m, &mut s, &mut jac);
+            for j in 0..2 {
+                let (mut plus, mut minus) = (m, m);
+                plus[j] += h;
+                minus[j] -= h;
+                let (mut sp, mut sm) = (vec![0.0; 2], vec![0.0; 2]);
+                law.sense(&environment, &plus, &mut sp);
+                law.sense(&environment, &minus, &mut sm);
+                for i in 0..2 {
+                    let difference = (sp[i] - sm[i]) / (2.0 * h);
+                    worst = worst.max((difference - jac[i * 2 + j]).abs());
+                }
+            }
+        }
+        assert!(
+            worst < 1e-5,
+            "{method:?}: Jacobian off its value's derivative by {worst}"
+        );
+    }
+}
+
+#[test]
+fn a_noisy_log_traces_level_sets_of_the_range_held_at_the_start() {
+    // With 1 % sensor noise the learned law has no exact rank 1, so s(m) = s⁰ has
+    // isolated solutions; the tracer follows U₀ᵀ (ŝ(m) − s⁰) = 0, the range of the
+    // Jacobian held at the start, a level set of a fixed map that ends on the bounds.
+    let toy = AgentConfig::preset("toy-redundant")
+        .unwrap()
+        .build()
+        .unwrap();
+    let environment = EnvironmentConfig::default().build(toy.as_ref()).unwrap();
+    let params = SimulateParams {
+        samples: 20_000,
+        noise: 0.01,
+        seed: 1,
+    };
+    let log = simulate(toy.as_ref(), &environment, None, &params).unwrap();
+    let starts = first_rows(&log.motors, 60);
+    let space = toy.motor_space();
+    let files = files();
+    let log = SensorimotorLog::new(log.motors, log.sensors, files, &space).unwrap();
+    let law = learn(&[log], &space, &LawParams::default().check().unwrap(), None).unwrap();
+    let traced = trace_learned(
+        &law,
+        starts.view(),
+        &TraceParams {
+            points: 20,
+            ..smspace::learn::law_trace_params()
+        },
+        &Silent,
+    )
+    .unwrap();
+    assert!(
+        traced.kept.len() >= 55,
+        "{:?}",
+        traced.report.summary.by_status
+    );
+    let mut errors: Vec<f64> = traced
+        .sets
+        .outer_iter()
+        .zip(&traced.kept)
+        .map(|(set, &row)| {
+            let x = starts[[row, 0]] + starts[[row, 1]];
+            set.outer_iter()
+                .map(|p| (p[0] + p[1] - x).abs())
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    let median = errors[errors.len() / 2];
+    assert!(median < 0.03, "median largest error {median}");
+}

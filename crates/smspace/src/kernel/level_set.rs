@@ -484,10 +484,22 @@ impl LevelSet for Kinematic<'_> {
 ///
 /// For a law fitted to data (an agent that gives its [`Agent::sensory_rank`]), the
 /// values do not lie exactly on an image of rank `N − d`, so `s(m) = s⁰` has isolated
-/// solutions only; the level set is then `{ m | U(m)ᵀ (s(m) − s⁰) = 0 }`, the part of the
-/// residual in the range `U` of the Jacobian held at zero, and the residual's size is
-/// `‖Uᵀ r‖ = √(Σ_{e≥d} (v_eᵀ Jᵀ r)² / λ_e)` (relative to the same scale), which the
-/// Gauss–Newton correction cancels.
+/// solutions only. The level set is then that of the projected law
+///
+/// ```text
+/// g(m) = U₀ᵀ (s(m) − s⁰) = 0,    U₀ = J(m⁰) v_e / √λ_e,  e = d … N − 1,
+/// ```
+///
+/// with `U₀` (`K × (N − d)`, orthonormal) the range of the Jacobian **at the start**,
+/// held for the whole set: the true law factors through the sensor's configuration
+/// (`s = F(pose(m))`), so along its kernel `s(m) = s⁰` and the range of `J` is the
+/// tangent space of the sensory manifold at `s⁰`, the same at every point of the set.
+/// `g` maps `N` motors to `N − d` values, so its level set through `m⁰` is a
+/// `d`-dimensional manifold of a fixed map, which closes (or ends on a bound) as the
+/// true set does; a range re-read at every point, `U(m)`, gives a path that is no level
+/// set of any map. The residual is `g` (in sensor units, relative to the same scale)
+/// and the Jacobian `U₀ᵀ J(m)`. When `J(m⁰)` itself is singular, the range at the
+/// current point is used instead: `‖U(m)ᵀ r‖ = √(Σ_{e≥d} (v_eᵀ Jᵀ r)² / λ_e)`.
 ///
 /// Every reading goes to the agent directly, or through a [`Caller`] of a gathered
 /// round when the agent asks for [`crate::agent::Calling::Gathered`].
@@ -507,6 +519,14 @@ pub(crate) struct Sensory<'a> {
     dimension: usize,
     /// Whether the residual is measured in the Jacobian's range (a fitted law).
     projected: bool,
+    /// For a fitted law: `U₀` (`K × (N − d)`, row-major), the range of the Jacobian at
+    /// the start, held for the set (see the type's docs); `None` otherwise, or when the
+    /// Jacobian at the start is singular.
+    held: Option<Vec<f64>>,
+    /// With `held`: `U₀ᵀ J` (`(N − d) × N`), the Jacobian of the projected law.
+    held_jacobian: Vec<f64>,
+    /// With `held`: the full readings minus the target (`K`).
+    full_residual: Vec<f64>,
     jacobian: Vec<f64>,
     eigenvalues: Vec<f64>,
     eigenvectors: Vec<f64>,
@@ -533,7 +553,7 @@ impl<'a> Sensory<'a> {
         let mut target = vec![0.0; k];
         read_one(agent, environment, caller, start, &mut target);
         let scale = target.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
-        Self {
+        let mut set = Self {
             agent,
             environment,
             caller,
@@ -546,11 +566,77 @@ impl<'a> Sensory<'a> {
             rank_tolerance: params.rank_tolerance,
             dimension,
             projected: agent.sensory_rank().is_some(),
+            held: None,
+            held_jacobian: Vec::new(),
+            full_residual: vec![0.0; k],
             jacobian: vec![0.0; k * n],
             eigenvalues: vec![0.0; n],
             eigenvectors: vec![0.0; n * n],
             probes: vec![0.0; (2 * n + 1) * n],
             readings: vec![0.0; (2 * n + 1) * k],
+        };
+        if set.projected && dimension < n {
+            set.hold_range(start);
+        }
+        set
+    }
+
+    /// `U₀`: the range of the Jacobian at `start` (see the type's docs), unless it is
+    /// singular there.
+    fn hold_range(&mut self, start: &[f64]) {
+        let mut r = vec![0.0; self.k];
+        self.read_full(start, &mut r);
+        if self.decompose().is_err() {
+            return;
+        }
+        let (n, k, d) = (self.n, self.k, self.dimension);
+        let columns = n - d;
+        let mut basis = vec![0.0; k * columns];
+        for (c, e) in (d..n).enumerate() {
+            let v = &self.eigenvectors[e * n..(e + 1) * n];
+            let norm = self.eigenvalues[e].sqrt();
+            for i in 0..k {
+                let jv: f64 = (0..n).map(|j| self.jacobian[i * n + j] * v[j]).sum();
+                basis[i * columns + c] = jv / norm;
+            }
+        }
+        self.held_jacobian = vec![0.0; columns * n];
+        self.held = Some(basis);
+    }
+
+    /// The residual `s(m) − s⁰` into `r` (`K`) and the full Jacobian `J(m)`.
+    fn read_full(&mut self, m: &[f64], r: &mut [f64]) {
+        let k = self.k;
+        if self.agent.sense_with_jacobian(
+            self.environment,
+            m,
+            &mut self.readings[..k],
+            &mut self.jacobian,
+        ) {
+            for ((ri, s), t) in r.iter_mut().zip(&self.readings[..k]).zip(&self.target) {
+                *ri = s - t;
+            }
+        } else {
+            self.difference_jacobian(m, r);
+        }
+    }
+
+    /// The Jacobian the level set is read with and its rows: `U₀ᵀ J` with a held
+    /// range, else `J`.
+    fn active(&self) -> (&[f64], usize) {
+        match &self.held {
+            Some(_) => (&self.held_jacobian, self.n - self.dimension),
+            None => (&self.jacobian, self.k),
+        }
+    }
+
+    /// `out = U₀ᵀ x` for `x` of `K` values (`basis` is `K × columns`).
+    fn project(basis: &[f64], columns: usize, x: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        for (i, xi) in x.iter().enumerate() {
+            for (c, o) in out.iter_mut().enumerate() {
+                *o += basis[i * columns + c] * xi;
+            }
         }
     }
 
@@ -589,12 +675,13 @@ impl<'a> Sensory<'a> {
     /// The eigen-decomposition of `JᵀJ` (ascending), singular when the smallest
     /// eigenvalue that should be nonzero is negligible.
     fn decompose(&mut self) -> Result<(), Singular> {
-        let (n, k) = (self.n, self.k);
+        let n = self.n;
+        let (jacobian, k) = self.active();
         let mut gram = DMatrix::<f64>::zeros(n, n);
         for a in 0..n {
             for b in 0..=a {
                 let s: f64 = (0..k)
-                    .map(|i| self.jacobian[i * n + a] * self.jacobian[i * n + b])
+                    .map(|i| jacobian[i * n + a] * jacobian[i * n + b])
                     .sum();
                 gram[(a, b)] = s;
                 gram[(b, a)] = s;
@@ -652,18 +739,27 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn rows(&self) -> usize {
-        self.k
+        self.active().1
     }
 
     fn residual(&mut self, m: &[f64], r: &mut [f64]) {
-        read_one(self.agent, self.environment, self.caller, m, r);
-        for (ri, t) in r.iter_mut().zip(&self.target) {
+        let Some(basis) = &self.held else {
+            read_one(self.agent, self.environment, self.caller, m, r);
+            for (ri, t) in r.iter_mut().zip(&self.target) {
+                *ri -= t;
+            }
+            return;
+        };
+        let full = &mut self.full_residual;
+        read_one(self.agent, self.environment, self.caller, m, full);
+        for (ri, t) in full.iter_mut().zip(&self.target) {
             *ri -= t;
         }
+        Self::project(basis, self.n - self.dimension, full, r);
     }
 
     fn residual_norm(&self, r: &[f64]) -> f64 {
-        if !self.projected {
+        if !self.projected || self.held.is_some() {
             return r.iter().fold(0.0, |acc: f64, v| acc.max(v.abs())) / self.scale;
         }
         let n = self.n;
@@ -686,19 +782,23 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
-        let k = self.k;
-        if self.agent.sense_with_jacobian(
-            self.environment,
-            m,
-            &mut self.readings[..k],
-            &mut self.jacobian,
-        ) {
-            for ((ri, s), t) in r.iter_mut().zip(&self.readings[..k]).zip(&self.target) {
-                *ri = s - t;
+        let Some(basis) = self.held.take() else {
+            self.read_full(m, r);
+            return self.decompose();
+        };
+        let mut full = std::mem::take(&mut self.full_residual);
+        self.read_full(m, &mut full);
+        let (n, columns) = (self.n, self.n - self.dimension);
+        Self::project(&basis, columns, &full, r);
+        for j in 0..n {
+            for c in 0..columns {
+                self.held_jacobian[c * n + j] = (0..self.k)
+                    .map(|i| basis[i * columns + c] * self.jacobian[i * n + j])
+                    .sum();
             }
-        } else {
-            self.difference_jacobian(m, r);
         }
+        self.full_residual = full;
+        self.held = Some(basis);
         self.decompose()
     }
 
@@ -713,9 +813,10 @@ impl LevelSet for Sensory<'_> {
 
     fn correction(&self, r: &[f64], delta: &mut [f64]) {
         let n = self.n;
+        let (jacobian, k) = self.active();
         let mut g = vec![0.0; n];
         for (j, gj) in g.iter_mut().enumerate() {
-            *gj = (0..self.k).map(|i| self.jacobian[i * n + j] * r[i]).sum();
+            *gj = (0..k).map(|i| jacobian[i * n + j] * r[i]).sum();
         }
         delta.fill(0.0);
         for e in self.dimension..n {
@@ -729,7 +830,7 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn jacobian(&self) -> (&[f64], usize) {
-        (&self.jacobian, self.k)
+        self.active()
     }
 
     fn null_basis(&self, k: usize, basis: &mut [f64]) {

@@ -203,8 +203,88 @@ impl LocalModel {
                     jac[i * n + j] = rhs[(1 + j) * k + i] * inverse_h;
                 }
             }
+            self.add_moving_terms(&query, (&gram, &rhs), jac);
         }
         support
+    }
+
+    /// Adds to the fit's slope `B/h` (in `jac`, `K × N`) the rest of the derivative of
+    /// the law's value `a(m) = e₀ᵀ β(m)`, so that the Jacobian is that of the value the
+    /// tracer follows. With `G = Σ w_i φ_i φ_iᵀ`, `β = G⁻¹ Σ w_i φ_i s_iᵀ`, residuals
+    /// `r_i = s_i − βᵀ φ_i` and `g₀ = G⁻¹ e₀`:
+    ///
+    /// ```text
+    /// ∂a/∂m_j = β_{1+j}/h + Σ_i g₀ᵀ (∂w_i/∂m_j φ_i + w_i ∂φ_i/∂m_j) r_i
+    /// ```
+    ///
+    /// (the term `−G⁻¹ Σ w_i φ_i (∂φ_i/∂m_j)ᵀ β` is the slope, since the derivatives of
+    /// a polynomial basis lie in its span), with `∂w_i/∂m_j = 6 (1 − ‖d_i‖²/h²)² d_ij/h²`
+    /// and `∂φ_i/∂m_j = −(1/h) ∂φ/∂u_j` at `u = d_i/h`, `d_i = x_i − m`. The ridge's own
+    /// derivative is left out (its order, `10⁻⁶` of the weight by default). Without
+    /// these terms (the slope alone) the direction the tracer predicts along leaves the
+    /// level set of the value by more than the adaptive step allows, and the step
+    /// collapses.
+    fn add_moving_terms(&self, query: &[f64], (factor, beta): (&[f64], &[f64]), jac: &mut [f64]) {
+        let (n, k) = (self.n, self.k);
+        let p = parameter_count(self.method, n);
+        // g₀ = G⁻¹ e₀ from the Cholesky factor L (lower triangle of `factor`).
+        let mut g0 = vec![0.0; p];
+        for i in 0..p {
+            let mut s = if i == 0 { 1.0 } else { 0.0 };
+            for q in 0..i {
+                s -= factor[i * p + q] * g0[q];
+            }
+            g0[i] = s / factor[i * p + i];
+        }
+        for i in (0..p).rev() {
+            let mut s = g0[i];
+            for q in i + 1..p {
+                s -= factor[q * p + i] * g0[q];
+            }
+            g0[i] = s / factor[i * p + i];
+        }
+        let inverse_h = 1.0 / self.bandwidth;
+        let inverse_h2 = inverse_h * inverse_h;
+        let quadratic = self.method == LawMethod::LocalQuadratic;
+        let mut basis = vec![0.0; p];
+        let mut residual = vec![0.0; k];
+        let mut g0_du = vec![0.0; n];
+        within_cached(
+            &self.tree,
+            query,
+            self.bandwidth,
+            |row, displacement, d2| {
+                let u = 1.0 - d2 * inverse_h2;
+                let w = u * u * u;
+                self.basis(displacement, inverse_h, &mut basis);
+                let s = &self.sensors[row as usize * k..(row as usize + 1) * k];
+                for (c, r) in residual.iter_mut().enumerate() {
+                    *r = s[c] - (0..p).map(|q| basis[q] * beta[q * k + c]).sum::<f64>();
+                }
+                let g0_phi: f64 = g0.iter().zip(&basis).map(|(a, b)| a * b).sum();
+                // g₀ᵀ ∂φ/∂u_j: the linear term's 1, and u_b (u_a) for a quadratic d_a d_b.
+                for (j, v) in g0_du.iter_mut().enumerate() {
+                    *v = g0[1 + j];
+                }
+                if quadratic {
+                    let mut at = 1 + n;
+                    for a in 0..n {
+                        for b in a..n {
+                            g0_du[a] += g0[at] * basis[1 + b];
+                            g0_du[b] += g0[at] * basis[1 + a];
+                            at += 1;
+                        }
+                    }
+                }
+                for j in 0..n {
+                    let dw = 6.0 * u * u * displacement[j] * inverse_h2;
+                    let alpha = dw * g0_phi - w * inverse_h * g0_du[j];
+                    for (c, r) in residual.iter().enumerate() {
+                        jac[c * n + j] += alpha * r;
+                    }
+                }
+            },
+        );
     }
 
     /// The polynomial basis at a displacement: `1`, `d/h`, and for the quadratic fit

@@ -20,7 +20,10 @@
 //! and the sensor values are fitted by weighted least squares with a polynomial in
 //! `d_i = (x_i − m)/h`: `s ≈ a + B d` (`local-linear`) or `s ≈ a + B d + Σ_{a≤b} c_ab d_a
 //! d_b` (`local-quadratic`), a small ridge `λ Σw` on the non-constant coefficients. Then
-//! `ŝ(m) = a` and its Jacobian is `B / h`. The weights vanish with two derivatives at
+//! `ŝ(m) = a`, and its Jacobian is the derivative of `a(m)`: the slope `B / h` plus the
+//! terms the moving weights and basis add (with `G⁻¹ e₀ = g₀` and the fit's residuals
+//! `r_i`: `Σ_i g₀ᵀ (∂w_i/∂m φ_i + w_i ∂φ_i/∂m) r_i`, zero when the fit is exact), so
+//! that the tracer's predictor follows the value's level set. The weights vanish with two derivatives at
 //! `‖x − m‖ = h`, so `ŝ` is twice continuously differentiable: the tracer's Newton
 //! corrector and finite differences see a smooth function. The bandwidth is
 //! `bandwidth_factor` times the median, over 512 seeded samples, of the distance to
@@ -40,8 +43,8 @@
 //!
 //! ## Tracing on the law
 //!
-//! [`trace_learned`] runs the tracer's sensory method on the law, with the fit's slope
-//! as the Jacobian ([`crate::agent::Agent::sense_with_jacobian`]: one fit per
+//! [`trace_learned`] runs the tracer's sensory method on the law, with the law's exact
+//! Jacobian ([`crate::agent::Agent::sense_with_jacobian`]: one fit per
 //! linearisation instead of the `2N + 1` of central differences) and the sensor
 //! tolerance [`LAW_SENSOR_TOLERANCE`] (`10⁻⁸`, which the least-squares solve can honour;
 //! the simulator's `10⁻¹²` is at its rounding level). The queries of one traced curve
