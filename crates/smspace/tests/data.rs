@@ -14,7 +14,7 @@ use smspace::progress::{Progress, Silent};
 
 /// The redundant toy (sensors read `x = m1 + m2`), its sets traced on a law learned
 /// from a log of 5000 samples it simulates.
-const SIMULATED: &str = r#"
+const SIMULATED_SOURCE: &str = r#"
 [agent]
 kind = "toy-redundant"
 
@@ -26,41 +26,18 @@ seed = 1
 samples = 5000
 noise = 0.0
 seed = 4
-
-[exploration]
-n = 40
-seed = 2
-
-[kernel]
-method = "sensory"
-points = 16
-closure_tolerance = 0.03
-max_steps = 3000
-piece_starts = 0
-
-[metric]
-period = "none"
-
-[embedding]
-method = "mds"
-dim = 1
-
-[analysis]
-max_homology_dim = 1
-
-[report]
-formats = "svg"
-sample_configurations = 3
-sample_sets = 3
 "#;
 
 /// The same, from the files `log/motors.npy` and `log/sensors.npy` and no `[agent]`.
-const FROM_FILES: &str = r#"
+const FILES_SOURCE: &str = r#"
 [data]
 motors = ["log/motors.npy"]
 sensors = ["log/sensors.npy"]
 period = "none"
+"#;
 
+/// The stages' tables both experiments share.
+const STAGES: &str = r#"
 [exploration]
 n = 40
 seed = 2
@@ -87,6 +64,14 @@ formats = "svg"
 sample_configurations = 3
 sample_sets = 3
 "#;
+
+fn simulated() -> String {
+    format!("{SIMULATED_SOURCE}{STAGES}")
+}
+
+fn from_files() -> String {
+    format!("{FILES_SOURCE}{STAGES}")
+}
 
 struct Quiet;
 
@@ -159,7 +144,7 @@ fn law_report(out: &Path) -> Value {
 #[test]
 fn a_simulated_log_is_learned_and_traced_with_the_agent_as_ground_truth() {
     let dir = tempfile::tempdir().unwrap();
-    let file = write(dir.path(), "simulated.toml", SIMULATED);
+    let file = write(dir.path(), "simulated.toml", &simulated());
     let out = dir.path().join("run");
     let summary = run(&file, &out);
     let kept = sets_follow_the_kernel(&out, 0.05);
@@ -195,7 +180,7 @@ fn logged_files_need_no_agent_and_key_the_run_by_their_contents() {
     std::fs::create_dir(dir.path().join("log")).unwrap();
     write_npy(dir.path().join("log/motors.npy"), &log.motors).unwrap();
     write_npy(dir.path().join("log/sensors.npy"), &log.sensors).unwrap();
-    let file = write(dir.path(), "files.toml", FROM_FILES);
+    let file = write(dir.path(), "files.toml", &from_files());
     let out = dir.path().join("run");
     let summary = run(&file, &out);
     assert!(sets_follow_the_kernel(&out, 0.05) >= 30);
@@ -222,7 +207,7 @@ fn logged_files_need_no_agent_and_key_the_run_by_their_contents() {
 #[test]
 fn a_log_constrains_the_tables_with_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
-    let file = write(dir.path(), "simulated.toml", SIMULATED);
+    let file = write(dir.path(), "simulated.toml", &simulated());
     let cases: [(&[&str], &str); 4] = [
         (&["kernel.method=kinematic"], "method = \"sensory\""),
         (&["exploration.probes=grid"], "probes = \"none\""),
@@ -252,13 +237,13 @@ fn a_log_constrains_the_tables_with_clear_errors() {
         assert!(error.contains(expected), "{overrides:?}: {error}");
     }
     // Files that do not exist, and no source at all.
-    let missing = write(dir.path(), "missing.toml", FROM_FILES);
+    let missing = write(dir.path(), "missing.toml", &from_files());
     let error = check(&missing, &[]).unwrap_err();
     assert!(error.contains("log/motors.npy"), "{error}");
     let none = write(
         dir.path(),
         "none.toml",
-        &FROM_FILES.replace(
+        &from_files().replace(
             "motors = [\"log/motors.npy\"]\nsensors = [\"log/sensors.npy\"]\n",
             "",
         ),
@@ -269,7 +254,7 @@ fn a_log_constrains_the_tables_with_clear_errors() {
     let no_agent = write(
         dir.path(),
         "no-agent.toml",
-        &SIMULATED.replace("[agent]\nkind = \"toy-redundant\"\n", ""),
+        &simulated().replace("[agent]\nkind = \"toy-redundant\"\n", ""),
     );
     let error = check(&no_agent, &[]).unwrap_err();
     assert!(error.contains("[agent]"), "{error}");
