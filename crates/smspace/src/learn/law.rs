@@ -229,20 +229,8 @@ impl LocalModel {
         let p = parameter_count(self.method, n);
         // g₀ = G⁻¹ e₀ from the Cholesky factor L (lower triangle of `factor`).
         let mut g0 = vec![0.0; p];
-        for i in 0..p {
-            let mut s = if i == 0 { 1.0 } else { 0.0 };
-            for q in 0..i {
-                s -= factor[i * p + q] * g0[q];
-            }
-            g0[i] = s / factor[i * p + i];
-        }
-        for i in (0..p).rev() {
-            let mut s = g0[i];
-            for q in i + 1..p {
-                s -= factor[q * p + i] * g0[q];
-            }
-            g0[i] = s / factor[i * p + i];
-        }
+        g0[0] = 1.0;
+        substitute(factor, &mut g0, p, 1);
         let inverse_h = 1.0 / self.bandwidth;
         let inverse_h2 = inverse_h * inverse_h;
         let quadratic = self.method == LawMethod::LocalQuadratic;
@@ -345,23 +333,29 @@ fn solve(gram: &mut [f64], rhs: &mut [f64], p: usize, k: usize, ridge: f64) -> b
             }
         }
     }
+    substitute(gram, rhs, p, k);
+    true
+}
+
+/// Solves `L Lᵀ C = R` in place for the Cholesky factor `L` (the lower triangle of
+/// `factor`, `p × p`, as [`solve`] leaves it) and `R` (`p × k`).
+fn substitute(factor: &[f64], rhs: &mut [f64], p: usize, k: usize) {
     for c in 0..k {
         for i in 0..p {
             let mut s = rhs[i * k + c];
             for q in 0..i {
-                s -= gram[i * p + q] * rhs[q * k + c];
+                s -= factor[i * p + q] * rhs[q * k + c];
             }
-            rhs[i * k + c] = s / gram[i * p + i];
+            rhs[i * k + c] = s / factor[i * p + i];
         }
         for i in (0..p).rev() {
             let mut s = rhs[i * k + c];
             for q in i + 1..p {
-                s -= gram[q * p + i] * rhs[q * k + c];
+                s -= factor[q * p + i] * rhs[q * k + c];
             }
-            rhs[i * k + c] = s / gram[i * p + i];
+            rhs[i * k + c] = s / factor[i * p + i];
         }
     }
-    true
 }
 
 /// The median over (at most [`PROBES`]) seeded samples of the distance to their
