@@ -2,15 +2,18 @@
 //! a log read from files without any agent, the cache keyed on the files' contents, and
 //! the tables a log constrains.
 
+#[path = "common/observe.rs"]
+mod observe;
+
 use std::path::{Path, PathBuf};
 
 use ndarray::{Array2, Array3};
 use ndarray_npy::{read_npy, write_npy};
+use observe::{computed, Quiet};
 use serde_json::Value;
 use smspace::agent::{AgentConfig, EnvironmentConfig};
 use smspace::learn::{simulate, SimulateParams};
-use smspace::pipeline::{self, Recompute, RunObserver, RunOptions, RunSummary};
-use smspace::progress::{Progress, Silent};
+use smspace::pipeline::{self, Recompute, RunOptions, RunSummary};
 
 /// The redundant toy (sensors read `x = m1 + m2`), its sets traced on a law learned
 /// from a log of 5000 samples it simulates.
@@ -73,14 +76,6 @@ fn from_files() -> String {
     format!("{FILES_SOURCE}{STAGES}")
 }
 
-struct Quiet;
-
-impl RunObserver for Quiet {
-    fn progress(&self) -> &dyn Progress {
-        &Silent
-    }
-}
-
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
@@ -102,16 +97,6 @@ fn run(file: &Path, out: &Path) -> RunSummary {
         busy: pipeline::BusyFolder::Refuse,
     };
     pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"))
-}
-
-fn computed(summary: &RunSummary) -> Vec<String> {
-    summary
-        .manifest
-        .stages
-        .iter()
-        .filter(|s| !s.cached)
-        .map(|s| s.stage.clone())
-        .collect()
 }
 
 /// Every kept set keeps `m1 + m2` of its start (the toy's kernel) to `tolerance`.

@@ -1,10 +1,14 @@
 //! The pipeline as a library (no command-line tool): a small experiment end to end,
 //! and the cache key of every stage.
 
+#[path = "common/observe.rs"]
+mod observe;
+
 use std::path::{Path, PathBuf};
 
 use ndarray::{Array2, Array3, ArrayView2, Axis};
 use ndarray_npy::read_npy;
+use observe::{computed, Quiet};
 use serde_json::Value;
 use smspace::agent::{
     Agent, AgentError, AgentRegistry, Environment, LightRegion, Motor, MotorSpace, Observer,
@@ -56,14 +60,6 @@ sample_configurations = 5
 sample_sets = 3
 "#;
 
-struct Quiet;
-
-impl RunObserver for Quiet {
-    fn progress(&self) -> &dyn Progress {
-        &Silent
-    }
-}
-
 fn experiment(dir: &Path) -> PathBuf {
     let path = dir.join("small-toy.toml");
     std::fs::write(&path, SMALL_TOY).unwrap();
@@ -83,17 +79,6 @@ fn run(file: &Path, out: &Path, overrides: &[&str]) -> RunSummary {
         busy: smspace::pipeline::BusyFolder::Wait,
     };
     pipeline::run(&plan, &options, &Quiet).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// Which stages a run computed (the others were read back).
-fn computed(summary: &RunSummary) -> Vec<String> {
-    summary
-        .manifest
-        .stages
-        .iter()
-        .filter(|s| !s.cached)
-        .map(|s| s.stage.clone())
-        .collect()
 }
 
 /// Which stages the manifest in `out` records as computed by the run that wrote it.
