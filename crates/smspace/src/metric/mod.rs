@@ -82,6 +82,7 @@ mod period;
 mod prepared;
 pub mod reference;
 mod registry;
+pub mod surface;
 pub mod tiles;
 
 use std::ops::Range;
@@ -99,6 +100,7 @@ pub use matrix::{DistanceMatrix, MatrixError, SYMMETRY_TOLERANCE};
 pub use period::{CoordinatePeriods, PeriodError, Periodicity, Periods};
 pub use prepared::PreparedSets;
 pub use registry::{BuiltMetric, MetricBuilder, MetricRegistry};
+pub use surface::{Surface, SurfaceParams};
 pub use tiles::{
     distance_tile, fill_tile, load_tile, save_tile, Tile, TileMerge, TilePlan, TileRecord,
 };
@@ -564,6 +566,26 @@ pub trait SetMetric: Send + Sync {
     fn kernel(&self) -> Option<KernelMetric> {
         None
     }
+
+    /// Work done once for every set before the pairs of a matrix, a block of rows or a
+    /// nearest-neighbour search (per-set data such as the tangent planes of
+    /// [`Surface`]): the evaluator of the pairs of `sets` `(M, P, N)` by index, or
+    /// `None` (the default) for one [`distance`](SetMetric::distance) call per pair.
+    /// Its values must equal `distance`'s on the same two sets.
+    fn prepare(
+        &self,
+        sets: ArrayView3<'_, f64>,
+    ) -> Result<Option<Box<dyn PreparedPairs>>, MetricError> {
+        let _ = sets;
+        Ok(None)
+    }
+}
+
+/// The pairs of sets a [`SetMetric`] prepared ([`SetMetric::prepare`]), by set index.
+pub trait PreparedPairs: Send + Sync {
+    /// The distance between sets `i` and `j` of the prepared sets (called with
+    /// `i < j`): finite and at least 0.
+    fn distance(&self, i: usize, j: usize) -> Result<f64, MetricError>;
 }
 
 /// A built-in metric as its SIMD kernels run it ([`SetMetric::kernel`]).

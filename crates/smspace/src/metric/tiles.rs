@@ -59,7 +59,7 @@ use serde::{Deserialize, Serialize};
 use super::kernel::{self, Driver, Eval, Scratch};
 use super::{
     check_metric, closure_for, prepared, Closure, DistanceMatrix, MetricError, MetricKind,
-    Periodicity, PreparedSets, SetMetric, SetsView,
+    Periodicity, PreparedPairs, PreparedSets, SetMetric, SetsView,
 };
 use crate::error::InvalidParameter;
 use crate::io::{self, IoError};
@@ -259,6 +259,8 @@ pub(crate) enum Measure<'a> {
         sets: CowArray<'a, f64, Ix3>,
         /// The metric.
         metric: &'a dyn SetMetric,
+        /// What the metric prepared for these sets ([`SetMetric::prepare`]).
+        pairs: Option<Box<dyn PreparedPairs>>,
         /// The first failing pair.
         failure: Failure,
     },
@@ -297,6 +299,7 @@ impl<'a> Measure<'a> {
         let Some(spec) = metric.kernel() else {
             prepared::check_points(sets.points())?;
             return Ok(Self::Generic {
+                pairs: metric.prepare(sets.points())?,
                 sets: CowArray::from(sets.points()),
                 metric,
                 failure: Mutex::new(None),
@@ -342,10 +345,12 @@ impl<'a> Measure<'a> {
             Self::Generic {
                 sets,
                 metric,
+                pairs,
                 failure,
             } => driver.drive(&mut GenericEval {
                 sets: sets.view(),
                 metric: *metric,
+                pairs: pairs.as_deref(),
                 failure,
             }),
         }
@@ -381,16 +386,20 @@ impl<'a> Measure<'a> {
 struct GenericEval<'a> {
     sets: ndarray::ArrayView3<'a, f64>,
     metric: &'a dyn SetMetric,
+    pairs: Option<&'a dyn PreparedPairs>,
     failure: &'a Failure,
 }
 
 impl Eval for GenericEval<'_> {
     fn distance(&mut self, i: usize, j: usize, _limit: f64) -> Option<f64> {
-        let (a, b) = (
-            self.sets.index_axis(Axis(0), i),
-            self.sets.index_axis(Axis(0), j),
-        );
-        let reason = match self.metric.distance(a, b) {
+        let value = match self.pairs {
+            Some(pairs) => pairs.distance(i, j),
+            None => self.metric.distance(
+                self.sets.index_axis(Axis(0), i),
+                self.sets.index_axis(Axis(0), j),
+            ),
+        };
+        let reason = match value {
             Ok(d) if d.is_finite() && d >= 0.0 => return Some(d),
             Ok(value) => MetricError::NotADistance { value },
             Err(reason) => reason,
