@@ -4,7 +4,11 @@
 //!   the point metric `hausdorff` and the polyline metric `curve`;
 //! * `versus_brute_force/*`: fast kernels against the brute-force reference on the same
 //!   sets, both metrics;
-//! * `knn/M`: the 15 nearest sets of every set.
+//! * `knn/M`: the 15 nearest sets of every set;
+//! * `surface/M`: the full matrix of the `surface` metric (points against tangent
+//!   disks) on surface sets `(M, P, N)` from `SMSPACE_BENCH_SURFACE_SETS` (e.g. the
+//!   `sets.npy` of `smspace run experiments/planar-arm-5.toml`), for the sizes of
+//!   `SMSPACE_BENCH_SURFACE_SIZES` (default `200`); skipped without the file.
 //!
 //! Run: `cargo bench -p smspace --bench metric`. Environment:
 //! `SMSPACE_BENCH_SIZES=500,1000,2500,5000` (matrix sweep, default `500,1000,2500`),
@@ -38,7 +42,8 @@ use std::time::{Duration, Instant};
 use criterion::{criterion_group, BenchmarkId, Criterion, Throughput};
 use ndarray::{Array3, Axis, Slice};
 use smspace::metric::{
-    distance_matrix, knn, reference, Closure, DistanceParams, KnnParams, MetricKind, SetsView,
+    distance_matrix, distance_matrix_with, knn, reference, Closure, DistanceParams, KnnParams,
+    MetricKind, Period, SetsView, Surface, SurfaceParams,
 };
 use smspace::progress::Silent;
 
@@ -208,7 +213,40 @@ fn once() {
     }
 }
 
-criterion_group!(benches, versus_brute_force, matrix, nearest);
+/// The first `m` surface sets of `SMSPACE_BENCH_SURFACE_SETS`, if given and that large.
+fn surface_sets(m: usize) -> Option<Array3<f64>> {
+    let path = std::env::var("SMSPACE_BENCH_SURFACE_SETS").ok()?;
+    let all: Array3<f64> = ndarray_npy::read_npy(&path).expect("a float64 (M, P, N) .npy");
+    (all.dim().0 >= m).then(|| all.slice_axis(Axis(0), Slice::from(..m)).to_owned())
+}
+
+fn surface(c: &mut Criterion) {
+    if std::env::var_os("SMSPACE_BENCH_SURFACE_SETS").is_none() {
+        eprintln!(
+            "surface: skipped (set SMSPACE_BENCH_SURFACE_SETS to a (M, P, N) .npy of surface sets)"
+        );
+        return;
+    }
+    let metric = Surface::new(SurfaceParams::default(), Period::TwoPi.into()).unwrap();
+    let mut group = c.benchmark_group("surface");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500));
+    for m in sizes("SMSPACE_BENCH_SURFACE_SIZES", "200") {
+        let Some(sets) = surface_sets(m) else {
+            continue;
+        };
+        group.throughput(Throughput::Elements(pairs(m)));
+        group.bench_with_input(BenchmarkId::from_parameter(m), &sets, |b, sets| {
+            b.iter(|| {
+                distance_matrix_with(sets.view(), &metric, &DistanceParams::new(), &Silent).unwrap()
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, versus_brute_force, matrix, nearest, surface);
 
 fn main() {
     if std::env::var_os("SMSPACE_BENCH_ONCE").is_some() {

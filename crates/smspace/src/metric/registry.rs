@@ -125,6 +125,13 @@ impl MetricRegistry {
                 Ok(kind.with_period(period, Closure::Closed))
             });
         }
+        r.register_params(
+            "surface",
+            "the Hausdorff distance from the samples of one set to the tangent disks of the other's (kernels of dimension k >= 2)",
+            |params: &super::SurfaceParams, period| {
+                Ok(Box::new(super::Surface::new(params.clone(), period.clone())?))
+            },
+        );
         r
     }
 
@@ -227,7 +234,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            err.contains("'curv'") && err.contains("curve, hausdorff, mean-hausdorff"),
+            err.contains("'curv'") && err.contains("curve, hausdorff, mean-hausdorff, surface"),
             "{err}"
         );
         let mut params = DistanceParams::new();
