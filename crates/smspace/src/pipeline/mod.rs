@@ -469,6 +469,31 @@ pub fn check_with(
     } else {
         None
     };
+    if metric.params.metric.as_str() == "surface" {
+        let dimension = metric
+            .params
+            .params
+            .get("dimension")
+            .and_then(toml::Value::as_integer);
+        if let (Ok(Some(k)), Some(dimension)) = (
+            e.kernel
+                .check()
+                .and_then(|p| p.dimension_for(agent.as_ref())),
+            dimension,
+        ) {
+            if usize::try_from(dimension).ok() != Some(k) {
+                return Err(invalid("metric")(
+                    MetricError::Invalid(crate::error::InvalidParameter::new(
+                        "metric.params",
+                        "dimension",
+                        dimension,
+                        format!("the agent's kernels have dimension {k} (motors minus the dimension of the sensor's configuration); set dimension = {k}"),
+                    ))
+                    .into(),
+                ));
+            }
+        }
+    }
     if metric.params.metric.kind() == Some(crate::metric::MetricKind::Curve) {
         if let Ok(Some(k)) = e
             .kernel

@@ -117,6 +117,15 @@ fn trace_table(trace: &TraceSummary) -> Table {
     for (status, count) in &trace.by_status {
         t.push(format!("status {status}"), count.to_string());
     }
+    if let Some([low, median, high]) = trace.covering_radius {
+        t.push(
+            "covering radius (min / median / max)",
+            format!("{} / {} / {}", num(low), num(median), num(high)),
+        );
+        t.note = Some(
+            "The kernels are surfaces (dimension k >= 2), each sampled by P points; the covering radius r of a sample is the largest distance from its kernel to its nearest point. The point metric (hausdorff) between two samples is within r_A + r_B of the Hausdorff distance between the kernels, and has a floor of about r even between kernels that nearly coincide, which hides the dimension; the surface metric (each point's tangent disk, see the surface module) is within max(r_A, r_B) plus the disks' deviation from the kernels (about curvature x r^2 / 2), and has no such floor.".to_owned(),
+        );
+    }
     t
 }
 

@@ -342,7 +342,8 @@ impl Stage for DistancesStage {
                 ))
             }
         };
-        match (landmarks, surface_forecast(k, m, p)) {
+        let surface = self.metric.as_str() == "surface";
+        match (landmarks, surface_forecast(k, m, p, surface)) {
             (Some(a), Some(b)) => Some(format!("{a}; {b}")),
             (a, b) => a.or(b),
         }
@@ -552,20 +553,38 @@ fn load_graph(dir: &Path, m: usize) -> crate::Result<LandmarkGraph> {
 /// AVX2 path): 3.7·10¹⁰ point distances in 23.1 s of CPU, 1.6·10⁹ per core-second.
 pub const SURFACE_POINT_DISTANCES_PER_CORE_SECOND: f64 = 1.6e9;
 
+/// The same rate for the `surface` metric (blocks of eight tangent disks pruned by
+/// their bounding balls), in units of `M (M − 1) P²`: measured on the 1288 sets of 600
+/// points of `experiments/planar-arm-5.toml` (`smspace run`, release, AVX2 path):
+/// 6.0·10¹¹ in about 190 s of CPU, 3.1·10⁹ per core-second.
+pub const SURFACE_DISK_PAIRS_PER_CORE_SECOND: f64 = 3.1e9;
+
 /// The forecast of [`DistancesStage::forecast`] for `m` sets of `p` points of kernels
-/// of dimension `k`: `None` for points and curves, and below a minute of one core.
-fn surface_forecast(k: usize, m: usize, p: usize) -> Option<String> {
+/// of dimension `k` (under the `surface` metric when `surface`, else a point metric):
+/// `None` for points and curves, and below a minute of one core.
+fn surface_forecast(k: usize, m: usize, p: usize, surface: bool) -> Option<String> {
     if k < 2 || m < 2 {
         return None;
     }
     let work = m as f64 * (m as f64 - 1.0) * (p as f64) * (p as f64);
-    let core_seconds = work / SURFACE_POINT_DISTANCES_PER_CORE_SECOND;
+    let (rate, how) = if surface {
+        (
+            SURFACE_DISK_PAIRS_PER_CORE_SECOND,
+            format!("the surface metric measures each of their {p} points against the other set's tangent disks, about {work:.1e} point–disk pairs before pruning"),
+        )
+    } else {
+        (
+            SURFACE_POINT_DISTANCES_PER_CORE_SECOND,
+            format!("the point metric compares each of their {p} points with each of the other set's, with few early exits: about {work:.1e} point distances"),
+        )
+    };
+    let core_seconds = work / rate;
     if core_seconds < 60.0 {
         return None;
     }
     let cores = rayon::current_num_threads().max(1) as f64;
     Some(format!(
-        "the kernels are {k}-D surfaces: the point metric compares each of their {p} points with each of the other set's, with few early exits: about {work:.1e} point distances for {m} sets, roughly {:.0} min on {cores} threads (about {:.0} core-minutes); lower exploration.n or kernel.points to shorten it",
+        "the kernels are {k}-D surfaces: {how} for {m} sets, roughly {:.0} min on {cores} threads (about {:.0} core-minutes); lower exploration.n or kernel.points to shorten it",
         core_seconds / cores / 60.0,
         core_seconds / 60.0
     ))
@@ -577,9 +596,11 @@ mod tests {
 
     #[test]
     fn surfaces_are_forecast_and_curves_are_not() {
-        assert_eq!(surface_forecast(1, 100_000, 100), None);
-        assert_eq!(surface_forecast(2, 10, 20), None);
-        let note = surface_forecast(2, 3500, 200).unwrap();
+        assert_eq!(surface_forecast(1, 100_000, 100, false), None);
+        assert_eq!(surface_forecast(2, 10, 20, false), None);
+        let disks = surface_forecast(2, 1288, 600, true).unwrap();
+        assert!(disks.contains("tangent disks"), "{disks}");
+        let note = surface_forecast(2, 3500, 200, false).unwrap();
         assert!(
             note.contains("2-D surfaces") && note.contains("3500 sets"),
             "{note}"
