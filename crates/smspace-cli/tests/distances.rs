@@ -660,3 +660,96 @@ fn tiles_merge_into_the_matrix() {
     );
     assert!(e.contains("expected I0:I1,J0:J1"), "{e}");
 }
+
+/// `m` sampled planes `z = h_i` of R³, each a 6 × 6 grid of spacing 0.3 shifted in the
+/// plane by at most a fifth of a step: their `surface` distances are `|h_i − h_j|`.
+fn planes(m: usize) -> (Array3<f64>, Vec<f64>) {
+    let heights: Vec<f64> = (0..m).map(|i| (0.37 * i as f64).sin()).collect();
+    let sets = Array3::from_shape_fn((m, 36, 3), |(s, p, c)| {
+        let shift = 0.06 * (1.7 * s as f64).cos();
+        match c {
+            0 => 0.3 * (p / 6) as f64 + shift,
+            1 => 0.3 * (p % 6) as f64 - shift,
+            _ => heights[s],
+        }
+    });
+    (sets, heights)
+}
+
+#[test]
+fn surface_metric_measures_sampled_planes_by_their_gap() {
+    let dir = tempfile::tempdir().unwrap();
+    let (sets, heights) = planes(8);
+    write_npy(dir.path().join("planes.npy"), &sets).unwrap();
+    let args = [
+        "distances",
+        "--sets",
+        "planes.npy",
+        "--metric",
+        "surface",
+        "--period",
+        "none",
+    ];
+    let run = |extra: &[&str]| {
+        let mut all = args.to_vec();
+        all.extend_from_slice(extra);
+        let out = smspace(dir.path(), &all);
+        assert!(out.status.success(), "{}", stderr(&out));
+    };
+    run(&["--out", "D.npy"]);
+    let d: Array2<f64> = read_npy(dir.path().join("D.npy")).unwrap();
+    for i in 0..8 {
+        for j in 0..8 {
+            assert!(
+                (d[[i, j]] - (heights[i] - heights[j]).abs()).abs() < 1e-12,
+                "({i}, {j}): {}",
+                d[[i, j]]
+            );
+        }
+    }
+    // Row blocks and the nearest sets agree with the matrix.
+    run(&["--out", "R.npy", "--rows", "2:5", "--kernel-dimension", "2"]);
+    let rows: Array2<f64> = read_npy(dir.path().join("R.npy")).unwrap();
+    assert_eq!(rows, d.slice_axis(Axis(0), Slice::from(2..5)));
+    run(&["--out", "D.npy", "--knn", "2"]);
+    let near: Array2<f64> = read_npy(dir.path().join("knn_distances.npy")).unwrap();
+    for i in 0..8 {
+        let mut row: Vec<f64> = (0..8).filter(|&j| j != i).map(|j| d[[i, j]]).collect();
+        row.sort_by(f64::total_cmp);
+        assert_eq!(near.row(i).to_vec(), row[..2].to_vec(), "row {i}");
+    }
+    // Bad input names the flag or the parameter.
+    let e = fails(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "planes.npy",
+            "--out",
+            "X.npy",
+            "--metric",
+            "hausdorff",
+            "--kernel-dimension",
+            "2",
+        ],
+    );
+    assert!(
+        e.contains("--kernel-dimension only applies to --metric surface"),
+        "{e}"
+    );
+    let e = fails(
+        dir.path(),
+        &[
+            "distances",
+            "--sets",
+            "planes.npy",
+            "--out",
+            "X.npy",
+            "--metric",
+            "surface",
+            "--kernel-dimension",
+            "3",
+        ],
+    );
+    assert!(e.contains("dimension") && e.contains("N = 3"), "{e}");
+}

@@ -22,6 +22,25 @@ def test_point_hausdorff_equals_scipy():
             assert D[i, j] == pytest.approx(expected, rel=1e-12, abs=1e-15)
 
 
+def test_surface_metric_measures_sampled_planes_by_their_gap():
+    # Planes z = h sampled by a 6 x 6 grid, each shifted in the plane by at most a fifth
+    # of a step: the surface metric (points against tangent disks) is |h_i - h_j|, the
+    # point metric is not.
+    m = 6
+    heights = np.sin(0.37 * np.arange(m))
+    grid = np.stack(np.meshgrid(np.arange(6), np.arange(6), indexing="ij"), -1).reshape(-1, 2) * 0.3
+    sets = np.empty((m, 36, 3))
+    for s in range(m):
+        shift = 0.06 * np.cos(1.7 * s)
+        sets[s, :, 0] = grid[:, 0] + shift
+        sets[s, :, 1] = grid[:, 1] - shift
+        sets[s, :, 2] = heights[s]
+    d = smspace.distances(sets, metric="surface", period="none")
+    np.testing.assert_allclose(d, np.abs(heights[:, None] - heights[None, :]), atol=1e-12)
+    points = smspace.distances(sets, metric="hausdorff", period="none")
+    assert (points - d).max() > 0.01
+
+
 def test_any_layout_or_strides_gives_the_same_results(arm_sets):
     D = smspace.distances(arm_sets)
     fortran = np.asfortranarray(arm_sets.sets)

@@ -166,15 +166,19 @@ pub enum MetricArg {
     MeanHausdorff,
     /// Hausdorff distance between the sets read as polylines (closed loops or open), exact to 1e-10
     Curve,
+    /// for kernels of dimension k >= 2: Hausdorff distance from the points of one set to the tangent disks of the other's points
+    Surface,
 }
 
 impl MetricArg {
-    /// The library's metric.
-    pub fn kind(self) -> smspace::metric::MetricKind {
+    /// The library's built-in SIMD metric; `None` for `surface`, which is a
+    /// [`smspace::metric::Surface`].
+    pub fn kind(self) -> Option<smspace::metric::MetricKind> {
         match self {
-            MetricArg::Hausdorff => smspace::metric::MetricKind::Hausdorff,
-            MetricArg::MeanHausdorff => smspace::metric::MetricKind::MeanHausdorff,
-            MetricArg::Curve => smspace::metric::MetricKind::Curve,
+            MetricArg::Hausdorff => Some(smspace::metric::MetricKind::Hausdorff),
+            MetricArg::MeanHausdorff => Some(smspace::metric::MetricKind::MeanHausdorff),
+            MetricArg::Curve => Some(smspace::metric::MetricKind::Curve),
+            MetricArg::Surface => None,
         }
     }
 }

@@ -14,8 +14,8 @@ use anyhow::Context;
 use clap::ValueEnum;
 use ndarray::{Array3, Axis, Slice};
 use smspace::metric::{
-    self, Closure, DistanceParams, KnnParams, Periodicity, PreparedSets, SetsView, Tile, TileMerge,
-    TileRecord,
+    self, Closure, DistanceParams, KnnParams, Periodicity, PreparedSets, SetsView, Surface,
+    SurfaceParams, Tile, TileMerge, TileRecord,
 };
 
 use super::common::{sibling, MetricArg};
@@ -39,6 +39,10 @@ pub struct Args {
     /// says.
     #[arg(long, value_enum, default_value_t = MetricArg::Hausdorff)]
     metric: MetricArg,
+    /// For --metric surface: the kernels' dimension k, that of every point's tangent disk
+    /// (default: the traced dimension from SETS.trace.json beside the sets, else 2).
+    #[arg(long, value_name = "K")]
+    kernel_dimension: Option<usize>,
     /// For --metric curve: join every set's points into a closed loop or an open
     /// polyline, instead of reading SETS.closed.npy (1 closed, 0 open per set).
     #[arg(long, value_enum, value_name = "closed|open")]
@@ -145,6 +149,44 @@ fn closure(args: &Args, path: &Path, sets: usize) -> anyhow::Result<Option<Vec<C
     Ok(Some(smspace::kernel::read_closure(&record, sets)?))
 }
 
+/// The `surface` metric of `--metric surface`, its dimension from `--kernel-dimension`,
+/// else `SETS.trace.json`, else 2; `None` for the other metrics.
+fn surface(args: &Args, path: &Path) -> anyhow::Result<Option<Surface>> {
+    if args.metric != MetricArg::Surface {
+        anyhow::ensure!(
+            args.kernel_dimension.is_none(),
+            "--kernel-dimension only applies to --metric surface"
+        );
+        return Ok(None);
+    }
+    let dimension = match args.kernel_dimension {
+        Some(k) => k,
+        None => {
+            let record = sibling(path, "trace.json");
+            if record.exists() {
+                let report: smspace::kernel::TraceReport =
+                    smspace::io::read_json(&record, "trace report")?;
+                let k = smspace::kernel::spatial::curve_dimension(&report);
+                anyhow::ensure!(
+                    k >= 1,
+                    "{} says the sets are points (kernels of dimension 0); --metric surface is for kernels of dimension k >= 2 (use --metric hausdorff)",
+                    record.display()
+                );
+                k
+            } else {
+                SurfaceParams::default().dimension
+            }
+        }
+    };
+    let params = SurfaceParams {
+        dimension,
+        ..SurfaceParams::default()
+    };
+    Ok(Some(
+        Surface::new(params, args.period.clone()).context("--kernel-dimension")?,
+    ))
+}
+
 /// Refuses `--metric curve` on kernels of dimension `k ≥ 2` (point samples of surfaces)
 /// when the trace report `SETS.trace.json` beside the sets says so; sets without a report
 /// are taken as curves.
@@ -168,6 +210,8 @@ struct Input {
     /// For `curve`: the piece of every point (`SETS.components.npy`, when there).
     pieces: Option<ndarray::Array2<i64>>,
     params: DistanceParams,
+    /// `--metric surface`: the metric (the built-in metrics run from `params`).
+    surface: Option<Surface>,
 }
 
 impl Input {
@@ -184,15 +228,20 @@ impl Input {
             None
         };
         let params = DistanceParams::new()
-            .metric(args.metric.kind())
+            .metric(match args.metric.kind() {
+                Some(kind) => kind.name(),
+                None => "surface",
+            })
             .period(&args.period)
             .memory_limit_bytes(args.max_memory.or_else(super::common::memory_available));
+        let surface = surface(args, path)?;
         Ok(Self {
             path: path.to_owned(),
             sets,
             closure,
             pieces,
             params,
+            surface,
         })
     }
 
@@ -236,13 +285,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let line = if let Some(k) = args.knn {
         let rows = args.rows.clone().unwrap_or(0..m);
         let knn_params = KnnParams::new().k(k).pivots(args.pivots);
-        let found = metric::knn(
-            input.view(0..m),
-            &input.params,
-            &knn_params,
-            rows.clone(),
-            &bar,
-        )
+        let found = match &input.surface {
+            None => metric::knn(
+                input.view(0..m),
+                &input.params,
+                &knn_params,
+                rows.clone(),
+                &bar,
+            ),
+            Some(surface) => metric::knn_with(
+                input.view(0..m),
+                surface,
+                &input.params,
+                &knn_params,
+                rows.clone(),
+                &bar,
+            ),
+        }
         .with_context(|| input.context())?;
         let folder = smspace::io::folder_of(&args.out);
         let written = found.save(
@@ -265,8 +324,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     {
         write_tile(&args, &input, &tile, &bar)?
     } else {
-        let d = metric::distance_matrix(input.view(0..m), &input.params, &bar)
-            .with_context(|| input.context())?;
+        let d = match &input.surface {
+            None => metric::distance_matrix(input.view(0..m), &input.params, &bar),
+            Some(surface) => {
+                metric::distance_matrix_with(input.view(0..m), surface, &input.params, &bar)
+            }
+        }
+        .with_context(|| input.context())?;
         d.save(&args.out)?;
         format!(
             "wrote {} ({m} x {m}, {})",
@@ -291,12 +355,19 @@ fn write_tile(args: &Args, input: &Input, tile: &Tile, bar: &ui::Bar) -> anyhow:
         input.params.memory_limit_bytes,
         "compute smaller tiles",
     )?;
-    let metric = input.params.check()?.set_metric();
+    let builtin;
+    let metric: &dyn smspace::metric::SetMetric = match &input.surface {
+        Some(surface) => surface,
+        None => {
+            builtin = input.params.check()?.set_metric();
+            builtin.as_ref()
+        }
+    };
     let values = metric::distance_tile(
         input.view(tile.rows.clone()),
         input.view(tile.cols.clone()),
         tile,
-        metric.as_ref(),
+        metric,
         bar,
     )
     .with_context(|| input.context())?;

@@ -1,6 +1,7 @@
 //! `smspace invariance`: the same starts traced with the sensory method in several
 //! environments, compared set by set and matrix by matrix, against the sensor values.
 
+use anyhow::Context;
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
@@ -97,7 +98,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<Result<Vec<_>, _>>()?;
     let workspace = args.workspace.resolve(agent.as_ref())?;
     let bar = Bar::new();
-    let metric = agent_metric(args.metric.kind(), agent.as_ref());
+    let kind = args.metric.kind().context(
+        "smspace invariance compares the sets under hausdorff, mean-hausdorff or curve; --metric surface is available in smspace distances and in an experiment's [metric] table",
+    )?;
+    let metric = agent_metric(kind, agent.as_ref());
     let measured = invariance_measured(
         agent.as_ref(),
         motors,

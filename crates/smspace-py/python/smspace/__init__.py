@@ -312,7 +312,9 @@ def distances(
 ) -> Any:
     """The ``(M, M)`` matrix of ``metric`` between the kernel sets (``"curve"``: the
     Hausdorff distance between the sets read as polylines, the pipeline's;
-    ``"hausdorff"``, ``"mean-hausdorff"``: between the sampled points), each motor
+    ``"hausdorff"``, ``"mean-hausdorff"``: between the sampled points; ``"surface"``:
+    from the points of one set to the tangent disks of the other's, for kernels of
+    dimension 2 sampled by points, see the README), each motor
     coordinate periodic ``"2pi"`` or not (``"none"``). ``sets`` is the result of
     :func:`trace` or an array ``(M, P, N)`` (then ``closed=`` says which sets are
     closed loops for ``curve``: an array of 1/0 or ``"closed"``/``"open"``, and
