@@ -144,6 +144,18 @@ fn a_simulated_log_is_learned_and_traced_with_the_agent_as_ground_truth() {
     assert!(probes.iter().all(|&p| p == -1));
     // One segment of sets: one component, agreeing with the poses.
     assert_eq!(summary.analysis.betti[0], 1);
+    // The learned sets against the agent's own through the same starts: every kept set
+    // compared, and close (the curve metric, radians).
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sets.trace.json")).unwrap())
+            .unwrap();
+    let truth = &report["summary"]["truth"];
+    assert_eq!(truth["compared"].as_u64(), Some(kept as u64), "{truth}");
+    let (median, p90) = (
+        truth["median"].as_f64().unwrap(),
+        truth["p90"].as_f64().unwrap(),
+    );
+    assert!(median <= p90 && p90 < 0.1, "{truth}");
     let again = run(&file, &out);
     assert!(computed(&again).is_empty(), "{:?}", computed(&again));
 }
@@ -171,6 +183,8 @@ fn logged_files_need_no_agent_and_key_the_run_by_their_contents() {
     assert!(sets_follow_the_kernel(&out, 0.05) >= 30);
     assert_eq!(law_report(&out)["rank"], 1);
     assert!(!out.join("poses.npy").exists(), "no agent, no ground truth");
+    let report = std::fs::read_to_string(out.join("sets.trace.json")).unwrap();
+    assert!(!report.contains("\"truth\""), "files have no true sets");
     assert_eq!(summary.analysis.betti[0], 1);
     // The references are rows of the log.
     let motors: Array2<f64> = read_npy(out.join("motors.npy")).unwrap();

@@ -723,6 +723,22 @@ pub struct TraceSummary {
     /// median, largest), radians.
     #[serde(default)]
     pub covering_radius: Option<[f64; 3]>,
+    /// Sets traced on a law learned from a simulated log: their distance to the agent's
+    /// true sets through the same starts. `None` otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub truth: Option<TruthErrors>,
+}
+
+/// The traced sets against the true sets through the same starts, by the `curve` metric
+/// (each pair read as polylines; radians): what a run from a simulated log measures.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TruthErrors {
+    /// Starts traced in both.
+    pub compared: usize,
+    /// The median distance.
+    pub median: f64,
+    /// Its 90th percentile.
+    pub p90: f64,
 }
 
 impl TraceSummary {

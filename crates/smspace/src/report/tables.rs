@@ -117,6 +117,17 @@ fn trace_table(trace: &TraceSummary) -> Table {
     for (status, count) in &trace.by_status {
         t.push(format!("status {status}"), count.to_string());
     }
+    if let Some(truth) = &trace.truth {
+        t.push(
+            "distance to the agent's true sets (median / 90th percentile)",
+            format!(
+                "{} / {} rad over {} sets traced in both (curve metric)",
+                num(truth.median),
+                num(truth.p90),
+                truth.compared
+            ),
+        );
+    }
     if let Some([low, median, high]) = trace.covering_radius {
         t.push(
             "covering radius (min / median / max)",

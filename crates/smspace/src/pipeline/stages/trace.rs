@@ -11,9 +11,15 @@ use crate::analysis::AnalysisError;
 use crate::error::InvalidParameter;
 use crate::explore::Exploration;
 use crate::io::Outputs;
-use crate::kernel::{extend_along, trace_sets, KernelError, Spatial, TraceParams, TracedSets};
+use crate::kernel::{
+    extend_along, trace_sets, KernelError, Spatial, TraceParams, TraceValidParams, TracedSets,
+    TruthErrors,
+};
 use crate::learn::trace_learned;
+use crate::metric::Period;
+use crate::pipeline::data::DataSource;
 use crate::pipeline::StageId;
+use ndarray::ArrayView2;
 
 /// The `trace` stage: the `[kernel]` table (and, with `spatial = "compensable"`, the
 /// `[analysis.compensability]` table that finds the non-spatial motors).
@@ -100,6 +106,46 @@ impl StageInput for TraceInput<'_> {
     }
 }
 
+/// The learned sets of a run from a simulated log against the agent's true sets through
+/// the same starts (traced with the same `[kernel]` parameters on the agent in the main
+/// environment, where the log was simulated), by [`crate::learn::set_errors`]; `None`
+/// when the motors mix hinges and bounded motors (no single period to compare under) or
+/// no start was traced in both.
+fn truth_errors(
+    world: &World,
+    motors: ArrayView2<'_, f64>,
+    params: &TraceValidParams,
+    learned: &TracedSets,
+    progress: &dyn crate::progress::Progress,
+) -> crate::Result<Option<TruthErrors>> {
+    let periods = world.agent.motor_space().periods();
+    let period = if periods
+        .iter()
+        .all(|p| p.is_some_and(|p| (p - std::f64::consts::TAU).abs() < 1e-12))
+    {
+        Period::TwoPi
+    } else if periods.iter().all(Option::is_none) {
+        Period::None
+    } else {
+        return Ok(None);
+    };
+    let truth = trace_sets(
+        world.agent.as_ref(),
+        world.environments.first(),
+        motors,
+        world.workspace.as_ref(),
+        params,
+        progress,
+    )?;
+    Ok(crate::learn::set_errors(learned, &truth, period)
+        .ok()
+        .map(|e| TruthErrors {
+            compared: e.compared,
+            median: e.median,
+            p90: e.p90,
+        }))
+}
+
 /// The sets file in the run folder; its companions follow [`TracedSets::save`].
 const SETS_FILE: &str = "sets.npy";
 
@@ -122,6 +168,10 @@ impl Stage for TraceStage {
                 let mut traced = trace_learned(&law, motors, &self.kernel, context.progress)?;
                 // A report of numbers and names always serialises.
                 traced.report.law = serde_json::to_value(law.report()).ok();
+                if matches!(data.source, DataSource::Simulate(_)) && !traced.kept.is_empty() {
+                    traced.report.summary.truth =
+                        truth_errors(world, motors, &params, &traced, context.progress)?;
+                }
                 traced
             }
             None => trace_sets(
@@ -184,6 +234,12 @@ impl Stage for TraceStage {
             line.push_str(&format!(
                 "; extended along the non-spatial motors {:?} (spatial = \"compensable\")",
                 t.report.extended_along
+            ));
+        }
+        if let Some(t) = &s.truth {
+            line.push_str(&format!(
+                "; against the agent's true sets ({} in both): median {:.4} rad, 90th percentile {:.4} rad",
+                t.compared, t.median, t.p90
             ));
         }
         if let Some([low, median, high]) = s.covering_radius {
