@@ -402,6 +402,33 @@ pub fn check(experiment: &LoadedExperiment) -> Result<Plan, ConfigError> {
     check_with(experiment, Registries::builtin())
 }
 
+/// Whether the metric of `params` measures kernels of dimension `k`: `curve` reads
+/// polylines (`k ≤ 1`, [`crate::kernel::check_curve_metric`]), and `surface` takes the
+/// kernels' dimension as its `dimension` parameter.
+fn check_metric_for_kernels(
+    params: &crate::metric::DistanceParams,
+    k: usize,
+) -> Result<(), crate::error::InvalidParameter> {
+    if params.metric.kind() == Some(crate::metric::MetricKind::Curve) {
+        crate::kernel::check_curve_metric(k)?;
+    }
+    if params.metric.as_str() == "surface" {
+        let dimension = params
+            .params
+            .get("dimension")
+            .and_then(toml::Value::as_integer);
+        if let Some(dimension) = dimension.filter(|&d| usize::try_from(d).ok() != Some(k)) {
+            return Err(crate::error::InvalidParameter::new(
+                "metric.params",
+                "dimension",
+                dimension,
+                format!("the agent's kernels have dimension {k} (motors minus the dimension of the sensor's configuration); set dimension = {k}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Like [`check`], building the agent and the set metric from `registries`: the
 /// built-in kinds and any an embedder registered ([`AgentRegistry::register`],
 /// [`MetricRegistry::register`]), so that a plug-in agent or metric runs through the
@@ -469,40 +496,13 @@ pub fn check_with(
     } else {
         None
     };
-    if metric.params.metric.as_str() == "surface" {
-        let dimension = metric
-            .params
-            .params
-            .get("dimension")
-            .and_then(toml::Value::as_integer);
-        if let (Ok(Some(k)), Some(dimension)) = (
-            e.kernel
-                .check()
-                .and_then(|p| p.dimension_for(agent.as_ref())),
-            dimension,
-        ) {
-            if usize::try_from(dimension).ok() != Some(k) {
-                return Err(invalid("metric")(
-                    MetricError::Invalid(crate::error::InvalidParameter::new(
-                        "metric.params",
-                        "dimension",
-                        dimension,
-                        format!("the agent's kernels have dimension {k} (motors minus the dimension of the sensor's configuration); set dimension = {k}"),
-                    ))
-                    .into(),
-                ));
-            }
-        }
-    }
-    if metric.params.metric.kind() == Some(crate::metric::MetricKind::Curve) {
-        if let Ok(Some(k)) = e
-            .kernel
-            .check()
-            .and_then(|p| p.dimension_for(agent.as_ref()))
-        {
-            crate::kernel::check_curve_metric(k)
-                .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
-        }
+    if let Ok(Some(k)) = e
+        .kernel
+        .check()
+        .and_then(|p| p.dimension_for(agent.as_ref()))
+    {
+        check_metric_for_kernels(&metric.params, k)
+            .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
     }
     e.embedding
         .clone()
