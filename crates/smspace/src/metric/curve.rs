@@ -603,7 +603,7 @@ fn load_block<const N: usize>(rows: &[f64], stride: usize, block: usize) -> [[f6
 /// The `t`-th index of a scan centred on `start`: `start, start+1, start−1, start+2, …`
 /// (modulo `len`).
 #[inline(always)]
-fn around(start: usize, t: usize, len: usize) -> usize {
+pub(super) fn around(start: usize, t: usize, len: usize) -> usize {
     // `t < 2·len`, so one subtraction brings the step into range.
     let step = t.div_ceil(2);
     let step = if step >= len { step - len } else { step };

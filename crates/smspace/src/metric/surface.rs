@@ -78,6 +78,7 @@ use ndarray::{ArrayView2, ArrayView3, Axis};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::curve::around;
 use super::period::{swrap, wrap};
 use super::{CoordinatePeriods, MetricError, Periodicity, PreparedPairs, SetMetric};
 use crate::error::InvalidParameter;
@@ -514,27 +515,6 @@ fn block2(x: &[f64], b: &Disks, q: usize, periods: &[f64]) -> [f64; LANES] {
         d2[l] = (w2[l] - y2[l] + over * over).max(0.0);
     }
     d2
-}
-
-/// The `t`-th index of a scan centred on `start`: `start, start+1, start−1, start+2, …`
-/// (modulo `len`).
-#[inline(always)]
-fn around(start: usize, t: usize, len: usize) -> usize {
-    // `t < len` and `start < len`: one subtraction or addition brings the index into
-    // range (no division in the scan).
-    let step = t.div_ceil(2);
-    if t % 2 == 1 {
-        let j = start + step;
-        if j >= len {
-            j - len
-        } else {
-            j
-        }
-    } else if start >= step {
-        start - step
-    } else {
-        start + len - step
-    }
 }
 
 #[cfg(test)]
