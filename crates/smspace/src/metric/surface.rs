@@ -227,6 +227,15 @@ impl SetMetric for Surface {
     }
 }
 
+/// Bytes the surface metric holds for `sets` sets of `points` points of `dims`
+/// coordinates with tangent planes of `dimension` (what [`SetMetric::prepare`] makes:
+/// the points twice, in two layouts, the tangent directions, the radii, the blocks).
+pub fn prepared_bytes(sets: usize, points: usize, dims: usize, dimension: usize) -> u64 {
+    let lanes = points.div_ceil(LANES) * LANES;
+    let per_set = points * dims + lanes * dims * (1 + dimension) + lanes + 2 * lanes / LANES;
+    (sets as u64).saturating_mul(per_set as u64 * 8)
+}
+
 /// The disks of every set.
 struct SurfaceSets {
     sets: Vec<Disks>,
@@ -670,6 +679,32 @@ mod tests {
             Period::None,
         );
         assert_abs_diff_eq!(d, point, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn the_memory_estimate_is_what_prepare_holds() {
+        for (side, n) in [(5, 3), (7, 3)] {
+            let sets = Array3::from_shape_fn((3, side * side, n), |(s, p, c)| {
+                (s * 100 + p * n + c) as f64 * 0.01
+            });
+            let disks = metric(Period::None).disks(sets.view()).unwrap();
+            let held: usize = disks
+                .sets
+                .iter()
+                .map(|d| {
+                    d.coords.len()
+                        + LANES * (d.lanes.len() + d.tangents.len() + d.radius.len())
+                        + d.centres.len()
+                        + d.reach.len()
+                })
+                .sum();
+            assert_eq!(
+                prepared_bytes(3, side * side, n, 2),
+                held as u64 * 8,
+                "P = {}",
+                side * side
+            );
+        }
     }
 
     #[test]

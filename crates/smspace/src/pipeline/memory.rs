@@ -154,12 +154,21 @@ impl Plan {
                 fix: "lower scale.landmarks (L) or scale.knn, or exploration.n (M)",
             };
         }
-        let working = crate::metric::matrix_bytes(
-            m as usize,
-            self.trace.kernel.stored_points(),
-            self.motors() as usize,
-            m as usize,
-        );
+        let (stored, motors) = (self.trace.kernel.stored_points(), self.motors() as usize);
+        let mut working = crate::metric::matrix_bytes(m as usize, stored, motors, m as usize);
+        if self.distances.metric.as_str() == "surface" {
+            // The metric's tangent disks, made once per matrix.
+            let dimension = self
+                .distances
+                .params
+                .get("dimension")
+                .and_then(toml::Value::as_integer)
+                .and_then(|k| usize::try_from(k).ok())
+                .unwrap_or(crate::metric::SurfaceParams::default().dimension);
+            working = working.saturating_add(crate::metric::surface::prepared_bytes(
+                m as usize, stored, motors, dimension,
+            ));
+        }
         Peak {
             what: format!("stage `distances`: the {m} × {m} distance matrix"),
             bytes: held.bytes.saturating_add(working),
