@@ -204,15 +204,7 @@ fn truth_errors(
     space: &smspace::agent::MotorSpace,
 ) -> anyhow::Result<smspace::learn::SetErrors> {
     let truth = smspace::kernel::TracedSets::load(path)?;
-    let periods = space.periods();
-    let period = if periods
-        .iter()
-        .all(|p| p.is_some_and(|p| (p - std::f64::consts::TAU).abs() < 1e-12))
-    {
-        smspace::metric::Period::TwoPi
-    } else if periods.iter().all(Option::is_none) {
-        smspace::metric::Period::None
-    } else {
+    let Some(period) = smspace::learn::comparison_period(&space.periods()) else {
         anyhow::bail!(
             "--truth-sets compares sets of all-hinge (2pi) or all-bounded motors; these motors are {space}"
         );

@@ -23,6 +23,22 @@ pub struct SetErrors {
     pub p90: f64,
 }
 
+/// The one period under which [`set_errors`] compares sets of motors with these periods
+/// (`None`: not wrapped): `2pi` when every motor is a hinge, none when none is; `None`
+/// for a mix of both.
+pub fn comparison_period(periods: &[Option<f64>]) -> Option<Period> {
+    if periods
+        .iter()
+        .all(|p| p.is_some_and(|p| (p - std::f64::consts::TAU).abs() < 1e-12))
+    {
+        Some(Period::TwoPi)
+    } else if periods.iter().all(Option::is_none) {
+        Some(Period::None)
+    } else {
+        None
+    }
+}
+
 /// The Hausdorff distance between the learned and the true set of every start traced in
 /// both (the same starts, the same point count), under the point metric `period`. A
 /// set that is a closed loop in both is read as a loop, otherwise as an open polyline.

@@ -70,7 +70,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{CheckParams, InvalidParameter};
 use crate::io::IoError;
-pub use compare::{set_errors, SetErrors};
+pub use compare::{comparison_period, set_errors, SetErrors};
 pub use law::{FitSupport, LawReport, LearnedLaw, LogReport};
 pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,

@@ -16,7 +16,6 @@ use crate::kernel::{
     TruthErrors,
 };
 use crate::learn::trace_learned;
-use crate::metric::Period;
 use crate::pipeline::data::DataSource;
 use crate::pipeline::StageId;
 use ndarray::ArrayView2;
@@ -118,15 +117,7 @@ fn truth_errors(
     learned: &TracedSets,
     progress: &dyn crate::progress::Progress,
 ) -> crate::Result<Option<TruthErrors>> {
-    let periods = world.agent.motor_space().periods();
-    let period = if periods
-        .iter()
-        .all(|p| p.is_some_and(|p| (p - std::f64::consts::TAU).abs() < 1e-12))
-    {
-        Period::TwoPi
-    } else if periods.iter().all(Option::is_none) {
-        Period::None
-    } else {
+    let Some(period) = crate::learn::comparison_period(&world.agent.motor_space().periods()) else {
         return Ok(None);
     };
     let truth = trace_sets(
