@@ -134,13 +134,14 @@ impl Plan {
     /// `distances`: `D` and the prepared sets of `m` sets, or the landmark path's
     /// table and kNN lists.
     pub(super) fn distances_peak(&self, held: Held, m: u64) -> Peak {
-        let (points, motors) = (self.trace.kernel.points, self.motors() as usize);
+        // The points every set holds: `P`, or `(P + 1) × spatial_samples` for spatial sets.
+        let (stored, motors) = (self.trace.kernel.stored_points(), self.motors() as usize);
         if self.distances.path(m as usize) == ChosenPath::Landmarks {
             let scale = &self.distances.scale;
             let l = (scale.landmarks as u64).min(m);
             let working = crate::metric::landmarks::landmark_bytes(
                 m as usize,
-                points,
+                stored,
                 motors,
                 &scale.landmark_params(),
             )
@@ -154,7 +155,6 @@ impl Plan {
                 fix: "lower scale.landmarks (L) or scale.knn, or exploration.n (M)",
             };
         }
-        let (stored, motors) = (self.trace.kernel.stored_points(), self.motors() as usize);
         let mut working = crate::metric::matrix_bytes(m as usize, stored, motors, m as usize);
         if self.distances.metric.as_str() == "surface" {
             // The metric's tangent disks, made once per matrix.
@@ -354,4 +354,56 @@ pub(super) fn exploration_bytes(rows: u64, motors: u64) -> u64 {
 /// Bytes of `m` kernel sets of `points` points of `motors` motors, with their records.
 pub(super) fn sets_bytes(m: u64, points: u64, motors: u64) -> u64 {
     product(&[m, points, motors, F64]).saturating_add(product(&[m, 2 * F64]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// The pupil arm's spatial sets (`spatial = "compensable"`, 2 samples of the aperture).
+    fn pupil_space_plan(overrides: &[&str]) -> Plan {
+        let source =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../experiments/pupil-space.toml");
+        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        let loaded = crate::config::load_experiment(&source, &overrides).unwrap();
+        crate::pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    #[test]
+    fn the_distances_estimate_counts_the_points_spatial_sets_hold_on_both_paths() {
+        let m = 20_000u64;
+        for path in ["dense", "landmarks"] {
+            let plan = pupil_space_plan(&[&format!("scale.path={path}")]);
+            let kernel = &plan.trace.kernel;
+            // (P + 1) × spatial_samples points per set, not P.
+            assert_eq!(kernel.stored_points(), (kernel.points + 1) * 2);
+            let motors = plan.motors() as usize;
+            let peak = plan.distances_peak(Held::default(), m);
+            let expected = if path == "landmarks" {
+                let scale = &plan.distances.scale;
+                crate::metric::landmarks::landmark_bytes(
+                    m as usize,
+                    kernel.stored_points(),
+                    motors,
+                    &scale.landmark_params(),
+                )
+                .saturating_add(m * (scale.knn as u64 * 16 + 16))
+            } else {
+                crate::metric::matrix_bytes(m as usize, kernel.stored_points(), motors, m as usize)
+            };
+            assert_eq!(peak.bytes, expected, "{path}");
+            // The prepared sets alone are larger than sets of P points would be.
+            let smaller = match path {
+                "landmarks" => crate::metric::landmarks::landmark_bytes(
+                    m as usize,
+                    kernel.points,
+                    motors,
+                    &plan.distances.scale.landmark_params(),
+                ),
+                _ => crate::metric::matrix_bytes(m as usize, kernel.points, motors, m as usize),
+            };
+            assert!(peak.bytes > smaller, "{path}: {} ≤ {smaller}", peak.bytes);
+        }
+    }
 }
