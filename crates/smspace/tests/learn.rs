@@ -306,6 +306,72 @@ fn a_simulated_arm_log_is_seeded_and_its_law_has_rank_3() {
 }
 
 #[test]
+fn the_law_is_the_weighted_fit_of_the_samples_within_its_bandwidth() {
+    // Brute force over the whole log: every sample within h of m (differences wrapped
+    // into [−π, π]), weights (1 − d²/h²)³, the basis 1, d/h (and the products d_a d_b / h²),
+    // the ridge on the non-constant coefficients, solved by nalgebra's Cholesky. The
+    // law's sums run in lanes over the samples the tree gives, in its own order.
+    let (motors, sensors) = hinge_log(3000, -PI, PI, smooth);
+    let space = MotorSpace::hinges(2);
+    let log = SensorimotorLog::new(motors.clone(), sensors.clone(), files(), &space).unwrap();
+    let wrap = |x: f64| (x + PI).rem_euclid(2.0 * PI) - PI;
+    for method in [LawMethod::LocalLinear, LawMethod::LocalQuadratic] {
+        let params = LawParams {
+            method,
+            holdout: Some(0),
+            ..LawParams::default()
+        }
+        .check()
+        .unwrap();
+        let law = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+        let h = law.report().logs[0].bandwidth;
+        let p = if method == LawMethod::LocalQuadratic {
+            6
+        } else {
+            3
+        };
+        for q in 0..25 {
+            // Across the seam of both motors too.
+            let m = [-3.1 + 0.2583 * q as f64, 3.12 - 0.2601 * q as f64];
+            let (mut s, mut jac) = (vec![0.0; 3], vec![0.0; 6]);
+            law.evaluate_with_jacobian(&m, &mut s, &mut jac);
+            let mut gram = nalgebra::DMatrix::<f64>::zeros(p, p);
+            let mut rhs = nalgebra::DMatrix::<f64>::zeros(p, 3);
+            let mut count = 0;
+            for (x, y) in motors.outer_iter().zip(sensors.outer_iter()) {
+                let d = [wrap(x[0] - m[0]), wrap(x[1] - m[1])];
+                let d2 = d[0] * d[0] + d[1] * d[1];
+                if d2 >= h * h {
+                    continue;
+                }
+                count += 1;
+                let w = (1.0 - d2 / (h * h)).powi(3);
+                let u = [d[0] / h, d[1] / h];
+                let phi = nalgebra::DVector::from_vec(
+                    [1.0, u[0], u[1], u[0] * u[0], u[0] * u[1], u[1] * u[1]][..p].to_vec(),
+                );
+                gram += w * &phi * phi.transpose();
+                rhs += w * &phi * nalgebra::RowDVector::from_iterator(3, y.iter().copied());
+            }
+            assert!(count > p, "{count} samples within h");
+            let total = gram[(0, 0)];
+            for a in 1..p {
+                gram[(a, a)] += LawParams::default().ridge * total;
+            }
+            let beta = gram.cholesky().unwrap().solve(&rhs);
+            for i in 0..3 {
+                assert!(
+                    (s[i] - beta[(0, i)]).abs() < 1e-9,
+                    "{method:?} at {m:?}, sensor {i}: {} vs {}",
+                    s[i],
+                    beta[(0, i)]
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn the_law_jacobian_is_the_derivative_of_its_value() {
     // A noisy log of a smooth law: the fit's residuals are not zero, so the slope alone
     // differs from the derivative of the value by the moving weights' terms.

@@ -55,6 +55,265 @@ fn within_cached(tree: &KdTree, query: &[f64], radius: f64, visit: impl FnMut(u3
     });
 }
 
+/// Lanes of the fit's sums: every sum over samples is taken as [`FIT_LANES`] partial
+/// sums, added pairwise at the end, with the same IEEE operations (no fused
+/// multiply–add) on every instruction set, so the law does not depend on the CPU.
+const FIT_LANES: usize = 4;
+
+thread_local! {
+    /// Each worker thread's samples of its latest fit.
+    static FIT: std::cell::RefCell<FitSamples> = std::cell::RefCell::new(FitSamples::new());
+}
+
+/// The samples of one fit (those within the bandwidth of the query), coordinate-major,
+/// padded with samples of weight 0 (and displacement 0) to `len`, a whole number of
+/// [`FIT_LANES`]: the sums of the fit and of the Jacobian's moving terms vectorise over
+/// them, and the tree is queried once per evaluation.
+struct FitSamples {
+    /// The CPU's best instruction set (pulp's runtime dispatch).
+    arch: pulp::Arch,
+    /// Samples within the bandwidth.
+    count: usize,
+    /// `count` rounded up to whole lanes: the length of every row below.
+    len: usize,
+    /// `w_i = (1 − ‖d_i‖²/h²)³`.
+    weight: Vec<f64>,
+    /// `1 − ‖d_i‖²/h²`, for `∂w_i/∂m`.
+    falloff: Vec<f64>,
+    /// `N × len`: `d_ij = x_ij − m_j`.
+    displacement: Vec<f64>,
+    /// `p × len`: the basis `φ_q(d_i / h)`.
+    basis: Vec<f64>,
+    /// `p × len`: `w_i φ_q(d_i / h)`.
+    weighted: Vec<f64>,
+    /// `K × len`: the samples' sensor values.
+    sensors: Vec<f64>,
+    /// `K × len`: the residuals `r_i = s_i − βᵀ φ_i` (moving terms).
+    residual: Vec<f64>,
+    /// `len`: `g₀ᵀ φ_i` (moving terms).
+    g0_phi: Vec<f64>,
+    /// `len`: one coordinate's `∂(g₀ᵀ w_i φ_i)/∂m_j` (moving terms).
+    alpha: Vec<f64>,
+    /// The query's samples as the tree gives them: row and squared distance.
+    found: Vec<(u32, f64)>,
+    /// Their displacements, row-major (`count × N`).
+    found_displacement: Vec<f64>,
+    /// One sample's basis (`p`).
+    phi: Vec<f64>,
+}
+
+impl FitSamples {
+    fn new() -> Self {
+        Self {
+            arch: pulp::Arch::new(),
+            count: 0,
+            len: 0,
+            weight: Vec::new(),
+            falloff: Vec::new(),
+            displacement: Vec::new(),
+            basis: Vec::new(),
+            weighted: Vec::new(),
+            sensors: Vec::new(),
+            residual: Vec::new(),
+            g0_phi: Vec::new(),
+            alpha: Vec::new(),
+            found: Vec::new(),
+            found_displacement: Vec::new(),
+            phi: Vec::new(),
+        }
+    }
+
+    /// Gathers `model`'s samples within its bandwidth of `query` (wrapped), in the
+    /// tree's order.
+    fn gather(&mut self, model: &LocalModel, query: &[f64]) {
+        let (n, k) = (model.n, model.k);
+        let p = parameter_count(model.method, n);
+        let inverse_h = 1.0 / model.bandwidth;
+        let inverse_h2 = inverse_h * inverse_h;
+        self.found.clear();
+        self.found_displacement.clear();
+        let (found, found_displacement) = (&mut self.found, &mut self.found_displacement);
+        within_cached(&model.tree, query, model.bandwidth, |row, d, d2| {
+            found.push((row, d2));
+            found_displacement.extend_from_slice(d);
+        });
+        let count = self.found.len();
+        let len = count.div_ceil(FIT_LANES) * FIT_LANES;
+        (self.count, self.len) = (count, len);
+        for (rows, v) in [
+            (1, &mut self.weight),
+            (1, &mut self.falloff),
+            (n, &mut self.displacement),
+            (p, &mut self.basis),
+            (p, &mut self.weighted),
+            (k, &mut self.sensors),
+        ] {
+            v.clear();
+            v.resize(rows * len, 0.0);
+        }
+        self.phi.resize(p, 0.0);
+        for (i, &(row, d2)) in self.found.iter().enumerate() {
+            let u = 1.0 - d2 * inverse_h2;
+            let w = u * u * u;
+            self.weight[i] = w;
+            self.falloff[i] = u;
+            let d = &self.found_displacement[i * n..(i + 1) * n];
+            for (j, &dj) in d.iter().enumerate() {
+                self.displacement[j * len + i] = dj;
+            }
+            model.basis(d, inverse_h, &mut self.phi);
+            for (q, &phi) in self.phi.iter().enumerate() {
+                self.basis[q * len + i] = phi;
+                self.weighted[q * len + i] = w * phi;
+            }
+            let s = &model.sensors[row as usize * k..(row as usize + 1) * k];
+            for (c, &sc) in s.iter().enumerate() {
+                self.sensors[c * len + i] = sc;
+            }
+        }
+    }
+}
+
+/// `Σ_i x_i y_i` over whole lanes (see [`FIT_LANES`]).
+#[inline(always)]
+fn lane_dot(x: &[f64], y: &[f64]) -> f64 {
+    let mut acc = [0.0f64; FIT_LANES];
+    for (xs, ys) in x.chunks_exact(FIT_LANES).zip(y.chunks_exact(FIT_LANES)) {
+        for l in 0..FIT_LANES {
+            acc[l] += xs[l] * ys[l];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3])
+}
+
+/// The fit's normal equations: `G = Σ w_i φ_i φ_iᵀ` (upper triangle, `p × p`) and
+/// `R = Σ w_i φ_i s_iᵀ` (`p × K`).
+struct Sums<'a> {
+    fit: &'a FitSamples,
+    gram: &'a mut [f64],
+    rhs: &'a mut [f64],
+    p: usize,
+    k: usize,
+}
+
+impl pulp::WithSimd for Sums<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let (fit, p, k) = (self.fit, self.p, self.k);
+        let len = fit.len;
+        for a in 0..p {
+            let wa = &fit.weighted[a * len..(a + 1) * len];
+            for b in a..p {
+                self.gram[a * p + b] = lane_dot(wa, &fit.basis[b * len..(b + 1) * len]);
+            }
+            for c in 0..k {
+                self.rhs[a * k + c] = lane_dot(wa, &fit.sensors[c * len..(c + 1) * len]);
+            }
+        }
+    }
+}
+
+/// The Jacobian's moving terms (see [`LocalModel::add_moving_terms`]), added to `jac`.
+struct MovingTerms<'a> {
+    fit: &'a mut FitSamples,
+    beta: &'a [f64],
+    g0: &'a [f64],
+    jac: &'a mut [f64],
+    /// `(N, K, p)`.
+    shape: (usize, usize, usize),
+    inverse_h: f64,
+    quadratic: bool,
+}
+
+impl pulp::WithSimd for MovingTerms<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let (n, k, p) = self.shape;
+        let (g0, beta) = (self.g0, self.beta);
+        let inverse_h2 = self.inverse_h * self.inverse_h;
+        let FitSamples {
+            len,
+            weight,
+            falloff,
+            displacement,
+            basis,
+            sensors,
+            residual,
+            g0_phi,
+            alpha,
+            ..
+        } = self.fit;
+        let len = *len;
+        let row = |q: usize| q * len..(q + 1) * len;
+        // r_i = s_i − βᵀ φ_i (0 on the padding).
+        residual.clear();
+        residual.resize(k * len, 0.0);
+        let mut fitted = vec![0.0; len];
+        for c in 0..k {
+            fitted.fill(0.0);
+            for q in 0..p {
+                let b = beta[q * k + c];
+                for (f, &phi) in fitted.iter_mut().zip(&basis[row(q)]) {
+                    *f += phi * b;
+                }
+            }
+            let r = &mut residual[c * len..(c + 1) * len];
+            for ((r, &s), &f) in r
+                .iter_mut()
+                .zip(&sensors[c * len..(c + 1) * len])
+                .zip(&fitted)
+            {
+                *r = s - f;
+            }
+        }
+        g0_phi.clear();
+        g0_phi.resize(len, 0.0);
+        for (q, &g) in g0.iter().enumerate() {
+            for (v, &phi) in g0_phi.iter_mut().zip(&basis[row(q)]) {
+                *v += g * phi;
+            }
+        }
+        alpha.clear();
+        alpha.resize(len, 0.0);
+        for j in 0..n {
+            // g₀ᵀ ∂φ/∂u_j: the linear term's 1, and u_b (u_a) for a quadratic u_a u_b.
+            alpha.fill(g0[1 + j]);
+            if self.quadratic {
+                let mut at = 1 + n;
+                for a in 0..n {
+                    for b in a..n {
+                        if a == j {
+                            for (v, &u) in alpha.iter_mut().zip(&basis[row(1 + b)]) {
+                                *v += g0[at] * u;
+                            }
+                        }
+                        if b == j {
+                            for (v, &u) in alpha.iter_mut().zip(&basis[row(1 + a)]) {
+                                *v += g0[at] * u;
+                            }
+                        }
+                        at += 1;
+                    }
+                }
+            }
+            // ∂w_i/∂m_j g₀ᵀφ_i − w_i/h g₀ᵀ ∂φ/∂u_j (0 on the padding: w = u = d = 0).
+            let d = &displacement[j * len..(j + 1) * len];
+            for i in 0..len {
+                let u = falloff[i];
+                let dw = 6.0 * u * u * d[i] * inverse_h2;
+                alpha[i] = dw * g0_phi[i] - weight[i] * self.inverse_h * alpha[i];
+            }
+            for c in 0..k {
+                self.jac[c * n + j] += lane_dot(alpha, &residual[c * len..(c + 1) * len]);
+            }
+        }
+    }
+}
+
 /// What a fit at one configuration found: its samples within the bandwidth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitSupport {
@@ -148,6 +407,10 @@ impl LocalModel {
     /// Writes `ŝ(m)` into `value` (length `K`) and, when asked, the fit's slope
     /// `∂ŝ/∂m` into `jacobian` (`K × N`, row-major); returns the fit's support. With no
     /// sample within the bandwidth the law is 0 there (and does not cover `m`).
+    ///
+    /// One query of the tree gathers the samples within the bandwidth
+    /// ([`FitSamples`]); the fit's sums and the Jacobian's moving terms are then sums
+    /// over those samples, taken [`FIT_LANES`] at a time.
     pub(crate) fn evaluate(
         &self,
         m: &[f64],
@@ -161,51 +424,39 @@ impl LocalModel {
             .enumerate()
             .map(|(j, &x)| self.space.motor(j).wrap(x))
             .collect();
-        let mut gram = vec![0.0; p * p];
-        let mut rhs = vec![0.0; p * k];
-        let mut basis = vec![0.0; p];
         let inverse_h = 1.0 / self.bandwidth;
-        let inverse_h2 = inverse_h * inverse_h;
-        let mut count = 0;
-        within_cached(
-            &self.tree,
-            &query,
-            self.bandwidth,
-            |row, displacement, d2| {
-                let u = 1.0 - d2 * inverse_h2;
-                let w = u * u * u;
-                self.basis(displacement, inverse_h, &mut basis);
-                for a in 0..p {
-                    let wa = w * basis[a];
-                    for b in a..p {
-                        gram[a * p + b] += wa * basis[b];
-                    }
-                    let s = &self.sensors[row as usize * k..(row as usize + 1) * k];
-                    for (r, &sv) in rhs[a * k..(a + 1) * k].iter_mut().zip(s) {
-                        *r += wa * sv;
+        FIT.with(|fit| {
+            let fit = &mut *fit.borrow_mut();
+            fit.gather(self, &query);
+            let support = FitSupport { count: fit.count };
+            let mut gram = vec![0.0; p * p];
+            let mut rhs = vec![0.0; p * k];
+            let arch = fit.arch;
+            arch.dispatch(Sums {
+                fit: &*fit,
+                gram: &mut gram,
+                rhs: &mut rhs,
+                p,
+                k,
+            });
+            if fit.count == 0 || !solve(&mut gram, &mut rhs, p, k, self.ridge) {
+                value.fill(0.0);
+                if let Some(j) = jacobian {
+                    j.fill(0.0);
+                }
+                return support;
+            }
+            value.copy_from_slice(&rhs[..k]);
+            if let Some(jac) = jacobian {
+                for i in 0..k {
+                    for j in 0..n {
+                        jac[i * n + j] = rhs[(1 + j) * k + i] * inverse_h;
                     }
                 }
-                count += 1;
-            },
-        );
-        let support = FitSupport { count };
-        if count == 0 || !solve(&mut gram, &mut rhs, p, k, self.ridge) {
-            value.fill(0.0);
-            if let Some(j) = jacobian {
-                j.fill(0.0);
+                self.add_moving_terms(fit, (&gram, &rhs), jac);
             }
-            return support;
-        }
-        value.copy_from_slice(&rhs[..k]);
-        if let Some(jac) = jacobian {
-            for i in 0..k {
-                for j in 0..n {
-                    jac[i * n + j] = rhs[(1 + j) * k + i] * inverse_h;
-                }
-            }
-            self.add_moving_terms(&query, (&gram, &rhs), jac);
-        }
-        support
+            support
+        })
     }
 
     /// Adds to the fit's slope `B/h` (in `jac`, `K × N`) the rest of the derivative of
@@ -223,56 +474,30 @@ impl LocalModel {
     /// derivative is left out (its order, `10⁻⁶` of the weight by default). Without
     /// these terms (the slope alone) the direction the tracer predicts along leaves the
     /// level set of the value by more than the adaptive step allows, and the step
-    /// collapses.
-    fn add_moving_terms(&self, query: &[f64], (factor, beta): (&[f64], &[f64]), jac: &mut [f64]) {
+    /// collapses. The sums run over the fit's own samples (`fit`, gathered by
+    /// [`LocalModel::evaluate`]).
+    fn add_moving_terms(
+        &self,
+        fit: &mut FitSamples,
+        (factor, beta): (&[f64], &[f64]),
+        jac: &mut [f64],
+    ) {
         let (n, k) = (self.n, self.k);
         let p = parameter_count(self.method, n);
         // g₀ = G⁻¹ e₀ from the Cholesky factor L (lower triangle of `factor`).
         let mut g0 = vec![0.0; p];
         g0[0] = 1.0;
         substitute(factor, &mut g0, p, 1);
-        let inverse_h = 1.0 / self.bandwidth;
-        let inverse_h2 = inverse_h * inverse_h;
-        let quadratic = self.method == LawMethod::LocalQuadratic;
-        let mut basis = vec![0.0; p];
-        let mut residual = vec![0.0; k];
-        let mut g0_du = vec![0.0; n];
-        within_cached(
-            &self.tree,
-            query,
-            self.bandwidth,
-            |row, displacement, d2| {
-                let u = 1.0 - d2 * inverse_h2;
-                let w = u * u * u;
-                self.basis(displacement, inverse_h, &mut basis);
-                let s = &self.sensors[row as usize * k..(row as usize + 1) * k];
-                for (c, r) in residual.iter_mut().enumerate() {
-                    *r = s[c] - (0..p).map(|q| basis[q] * beta[q * k + c]).sum::<f64>();
-                }
-                let g0_phi: f64 = g0.iter().zip(&basis).map(|(a, b)| a * b).sum();
-                // g₀ᵀ ∂φ/∂u_j: the linear term's 1, and u_b (u_a) for a quadratic d_a d_b.
-                for (j, v) in g0_du.iter_mut().enumerate() {
-                    *v = g0[1 + j];
-                }
-                if quadratic {
-                    let mut at = 1 + n;
-                    for a in 0..n {
-                        for b in a..n {
-                            g0_du[a] += g0[at] * basis[1 + b];
-                            g0_du[b] += g0[at] * basis[1 + a];
-                            at += 1;
-                        }
-                    }
-                }
-                for j in 0..n {
-                    let dw = 6.0 * u * u * displacement[j] * inverse_h2;
-                    let alpha = dw * g0_phi - w * inverse_h * g0_du[j];
-                    for (c, r) in residual.iter().enumerate() {
-                        jac[c * n + j] += alpha * r;
-                    }
-                }
-            },
-        );
+        let arch = fit.arch;
+        arch.dispatch(MovingTerms {
+            fit,
+            beta,
+            g0: &g0,
+            jac,
+            shape: (n, k, p),
+            inverse_h: 1.0 / self.bandwidth,
+            quadratic: self.method == LawMethod::LocalQuadratic,
+        });
     }
 
     /// The polynomial basis at a displacement: `1`, `d/h`, and for the quadratic fit
