@@ -129,8 +129,9 @@ fn nearest(embedding: ArrayView2<'_, f64>, i: usize, k: usize) -> Vec<usize> {
     d.select_nth_unstable_by(k.saturating_sub(1), |a, b| {
         a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
     });
-    d.truncate(k);
-    d.into_iter().map(|(_, j)| j).collect()
+    // A fresh list of `k`: collecting `d` itself would reuse (and keep) its allocation
+    // of `m` entries, once per query.
+    d[..k].iter().map(|&(_, j)| j).collect()
 }
 
 /// The ring frame of the embedding ([`Frame::ring`]) from its first three coordinates
@@ -532,5 +533,26 @@ impl EmbeddingPose<'_> {
             }
         }
         legend.draw(&strip, print)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_rows_are_found_and_do_not_keep_the_scan() {
+        // Points on a line at 0, 1, 2, …: the nearest of row 500 are 499, 501, 498, 502, …
+        let m = 1000;
+        let embedding =
+            ndarray::Array2::from_shape_fn((m, 2), |(i, c)| if c == 0 { i as f64 } else { 0.0 });
+        let mut near = nearest(embedding.view(), 500, 4);
+        near.sort_unstable();
+        assert_eq!(near, vec![498, 499, 501, 502]);
+        // One list of `k` per query: the report keeps thousands of them, so a list
+        // must not hold on to the `m` distances scanned for it.
+        let near = nearest(embedding.view(), 0, 10);
+        assert_eq!(near.len(), 10);
+        assert!(near.capacity() < 2 * 10, "capacity {}", near.capacity());
     }
 }
