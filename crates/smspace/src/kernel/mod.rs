@@ -368,10 +368,11 @@ fn positive(key: &'static str, value: f64) -> Result<(), KernelError> {
     }
 }
 
-/// Bytes of `(rows, points, motor_dim)` float64 kernel sets (saturating).
+/// Bytes of `(rows, points, motor_dim)` float64 kernel sets with the piece of every
+/// point (`(rows, points)` int64) (saturating).
 fn sets_bytes(rows: u64, points: usize, motor_dim: usize) -> u64 {
     rows.saturating_mul(points as u64)
-        .saturating_mul(motor_dim as u64)
+        .saturating_mul(motor_dim as u64 + 1)
         .saturating_mul(8)
 }
 
@@ -422,7 +423,8 @@ pub const MAX_POINTS: usize = 100_000;
 
 impl TraceParams {
     /// Bytes of the kernel sets `(rows, points, N)` float64 traced from `rows` motor
-    /// rows of an agent with `motor_dim` motors, with the points of spatial sets
+    /// rows of an agent with `motor_dim` motors, and the piece of every point
+    /// `(rows, points)` int64, with the points of spatial sets
     /// ([`TraceParams::stored_points`]) (saturating).
     pub fn sets_bytes(&self, rows: u64, motor_dim: usize) -> u64 {
         sets_bytes(rows, self.stored_points(), motor_dim)
@@ -995,14 +997,20 @@ pub fn trace_sets(
         |caller, scratch, start| tracer.trace(start, caller, scratch),
         &done,
     )?;
+    // The kept sets' exact sizes, so that the arrays hold no growth slack (up to as much
+    // again as the sets, which the memory estimates of the later stages do not count).
+    let (values, labels) = results
+        .iter()
+        .filter_map(|r| r.points.as_ref().map(|v| (v.len(), r.pieces.len())))
+        .fold((0, 0), |(a, b), (v, q)| (a + v, b + q));
     let results = results.into_iter().enumerate().map(|(index, mut result)| {
         result.report.index = index;
         result
     });
     progress.finish();
     let p = params.points;
-    let mut data = Vec::new();
-    let mut pieces = Vec::new();
+    let mut data = Vec::with_capacity(values);
+    let mut pieces = Vec::with_capacity(labels);
     let mut kept = Vec::new();
     let mut closure = Vec::new();
     let mut reports = Vec::with_capacity(results.len());

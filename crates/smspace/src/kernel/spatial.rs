@@ -372,7 +372,8 @@ mod tests {
             ..TraceParams::default()
         };
         assert_eq!(spatial.stored_points(), 404);
-        assert_eq!(spatial.sets_bytes(10, 5), 10 * 404 * 5 * 8);
+        // The points' coordinates and the piece of every point.
+        assert_eq!(spatial.sets_bytes(10, 5), 10 * 404 * (5 + 1) * 8);
     }
 
     #[test]

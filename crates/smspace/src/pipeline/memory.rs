@@ -351,9 +351,10 @@ pub(super) fn exploration_bytes(rows: u64, motors: u64) -> u64 {
     product(&[rows, motors + 6, F64])
 }
 
-/// Bytes of `m` kernel sets of `points` points of `motors` motors, with their records.
+/// Bytes of `m` kernel sets of `points` points of `motors` motors, with the piece of
+/// every point and their records.
 pub(super) fn sets_bytes(m: u64, points: u64, motors: u64) -> u64 {
-    product(&[m, points, motors, F64]).saturating_add(product(&[m, 2 * F64]))
+    product(&[m, points, motors.saturating_add(1), F64]).saturating_add(product(&[m, 2 * F64]))
 }
 
 #[cfg(test)]
