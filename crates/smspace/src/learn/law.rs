@@ -174,6 +174,12 @@ impl FitSamples {
     }
 }
 
+/// Row `q` of a [`FitSamples`] array of rows of `len`.
+#[inline(always)]
+fn lane_row(q: usize, len: usize) -> std::ops::Range<usize> {
+    q * len..(q + 1) * len
+}
+
 /// `Σ_i x_i y_i` over whole lanes (see [`FIT_LANES`]).
 #[inline(always)]
 fn lane_dot(x: &[f64], y: &[f64]) -> f64 {
@@ -202,14 +208,14 @@ impl pulp::WithSimd for Sums<'_> {
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
         let (fit, p, k) = (self.fit, self.p, self.k);
-        let len = fit.len;
+        let row = |q: usize| lane_row(q, fit.len);
         for a in 0..p {
-            let wa = &fit.weighted[a * len..(a + 1) * len];
+            let wa = &fit.weighted[row(a)];
             for b in a..p {
-                self.gram[a * p + b] = lane_dot(wa, &fit.basis[b * len..(b + 1) * len]);
+                self.gram[a * p + b] = lane_dot(wa, &fit.basis[row(b)]);
             }
             for c in 0..k {
-                self.rhs[a * k + c] = lane_dot(wa, &fit.sensors[c * len..(c + 1) * len]);
+                self.rhs[a * k + c] = lane_dot(wa, &fit.sensors[row(c)]);
             }
         }
     }
@@ -248,26 +254,20 @@ impl pulp::WithSimd for MovingTerms<'_> {
             ..
         } = self.fit;
         let len = *len;
-        let row = |q: usize| q * len..(q + 1) * len;
-        // r_i = s_i − βᵀ φ_i (0 on the padding).
+        let row = |q: usize| lane_row(q, len);
+        // r_i = s_i − βᵀ φ_i (0 on the padding): the fitted value, then the residual, in place.
         residual.clear();
         residual.resize(k * len, 0.0);
-        let mut fitted = vec![0.0; len];
         for c in 0..k {
-            fitted.fill(0.0);
+            let r = &mut residual[row(c)];
             for q in 0..p {
                 let b = beta[q * k + c];
-                for (f, &phi) in fitted.iter_mut().zip(&basis[row(q)]) {
+                for (f, &phi) in r.iter_mut().zip(&basis[row(q)]) {
                     *f += phi * b;
                 }
             }
-            let r = &mut residual[c * len..(c + 1) * len];
-            for ((r, &s), &f) in r
-                .iter_mut()
-                .zip(&sensors[c * len..(c + 1) * len])
-                .zip(&fitted)
-            {
-                *r = s - f;
+            for (r, &s) in r.iter_mut().zip(&sensors[row(c)]) {
+                *r = s - *r;
             }
         }
         g0_phi.clear();
@@ -301,14 +301,14 @@ impl pulp::WithSimd for MovingTerms<'_> {
                 }
             }
             // ∂w_i/∂m_j g₀ᵀφ_i − w_i/h g₀ᵀ ∂φ/∂u_j (0 on the padding: w = u = d = 0).
-            let d = &displacement[j * len..(j + 1) * len];
+            let d = &displacement[row(j)];
             for i in 0..len {
                 let u = falloff[i];
                 let dw = 6.0 * u * u * d[i] * inverse_h2;
                 alpha[i] = dw * g0_phi[i] - weight[i] * self.inverse_h * alpha[i];
             }
             for c in 0..k {
-                self.jac[c * n + j] += lane_dot(alpha, &residual[c * len..(c + 1) * len]);
+                self.jac[c * n + j] += lane_dot(alpha, &residual[row(c)]);
             }
         }
     }
