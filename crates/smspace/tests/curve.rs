@@ -657,6 +657,31 @@ fn no_segment_joins_two_pieces_of_a_set() {
 }
 
 #[test]
+fn the_last_point_of_an_open_set_counts_when_it_is_a_piece_of_its_own() {
+    // B's last point (0.5, 5) is a piece of its own, 3 from A; the segment before it
+    // is B's point (1, 2.1) alone (0.1 from A), and B's second piece is at most 0.3
+    // from A. A point of B, (0.5, 5) must count: ρ = 3 (it was read as 0.3, the last
+    // point on no segment).
+    let a = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [1.0, 2.0]];
+    let b = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.3], [1.0, 2.1], [0.5, 5.0]];
+    let sets = Array3::from_shape_fn(
+        (2, 5, 2),
+        |(s, p, n)| if s == 0 { a[p][n] } else { b[p][n] },
+    );
+    let pieces = array![[0_i64, 0, 1, 1, 1], [0, 0, 1, 1, 2]];
+    let closures = [Closure::Open; 2];
+    let params = DistanceParams::new()
+        .metric(MetricKind::Curve)
+        .period(Period::None);
+    let view = SetsView::new(sets.view())
+        .with_closure(&closures)
+        .with_pieces(pieces.view());
+    let d = distance_matrix(view, &params, &Silent).unwrap();
+    assert!((d[[0, 1]] - 3.0).abs() < 1e-9, "{}", d[[0, 1]]);
+    assert_eq!(d[[0, 1]], d[[1, 0]]);
+}
+
+#[test]
 fn a_tile_keeps_the_pieces_of_its_rows_and_columns() {
     // The same two sets as above, one in the tile's rows and one in its columns: the
     // off-diagonal tile reads the pieces of both sides, as the whole matrix does.

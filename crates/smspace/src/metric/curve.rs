@@ -9,7 +9,11 @@
 //! coordinate difference `n` wrapped into `[−T_n/2, T_n/2]` with its own period `T_n`,
 //! `[−π, π]` for the arm's joints, see [`Periods`](super::Periods); an unwrapped
 //! coordinate, as everywhere with [`Period::None`](super::Period), is not changed).
-//! Its points are `s_i(t) = x_i + t·v_i`, `t ∈ [0, 1]`.
+//! Its points are `s_i(t) = x_i + t·v_i`, `t ∈ [0, 1]`. Where the sets come in pieces
+//! ([`SetsView::with_pieces`](super::SetsView::with_pieces)), a segment whose ends lie in
+//! different pieces is its first point alone (`v_i = 0`), and so is an extra segment
+//! at the last point of an open set when that point is a piece of its own: every point
+//! of the set lies on its polyline, and no segment joins two pieces.
 //!
 //! The distance from a point `a` to a segment is the minimum over the segment of the
 //! periodic point metric `g` of [`super`]:
@@ -269,19 +273,24 @@ impl CurveLayout {
         let mut widths = vec![0.0; sets * chunks * dims_pad];
         for s in 0..sets {
             let block = &coords[s * per..(s + 1) * per];
-            let count = match closure[s] {
-                Closure::Closed => points,
-                Closure::Open => points - 1,
-            };
-            segments.push(count as u32);
             // Two consecutive points of different pieces: a segment of length 0 (the
             // point itself, already in the set), so that no segment joins two pieces.
             let joins = |i: usize, next: usize| {
                 pieces.is_none_or(|labels| labels[[s, i]] == labels[[s, next]])
             };
+            // An open set whose last point is a piece of its own: no segment ends there,
+            // so it gets one of length 0 (the point), as every other point is the start
+            // of a segment.
+            let count = match closure[s] {
+                Closure::Closed => points,
+                Closure::Open if points >= 2 && !joins(points - 2, points - 1) => points,
+                Closure::Open => points - 1,
+            };
+            segments.push(count as u32);
             for i in 0..count {
                 let next = if i + 1 == points { 0 } else { i + 1 };
-                let join = if joins(i, next) { 1.0 } else { 0.0 };
+                let closing = closure[s] == Closure::Open && next == 0;
+                let join = if joins(i, next) && !closing { 1.0 } else { 0.0 };
                 let mut len2 = 0.0;
                 for k in 0..dims {
                     let v = join
