@@ -82,7 +82,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let errors = set_errors(&learned, &truth, Period::TwoPi).ok();
     // The learned manifold: the Hausdorff matrix of the learned sets, its topology and
     // dimension, and its agreement with the poses the simulated log kept aside.
-    let manifold = if std::env::var("MANIFOLD").is_ok() && learned.kept.len() >= 20 {
+    let manifold = if std::env::var("MANIFOLD").is_ok() && learned.kept.len() > 20 {
         let distances = smspace::metric::distance_matrix(
             learned.sets.view(),
             &smspace::metric::DistanceParams::new(),
