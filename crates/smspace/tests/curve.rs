@@ -631,6 +631,22 @@ fn uniform_periods_equal_their_shorthand_bit_for_bit() {
     }
 }
 
+/// Two 2-D sets of five points, `a` then `b`, as an `(2, 5, 2)` array.
+fn two_sets(a: [[f64; 2]; 5], b: [[f64; 2]; 5]) -> Array3<f64> {
+    Array3::from_shape_fn(
+        (2, 5, 2),
+        |(s, p, n)| if s == 0 { a[p][n] } else { b[p][n] },
+    )
+}
+
+/// Both sets open polylines, under the `curve` metric without periods.
+fn open_unwrapped_curves() -> ([Closure; 2], DistanceParams) {
+    let params = DistanceParams::new()
+        .metric(MetricKind::Curve)
+        .period(Period::None);
+    ([Closure::Open; 2], params)
+}
+
 #[test]
 fn no_segment_joins_two_pieces_of_a_set() {
     // A: two unit segments, y = 0 and y = 2 (its last point repeated). B: the same
@@ -639,15 +655,9 @@ fn no_segment_joins_two_pieces_of_a_set() {
     // segment from (1, 0) to (0, 2) would pass through (0.5, 1).
     let a = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [1.0, 2.0]];
     let b = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [0.5, 1.0]];
-    let sets = Array3::from_shape_fn(
-        (2, 5, 2),
-        |(s, p, n)| if s == 0 { a[p][n] } else { b[p][n] },
-    );
+    let sets = two_sets(a, b);
     let pieces = array![[0_i64, 0, 1, 1, 1], [0, 0, 1, 1, 2]];
-    let closures = [Closure::Open; 2];
-    let params = DistanceParams::new()
-        .metric(MetricKind::Curve)
-        .period(Period::None);
+    let (closures, params) = open_unwrapped_curves();
     let view = SetsView::new(sets.view()).with_closure(&closures);
     let with =
         distance_matrix(view.reborrow().with_pieces(pieces.view()), &params, &Silent).unwrap();
@@ -664,15 +674,9 @@ fn the_last_point_of_an_open_set_counts_when_it_is_a_piece_of_its_own() {
     // point on no segment).
     let a = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [1.0, 2.0]];
     let b = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.3], [1.0, 2.1], [0.5, 5.0]];
-    let sets = Array3::from_shape_fn(
-        (2, 5, 2),
-        |(s, p, n)| if s == 0 { a[p][n] } else { b[p][n] },
-    );
+    let sets = two_sets(a, b);
     let pieces = array![[0_i64, 0, 1, 1, 1], [0, 0, 1, 1, 2]];
-    let closures = [Closure::Open; 2];
-    let params = DistanceParams::new()
-        .metric(MetricKind::Curve)
-        .period(Period::None);
+    let (closures, params) = open_unwrapped_curves();
     let view = SetsView::new(sets.view())
         .with_closure(&closures)
         .with_pieces(pieces.view());
@@ -687,15 +691,9 @@ fn a_tile_keeps_the_pieces_of_its_rows_and_columns() {
     // off-diagonal tile reads the pieces of both sides, as the whole matrix does.
     let a = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [1.0, 2.0]];
     let b = [[0.0, 0.0], [1.0, 0.0], [0.0, 2.0], [1.0, 2.0], [0.5, 1.0]];
-    let sets = Array3::from_shape_fn(
-        (2, 5, 2),
-        |(s, p, n)| if s == 0 { a[p][n] } else { b[p][n] },
-    );
+    let sets = two_sets(a, b);
     let pieces = array![[0_i64, 0, 1, 1, 1], [0, 0, 1, 1, 2]];
-    let closures = [Closure::Open; 2];
-    let params = DistanceParams::new()
-        .metric(MetricKind::Curve)
-        .period(Period::None);
+    let (closures, params) = open_unwrapped_curves();
     let metric = MetricRegistry::builtin().build(&params).unwrap();
     let view = |range: std::ops::Range<usize>| {
         SetsView::new(sets.slice_axis(Axis(0), range.clone().into()))

@@ -167,6 +167,45 @@ pub(crate) struct CurveRef<'a> {
     pub boxes32: &'a [f32],
 }
 
+/// The box (`center`, half-`width` per coordinate, periodic) around the segments
+/// `range` of one chunk of a set (`block` its coordinates `[n][point]`, `dirs` its
+/// directions `[segment][n]`): the lifted path through them, a new lift where
+/// `joins(i, next)` is false (a new piece), lies within `[lo, hi]`, so every point of them
+/// within `(hi − lo)/2` of the middle (a periodic distance is at most the lifted one).
+/// An empty range (no segment in the chunk: an open set with `P = 8k + 1`) gets width 0:
+/// a box that no bound can reach is never used, since the loops stop at the segment count.
+fn chunk_box(
+    block: &[f64],
+    dirs: &[f64],
+    range: std::ops::Range<usize>,
+    (points, points_pad, dims_pad): (usize, usize, usize),
+    period: &[f64],
+    joins: impl Fn(usize, usize) -> bool,
+    (center, width): (&mut [f64], &mut [f64]),
+) {
+    if range.is_empty() {
+        width.fill(0.0);
+        return;
+    }
+    for k in 0..dims_pad {
+        let mut y = block[k * points_pad + range.start];
+        let (mut lo, mut hi) = (y, y);
+        for i in range.clone() {
+            let next = if i + 1 == points { 0 } else { i + 1 };
+            y = if joins(i, next) {
+                y + dirs[i * dims_pad + k]
+            } else {
+                // A new piece: its own lift (any lift stays within [lo, hi]).
+                block[k * points_pad + next]
+            };
+            lo = lo.min(y);
+            hi = hi.max(y);
+        }
+        center[k] = wrap(0.5 * (lo + hi), period[k]);
+        width[k] = 0.5 * (hi - lo) * (1.0 + BOUND_MARGIN) + 1e-13;
+    }
+}
+
 /// The `f32` directions and `1 / |v|²` of every set's segments in ring order (row `r`
 /// holds segment `(r − RING) mod P`, 0 for a missing segment), and each set's longest
 /// segment: the parts of a [`CurveLayout`] read next to [`SetRef::ring32`].
@@ -307,34 +346,19 @@ impl CurveLayout {
             }
             for q in 0..chunks {
                 let first = q * LANES;
-                let last = (first + LANES).min(count);
                 let at = (s * chunks + q) * dims_pad;
-                if first >= last {
-                    // No segment in this chunk (an open set with P = 8k + 1): a box that
-                    // no bound can reach is never used, since the loops stop at `count`.
-                    widths[at..at + dims_pad].fill(0.0);
-                    continue;
-                }
-                for k in 0..dims_pad {
-                    // The lifted path through the chunk's segments: every point of
-                    // them lies within [lo, hi], so within `(hi − lo)/2` of the middle
-                    // (a periodic distance is at most the lifted one).
-                    let mut y = block[k * points_pad + first];
-                    let (mut lo, mut hi) = (y, y);
-                    for i in first..last {
-                        let next = if i + 1 == points { 0 } else { i + 1 };
-                        y = if joins(i, next) {
-                            y + dirs[s * per + i * dims_pad + k]
-                        } else {
-                            // A new piece: its own lift (any lift stays within [lo, hi]).
-                            block[k * points_pad + next]
-                        };
-                        lo = lo.min(y);
-                        hi = hi.max(y);
-                    }
-                    centers[at + k] = wrap(0.5 * (lo + hi), period[k]);
-                    widths[at + k] = 0.5 * (hi - lo) * (1.0 + BOUND_MARGIN) + 1e-13;
-                }
+                chunk_box(
+                    block,
+                    &dirs[s * per..(s + 1) * per],
+                    first..(first + LANES).min(count),
+                    (points, points_pad, dims_pad),
+                    period,
+                    joins,
+                    (
+                        &mut centers[at..at + dims_pad],
+                        &mut widths[at..at + dims_pad],
+                    ),
+                );
             }
         }
         let (dir_ring32, inv_ring32, max_len) = ring_segments(
