@@ -1662,10 +1662,7 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
             return None;
         }
         let c = c2.sqrt();
-        if 0.5 * (d0.sqrt() + d1.sqrt() + a.lengths[i]) <= c * (1.0 - 1e-12)
-            || within_along::<N>(a, b, i, j0 as usize, c2, period)
-            || within_along::<N>(a, b, i, j1 as usize, c2, period)
-        {
+        if self.ends_settle(i, [(d0, j0), (d1, j1)], c2) {
             return Some(c2);
         }
         let abort = abort2.sqrt();
@@ -1758,7 +1755,15 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
     #[inline(always)]
     fn known_ends_settle(&self, i: usize, c2: f64, scratch: &CurveScratch) -> bool {
         let next = if i + 1 == self.frame.points { 0 } else { i + 1 };
-        let ((d0, j0), (d1, j1)) = (scratch.vertex[i], scratch.vertex[next]);
+        self.ends_settle(i, [scratch.vertex[i], scratch.vertex[next]], c2)
+    }
+
+    /// Whether segment `i` of `A` is settled for `c2` by the exact `d_B²` at its ends and
+    /// their nearest segments of `B` (`ends`; an end not yet known is `NaN` and proves
+    /// nothing): the Lipschitz bound when both are at most `c2`, else convexity with the
+    /// nearest segment of an end at most `c2` ([`within_along`]).
+    #[inline(always)]
+    fn ends_settle(&self, i: usize, [(d0, j0), (d1, j1)]: [(f64, u32); 2], c2: f64) -> bool {
         let (a, b, period) = (self.a, self.b, &self.frame.period);
         if d0 <= c2
             && d1 <= c2
