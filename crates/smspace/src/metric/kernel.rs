@@ -132,6 +132,8 @@ pub(crate) struct Frame<const N: usize> {
     pub rel: f64,
     pub period: [f64; N],
     pub period32: [f32; N],
+    /// The shift of the `f32` copy (see [`PreparedSets::offset`]).
+    pub offset: [f64; N],
 }
 
 impl<const N: usize> Frame<N> {
@@ -148,6 +150,7 @@ impl<const N: usize> Frame<N> {
             rel: prepared.filter().rel,
             period,
             period32: period.map(|t| t as f32),
+            offset: std::array::from_fn(|k| prepared.offset()[k]),
         }
     }
 }

@@ -15,7 +15,7 @@ pub(crate) const LANES: usize = 8;
 pub(crate) const WIDE: usize = 16;
 
 /// Points of the ring copies before and after every set (see [`SetRef::ring`]).
-pub(crate) const RING: usize = 8;
+pub(crate) const RING: usize = 12;
 
 /// Relative safety margin applied to the bounding boxes and to the lower bounds derived
 /// from them, so that rounding never prunes a point that could win.
@@ -52,6 +52,8 @@ pub struct PreparedSets {
     /// Period of every padded coordinate (`+∞`: not wrapped).
     period_pad: Vec<f64>,
     filter: FilterBounds,
+    /// Subtracted from every coordinate of the `f32` copy (see [`Self::offset`]).
+    offset: Vec<f64>,
     wide: bool,
     coords: Vec<f64>,
     points_aos: Vec<f64>,
@@ -279,6 +281,7 @@ impl PreparedSets {
             periods,
             period_pad,
             filter: filter.bounds,
+            offset: filter.offset,
             wide: filter.wide,
             coords32: filter.coords32,
             ring32: filter.ring32,
@@ -348,6 +351,13 @@ impl PreparedSets {
     /// Period of every padded coordinate (`+∞`: not wrapped).
     pub(crate) fn period_pad(&self) -> &[f64] {
         &self.period_pad
+    }
+
+    /// What is subtracted from every coordinate of the `f32` copy before it is rounded
+    /// (the mid-range of an unwrapped coordinate; 0 for a periodic one), per padded
+    /// coordinate: a point `x` of the sets' range is `(x_n − offset_n) as f32` there.
+    pub(crate) fn offset(&self) -> &[f64] {
+        &self.offset
     }
 
     /// The bounds of the error of the `f32` squared distances.

@@ -43,8 +43,6 @@ pub(crate) trait Lanes: Copy {
     /// `u − t · round(u · inv)` (`inv = 1/t`; `0` without a period): the signed
     /// difference brought near `[−t/2, t/2]`.
     fn swrap(self, u: Self::V, t: Self::V, inv: Self::V) -> Self::V;
-    /// Square root.
-    fn sqrt(self, a: Self::V) -> Self::V;
     /// Bit `l` set where `a[l] ≤ b[l]`.
     fn le(self, a: Self::V, b: Self::V) -> u32;
     /// Bit `l` set where `a[l] > b[l]`.
@@ -120,10 +118,6 @@ impl Lanes for V3 {
             .avx
             ._mm256_round_ps::<0x08>(self.avx._mm256_mul_ps(u, inv));
         self.fma._mm256_fnmadd_ps(k, t, u)
-    }
-    #[inline(always)]
-    fn sqrt(self, a: __m256) -> __m256 {
-        self.avx._mm256_sqrt_ps(a)
     }
     #[inline(always)]
     fn le(self, a: __m256, b: __m256) -> u32 {
@@ -217,10 +211,6 @@ impl Lanes for Portable {
     #[inline(always)]
     fn swrap(self, u: Self::V, t: Self::V, inv: Self::V) -> Self::V {
         std::array::from_fn(|l| (-(u[l] * inv[l]).round_ties_even()).mul_add(t[l], u[l]))
-    }
-    #[inline(always)]
-    fn sqrt(self, a: Self::V) -> Self::V {
-        std::array::from_fn(|l| a[l].sqrt())
     }
     #[inline(always)]
     fn le(self, a: Self::V, b: Self::V) -> u32 {
