@@ -1959,6 +1959,28 @@ fn largest(values: &[f32; LANES], mask: u32) -> usize {
     l
 }
 
+/// The keys of up to 16 blocks, packed (a non-negative `f32` orders like its bits; the
+/// low four bits take the inverted block, so keys are distinct and ties go to the lower
+/// block) and sorted in decreasing order without branches: each one's rank is the
+/// number of keys above it. A function, not a closure, so that it is compiled inside
+/// the caller's instruction set (a closure was compiled apart, without AVX2).
+#[inline(always)]
+fn ranked(key: &[f32]) -> [u32; 16] {
+    let mut packed = [0u32; 16];
+    for (alpha, (slot, k)) in packed.iter_mut().zip(key).enumerate() {
+        *slot = (k.to_bits() & !15) | (15 - alpha as u32);
+    }
+    let mut sorted = [0u32; 16];
+    for &x in &packed[..key.len()] {
+        let mut rank = 0;
+        for &y in &packed {
+            rank += u32::from(y > x);
+        }
+        sorted[rank as usize] = x;
+    }
+    sorted
+}
+
 /// The blocks of both directions, far from the other set first: entry `e` is block
 /// `e & 0x7fff_ffff` of `A` (`e >> 31 == 0`, key `row_key`) or of `B` (`1`, key
 /// `col_key`), by decreasing key (ties: `A` first, then the lower block; keys that
@@ -1969,25 +1991,8 @@ fn merged_order(row_key: &[f32], col_key: &[f32], packed: &mut Vec<u64>, order: 
     let chunks = row_key.len();
     order.clear();
     if chunks <= 16 && col_key.len() == chunks {
-        // Each direction ranked without branches as in `far_first` (a non-negative
-        // `f32` orders like its bits; the low four bits take the inverted block, so
-        // keys are distinct and ties go to the lower block), then the two merged.
-        let ranked = |key: &[f32]| {
-            let mut packed = [0u32; 16];
-            for (alpha, slot) in packed.iter_mut().enumerate().take(chunks) {
-                *slot = (key[alpha].to_bits() & !15) | (15 - alpha as u32);
-            }
-            let mut sorted = [0u32; 16];
-            for alpha in 0..chunks {
-                let x = packed[alpha];
-                let mut rank = 0;
-                for &y in &packed {
-                    rank += u32::from(y > x);
-                }
-                sorted[rank as usize] = x;
-            }
-            sorted
-        };
+        // Each direction ranked without branches (as in `far_first`), then the two
+        // merged.
         let (rows, cols) = (ranked(row_key), ranked(col_key));
         let (mut r, mut c) = (0, 0);
         while r < chunks || c < chunks {
