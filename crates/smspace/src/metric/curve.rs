@@ -855,8 +855,6 @@ enum SegmentMax {
     /// `max(c, max_t F(a(t)))` (`F` the lower envelope of the images given), exact, and
     /// where `F` reaches it when that is above `c` (`None`: `F ≤ c` all along).
     Done(f64, Option<f64>),
-    /// The maximum exceeds `abort`.
-    Abort,
     /// Too many segments of `B` (or periodic images of them) come near: left to the
     /// branch and bound.
     Fallback,
@@ -958,9 +956,10 @@ fn add_image<const N: usize>(
     true
 }
 
-/// `max(c, max_{t∈[0,1]} d_B(a_i + t v_i))` exactly, given the periodic `images` of
-/// segments of `B` that come within an upper bound of that maximum of the segment (only
-/// those can be nearest anywhere on it: [`near_images`]).
+/// `max(c, max_{t∈[0,1]} F(a_i + t v_i))` exactly, `F` the lower envelope of the
+/// distances to the periodic `images` of segments of `B` given: an upper bound of `d_B`
+/// (equal to it where the nearest image is among them), so its maximum proves nothing
+/// against an abort limit; [`Pass::exact_segment`] evaluates `d_B` where it is reached.
 ///
 /// On each image, `E(t)² = |p + t q|²` piecewise, with at most three pieces (the foot
 /// `s*(t)` linear in `t`, clamped to `0` or `1`), so `d_B² = min E²` is a lower envelope
@@ -979,7 +978,6 @@ fn segment_max<const N: usize>(
     i: usize,
     images: &[(u32, [f64; N])],
     c: f64,
-    abort: f64,
 ) -> SegmentMax {
     let v = load::<N>(a.dirs, i);
     // The pieces of every image, and where each image's pieces start.
@@ -1012,7 +1010,6 @@ fn segment_max<const N: usize>(
         best
     };
     const SLACK: f64 = 1e-12;
-    let abort2 = abort * abort;
     let (at0, m0) = envelope(0.0);
     let (at1, m1) = envelope(1.0);
     let mut c2 = c * c;
@@ -1021,9 +1018,6 @@ fn segment_max<const N: usize>(
         if at > c2 {
             (c2, arg) = (at, Some(t));
         }
-    }
-    if c2 > abort2 {
-        return SegmentMax::Abort;
     }
     // Intervals [ta, tb] with the images minimal at their ends.
     let mut stack = [(0.0f64, 1.0f64, 0usize, 0usize); MAX_SPLITS];
@@ -1064,9 +1058,6 @@ fn segment_max<const N: usize>(
                     let (value, m) = envelope(t);
                     if value > c2 {
                         (c2, arg) = (value, Some(t));
-                        if c2 > abort2 {
-                            return SegmentMax::Abort;
-                        }
                     }
                     if m != ma && m != mb && value < crossing * (1.0 - 1e-13) - SLACK {
                         split = Some((t, m));
@@ -1637,8 +1628,7 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         let mut rounds = 0;
         while ok && rounds < MAX_LAZY_ROUNDS {
             rounds += 1;
-            let (value, t) = match segment_max::<N>(a, b, i, &images[..count], c, abort) {
-                SegmentMax::Abort => return None,
+            let (value, t) = match segment_max::<N>(a, b, i, &images[..count], c) {
                 SegmentMax::Fallback => break,
                 SegmentMax::Done(_, None) => return Some(c2),
                 SegmentMax::Done(value, Some(t)) => (value, t),
@@ -2255,6 +2245,62 @@ mod tests {
         }
         // The piecewise path was exercised.
         assert!(crossing > 500, "{crossing}");
+    }
+
+    /// Closed loops on the 4-torus shaped like the arm's kernel sets (one winding
+    /// coordinate, two harmonics per coordinate, all affine in a random pose).
+    fn arm_like_loops(m: usize, p: usize, seed: u64) -> ndarray::Array3<f64> {
+        use std::f64::consts::TAU;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let family: Vec<[f64; 4]> = (0..20)
+            .map(|_| std::array::from_fn(|_| rng.gen_range(-1.0..1.0)))
+            .collect();
+        let mut sets = ndarray::Array3::zeros((m, p, 4));
+        for i in 0..m {
+            let pose: [f64; 3] = std::array::from_fn(|_| rng.gen_range(0.0..1.0));
+            let affine = |c: &[f64; 4]| c[0] + c[1] * pose[0] + c[2] * pose[1] + c[3] * pose[2];
+            let phase = rng.gen_range(0.0..TAU);
+            for k in 0..p {
+                let s = TAU * k as f64 / p as f64;
+                let t = phase + s + 0.25 * s.sin();
+                for n in 0..4 {
+                    let c = &family[5 * n..5 * n + 5];
+                    let winding = if n == 0 { t } else { 0.0 };
+                    let x = winding
+                        + 2.0 * affine(&c[0])
+                        + 0.8 * affine(&c[1]) * (t + 1.5 * affine(&c[2])).cos()
+                        + 0.3 * affine(&c[3]) * (2.0 * t + 1.5 * affine(&c[4])).sin();
+                    sets[[i, k, n]] = (x + PI).rem_euclid(TAU) - PI;
+                }
+            }
+        }
+        sets
+    }
+
+    /// A limit at or above the distance never drops the pair (the nearest-set search
+    /// relies on it): the lazy envelope's maximum only bounds `d_B` from above, so it
+    /// must not abort; only exactly evaluated distances may. Below the distance the
+    /// pair is dropped or comes back above the limit.
+    #[test]
+    fn a_limit_above_the_distance_never_drops_the_pair() {
+        let m = 60;
+        let sets = arm_like_loops(m, 100, 11);
+        let closures = vec![Closure::Closed; m];
+        let view = crate::metric::SetsView::new(sets.view()).with_closure(&closures);
+        let prepared = PreparedSets::new(view, Period::TwoPi).unwrap();
+        let mut scratch = Scratch::default();
+        for i in 0..m {
+            for j in i + 1..m {
+                let d = curve_pair(&prepared, i, j, f64::INFINITY, &mut scratch).unwrap();
+                for limit in [d * (1.0 + 1e-12), d + 1e-3] {
+                    let found = curve_pair(&prepared, i, j, limit, &mut scratch);
+                    assert_eq!(found, Some(d), "({i}, {j}) limit {limit}");
+                }
+                let below = d * (1.0 - 1e-9);
+                let found = curve_pair(&prepared, i, j, below, &mut scratch);
+                assert!(found.is_none_or(|v| v > below), "({i}, {j}): {found:?}");
+            }
+        }
     }
 
     #[test]
