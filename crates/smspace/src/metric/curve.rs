@@ -93,7 +93,9 @@ use self::filter::{
     segment_probe, segment_scan, segment_window, vertex_window, ScanChunk, SegmentBlock, Skip,
     Wraps,
 };
-use super::kernel::{cut_above, threshold, Frame, Lanes, Portable, Scratch, Simd, RING_WINDOW};
+use super::kernel::{
+    cut_above, each, threshold, Frame, Lanes, Portable, Scratch, Simd, RING_WINDOW,
+};
 use super::period::swrap;
 use super::prepared::{fold, wrap, PreparedSets, SetRef, BOUND_MARGIN, LANES, RING};
 
@@ -1480,8 +1482,7 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         (scan, lower): (&mut Vec<ScanChunk>, &mut Vec<f32>),
     ) -> (f64, u32) {
         let x = load::<N>(self.a.set.points, i);
-        let x32: [f32; N] =
-            std::array::from_fn(|k| self.a.set.coords32[k * self.frame.points_pad + i]);
+        let x32: [f32; N] = each(0.0, |k| self.a.set.coords32[k * self.frame.points_pad + i]);
         self.exact_point(&x, Some(&x32), hint, (scan, lower))
     }
 
@@ -1512,7 +1513,7 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         }
         let x32: [f32; N] = match x32 {
             Some(x32) => *x32,
-            None => std::array::from_fn(|k| (x[k] - frame.offset[k]) as f32),
+            None => each(0.0, |k| (x[k] - frame.offset[k]) as f32),
         };
         let (smallest, _, _) =
             self.scan::<false>(&x32, &[0.0; N], (hint, 0.0), (&mut *scan, lower, false));
@@ -1540,7 +1541,7 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         let cut = cut_above(smallest, 2.0 * delta, rel);
         let crossing_counts = radius >= self.seam_reach;
         let cut = self.s.splat(cut);
-        for (q, (e0, _, crossing)) in scan.iter().enumerate().take(frame.chunks) {
+        for &(q, ref e0, _, crossing) in scan {
             let mut mask = self.s.le(self.s.load(e0), cut) & !crossing;
             if crossing_counts {
                 mask |= crossing;
@@ -1548,7 +1549,7 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
             while mask != 0 {
                 let l = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                let j = q * LANES + l;
+                let j = q as usize * LANES + l;
                 if j < b.segments {
                     keep(exact(j), j, &mut best);
                 }
@@ -1570,7 +1571,6 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         (out, lower, gaps_ready): (&mut Vec<ScanChunk>, &mut Vec<f32>, bool),
     ) -> (f32, f32, f32) {
         let (b, frame) = (self.b, self.frame);
-        out.resize(frame.chunks, ([0.0; LANES], [0.0; LANES], 0));
         let skip = Skip {
             rel: frame.rel,
             segment_delta: frame.segment_delta,
@@ -1719,8 +1719,8 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         scratch: &mut CurveScratch,
     ) -> bool {
         let (a, frame) = (self.a, self.frame);
-        let x: [f32; N] = std::array::from_fn(|k| a.set.coords32[k * frame.points_pad + i]);
-        let v: [f32; N] = std::array::from_fn(|k| a.dirs32[k * frame.points_pad + i]);
+        let x: [f32; N] = each(0.0, |k| a.set.coords32[k * frame.points_pad + i]);
+        let v: [f32; N] = each(0.0, |k| a.dirs32[k * frame.points_pad + i]);
         let theta = self.segment_threshold(c2);
         if theta >= 0.0
             && segment_probe::<S, N>(
@@ -1949,51 +1949,43 @@ fn largest(values: &[f32; LANES], mask: u32) -> usize {
     l
 }
 
-/// The keys of up to 16 blocks, packed (a non-negative `f32` orders like its bits; the
-/// low four bits take the inverted block, so keys are distinct and ties go to the lower
-/// block) and sorted in decreasing order without branches: each one's rank is the
-/// number of keys above it. A function, not a closure, so that it is compiled inside
-/// the caller's instruction set (a closure was compiled apart, without AVX2).
-#[inline(always)]
-fn ranked(key: &[f32]) -> [u32; 16] {
-    let mut packed = [0u32; 16];
-    for (alpha, (slot, k)) in packed.iter_mut().zip(key).enumerate() {
-        *slot = (k.to_bits() & !15) | (15 - alpha as u32);
-    }
-    let mut sorted = [0u32; 16];
-    for &x in &packed[..key.len()] {
-        let mut rank = 0;
-        for &y in &packed {
-            rank += u32::from(y > x);
-        }
-        sorted[rank as usize] = x;
-    }
-    sorted
-}
-
 /// The blocks of both directions, far from the other set first: entry `e` is block
 /// `e & 0x7fff_ffff` of `A` (`e >> 31 == 0`, key `row_key`) or of `B` (`1`, key
 /// `col_key`), by decreasing key (ties: `A` first, then the lower block; keys that
-/// differ in their last bits only may count as ties), so that the running bound
+/// differ in their last five bits only may count as ties), so that the running bound
 /// reaches its final value early whichever direction holds the maximum.
 #[inline(always)]
 fn merged_order(row_key: &[f32], col_key: &[f32], packed: &mut Vec<u64>, order: &mut Vec<u32>) {
     let chunks = row_key.len();
     order.clear();
     if chunks <= 16 && col_key.len() == chunks {
-        // Each direction ranked without branches (as in `far_first`), then the two
-        // merged.
-        let (rows, cols) = (ranked(row_key), ranked(col_key));
-        let (mut r, mut c) = (0, 0);
-        while r < chunks || c < chunks {
-            if c == chunks || (r < chunks && rows[r] >= cols[c]) {
-                order.push(15 - (rows[r] & 15));
-                r += 1;
-            } else {
-                order.push((15 - (cols[c] & 15)) | 1 << 31);
-                c += 1;
-            }
+        // Ranked without branches: a non-negative `f32` orders like its bits, here
+        // read as `i32` (they stay below 2³¹) so that one vector instruction compares
+        // eight; the low five bits take the direction (`A` above) and the inverted
+        // block, so keys are distinct, and an entry's rank is the number above it.
+        let mut all = [i32::MIN; 32];
+        for (alpha, key) in row_key.iter().enumerate() {
+            all[alpha] = ((key.to_bits() & !31) | 16 | (15 - alpha as u32)) as i32;
         }
+        for (beta, key) in col_key.iter().enumerate() {
+            all[16 + beta] = ((key.to_bits() & !31) | (15 - beta as u32)) as i32;
+        }
+        let mut sorted = [0u32; 32];
+        for &x in all[..chunks].iter().chain(&all[16..16 + chunks]) {
+            let mut rank = 0;
+            for &y in &all {
+                rank += i32::from(y > x);
+            }
+            sorted[rank as usize] = x as u32;
+        }
+        order.extend(sorted[..2 * chunks].iter().map(|&x| {
+            let block = 15 - (x & 15);
+            if x & 16 != 0 {
+                block
+            } else {
+                block | 1 << 31
+            }
+        }));
         return;
     }
     // A non-negative `f32` orders like its bits; the low half of the word takes the
@@ -2155,7 +2147,7 @@ fn curve_hausdorff<S: Lanes, const N: usize>(
     };
     let wraps = Wraps::new(s, &frame.period);
     let wide = prepared.is_wide();
-    let half: [S::V; N] = std::array::from_fn(|k| s.splat((0.5 * frame.period[k]) as f32));
+    let half: [S::V; N] = each(s.splat(0.0), |k| s.splat((0.5 * frame.period[k]) as f32));
     let seam = frame
         .period
         .iter()

@@ -54,7 +54,7 @@ mod lanes;
 
 use std::sync::OnceLock;
 
-pub(crate) use self::lanes::{Lanes, Portable, WIDTH};
+pub(crate) use self::lanes::{each, Lanes, Portable, WIDTH};
 #[cfg(doc)]
 use super::prepared::FilterBounds;
 use super::prepared::{fold, PreparedSets, SetRef, LANES, RING};
@@ -212,7 +212,7 @@ pub(crate) fn center_table<S: Lanes, const N: usize>(
     scratch: &mut Scratch,
 ) {
     let chunks = frame.chunks;
-    let period: [S::V; N] = std::array::from_fn(|k| s.splat(frame.period32[k]));
+    let period: [S::V; N] = each(s.splat(0.0), |k| s.splat(frame.period32[k]));
     scratch.row_key.clear();
     scratch.row_near.clear();
     scratch.col_key.clear();
@@ -225,7 +225,7 @@ pub(crate) fn center_table<S: Lanes, const N: usize>(
     let groups = chunks.div_ceil(LANES);
     let per_row = frame.chunks_wide / LANES;
     for g in 0..groups {
-        let ca: [S::V; N] = std::array::from_fn(|k| s.load(&a_rows[k * per_row + g]));
+        let ca: [S::V; N] = each(s.splat(0.0), |k| s.load(&a_rows[k * per_row + g]));
         let mut best = s.splat(f32::INFINITY);
         let mut best_at = s.splat(0.0);
         for (beta, cb) in b_centers.iter().enumerate() {

@@ -12,7 +12,7 @@
 //! convex set), and at most `|w − σ·v_j|` for any `σ ∈ [0, 1]`: segment `i` is settled
 //! when both ends are within `c` of the same lifted `s_j`.
 
-use crate::metric::kernel::{Lanes, RING_WINDOW};
+use crate::metric::kernel::{each, Lanes, RING_WINDOW};
 use crate::metric::prepared::RING;
 
 /// The rows of a [`vertex_window`] around its centre, outward, every third point of `B`
@@ -47,22 +47,12 @@ pub(super) struct Wraps<S: Lanes, const N: usize> {
 impl<S: Lanes, const N: usize> Wraps<S, N> {
     #[inline(always)]
     pub(super) fn new(s: S, period: &[f64; N]) -> Self {
+        let zero = s.splat(0.0);
+        let finite = |k: usize, x: f64| if period[k].is_finite() { x as f32 } else { 0.0 };
         Self {
-            period: std::array::from_fn(|k| {
-                s.splat(if period[k].is_finite() {
-                    period[k] as f32
-                } else {
-                    0.0
-                })
-            }),
-            inverse: std::array::from_fn(|k| {
-                s.splat(if period[k].is_finite() {
-                    (1.0 / period[k]) as f32
-                } else {
-                    0.0
-                })
-            }),
-            fold: std::array::from_fn(|k| s.splat(period[k] as f32)),
+            period: each(zero, |k| s.splat(finite(k, period[k]))),
+            inverse: each(zero, |k| s.splat(finite(k, 1.0 / period[k]))),
+            fold: each(zero, |k| s.splat(period[k] as f32)),
         }
     }
 }
@@ -85,9 +75,10 @@ impl<S: Lanes, const N: usize> SegmentBlock<S, N> {
     ) -> Self {
         let (points, _) = coords32.as_chunks::<LANES>();
         let (dirs, _) = dirs32.as_chunks::<LANES>();
+        let zero = s.splat(0.0);
         Self {
-            start: std::array::from_fn(|k| s.load(&points[k * chunks + alpha])),
-            dir: std::array::from_fn(|k| s.load(&dirs[k * chunks + alpha])),
+            start: each(zero, |k| s.load(&points[k * chunks + alpha])),
+            dir: each(zero, |k| s.load(&dirs[k * chunks + alpha])),
         }
     }
 }
@@ -179,13 +170,13 @@ pub(super) fn segment_window<S: Lanes, const N: usize>(
     (best, best0, best1)
 }
 
-/// One chunk of a [`segment_scan`]: the lifted squared distances from both ends and
-/// the segments that cross the seam.
-pub(super) type ScanChunk = ([f32; LANES], [f32; LANES], u32);
+/// One chunk of a [`segment_scan`]: its index in `B`, the lifted squared distances from
+/// both ends and the segments that cross the seam.
+pub(super) type ScanChunk = (u32, [f32; LANES], [f32; LANES], u32);
 
 /// The lifted squared distances from the point `x` (and, with `ENDS`, from `x + v`, in
 /// the image of `x`) to every segment of `B`, eight segments per vector: per chunk
-/// `(e(x), e(x + v), crossing)` into `out`, where bit `l` of `crossing` marks a segment
+/// computed `(chunk, e(x), e(x + v), crossing)` pushed to `out` (emptied first), where bit `l` of `crossing` marks a segment
 /// that crosses the seam relative to `x` (its lifted `e(x)` is then only an upper bound
 /// of the periodic distance). Returns the smallest `e(x)`, the smallest `e(x + v)` and
 /// the smallest `max(e(x), e(x + v))` over the chunks computed.
@@ -196,8 +187,8 @@ pub(super) type ScanChunk = ([f32; LANES], [f32; LANES], u32);
 /// any point of the segment to any point of the chunk's segments. A chunk is skipped
 /// when its `f32` squared gap exceeds `skip.threshold(hint)`, where `hint` is an `f32`
 /// test value already known of some segment of `B` (`max(e(x), e(x + v))` with `ENDS`,
-/// else `e(x)`, or `+∞`): nothing in such a chunk can matter (see [`Skip`]). A
-/// skipped chunk reads `(+∞, +∞, 0)`.
+/// else `e(x)`, or `+∞`): nothing in such a chunk can matter (see [`Skip`]), and it
+/// is left out of `out`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn segment_scan<S: Lanes, const N: usize, const ENDS: bool>(
@@ -208,21 +199,20 @@ pub(super) fn segment_scan<S: Lanes, const N: usize, const ENDS: bool>(
     (wraps, half): (&Wraps<S, N>, &[S::V; N]),
     (skip, hint): (Skip, f32),
     (lower, gaps_ready): (&mut Vec<f32>, bool),
-    out: &mut [ScanChunk],
+    out: &mut Vec<ScanChunk>,
 ) -> (f32, f32, f32) {
     let (points, _) = coords32.as_chunks::<LANES>();
     let (dirs, _) = dirs32.as_chunks::<LANES>();
     let (inverse, _) = inv32.as_chunks::<LANES>();
-    let points: [&[[f32; LANES]]; N] =
-        std::array::from_fn(|k| &points[k * chunks..(k + 1) * chunks]);
-    let dirs: [&[[f32; LANES]]; N] = std::array::from_fn(|k| &dirs[k * chunks..(k + 1) * chunks]);
+    let points: [&[[f32; LANES]]; N] = each(&[], |k| &points[k * chunks..(k + 1) * chunks]);
+    let dirs: [&[[f32; LANES]]; N] = each(&[], |k| &dirs[k * chunks..(k + 1) * chunks]);
     let inverse = &inverse[..chunks];
-    let out = &mut out[..chunks];
+    out.clear();
     if !gaps_ready {
         box_gaps::<S, N>(s, (x, v), boxes32, chunks, wraps, lower);
     }
-    let xs: [S::V; N] = std::array::from_fn(|k| s.splat(x[k]));
-    let vs: [S::V; N] = std::array::from_fn(|k| s.splat(v[k]));
+    let xs: [S::V; N] = each(s.splat(0.0), |k| s.splat(x[k]));
+    let vs: [S::V; N] = each(s.splat(0.0), |k| s.splat(v[k]));
     let chunk = (&points, &dirs, inverse);
     let infinity = s.splat(f32::INFINITY);
     let (mut min0, mut min1, mut min_max) = (infinity, infinity, infinity);
@@ -230,12 +220,6 @@ pub(super) fn segment_scan<S: Lanes, const N: usize, const ENDS: bool>(
     let (gaps, _) = lower.as_chunks::<LANES>();
     for (g, gap) in gaps.iter().enumerate() {
         let mut kept = s.le(s.load(gap), limit);
-        let mut skipped = !kept & ((1u32 << (chunks - g * LANES).min(LANES)) - 1);
-        while skipped != 0 {
-            let q = g * LANES + skipped.trailing_zeros() as usize;
-            skipped &= skipped - 1;
-            out[q] = ([f32::INFINITY; LANES], [f32::INFINITY; LANES], 0);
-        }
         while kept != 0 {
             let q = g * LANES + kept.trailing_zeros() as usize;
             kept &= kept - 1;
@@ -244,7 +228,7 @@ pub(super) fn segment_scan<S: Lanes, const N: usize, const ENDS: bool>(
             }
             let (e0, e1, crossing) =
                 scan_chunk::<S, N, ENDS>(s, (&xs, &vs), chunk, q, (wraps, half));
-            out[q] = (s.array(e0), s.array(e1), crossing);
+            out.push((q as u32, s.array(e0), s.array(e1), crossing));
             min0 = s.min(e0, min0);
             if ENDS {
                 min1 = s.min(e1, min1);
@@ -285,11 +269,10 @@ pub(super) fn segment_probe<S: Lanes, const N: usize>(
     let (points, _) = coords32.as_chunks::<LANES>();
     let (dirs, _) = dirs32.as_chunks::<LANES>();
     let (inverse, _) = inv32.as_chunks::<LANES>();
-    let points: [&[[f32; LANES]]; N] =
-        std::array::from_fn(|k| &points[k * chunks..(k + 1) * chunks]);
-    let dirs: [&[[f32; LANES]]; N] = std::array::from_fn(|k| &dirs[k * chunks..(k + 1) * chunks]);
-    let xs: [S::V; N] = std::array::from_fn(|k| s.splat(x[k]));
-    let vs: [S::V; N] = std::array::from_fn(|k| s.splat(v[k]));
+    let points: [&[[f32; LANES]]; N] = each(&[], |k| &points[k * chunks..(k + 1) * chunks]);
+    let dirs: [&[[f32; LANES]]; N] = each(&[], |k| &dirs[k * chunks..(k + 1) * chunks]);
+    let xs: [S::V; N] = each(s.splat(0.0), |k| s.splat(x[k]));
+    let vs: [S::V; N] = each(s.splat(0.0), |k| s.splat(v[k]));
     let (e0, e1, _) = scan_chunk::<S, N, true>(
         s,
         (&xs, &vs),
@@ -317,8 +300,8 @@ fn box_gaps<S: Lanes, const N: usize>(
     let (rows, _) = boxes32.as_chunks::<LANES>();
     lower.resize(groups * LANES, 0.0);
     let (gaps, _) = lower.as_chunks_mut::<LANES>();
-    let mid: [S::V; N] = std::array::from_fn(|k| s.splat(x[k] + 0.5 * v[k]));
-    let spread: [S::V; N] = std::array::from_fn(|k| s.splat(0.5 * v[k].abs()));
+    let mid: [S::V; N] = each(s.splat(0.0), |k| s.splat(x[k] + 0.5 * v[k]));
+    let spread: [S::V; N] = each(s.splat(0.0), |k| s.splat(0.5 * v[k].abs()));
     let zero = s.splat(0.0);
     for (g, gap) in gaps.iter_mut().enumerate().take(groups) {
         let mut acc = zero;

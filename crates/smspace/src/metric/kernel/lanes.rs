@@ -12,6 +12,19 @@ use std::arch::x86_64::{__m256, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ};
 /// Lanes per vector.
 pub(crate) const WIDTH: usize = 8;
 
+/// `[f(0), …, f(N − 1)]` by a plain loop, always inlined: `std::array::from_fn` was
+/// often compiled apart (outside the caller's AVX2 context, its vectors passed through
+/// memory), about 1 % of the curve kernel's instructions. `zero` only fills the array
+/// before the loop.
+#[inline(always)]
+pub(crate) fn each<T: Copy, const N: usize>(zero: T, f: impl Fn(usize) -> T) -> [T; N] {
+    let mut out = [zero; N];
+    for (k, slot) in out.iter_mut().enumerate() {
+        *slot = f(k);
+    }
+    out
+}
+
 /// Operations on eight `f32` lanes.
 pub(crate) trait Lanes: Copy {
     /// The vector.
