@@ -434,6 +434,7 @@ impl CurveLayout {
 }
 
 impl PreparedSets {
+    #[inline(always)]
     pub(crate) fn curve(&self, s: usize) -> CurveRef<'_> {
         let layout = self
             .curves()
@@ -994,23 +995,7 @@ fn segment_max<const N: usize>(
                 .take_while(|f| f.owner as usize == m)
                 .count();
     }
-    // d_B² at a(t) exactly (the lifted distances to every image) and the image reaching
-    // it (the lowest index among ties).
-    let envelope = |t: f64| {
-        let mut best = (f64::INFINITY, 0usize);
-        for (m, (j, u0)) in images.iter().enumerate() {
-            let j = *j as usize;
-            let mut u = [0.0; N];
-            for k in 0..N {
-                u[k] = u0[k] + t * v[k];
-            }
-            let d = lifted_distance2(&u, &load::<N>(b.dirs, j), b.inv_len2[j]);
-            if d < best.0 {
-                best = (d, m);
-            }
-        }
-        best
-    };
+    let envelope = |t: f64| envelope_at::<N>(images, &v, b, t);
     const SLACK: f64 = 1e-12;
     let (at0, m0) = envelope(0.0);
     let (at1, m1) = envelope(1.0);
@@ -1079,6 +1064,31 @@ fn segment_max<const N: usize>(
         }
     }
     SegmentMax::Done(c2.sqrt().max(c), arg)
+}
+
+/// The envelope `F²` at `a(t) = a_i + t·v` (the smallest lifted squared distance to the
+/// `images`) and the image reaching it (the lowest index among ties). A function, not
+/// a closure, so that it is compiled inside the caller's instruction set.
+#[inline(always)]
+fn envelope_at<const N: usize>(
+    images: &[(u32, [f64; N])],
+    v: &[f64; N],
+    b: CurveRef<'_>,
+    t: f64,
+) -> (f64, usize) {
+    let mut best = (f64::INFINITY, 0usize);
+    for (m, (j, u0)) in images.iter().enumerate() {
+        let j = *j as usize;
+        let mut u = [0.0; N];
+        for k in 0..N {
+            u[k] = u0[k] + t * v[k];
+        }
+        let d = lifted_distance2(&u, &load::<N>(b.dirs, j), b.inv_len2[j]);
+        if d < best.0 {
+            best = (d, m);
+        }
+    }
+    best
 }
 
 /// Largest number of splits of the envelope of one segment (then the branch and bound

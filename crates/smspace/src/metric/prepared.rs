@@ -387,6 +387,7 @@ impl PreparedSets {
         self.chunks().div_ceil(WIDE) * WIDE
     }
 
+    #[inline(always)]
     pub(crate) fn set(&self, s: usize) -> SetRef<'_> {
         let per = self.dims_pad * self.points_pad;
         let chunks = self.chunks();
