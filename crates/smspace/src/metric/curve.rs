@@ -893,12 +893,6 @@ const MAX_LAZY_ROUNDS: usize = 8;
 /// which the maximum counts as attained (both computed in `f64`, by different sums).
 const LAZY_SLACK: f64 = 1e-12;
 
-/// The direction `v_i` of segment `i` of `a`.
-#[inline(always)]
-fn v_of<const N: usize>(a: CurveRef<'_>, i: usize) -> [f64; N] {
-    load::<N>(a.dirs, i)
-}
-
 /// Adds to `images` the image of segment `j` of `B` nearest to the point `a_i + t·v_i` of
 /// segment `i` of `A` (as its start relative to `a_i`), unless it is there already.
 /// False when the image cannot be told in closed form (the segment crosses the seam in
@@ -916,7 +910,7 @@ fn add_image<const N: usize>(
     count: &mut usize,
 ) -> bool {
     let x = point_on::<N>(a, i, t, period);
-    let v = v_of::<N>(a, i);
+    let v = load::<N>(a.dirs, i);
     let start = load::<N>(b.set.points, j);
     let w = load::<N>(b.dirs, j);
     let inv = b.inv_len2[j];
@@ -965,10 +959,10 @@ fn add_image<const N: usize>(
 /// against an abort limit; [`Pass::exact_segment`] evaluates `d_B` where it is reached.
 ///
 /// On each image, `E(t)² = |p + t q|²` piecewise, with at most three pieces (the foot
-/// `s*(t)` linear in `t`, clamped to `0` or `1`), so `d_B² = min E²` is a lower envelope
+/// `s*(t)` linear in `t`, clamped to `0` or `1`), so `F² = min E²` is a lower envelope
 /// of convex quadratics. On an interval `[t_a, t_b]` whose ends are nearest to images
-/// `m_a` and `m_b`, `d_B ≤ F = min(E_{m_a}, E_{m_b})`, and the maximum of `F` is at an end
-/// or where the two cross (a root of `E_{m_a}² − E_{m_b}²` on a common piece; each piece
+/// `m_a` and `m_b`, `F ≤ min(E_{m_a}, E_{m_b})`, and the maximum of the latter is at an
+/// end or where the two cross (a root of `E_{m_a}² − E_{m_b}²` on a common piece; each piece
 /// of `F` is convex). So every crossing above the running maximum is evaluated
 /// exactly: if no third image is lower there, its value is attained and bounds the
 /// interval; else the interval is split there with the lower image, and both halves
