@@ -541,6 +541,26 @@ fn point_segment2<const N: usize>(
     j: usize,
     period: &[f64; N],
 ) -> f64 {
+    let v = load::<N>(b.dirs, j);
+    let inv = b.inv_len2[j];
+    match nearest_image::<N>(x, b, j, period) {
+        Some(u) => lifted_distance2(&u, &v, inv),
+        None => segment_distance2(x, &load::<N>(b.set.points, j), &v, inv, period),
+    }
+}
+
+/// `x − s̃_j(0)` for the periodic image `s̃_j` of segment `j` of `B` nearest to the
+/// point `x` (`u = h(x − b_j)`, or one period over in the one coordinate where
+/// `u_n − v_n` leaves `[−T_n/2, T_n/2]` along the segment, when that image is nearer:
+/// past that point it is), or `None` when the segment crosses the seam relative to `x`
+/// in more than one coordinate (then only the piecewise [`segment_distance2`] tells).
+#[inline(always)]
+fn nearest_image<const N: usize>(
+    x: &[f64; N],
+    b: CurveRef<'_>,
+    j: usize,
+    period: &[f64; N],
+) -> Option<[f64; N]> {
     let start = load::<N>(b.set.points, j);
     let v = load::<N>(b.dirs, j);
     let inv = b.inv_len2[j];
@@ -555,17 +575,17 @@ fn point_segment2<const N: usize>(
         }
     }
     match crossings {
-        0 => lifted_distance2(&u, &v, inv),
+        0 => Some(u),
         1 => {
-            // The difference leaves [−T/2, T/2] in one coordinate along the segment: past
-            // that point the image one period over is the nearer one, so the periodic
-            // distance is the smaller of the two lifted ones.
             let mut shifted = u;
-            let k = last;
-            shifted[k] -= period[k].copysign(u[k] - v[k]);
-            lifted_distance2(&u, &v, inv).min(lifted_distance2(&shifted, &v, inv))
+            shifted[last] -= period[last].copysign(u[last] - v[last]);
+            if lifted_distance2(&shifted, &v, inv) < lifted_distance2(&u, &v, inv) {
+                Some(shifted)
+            } else {
+                Some(u)
+            }
         }
-        _ => segment_distance2(x, &start, &v, inv, period),
+        _ => None,
     }
 }
 
@@ -911,30 +931,9 @@ fn add_image<const N: usize>(
 ) -> bool {
     let x = point_on::<N>(a, i, t, period);
     let v = load::<N>(a.dirs, i);
-    let start = load::<N>(b.set.points, j);
-    let w = load::<N>(b.dirs, j);
-    let inv = b.inv_len2[j];
-    let mut u = [0.0; N];
-    let mut crossings = 0;
-    let mut last = 0;
-    for k in 0..N {
-        u[k] = swrap(x[k] - start[k], period[k]);
-        if (u[k] - w[k]).abs() > 0.5 * period[k] {
-            crossings += 1;
-            last = k;
-        }
-    }
-    match crossings {
-        0 => {}
-        1 => {
-            let mut shifted = u;
-            shifted[last] -= period[last].copysign(u[last] - w[last]);
-            if lifted_distance2(&shifted, &w, inv) < lifted_distance2(&u, &w, inv) {
-                u = shifted;
-            }
-        }
-        _ => return false,
-    }
+    let Some(u) = nearest_image::<N>(&x, b, j, period) else {
+        return false;
+    };
     let mut u0 = [0.0; N];
     for k in 0..N {
         u0[k] = u[k] - t * v[k];
