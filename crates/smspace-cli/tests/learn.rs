@@ -135,6 +135,93 @@ fn simulate_then_learn_writes_the_files_of_trace() {
 }
 
 #[test]
+fn learn_with_the_invariants_traces_the_lines_and_reports_the_eigenvalues() {
+    let (_guard, dir) = temp();
+    ok(
+        &dir,
+        &[
+            "simulate",
+            "--agent",
+            "toy-redundant",
+            "--n",
+            "5000",
+            "--env-seed",
+            "3",
+            "--out-dir",
+            "log",
+        ],
+    );
+    let motors: Array2<f64> = read_npy(dir.join("log/motors.npy")).unwrap();
+    let starts = first_rows(&motors, 4);
+    write_npy(dir.join("starts.npy"), &starts).unwrap();
+    let learn = |extra: &[&str]| {
+        let mut args = vec![
+            "learn",
+            "--motors",
+            "log/motors.npy",
+            "--sensors",
+            "log/sensors.npy",
+            "--starts",
+            "starts.npy",
+            "--period",
+            "none",
+            "--points",
+            "20",
+            "--method",
+            "invariants",
+            "--out",
+            "sets.npy",
+        ];
+        args.extend_from_slice(extra);
+        args.into_iter().map(str::to_owned).collect::<Vec<_>>()
+    };
+    let args = learn(&[]);
+    let out = ok(&dir, &args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        common::stderr(&out).contains("invariants of 8 basis functions"),
+        "{}",
+        common::stderr(&out)
+    );
+    let sets: Array3<f64> = read_npy(dir.join("sets.npy")).unwrap();
+    let kept: Array1<i64> = read_npy(dir.join("sets.kept.npy")).unwrap();
+    assert!(kept.len() >= 3, "{kept}");
+    for (set, &row) in sets.outer_iter().zip(kept.iter()) {
+        let x = starts[[row as usize, 0]] + starts[[row as usize, 1]];
+        for p in set.outer_iter() {
+            assert!((p[0] + p[1] - x).abs() < 0.05, "{} vs {x}", p[0] + p[1]);
+        }
+    }
+    let law: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("sets.law.json")).unwrap()).unwrap();
+    assert_eq!(
+        (law["method"].as_str(), law["rank"].as_u64()),
+        (Some("invariants"), Some(1))
+    );
+    assert_eq!(law["invariants"]["features"], 8);
+    // Impossible counts are refused with the key.
+    let args = learn(&["--invariants", "40"]);
+    let e = fails(&dir, &args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(e.contains("invariants") && e.contains("1..=32"), "{e}");
+    let e = fails(
+        &dir,
+        &[
+            "learn",
+            "--motors",
+            "log/motors.npy",
+            "--sensors",
+            "log/sensors.npy",
+            "--starts",
+            "starts.npy",
+            "--method",
+            "neural",
+            "--out",
+            "x.npy",
+        ],
+    );
+    assert!(e.contains("local-quadratic or invariants"), "{e}");
+}
+
+#[test]
 fn bad_logs_name_the_file_and_the_fix() {
     let (_guard, dir) = temp();
     let motors = Array2::from_shape_fn((400, 2), |(i, j)| {

@@ -81,18 +81,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let errors = set_errors(&learned, &truth, Period::TwoPi).ok();
     // The learned manifold: the Hausdorff matrix of the learned sets, its topology and
-    // dimension, and its agreement with the poses the simulated log kept aside.
-    let manifold = if std::env::var("MANIFOLD").is_ok() && learned.kept.len() > 20 {
+    // dimension, and its agreement with the poses the simulated log kept aside; the same
+    // for the true sets through the same starts, for comparison.
+    let poses = log
+        .poses
+        .as_ref()
+        .map(|p| p.poses().select(ndarray::Axis(0), &rows));
+    let manifold_of = |traced: &smspace::kernel::TracedSets| -> Result<serde_json::Value, Box<dyn std::error::Error>> {
         let distances = smspace::metric::distance_matrix(
-            learned.sets.view(),
+            traced.sets.view(),
             &smspace::metric::DistanceParams::new(),
             &Silent,
         )?;
-        let poses = log
-            .poses
+        let kept_poses = poses
             .as_ref()
-            .map(|p| p.poses().select(ndarray::Axis(0), &rows));
-        let kept_poses = poses.map(|p| p.select(ndarray::Axis(0), &learned.kept));
+            .map(|p| p.select(ndarray::Axis(0), &traced.kept));
         let params = smspace::analysis::AnalysisParams::default().check()?;
         let report = smspace::analysis::analyze(
             &distances,
@@ -100,12 +103,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             &params,
             &Silent,
         )?;
-        serde_json::json!({
+        Ok(serde_json::json!({
+            "sets": traced.kept.len(),
             "betti": report.betti,
             "twonn": report.intrinsic_dimension.twonn,
             "trustworthiness": report.agreement.as_ref().map(|a| a.trustworthiness),
             "continuity": report.agreement.as_ref().map(|a| a.continuity),
-        })
+        }))
+    };
+    let wanted = std::env::var("MANIFOLD").is_ok();
+    let manifold = if wanted && learned.kept.len() > 20 {
+        manifold_of(&learned)?
+    } else {
+        serde_json::Value::Null
+    };
+    let truth_manifold = if wanted && truth.kept.len() > 20 {
+        manifold_of(&truth)?
     } else {
         serde_json::Value::Null
     };
@@ -113,6 +126,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let line = serde_json::json!({
         "tangent_angle_rad": tangent_angles,
         "manifold": manifold,
+        "truth_manifold": truth_manifold,
         "samples": samples,
         "noise": noise,
         "method": method,

@@ -35,9 +35,20 @@ pub struct Args {
     /// LOW:HIGH, or a comma-separated list of these, one per motor.
     #[arg(long, default_value = "2pi")]
     period: String,
-    /// The regression: local-quadratic or local-linear.
+    /// The law: local-quadratic or local-linear (regressions of the sensors around each
+    /// configuration), or invariants (the functions of the motors that sensory neighbours
+    /// share, in a Fourier basis of the motors: the kernels are their level sets; at most
+    /// five motors).
     #[arg(long, default_value = "local-quadratic", value_parser = parse_method)]
     method: LawMethod,
+    /// With --method invariants: how many invariants to keep (default: those up to the
+    /// largest gap of the eigenvalues below --invariance-threshold).
+    #[arg(long, value_name = "COUNT")]
+    invariants: Option<usize>,
+    /// With --method invariants: the largest mean squared change of a kept invariant
+    /// between sensory neighbours, relative to its variance (2 for unrelated values).
+    #[arg(long, default_value_t = LawParams::default().invariance_threshold)]
+    invariance_threshold: f64,
     /// Samples a typical fit holds (default 4p + 20, p the fit's coefficients).
     #[arg(long, value_name = "K")]
     neighbours: Option<usize>,
@@ -89,6 +100,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         neighbours: args.neighbours,
         bandwidth_factor: args.bandwidth_factor,
         seed: args.seed,
+        invariants: args.invariants,
+        invariance_threshold: args.invariance_threshold,
         ..LawParams::default()
     }
     .check()?;
@@ -157,6 +170,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!(
             "{}: bandwidth {:.4}, held-out error {:.2e} of the sensors' spread ({} samples held out)",
             log.motors, log.bandwidth, log.held_out_relative_rms, log.held_out
+        );
+    }
+    if let Some(found) = &law.report().invariants {
+        eprintln!(
+            "{} invariants of {} basis functions (eigenvalues λ {}); λ on the fitted pairs {:.3}, held out {}",
+            found.invariants,
+            found.features,
+            found
+                .eigenvalues
+                .iter()
+                .map(|l| format!("{l:.3}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+            found.fitted_lambda,
+            found
+                .held_out_lambda
+                .map_or("-".to_owned(), |l| format!("{l:.3}"))
         );
     }
     let bar = Bar::new();

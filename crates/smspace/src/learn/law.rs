@@ -10,6 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::invariants::{InvariantModel, InvariantsReport};
 use super::tree::{Candidates, KdTree};
 use super::{LawMethod, LawValidParams, LearnError, SensorimotorLog};
 use crate::agent::{Agent, Environment, MotorSpace};
@@ -32,7 +33,12 @@ thread_local! {
 const CANDIDATE_LISTS: usize = 8;
 
 /// [`KdTree::within_near`] with the calling thread's candidates for `tree`.
-fn within_cached(tree: &KdTree, query: &[f64], radius: f64, visit: impl FnMut(u32, &[f64], f64)) {
+pub(super) fn within_cached(
+    tree: &KdTree,
+    query: &[f64],
+    radius: f64,
+    visit: impl FnMut(u32, &[f64], f64),
+) {
     CANDIDATES.with(|lists| {
         let mut lists = lists.borrow_mut();
         let at = match lists.iter().position(|c| c.belongs_to(tree)) {
@@ -340,6 +346,8 @@ pub(crate) fn parameter_count(method: LawMethod, n: usize) -> usize {
     match method {
         LawMethod::LocalLinear => 1 + n,
         LawMethod::LocalQuadratic => 1 + n + n * (n + 1) / 2,
+        // The basis functions of the invariants, with the constant.
+        LawMethod::Invariants => 3usize.saturating_pow(n as u32),
     }
 }
 
@@ -585,7 +593,11 @@ fn substitute(factor: &[f64], rhs: &mut [f64], p: usize, k: usize) {
 
 /// The median over (at most [`PROBES`]) seeded samples of the distance to their
 /// `neighbours`-th nearest other sample.
-fn median_kth_distance(tree: &KdTree, neighbours: usize, params: &LawValidParams) -> f64 {
+pub(super) fn median_kth_distance(
+    tree: &KdTree,
+    neighbours: usize,
+    params: &LawValidParams,
+) -> f64 {
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed ^ 0x6b64);
     let probes = sample(&mut rng, tree.len(), PROBES.min(tree.len())).into_vec();
     let mut distances: Vec<f64> = probes
@@ -603,7 +615,7 @@ fn median_kth_distance(tree: &KdTree, neighbours: usize, params: &LawValidParams
 /// The fitted rows and their images shifted by whole periods where a periodic
 /// coordinate lies within `bandwidth` of its range's ends, so that a query in the range
 /// finds every sample within `bandwidth` on the torus as one plain point.
-fn periodic_images(
+pub(super) fn periodic_images(
     log: &SensorimotorLog,
     fit: &[u32],
     space: &MotorSpace,
@@ -654,6 +666,9 @@ pub struct LawReport {
     pub rank: usize,
     /// How often each rank was found at the probed samples (index = rank).
     pub rank_counts: Vec<usize>,
+    /// The `invariants` method's eigenproblem (absent for the local fits).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub invariants: Option<InvariantsReport>,
 }
 
 /// One log's part of the [`LawReport`].
@@ -682,13 +697,23 @@ pub struct LogReport {
     pub held_out_uncovered: usize,
 }
 
+/// The models behind a [`LearnedLaw`].
+pub(crate) enum Models {
+    /// One local regression per log; the law's values are their sensor values side by
+    /// side.
+    Local(Vec<LocalModel>),
+    /// The invariants of all logs together; the law's values are the invariants.
+    Invariants(InvariantModel),
+}
+
 /// The law learned from one or several logs (one per environment): the sensor values
-/// of every log's model side by side, `K = Σ K_e`. It is an [`Agent`] without ground
-/// truth, whose `sense` ignores the environment it is given: the tracer's sensory method
-/// runs on it unchanged.
+/// of every log's model side by side, `K = Σ K_e` (the local fits), or the invariants
+/// `z(m)` of all of them (`invariants`: see [`crate::learn`]). It is an [`Agent`]
+/// without ground truth, whose `sense` ignores the environment it is given: the
+/// tracer's sensory method runs on it unchanged.
 pub struct LearnedLaw {
     space: MotorSpace,
-    models: Vec<LocalModel>,
+    models: Models,
     sensor_dim: usize,
     rank: usize,
     report: LawReport,
@@ -707,12 +732,15 @@ impl fmt::Debug for LearnedLaw {
 impl LearnedLaw {
     pub(crate) fn new(
         space: MotorSpace,
-        models: Vec<LocalModel>,
+        models: Models,
         method: LawMethod,
         logs: Vec<LogReport>,
         seed: u64,
     ) -> Self {
-        let sensor_dim = models.iter().map(|m| m.k).sum();
+        let (sensor_dim, invariants) = match &models {
+            Models::Local(models) => (models.iter().map(|m| m.k).sum(), None),
+            Models::Invariants(model) => (model.count(), Some(model.report().clone())),
+        };
         let mut law = Self {
             space,
             models,
@@ -723,6 +751,7 @@ impl LearnedLaw {
                 logs,
                 rank: 0,
                 rank_counts: Vec::new(),
+                invariants,
             },
         };
         let counts = law.rank_counts(seed);
@@ -740,34 +769,52 @@ impl LearnedLaw {
         &self.report
     }
 
-    /// Writes `ŝ(m)` into `sensors` (length `K`) and its Jacobian (the local fits'
-    /// slopes, `K × N` row-major) into `jacobian`.
-    pub fn evaluate_with_jacobian(&self, m: &[f64], sensors: &mut [f64], jacobian: &mut [f64]) {
+    /// Writes the law's values `ŝ(m)` (or the invariants `z(m)`) into `sensors` (length
+    /// [`Agent::sensor_dim`]) and, when asked, their Jacobian (`K × N` row-major) into
+    /// `jacobian`.
+    fn evaluate(&self, m: &[f64], sensors: &mut [f64], mut jacobian: Option<&mut [f64]>) {
         let n = self.space.dim();
-        let mut at = 0;
-        for model in &self.models {
-            model.evaluate(
-                m,
-                &mut sensors[at..at + model.k],
-                Some(&mut jacobian[at * n..(at + model.k) * n]),
-            );
-            at += model.k;
+        match &self.models {
+            Models::Local(models) => {
+                let mut at = 0;
+                for model in models {
+                    model.evaluate(
+                        m,
+                        &mut sensors[at..at + model.k],
+                        jacobian
+                            .as_deref_mut()
+                            .map(|j| &mut j[at * n..(at + model.k) * n]),
+                    );
+                    at += model.k;
+                }
+            }
+            Models::Invariants(model) => model.evaluate(m, sensors, jacobian),
         }
+    }
+
+    /// Writes `ŝ(m)` into `sensors` (length `K`; the invariants `z(m)` for the
+    /// `invariants` method) and its Jacobian (`K × N` row-major) into `jacobian`.
+    pub fn evaluate_with_jacobian(&self, m: &[f64], sensors: &mut [f64], jacobian: &mut [f64]) {
+        self.evaluate(m, sensors, Some(jacobian));
     }
 
     /// Numerical ranks of the law's Jacobian at seeded fitted samples of the first log:
     /// counts per rank `0..=N`.
     fn rank_counts(&self, seed: u64) -> Vec<usize> {
         let n = self.space.dim();
-        let Some(first) = self.models.first() else {
-            return vec![0; n + 1];
+        let tree = match &self.models {
+            Models::Local(models) => match models.first() {
+                Some(first) => &first.tree,
+                None => return vec![0; n + 1],
+            },
+            Models::Invariants(model) => model.probe_tree(),
         };
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7261);
-        let probes = sample(&mut rng, first.tree.len(), PROBES.min(first.tree.len())).into_vec();
+        let probes = sample(&mut rng, tree.len(), PROBES.min(tree.len())).into_vec();
         let ranks: Vec<usize> = probes
             .par_iter()
             .map(|&i| {
-                let m = first.tree.point(i).to_vec();
+                let m = tree.point(i).to_vec();
                 let mut s = vec![0.0; self.sensor_dim];
                 let mut j = vec![0.0; self.sensor_dim * n];
                 self.evaluate_with_jacobian(&m, &mut s, &mut j);
@@ -824,11 +871,7 @@ impl Agent for LearnedLaw {
     }
 
     fn sense(&self, _environment: &Environment, motors: &[f64], sensors: &mut [f64]) {
-        let mut at = 0;
-        for model in &self.models {
-            model.evaluate(motors, &mut sensors[at..at + model.k], None);
-            at += model.k;
-        }
+        self.evaluate(motors, sensors, None);
     }
 
     fn name(&self) -> &str {
@@ -855,6 +898,9 @@ impl Agent for LearnedLaw {
     }
 
     fn covers(&self, motors: &[f64]) -> bool {
-        self.models.iter().all(|m| m.covers(motors))
+        match &self.models {
+            Models::Local(models) => models.iter().all(|m| m.covers(motors)),
+            Models::Invariants(model) => model.covers(motors),
+        }
     }
 }

@@ -256,27 +256,62 @@ pub(super) fn fit_log(
             fix: "record a longer log, lower neighbours or holdout, or use method = local-linear",
         });
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
+    let (fit, held_rows) = split_rows(samples, held, params.seed);
+    let (model, images) = LocalModel::new(log, &fit, params, space)?;
+    let report = held_out_report(
+        log,
+        &held_rows,
+        fit.len(),
+        (model.bandwidth(), images),
+        |m, s| {
+            if !model.covers(m) {
+                return false;
+            }
+            model.evaluate(m, s, None);
+            true
+        },
+    );
+    Ok((model, report))
+}
+
+/// The rows of a log held out of the fit (seeded), sorted, and the fitted rows.
+pub(super) fn split_rows(samples: usize, held: usize, seed: u64) -> (Vec<u32>, Vec<u32>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut is_held = vec![false; samples];
-    let mut held_rows = sample(&mut rng, samples, held).into_vec();
+    let mut held_rows: Vec<u32> = sample(&mut rng, samples, held)
+        .into_iter()
+        .map(|i| i as u32)
+        .collect();
     held_rows.sort_unstable();
     for &i in &held_rows {
-        is_held[i] = true;
+        is_held[i as usize] = true;
     }
-    let fit: Vec<u32> = (0..samples as u32)
+    let fit = (0..samples as u32)
         .filter(|&i| !is_held[i as usize])
         .collect();
-    let (model, images) = LocalModel::new(log, &fit, params, space)?;
+    (fit, held_rows)
+}
+
+/// The report of one log: its law's error on the held-out rows, where
+/// `predict(m, ŝ)` writes the law's sensor values and returns whether the law covers
+/// `m` (uncovered rows are counted apart).
+pub(super) fn held_out_report(
+    log: &SensorimotorLog,
+    held_rows: &[u32],
+    fitted: usize,
+    (bandwidth, images): (f64, f64),
+    predict: impl Fn(&[f64], &mut [f64]) -> bool + Sync,
+) -> LogReport {
     let k = log.sensors.ncols();
     let errors: Vec<Option<(f64, f64)>> = held_rows
         .par_iter()
         .map(|&i| {
+            let i = i as usize;
             let m = log.motors.row(i).to_vec();
-            if !model.covers(&m) {
+            let mut s = vec![0.0; k];
+            if !predict(&m, &mut s) {
                 return None;
             }
-            let mut s = vec![0.0; k];
-            model.evaluate(&m, &mut s, None);
             let (mut squares, mut largest) = (0.0, 0.0f64);
             for (a, b) in s.iter().zip(log.sensors.row(i)) {
                 squares += (a - b) * (a - b);
@@ -301,17 +336,16 @@ pub(super) fn fit_log(
     } else {
         (covered.iter().map(|e| e.0).sum::<f64>() / (covered.len() * k) as f64).sqrt()
     };
-    let report = LogReport {
+    LogReport {
         motors: log.files.motors.display().to_string(),
         sensors: log.files.sensors.display().to_string(),
-        samples,
-        fitted: fit.len(),
-        held_out: held,
-        bandwidth: model.bandwidth(),
+        samples: log.samples(),
+        fitted,
+        held_out: held_rows.len(),
+        bandwidth,
         images_per_sample: images,
         held_out_relative_rms: rms / mean_variance.sqrt().max(f64::MIN_POSITIVE),
         held_out_max_abs: covered.iter().map(|e| e.1).fold(0.0, f64::max),
         held_out_uncovered: errors.len() - covered.len(),
-    };
-    Ok((model, report))
+    }
 }

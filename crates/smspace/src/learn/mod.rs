@@ -33,6 +33,31 @@
 //! frequent numerical rank of the fit's Jacobian at 512 seeded samples, read at the
 //! largest gap of its singular values (`N` when `σ_N/σ_1 > 0.1`).
 //!
+//! ## The law: invariants ([`LawMethod::Invariants`])
+//!
+//! The kernels are level sets; the law need not be right everywhere, only its level
+//! sets. Every fitted sample `i` is paired with the fitted sample `j(i)` nearest to it
+//! in sensor space. In the tensor Fourier basis `φ(m)` of the motors (per hinge
+//! `1, cos m_j, sin m_j`; per bounded motor `1, u, 2u² − 1`: `F = 3^N − 1` functions
+//! without the constant), the combinations `z = wᵀφ` that change least between the two
+//! samples of a pair, relative to their variance, solve the generalised eigenproblem
+//!
+//! ```text
+//! C w = λ Σ w,   C = mean_i (φ_i − φ_j(i))(φ_i − φ_j(i))ᵀ,   Σ = Cov(φ),   λ = E[(z_i − z_j(i))²] / Var z.
+//! ```
+//!
+//! The invariants `z(m) = Wᵀ(φ(m) − μ)` are the eigenvectors of the smallest `λ` up to
+//! the largest gap (a ratio of at least 2 between consecutive `λ`; else all of them)
+//! among those below `invariance_threshold` (0.4; an unrelated function has `λ ≈ 2`). When the sensors are a function of the pose of the sensor that tells
+//! poses apart, the invariants are functions of the pose, and the kernel through `m^i`
+//! is the level set `z(m) = z(m^i)`: that is what is traced, with the exact Jacobian
+//! `Wᵀ ∂φ/∂m`. For a chain of hinges the pose is a trigonometric polynomial of degree one
+//! in every joint (`x = Σ l_i cos(θ_1 + … + θ_i)`, `cos α`, `sin α`), so the basis holds
+//! it exactly. The report gives the eigenvalues, `λ` on the fitted pairs and on the
+//! held-out samples (each with its nearest fitted sample in sensor space), and the
+//! held-out error of `ŝ = g(z)`, `g` the mean sensor values of the 8 fitted samples
+//! nearest in `z`. At most five motors (242 functions). See the `invariants` module.
+//!
 //! ## Coverage (status `left-data`)
 //!
 //! The law is known at `m` when at least `coverage_neighbours` samples lie within the
@@ -59,6 +84,7 @@
 //! the sensors' standard deviations) is in the [`LawReport`].
 
 mod compare;
+mod invariants;
 mod law;
 mod log;
 mod simulate;
@@ -71,6 +97,8 @@ use serde::{Deserialize, Serialize};
 use crate::error::{CheckParams, InvalidParameter};
 use crate::io::IoError;
 pub use compare::{comparison_period, set_errors, SetErrors};
+use invariants::InvariantModel;
+pub use invariants::{InvariantsReport, MAX_INVARIANTS};
 pub use law::{FitSupport, LawReport, LearnedLaw, LogReport};
 pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
@@ -199,6 +227,10 @@ pub enum LawMethod {
     /// the README's comparison).
     #[default]
     LocalQuadratic,
+    /// The functions of the motors (a tensor Fourier basis) that sensory neighbours
+    /// share, learned once for all the logs; the kernels are their level sets (see the
+    /// [module docs](self#the-law-invariants-lawmethodinvariants)).
+    Invariants,
 }
 
 impl std::str::FromStr for LawMethod {
@@ -207,8 +239,9 @@ impl std::str::FromStr for LawMethod {
         match s {
             "local-linear" => Ok(LawMethod::LocalLinear),
             "local-quadratic" => Ok(LawMethod::LocalQuadratic),
+            "invariants" => Ok(LawMethod::Invariants),
             other => Err(format!(
-                "unknown law method '{other}'; use local-linear or local-quadratic"
+                "unknown law method '{other}'; use local-linear, local-quadratic or invariants"
             )),
         }
     }
@@ -222,7 +255,8 @@ pub struct LawParams {
     pub method: LawMethod,
     /// Samples a typical fit holds: the bandwidth is the median distance to the
     /// `neighbours`-th nearest sample. Default `4p + 20` with `p` the fit's
-    /// coefficients (40 for local-linear, 80 for local-quadratic with 4 motors).
+    /// coefficients (40 for local-linear, 80 for local-quadratic with 4 motors); 40 for
+    /// `invariants` (whose bandwidth only decides coverage).
     pub neighbours: Option<usize>,
     /// Factor on that bandwidth. Default 1.
     pub bandwidth_factor: f64,
@@ -236,6 +270,14 @@ pub struct LawParams {
     pub ridge: f64,
     /// Seed of the held-out samples and of the probes. Default 1.
     pub seed: u64,
+    /// `invariants` only: how many invariants to keep (the smallest generalised
+    /// eigenvalues, at most 32). Default: those up to the largest ratio (at least 2)
+    /// between consecutive eigenvalues below `invariance_threshold`, else all of those.
+    pub invariants: Option<usize>,
+    /// `invariants` only: the largest `λ = E[(z_i − z_j)²] / Var z` over pairs of
+    /// sensory neighbours of a kept invariant (2 for a function independent between the
+    /// two samples of a pair); the count ends at the largest gap below it. Default 0.4.
+    pub invariance_threshold: f64,
 }
 
 impl Default for LawParams {
@@ -248,6 +290,8 @@ impl Default for LawParams {
             holdout: None,
             ridge: 1e-6,
             seed: 1,
+            invariants: None,
+            invariance_threshold: 0.4,
         }
     }
 }
@@ -262,6 +306,8 @@ pub struct LawValidParams {
     holdout: Option<usize>,
     pub(crate) ridge: f64,
     pub(crate) seed: u64,
+    pub(crate) invariants: Option<usize>,
+    pub(crate) invariance_threshold: f64,
 }
 
 fn invalid(key: &'static str, value: impl std::fmt::Display, reason: &str) -> LearnError {
@@ -291,6 +337,22 @@ impl CheckParams for LawParams {
                 return Err(invalid(key, 0, "must be at least 1"));
             }
         }
+        if !(self.invariance_threshold.is_finite() && self.invariance_threshold > 0.0) {
+            return Err(invalid(
+                "invariance_threshold",
+                self.invariance_threshold,
+                "must be a finite number greater than zero (0.4: an invariant changes between sensory neighbours by at most a fifth of what an unrelated function does)",
+            ));
+        }
+        if let Some(count) = self.invariants {
+            if count == 0 || count > invariants::MAX_INVARIANTS {
+                return Err(invalid(
+                    "invariants",
+                    count,
+                    "must be in 1..=32 (or left out: those below invariance_threshold)",
+                ));
+            }
+        }
         if let (Some(n), Some(c)) = (self.neighbours, self.coverage_neighbours) {
             if c > n {
                 return Err(invalid(
@@ -308,6 +370,8 @@ impl CheckParams for LawParams {
             holdout: self.holdout,
             ridge: self.ridge,
             seed: self.seed,
+            invariants: self.invariants,
+            invariance_threshold: self.invariance_threshold,
         })
     }
 }
@@ -327,13 +391,19 @@ impl LawValidParams {
 
     /// Samples a typical fit holds (see [`LawParams::neighbours`]).
     pub fn neighbours(&self, n: usize) -> usize {
-        self.neighbours.unwrap_or(4 * self.coefficients(n) + 20)
+        match self.method {
+            LawMethod::Invariants => self.neighbours.unwrap_or(40),
+            _ => self.neighbours.unwrap_or(4 * self.coefficients(n) + 20),
+        }
     }
 
     /// Samples within the bandwidth that make a configuration covered.
     pub fn coverage_neighbours(&self, n: usize) -> usize {
         self.coverage_neighbours
-            .unwrap_or_else(|| (self.coefficients(n) + 1).max(self.neighbours(n) / 4))
+            .unwrap_or_else(|| match self.method {
+                LawMethod::Invariants => (self.neighbours(n) / 4).max(1),
+                _ => (self.coefficients(n) + 1).max(self.neighbours(n) / 4),
+            })
     }
 
     /// Samples held out of a log of `samples`.
@@ -347,12 +417,20 @@ impl LawValidParams {
     /// at most, the log included: the arrays, the sensors' copy, the plain k-d tree and
     /// the tree of periodic images (at most `1.5^P` images per sample for `P` periodic
     /// motors, as the bandwidth is below a quarter period).
+    /// For `invariants`, the tree of the sensors and that of the invariants (at most
+    /// 32 coordinates) come in their stead of the plain tree, with the pairs.
     pub fn bytes(&self, samples: usize, n: usize, k: usize, periodic: usize) -> u64 {
         let s = samples as u64;
         let arrays = s.saturating_mul(8 * (n + 2 * k) as u64);
         let images = (s as f64 * 1.5f64.powi(periodic as i32)).ceil() as u64;
+        let trees = match self.method {
+            LawMethod::Invariants => KdTree::bytes(s, k)
+                .max(KdTree::bytes(s, invariants::MAX_INVARIANTS))
+                .saturating_add(s.saturating_mul(8)),
+            _ => KdTree::bytes(s, n),
+        };
         arrays
-            .saturating_add(KdTree::bytes(s, n))
+            .saturating_add(trees)
             .saturating_add(KdTree::bytes(images, n))
     }
 
@@ -390,8 +468,6 @@ pub fn learn(
             });
         }
     }
-    let mut models = Vec::with_capacity(logs.len());
-    let mut reports = Vec::with_capacity(logs.len());
     for log in logs {
         if log.motors.ncols() != n {
             return Err(LearnError::MotorColumns {
@@ -400,10 +476,51 @@ pub fn learn(
                 expected: n,
             });
         }
-        let (model, report) = log::fit_log(log, space, params)?;
-        models.push(model);
-        reports.push(report);
     }
+    let (models, reports) = match params.method {
+        LawMethod::LocalLinear | LawMethod::LocalQuadratic => {
+            let mut models = Vec::with_capacity(logs.len());
+            let mut reports = Vec::with_capacity(logs.len());
+            for log in logs {
+                let (model, report) = log::fit_log(log, space, params)?;
+                models.push(model);
+                reports.push(report);
+            }
+            (law::Models::Local(models), reports)
+        }
+        LawMethod::Invariants => {
+            let features =
+                InvariantModel::check_motors(n).map_err(|reason| LearnError::TooFewSamples {
+                    path: logs[0].files.motors.clone(),
+                    samples: logs[0].samples(),
+                    reason,
+                    fix: "use method = local-quadratic",
+                })?;
+            let mut fits = Vec::with_capacity(logs.len());
+            let mut held = Vec::with_capacity(logs.len());
+            for log in logs {
+                let samples = log.samples();
+                let holdout = params.holdout(samples);
+                let least = (params.neighbours(n) + 1).max(10 * (features + 1));
+                if samples - holdout < least {
+                    return Err(LearnError::TooFewSamples {
+                        path: log.files.motors.clone(),
+                        samples,
+                        reason: format!(
+                            "the invariants of {n} motors need at least {least} fitted samples (ten per basis function), and {} remain after {holdout} held out",
+                            samples - holdout
+                        ),
+                        fix: "record a longer log, or lower holdout",
+                    });
+                }
+                let (fit, held_rows) = log::split_rows(samples, holdout, params.seed);
+                fits.push(fit);
+                held.push(held_rows);
+            }
+            let (model, reports) = InvariantModel::fit(logs, &fits, &held, space, params)?;
+            (law::Models::Invariants(model), reports)
+        }
+    };
     Ok(LearnedLaw::new(
         space.clone(),
         models,

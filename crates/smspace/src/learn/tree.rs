@@ -231,13 +231,28 @@ impl KdTree {
         if k == 0 || k > self.len() {
             return f64::INFINITY;
         }
-        // A bounded max-list of the k smallest squared distances, sorted ascending.
-        let mut best: Vec<f64> = Vec::with_capacity(k + 1);
+        let mut best = Vec::with_capacity(k + 1);
         self.nearest(0, query, k, &mut best);
-        best[k - 1].sqrt()
+        best[k - 1].0.sqrt()
     }
 
-    fn nearest(&self, node: u32, query: &[f64], k: usize, best: &mut Vec<f64>) {
+    /// The `k` points nearest to `query` (fewer when the tree holds fewer), nearest
+    /// first: `(squared distance, row)`. Ties keep the tree's order, so the answer does
+    /// not depend on the thread that asks.
+    pub fn nearest_rows(&self, query: &[f64], k: usize) -> Vec<(f64, u32)> {
+        if k == 0 || self.is_empty() {
+            return Vec::new();
+        }
+        let mut best = Vec::with_capacity(k + 1);
+        self.nearest(0, query, k, &mut best);
+        best.into_iter()
+            .map(|(d2, p)| (d2, self.rows[p as usize]))
+            .collect()
+    }
+
+    /// The `k` smallest `(squared distance, stored index)` below `node`, kept sorted
+    /// ascending in `best`.
+    fn nearest(&self, node: u32, query: &[f64], k: usize, best: &mut Vec<(f64, u32)>) {
         let dim = self.dim;
         match self.nodes[node as usize] {
             Node::Leaf { start, end } => {
@@ -248,9 +263,9 @@ impl KdTree {
                         .zip(query)
                         .map(|(x, q)| (x - q) * (x - q))
                         .sum();
-                    if best.len() < k || d2 < best[k - 1] {
-                        let at = best.partition_point(|&b| b <= d2);
-                        best.insert(at, d2);
+                    if best.len() < k || d2 < best[k - 1].0 {
+                        let at = best.partition_point(|b| b.0 <= d2);
+                        best.insert(at, (d2, p as u32));
                         best.truncate(k);
                     }
                 }
@@ -268,7 +283,7 @@ impl KdTree {
                     (right, left)
                 };
                 self.nearest(near, query, k, best);
-                if best.len() < k || offset * offset < best[k - 1] {
+                if best.len() < k || offset * offset < best[k - 1].0 {
                     self.nearest(far, query, k, best);
                 }
             }
@@ -390,6 +405,19 @@ mod tests {
                     assert!((kth - distances[k - 1].sqrt()).abs() < 1e-12);
                 }
                 assert!(tree.kth_distance(q, count + 1).is_infinite());
+                // The nearest rows are the brute force's, nearest first.
+                let nearest = tree.nearest_rows(q, count.min(5));
+                assert_eq!(nearest.len(), count.min(5));
+                for (r, &(d2, row)) in nearest.iter().enumerate() {
+                    assert!((d2 - distances[r]).abs() < 1e-12);
+                    let i = row as usize / 3;
+                    let own: f64 = points[i * dim..(i + 1) * dim]
+                        .iter()
+                        .zip(q)
+                        .map(|(a, b)| (a - b) * (a - b))
+                        .sum();
+                    assert_eq!(own, d2);
+                }
                 // The cached query answers the same, from a fresh or a reused cache.
                 for margin in [0.0, 0.3] {
                     let mut cached = Vec::new();

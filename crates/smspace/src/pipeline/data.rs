@@ -21,7 +21,7 @@
 //! sensors = ["log/sensors.npy"]  # (S, K), row i read at motor command i
 //! period = "2pi"                 # the motors: as `smspace learn --period`
 //! [data.law]                     # crate::learn::LawParams
-//! method = "local-quadratic"
+//! method = "invariants"          # or "local-quadratic", "local-linear"
 //! ```
 //!
 //! or `[data.simulate]` (`samples`, `noise`, `seed`: [`SimulateParams`]) with an

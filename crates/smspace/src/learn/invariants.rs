@@ -1,0 +1,717 @@
+//! The `invariants` law: the functions of the motors that the sensors cannot tell apart
+//! within a sensory neighbourhood, found once for the whole log, and the kernel sets as
+//! their level sets.
+//!
+//! # Why
+//!
+//! A local fit of `ŝ(m)` on the samples within a bandwidth `h` of `m` averages the law
+//! over `h` in every motor direction: on the paper's arm (4 motors, a retina that changes
+//! over a few tenths of a radian) `h` is 0.24 rad at 10⁶ samples, and the direction of
+//! the kernel the fit gives is 0.3 rad off (median; README, "Kernel sets from recorded
+//! data"). The kernels need the law's level sets, not its values: this method learns the
+//! level sets directly, from pairs of samples that read the same sensor values.
+//!
+//! # The basis
+//!
+//! Per motor `j` three functions `b_j(x)`: `(1, cos ω x, sin ω x)` for a periodic motor of
+//! period `T` (`ω = 2π/T`), `(1, u, 2u² − 1)` with `u = (2x − low − high)/(high − low)`
+//! for a bounded one. The basis `φ(m)` is their tensor product without the constant,
+//! `F = 3^N − 1` functions: for hinges, the trigonometric polynomials of degree at most
+//! one in every joint. A chain of hinges places every link by such polynomials exactly
+//! (`x = Σ_i l_i cos(θ_1 + … + θ_i)`, and `cos α`, `sin α` of the orientation
+//! `α = Σ θ_i`), so on the paper's arm every coordinate of the retina's pose is a linear
+//! combination of `φ`; the method does not know this, it finds those combinations.
+//!
+//! # The invariants
+//!
+//! Every fitted sample `i` is paired with the fitted sample `j(i)` nearest to it in
+//! sensor space (each sensor divided by its standard deviation over the log). When the
+//! sensors are a function of the sensor's pose and tell poses apart, a function of `m` is
+//! constant on the kernels exactly when it is a function of the pose; such a function
+//! changes little between `i` and `j(i)` (as little as their readings), while a function
+//! that changes along the kernels differs between them by about its spread, since `j(i)`
+//! lies anywhere on the kernel of `i`'s reading. With
+//!
+//! ```text
+//! Σ = Cov(φ)   (over the fitted samples),    C = mean_i (φ(m_i) − φ(m_j(i))) (φ(m_i) − φ(m_j(i)))ᵀ,
+//! ```
+//!
+//! the generalised symmetric eigenproblem `C w = λ Σ w` gives, for `z = wᵀ φ` with
+//! `wᵀ Σ w = 1`, `λ = E[(z_i − z_j(i))²] / Var z`: 2 for a function whose values at the
+//! pair are independent, towards 0 for an invariant. The **invariants** are the
+//! eigenvectors of the smallest `λ` up to the largest gap: the `k` that maximises
+//! `λ_{k+1} / λ_k` among the `λ_k` below `invariance_threshold` (default 0.4), when that
+//! ratio is at least [`MIN_GAP`] (else all the `λ` below the threshold); or the
+//! `invariants` smallest when that count is given (at most [`MAX_INVARIANTS`]):
+//! `z(m) = Wᵀ (φ(m) − μ)`, `Wᵀ Σ W = I`. Several logs (environments) pool their pairs
+//! and samples into one `Σ` and one `C`: the invariants are common to all of them.
+//!
+//! # The law and its kernels
+//!
+//! The traced law is `z(m)`, with its exact Jacobian `∂z/∂m = Wᵀ ∂φ/∂m`: the kernel set
+//! through `m^i` is the level set `z(m) = z(m^i)`, traced by the tracer's sensory method
+//! unchanged (its rank, hence the kernel's dimension, is read from `∂z/∂m` as for the
+//! local fits). The sensor values are `ŝ(m) = g(z(m))` with `g` the mean of the sensor
+//! values of the [`REGRESSION_NEIGHBOURS`] fitted samples nearest to `z(m)` in invariant
+//! space; `ŝ` and `z` have the same level sets where `g` tells invariants apart, and
+//! tracing on `z` leaves `g`'s error out. The held-out error of the report is that of
+//! `ŝ`. Coverage (status `left-data`) is that of the local fits: at least
+//! `coverage_neighbours` samples (default 10) within `h`, the median distance to the
+//! `neighbours`-th (default 40) nearest sample.
+
+use nalgebra::{Cholesky, DMatrix, SymmetricEigen};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::law::{median_kth_distance, periodic_images, within_cached};
+use super::log::held_out_report;
+use super::tree::KdTree;
+use super::{LawValidParams, LearnError, LogReport, SensorimotorLog};
+use crate::agent::{Motor, MotorSpace};
+
+/// Most invariants kept (the tree of the held-out regression holds one coordinate per
+/// invariant).
+pub const MAX_INVARIANTS: usize = 32;
+
+/// Most basis functions (`3^N − 1`): five motors.
+pub const MAX_FEATURES: usize = 242;
+
+/// Fitted samples whose mean sensor values are `ŝ` at a configuration (nearest in
+/// invariant space).
+pub const REGRESSION_NEIGHBOURS: usize = 8;
+
+/// Samples per block of the sums of `Σ` and `C` (each block's sums are taken apart and
+/// added in block order, so the result does not depend on the thread count).
+const BLOCK: usize = 8192;
+
+/// What the eigenproblem found, in the law's report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InvariantsReport {
+    /// Basis functions `F = 3^N − 1`.
+    pub features: usize,
+    /// Invariants kept.
+    pub invariants: usize,
+    /// The threshold on `λ` that chose them (when their count was not given).
+    pub threshold: Option<f64>,
+    /// The smallest generalised eigenvalues `λ` (at most `2 × invariants + 4`, at
+    /// least 12 when there are that many), ascending.
+    pub eigenvalues: Vec<f64>,
+    /// Sample pairs (each fitted sample and its nearest in sensor space).
+    pub pairs: usize,
+    /// The mean `λ` of the kept invariants on the fitted pairs.
+    pub fitted_lambda: f64,
+    /// The same on the held-out samples, each paired with its nearest fitted sample in
+    /// sensor space (`E[(z_i − z_j)²]` over them and the invariants; `Var z = 1` on the
+    /// fitted samples): near `fitted_lambda` when the invariants generalise. Absent
+    /// without held-out samples.
+    pub held_out_lambda: Option<f64>,
+}
+
+/// One motor's three basis functions.
+#[derive(Debug, Clone, Copy)]
+enum Factor {
+    /// `(1, cos ω x, sin ω x)`.
+    Periodic { frequency: f64 },
+    /// `(1, u, 2u² − 1)`, `u = (x − centre) · inverse_half`.
+    Bounded { centre: f64, inverse_half: f64 },
+}
+
+impl Factor {
+    fn of(motor: Motor) -> Self {
+        match motor {
+            Motor::Periodic { period } => Factor::Periodic {
+                frequency: std::f64::consts::TAU / period,
+            },
+            Motor::Bounded { low, high } => Factor::Bounded {
+                centre: 0.5 * (low + high),
+                inverse_half: if high > low { 2.0 / (high - low) } else { 1.0 },
+            },
+        }
+    }
+
+    /// The three values and their derivatives at `x`.
+    #[inline]
+    fn at(self, x: f64) -> ([f64; 3], [f64; 3]) {
+        match self {
+            Factor::Periodic { frequency } => {
+                let (s, c) = (frequency * x).sin_cos();
+                ([1.0, c, s], [0.0, -frequency * s, frequency * c])
+            }
+            Factor::Bounded {
+                centre,
+                inverse_half,
+            } => {
+                let u = (x - centre) * inverse_half;
+                (
+                    [1.0, u, 2.0 * u * u - 1.0],
+                    [0.0, inverse_half, 4.0 * u * inverse_half],
+                )
+            }
+        }
+    }
+}
+
+/// The tensor basis `φ` (see the module docs); index `Σ_j i_j 3^j`, index 0 the
+/// constant, which the features leave out.
+#[derive(Debug, Clone)]
+struct Basis {
+    factors: Vec<Factor>,
+    /// `3^N`.
+    len: usize,
+}
+
+impl Basis {
+    fn new(space: &MotorSpace) -> Self {
+        let factors: Vec<Factor> = space.motors().iter().map(|&m| Factor::of(m)).collect();
+        let len = 3usize.pow(factors.len() as u32);
+        Self { factors, len }
+    }
+
+    /// `3^N − 1` for `n` motors, `None` past [`MAX_FEATURES`].
+    fn features(n: usize) -> Option<usize> {
+        3usize
+            .checked_pow(n as u32)
+            .map(|l| l - 1)
+            .filter(|&f| f <= MAX_FEATURES)
+    }
+
+    /// The tensor product of one factor per motor into `out` (`3^N`), `pick(j)`
+    /// choosing motor `j`'s values or derivatives.
+    #[inline]
+    fn product(&self, factor: impl Fn(usize) -> [f64; 3], out: &mut [f64]) {
+        out[0] = 1.0;
+        let mut size = 1;
+        for j in 0..self.factors.len() {
+            let b = factor(j);
+            for a in 0..size {
+                let v = out[a];
+                out[a] = v * b[0];
+                out[a + size] = v * b[1];
+                out[a + 2 * size] = v * b[2];
+            }
+            size *= 3;
+        }
+    }
+
+    /// `φ(m)` with the constant, into `out` (`3^N`).
+    fn values(&self, m: &[f64], out: &mut [f64]) {
+        self.product(|j| self.factors[j].at(m[j]).0, out);
+    }
+
+    /// `φ(m)` into `out` and `∂φ/∂m_j` into `derivatives[j·3^N..]` (`N × 3^N`).
+    fn with_derivatives(&self, m: &[f64], out: &mut [f64], derivatives: &mut [f64]) {
+        let pairs: Vec<([f64; 3], [f64; 3])> =
+            self.factors.iter().zip(m).map(|(f, &x)| f.at(x)).collect();
+        self.product(|j| pairs[j].0, out);
+        for (d, row) in derivatives.chunks_mut(self.len).enumerate() {
+            self.product(|j| if j == d { pairs[j].1 } else { pairs[j].0 }, row);
+        }
+    }
+}
+
+/// The region one log covers: its fitted samples (and their periodic images) in a
+/// k-d tree, and the bandwidth within which `min_count` of them make `m` covered.
+struct Coverage {
+    tree: KdTree,
+    bandwidth: f64,
+    min_count: usize,
+}
+
+/// The learned invariants (see the module docs).
+pub(crate) struct InvariantModel {
+    space: MotorSpace,
+    basis: Basis,
+    /// `μ`, the mean of `φ` over the fitted samples (`3^N`, index 0 unused).
+    mean: Vec<f64>,
+    /// `W`, `3^N × count` row-major (row 0, the constant, is zero).
+    weights: Vec<f64>,
+    count: usize,
+    coverage: Vec<Coverage>,
+    report: InvariantsReport,
+}
+
+impl std::fmt::Debug for InvariantModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("InvariantModel")
+            .field("report", &self.report)
+            .finish()
+    }
+}
+
+/// Sums over one block of pairs: `Σ φφᵀ`, `Σ φ`, `Σ ΔΔᵀ` (features without the
+/// constant).
+struct BlockSums {
+    second: DMatrix<f64>,
+    first: Vec<f64>,
+    pairs: DMatrix<f64>,
+}
+
+/// The sums of one block of `(i, j(i))` rows of `log`.
+fn block_sums(basis: &Basis, log: &SensorimotorLog, block: &[(u32, u32)]) -> BlockSums {
+    let features = basis.len - 1;
+    let mut phi = DMatrix::<f64>::zeros(block.len(), features);
+    let mut delta = DMatrix::<f64>::zeros(block.len(), features);
+    let mut a = vec![0.0; basis.len];
+    let mut b = vec![0.0; basis.len];
+    for (r, &(i, j)) in block.iter().enumerate() {
+        basis.values(&log.motors.row(i as usize).to_vec(), &mut a);
+        basis.values(&log.motors.row(j as usize).to_vec(), &mut b);
+        for f in 0..features {
+            phi[(r, f)] = a[f + 1];
+            delta[(r, f)] = a[f + 1] - b[f + 1];
+        }
+    }
+    let first = (0..features).map(|f| phi.column(f).sum()).collect();
+    BlockSums {
+        second: phi.tr_mul(&phi),
+        first,
+        pairs: delta.tr_mul(&delta),
+    }
+}
+
+/// Smallest ratio `λ_{k+1} / λ_k` that [`largest_gap`] takes for a gap between
+/// invariants and the rest.
+pub const MIN_GAP: f64 = 2.0;
+
+/// How many of the ascending eigenvalues `λ` are invariants: those up to the largest
+/// ratio `λ_{k+1} / λ_k` among the `λ_k` below `threshold`, when that ratio is at least
+/// [`MIN_GAP`]; else (no clear gap: too few samples to tell invariants apart) all those
+/// below `threshold`. At most [`MAX_INVARIANTS`]; 0 when none is below `threshold`.
+fn largest_gap(eigenvalues: &[f64], threshold: f64) -> usize {
+    let below = eigenvalues
+        .iter()
+        .take_while(|&&l| l < threshold)
+        .count()
+        .min(MAX_INVARIANTS);
+    let ratio = |k: usize| {
+        let next = eigenvalues.get(k).copied().unwrap_or(f64::INFINITY);
+        next / eigenvalues[k - 1].max(f64::MIN_POSITIVE)
+    };
+    // The first of equal ratios.
+    match (1..=below).max_by(|&a, &b| ratio(a).total_cmp(&ratio(b)).then(b.cmp(&a))) {
+        Some(k) if ratio(k) >= MIN_GAP => k,
+        _ => below,
+    }
+}
+
+/// The fitted rows of one log in sensor space (every sensor divided by its standard
+/// deviation over the fitted rows), for the nearest sensory neighbour of a row.
+struct SensorIndex {
+    tree: KdTree,
+    scale: Vec<f64>,
+}
+
+impl SensorIndex {
+    fn new(log: &SensorimotorLog, fit: &[u32]) -> Self {
+        let k = log.sensors.ncols();
+        let mut scale = vec![0.0; k];
+        for (c, s) in scale.iter_mut().enumerate() {
+            let column = log.sensors.column(c);
+            let mean = fit.iter().map(|&i| column[i as usize]).sum::<f64>() / fit.len() as f64;
+            let variance = fit
+                .iter()
+                .map(|&i| (column[i as usize] - mean).powi(2))
+                .sum::<f64>()
+                / fit.len() as f64;
+            *s = if variance > 0.0 {
+                1.0 / variance.sqrt()
+            } else {
+                1.0
+            };
+        }
+        let mut index = Self {
+            tree: KdTree::new(1, vec![0.0], vec![0]),
+            scale,
+        };
+        let mut points = Vec::with_capacity(fit.len() * k);
+        for &i in fit {
+            points.extend(index.scaled(log, i));
+        }
+        index.tree = KdTree::new(k, points, fit.to_vec());
+        index
+    }
+
+    /// Row `i`'s sensor values, scaled.
+    fn scaled(&self, log: &SensorimotorLog, i: u32) -> Vec<f64> {
+        log.sensors
+            .row(i as usize)
+            .iter()
+            .zip(&self.scale)
+            .map(|(v, s)| v * s)
+            .collect()
+    }
+
+    /// The fitted row nearest to row `i` in sensor space, other than `i` itself (`i`
+    /// when there is none).
+    fn nearest_other(&self, log: &SensorimotorLog, i: u32) -> u32 {
+        self.tree
+            .nearest_rows(&self.scaled(log, i), 2)
+            .into_iter()
+            .map(|(_, row)| row)
+            .find(|&row| row != i)
+            .unwrap_or(i)
+    }
+}
+
+impl InvariantModel {
+    /// Learns the invariants from the rows `fits[l]` of every log `logs[l]`, and the
+    /// report of every log (held-out rows `held[l]`).
+    pub(crate) fn fit(
+        logs: &[SensorimotorLog],
+        fits: &[Vec<u32>],
+        held: &[Vec<u32>],
+        space: &MotorSpace,
+        params: &LawValidParams,
+    ) -> Result<(Self, Vec<LogReport>), LearnError> {
+        let n = space.dim();
+        let basis = Basis::new(space);
+        let features = basis.len - 1;
+        // The sums of every log's pairs, in block order.
+        let mut second = DMatrix::<f64>::zeros(features, features);
+        let mut pair_sums = DMatrix::<f64>::zeros(features, features);
+        let mut first = vec![0.0; features];
+        let mut total = 0usize;
+        let mut indices = Vec::with_capacity(logs.len());
+        for (log, fit) in logs.iter().zip(fits) {
+            let index = SensorIndex::new(log, fit);
+            let pairs: Vec<(u32, u32)> = fit
+                .par_iter()
+                .map(|&i| (i, index.nearest_other(log, i)))
+                .collect();
+            indices.push(index);
+            let blocks: Vec<BlockSums> = pairs
+                .par_chunks(BLOCK)
+                .map(|block| block_sums(&basis, log, block))
+                .collect();
+            for block in blocks {
+                second += block.second;
+                pair_sums += block.pairs;
+                first
+                    .iter_mut()
+                    .zip(&block.first)
+                    .for_each(|(a, b)| *a += b);
+            }
+            total += pairs.len();
+        }
+        let inverse = 1.0 / total as f64;
+        let mean: Vec<f64> = first.iter().map(|x| x * inverse).collect();
+        let mut covariance = second * inverse;
+        for a in 0..features {
+            for b in 0..features {
+                covariance[(a, b)] -= mean[a] * mean[b];
+            }
+        }
+        let pair_covariance = pair_sums * inverse;
+        let trace = covariance.trace();
+        for a in 0..features {
+            covariance[(a, a)] += 1e-12 * trace / features as f64;
+        }
+        let first_motors = &logs[0].files.motors;
+        let cholesky = Cholesky::new(covariance).ok_or_else(|| LearnError::TooFewSamples {
+            path: first_motors.clone(),
+            samples: total,
+            reason: format!(
+                "the {features} basis functions of the invariants are linearly dependent on the samples"
+            ),
+            fix: "record a log that moves every motor over its range",
+        })?;
+        let l = cholesky.l();
+        // A = L⁻¹ C L⁻ᵀ, symmetric; its eigenvectors y give w = L⁻ᵀ y.
+        let x = l
+            .solve_lower_triangular(&pair_covariance)
+            .expect("a Cholesky factor is invertible");
+        let mut a = l
+            .solve_lower_triangular(&x.transpose())
+            .expect("a Cholesky factor is invertible");
+        a = 0.5 * (&a + a.transpose());
+        let eigen = SymmetricEigen::new(a);
+        let mut order: Vec<usize> = (0..features).collect();
+        order.sort_by(|&p, &q| {
+            eigen.eigenvalues[p]
+                .total_cmp(&eigen.eigenvalues[q])
+                .then(p.cmp(&q))
+        });
+        let eigenvalues: Vec<f64> = order.iter().map(|&p| eigen.eigenvalues[p]).collect();
+        let count = params
+            .invariants
+            .unwrap_or_else(|| largest_gap(&eigenvalues, params.invariance_threshold));
+        if count == 0 {
+            return Err(LearnError::TooFewSamples {
+                path: first_motors.clone(),
+                samples: total,
+                reason: format!(
+                    "no combination of the basis is invariant enough: the smallest λ is {:.3}, not below invariance_threshold = {}",
+                    eigenvalues[0], params.invariance_threshold
+                ),
+                fix: "record more samples, or raise invariance_threshold (or set invariants)",
+            });
+        }
+        let mut selected = DMatrix::<f64>::zeros(features, count);
+        for (c, &p) in order.iter().take(count).enumerate() {
+            selected.set_column(c, &eigen.eigenvectors.column(p));
+        }
+        let w = l
+            .transpose()
+            .solve_upper_triangular(&selected)
+            .expect("a Cholesky factor is invertible");
+        let mut weights = vec![0.0; basis.len * count];
+        for f in 0..features {
+            for c in 0..count {
+                weights[(f + 1) * count + c] = w[(f, c)];
+            }
+        }
+        let mut full_mean = vec![0.0; basis.len];
+        full_mean[1..].copy_from_slice(&mean);
+        let shown = (2 * count + 4).max(12).min(features);
+        let mut model = Self {
+            space: space.clone(),
+            basis,
+            mean: full_mean,
+            weights,
+            count,
+            coverage: Vec::with_capacity(logs.len()),
+            report: InvariantsReport {
+                features,
+                invariants: count,
+                threshold: params
+                    .invariants
+                    .is_none()
+                    .then_some(params.invariance_threshold),
+                eigenvalues: eigenvalues[..shown].to_vec(),
+                pairs: total,
+                fitted_lambda: 0.0,
+                held_out_lambda: None,
+            },
+        };
+        let mut reports = Vec::with_capacity(logs.len());
+        let (mut held_sum, mut held_pairs) = (0.0, 0usize);
+        for (((log, fit), held_rows), index) in logs.iter().zip(fits).zip(held).zip(&indices) {
+            // λ on the held-out rows: each against its nearest fitted row in sensor space.
+            // Collected, then added in row order: the same sum for any thread count.
+            let changes: Vec<f64> = held_rows
+                .par_iter()
+                .map(|&i| {
+                    let j = index.nearest_other(log, i);
+                    let (mut a, mut b) = (vec![0.0; count], vec![0.0; count]);
+                    model.invariants(&log.motors.row(i as usize).to_vec(), &mut a);
+                    model.invariants(&log.motors.row(j as usize).to_vec(), &mut b);
+                    a.iter()
+                        .zip(&b)
+                        .map(|(x, y)| (x - y) * (x - y))
+                        .sum::<f64>()
+                })
+                .collect();
+            held_sum += changes.iter().sum::<f64>();
+            held_pairs += held_rows.len();
+            let plain = {
+                let mut points = Vec::with_capacity(fit.len() * n);
+                for &row in fit {
+                    points.extend(log.motors.row(row as usize).iter().copied());
+                }
+                KdTree::new(n, points, fit.to_vec())
+            };
+            let bandwidth =
+                params.bandwidth_factor * median_kth_distance(&plain, params.neighbours(n), params);
+            drop(plain);
+            let (points, rows) = periodic_images(log, fit, space, bandwidth);
+            let images = rows.len() as f64 / fit.len().max(1) as f64;
+            model.coverage.push(Coverage {
+                tree: KdTree::new(n, points, rows),
+                bandwidth,
+                min_count: params.coverage_neighbours(n),
+            });
+            let at = model.coverage.len() - 1;
+            // ŝ = g(z): the mean sensor values of the nearest fitted samples in z.
+            let mut z_points = vec![0.0; fit.len() * count];
+            z_points
+                .par_chunks_mut(count)
+                .zip(fit.par_iter())
+                .for_each(|(out, &row)| {
+                    model.invariants(&log.motors.row(row as usize).to_vec(), out);
+                });
+            let z_tree = KdTree::new(count, z_points, fit.to_vec());
+            let k = log.sensors.ncols();
+            let model_ref = &model;
+            let report = held_out_report(log, held_rows, fit.len(), (bandwidth, images), |m, s| {
+                if !model_ref.coverage_covers(at, m) {
+                    return false;
+                }
+                let mut z = vec![0.0; count];
+                model_ref.invariants(m, &mut z);
+                let near = z_tree.nearest_rows(&z, REGRESSION_NEIGHBOURS);
+                s.fill(0.0);
+                for &(_, row) in &near {
+                    s.iter_mut()
+                        .zip(log.sensors.row(row as usize))
+                        .for_each(|(a, b)| *a += b);
+                }
+                let share = 1.0 / near.len().max(1) as f64;
+                s.iter_mut().for_each(|a| *a *= share);
+                debug_assert_eq!(s.len(), k);
+                true
+            });
+            reports.push(report);
+        }
+        if held_pairs > 0 {
+            model.report.held_out_lambda = Some(held_sum / (held_pairs * count) as f64);
+        }
+        model.report.fitted_lambda = eigenvalues[..count].iter().sum::<f64>() / count as f64;
+        Ok((model, reports))
+    }
+
+    /// What the eigenproblem found.
+    pub(crate) fn report(&self) -> &InvariantsReport {
+        &self.report
+    }
+
+    /// The number of invariants (the law's outputs).
+    pub(crate) fn count(&self) -> usize {
+        self.count
+    }
+
+    /// The fitted samples of the first log (with images), for probing the rank.
+    pub(crate) fn probe_tree(&self) -> &KdTree {
+        &self.coverage[0].tree
+    }
+
+    /// `z(m)` into `out` (`count`).
+    pub(crate) fn invariants(&self, m: &[f64], out: &mut [f64]) {
+        let mut phi = vec![0.0; self.basis.len];
+        self.basis.values(m, &mut phi);
+        self.combine(&phi, out);
+    }
+
+    /// `out = Wᵀ (v − μ)` for `v` of length `3^N` (the constant's row of `W` is 0);
+    /// `centred = false` leaves `μ` out (derivatives).
+    fn combine_with(&self, v: &[f64], out: &mut [f64], centred: bool) {
+        out.fill(0.0);
+        for f in 1..self.basis.len {
+            let x = if centred { v[f] - self.mean[f] } else { v[f] };
+            let row = &self.weights[f * self.count..(f + 1) * self.count];
+            out.iter_mut().zip(row).for_each(|(o, w)| *o += w * x);
+        }
+    }
+
+    fn combine(&self, phi: &[f64], out: &mut [f64]) {
+        self.combine_with(phi, out, true);
+    }
+
+    /// `z(m)` into `value` (`count`) and, when asked, `∂z/∂m` into `jacobian`
+    /// (`count × N`, row-major).
+    pub(crate) fn evaluate(&self, m: &[f64], value: &mut [f64], jacobian: Option<&mut [f64]>) {
+        let n = self.space.dim();
+        let Some(jac) = jacobian else {
+            self.invariants(m, value);
+            return;
+        };
+        let mut phi = vec![0.0; self.basis.len];
+        let mut derivatives = vec![0.0; n * self.basis.len];
+        self.basis.with_derivatives(m, &mut phi, &mut derivatives);
+        self.combine(&phi, value);
+        let mut column = vec![0.0; self.count];
+        for (j, d) in derivatives.chunks(self.basis.len).enumerate() {
+            self.combine_with(d, &mut column, false);
+            for (c, &v) in column.iter().enumerate() {
+                jac[c * n + j] = v;
+            }
+        }
+    }
+
+    fn coverage_covers(&self, at: usize, m: &[f64]) -> bool {
+        let coverage = &self.coverage[at];
+        let query: Vec<f64> = m
+            .iter()
+            .enumerate()
+            .map(|(j, &x)| self.space.motor(j).wrap(x))
+            .collect();
+        let mut count = 0;
+        within_cached(&coverage.tree, &query, coverage.bandwidth, |_, _, _| {
+            count += 1
+        });
+        count >= coverage.min_count
+    }
+
+    /// Whether every log covers `m` (see [`crate::learn`]).
+    pub(crate) fn covers(&self, m: &[f64]) -> bool {
+        (0..self.coverage.len()).all(|at| self.coverage_covers(at, m))
+    }
+
+    /// The basis size for `n` motors, or the reason it is refused.
+    pub(crate) fn check_motors(n: usize) -> Result<usize, String> {
+        Basis::features(n).ok_or_else(|| {
+            format!(
+                "the invariants' basis has 3^N − 1 functions, {} for {n} motors: at most {MAX_FEATURES} (five motors)",
+                3f64.powi(n as i32) - 1.0
+            )
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn basis_derivatives_are_the_derivatives_of_its_values() {
+        let space = MotorSpace::new(vec![
+            Motor::HINGE,
+            Motor::Bounded {
+                low: -1.0,
+                high: 3.0,
+            },
+            Motor::HINGE,
+        ])
+        .unwrap();
+        let basis = Basis::new(&space);
+        assert_eq!(basis.len, 27);
+        let m = [0.3, 1.7, -2.9];
+        let mut phi = vec![0.0; 27];
+        let mut d = vec![0.0; 3 * 27];
+        basis.with_derivatives(&m, &mut phi, &mut d);
+        // The product of cos θ₁ (index 1), u (index 3) and sin θ₃ (index 18).
+        let u = (1.7 - 1.0) / 2.0;
+        assert_relative_eq!(phi[1 + 3 + 18], 0.3f64.cos() * u * (-2.9f64).sin());
+        let step = 1e-6;
+        for j in 0..3 {
+            let mut plus = m;
+            let mut minus = m;
+            plus[j] += step;
+            minus[j] -= step;
+            let (mut a, mut b) = (vec![0.0; 27], vec![0.0; 27]);
+            basis.values(&plus, &mut a);
+            basis.values(&minus, &mut b);
+            for f in 0..27 {
+                let numeric = (a[f] - b[f]) / (2.0 * step);
+                assert!((numeric - d[j * 27 + f]).abs() < 1e-8, "{j} {f}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_invariants_end_at_the_largest_gap_below_the_threshold() {
+        // The paper's arm at 10⁶ samples: nine invariants, then a jump.
+        let arm = [
+            0.009, 0.014, 0.018, 0.024, 0.030, 0.038, 0.051, 0.062, 0.108, 0.547, 0.561,
+        ];
+        assert_eq!(largest_gap(&arm, 0.4), 9);
+        // The redundant toy: one exact invariant (m1 + m2).
+        assert_eq!(largest_gap(&[3.5e-5, 0.012, 0.147, 0.81, 1.97], 0.4), 1);
+        assert_eq!(largest_gap(&[0.5, 0.6], 0.4), 0);
+        // Every eigenvalue below the threshold: all of them.
+        assert_eq!(largest_gap(&[0.01, 0.02], 0.4), 2);
+        // The arm at 10⁴ samples: no clear gap, every λ below the threshold.
+        let sparse = [0.124, 0.233, 0.330, 0.432, 0.461, 0.512];
+        assert_eq!(largest_gap(&sparse, 0.4), 3);
+    }
+
+    #[test]
+    fn the_basis_size_is_bounded() {
+        assert_eq!(Basis::features(4), Some(80));
+        assert_eq!(Basis::features(5), Some(242));
+        assert_eq!(Basis::features(6), None);
+        assert!(InvariantModel::check_motors(7)
+            .unwrap_err()
+            .contains("2186"));
+    }
+}
