@@ -48,6 +48,7 @@ fn main() -> DemoResult<()> {
         sets: run.traced.sets.view(),
         kept: &run.traced.kept,
         trace: &run.traced.report.summary,
+        law: None,
         embedding: run.embedded.coordinates.view(),
         embed_report: &run.embedded.report,
         embed_quality: Some(&run.quality),

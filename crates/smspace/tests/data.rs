@@ -156,6 +156,14 @@ fn a_simulated_log_is_learned_and_traced_with_the_agent_as_ground_truth() {
         truth["p90"].as_f64().unwrap(),
     );
     assert!(median <= p90 && p90 < 0.1, "{truth}");
+    // The report names the law and its held-out error.
+    let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        markdown.contains("learned law (method, rank of its Jacobian)")
+            && markdown.contains("local-quadratic, rank 1")
+            && markdown.contains("held-out error of the law"),
+        "{markdown}"
+    );
     let again = run(&file, &out);
     assert!(computed(&again).is_empty(), "{:?}", computed(&again));
 }

@@ -191,6 +191,7 @@ fn inputs(run: &Run) -> ReportInputs<'_> {
         sets: run.sets.view(),
         kept: &run.kept,
         trace: &run.trace,
+        law: None,
         embedding: run.embedding.view(),
         embed_report: &run.embed_report,
         embed_quality: Some(&run.quality),

@@ -167,6 +167,9 @@ pub struct ReportInputs<'a> {
     pub kept: &'a [usize],
     /// How tracing went.
     pub trace: &'a TraceSummary,
+    /// The law the sets were traced on, when it was learned from a log (`law` of
+    /// `sets.trace.json`: [`crate::learn::LawReport`] as JSON); `None` for an agent.
+    pub law: Option<&'a serde_json::Value>,
     /// The embedding `(M, d)`, row `i` for set `i`.
     pub embedding: ArrayView2<'a, f64>,
     /// The embedding's diagnostics.

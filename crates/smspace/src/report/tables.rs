@@ -64,7 +64,7 @@ pub(super) fn tables(inputs: &ReportInputs<'_>) -> Vec<Table> {
     if !inputs.stages.is_empty() {
         out.push(stage_table(inputs));
     }
-    out.push(trace_table(inputs.trace));
+    out.push(trace_table(inputs.trace, inputs.law));
     out.push(embed_table(inputs.embed_report));
     if let Some(quality) = inputs.embed_quality {
         let mut t = Table::key_value("Embedding quality");
@@ -80,6 +80,57 @@ pub(super) fn tables(inputs: &ReportInputs<'_>) -> Vec<Table> {
         out.extend(invariance_tables(&inv.report));
     }
     out
+}
+
+/// The rows of a law learned from a log: its method and rank, each log's held-out
+/// error, and for the `invariants` law what its eigenproblem found.
+fn law_rows(t: &mut Table, law: &serde_json::Value) {
+    let text = |v: &serde_json::Value| v.as_str().map_or_else(|| v.to_string(), str::to_owned);
+    t.push(
+        "learned law (method, rank of its Jacobian)",
+        format!("{}, rank {}", text(&law["method"]), law["rank"]),
+    );
+    for log in law["logs"].as_array().into_iter().flatten() {
+        if let Some(error) = log["held_out_relative_rms"].as_f64() {
+            t.push(
+                format!("held-out error of the law, {}", text(&log["motors"])),
+                format!(
+                    "{} of the sensors' spread ({} samples of {})",
+                    num(error),
+                    log["held_out"],
+                    log["samples"]
+                ),
+            );
+        }
+    }
+    let invariants = &law["invariants"];
+    if let (Some(kept), Some(features)) = (
+        invariants["invariants"].as_u64(),
+        invariants["features"].as_u64(),
+    ) {
+        t.push(
+            "invariants kept (of the basis functions)",
+            format!("{kept} of {features}"),
+        );
+        let lambdas: Vec<String> = invariants["eigenvalues"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(serde_json::Value::as_f64)
+            .take(kept as usize + 2)
+            .map(num)
+            .collect();
+        t.push("smallest eigenvalues λ", lambdas.join(", "));
+        if let (Some(fitted), Some(held)) = (
+            invariants["fitted_lambda"].as_f64(),
+            invariants["held_out_lambda"].as_f64(),
+        ) {
+            t.push(
+                "λ of the invariants kept: fitted pairs / held-out samples",
+                format!("{} / {}", num(fitted), num(held)),
+            );
+        }
+    }
 }
 
 fn stage_table(inputs: &ReportInputs<'_>) -> Table {
@@ -109,8 +160,11 @@ fn stage_table(inputs: &ReportInputs<'_>) -> Table {
     t
 }
 
-fn trace_table(trace: &TraceSummary) -> Table {
+fn trace_table(trace: &TraceSummary, law: Option<&serde_json::Value>) -> Table {
     let mut t = Table::key_value("Tracing of the kernel sets");
+    if let Some(law) = law {
+        law_rows(&mut t, law);
+    }
     t.push("sets asked for", trace.total.to_string());
     t.push("sets traced and kept", trace.traced.to_string());
     t.push("sets failed", trace.failed.to_string());

@@ -164,6 +164,7 @@ impl Stage for ReportStage {
             sets,
             kept,
             trace: &traced.report.summary,
+            law: traced.report.law.as_ref(),
             embedding,
             embed_report: &embedded.report,
             embed_quality: quality.as_ref(),
