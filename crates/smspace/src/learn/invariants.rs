@@ -63,7 +63,7 @@ use nalgebra::{Cholesky, DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::law::{median_kth_distance, periodic_images, within_cached};
+use super::law::{covered, image_tree};
 use super::log::held_out_report;
 use super::tree::KdTree;
 use super::{LawValidParams, LearnError, LogReport, SensorimotorLog};
@@ -353,35 +353,26 @@ impl SensorIndex {
     }
 }
 
-impl InvariantModel {
-    /// Learns the invariants from the rows `fits[l]` of every log `logs[l]`, and the
-    /// report of every log (held-out rows `held[l]`).
-    pub(crate) fn fit(
-        logs: &[SensorimotorLog],
-        fits: &[Vec<u32>],
-        held: &[Vec<u32>],
-        space: &MotorSpace,
-        params: &LawValidParams,
-    ) -> Result<(Self, Vec<LogReport>), LearnError> {
-        let n = space.dim();
-        let basis = Basis::new(space);
+/// The second moments of the basis over every log's fitted samples: `Σ` (regularised
+/// by `10⁻¹²` of its mean diagonal), `C` and `μ`, and the number of pairs.
+struct Moments {
+    covariance: DMatrix<f64>,
+    pair_covariance: DMatrix<f64>,
+    mean: Vec<f64>,
+    pairs: usize,
+}
+
+impl Moments {
+    /// The sums of every log's pairs `(i, j(i))`, block by block, added in block order.
+    fn new(basis: &Basis, logs: &[SensorimotorLog], pairs: &[Vec<(u32, u32)>]) -> Self {
         let features = basis.len - 1;
-        // The sums of every log's pairs, in block order.
         let mut second = DMatrix::<f64>::zeros(features, features);
         let mut pair_sums = DMatrix::<f64>::zeros(features, features);
         let mut first = vec![0.0; features];
-        let mut total = 0usize;
-        let mut indices = Vec::with_capacity(logs.len());
-        for (log, fit) in logs.iter().zip(fits) {
-            let index = SensorIndex::new(log, fit);
-            let pairs: Vec<(u32, u32)> = fit
-                .par_iter()
-                .map(|&i| (i, index.nearest_other(log, i)))
-                .collect();
-            indices.push(index);
+        for (log, pairs) in logs.iter().zip(pairs) {
             let blocks: Vec<BlockSums> = pairs
                 .par_chunks(BLOCK)
-                .map(|block| block_sums(&basis, log, block))
+                .map(|block| block_sums(basis, log, block))
                 .collect();
             for block in blocks {
                 second += block.second;
@@ -391,8 +382,8 @@ impl InvariantModel {
                     .zip(&block.first)
                     .for_each(|(a, b)| *a += b);
             }
-            total += pairs.len();
         }
+        let total: usize = pairs.iter().map(Vec::len).sum();
         let inverse = 1.0 / total as f64;
         let mean: Vec<f64> = first.iter().map(|x| x * inverse).collect();
         let mut covariance = second * inverse;
@@ -401,15 +392,31 @@ impl InvariantModel {
                 covariance[(a, b)] -= mean[a] * mean[b];
             }
         }
-        let pair_covariance = pair_sums * inverse;
         let trace = covariance.trace();
         for a in 0..features {
             covariance[(a, a)] += 1e-12 * trace / features as f64;
         }
-        let first_motors = &logs[0].files.motors;
-        let cholesky = Cholesky::new(covariance).ok_or_else(|| LearnError::TooFewSamples {
-            path: first_motors.clone(),
-            samples: total,
+        Self {
+            covariance,
+            pair_covariance: pair_sums * inverse,
+            mean,
+            pairs: total,
+        }
+    }
+
+    /// The generalised eigenproblem `C w = λ Σ w`: every `λ` ascending, and the `W`
+    /// (`F × count`, `Wᵀ Σ W = I`) of the invariants kept (see the module docs); errors
+    /// name `path` (the first log's motors).
+    fn invariants(
+        self,
+        params: &LawValidParams,
+        path: &std::path::Path,
+    ) -> Result<(Vec<f64>, DMatrix<f64>), LearnError> {
+        let features = self.mean.len();
+        let samples = self.pairs;
+        let cholesky = Cholesky::new(self.covariance).ok_or_else(|| LearnError::TooFewSamples {
+            path: path.to_owned(),
+            samples,
             reason: format!(
                 "the {features} basis functions of the invariants are linearly dependent on the samples"
             ),
@@ -418,7 +425,7 @@ impl InvariantModel {
         let l = cholesky.l();
         // A = L⁻¹ C L⁻ᵀ, symmetric; its eigenvectors y give w = L⁻ᵀ y.
         let x = l
-            .solve_lower_triangular(&pair_covariance)
+            .solve_lower_triangular(&self.pair_covariance)
             .expect("a Cholesky factor is invertible");
         let mut a = l
             .solve_lower_triangular(&x.transpose())
@@ -437,8 +444,8 @@ impl InvariantModel {
             .unwrap_or_else(|| largest_gap(&eigenvalues, params.invariance_threshold));
         if count == 0 {
             return Err(LearnError::TooFewSamples {
-                path: first_motors.clone(),
-                samples: total,
+                path: path.to_owned(),
+                samples,
                 reason: format!(
                     "no combination of the basis is invariant enough: the smallest λ is {:.3}, not below invariance_threshold = {}",
                     eigenvalues[0], params.invariance_threshold
@@ -454,19 +461,54 @@ impl InvariantModel {
             .transpose()
             .solve_upper_triangular(&selected)
             .expect("a Cholesky factor is invertible");
+        Ok((eigenvalues, w))
+    }
+}
+
+impl InvariantModel {
+    /// Learns the invariants from the rows `fits[l]` of every log `logs[l]`, and the
+    /// report of every log (held-out rows `held[l]`).
+    pub(crate) fn fit(
+        logs: &[SensorimotorLog],
+        fits: &[Vec<u32>],
+        held: &[Vec<u32>],
+        space: &MotorSpace,
+        params: &LawValidParams,
+    ) -> Result<(Self, Vec<LogReport>), LearnError> {
+        let basis = Basis::new(space);
+        let indices: Vec<SensorIndex> = logs
+            .iter()
+            .zip(fits)
+            .map(|(log, fit)| SensorIndex::new(log, fit))
+            .collect();
+        let pairs: Vec<Vec<(u32, u32)>> = logs
+            .iter()
+            .zip(fits)
+            .zip(&indices)
+            .map(|((log, fit), index)| {
+                fit.par_iter()
+                    .map(|&i| (i, index.nearest_other(log, i)))
+                    .collect()
+            })
+            .collect();
+        let moments = Moments::new(&basis, logs, &pairs);
+        drop(pairs);
+        let (features, total) = (moments.mean.len(), moments.pairs);
+        let mut mean = vec![0.0; basis.len];
+        mean[1..].copy_from_slice(&moments.mean);
+        let (eigenvalues, w) = moments.invariants(params, &logs[0].files.motors)?;
+        let count = w.ncols();
         let mut weights = vec![0.0; basis.len * count];
         for f in 0..features {
             for c in 0..count {
                 weights[(f + 1) * count + c] = w[(f, c)];
             }
         }
-        let mut full_mean = vec![0.0; basis.len];
-        full_mean[1..].copy_from_slice(&mean);
         let shown = (2 * count + 4).max(12).min(features);
         let mut model = Self {
             space: space.clone(),
             basis,
-            mean: full_mean,
+            mean,
             weights,
             count,
             coverage: Vec::with_capacity(logs.len()),
@@ -479,65 +521,92 @@ impl InvariantModel {
                     .then_some(params.invariance_threshold),
                 eigenvalues: eigenvalues[..shown].to_vec(),
                 pairs: total,
-                fitted_lambda: 0.0,
+                fitted_lambda: eigenvalues[..count].iter().sum::<f64>() / count as f64,
                 held_out_lambda: None,
             },
         };
         let mut reports = Vec::with_capacity(logs.len());
         let (mut held_sum, mut held_pairs) = (0.0, 0usize);
         for (((log, fit), held_rows), index) in logs.iter().zip(fits).zip(held).zip(&indices) {
-            // λ on the held-out rows: each against its nearest fitted row in sensor space.
-            // Collected, then added in row order: the same sum for any thread count.
-            let changes: Vec<f64> = held_rows
-                .par_iter()
-                .map(|&i| {
-                    let j = index.nearest_other(log, i);
-                    let (mut a, mut b) = (vec![0.0; count], vec![0.0; count]);
-                    model.invariants(&log.motors.row(i as usize).to_vec(), &mut a);
-                    model.invariants(&log.motors.row(j as usize).to_vec(), &mut b);
-                    a.iter()
-                        .zip(&b)
-                        .map(|(x, y)| (x - y) * (x - y))
-                        .sum::<f64>()
-                })
-                .collect();
-            held_sum += changes.iter().sum::<f64>();
+            held_sum += model.held_out_change(log, held_rows, index);
             held_pairs += held_rows.len();
-            let plain = {
-                let mut points = Vec::with_capacity(fit.len() * n);
-                for &row in fit {
-                    points.extend(log.motors.row(row as usize).iter().copied());
-                }
-                KdTree::new(n, points, fit.to_vec())
-            };
-            let bandwidth =
-                params.bandwidth_factor * median_kth_distance(&plain, params.neighbours(n), params);
-            drop(plain);
-            let (points, rows) = periodic_images(log, fit, space, bandwidth);
-            let images = rows.len() as f64 / fit.len().max(1) as f64;
-            model.coverage.push(Coverage {
-                tree: KdTree::new(n, points, rows),
-                bandwidth,
-                min_count: params.coverage_neighbours(n),
-            });
-            let at = model.coverage.len() - 1;
-            // ŝ = g(z): the mean sensor values of the nearest fitted samples in z.
-            let mut z_points = vec![0.0; fit.len() * count];
-            z_points
-                .par_chunks_mut(count)
-                .zip(fit.par_iter())
-                .for_each(|(out, &row)| {
-                    model.invariants(&log.motors.row(row as usize).to_vec(), out);
-                });
-            let z_tree = KdTree::new(count, z_points, fit.to_vec());
-            let k = log.sensors.ncols();
-            let model_ref = &model;
-            let report = held_out_report(log, held_rows, fit.len(), (bandwidth, images), |m, s| {
-                if !model_ref.coverage_covers(at, m) {
+            reports.push(model.add_log(log, fit, held_rows, params)?);
+        }
+        if held_pairs > 0 {
+            model.report.held_out_lambda = Some(held_sum / (held_pairs * count) as f64);
+        }
+        Ok((model, reports))
+    }
+
+    /// `Σ_i ‖z(m_i) − z(m_j(i))‖²` over the held-out rows `i` of `log`, `j(i)` the
+    /// fitted row nearest in sensor space. The changes are collected, then added in row
+    /// order: the same sum for any thread count.
+    fn held_out_change(
+        &self,
+        log: &SensorimotorLog,
+        held_rows: &[u32],
+        index: &SensorIndex,
+    ) -> f64 {
+        let changes: Vec<f64> = held_rows
+            .par_iter()
+            .map(|&i| {
+                let j = index.nearest_other(log, i);
+                let (mut a, mut b) = (vec![0.0; self.count], vec![0.0; self.count]);
+                self.invariants(&log.motors.row(i as usize).to_vec(), &mut a);
+                self.invariants(&log.motors.row(j as usize).to_vec(), &mut b);
+                a.iter()
+                    .zip(&b)
+                    .map(|(x, y)| (x - y) * (x - y))
+                    .sum::<f64>()
+            })
+            .collect();
+        changes.iter().sum()
+    }
+
+    /// Adds the coverage of one log (its fitted rows `fit`) and measures `ŝ = g(z)` on
+    /// its held-out rows: `g` the mean sensor values of the
+    /// [`REGRESSION_NEIGHBOURS`] fitted rows nearest in `z`.
+    fn add_log(
+        &mut self,
+        log: &SensorimotorLog,
+        fit: &[u32],
+        held_rows: &[u32],
+        params: &LawValidParams,
+    ) -> Result<LogReport, LearnError> {
+        let n = self.space.dim();
+        let (tree, bandwidth, images) = image_tree(log, fit, &self.space, params)?;
+        self.coverage.push(Coverage {
+            tree,
+            bandwidth,
+            min_count: params.coverage_neighbours(n),
+        });
+        let at = self.coverage.len() - 1;
+        let count = self.count;
+        let mut z_points = vec![0.0; fit.len() * count];
+        z_points
+            .par_chunks_mut(count)
+            .zip(fit.par_iter())
+            .for_each(|(out, &row)| self.invariants(&log.motors.row(row as usize).to_vec(), out));
+        let z_tree = KdTree::new(count, z_points, fit.to_vec());
+        let model = &*self;
+        Ok(held_out_report(
+            log,
+            held_rows,
+            fit.len(),
+            (bandwidth, images),
+            |m, s| {
+                let coverage = &model.coverage[at];
+                if !covered(
+                    &model.space,
+                    &coverage.tree,
+                    coverage.bandwidth,
+                    coverage.min_count,
+                    m,
+                ) {
                     return false;
                 }
                 let mut z = vec![0.0; count];
-                model_ref.invariants(m, &mut z);
+                model.invariants(m, &mut z);
                 let near = z_tree.nearest_rows(&z, REGRESSION_NEIGHBOURS);
                 s.fill(0.0);
                 for &(_, row) in &near {
@@ -547,16 +616,9 @@ impl InvariantModel {
                 }
                 let share = 1.0 / near.len().max(1) as f64;
                 s.iter_mut().for_each(|a| *a *= share);
-                debug_assert_eq!(s.len(), k);
                 true
-            });
-            reports.push(report);
-        }
-        if held_pairs > 0 {
-            model.report.held_out_lambda = Some(held_sum / (held_pairs * count) as f64);
-        }
-        model.report.fitted_lambda = eigenvalues[..count].iter().sum::<f64>() / count as f64;
-        Ok((model, reports))
+            },
+        ))
     }
 
     /// What the eigenproblem found.
@@ -617,23 +679,11 @@ impl InvariantModel {
         }
     }
 
-    fn coverage_covers(&self, at: usize, m: &[f64]) -> bool {
-        let coverage = &self.coverage[at];
-        let query: Vec<f64> = m
-            .iter()
-            .enumerate()
-            .map(|(j, &x)| self.space.motor(j).wrap(x))
-            .collect();
-        let mut count = 0;
-        within_cached(&coverage.tree, &query, coverage.bandwidth, |_, _, _| {
-            count += 1
-        });
-        count >= coverage.min_count
-    }
-
     /// Whether every log covers `m` (see [`crate::learn`]).
     pub(crate) fn covers(&self, m: &[f64]) -> bool {
-        (0..self.coverage.len()).all(|at| self.coverage_covers(at, m))
+        self.coverage
+            .iter()
+            .all(|c| covered(&self.space, &c.tree, c.bandwidth, c.min_count, m))
     }
 
     /// The basis size for `n` motors, or the reason it is refused.

@@ -360,35 +360,7 @@ impl LocalModel {
         space: &MotorSpace,
     ) -> Result<(Self, f64), LearnError> {
         let (n, k) = (log.motors.ncols(), log.sensors.ncols());
-        let mut points = Vec::with_capacity(fit.len() * n);
-        for &row in fit {
-            points.extend(log.motors.row(row as usize).iter().copied());
-        }
-        let plain = KdTree::new(n, points, fit.to_vec());
-        let neighbours = params.neighbours(n);
-        let bandwidth = params.bandwidth_factor * median_kth_distance(&plain, neighbours, params);
-        if let Some(period) = space
-            .motors()
-            .iter()
-            .filter_map(|m| m.period())
-            .reduce(f64::min)
-        {
-            if bandwidth.is_nan() || bandwidth >= period / 4.0 {
-                return Err(LearnError::TooFewSamples {
-                    path: log.files.motors.clone(),
-                    samples: fit.len(),
-                    reason: format!(
-                        "the {neighbours} nearest samples of a typical sample lie within {bandwidth:.3}, more than a quarter period ({:.3}): the data are too sparse for a local fit",
-                        period / 4.0
-                    ),
-                    fix: "record more samples, or lower neighbours",
-                });
-            }
-        }
-        drop(plain);
-        let (points, rows) = periodic_images(log, fit, space, bandwidth);
-        let images = rows.len();
-        let tree = KdTree::new(n, points, rows);
+        let (tree, bandwidth, images) = image_tree(log, fit, space, params)?;
         let mut sensors = vec![0.0; log.sensors.len()];
         for (out, row) in sensors.chunks_mut(k).zip(log.sensors.outer_iter()) {
             out.iter_mut().zip(row).for_each(|(a, &b)| *a = b);
@@ -404,7 +376,7 @@ impl LocalModel {
             min_count: params.coverage_neighbours(n),
             ridge: params.ridge,
         };
-        Ok((model, images as f64 / fit.len().max(1) as f64))
+        Ok((model, images))
     }
 
     /// The bandwidth `h` (motor units).
@@ -530,15 +502,70 @@ impl LocalModel {
 
     /// Whether `m` is in the region the data cover (see [`crate::learn`]).
     pub(crate) fn covers(&self, m: &[f64]) -> bool {
-        let query: Vec<f64> = m
-            .iter()
-            .enumerate()
-            .map(|(j, &x)| self.space.motor(j).wrap(x))
-            .collect();
-        let mut count = 0;
-        within_cached(&self.tree, &query, self.bandwidth, |_, _, _| count += 1);
-        count >= self.min_count
+        covered(&self.space, &self.tree, self.bandwidth, self.min_count, m)
     }
+}
+
+/// Whether at least `min_count` points of `tree` (fitted samples with their periodic
+/// images) lie within `bandwidth` of `m` (wrapped into `space`): the coverage of a law
+/// (see [`crate::learn`]).
+pub(super) fn covered(
+    space: &MotorSpace,
+    tree: &KdTree,
+    bandwidth: f64,
+    min_count: usize,
+    m: &[f64],
+) -> bool {
+    let query: Vec<f64> = m
+        .iter()
+        .enumerate()
+        .map(|(j, &x)| space.motor(j).wrap(x))
+        .collect();
+    let mut count = 0;
+    within_cached(tree, &query, bandwidth, |_, _, _| count += 1);
+    count >= min_count
+}
+
+/// The bandwidth `h` of a log's fitted rows (`bandwidth_factor` times the median
+/// distance to the `neighbours`-th nearest sample), refused when it reaches a quarter
+/// of the shortest period, and the k-d tree of those rows with their periodic images
+/// within `h` of the ends, with the images per fitted row.
+pub(super) fn image_tree(
+    log: &SensorimotorLog,
+    fit: &[u32],
+    space: &MotorSpace,
+    params: &LawValidParams,
+) -> Result<(KdTree, f64, f64), LearnError> {
+    let n = log.motors.ncols();
+    let mut points = Vec::with_capacity(fit.len() * n);
+    for &row in fit {
+        points.extend(log.motors.row(row as usize).iter().copied());
+    }
+    let plain = KdTree::new(n, points, fit.to_vec());
+    let neighbours = params.neighbours(n);
+    let bandwidth = params.bandwidth_factor * median_kth_distance(&plain, neighbours, params);
+    drop(plain);
+    if let Some(period) = space
+        .motors()
+        .iter()
+        .filter_map(|m| m.period())
+        .reduce(f64::min)
+    {
+        if bandwidth.is_nan() || bandwidth >= period / 4.0 {
+            return Err(LearnError::TooFewSamples {
+                path: log.files.motors.clone(),
+                samples: fit.len(),
+                reason: format!(
+                    "the {neighbours} nearest samples of a typical sample lie within {bandwidth:.3}, more than a quarter period ({:.3}): the data are too sparse for the law's bandwidth",
+                    period / 4.0
+                ),
+                fix: "record more samples, or lower neighbours",
+            });
+        }
+    }
+    let (points, rows) = periodic_images(log, fit, space, bandwidth);
+    let images = rows.len() as f64 / fit.len().max(1) as f64;
+    Ok((KdTree::new(n, points, rows), bandwidth, images))
 }
 
 /// Solves `(G + ridge·tr)·C = R` in place (`G` upper triangle given, `p × p`; `R`
