@@ -58,16 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let rows = sample(&mut rng, samples, starts.min(samples)).into_vec();
     let start_motors = log.motors.select(ndarray::Axis(0), &rows);
     let clock = Instant::now();
-    let tolerance: f64 = std::env::var("SENSOR_TOLERANCE")
-        .map_or(Ok(smspace::learn::LAW_SENSOR_TOLERANCE), |s| s.parse())?;
-    let closure: f64 = std::env::var("CLOSURE").map_or(Ok(3e-2), |s| s.parse())?;
-    let max_steps: usize = std::env::var("MAX_STEPS").map_or(Ok(3000), |s| s.parse())?;
-    let trace_params = TraceParams {
-        sensor_tolerance: tolerance,
-        closure_tolerance: closure,
-        max_steps,
-        ..smspace::learn::law_trace_params()
-    };
+    let trace_params = trace_params_from_env()?;
     let learned = trace_learned(&law, start_motors.view(), &trace_params, &Silent)?;
     let traced_seconds = clock.elapsed().as_secs_f64();
     let truth_params = TraceParams::default().check()?;
@@ -143,6 +134,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     });
     println!("{line}");
     Ok(())
+}
+
+/// The learned law's tracing parameters, with `SENSOR_TOLERANCE`, `CLOSURE` and
+/// `MAX_STEPS` from the environment when set.
+fn trace_params_from_env() -> Result<TraceParams, Box<dyn std::error::Error>> {
+    let tolerance: f64 = std::env::var("SENSOR_TOLERANCE")
+        .map_or(Ok(smspace::learn::LAW_SENSOR_TOLERANCE), |s| s.parse())?;
+    let closure: f64 = std::env::var("CLOSURE").map_or(Ok(3e-2), |s| s.parse())?;
+    let max_steps: usize = std::env::var("MAX_STEPS").map_or(Ok(3000), |s| s.parse())?;
+    Ok(TraceParams {
+        sensor_tolerance: tolerance,
+        closure_tolerance: closure,
+        max_steps,
+        ..smspace::learn::law_trace_params()
+    })
 }
 
 /// The angle (radians) between the learned kernel direction (the right singular vector

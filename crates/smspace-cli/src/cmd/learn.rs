@@ -166,29 +166,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "trace fewer starts per call, or lower --points",
     )?;
     let law = learn(&logs, &space, &params, limit)?;
-    for log in &law.report().logs {
-        eprintln!(
-            "{}: bandwidth {:.4}, held-out error {:.2e} of the sensors' spread ({} samples held out)",
-            log.motors, log.bandwidth, log.held_out_relative_rms, log.held_out
-        );
-    }
-    if let Some(found) = &law.report().invariants {
-        eprintln!(
-            "{} invariants of {} basis functions (eigenvalues λ {}); λ on the fitted pairs {:.3}, held out {}",
-            found.invariants,
-            found.features,
-            found
-                .eigenvalues
-                .iter()
-                .map(|l| format!("{l:.3}"))
-                .collect::<Vec<_>>()
-                .join(" "),
-            found.fitted_lambda,
-            found
-                .held_out_lambda
-                .map_or("-".to_owned(), |l| format!("{l:.3}"))
-        );
-    }
+    print_law(law.report());
     let bar = Bar::new();
     let traced = trace_learned(&law, starts.view(), &trace, &bar)?;
     anyhow::ensure!(
@@ -224,6 +202,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         summary.by_status
     );
     Ok(())
+}
+
+/// What learning found, on stderr: each log's bandwidth and held-out error, and for the
+/// invariants law its eigenvalues and `λ`.
+fn print_law(report: &smspace::learn::LawReport) {
+    for log in &report.logs {
+        eprintln!(
+            "{}: bandwidth {:.4}, held-out error {:.2e} of the sensors' spread ({} samples held out)",
+            log.motors, log.bandwidth, log.held_out_relative_rms, log.held_out
+        );
+    }
+    if let Some(found) = &report.invariants {
+        eprintln!(
+            "{} invariants of {} basis functions (eigenvalues λ {}); λ on the fitted pairs {:.3}, held out {}",
+            found.invariants,
+            found.features,
+            found
+                .eigenvalues
+                .iter()
+                .map(|l| format!("{l:.3}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+            found.fitted_lambda,
+            found
+                .held_out_lambda
+                .map_or("-".to_owned(), |l| format!("{l:.3}"))
+        );
+    }
 }
 
 /// The set errors of the learned sets against the true ones in `path` (the same
