@@ -1343,16 +1343,13 @@ fn refine_segment<const N: usize>(
 /// Reusable buffers of the curve kernel.
 #[derive(Debug, Default)]
 pub(crate) struct CurveScratch {
-    /// Per vertex of `A`: its exact `d_B²` and nearest segment of `B`, once computed
-    /// (`NaN` before).
-    vertex: Vec<(f64, u32)>,
-    /// The same for the other direction (`B → A`) while `vertex` serves `A → B`, and
-    /// the other way round (see [`both_directions`]).
-    other_vertex: Vec<(f64, u32)>,
-    /// The entries of `vertex` and of `other_vertex` written since the last reset (see
+    /// Per direction (`A → B`, then `B → A`), per vertex of the set the distances are
+    /// taken from: its exact `d²` to the other set and nearest segment there, once
+    /// computed (`NaN` before).
+    vertex: [Vec<(f64, u32)>; 2],
+    /// Per direction, the entries of `vertex` written since the last reset (see
     /// [`CurveScratch::reset_vertices`]).
-    touched: Vec<u32>,
-    other_touched: Vec<u32>,
+    touched: [Vec<u32>; 2],
     /// The packed keys of [`merged_order`].
     packed: Vec<u64>,
     /// Segments of `A` that the `f32` passes left open: their test value, index, and
@@ -1375,21 +1372,18 @@ pub(crate) struct CurveScratch {
 }
 
 impl CurveScratch {
-    /// Records the exact `d_B²` of vertex `i` (of the direction `vertex` serves).
+    /// Records the exact `d_B²` of vertex `i` of direction `dir`.
     #[inline(always)]
-    fn set_vertex(&mut self, i: usize, value: (f64, u32)) {
-        self.vertex[i] = value;
-        self.touched.push(i as u32);
+    fn set_vertex(&mut self, dir: usize, i: usize, value: (f64, u32)) {
+        self.vertex[dir][i] = value;
+        self.touched[dir].push(i as u32);
     }
 
     /// Both directions' vertices unknown again (`NaN`), for sets of `points` points:
     /// only the entries written since the last reset are rewritten.
     #[inline(always)]
     fn reset_vertices(&mut self, points: usize) {
-        for (vertex, touched) in [
-            (&mut self.vertex, &mut self.touched),
-            (&mut self.other_vertex, &mut self.other_touched),
-        ] {
+        for (vertex, touched) in self.vertex.iter_mut().zip(&mut self.touched) {
             if vertex.len() != points {
                 vertex.clear();
                 vertex.resize(points, (f64::NAN, 0));
@@ -1400,13 +1394,6 @@ impl CurveScratch {
             }
             touched.clear();
         }
-    }
-
-    /// Swaps the two directions' vertex records.
-    #[inline(always)]
-    fn swap_directions(&mut self) {
-        std::mem::swap(&mut self.vertex, &mut self.other_vertex);
-        std::mem::swap(&mut self.touched, &mut self.other_touched);
     }
 }
 
@@ -1429,6 +1416,9 @@ struct Pass<'a, S: Lanes, const N: usize> {
     seam_reach: f64,
     /// Coordinates too large for the `f32` filter: nothing is settled in `f32`.
     wide: bool,
+    /// The direction: `0` for `A → B`, `1` for `B → A` (which records of
+    /// [`CurveScratch::vertex`] it keeps).
+    dir: usize,
     /// The last `(c2, segment_threshold(c2))`: `c2` changes a few times per pass while
     /// the threshold (a square root and a division) is asked for at every test.
     theta: Cell<(f64, f32)>,
@@ -1469,11 +1459,11 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
     /// lowest index among ties), computed once per pass.
     #[inline(always)]
     fn vertex(&self, i: usize, hint: f32, scratch: &mut CurveScratch) -> (f64, u32) {
-        if scratch.vertex[i].0.is_nan() {
+        if scratch.vertex[self.dir][i].0.is_nan() {
             let value = self.exact_vertex(i, hint, (&mut scratch.vertex_scan, &mut scratch.lower));
-            scratch.set_vertex(i, value);
+            scratch.set_vertex(self.dir, i, value);
         }
-        scratch.vertex[i]
+        scratch.vertex[self.dir][i]
     }
 
     /// [`Self::vertex`], computed ([`Self::exact_point`] at `a_i`).
@@ -1678,7 +1668,8 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
     #[inline(always)]
     fn known_ends_settle(&self, i: usize, c2: f64, scratch: &CurveScratch) -> bool {
         let next = if i + 1 == self.frame.points { 0 } else { i + 1 };
-        self.ends_settle(i, [scratch.vertex[i], scratch.vertex[next]], c2)
+        let known = &scratch.vertex[self.dir];
+        self.ends_settle(i, [known[i], known[next]], c2)
     }
 
     /// Whether segment `i` of `A` is settled for `c2` by the exact `d_B²` at its ends and
@@ -1754,16 +1745,16 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         scratch.scan_reach = self.upper(hint) + extra;
         scratch.scan_min1 = min1;
         let mut c2 = c2;
-        if vertex && scratch.vertex[i].0.is_nan() {
+        if vertex && scratch.vertex[self.dir][i].0.is_nan() {
             let value = self.nearest_from_scan(&load::<N>(self.a.set.points, i), min0, &scan);
-            scratch.set_vertex(i, value);
+            scratch.set_vertex(self.dir, i, value);
             c2 = c2.max(value.0);
         }
         let settled =
             min_max <= self.segment_threshold(c2) || self.lipschitz_settles(i, (min0, min1), c2);
-        if !settled && scratch.vertex[i].0.is_nan() {
+        if !settled && scratch.vertex[self.dir][i].0.is_nan() {
             let value = self.nearest_from_scan(&load::<N>(self.a.set.points, i), min0, &scan);
-            scratch.set_vertex(i, value);
+            scratch.set_vertex(self.dir, i, value);
         }
         scratch.scan = scan;
         settled
@@ -1806,7 +1797,7 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
                 if self.scan_segment(i, c2, (true, hints[l]), scratch) {
                     scanned |= 1 << l;
                 }
-                scratch.vertex[i].0
+                scratch.vertex[self.dir][i].0
             };
             if d2 > c2 {
                 c2 = d2;
@@ -2022,15 +2013,9 @@ fn both_directions<S: Lanes, const N: usize>(
     let points = passes[0].frame.points;
     scratch.reset_vertices(points);
     scratch.open.clear();
-    // `scratch.vertex` holds the exact values of the direction `current`.
-    let mut current = 0;
     let mut c2 = 0.0;
     for &entry in order {
         let (dir, alpha) = ((entry >> 31) as usize, (entry & 0x7fff_ffff) as usize);
-        if dir != current {
-            scratch.swap_directions();
-            current = dir;
-        }
         let first = scratch.open.len();
         c2 = passes[dir].block(alpha, near[dir][alpha] as usize, c2, abort2, scratch)?;
         for open in &mut scratch.open[first..] {
@@ -2045,10 +2030,6 @@ fn both_directions<S: Lanes, const N: usize>(
         // The window's tests again with the final c2, before a scan of B (its chunks near the segment).
         if value <= pass.segment_threshold(c2) || pass.lipschitz_settles(i, ends, c2) {
             continue;
-        }
-        if dir != current {
-            scratch.swap_directions();
-            current = dir;
         }
         if pass.known_ends_settle(i, c2, scratch) || pass.scan_settles(i, c2, value, scratch) {
             continue;
@@ -2164,6 +2145,7 @@ fn curve_hausdorff<S: Lanes, const N: usize>(
         half,
         seam_reach: seam - b.max_len,
         wide,
+        dir: 0,
         theta: Cell::new((f64::NAN, -1.0)),
     };
     let backward = Pass {
@@ -2175,6 +2157,7 @@ fn curve_hausdorff<S: Lanes, const N: usize>(
         half,
         seam_reach: seam - a.max_len,
         wide,
+        dir: 1,
         theta: Cell::new((f64::NAN, -1.0)),
     };
     let chunks = frame.chunks;

@@ -236,11 +236,12 @@ pub(crate) fn center_table<S: Lanes, const N: usize>(
             }
             best_at = s.select_lt(d, best, s.splat(beta as f32), best_at);
             best = s.min(d, best);
+            // Without a branch: which group holds a column's minimum is not predictable.
             let m = s.hmin(d);
-            if m < scratch.col_key[beta] {
-                scratch.col_key[beta] = m;
-                scratch.col_near[beta] = (g * LANES) as u32 + s.le(d, s.splat(m)).trailing_zeros();
-            }
+            let at = (g * LANES) as u32 + s.le(d, s.splat(m)).trailing_zeros();
+            let nearer = m < scratch.col_key[beta];
+            scratch.col_near[beta] = if nearer { at } else { scratch.col_near[beta] };
+            scratch.col_key[beta] = if nearer { m } else { scratch.col_key[beta] };
         }
         let (key, at) = (s.array(best), s.array(best_at));
         let live = (chunks - g * LANES).min(LANES);

@@ -260,12 +260,7 @@ pub(super) fn segment_probe<S: Lanes, const N: usize>(
         return false;
     }
     box_gaps::<S, N>(s, (x, v), boxes32, chunks, wraps, lower);
-    let mut best = 0;
-    for q in 1..chunks {
-        if lower[q] < lower[best] {
-            best = q;
-        }
-    }
+    let best = nearest_box(s, lower);
     let (points, _) = coords32.as_chunks::<LANES>();
     let (dirs, _) = dirs32.as_chunks::<LANES>();
     let (inverse, _) = inv32.as_chunks::<LANES>();
@@ -283,10 +278,31 @@ pub(super) fn segment_probe<S: Lanes, const N: usize>(
     s.le(s.max(e0, e1), s.splat(theta)) != 0
 }
 
+/// The chunk with the smallest box gap in `lower` (as [`box_gaps`] leaves it; the lowest
+/// index among ties), found without a branch per chunk.
+#[inline(always)]
+fn nearest_box<S: Lanes>(s: S, lower: &[f32]) -> usize {
+    let (gaps, _) = lower.as_chunks::<LANES>();
+    let mut least = s.splat(f32::INFINITY);
+    for gap in gaps {
+        least = s.min(s.load(gap), least);
+    }
+    let least = s.splat(s.hmin(least));
+    let mut base = 0;
+    for gap in gaps {
+        let hit = s.le(s.load(gap), least);
+        if hit != 0 {
+            return base + hit.trailing_zeros() as usize;
+        }
+        base += LANES;
+    }
+    0
+}
+
 /// Per chunk of `B` (`lower[q]`), the `f32` squared gap between the box of the segment
 /// `[x, x + v]` (its middle, half of `|v_n|` on either side) and the chunk's box in
 /// `boxes32` (`[n][chunk]` centres, then `[n][chunk]` half-widths, eight chunks per
-/// vector): `Σ_n max(fold(m_n − c_n) − w_n − |v_n|/2, 0)²`.
+/// vector): `Σ_n max(fold(m_n − c_n) − w_n − |v_n|/2, 0)²`, and `+∞` past the last chunk.
 #[inline(always)]
 fn box_gaps<S: Lanes, const N: usize>(
     s: S,
@@ -314,6 +330,8 @@ fn box_gaps<S: Lanes, const N: usize>(
         }
         *gap = s.array(acc);
     }
+    // The padding lanes past the last chunk: never near, never kept.
+    lower[chunks..].fill(f32::INFINITY);
 }
 
 /// Per coordinate, the chunks of eight starts and of eight directions of the segments
@@ -398,5 +416,23 @@ impl Skip {
         } else {
             t
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::metric::kernel::Portable;
+
+    #[test]
+    fn the_nearest_box_is_the_first_smallest_gap_in_any_group() {
+        let mut lower = vec![f32::INFINITY; 2 * LANES];
+        lower[..5].copy_from_slice(&[3.0, 1.5, 2.0, 1.5, 4.0]);
+        assert_eq!(nearest_box(Portable, &lower), 1);
+        lower[LANES + 2] = 0.5;
+        lower[LANES + 4] = 0.5;
+        assert_eq!(nearest_box(Portable, &lower), LANES + 2);
+        lower[0] = 0.5;
+        assert_eq!(nearest_box(Portable, &lower), 0);
     }
 }
