@@ -807,6 +807,10 @@ fn nearest<const N: usize>(
 /// one envelope; past it the segment goes to the branch and bound.
 const MAX_IMAGES: usize = 32;
 
+/// An interval `[t_a, t_b]` of a segment of `A` with the images of the envelope
+/// smallest at its ends, `(t_a, t_b, m_a, m_b)` (see [`segment_max`]).
+type Interval = (f64, f64, usize, usize);
+
 /// One piece of `E_j(t)²` on `[t0, t1]`: `|p + t·q|² = α t² + β t + γ`.
 #[derive(Debug, Clone, Copy, Default)]
 struct Quad {
@@ -974,12 +978,12 @@ fn segment_max<const N: usize>(
     i: usize,
     images: &[(u32, [f64; N])],
     c: f64,
+    (quads, stack): (&mut Vec<Quad>, &mut Vec<Interval>),
 ) -> SegmentMax {
     let v = load::<N>(a.dirs, i);
     // The pieces of every image, and where each image's pieces start.
-    let mut quads = [Quad::default(); 3 * MAX_IMAGES];
-    let pieces = image_pieces::<N>(&v, images, b, &mut quads);
-    let quads = &quads[..pieces];
+    image_pieces::<N>(&v, images, b, quads);
+    let quads = &quads[..];
     let mut first = [0usize; MAX_IMAGES + 1];
     for m in 0..images.len() {
         first[m + 1] = first[m]
@@ -1000,13 +1004,10 @@ fn segment_max<const N: usize>(
         }
     }
     // Intervals [ta, tb] with the images minimal at their ends.
-    let mut stack = [(0.0f64, 1.0f64, 0usize, 0usize); MAX_SPLITS];
-    stack[0] = (0.0, 1.0, m0, m1);
-    let mut depth = 1;
+    stack.clear();
+    stack.push((0.0, 1.0, m0, m1));
     let mut splits = 0;
-    while depth > 0 {
-        depth -= 1;
-        let (ta, tb, ma, mb) = stack[depth];
+    while let Some((ta, tb, ma, mb)) = stack.pop() {
         if ma == mb {
             // One convex function, at most its end values.
             continue;
@@ -1048,12 +1049,11 @@ fn segment_max<const N: usize>(
         }
         if let Some((t, m)) = split {
             splits += 1;
-            if splits > MAX_SPLITS || depth + 2 > MAX_SPLITS {
+            if splits > MAX_SPLITS || stack.len() + 2 > MAX_SPLITS {
                 return SegmentMax::Fallback;
             }
-            stack[depth] = (ta, t, ma, m);
-            stack[depth + 1] = (t, tb, m, mb);
-            depth += 2;
+            stack.push((ta, t, ma, m));
+            stack.push((t, tb, m, mb));
         }
     }
     SegmentMax::Done(c2.sqrt().max(c), arg)
@@ -1090,16 +1090,16 @@ const MAX_SPLITS: usize = 64;
 
 /// The quadratic pieces of `E_m(t)²`, the squared lifted distance from `a(t) = u0 + t·v`
 /// to each image `m` of a segment of `B` (at most 3 per image: before, along and after
-/// the foot's clamp), written into `quads`; returns how many.
+/// the foot's clamp), in `quads` (emptied first), image by image.
 #[inline(always)]
 fn image_pieces<const N: usize>(
     v: &[f64; N],
     images: &[(u32, [f64; N])],
     b: CurveRef<'_>,
-    quads: &mut [Quad; 3 * MAX_IMAGES],
-) -> usize {
+    quads: &mut Vec<Quad>,
+) {
     let v = *v;
-    let mut pieces = 0;
+    quads.clear();
     for (m, (j, u0)) in images.iter().enumerate() {
         let j = *j as usize;
         let w = load::<N>(b.dirs, j);
@@ -1122,8 +1122,7 @@ fn image_pieces<const N: usize>(
         let mut push = |range: (f64, f64), p: &[f64; N], q: &[f64; N]| {
             let (t0, t1) = (range.0.max(0.0), range.1.min(1.0));
             if t0 <= t1 {
-                quads[pieces] = Quad::new::<N>((t0, t1), p, q, m);
-                pieces += 1;
+                quads.push(Quad::new::<N>((t0, t1), p, q, m));
             }
         };
         if inv == 0.0 || s1 == 0.0 {
@@ -1148,7 +1147,6 @@ fn image_pieces<const N: usize>(
             push((hi, f64::INFINITY), after, &v);
         }
     }
-    pieces
 }
 
 /// A piece `[t0, t1]` of a segment of `A` still to examine, with `d_B` (not squared)
@@ -1369,6 +1367,10 @@ pub(crate) struct CurveScratch {
     /// segments of `B` it computed: a hint for the exact value there.
     scan_min1: f32,
     stack: Vec<Piece>,
+    /// The pieces of the envelope in [`segment_max`].
+    quads: Vec<Quad>,
+    /// The intervals still to examine in [`segment_max`].
+    intervals: Vec<Interval>,
 }
 
 impl CurveScratch {
@@ -1621,7 +1623,8 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         let mut rounds = 0;
         while ok && rounds < MAX_LAZY_ROUNDS {
             rounds += 1;
-            let (value, t) = match segment_max::<N>(a, b, i, &images[..count], c) {
+            let buffers = (&mut scratch.quads, &mut scratch.intervals);
+            let (value, t) = match segment_max::<N>(a, b, i, &images[..count], c, buffers) {
                 SegmentMax::Fallback => break,
                 SegmentMax::Done(_, None) => return Some(c2),
                 SegmentMax::Done(value, Some(t)) => (value, t),
@@ -1716,22 +1719,20 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         let x: [f32; N] = each(0.0, |k| a.set.coords32[k * frame.points_pad + i]);
         let v: [f32; N] = each(0.0, |k| a.dirs32[k * frame.points_pad + i]);
         let theta = self.segment_threshold(c2);
-        if theta >= 0.0
-            && segment_probe::<S, N>(
-                self.s,
-                (&x, &v),
-                (
-                    self.b.set.coords32,
-                    self.b.dirs32,
-                    self.b.inv32,
-                    self.b.boxes32,
-                ),
-                frame.chunks,
-                (&self.wraps, &self.half),
-                &mut scratch.lower,
-                theta,
-            )
-        {
+        if segment_probe::<S, N>(
+            self.s,
+            (&x, &v),
+            (
+                self.b.set.coords32,
+                self.b.dirs32,
+                self.b.inv32,
+                self.b.boxes32,
+            ),
+            frame.chunks,
+            (&self.wraps, &self.half),
+            &mut scratch.lower,
+            theta,
+        ) {
             return true;
         }
         let mut scan = std::mem::take(&mut scratch.scan);

@@ -262,18 +262,20 @@ pub(crate) fn far_first(key: &[f32], order: &mut Vec<u32>) {
     order.clear();
     order.resize(chunks, 0);
     if chunks <= RANK_SORT_MAX {
-        // A non-negative f32 orders like its bits; the low four bits take the
-        // (inverted) block index, which makes the keys distinct. Ranked without
-        // branches: the rank of a key is the number of larger keys.
-        let mut packed = [0u32; RANK_SORT_MAX];
+        // A non-negative f32 orders like its bits, here read as `i32` (they stay
+        // below 2³¹, and a signed comparison is one vector instruction for eight,
+        // where an unsigned one is not); the low four bits take the (inverted) block
+        // index, which makes the keys distinct. Ranked without branches: the rank of
+        // a key is the number of larger keys (the padding, `i32::MIN`, is never one).
+        let mut packed = [i32::MIN; RANK_SORT_MAX];
         for (alpha, slot) in packed.iter_mut().enumerate().take(chunks) {
-            *slot = (key[alpha].to_bits() & !15) | (15 - alpha as u32);
+            *slot = ((key[alpha].to_bits() & !15) | (15 - alpha as u32)) as i32;
         }
         for alpha in 0..chunks {
             let x = packed[alpha];
             let mut rank = 0;
             for &y in &packed {
-                rank += u32::from(y > x);
+                rank += i32::from(y > x);
             }
             order[rank as usize] = alpha as u32;
         }

@@ -244,7 +244,8 @@ pub(super) fn segment_scan<S: Lanes, const N: usize, const ENDS: bool>(
 /// in `lower`, as [`segment_scan`] leaves them) holds a segment with both ends' lifted
 /// `f32` squared distances at most `theta` (convexity, see the module docs). A cheap
 /// first try before a whole [`segment_scan`] for a segment the windows left open: its
-/// witness usually lies just beyond the window.
+/// witness usually lies just beyond the window. A negative `theta` (no `f32` filter)
+/// settles nothing and leaves `lower` as it was.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(super) fn segment_probe<S: Lanes, const N: usize>(
