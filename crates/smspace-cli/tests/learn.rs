@@ -21,25 +21,64 @@ fn temp() -> (tempfile::TempDir, PathBuf) {
     (dir, path)
 }
 
+/// Simulates 5000 samples of the redundant toy into `dir/log` (`extra` arguments
+/// added) and writes the first 4 of its motor rows to `dir/starts.npy`; returns them.
+fn toy_log_and_starts(dir: &std::path::Path, extra: &[&str]) -> Array2<f64> {
+    let mut args = vec![
+        "simulate",
+        "--agent",
+        "toy-redundant",
+        "--n",
+        "5000",
+        "--env-seed",
+        "3",
+        "--out-dir",
+        "log",
+    ];
+    args.extend_from_slice(extra);
+    ok(dir, &args);
+    let motors: Array2<f64> = read_npy(dir.join("log/motors.npy")).unwrap();
+    let starts = first_rows(&motors, 4);
+    write_npy(dir.join("starts.npy"), &starts).unwrap();
+    starts
+}
+
+/// `smspace learn` from the toy log of [`toy_log_and_starts`] through its starts, 20
+/// points per set, into `sets.npy`, with `extra` arguments added.
+fn learn_toy(extra: &[&str]) -> Vec<String> {
+    let mut args = vec![
+        "learn",
+        "--motors",
+        "log/motors.npy",
+        "--sensors",
+        "log/sensors.npy",
+        "--starts",
+        "starts.npy",
+        "--period",
+        "none",
+        "--points",
+        "20",
+        "--out",
+        "sets.npy",
+    ];
+    args.extend_from_slice(extra);
+    args.into_iter().map(str::to_owned).collect()
+}
+
+/// `ok` with owned arguments.
+fn ok_owned(dir: &std::path::Path, args: &[String]) -> std::process::Output {
+    ok(dir, &args.iter().map(String::as_str).collect::<Vec<_>>())
+}
+
+/// The JSON file `dir/name`.
+fn json(dir: &std::path::Path, name: &str) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join(name)).unwrap()).unwrap()
+}
+
 #[test]
 fn simulate_then_learn_writes_the_files_of_trace() {
     let (_guard, dir) = temp();
-    ok(
-        &dir,
-        &[
-            "simulate",
-            "--agent",
-            "toy-redundant",
-            "--n",
-            "5000",
-            "--noise",
-            "0.001",
-            "--env-seed",
-            "3",
-            "--out-dir",
-            "log",
-        ],
-    );
+    let starts = toy_log_and_starts(&dir, &["--noise", "0.001"]);
     let motors: Array2<f64> = read_npy(dir.join("log/motors.npy")).unwrap();
     let sensors: Array2<f64> = read_npy(dir.join("log/sensors.npy")).unwrap();
     let poses: Array2<f64> = read_npy(dir.join("log/poses.npy")).unwrap();
@@ -48,26 +87,7 @@ fn simulate_then_learn_writes_the_files_of_trace() {
         ((5000, 2), (5000, 2), (5000, 3))
     );
     assert!(dir.join("log/log.json").is_file() && dir.join("log/environment.json").is_file());
-    let starts = first_rows(&motors, 4);
-    write_npy(dir.join("starts.npy"), &starts).unwrap();
-    ok(
-        &dir,
-        &[
-            "learn",
-            "--motors",
-            "log/motors.npy",
-            "--sensors",
-            "log/sensors.npy",
-            "--starts",
-            "starts.npy",
-            "--period",
-            "none",
-            "--points",
-            "20",
-            "--out",
-            "sets.npy",
-        ],
-    );
+    ok_owned(&dir, &learn_toy(&[]));
     let sets: Array3<f64> = read_npy(dir.join("sets.npy")).unwrap();
     let kept: Array1<i64> = read_npy(dir.join("sets.kept.npy")).unwrap();
     assert_eq!(sets.dim().1, 20);
@@ -79,12 +99,8 @@ fn simulate_then_learn_writes_the_files_of_trace() {
             assert!((p[0] + p[1] - x).abs() < 0.05, "{} vs {x}", p[0] + p[1]);
         }
     }
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("sets.trace.json")).unwrap())
-            .unwrap();
-    assert_eq!(report["agent"], "learned");
-    let law: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("sets.law.json")).unwrap()).unwrap();
+    assert_eq!(json(&dir, "sets.trace.json")["agent"], "learned");
+    let law = json(&dir, "sets.law.json");
     assert_eq!(law["rank"], 1);
     assert!(law["logs"][0]["held_out_relative_rms"].as_f64().unwrap() < 0.05);
     // Against the true sets through the same starts.
@@ -102,29 +118,8 @@ fn simulate_then_learn_writes_the_files_of_trace() {
             "truth.npy",
         ],
     );
-    let out = ok(
-        &dir,
-        &[
-            "learn",
-            "--motors",
-            "log/motors.npy",
-            "--sensors",
-            "log/sensors.npy",
-            "--starts",
-            "starts.npy",
-            "--period",
-            "none",
-            "--points",
-            "20",
-            "--truth-sets",
-            "truth.npy",
-            "--out",
-            "sets.npy",
-        ],
-    );
-    let errors: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("sets.errors.json")).unwrap())
-            .unwrap();
+    let out = ok_owned(&dir, &learn_toy(&["--truth-sets", "truth.npy"]));
+    let errors = json(&dir, "sets.errors.json");
     let median = errors["median"].as_f64().unwrap();
     assert!(errors["compared"].as_u64().unwrap() >= 1, "{errors}");
     assert!(
@@ -137,46 +132,9 @@ fn simulate_then_learn_writes_the_files_of_trace() {
 #[test]
 fn learn_with_the_invariants_traces_the_lines_and_reports_the_eigenvalues() {
     let (_guard, dir) = temp();
-    ok(
-        &dir,
-        &[
-            "simulate",
-            "--agent",
-            "toy-redundant",
-            "--n",
-            "5000",
-            "--env-seed",
-            "3",
-            "--out-dir",
-            "log",
-        ],
-    );
-    let motors: Array2<f64> = read_npy(dir.join("log/motors.npy")).unwrap();
-    let starts = first_rows(&motors, 4);
-    write_npy(dir.join("starts.npy"), &starts).unwrap();
-    let learn = |extra: &[&str]| {
-        let mut args = vec![
-            "learn",
-            "--motors",
-            "log/motors.npy",
-            "--sensors",
-            "log/sensors.npy",
-            "--starts",
-            "starts.npy",
-            "--period",
-            "none",
-            "--points",
-            "20",
-            "--method",
-            "invariants",
-            "--out",
-            "sets.npy",
-        ];
-        args.extend_from_slice(extra);
-        args.into_iter().map(str::to_owned).collect::<Vec<_>>()
-    };
-    let args = learn(&[]);
-    let out = ok(&dir, &args.iter().map(String::as_str).collect::<Vec<_>>());
+    let starts = toy_log_and_starts(&dir, &[]);
+    let learn = |extra: &[&str]| learn_toy(&[&["--method", "invariants"], extra].concat());
+    let out = ok_owned(&dir, &learn(&[]));
     assert!(
         common::stderr(&out).contains("invariants of 8 basis functions"),
         "{}",
@@ -191,8 +149,7 @@ fn learn_with_the_invariants_traces_the_lines_and_reports_the_eigenvalues() {
             assert!((p[0] + p[1] - x).abs() < 0.05, "{} vs {x}", p[0] + p[1]);
         }
     }
-    let law: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("sets.law.json")).unwrap()).unwrap();
+    let law = json(&dir, "sets.law.json");
     assert_eq!(
         (law["method"].as_str(), law["rank"].as_u64()),
         (Some("invariants"), Some(1))
