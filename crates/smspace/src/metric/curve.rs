@@ -94,7 +94,7 @@ use self::filter::{
     Wraps,
 };
 use super::kernel::{
-    cut_above, each, threshold, Frame, Lanes, Portable, Scratch, Simd, RING_WINDOW,
+    cut_above, each, f32_at_least, threshold, Frame, Lanes, Portable, Scratch, Simd, RING_WINDOW,
 };
 use super::period::swrap;
 use super::prepared::{fold, wrap, PreparedSets, SetRef, BOUND_MARGIN, LANES, RING};
@@ -274,13 +274,8 @@ fn chunk_boxes32(
                 } else {
                     (centers[at + k], widths[at + k])
                 };
-                let width32 = width as f32;
                 out[k * slots + q] = (center - offset[k]) as f32;
-                out[(dims_pad + k) * slots + q] = if f64::from(width32) < width {
-                    width32.next_up()
-                } else {
-                    width32
-                };
+                out[(dims_pad + k) * slots + q] = f32_at_least(width);
             }
         }
     }
@@ -1998,6 +1993,35 @@ fn merged_order(row_key: &[f32], col_key: &[f32], packed: &mut Vec<u64>, order: 
     order.extend(packed.iter().map(|&p| !(p as u32)));
 }
 
+/// Sorts the open segments by decreasing test value, ties by increasing entry. Up to
+/// [`RANK_SORT_OPEN`] of them (almost always) are ranked without branches: a
+/// non-negative `f32` orders like its bits, so `(value bits, inverted entry)` read as
+/// an `i64` is a distinct key whose rank is the number of larger keys.
+#[inline(always)]
+fn largest_first(open: &mut [OpenSegment]) {
+    let n = open.len();
+    if n > RANK_SORT_OPEN {
+        open.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+        return;
+    }
+    let mut keys = [i64::MIN; RANK_SORT_OPEN];
+    for (key, &(value, entry, _)) in keys.iter_mut().zip(open.iter()) {
+        *key = ((u64::from(value.to_bits()) << 32) | u64::from(!entry)) as i64;
+    }
+    let mut sorted = [(0.0f32, 0u32, (0.0f32, 0.0f32)); RANK_SORT_OPEN];
+    for (&x, &item) in keys.iter().zip(open.iter()) {
+        let mut rank = 0;
+        for &y in &keys {
+            rank += usize::from(y > x);
+        }
+        sorted[rank] = item;
+    }
+    open.copy_from_slice(&sorted[..n]);
+}
+
+/// Most open segments ranked by [`largest_first`] without a sort.
+const RANK_SORT_OPEN: usize = 16;
+
 /// `max(h(A, B), h(B, A))²` over the continuous polylines; `None` once it is proven
 /// `> abort2`. The blocks of both directions go through the `f32` passes
 /// ([`Pass::block`]) in one order, far from the other set first ([`merged_order`]);
@@ -2024,7 +2048,7 @@ fn both_directions<S: Lanes, const N: usize>(
         }
     }
     let mut open = std::mem::take(&mut scratch.open);
-    open.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+    largest_first(&mut open);
     for &(value, entry, ends) in &open {
         let (dir, i) = ((entry >> 31) as usize, (entry & 0x7fff_ffff) as usize);
         let pass = passes[dir];
@@ -2278,6 +2302,27 @@ mod tests {
                 let below = d * (1.0 - 1e-9);
                 let found = curve_pair(&prepared, i, j, below, &mut scratch);
                 assert!(found.is_none_or(|v| v > below), "({i}, {j}): {found:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn open_segments_rank_like_the_sort_by_value_then_entry() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        for n in [0, 1, 2, 5, 16, 17, 40] {
+            for _ in 0..50 {
+                // Few distinct values, so that ties (broken by the entry) are common.
+                let mut open: Vec<OpenSegment> = (0..n)
+                    .map(|e| {
+                        let value = [0.0, 0.25, 1.5, f32::INFINITY][rng.gen_range(0..4)];
+                        let entry = e as u32 | u32::from(rng.gen_bool(0.5)) << 31;
+                        (value, entry, (rng.gen(), rng.gen()))
+                    })
+                    .collect();
+                let mut sorted = open.clone();
+                sorted.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+                largest_first(&mut open);
+                assert_eq!(open, sorted, "{n} segments");
             }
         }
     }

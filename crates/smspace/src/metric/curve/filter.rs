@@ -12,7 +12,7 @@
 //! convex set), and at most `|w − σ·v_j|` for any `σ ∈ [0, 1]`: segment `i` is settled
 //! when both ends are within `c` of the same lifted `s_j`.
 
-use crate::metric::kernel::{each, Lanes, RING_WINDOW};
+use crate::metric::kernel::{each, f32_at_least, Lanes, RING_WINDOW};
 use crate::metric::prepared::RING;
 
 /// The rows of a [`vertex_window`] around its centre, outward, every third point of `B`
@@ -410,13 +410,7 @@ impl Skip {
     fn threshold(self, m: f32) -> f32 {
         let upper = (f64::from(m) * (1.0 + self.rel)).sqrt() * (1.0 + 1e-12) + self.segment_delta;
         let reach = (upper + self.extra + self.margin) * (1.0 + 1e-6);
-        let x = reach * reach * (1.0 + self.rel);
-        let t = x as f32;
-        if f64::from(t) < x {
-            t.next_up()
-        } else {
-            t
-        }
+        f32_at_least(reach * reach * (1.0 + self.rel))
     }
 }
 
