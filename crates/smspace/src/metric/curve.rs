@@ -94,7 +94,8 @@ use self::filter::{
     Wraps,
 };
 use super::kernel::{
-    cut_above, each, f32_at_least, threshold, Frame, Lanes, Portable, Scratch, Simd, RING_WINDOW,
+    cut_above, each, f32_at_least, rank_among, threshold, Frame, Lanes, Portable, Scratch, Simd,
+    RING_WINDOW,
 };
 use super::period::swrap;
 use super::prepared::{fold, wrap, PreparedSets, SetRef, BOUND_MARGIN, LANES, RING};
@@ -1962,11 +1963,7 @@ fn merged_order(row_key: &[f32], col_key: &[f32], packed: &mut Vec<u64>, order: 
         }
         let mut sorted = [0u32; 32];
         for &x in all[..chunks].iter().chain(&all[16..16 + chunks]) {
-            let mut rank = 0;
-            for &y in &all {
-                rank += i32::from(y > x);
-            }
-            sorted[rank as usize] = x as u32;
+            sorted[rank_among(x, &all)] = x as u32;
         }
         order.extend(sorted[..2 * chunks].iter().map(|&x| {
             let block = 15 - (x & 15);
@@ -2010,11 +2007,7 @@ fn largest_first(open: &mut [OpenSegment]) {
     }
     let mut sorted = [(0.0f32, 0u32, (0.0f32, 0.0f32)); RANK_SORT_OPEN];
     for (&x, &item) in keys.iter().zip(open.iter()) {
-        let mut rank = 0;
-        for &y in &keys {
-            rank += usize::from(y > x);
-        }
-        sorted[rank] = item;
+        sorted[rank_among(x, &keys)] = item;
     }
     open.copy_from_slice(&sorted[..n]);
 }

@@ -194,6 +194,19 @@ pub(crate) fn cut_above(s: f32, reach: f64, rel: f64) -> f32 {
     f32_at_least(root * root * (1.0 + rel) * (1.0 + 4.0 * f64::EPSILON))
 }
 
+/// The rank of `x` among `keys` in decreasing order: how many of them are larger.
+/// Without a branch (one vector comparison for several keys): the small sorts of the
+/// kernels ([`far_first`], and the curve kernel's block and open-segment orders) pack
+/// each entry into a distinct key and place it at its rank.
+#[inline(always)]
+pub(crate) fn rank_among<T: PartialOrd + Copy>(x: T, keys: &[T]) -> usize {
+    let mut rank = 0u32;
+    for &y in keys {
+        rank += u32::from(y > x);
+    }
+    rank as usize
+}
+
 /// Exact `g²(x, y)` in `f64` (fused multiply-adds in coordinate order).
 #[inline(always)]
 pub(crate) fn exact2<const N: usize>(x: &[f64; N], y: &[f64], period: &[f64; N]) -> f64 {
@@ -278,12 +291,7 @@ pub(crate) fn far_first(key: &[f32], order: &mut Vec<u32>) {
             *slot = ((key[alpha].to_bits() & !15) | (15 - alpha as u32)) as i32;
         }
         for alpha in 0..chunks {
-            let x = packed[alpha];
-            let mut rank = 0;
-            for &y in &packed {
-                rank += i32::from(y > x);
-            }
-            order[rank as usize] = alpha as u32;
+            order[rank_among(packed[alpha], &packed)] = alpha as u32;
         }
     } else {
         for (alpha, slot) in order.iter_mut().enumerate() {
