@@ -208,6 +208,9 @@ fn within_the_dense_sampling_bounds_on_random_polylines() {
         (5, 12, 4, 0.3, Period::TwoPi),
         (5, 10, 3, 0.4, Period::None),
         (3, 17, 5, 0.3, Period::TwoPi),
+        // Far apart with long segments in 7-D (like the 3-D arm's sets): most vertices
+        // have segments that cross the seam relative to them within reach.
+        (2, 10, 7, 0.6, Period::TwoPi),
     ]
     .iter()
     .enumerate()
