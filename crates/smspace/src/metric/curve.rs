@@ -59,9 +59,10 @@
 //!    cannot change any result), and first try the one chunk whose box is nearest.
 //!    The exact `d_B` of a point then computes the segments whose `f32` value is near
 //!    the smallest; a segment that crosses the seam relative to the point (its lifted
-//!    `f32` value is only an upper bound) is computed when a lower bound allows it:
-//!    coordinate by coordinate the least periodic distance along the segment, which
-//!    is at one end unless the coordinate passes 0 (`δ² ≥ Σ_n min_t h(u_n − t v_n)²`).
+//!    `f32` value is only an upper bound) is computed when lower bounds allow it: its
+//!    chunk's box gap, then coordinate by coordinate the least periodic distance along
+//!    the segment, which is at one end unless the coordinate passes 0
+//!    (`δ² ≥ Σ_n min_t h(u_n − t v_n)²`).
 //! 2. **Open segments**, of both directions, largest window value first, tested again
 //!    with the final `c`: `d_B` is 1-Lipschitz along a segment (`g` is at most the
 //!    length travelled), so `max_t d_B(a_i + t v_i) ≤ (d_B(a_i) + d_B(a_{i+1}) + |v_i|)/2`
@@ -1540,13 +1541,18 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         };
         let (smallest, _, _) =
             self.scan::<false>(&x32, &[0.0; N], (hint, 0.0), (&mut *scan, lower, false));
-        self.nearest_from_scan(x, smallest, scan)
+        self.nearest_from_scan(x, smallest, (scan, lower))
     }
 
     /// The exact `d_B(x)²` and nearest segment from a [`segment_scan`] of the point `x`
     /// (smallest value `smallest`).
     #[inline(always)]
-    fn nearest_from_scan(&self, x: &[f64; N], smallest: f32, scan: &[ScanChunk]) -> (f64, u32) {
+    fn nearest_from_scan(
+        &self,
+        x: &[f64; N],
+        smallest: f32,
+        (scan, gaps): (&[ScanChunk], &[f32]),
+    ) -> (f64, u32) {
         let (b, frame) = (self.b, self.frame);
         let exact = |j: usize| point_segment2::<N>(x, b, j, &frame.period);
         let mut best = (f64::INFINITY, u32::MAX);
@@ -1576,7 +1582,13 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
             }
         }
         if radius >= self.seam_reach {
+            // A chunk whose box is farther than the nearest distance found (or the
+            // radius) holds nothing nearer, crossing or not.
+            let far = self.skip(0.0).beyond(best.0.min(radius * radius).sqrt());
             for &(q, _, _, mut mask) in scan {
+                if gaps[q as usize] > far {
+                    continue;
+                }
                 while mask != 0 {
                     let l = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -1611,22 +1623,29 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         (out, lower, gaps_ready): (&mut Vec<ScanChunk>, &mut Vec<f32>, bool),
     ) -> (f32, f32, f32) {
         let (b, frame) = (self.b, self.frame);
-        let skip = Skip {
-            rel: frame.rel,
-            segment_delta: frame.segment_delta,
-            margin: 2.0 * (frame.segment_delta + frame.delta),
-            extra,
-        };
         segment_scan::<S, N, ENDS>(
             self.s,
             (x, v),
             (b.set.coords32, b.dirs32, b.inv32, b.boxes32),
             frame.chunks,
             (&self.wraps, &self.half),
-            (skip, hint),
+            (self.skip(extra), hint),
             (lower, gaps_ready),
             out,
         )
+    }
+
+    /// The chunk skipping of the scans of `B`, for points within `extra` of the segment
+    /// scanned (see [`Skip`]).
+    #[inline(always)]
+    fn skip(&self, extra: f64) -> Skip {
+        let frame = self.frame;
+        Skip {
+            rel: frame.rel,
+            segment_delta: frame.segment_delta,
+            margin: 2.0 * (frame.segment_delta + frame.delta),
+            extra,
+        }
     }
 
     /// Settles segment `i` of `A` exactly, raising `c2` to its maximum `max_t d_B²` when
@@ -1792,14 +1811,16 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         scratch.scan_min1 = min1;
         let mut c2 = c2;
         if vertex && scratch.vertex[self.dir][i].0.is_nan() {
-            let value = self.nearest_from_scan(&load::<N>(self.a.set.points, i), min0, &scan);
+            let x = load::<N>(self.a.set.points, i);
+            let value = self.nearest_from_scan(&x, min0, (&scan, &scratch.lower));
             scratch.set_vertex(self.dir, i, value);
             c2 = c2.max(value.0);
         }
         let settled =
             min_max <= self.segment_threshold(c2) || self.lipschitz_settles(i, (min0, min1), c2);
         if !settled && scratch.vertex[self.dir][i].0.is_nan() {
-            let value = self.nearest_from_scan(&load::<N>(self.a.set.points, i), min0, &scan);
+            let x = load::<N>(self.a.set.points, i);
+            let value = self.nearest_from_scan(&x, min0, (&scan, &scratch.lower));
             scratch.set_vertex(self.dir, i, value);
         }
         scratch.scan = scan;

@@ -409,7 +409,15 @@ impl Skip {
     #[inline(always)]
     fn threshold(self, m: f32) -> f32 {
         let upper = (f64::from(m) * (1.0 + self.rel)).sqrt() * (1.0 + 1e-12) + self.segment_delta;
-        let reach = (upper + self.extra + self.margin) * (1.0 + 1e-6);
+        self.beyond(upper)
+    }
+
+    /// The largest `f32` squared box gap of a chunk that may hold a point within
+    /// `distance + extra` of the segment: a larger gap proves every point of the chunk's
+    /// segments farther.
+    #[inline(always)]
+    pub(super) fn beyond(self, distance: f64) -> f32 {
+        let reach = (distance + self.extra + self.margin) * (1.0 + 1e-6);
         f32_at_least(reach * reach * (1.0 + self.rel))
     }
 }
