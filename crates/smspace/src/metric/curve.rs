@@ -1566,8 +1566,9 @@ impl<S: Lanes, const N: usize> Pass<'_, S, N> {
         // f32 value within the bounds of its exact distance, so the nearest one is
         // below `cut`; one that crosses is at least `T_n/2 − |v_n|` away in the
         // crossing coordinate, so it only counts when the radius reaches that, and then
-        // only when its box bound ([`seam_lower2`]) does not exceed the radius or the
-        // nearest segment found without crossing.
+        // only when neither its chunk's box gap nor its own lower bound ([`seam_lower2`])
+        // exceeds the radius or the nearest segment found so far (those that do not
+        // cross first).
         let radius = (f64::from(smallest) * (1.0 + rel)).sqrt() * (1.0 + 1e-12) + delta;
         let cut = self.s.splat(cut_above(smallest, 2.0 * delta, rel));
         for &(q, ref e0, _, crossing) in scan {
