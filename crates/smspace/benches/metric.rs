@@ -16,7 +16,8 @@
 //! `SMSPACE_BENCH_SETS=/path/sets.npy` to use real `(M, P, N)` kernel sets instead of
 //! synthetic ones (the first `M` sets of the file for each size; sizes above its `M`
 //! are skipped; their closures from `/path/sets.closed.npy`, else all closed loops),
-//! `SMSPACE_BENCH_METRICS=hausdorff,curve` (default both). The SIMD level the kernels
+//! `SMSPACE_BENCH_METRICS=hausdorff,curve` (default both). A size below 2 is skipped,
+//! so `SMSPACE_BENCH_KNN=0` leaves the kNN search out. The SIMD level the kernels
 //! ran with is printed first.
 //!
 //! Criterion runs every case at least ten times; for the large sizes set
@@ -54,6 +55,7 @@ fn sizes(var: &str, default: &str) -> Vec<usize> {
         .unwrap_or_else(|_| default.to_owned())
         .split(',')
         .filter_map(|s| s.trim().parse().ok())
+        .filter(|&m| m >= 2)
         .collect()
 }
 
