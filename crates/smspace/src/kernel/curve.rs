@@ -1,7 +1,7 @@
 //! Predictor–corrector continuation of a 1-D level set, closure, and arc-length
 //! resampling.
 
-use super::level_set::LevelSet;
+use super::level_set::{LevelSet, Linearization};
 use super::{SetStatus, StepControl, TraceValidParams};
 use crate::agent::MotorSpace;
 
@@ -519,20 +519,10 @@ pub(crate) fn resample(
                 }
             }
         }
-        if !set.newton() && set.linearize(&point, &mut scratch.r).is_err() {
-            status = Some(SetStatus::Singular);
-            break;
-        }
-        match correct(
-            set,
-            &mut point,
-            scratch,
-            max_iterations,
-            Convergence::Measured,
-        ) {
-            Some(corrected) => max_residual = max_residual.max(corrected.residual),
-            None => {
-                status = Some(SetStatus::CorrectorFailed);
+        match project_point(set, &mut point, max_iterations, scratch) {
+            Ok(residual) => max_residual = max_residual.max(residual),
+            Err(failed) => {
+                status = Some(failed);
                 break;
             }
         }
@@ -544,4 +534,41 @@ pub(crate) fn resample(
         Some(status) => Err(status),
         None => Ok((out, length, max_residual)),
     }
+}
+
+/// Projects a point of the Hermite curve onto the level set for [`resample`]: a secant
+/// linearisation from the last reading when the level set keeps one (the corrector's
+/// landing point moves along the set by the distance to the set times the angle the
+/// secant Jacobian's row space is off, far below the tolerances), the corrector, and
+/// on a failure once more from an exact linearisation. Returns the residual.
+fn project_point(
+    set: &mut dyn LevelSet,
+    point: &mut [f64],
+    max_iterations: usize,
+    scratch: &mut Scratch,
+) -> Result<f64, SetStatus> {
+    let interpolated = point.to_vec();
+    let secant = set.set_linearization(Linearization::Secant);
+    let attempts: &[Linearization] = if secant {
+        &[Linearization::Secant, Linearization::Exact]
+    } else {
+        &[Linearization::Exact]
+    };
+    for &linearization in attempts {
+        set.set_linearization(linearization);
+        point.copy_from_slice(&interpolated);
+        if !set.newton() && set.linearize(point, &mut scratch.r).is_err() {
+            if linearization == Linearization::Exact {
+                return Err(SetStatus::Singular);
+            }
+            continue;
+        }
+        if let Some(corrected) = correct(set, point, scratch, max_iterations, Convergence::Measured)
+        {
+            set.set_linearization(Linearization::Exact);
+            return Ok(corrected.residual);
+        }
+    }
+    set.set_linearization(Linearization::Exact);
+    Err(SetStatus::CorrectorFailed)
 }

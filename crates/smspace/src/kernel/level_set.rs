@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use ndarray::{ArrayView2, ArrayViewMut2};
 
 use super::gather::Caller;
-use super::TraceValidParams;
+use super::{JacobianMethod, TraceValidParams};
 use crate::agent::{wrap_angle, Agent, Environment, Observer, PoseSpace};
 
 /// `value > floor`, false for NaN (so a NaN pivot counts as singular).
@@ -22,6 +22,25 @@ fn exceeds(value: f64, floor: f64) -> bool {
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
+
+/// How a level set may linearise ([`LevelSet::set_linearization`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Linearization {
+    /// Differences of readings at the point (traced nodes: their tangents are the
+    /// Hermite curve's).
+    Exact,
+    /// A secant update from the last reading when it lies within [`SECANT_REACH`] and
+    /// the residual did not grow since the last linearisation; exact otherwise
+    /// (projections of seeds, resampled points).
+    Secant,
+}
+
+/// Longest secant step of a [`Linearization::Secant`] linearisation, radians.
+const SECANT_REACH: f64 = 1.0;
+
+/// Secant steps shorter than this are not used to update the Jacobian: the difference
+/// of two readings that close is mostly rounding.
+const SECANT_MIN_STEP: f64 = 1e-8;
 
 /// The linearisation lost rank: the set is not a 1-D curve there.
 #[derive(Debug, Clone, Copy)]
@@ -55,6 +74,19 @@ pub(crate) trait LevelSet {
     /// its samples only).
     fn covers(&self, _m: &[f64]) -> bool {
         true
+    }
+    /// Motor rows of the agent's sensors read so far for this level set (0 for a level
+    /// set that reads none, the kinematic one).
+    fn sensor_rows(&self) -> u64 {
+        0
+    }
+    /// How the next [`linearize`](LevelSet::linearize) calls may linearise: exactly, or
+    /// by a secant update from the last reading when the level set keeps one (the
+    /// sensory set with `jacobian = "secant"`; the others always linearise exactly).
+    /// Setting it also restarts the secant's watch of the residual. Returns whether
+    /// the level set makes secant updates at all.
+    fn set_linearization(&mut self, _linearization: Linearization) -> bool {
+        false
     }
     /// An orthonormal basis of `k` vectors of the null space of the current
     /// linearisation, written row by row into `basis` (`k × N`). The default
@@ -504,9 +536,7 @@ impl LevelSet for Kinematic<'_> {
 /// Every reading goes to the agent directly, or through a [`Caller`] of a gathered
 /// round when the agent asks for [`crate::agent::Calling::Gathered`].
 pub(crate) struct Sensory<'a> {
-    agent: &'a dyn Agent,
-    environment: &'a Environment,
-    caller: Option<&'a Caller<'a>>,
+    sensor: Sensor<'a>,
     n: usize,
     k: usize,
     target: Vec<f64>,
@@ -535,6 +565,29 @@ pub(crate) struct Sensory<'a> {
     probes: Vec<f64>,
     /// Their sensor readings, `(2N + 1) × K`.
     readings: Vec<f64>,
+    /// With `jacobian = "secant"` (and a simulated law): the secant state.
+    secant: Option<SecantState>,
+}
+
+/// What the secant Jacobian keeps (see [`Sensory`]).
+struct SecantState {
+    linearization: Linearization,
+    /// The last reading: its motor row and residual `s(m) − s⁰` (`K`).
+    last_m: Vec<f64>,
+    last_r: Vec<f64>,
+    has_last: bool,
+    /// The residual norm at the last linearisation (the watch of
+    /// [`Linearization::Secant`]; infinite after a restart).
+    linearized_norm: f64,
+    /// The last exact linearisation: its motor row, residual, Jacobian and
+    /// eigen-decomposition, restored when the tracer linearises there again.
+    node_m: Vec<f64>,
+    node_r: Vec<f64>,
+    node_jacobian: Vec<f64>,
+    node_eigenvalues: Vec<f64>,
+    node_eigenvectors: Vec<f64>,
+    node_singular: bool,
+    has_node: bool,
 }
 
 impl<'a> Sensory<'a> {
@@ -550,13 +603,17 @@ impl<'a> Sensory<'a> {
         dimension: usize,
     ) -> Self {
         let (n, k) = (agent.motor_dim(), agent.sensor_dim());
-        let mut target = vec![0.0; k];
-        read_one(agent, environment, caller, start, &mut target);
-        let scale = target.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
-        let mut set = Self {
+        let mut sensor = Sensor {
             agent,
             environment,
             caller,
+            rows: 0,
+        };
+        let mut target = vec![0.0; k];
+        sensor.sense(start, &mut target);
+        let scale = target.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+        let mut set = Self {
+            sensor,
             n,
             k,
             target,
@@ -574,11 +631,150 @@ impl<'a> Sensory<'a> {
             eigenvectors: vec![0.0; n * n],
             probes: vec![0.0; (2 * n + 1) * n],
             readings: vec![0.0; (2 * n + 1) * k],
+            secant: None,
         };
         if set.projected && dimension < n {
             set.hold_range(start);
         }
+        if params.jacobian == JacobianMethod::Secant && !set.projected {
+            // The start's reading is the first one the secant keeps.
+            let last_r = vec![0.0; k];
+            set.secant = Some(SecantState {
+                linearization: Linearization::Exact,
+                last_m: start.to_vec(),
+                last_r,
+                has_last: true,
+                linearized_norm: f64::INFINITY,
+                node_m: vec![0.0; n],
+                node_r: vec![0.0; k],
+                node_jacobian: vec![0.0; k * n],
+                node_eigenvalues: vec![0.0; n],
+                node_eigenvectors: vec![0.0; n * n],
+                node_singular: false,
+                has_node: false,
+            });
+        }
         set
+    }
+
+    /// Secant mode: the residual at `m` into `r`, from the last reading when it was at
+    /// `m` (no row), else read (one row) and used for a Broyden update of the Jacobian,
+    /// `J ← J + (Δr − J Δm) Δmᵀ / |Δm|²` with `Δm`, `Δr` the steps from the last
+    /// reading (when `SECANT_MIN_STEP ≤ |Δm| ≤ SECANT_REACH`), after which the
+    /// eigen-decomposition is redone. Returns whether the Jacobian was updated.
+    fn secant_residual(&mut self, m: &[f64], r: &mut [f64]) -> bool {
+        let state = self.secant.as_mut().expect("secant mode");
+        if state.has_last && state.last_m == m {
+            r.copy_from_slice(&state.last_r);
+            return false;
+        }
+        self.sensor.sense(m, r);
+        for (ri, t) in r.iter_mut().zip(&self.target) {
+            *ri -= t;
+        }
+        let state = self.secant.as_mut().expect("secant mode");
+        let (n, k) = (self.n, self.k);
+        let mut updated = false;
+        if state.has_last {
+            let dm: Vec<f64> = m.iter().zip(&state.last_m).map(|(a, b)| a - b).collect();
+            let dm2 = dot(&dm, &dm);
+            if dm2.sqrt() >= SECANT_MIN_STEP && dm2.sqrt() <= SECANT_REACH {
+                for i in 0..k {
+                    let row = &mut self.jacobian[i * n..(i + 1) * n];
+                    let error = (r[i] - state.last_r[i]) - dot(row, &dm);
+                    for (jij, d) in row.iter_mut().zip(&dm) {
+                        *jij += error * d / dm2;
+                    }
+                }
+                updated = true;
+            }
+        }
+        state.last_m.copy_from_slice(m);
+        state.last_r.copy_from_slice(r);
+        state.has_last = true;
+        if updated {
+            // The decomposition follows the update; a loss of rank shows at the next
+            // linearisation.
+            let _ = self.decompose();
+        }
+        updated
+    }
+
+    /// Secant mode: linearises at `m` (see [`Linearization`]): the node's own
+    /// linearisation when `m` is the last exact one's point; a secant update when
+    /// allowed, `m` is a new point within reach of the last reading, the residual is
+    /// smaller than at the last linearisation and the rank holds; else one-sided
+    /// differences `(s(m + h e_j) − s(m)) / h` (`N` rows, the reading at `m` reused
+    /// when it is the last one).
+    fn secant_linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
+        let state = self.secant.as_mut().expect("secant mode");
+        if state.has_node && state.node_m == m {
+            r.copy_from_slice(&state.node_r);
+            self.jacobian.copy_from_slice(&state.node_jacobian);
+            self.eigenvalues.copy_from_slice(&state.node_eigenvalues);
+            self.eigenvectors.copy_from_slice(&state.node_eigenvectors);
+            let singular = state.node_singular;
+            state.last_m.copy_from_slice(m);
+            state.last_r.copy_from_slice(r);
+            state.has_last = true;
+            return if singular { Err(Singular) } else { Ok(()) };
+        }
+        // A secant step needs a new reading: at the last reading's own point (a stalled
+        // corrector asking again), linearise exactly.
+        let near = state.has_last
+            && state.last_m != m
+            && state
+                .last_m
+                .iter()
+                .zip(m)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt()
+                <= SECANT_REACH;
+        if state.linearization == Linearization::Secant && near {
+            let previous = state.linearized_norm;
+            self.secant_residual(m, r);
+            let norm = self.residual_norm(r);
+            if norm < previous && self.decompose().is_ok() {
+                self.secant.as_mut().expect("secant mode").linearized_norm = norm;
+                return Ok(());
+            }
+        }
+        self.forward_jacobian(m, r);
+        let result = self.decompose();
+        let norm = self.residual_norm(r);
+        let state = self.secant.as_mut().expect("secant mode");
+        state.linearized_norm = norm;
+        state.node_m.copy_from_slice(m);
+        state.node_r.copy_from_slice(r);
+        state.node_jacobian.copy_from_slice(&self.jacobian);
+        state.node_eigenvalues.copy_from_slice(&self.eigenvalues);
+        state.node_eigenvectors.copy_from_slice(&self.eigenvectors);
+        state.node_singular = result.is_err();
+        state.has_node = true;
+        result
+    }
+
+    /// The residual at `m` (reused when it is the last reading) and `J` by one-sided
+    /// differences, the `N` shifted rows in one batch.
+    fn forward_jacobian(&mut self, m: &[f64], r: &mut [f64]) {
+        self.secant_residual(m, r);
+        let (n, k, h) = (self.n, self.k, self.step);
+        let probes = &mut self.probes[..n * n];
+        for (j, probe) in probes.chunks_exact_mut(n).enumerate() {
+            probe.copy_from_slice(m);
+            probe[j] = m[j] + h;
+        }
+        let probes = ArrayView2::from_shape((n, n), &self.probes[..n * n]).expect("N × N probes");
+        let readings =
+            ArrayViewMut2::from_shape((n, k), &mut self.readings[..n * k]).expect("N × K readings");
+        self.sensor.sense_batch(probes, readings);
+        for j in 0..n {
+            let shifted = &self.readings[j * k..(j + 1) * k];
+            for i in 0..k {
+                self.jacobian[i * n + j] = (shifted[i] - self.target[i] - r[i]) / h;
+            }
+        }
     }
 
     /// `U₀`: the range of the Jacobian at `start` (see the type's docs), unless it is
@@ -607,12 +803,10 @@ impl<'a> Sensory<'a> {
     /// The residual `s(m) − s⁰` into `r` (`K`) and the full Jacobian `J(m)`.
     fn read_full(&mut self, m: &[f64], r: &mut [f64]) {
         let k = self.k;
-        if self.agent.sense_with_jacobian(
-            self.environment,
-            m,
-            &mut self.readings[..k],
-            &mut self.jacobian,
-        ) {
+        if self
+            .sensor
+            .sense_with_jacobian(m, &mut self.readings[..k], &mut self.jacobian)
+        {
             for ((ri, s), t) in r.iter_mut().zip(&self.readings[..k]).zip(&self.target) {
                 *ri = s - t;
             }
@@ -656,10 +850,7 @@ impl<'a> Sensory<'a> {
         let probes = ArrayView2::from_shape((rows, n), &self.probes).expect("(2N + 1) × N probes");
         let readings = ArrayViewMut2::from_shape((rows, k), &mut self.readings)
             .expect("(2N + 1) × K readings");
-        match self.caller {
-            Some(caller) => caller.sense_batch(probes, readings),
-            None => self.agent.sense_batch(self.environment, probes, readings),
-        }
+        self.sensor.sense_batch(probes, readings);
         for ((ri, s), t) in r.iter_mut().zip(&self.readings[..k]).zip(&self.target) {
             *ri = s - t;
         }
@@ -714,22 +905,53 @@ impl<'a> Sensory<'a> {
     }
 }
 
-/// The readings at one motor row: directly, or as a one-row request of `caller`.
-fn read_one(
-    agent: &dyn Agent,
-    environment: &Environment,
-    caller: Option<&Caller<'_>>,
-    motors: &[f64],
-    sensors: &mut [f64],
-) {
-    match caller {
-        Some(caller) => {
-            let (n, k) = (motors.len(), sensors.len());
-            let motors = ArrayView2::from_shape((1, n), motors).expect("one row of N motors");
-            let sensors = ArrayViewMut2::from_shape((1, k), sensors).expect("one row of K");
-            caller.sense_batch(motors, sensors);
+/// The agent's sensors as one level set calls them: directly, or through the
+/// [`Caller`] of a gathered round, counting the motor rows sensed either way (the
+/// rows a simulator or a robot answers for the set: what a set costs its user).
+pub(crate) struct Sensor<'a> {
+    agent: &'a dyn Agent,
+    environment: &'a Environment,
+    caller: Option<&'a Caller<'a>>,
+    /// Motor rows sensed so far.
+    rows: u64,
+}
+
+impl Sensor<'_> {
+    /// The readings of the motor rows `(B, N)` into `sensors` `(B, K)`: one call.
+    fn sense_batch(&mut self, motors: ArrayView2<'_, f64>, sensors: ArrayViewMut2<'_, f64>) {
+        self.rows += motors.nrows() as u64;
+        match self.caller {
+            Some(caller) => caller.sense_batch(motors, sensors),
+            None => self.agent.sense_batch(self.environment, motors, sensors),
         }
-        None => agent.sense(environment, motors, sensors),
+    }
+
+    /// The readings at one motor row: directly, or as a one-row request of the caller.
+    fn sense(&mut self, motors: &[f64], sensors: &mut [f64]) {
+        self.rows += 1;
+        match self.caller {
+            Some(caller) => {
+                let (n, k) = (motors.len(), sensors.len());
+                let motors = ArrayView2::from_shape((1, n), motors).expect("one row of N motors");
+                let sensors = ArrayViewMut2::from_shape((1, k), sensors).expect("one row of K");
+                caller.sense_batch(motors, sensors);
+            }
+            None => self.agent.sense(self.environment, motors, sensors),
+        }
+    }
+
+    /// The agent's own values and Jacobian at one row, when it gives them (one row).
+    fn sense_with_jacobian(
+        &mut self,
+        motors: &[f64],
+        sensors: &mut [f64],
+        jacobian: &mut [f64],
+    ) -> bool {
+        let given = self
+            .agent
+            .sense_with_jacobian(self.environment, motors, sensors, jacobian);
+        self.rows += u64::from(given);
+        given
     }
 }
 
@@ -743,15 +965,19 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn residual(&mut self, m: &[f64], r: &mut [f64]) {
+        if self.secant.is_some() {
+            self.secant_residual(m, r);
+            return;
+        }
         let Some(basis) = &self.held else {
-            read_one(self.agent, self.environment, self.caller, m, r);
+            self.sensor.sense(m, r);
             for (ri, t) in r.iter_mut().zip(&self.target) {
                 *ri -= t;
             }
             return;
         };
         let full = &mut self.full_residual;
-        read_one(self.agent, self.environment, self.caller, m, full);
+        self.sensor.sense(m, full);
         for (ri, t) in full.iter_mut().zip(&self.target) {
             *ri -= t;
         }
@@ -782,6 +1008,9 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
+        if self.secant.is_some() {
+            return self.secant_linearize(m, r);
+        }
         let Some(basis) = self.held.take() else {
             self.read_full(m, r);
             return self.decompose();
@@ -844,6 +1073,19 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn covers(&self, m: &[f64]) -> bool {
-        self.agent.covers(m)
+        self.sensor.agent.covers(m)
+    }
+
+    fn sensor_rows(&self) -> u64 {
+        self.sensor.rows
+    }
+
+    fn set_linearization(&mut self, linearization: Linearization) -> bool {
+        let Some(state) = &mut self.secant else {
+            return false;
+        };
+        state.linearization = linearization;
+        state.linearized_norm = f64::INFINITY;
+        true
     }
 }

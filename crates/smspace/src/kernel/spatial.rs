@@ -267,6 +267,7 @@ mod tests {
             pieces: 1,
             unvisited_pieces: 0,
             covering_radius: None,
+            sensor_rows: 0,
         }
     }
 

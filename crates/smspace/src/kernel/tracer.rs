@@ -22,7 +22,7 @@ use super::cover::{
 };
 use super::curve::{resample, trace_branch, Curve, Scratch};
 use super::gather::{self, Caller};
-use super::level_set::{Kinematic, LevelSet, Sensory};
+use super::level_set::{Kinematic, LevelSet, Linearization, Sensory};
 use super::{Components, KernelError, SetReport, SetStatus, TraceMethod, TraceValidParams};
 use crate::agent::{Agent, Calling, Environment, MotorSpace, Observer, PoseSpace, Workspace};
 
@@ -39,6 +39,9 @@ pub(super) struct Tracer<'a> {
     dimension: usize,
     /// The seeds of the multi-start search for pieces (`N` values each).
     seeds: Vec<f64>,
+    /// Sensor rows read at each start to estimate the rank (empty when it was not
+    /// estimated).
+    rank_rows: Vec<u64>,
 }
 
 impl<'a> Tracer<'a> {
@@ -74,6 +77,7 @@ impl<'a> Tracer<'a> {
             params,
             dimension: 0,
             seeds: Vec::new(),
+            rank_rows: Vec::new(),
         };
         tracer.seeds = piece_seeds(&tracer.space, params.piece_starts, params.piece_seed);
         tracer.dimension = match (declared, agent.sensory_rank()) {
@@ -86,7 +90,8 @@ impl<'a> Tracer<'a> {
                 supported_dimension(agent, rank, jacobian)?
             }
             (None, None) => {
-                let rank = tracer.generic_sensory_rank(starts);
+                let (rank, rows) = tracer.generic_sensory_rank(starts);
+                tracer.rank_rows = rows;
                 let jacobian = format!(
                     "the sensory Jacobian, of rank {rank}: its largest numerical rank over the {} starts (singular values above rank_tolerance = {} times the largest)",
                     starts.nrows(),
@@ -99,16 +104,40 @@ impl<'a> Tracer<'a> {
     }
 
     /// The largest numerical rank of the sensory Jacobian over the starts (0 where it
-    /// is not finite).
-    fn generic_sensory_rank(&self, starts: ArrayView2<'_, f64>) -> usize {
+    /// is not finite), and the sensor rows read at each start.
+    fn generic_sensory_rank(&self, starts: ArrayView2<'_, f64>) -> (usize, Vec<u64>) {
+        let Some(environment) = self.environment else {
+            return (0, vec![0; starts.nrows()]);
+        };
+        let n = self.agent.motor_dim();
         let rows: Vec<Vec<f64>> = starts.outer_iter().map(|r| r.to_vec()).collect();
         let rank = |caller: Option<&Caller<'_>>, _: &mut Scratch, start: &[f64]| {
-            tangent_space_via(self.agent, self.environment, caller, start, self.params)
-                .map_or(0, |t| t.rank)
+            let mut set = Sensory::new(self.agent, environment, caller, start, self.params, 1);
+            let mut r = vec![0.0; set.rows()];
+            // A singular linearisation still fills the Jacobian: its rank is what is asked.
+            let _ = set.linearize(start, &mut r);
+            let (jacobian, rows) = set.jacobian();
+            let rank = if jacobian.iter().all(|v| v.is_finite()) {
+                null_space(jacobian, rows, n, self.params.rank_tolerance).rank
+            } else {
+                0
+            };
+            (rank, set.sensor_rows())
         };
         // A start whose coroutine could not be given a stack counts as rank 0.
-        self.map_starts(&rows, rank, &|| {})
-            .map_or(0, |ranks| ranks.into_iter().max().unwrap_or(0))
+        match self.map_starts(&rows, rank, &|| {}) {
+            Ok(ranks) => (
+                ranks.iter().map(|r| r.0).max().unwrap_or(0),
+                ranks.iter().map(|r| r.1).collect(),
+            ),
+            Err(_) => (0, vec![0; starts.nrows()]),
+        }
+    }
+
+    /// The sensor rows read at start `i` to estimate the rank of the sensory Jacobian
+    /// (0 when it was not estimated).
+    pub(super) fn rank_rows(&self, i: usize) -> u64 {
+        self.rank_rows.get(i).copied().unwrap_or(0)
     }
 
     /// `work` on every row, in the rows' order, with a scratch space per caller, and
@@ -165,6 +194,7 @@ impl<'a> Tracer<'a> {
             pieces: 0,
             unvisited_pieces: 0,
             covering_radius: None,
+            sensor_rows: 0,
         };
         let start_pose = self.observer.map(|o| {
             let motors = ArrayView2::from_shape((1, start.len()), start).expect("one start");
@@ -200,6 +230,21 @@ impl<'a> Tracer<'a> {
             }
             _ => unreachable!("Tracer::new checked the method's needs"),
         };
+        let mut result = self.trace_on(set, start, start_pose.as_deref(), caller, report, scratch);
+        result.report.sensor_rows = set.sensor_rows();
+        result
+    }
+
+    /// [`trace`](Self::trace) on the level set through `start`.
+    fn trace_on(
+        &self,
+        set: &mut dyn LevelSet,
+        start: &[f64],
+        start_pose: Option<&[f64]>,
+        caller: Option<&Caller<'_>>,
+        mut report: SetReport,
+        scratch: &mut Scratch,
+    ) -> SetResult {
         let found = match self.find_pieces(set, start, scratch) {
             Ok(found) => found,
             Err((status, steps)) => {
@@ -217,7 +262,7 @@ impl<'a> Tracer<'a> {
         report.steps = found.steps;
         match self.sample(set, found, &mut report, scratch) {
             Ok((mut points, pieces)) => {
-                if let Some(pose) = &start_pose {
+                if let Some(pose) = start_pose {
                     report.max_pose_deviation = Some(self.pose_deviation(&points, pose, caller));
                 }
                 self.space.wrap_points(&mut points);
@@ -250,7 +295,12 @@ impl<'a> Tracer<'a> {
         let mut m = vec![0.0; n];
         for seed in self.seeds.chunks_exact(n) {
             m.copy_from_slice(seed);
-            if !project_seed(set, &mut m, &self.space, &mut r, &mut delta) {
+            // A seed's path to the set does not matter, only where it lands: secant
+            // updates (a sensory set with `jacobian = "secant"`) are enough.
+            let _ = set.set_linearization(Linearization::Secant);
+            let projected = project_seed(set, &mut m, &self.space, &mut r, &mut delta);
+            let _ = set.set_linearization(Linearization::Exact);
+            if !projected {
                 continue;
             }
             self.space.wrap_points(&mut m);

@@ -182,6 +182,15 @@ fn trace_table(trace: &TraceSummary, law: Option<&serde_json::Value>) -> Table {
             ),
         );
     }
+    if let Some(rows) = &trace.sensor_rows {
+        t.push(
+            "sensor rows per start (median / 90th percentile / most; all)",
+            format!(
+                "{} / {} / {}; {}",
+                rows.median, rows.p90, rows.max, rows.total
+            ),
+        );
+    }
     if let Some([low, median, high]) = trace.covering_radius {
         t.push(
             "covering radius (min / median / max)",

@@ -233,6 +233,12 @@ impl Stage for TraceStage {
                 t.compared, t.median, t.p90
             ));
         }
+        if let Some(rows) = s.sensor_rows {
+            line.push_str(&format!(
+                "; {} sensor rows per start (median; 90th percentile {}, most {}), {} in all",
+                rows.median, rows.p90, rows.max, rows.total
+            ));
+        }
         if let Some([low, median, high]) = s.covering_radius {
             line.push_str(&format!(
                 "; covering radius {low:.3} / {median:.3} / {high:.3} rad (min / median / max)"
