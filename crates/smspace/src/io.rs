@@ -183,8 +183,11 @@ pub fn read_text_bounded(path: &Path, max_bytes: u64) -> Result<String, IoError>
         return Err(too_large());
     }
     let mut bytes = Vec::new();
-    std::io::Read::read_to_end(&mut std::io::Read::take(file, max_bytes + 1), &mut bytes)
-        .map_err(read)?;
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(file, max_bytes.saturating_add(1)),
+        &mut bytes,
+    )
+    .map_err(read)?;
     if bytes.len() as u64 > max_bytes {
         return Err(too_large());
     }

@@ -73,8 +73,9 @@ pub fn check_variable_value(text: &str) -> Result<Option<usize>, ThreadsError> {
     match text.trim().parse::<usize>() {
         Ok(0) | Err(_) => {
             // A count too large for `usize` is still a count: refuse it.
-            let digits = !text.trim().is_empty() && text.trim().bytes().all(|b| b.is_ascii_digit());
-            if digits && text.trim().trim_start_matches('0').len() > 0 {
+            let text = text.trim();
+            let digits = !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit());
+            if digits && !text.trim_start_matches('0').is_empty() {
                 return Err(ThreadsError::TooMany {
                     source_name: THREADS_VARIABLE.to_owned(),
                     threads: usize::MAX,

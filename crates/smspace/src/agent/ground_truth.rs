@@ -241,7 +241,7 @@ impl PoseSpace {
                 let q = &pose[c.column..c.column + 4];
                 (c.column, q.iter().map(|v| v * v).sum::<f64>().sqrt())
             })
-            .find(|&(_, norm)| !((norm - 1.0).abs() <= QUATERNION_NORM_TOLERANCE))
+            .find(|&(_, norm)| !norm.is_finite() || (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE)
     }
 
     /// Every coordinate, in order.
