@@ -5,21 +5,15 @@ use std::sync::Mutex;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
-/// Most worker threads per core that `--threads` accepts.
-pub const MAX_THREADS_PER_CORE: usize = 4;
-
-/// Sets the size of rayon's global pool (`None`: one thread per core); refuses more than
-/// [`MAX_THREADS_PER_CORE`] per core.
+/// Sets the size of rayon's global pool (`None`: `RAYON_NUM_THREADS` when set, else one
+/// thread per core); refuses more than
+/// [`smspace::threads::MAX_THREADS_PER_CORE`] per core, from either.
 pub fn init_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    let threads = match threads {
+        Some(threads) => Some(smspace::threads::check_threads(threads, "--threads")?),
+        None => smspace::threads::check_variable()?,
+    };
     if let Some(threads) = threads {
-        anyhow::ensure!(threads >= 1, "--threads must be at least 1, got {threads}");
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let cap = MAX_THREADS_PER_CORE * cores;
-        anyhow::ensure!(
-            threads <= cap,
-            "--threads {threads} is more than {MAX_THREADS_PER_CORE} per core ({cap} on this machine's {cores} cores): \
-             more threads only slow the run down; pass at most {cap}, or leave --threads out to use every core"
-        );
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build_global()

@@ -363,9 +363,28 @@ fn bad_experiment_files_are_refused_before_anything_runs() {
         ("kernel.points=1000000000000", "at most 100000 points"),
         ("environment.lights=100000000", "at most 2000 random lights"),
         ("agent.retina_cells=1000000000000", "at most 10000"),
+        (
+            "kernel.piece_starts=1000000000",
+            "at most 10000 seeds per set",
+        ),
+        ("embedding.epochs=4000000000", "at most 100000"),
     ] {
         fails_with(d, &["run", "ok.toml", "--set", set], needle);
     }
+    // One set: nothing to compare, said before anything is traced.
+    let err = fails_with(
+        d,
+        &[
+            "run",
+            "ok.toml",
+            "--set",
+            "exploration.n=1",
+            "--set",
+            "exploration.probes=\"none\"",
+        ],
+        "at least 2 sets",
+    );
+    assert!(!err.contains("could be traced"), "{err}");
     write_experiment(
         d,
         "newline.toml",
@@ -433,6 +452,9 @@ fn a_run_folder_has_one_writer_at_a_time() {
     assert!(!run.join("manifest.json").exists());
     // A temporary file an interrupted writer left behind.
     std::fs::write(run.join(".smspace-interrupted.part"), [0u8; 100]).unwrap();
+    // And one a report killed while writing plotly.js left in assets/.
+    std::fs::create_dir_all(run.join("assets")).unwrap();
+    std::fs::write(run.join("assets/.smspace-plotly.part"), [0u8; 100]).unwrap();
     // --wait queues behind it and runs once it is released.
     let mut waiting = std::process::Command::new(env!("CARGO_BIN_EXE_smspace"))
         .args(["run", "small.toml", "--wait"])
@@ -453,6 +475,57 @@ fn a_run_folder_has_one_writer_at_a_time() {
         "complete"
     );
     assert!(!run.join(".smspace-interrupted.part").exists());
+    assert!(!run.join("assets/.smspace-plotly.part").exists());
+}
+
+#[test]
+fn devices_fifos_and_thread_counts_beyond_the_limit_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    if Path::new("/dev/zero").exists() {
+        fails_with(d, &["run", "/dev/zero"], "not a regular file");
+    }
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_smspace"))
+        .args(["env", "--out", "e.json"])
+        .env("RAYON_NUM_THREADS", "100000")
+        .current_dir(d)
+        .output()
+        .unwrap();
+    let log = stderr(&out);
+    assert!(!out.status.success());
+    assert!(
+        log.contains("RAYON_NUM_THREADS = 100000 is more than 4 threads per core"),
+        "{log}"
+    );
+    // A run folder whose D.npy became a link to a device or a FIFO: the next run
+    // recomputes it rather than read it (which would never end).
+    write_experiment(d, "small.toml", &tiny_mds(2));
+    ok(d, &["run", "small.toml"]);
+    let run = d.join("runs/small-arm");
+    let good = std::fs::read(run.join("D.npy")).unwrap();
+    #[cfg(unix)]
+    {
+        std::fs::remove_file(run.join("D.npy")).unwrap();
+        std::os::unix::fs::symlink("/dev/zero", run.join("D.npy")).unwrap();
+        ok(d, &["run", "small.toml"]);
+        assert_eq!(std::fs::read(run.join("D.npy")).unwrap(), good);
+        std::fs::remove_file(run.join("D.npy")).unwrap();
+        let made = std::process::Command::new("mkfifo")
+            .arg(run.join("D.npy"))
+            .status();
+        if made.is_ok_and(|s| s.success()) {
+            ok(d, &["run", "small.toml"]);
+            assert_eq!(std::fs::read(run.join("D.npy")).unwrap(), good);
+        }
+    }
+    // Read as an input, a device is refused too.
+    if Path::new("/dev/zero").exists() {
+        fails_with(
+            d,
+            &["embed", "/dev/zero", "--out", "Y.npy"],
+            "not a regular file",
+        );
+    }
 }
 
 #[test]

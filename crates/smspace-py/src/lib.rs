@@ -82,6 +82,9 @@ pub(crate) fn from_json<T: serde::de::DeserializeOwned>(json: &str, what: &str) 
 /// The extension module.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // The worker pool reads RAYON_NUM_THREADS when it first starts: a count beyond the
+    // command line's limit is refused here, before any thread starts.
+    smspace::threads::check_variable().map_err(to_py_err)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<Agent>()?;
     m.add_class::<PythonAgent>()?;

@@ -106,9 +106,9 @@ impl DistanceBackend for PythonDistances {
             if let Ok(mut first) = self.error.lock() {
                 first.get_or_insert(e);
             }
-            MetricError::InvalidTable {
-                metric: stage.metric.to_string(),
-                reason: format!("the distance backend failed: {text}"),
+            MetricError::Backend {
+                backend: self.remote().unwrap_or_default(),
+                reason: text,
             }
             .into()
         })

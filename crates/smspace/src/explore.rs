@@ -456,7 +456,13 @@ impl Exploration {
                         expected: format!("({rows}, {d}), one pose per row of motors.npy"),
                     });
                 }
-                Some(GroundTruth::new(space, values).expect("the columns were checked"))
+                Some(
+                    GroundTruth::new(space, values).map_err(|e| IoError::Invalid {
+                        path: poses.clone(),
+                        what: "poses",
+                        reason: e.to_string(),
+                    })?,
+                )
             }
             None => None,
         };
@@ -553,10 +559,9 @@ pub fn explore_with(
     let to_array = |v: Vec<f64>, cols: usize| {
         Array2::from_shape_vec((count, cols), v).expect("rows × cols values were pushed")
     };
-    let ground_truth = observer.map(|o| {
-        GroundTruth::new(o.pose_space(), to_array(rows.poses, pose_dim))
-            .expect("d values per row were pushed")
-    });
+    let ground_truth = observer
+        .map(|o| GroundTruth::new(o.pose_space(), to_array(rows.poses, pose_dim)))
+        .transpose()?;
     Ok(Exploration {
         motors: to_array(rows.motors, agent.motor_dim()),
         ground_truth,

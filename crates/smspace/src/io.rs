@@ -124,12 +124,79 @@ pub fn shape_string(shape: &[usize]) -> String {
 }
 
 fn open(path: &Path) -> Result<BufReader<File>, IoError> {
-    File::open(path)
-        .map(BufReader::new)
-        .map_err(|reason| IoError::Read {
-            path: path.to_owned(),
-            reason,
-        })
+    open_regular(path).map(BufReader::new)
+}
+
+/// Opens `path` for reading when it is a regular file (after symbolic links): a
+/// device (`/dev/zero`), a FIFO or a folder is refused before it is opened, since
+/// reading one may never end (or, for a FIFO, opening it may never return).
+pub fn open_regular(path: &Path) -> Result<File, IoError> {
+    check_regular(path)?;
+    File::open(path).map_err(|reason| IoError::Read {
+        path: path.to_owned(),
+        reason,
+    })
+}
+
+/// Refuses `path` unless it is a regular file (after symbolic links); see
+/// [`open_regular`].
+pub fn check_regular(path: &Path) -> Result<(), IoError> {
+    let metadata = std::fs::metadata(path).map_err(|reason| IoError::Read {
+        path: path.to_owned(),
+        reason,
+    })?;
+    if metadata.is_file() {
+        return Ok(());
+    }
+    let kind = if metadata.is_dir() {
+        "a folder"
+    } else {
+        "a device, FIFO or socket"
+    };
+    Err(IoError::Read {
+        path: path.to_owned(),
+        reason: std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("it is {kind}, not a regular file; smspace reads only regular files"),
+        ),
+    })
+}
+
+/// Most bytes of a text file smspace reads whole (an experiment, a configuration).
+pub const MAX_TEXT_BYTES: u64 = 64 << 20;
+
+/// The text of the regular file `path`, refused above `max_bytes` before it is read.
+pub fn read_text_bounded(path: &Path, max_bytes: u64) -> Result<String, IoError> {
+    let file = open_regular(path)?;
+    let read = |reason| IoError::Read {
+        path: path.to_owned(),
+        reason,
+    };
+    let size = file.metadata().map_err(read)?.len();
+    let too_large = || {
+        read(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("it holds more than {max_bytes} bytes, more than such a file may hold"),
+        ))
+    };
+    if size > max_bytes {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(file, max_bytes.saturating_add(1)),
+        &mut bytes,
+    )
+    .map_err(read)?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_large());
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        read(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("it is not UTF-8 text ({e})"),
+        ))
+    })
 }
 
 /// Reads a `.npy` array of any dimension whose elements are `A`, in standard (C)

@@ -57,6 +57,7 @@ pub mod pipeline;
 pub mod progress;
 #[cfg(feature = "pipeline")]
 pub mod report;
+pub mod threads;
 
 pub use error::{Error, Result};
 

@@ -27,6 +27,7 @@ called in batches). Distance matrices on a Dask cluster: :mod:`smspace.dask`.
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 from dataclasses import dataclass, field
@@ -443,12 +444,31 @@ def _load_run(directory: Path, report: dict) -> Run:
     return Run(dir=directory, report=report, manifest=manifest, arrays=arrays)
 
 
+#: Most tiles :func:`tile_plan` lists (each is one task of a cluster).
+MAX_TILES = 1_000_000
+
+
 def tile_plan(sets: int, size: int) -> list:
     """The triangular tiles ``(r0, r1, c0, c1)`` of a matrix of ``sets`` sets in blocks
     of ``size``: every pair ``{i, j}`` in exactly one tile (block ``a`` against every
-    block ``b >= a``)."""
+    block ``b >= a``). At most :data:`MAX_TILES` tiles: a plan with more is refused
+    (ValueError naming a size that fits) before any tile is made."""
+    for name, value in (("sets", sets), ("size", size)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise TypeError(f"tile_plan: {name} must be an integer, got {type(value).__name__}")
+    sets, size = int(sets), int(size)
     if sets < 2 or size < 1:
         raise ValueError(f"a tile plan needs at least 2 sets and a size of at least 1, got {sets} and {size}")
+    count = -(-sets // size)
+    tiles = count * (count + 1) // 2
+    if tiles > MAX_TILES:
+        # The smallest size whose plan fits: b blocks give b(b + 1)/2 tiles.
+        most_blocks = (math.isqrt(8 * MAX_TILES + 1) - 1) // 2
+        fits = -(-sets // most_blocks)
+        raise ValueError(
+            f"a tile plan of {sets} sets in blocks of {size} has {tiles} tiles, more than "
+            f"{MAX_TILES}: use blocks of at least {fits} sets (tile={fits})"
+        )
     blocks = [(start, min(start + size, sets)) for start in range(0, sets, size)]
     return [
         (a0, a1, b0, b1)

@@ -33,7 +33,7 @@ import numpy as np
 
 from . import Traced, _core, _progress, _sets_args, tile_plan
 
-__all__ = ["distances", "knn", "default_tile"]
+__all__ = ["distances", "knn", "default_tile", "WorkersDied"]
 
 
 def default_tile(sets: int, workers: int) -> int:
@@ -48,6 +48,34 @@ def _workers(client: Any) -> int:
         return max(1, len(client.scheduler_info().get("workers", {})))
     except Exception:  # noqa: BLE001 (a client of any kind: count one worker)
         return 1
+
+
+class WorkersDied(RuntimeError):
+    """The Dask cluster lost a task because its workers died (killed, out of memory,
+    or the cluster shut down): the computation cannot finish there."""
+
+
+#: Exception classes (by name, across ``distributed`` versions) that mean the task
+#: was lost with its worker rather than failed by itself.
+_LOST_TASK = ("KilledWorker", "FutureCancelledError", "CancelledError")
+
+
+def _result(future: Any, what: str) -> Any:
+    """``future.result()``, with a lost task (its workers died) raised as
+    :class:`WorkersDied` naming ``what`` and the way out; the task's own errors (the
+    engine's ``ValueError``...) pass unchanged."""
+    try:
+        return future.result()
+    except BaseException as error:  # noqa: BLE001 (classified by name below)
+        names = {cls.__name__ for cls in type(error).__mro__}
+        if not names.intersection(_LOST_TASK):
+            raise
+        raise WorkersDied(
+            f"the Dask cluster lost {what}: its workers died or were killed "
+            f"({type(error).__name__}: {error}); nothing was returned. Restart the "
+            "workers (or give the client a running cluster) and call again; "
+            "smspace.run keeps the stages it finished"
+        ) from error
 
 
 def _aligned(array: np.ndarray) -> np.ndarray:
@@ -181,7 +209,7 @@ def distances(
     tiles = []
     for future in as_completed(futures):
         bounds = futures[future]
-        tiles.append((bounds, _aligned(future.result())))
+        tiles.append((bounds, _aligned(_result(future, f"the task of tile {bounds}"))))
         r0, r1, c0, c1 = bounds
         done += (r1 - r0) * (c1 - c0) if r0 != c0 else (r1 - r0) * (r1 - r0 - 1) // 2
         if report is not None:
@@ -228,7 +256,7 @@ def knn(
     report = _progress(progress)
     parts = []
     for index, future in enumerate(futures):
-        parts.append(future.result())
+        parts.append(_result(future, f"the task of rows {blocks[index]}"))
         if report is not None:
             report("knn", blocks[index][1], m)
     # (np.concatenate copies into fresh, aligned arrays.)

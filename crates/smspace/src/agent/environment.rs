@@ -403,9 +403,11 @@ impl Environment {
         Ok(())
     }
 
-    /// Checks that the lights live where `agent` senses them ([`Agent::light_space`]):
-    /// `[x, y]` for a planar agent, `[x, y, z]` for one in 3-D.
+    /// Checks the environment ([`Environment::check`]: at least one light, finite
+    /// values) and that the lights live where `agent` senses them
+    /// ([`Agent::light_space`]): `[x, y]` for a planar agent, `[x, y, z]` for one in 3-D.
     pub fn check_for(&self, agent: &dyn Agent) -> Result<(), AgentError> {
+        self.check()?;
         let wanted = agent.light_space();
         if self.space == wanted {
             return Ok(());

@@ -96,6 +96,11 @@ fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
+/// How far from 1 the norm of a pose's quaternion may be: an observer's orientation is
+/// a unit quaternion, and a pose whose quaternion is not is refused (never normalised,
+/// since a scaled quaternion is the sign of a wrong pose function).
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-6;
+
 /// The layout of the observer's poses: a kind and a name per coordinate, quaternion
 /// coordinates in blocks of four.
 ///
@@ -224,6 +229,19 @@ impl PoseSpace {
                 _ => 1,
             })
             .sum()
+    }
+
+    /// The first quaternion block of `pose` whose norm is not 1 (within
+    /// [`QUATERNION_NORM_TOLERANCE`]) or not finite: its first column and its norm.
+    pub fn non_unit_quaternion(&self, pose: &[f64]) -> Option<(usize, f64)> {
+        self.components()
+            .into_iter()
+            .filter(|c| c.kind == CoordinateKind::Quaternion)
+            .map(|c| {
+                let q = &pose[c.column..c.column + 4];
+                (c.column, q.iter().map(|v| v * v).sum::<f64>().sqrt())
+            })
+            .find(|&(_, norm)| !norm.is_finite() || (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE)
     }
 
     /// Every coordinate, in order.
@@ -453,7 +471,8 @@ pub struct GroundTruthView<'a> {
 }
 
 impl GroundTruth {
-    /// The poses `(M, d)` of a space of `d` coordinates.
+    /// The poses `(M, d)` of a space of `d` coordinates; every quaternion block must
+    /// be a unit quaternion ([`QUATERNION_NORM_TOLERANCE`]).
     pub fn new(space: PoseSpace, poses: Array2<f64>) -> Result<Self, AgentError> {
         if poses.ncols() != space.dim() {
             return Err(AgentError::PoseColumns {
@@ -461,15 +480,29 @@ impl GroundTruth {
                 expected: space.dim(),
             });
         }
+        let quaternions = space
+            .coordinates()
+            .iter()
+            .any(|c| c.kind == CoordinateKind::Quaternion);
+        for (row, pose) in poses.outer_iter().enumerate().filter(|_| quaternions) {
+            let pose: Vec<f64> = pose.to_vec();
+            if let Some((column, norm)) = space.non_unit_quaternion(&pose) {
+                return Err(AgentError::NonUnitQuaternion { row, column, norm });
+            }
+        }
         Ok(Self { space, poses })
     }
 
-    /// The poses of the motor rows `(M, N)` as the observer sees them.
-    pub fn observe(observer: &dyn Observer, motors: ArrayView2<'_, f64>) -> Self {
+    /// The poses of the motor rows `(M, N)` as the observer sees them (refused when a
+    /// quaternion is not a unit one, as by [`GroundTruth::new`]).
+    pub fn observe(
+        observer: &dyn Observer,
+        motors: ArrayView2<'_, f64>,
+    ) -> Result<Self, AgentError> {
         let space = observer.pose_space();
         let mut poses = Array2::zeros((motors.nrows(), space.dim()));
         observer.pose_batch(motors, poses.view_mut());
-        Self { space, poses }
+        Self::new(space, poses)
     }
 
     /// The layout.
@@ -678,7 +711,8 @@ mod tests {
         for (a, b) in column(1).iter().zip([1.0, 0.0, 0.0]) {
             assert_abs_diff_eq!(*a, b, epsilon = 1e-7);
         }
-        let truth = GroundTruth::observe(&observer, ndarray::array![[0.0, 0.0, 1.0]].view());
+        let truth =
+            GroundTruth::observe(&observer, ndarray::array![[0.0, 0.0, 1.0]].view()).unwrap();
         assert_eq!(truth.poses().dim(), (1, 7));
         assert!(truth.planar().is_none());
         assert!(GroundTruth::new(space_3d(), Array2::zeros((2, 3))).is_err());

@@ -95,6 +95,16 @@ pub enum AgentError {
         /// What disagrees.
         reason: String,
     },
+    /// A pose's quaternion is not a unit quaternion.
+    #[error("the pose of row {row} has a quaternion (columns {column} to {}) of norm {norm}; an orientation is a unit quaternion (w, x, y, z) with w² + x² + y² + z² = 1: normalise it in the pose function", column + 3)]
+    NonUnitQuaternion {
+        /// The row of the pose.
+        row: usize,
+        /// The first column of the quaternion block.
+        column: usize,
+        /// Its norm.
+        norm: f64,
+    },
     /// Poses do not have the columns of their layout.
     #[error("poses have {found} columns but the observer's pose has {expected} coordinates")]
     PoseColumns {

@@ -104,9 +104,12 @@ pub struct AgentSpec {
 }
 
 fn read_text(path: &Path) -> Result<String, ConfigError> {
-    std::fs::read_to_string(path).map_err(|reason| ConfigError::Read {
-        path: path.to_owned(),
-        reason,
+    crate::io::read_text_bounded(path, crate::io::MAX_TEXT_BYTES).map_err(|e| match e {
+        crate::io::IoError::Read { path, reason } => ConfigError::Read { path, reason },
+        other => ConfigError::Read {
+            path: path.to_owned(),
+            reason: std::io::Error::other(other.to_string()),
+        },
     })
 }
 

@@ -64,6 +64,10 @@ pub enum Neighbourhood {
     Exp,
 }
 
+/// Most epochs of CCA (`embedding.epochs`, `extend_epochs`): each costs `M²`
+/// operations and one float64 of the stress trace.
+pub const MAX_EPOCHS: usize = 100_000;
+
 /// Parameters of CCA (unchecked).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -158,8 +162,20 @@ impl CcaParams {
         let bad = |name, value: String, expected: &str| {
             Err(InvalidParameter::new("embedding", name, value, expected).into())
         };
-        if self.epochs == 0 {
-            return bad("epochs", "0".into(), "at least 1");
+        for (name, epochs) in [
+            ("epochs", self.epochs),
+            ("extend_epochs", self.extend_epochs),
+        ] {
+            if epochs == 0 && name == "epochs" {
+                return bad(name, "0".into(), "at least 1");
+            }
+            if epochs > MAX_EPOCHS {
+                return bad(
+                    name,
+                    epochs.to_string(),
+                    &format!("at most {MAX_EPOCHS} (every epoch moves every point once and keeps its stress; the default is 50)"),
+                );
+            }
         }
         if !(self.alpha_start > 0.0 && self.alpha_start <= 1.0) {
             return bad("alpha_start", self.alpha_start.to_string(), "in (0, 1]");

@@ -79,7 +79,7 @@ pub(crate) fn distance_scale<'a>(distances: impl IntoIterator<Item = &'a f64>) -
 }
 
 /// `value · factor`, saturated at `±f64::MAX` when the true product is beyond `f64`.
-fn times(value: f64, factor: f64) -> f64 {
+pub(crate) fn times(value: f64, factor: f64) -> f64 {
     let product = value * factor;
     if product.is_infinite() && value.is_finite() {
         f64::MAX.copysign(product)

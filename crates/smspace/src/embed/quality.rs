@@ -154,7 +154,8 @@ pub fn shepard_pairs(
 /// and stress with `neighbours` neighbours (capped below `M/2`; `None` when fewer than
 /// one fits), and a Shepard sample of at most `dydx_pairs` pairs drawn with `seed`
 /// (`None` for 0 pairs). `smspace embed` and the pipeline's embed stage both measure
-/// through here.
+/// through here. The figures are the same at any finite scale of the distances and
+/// coordinates (both multiplied by one factor), and the sample is finite.
 pub fn measure(
     distances: ArrayView2<'_, f64>,
     coordinates: ArrayView2<'_, f64>,
@@ -162,6 +163,22 @@ pub fn measure(
     dydx_pairs: usize,
     seed: u64,
 ) -> Result<(Option<Quality>, Option<Array2<f64>>), EmbedError> {
+    // Distances far from 1 (beyond 2^±64) are measured divided by a power of two near
+    // their largest (exact), so that squares neither underflow to 0 nor overflow to
+    // infinity; lengths are multiplied back, the raw stress by the scale squared
+    // (saturated at f64::MAX). Trustworthiness, continuity and stress-1 do not depend
+    // on the scale.
+    if let Some(scale) = super::eigen::distance_scale(distances.iter()) {
+        let x = distances.mapv(|v| v / scale);
+        let y = coordinates.mapv(|v| v / scale);
+        let (quality, dydx) = measure(x.view(), y.view(), neighbours, dydx_pairs, seed)?;
+        let times = super::eigen::times;
+        let quality = quality.map(|q| Quality {
+            raw_stress: times(times(q.raw_stress, scale), scale),
+            ..q
+        });
+        return Ok((quality, dydx.map(|d| d.mapv(|v| times(v, scale)))));
+    }
     let m = distances.nrows();
     let k = neighbours.min(m.saturating_sub(1) / 2);
     let quality = if k >= 1 {

@@ -10,7 +10,7 @@ use ndarray::{ArrayView2, ArrayViewMut2};
 
 use super::gather::Caller;
 use super::{JacobianMethod, TraceValidParams};
-use crate::agent::{wrap_angle, Agent, Environment, Observer, PoseSpace};
+use crate::agent::{wrap_angle, Agent, CoordinateKind, Environment, Observer, PoseSpace};
 
 /// `value > floor`, false for NaN (so a NaN pivot counts as singular).
 #[inline]
@@ -179,13 +179,34 @@ pub(crate) struct Kinematic<'a> {
     difference: Vec<f64>,
 }
 
+/// The relative precision the kinematic corrector asks of a pose: its residual is
+/// accepted below `pose_tolerance` or this fraction of the pose's largest linear
+/// coordinate, whichever is larger (for the paper's arm, whose poses are within a few
+/// units of the origin, `pose_tolerance` alone).
+pub(crate) const POSE_RESOLUTION: f64 = 1e-12;
+
 impl<'a> Kinematic<'a> {
+    /// The level set of the pose at `start`, a residual accepted up to `tolerance`, or
+    /// up to [`POSE_RESOLUTION`] times the largest linear coordinate of the start's pose
+    /// when that is larger (the precision of a pose far from the origin: an arm of
+    /// links `10⁶` long cannot meet `10⁻¹¹`).
     pub(crate) fn new(observer: &'a dyn Observer, start: &[f64], tolerance: f64) -> Self {
         let n = start.len();
         let space = observer.pose_space();
         let c = observer.configuration_dim();
         let mut target = vec![0.0; space.dim()];
         observer.pose(start, &mut target);
+        let scale = space
+            .coordinates()
+            .iter()
+            .zip(&target)
+            .filter(|(coordinate, _)| coordinate.kind == CoordinateKind::Linear)
+            .fold(0.0_f64, |largest, (_, v)| largest.max(v.abs()));
+        let tolerance = if scale.is_finite() {
+            tolerance.max(POSE_RESOLUTION * scale)
+        } else {
+            tolerance
+        };
         Self {
             observer,
             n,

@@ -270,8 +270,9 @@ pub struct TraceParams {
     pub max_steps: usize,
     /// Points per resampled set `P`. Default 100 (the paper's).
     pub points: usize,
-    /// Kinematic corrector: largest pose residual accepted (length units and radians).
-    /// Default `1e-11`.
+    /// Kinematic corrector: largest pose residual accepted (length units and radians),
+    /// or `1e-12` times the largest linear coordinate of the start's pose when that is
+    /// larger (poses far from the origin). Default `1e-11`.
     pub pose_tolerance: f64,
     /// Sensory corrector: largest sensor residual accepted, relative to the largest
     /// sensor value at the start. Default `1e-12`.
@@ -467,6 +468,18 @@ impl TraceValidParams {
     pub fn sets_bytes(&self, rows: u64, motor_dim: usize) -> u64 {
         sets_bytes(rows, self.points, motor_dim)
     }
+
+    /// Bytes of the seeds of the multi-start search ([`TraceParams::seeds_bytes`]).
+    pub fn seeds_bytes(&self, motor_dim: usize) -> u64 {
+        seeds_bytes(self.piece_starts, motor_dim)
+    }
+}
+
+/// Bytes of `piece_starts` seeds of `motor_dim` float64 each (saturating).
+fn seeds_bytes(piece_starts: usize, motor_dim: usize) -> u64 {
+    (piece_starts as u64)
+        .saturating_mul(motor_dim as u64)
+        .saturating_mul(8)
 }
 
 /// The `curve` metric reads a set as polylines (its pieces' loops and segments): it
@@ -491,6 +504,12 @@ pub fn check_curve_metric(dimension: usize) -> Result<(), InvalidParameter> {
 /// Most points per kernel set.
 pub const MAX_POINTS: usize = 100_000;
 
+/// Most seeds of the multi-start search for pieces (`kernel.piece_starts`), per set.
+/// Every set projects every seed onto its level set, so the search costs
+/// `piece_starts` corrector runs per set; the seeds themselves take
+/// `piece_starts × N` float64.
+pub const MAX_PIECE_STARTS: usize = 10_000;
+
 impl TraceParams {
     /// Bytes of the kernel sets `(rows, points, N)` float64 traced from `rows` motor
     /// rows of an agent with `motor_dim` motors, and the piece of every point
@@ -498,6 +517,12 @@ impl TraceParams {
     /// ([`TraceParams::stored_points`]) (saturating).
     pub fn sets_bytes(&self, rows: u64, motor_dim: usize) -> u64 {
         sets_bytes(rows, self.stored_points(), motor_dim)
+    }
+
+    /// Bytes of the seeds of the multi-start search for pieces, `piece_starts × N`
+    /// float64, which every tracer holds (saturating).
+    pub fn seeds_bytes(&self, motor_dim: usize) -> u64 {
+        seeds_bytes(self.piece_starts, motor_dim)
     }
 
     /// Validates the parameters and resolves `auto` step control
@@ -547,6 +572,13 @@ impl CheckParams for TraceParams {
                 "points",
                 self.points,
                 "must be at most 100000 points per set (the paper uses 100)",
+            ));
+        }
+        if self.piece_starts > MAX_PIECE_STARTS {
+            return Err(invalid(
+                "piece_starts",
+                self.piece_starts,
+                &format!("must be at most {MAX_PIECE_STARTS} seeds per set (each costs a projection onto every set's level set; the default is 16, 0 turns the search off)"),
             ));
         }
         let step_control = match (self.step_control, self.method) {

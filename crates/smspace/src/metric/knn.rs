@@ -293,6 +293,13 @@ fn knn_measured(
         );
     progress.finish();
     measure.failure(|s| s)?;
+    if let Some(((r, c), &value)) = distances.indexed_iter().find(|(_, v)| !v.is_finite()) {
+        return Err(MetricError::NonFiniteDistance {
+            i: rows.start + r,
+            j: indices[[r, c]],
+            value,
+        });
+    }
     Ok(Knn {
         rows,
         indices,

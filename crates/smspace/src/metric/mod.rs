@@ -191,6 +191,26 @@ impl<'a> From<ArrayView3<'a, f64>> for SetsView<'a> {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum MetricError {
+    /// A distance came out NaN or infinite (coordinates so large that their squares
+    /// overflow): nothing is returned or written.
+    #[error("the distance between sets {i} and {j} is {value}: the sets' coordinates are too large for float64 arithmetic (their squared differences overflow); smspace never gives a non-finite distance: divide the sets by a common factor (the distances scale with it), or use a periodic motor space")]
+    NonFiniteDistance {
+        /// The row set.
+        i: usize,
+        /// The column set.
+        j: usize,
+        /// The value found.
+        value: f64,
+    },
+    /// A distance backend (where the pipeline's matrix is computed, e.g. a cluster)
+    /// failed or returned a wrong matrix.
+    #[error("the distance backend ({backend}) failed: {reason}")]
+    Backend {
+        /// The backend: where it computes.
+        backend: String,
+        /// What went wrong, with the shapes or the backend's own error.
+        reason: String,
+    },
     /// Fewer than two sets: there is no pair to measure.
     #[error("need at least 2 kernel sets to compute distances, got {sets}")]
     TooFewSets {
@@ -1003,8 +1023,10 @@ pub fn distance_rows<'a>(
     )?;
     let measure = tiles::Measure::kernel(sets, params.kind, &params.period)?;
     let mut out = Array2::zeros((rows.len(), m));
+    let row0 = rows.start;
     let layout = tiles::Layout::within(Tile::new(rows, 0..m));
     tiles::fill(measure, &layout, out.view_mut(), progress)?;
+    check_finite_distances(out.view(), row0, 0)?;
     Ok(out)
 }
 
@@ -1094,5 +1116,23 @@ pub fn distance_matrix_with<'a>(
     let mut out = Array2::zeros((m, m));
     let layout = tiles::Layout::within(Tile::new(0..m, 0..m));
     tiles::fill(measure, &layout, out.view_mut(), progress)?;
+    check_finite_distances(out.view(), 0, 0)?;
     Ok(DistanceMatrix::from_symmetric(out))
+}
+
+/// Refuses a block of distances (rows from `row0`, columns from `column0`) holding NaN
+/// or an infinity ([`MetricError::NonFiniteDistance`], naming the first).
+pub(crate) fn check_finite_distances(
+    block: ndarray::ArrayView2<'_, f64>,
+    row0: usize,
+    column0: usize,
+) -> Result<(), MetricError> {
+    match block.indexed_iter().find(|(_, v)| !v.is_finite()) {
+        Some(((i, j), &value)) => Err(MetricError::NonFiniteDistance {
+            i: row0 + i,
+            j: column0 + j,
+            value,
+        }),
+        None => Ok(()),
+    }
 }

@@ -539,6 +539,19 @@ pub fn fill_tile<'a>(
     cols: impl Into<SetsView<'a>>,
     tile: &Tile,
     metric: &dyn SetMetric,
+    mut out: ArrayViewMut2<'_, f64>,
+    progress: &dyn Progress,
+) -> Result<(), MetricError> {
+    fill_tile_values(rows, cols, tile, metric, out.view_mut(), progress)?;
+    super::check_finite_distances(out.view(), tile.rows.start, tile.cols.start)
+}
+
+/// [`fill_tile`] without the check of its values.
+fn fill_tile_values<'a>(
+    rows: impl Into<SetsView<'a>>,
+    cols: impl Into<SetsView<'a>>,
+    tile: &Tile,
+    metric: &dyn SetMetric,
     out: ArrayViewMut2<'_, f64>,
     progress: &dyn Progress,
 ) -> Result<(), MetricError> {

@@ -130,21 +130,35 @@ pub(super) fn is_read_only(error: &std::io::Error) -> bool {
     )
 }
 
+/// Folder levels below a run folder searched for stale temporary files (`figures/`,
+/// `assets/`, and anything a stage writes below them).
+const STALE_PART_DEPTH: usize = 3;
+
 /// Removes the temporary files (`.smspace-*.part`, see [`crate::io::write_atomic`]) that
-/// an interrupted writer left in `dir` and `dir/figures`. Only called while the folder's
-/// lock is held, so no other run is writing them; returns how many were removed.
+/// an interrupted writer left in `dir` and every folder below it (`figures/`,
+/// `assets/`, …, [`STALE_PART_DEPTH`] levels deep; symbolic links are not followed).
+/// Only called while the folder's lock is held, so no other run is writing them;
+/// returns how many were removed.
 pub(super) fn remove_stale_parts(dir: &Path) -> usize {
     let mut removed = 0;
-    for folder in [dir.to_owned(), dir.join("figures")] {
+    let mut folders = vec![(dir.to_owned(), 0)];
+    while let Some((folder, depth)) = folders.pop() {
         let Ok(entries) = std::fs::read_dir(&folder) else {
             continue;
         };
         for entry in entries.flatten() {
+            let Ok(kind) = entry.file_type() else {
+                continue;
+            };
+            if kind.is_dir() && depth < STALE_PART_DEPTH {
+                folders.push((entry.path(), depth + 1));
+                continue;
+            }
             let name = entry.file_name();
             let name = name.to_string_lossy();
             if name.starts_with(crate::io::TEMP_PREFIX)
                 && name.ends_with(crate::io::TEMP_SUFFIX)
-                && entry.file_type().is_ok_and(|t| t.is_file())
+                && kind.is_file()
                 && std::fs::remove_file(entry.path()).is_ok()
             {
                 removed += 1;
@@ -207,15 +221,20 @@ mod tests {
     fn stale_temporary_files_are_removed() {
         let dir = tempfile::tempdir().unwrap();
         std::fs::create_dir(dir.path().join("figures")).unwrap();
+        std::fs::create_dir(dir.path().join("assets")).unwrap();
         for name in [
             ".smspace-a1.part",
             "figures/.smspace-b2.part",
+            "assets/.smspace-c3.part",
+            "assets/keep.part",
             "keep.part",
             "D.npy",
         ] {
             std::fs::write(dir.path().join(name), b"x").unwrap();
         }
-        assert_eq!(remove_stale_parts(dir.path()), 2);
+        assert_eq!(remove_stale_parts(dir.path()), 3);
+        assert!(dir.path().join("assets/keep.part").exists());
+        assert!(!dir.path().join("assets/.smspace-c3.part").exists());
         assert!(dir.path().join("keep.part").exists() && dir.path().join("D.npy").exists());
         assert!(!dir.path().join(".smspace-a1.part").exists());
     }

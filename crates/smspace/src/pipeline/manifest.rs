@@ -8,7 +8,6 @@
 //! it, and editing or deleting an output recomputes the stage that wrote it.
 
 use std::collections::BTreeMap;
-use std::fs::File;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -35,7 +34,7 @@ pub fn hash_file(path: &Path) -> Result<String, IoError> {
         path: path.to_owned(),
         reason,
     };
-    let file = File::open(path).map_err(read)?;
+    let file = crate::io::open_regular(path)?;
     let mut hasher = blake3::Hasher::new();
     hasher.update_reader(file).map_err(read)?;
     Ok(hasher.finalize().to_hex().to_string())
@@ -115,7 +114,9 @@ pub struct Manifest {
 impl Manifest {
     /// The previous manifest of a folder, if there is a readable one.
     pub fn previous(dir: &Path) -> Option<Manifest> {
-        let text = std::fs::read_to_string(dir.join("manifest.json")).ok()?;
+        let text =
+            crate::io::read_text_bounded(&dir.join("manifest.json"), crate::io::MAX_TEXT_BYTES)
+                .ok()?;
         serde_json::from_str(&text).ok()
     }
 

@@ -10,9 +10,9 @@
 //! | stage | working set |
 //! |---|---|
 //! | `explore` | the exploration's arrays |
-//! | `trace` | the kernel sets `(rows, P, N)`, twice (traced, then stacked) |
+//! | `trace` | the kernel sets `(rows, P, N)`, twice (traced, then stacked), and the `piece_starts × N` seeds of the piece search |
 //! | `distances` | `D`, and the prepared sets ([`crate::metric::matrix_bytes`]) |
-//! | `embed` | CCA: `D` in `f32` and the off-diagonal distances (`≈ 1 D`) and its MDS start; MDS: the squared copy and the eigensolver (`≈ 2 D`, `≈ 4 D` dense below 1000 points); Isomap: geodesics and their squares (`≈ 2 D`, landmarks `≈ 2 L M`) |
+//! | `embed` | CCA: `D` in `f32` and the off-diagonal distances (`≈ 1 D`), its MDS start and the stress of every epoch; MDS: the squared copy and the eigensolver (`≈ 2 D`, `≈ 4 D` dense below 1000 points); Isomap: geodesics and their squares (`≈ 2 D`, landmarks `≈ 2 L M`) |
 //! | `analyze` | the pair lists and ranks of the agreement with the poses, one ranking at a time (`≈ 4 D`), persistence of `max_points` landmarks (`≈ 8 L²`) |
 //! | `invariance` | the starts' sets in every environment and their distance matrices |
 //! | `report` | the sampled sets and figures (small next to `D`) |
@@ -108,12 +108,17 @@ impl Plan {
     /// `trace`: the sets of every explored row, twice.
     pub(super) fn trace_peak(&self, held: Held, rows: u64) -> Peak {
         let sets = self.trace.kernel.sets_bytes(rows, self.motors() as usize);
+        let seeds = self.trace.kernel.seeds_bytes(self.motors() as usize);
         let what = format!(
-            "stage `trace`: kernel sets ({rows} × {} points × {} motors)",
+            "stage `trace`: kernel sets ({rows} × {} points × {} motors) and {} seeds of the piece search",
             self.trace.kernel.stored_points(),
-            self.motors()
+            self.motors(),
+            self.trace.kernel.piece_starts
         );
-        let bytes = held.bytes.saturating_add(sets.saturating_mul(2));
+        let bytes = held
+            .bytes
+            .saturating_add(sets.saturating_mul(2))
+            .saturating_add(seeds);
         match &self.world.data {
             Some(data) => Peak {
                 what: format!(
@@ -231,8 +236,10 @@ impl Plan {
                     }
                     _ => mds_bytes(m),
                 };
+                // The stress of every epoch is kept for the report.
+                let epochs = product(&[p.epochs as u64, F64]);
                 (
-                    d.saturating_add(start),
+                    d.saturating_add(start).saturating_add(epochs),
                     "CCA",
                     "lower exploration.n (M), or keep embedding.init_landmarks small",
                 )
@@ -293,7 +300,10 @@ impl Plan {
         let starts = stage.starts as u64;
         let environments = self.world.environments.len() as u64;
         let sets = stage.kernel.sets_bytes(starts, self.motors() as usize);
-        let per_environment = sets.saturating_mul(2).saturating_add(matrix(starts));
+        let per_environment = sets
+            .saturating_mul(2)
+            .saturating_add(matrix(starts))
+            .saturating_add(stage.kernel.seeds_bytes(self.motors() as usize));
         Some(Peak {
             what: format!("stage `invariance`: {starts} starts in {environments} environments"),
             bytes: held
@@ -369,6 +379,27 @@ mod tests {
         let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
         let loaded = crate::config::load_experiment(&source, &overrides).unwrap();
         crate::pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    #[test]
+    fn the_trace_and_embed_estimates_count_the_piece_seeds_and_the_epochs() {
+        let plan = |seeds: usize, epochs: usize| {
+            pupil_space_plan(&[
+                &format!("kernel.piece_starts={seeds}"),
+                "embedding.method=\"cca\"",
+                &format!("embedding.epochs={epochs}"),
+            ])
+        };
+        let (few, many) = (plan(0, 50), plan(10_000, 100_000));
+        let motors = few.motors();
+        let trace = |p: &Plan| p.trace_peak(Held::default(), 100).bytes;
+        assert_eq!(trace(&many) - trace(&few), 10_000 * motors * 8);
+        let embed = |p: &Plan| p.embed_peak(Held::default(), 100).bytes;
+        assert_eq!(embed(&many) - embed(&few), (100_000 - 50) * 8);
+        assert!(many
+            .trace_peak(Held::default(), 100)
+            .what
+            .contains("10000 seeds"));
     }
 
     #[test]

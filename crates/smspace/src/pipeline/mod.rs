@@ -470,6 +470,17 @@ pub fn check_with(
         .exploration
         .check(agent.as_ref())
         .map_err(|err| invalid("exploration")(err.into()))?;
+    if e.exploration.rows() < 2 {
+        let few = crate::error::InvalidParameter::new(
+            "exploration",
+            "n",
+            e.exploration.n,
+            "a run compares kernel sets, so it needs at least 2 sets (the paper uses 2500); raise exploration.n to 2 or more",
+        );
+        return Err(invalid("exploration")(
+            crate::explore::ExploreError::from(few).into(),
+        ));
+    }
     e.kernel
         .check()
         .and_then(|kernel| kernel.check_for(agent.as_ref()))

@@ -134,8 +134,9 @@ impl Runner<'_> {
                 .all(|(old, new)| {
                     old.stage == new.stage && old.key == new.key && old.outputs == new.outputs
                 });
-        let config_on_disk = std::fs::read(self.dir.join(CONFIG_FILE))
-            .is_ok_and(|bytes| hash_parts(&[&bytes]) == self.manifest.config_hash);
+        let config_on_disk =
+            crate::io::read_text_bounded(&self.dir.join(CONFIG_FILE), crate::io::MAX_TEXT_BYTES)
+                .is_ok_and(|text| hash_parts(&[text.as_bytes()]) == self.manifest.config_hash);
         !self.writing
             && previous.status == RunStatus::Complete
             && previous.config_hash == self.manifest.config_hash

@@ -48,6 +48,28 @@ pub trait DistanceBackend: Sync {
     }
 }
 
+/// Refuses a backend's matrix that is not `m × m` for `m` sets, naming the backend
+/// and both shapes, before anything is written.
+fn check_backend_shape(
+    matrix: &DistanceMatrix,
+    m: usize,
+    backend: &dyn DistanceBackend,
+) -> crate::Result<()> {
+    let found = matrix.len();
+    if found == m {
+        return Ok(());
+    }
+    Err(crate::metric::MetricError::Backend {
+        backend: backend
+            .remote()
+            .unwrap_or_else(|| "in this process".to_owned()),
+        reason: format!(
+            "it returned a {found} × {found} matrix for {m} kernel sets; a backend must return the {m} × {m} matrix of every pair"
+        ),
+    }
+    .into())
+}
+
 /// The matrix in this process, on its threads ([`distance_matrix_with`]).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct LocalDistances;
@@ -240,12 +262,16 @@ impl Stage for DistancesStage {
             .with_closure(&traced.closure)
             .with_pieces(traced.pieces.view());
         match self.path(traced.kept.len()) {
-            ChosenPath::Dense => Ok(SetDistances::Dense(context.distances.distances(
-                self,
-                sets,
-                context.memory_limit_bytes,
-                context.progress,
-            )?)),
+            ChosenPath::Dense => {
+                let matrix = context.distances.distances(
+                    self,
+                    sets,
+                    context.memory_limit_bytes,
+                    context.progress,
+                )?;
+                check_backend_shape(&matrix, traced.kept.len(), context.distances)?;
+                Ok(SetDistances::Dense(matrix))
+            }
             ChosenPath::Landmarks => {
                 if let Some(remote) = context.distances.remote() {
                     let refused = crate::error::InvalidParameter::new(

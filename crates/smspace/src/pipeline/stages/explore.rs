@@ -45,7 +45,9 @@ fn pick_references(
     let ground_truth = world
         .agent
         .ground_truth()
-        .map(|observer| GroundTruth::observe(observer, motors.view()));
+        .map(|observer| GroundTruth::observe(observer, motors.view()))
+        .transpose()
+        .map_err(crate::explore::ExploreError::from)?;
     let probes = Array2::from_elem((motors.nrows(), 3), -1);
     Ok(Exploration {
         motors,
