@@ -4,11 +4,21 @@
 //! A [`PythonAgent`] answers [`smspace::agent::Agent::sense_batch`] with one call of
 //! `sense(motors: (B, N) float64) -> (B, K) float64`: the sensory tracer asks for the
 //! `2N + 1` readings of each linearisation in one batch, and a pose callable likewise
-//! gets the `2N + 1` rows of each pose Jacobian. The tracer runs with the GIL released
-//! on the library's threads; each call takes the GIL. The agent traits cannot fail, so
-//! the first exception (or wrong shape, dtype or non-finite value) is kept, every later
-//! reading is NaN (the sets fail fast), and the computation raises it when it returns
-//! ([`Agent::check_callbacks`]).
+//! gets the `2N + 1` rows of each pose Jacobian. The engine runs with the GIL released
+//! on its own threads ([`crate::host`]); each call takes the GIL.
+//!
+//! **One call at a time.** The engine's threads never call a PythonAgent's callables
+//! concurrently unless it was made with `thread_safe=True`: a simulator that keeps one
+//! state (a MuJoCo `MjData` written by `sense`, read back after a step that releases
+//! the GIL) sees each call from its start to its end alone. Each thread that calls
+//! them keeps one interpreter thread state for its whole life, so a callable's
+//! `threading.local()` lasts from one call to the next.
+//!
+//! The agent traits cannot fail, so the first exception (or wrong shape, dtype or
+//! non-finite value) is kept, every later reading is NaN (the sets fail fast), and the
+//! computation raises it when it returns ([`Agent::check_callbacks`]). After Ctrl-C
+//! the next call unwinds the computation instead of calling Python
+//! ([`crate::host::run_interruptible`]).
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -24,6 +34,7 @@ use smspace::agent::{
 };
 use smspace::config::{load_agent, AgentSpec};
 
+use crate::host::{run_interruptible, Interrupt, Turnstile};
 use crate::{to_py_err, value_error};
 
 pyo3::create_exception!(
@@ -33,23 +44,45 @@ pyo3::create_exception!(
     "A callable of a PythonAgent raised, or returned an array of the wrong type, shape or values."
 );
 
-/// The first failure of an agent's Python callables.
+/// What a Python agent's callables share with the computations that call them: the
+/// first failure, and the stop flag of the computation in progress.
 #[derive(Debug, Default)]
-pub(crate) struct Failure(Mutex<Option<PyErr>>);
+pub(crate) struct CallState {
+    failure: Mutex<Option<PyErr>>,
+    interrupt: Mutex<Interrupt>,
+}
 
-impl Failure {
+impl CallState {
     fn failed(&self) -> bool {
-        self.0.lock().map_or(true, |e| e.is_some())
+        self.failure.lock().map_or(true, |e| e.is_some())
     }
 
     fn keep(&self, error: PyErr) {
-        if let Ok(mut first) = self.0.lock() {
+        if let Ok(mut first) = self.failure.lock() {
             first.get_or_insert(error);
         }
     }
 
     fn take(&self) -> Option<PyErr> {
-        self.0.lock().ok().and_then(|mut e| e.take())
+        self.failure.lock().ok().and_then(|mut e| e.take())
+    }
+
+    /// A new computation's stop flag, which the callables check from now on.
+    fn begin(&self) -> Interrupt {
+        let fresh = Interrupt::new();
+        if let Ok(mut current) = self.interrupt.lock() {
+            *current = fresh.clone();
+        }
+        fresh
+    }
+
+    /// Unwinds the computation when its stop flag is raised (never while unwinding).
+    fn stop_if_interrupted(&self) {
+        if std::thread::panicking() {
+            return;
+        }
+        let current = self.interrupt.lock().map(|i| i.clone()).unwrap_or_default();
+        current.stop_if_raised();
     }
 }
 
@@ -59,8 +92,8 @@ pub struct Agent {
     pub(crate) law: Arc<dyn AgentLaw>,
     /// The `[agent]` table and the agent file's `[environment]` table (built-in kinds).
     pub(crate) spec: Option<AgentSpec>,
-    /// The failures of a Python agent's callables.
-    pub(crate) failure: Option<Arc<Failure>>,
+    /// The failures and stop flag of a Python agent's callables.
+    pub(crate) calls: Option<Arc<CallState>>,
 }
 
 impl Agent {
@@ -69,17 +102,23 @@ impl Agent {
         Ok(Self {
             law: Arc::from(law),
             spec: Some(spec),
-            failure: None,
+            calls: None,
         })
     }
 
     /// Raises the first failure of a Python agent's callables (and forgets it, so that
     /// the agent can be used again).
     pub(crate) fn check_callbacks(&self) -> PyResult<()> {
-        match self.failure.as_ref().and_then(|f| f.take()) {
+        match self.calls.as_ref().and_then(|f| f.take()) {
             Some(e) => Err(e),
             None => Ok(()),
         }
+    }
+
+    /// The stop flags a computation with this agent raises on Ctrl-C: a Python
+    /// agent's (new for each computation), none for a built-in one.
+    pub(crate) fn interrupts(&self) -> Vec<Interrupt> {
+        self.calls.iter().map(|c| c.begin()).collect()
     }
 
     /// The environment `env` names for this agent: `None` the agent file's
@@ -87,7 +126,7 @@ impl Agent {
     /// from that seed, an array `(L, 2)` or `(L, 3)` the lights themselves. A Python
     /// agent holds its own world: its environment is empty.
     pub(crate) fn environment(&self, env: Option<&Bound<'_, PyAny>>) -> PyResult<Environment> {
-        if self.failure.is_some() {
+        if self.calls.is_some() {
             return Ok(Environment::from_lights(Vec::new()));
         }
         let table = self.spec.as_ref().and_then(|s| s.environment.clone());
@@ -262,14 +301,15 @@ impl Agent {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let environment = self.environment(env)?;
         let motors = matrix_arg(motors, "motors")?;
-        let motors = motors.as_array();
+        let motors = motors.as_array().to_owned();
         crate::stages::check_finite(motors.iter(), "motors")?;
-        let law = self.law.as_ref();
-        let sensors = py
-            .detach(|| smspace::agent::sense_rows(law, &environment, motors))
-            .map_err(to_py_err)?;
+        let law = self.law.clone();
+        let sensors = run_interruptible(py, &self.interrupts(), move || {
+            smspace::agent::sense_rows(law.as_ref(), &environment, motors.view())
+        })?
+        .map_err(to_py_err);
         self.check_callbacks()?;
-        Ok(sensors.into_pyarray(py))
+        Ok(sensors?.into_pyarray(py))
     }
 
     /// The observer's poses `(M, d)` of the motor rows `(M, N)` (`(x, y, alpha)` for the
@@ -283,11 +323,13 @@ impl Agent {
         let observer = self.law.ground_truth().ok_or_else(|| {
             value_error(format!("the {} agent has no ground truth", self.law.name()))
         })?;
-        let motors = motors.as_array();
+        let motors = motors.as_array().to_owned();
         smspace::agent::check_motor_count(self.law.as_ref(), motors.ncols()).map_err(to_py_err)?;
         let d = observer.pose_space().dim();
-        let mut poses = Array2::zeros((motors.nrows(), d));
-        py.detach(|| {
+        let law = self.law.clone();
+        let poses = run_interruptible(py, &self.interrupts(), move || {
+            let observer = law.ground_truth().expect("checked above");
+            let mut poses = Array2::zeros((motors.nrows(), d));
             let mut row = vec![0.0; motors.ncols()];
             for (m, mut p) in motors.outer_iter().zip(poses.outer_iter_mut()) {
                 row.iter_mut().zip(m.iter()).for_each(|(a, &b)| *a = b);
@@ -295,7 +337,8 @@ impl Agent {
                 observer.pose(&row, &mut pose);
                 p.iter_mut().zip(&pose).for_each(|(a, &b)| *a = b);
             }
-        });
+            poses
+        })?;
         self.check_callbacks()?;
         Ok(poses.into_pyarray(py))
     }
@@ -320,13 +363,17 @@ impl Agent {
 /// `concurrent_sets` kernel sets are traced at once by the `sensory` method, their
 /// readings gathered into one call of `sense` per round ([`Calling::Gathered`]): each
 /// call then carries up to `concurrent_sets × (2N + 1)` rows instead of `2N + 1`.
+/// `thread_safe=False` (the default) never calls `sense` or `pose` from two threads at
+/// once; `thread_safe=True` lets the engine's threads call them concurrently, a promise
+/// the user makes: each call must read only what it is given and write only what it
+/// returns (or keep its state per thread, in `threading.local()`).
 #[pyclass(extends = Agent, frozen, module = "smspace._core")]
 pub struct PythonAgent {}
 
 #[pymethods]
 impl PythonAgent {
     #[new]
-    #[pyo3(signature = (sense, n_motors, n_sensors, motor_space=None, pose=None, name="python", pose_space="planar", concurrent_sets=DEFAULT_CONCURRENT_SETS))]
+    #[pyo3(signature = (sense, n_motors, n_sensors, motor_space=None, pose=None, name="python", pose_space="planar", concurrent_sets=DEFAULT_CONCURRENT_SETS, thread_safe=false))]
     #[allow(clippy::too_many_arguments)] // the Python signature's keywords
     fn new(
         py: Python<'_>,
@@ -338,7 +385,10 @@ impl PythonAgent {
         name: &str,
         pose_space: &str,
         concurrent_sets: usize,
+        thread_safe: bool,
     ) -> PyResult<PyClassInitializer<Self>> {
+        check_count("n_motors", n_motors, MAX_MOTORS)?;
+        check_count("n_sensors", n_sensors, MAX_SENSORS)?;
         if !(1..=MAX_CONCURRENT_SETS).contains(&concurrent_sets) {
             return Err(value_error(format!(
                 "concurrent_sets = {concurrent_sets} must be 1 to {MAX_CONCURRENT_SETS} (each set being traced at once has a thread); the default is {DEFAULT_CONCURRENT_SETS}"
@@ -369,7 +419,7 @@ impl PythonAgent {
             None => MotorSpace::hinges(n_motors),
             Some(motors) => parse_motor_space(&motors)?,
         };
-        let failure = Arc::new(Failure::default());
+        let calls = Arc::new(CallState::default());
         let law = Callbacks {
             name: name.to_owned(),
             sense,
@@ -379,16 +429,36 @@ impl PythonAgent {
             k: n_sensors,
             space,
             concurrent_sets,
-            failure: failure.clone(),
+            thread_safe,
+            turnstile: Turnstile::default(),
+            calls: calls.clone(),
         };
         check_agent(&law).map_err(to_py_err)?;
         Ok(PyClassInitializer::from(Agent {
             law: Arc::new(law),
             spec: None,
-            failure: Some(failure),
+            calls: Some(calls),
         })
         .add_subclass(Self {}))
     }
+}
+
+/// The most motors of a [`PythonAgent`] (a motor space and every traced point hold
+/// `N` numbers; a tracer's Jacobian `K × N`).
+const MAX_MOTORS: usize = 1_000;
+
+/// The most sensors of a [`PythonAgent`] (each gathered round holds
+/// `concurrent_sets × (2N + 1) × K` readings).
+const MAX_SENSORS: usize = 100_000;
+
+/// Refuses a count of 0 or above `max` before anything of that size is allocated.
+fn check_count(argument: &str, value: usize, max: usize) -> PyResult<()> {
+    if (1..=max).contains(&value) {
+        return Ok(());
+    }
+    Err(value_error(format!(
+        "{argument} = {value} must be 1 to {max} (the engine holds arrays of that many numbers per point)"
+    )))
 }
 
 /// `[("periodic", 6.28), ("bounded", -1, 1), "hinge", …]` as a [`MotorSpace`].
@@ -436,7 +506,11 @@ struct Callbacks {
     space: MotorSpace,
     /// How many sets the sensory tracer traces at once, gathering their readings.
     concurrent_sets: usize,
-    failure: Arc<Failure>,
+    /// Whether the callables may be called from several threads at once.
+    thread_safe: bool,
+    /// Admits one call at a time unless `thread_safe`.
+    turnstile: Turnstile,
+    calls: Arc<CallState>,
 }
 
 /// How many kernel sets a [`PythonAgent`] has traced at once by default: enough that
@@ -473,7 +547,9 @@ fn describe(value: &Bound<'_, PyAny>) -> String {
 
 impl Callbacks {
     /// Calls `callable` (the argument `argument` of `PythonAgent`) on the motor rows and
-    /// writes its `(B, cols)` answer into `out`; NaN everywhere after a failure.
+    /// writes its `(B, cols)` answer into `out`; NaN everywhere after a failure. One
+    /// call at a time unless the agent is `thread_safe`; unwinds the computation
+    /// instead after Ctrl-C.
     fn call(
         &self,
         argument: &str,
@@ -481,63 +557,86 @@ impl Callbacks {
         motors: ArrayView2<'_, f64>,
         mut out: ArrayViewMut2<'_, f64>,
     ) {
-        if self.failure.failed() {
+        self.calls.stop_if_interrupted();
+        if self.calls.failed() {
             out.fill(f64::NAN);
             return;
         }
-        let expected = out.dim();
-        let result = Python::attach(|py| -> PyResult<()> {
-            let input = motors.to_owned().into_pyarray(py);
-            let answer = callable.call1(py, (input,)).map_err(|e| {
-                let error = CallbackError::new_err(format!(
-                    "the {argument} callable of the {} agent raised {}",
-                    self.name,
-                    e.value(py)
-                        .repr()
-                        .map_or_else(|_| "an exception".to_owned(), |r| r.to_string())
-                ));
-                error.set_cause(py, Some(e));
-                error
-            })?;
-            let answer = answer.bind(py);
-            let wrong = || {
-                CallbackError::new_err(format!(
-                    "the {argument} callable of the {} agent must return a float64 array of shape {expected:?} for motors of shape {:?}; it returned {}",
-                    self.name,
-                    motors.dim(),
-                    describe(answer)
-                ))
+        let result = Python::attach(|py| {
+            let mut inside = || {
+                // A call may have waited for its turn while Ctrl-C was pressed.
+                self.calls.stop_if_interrupted();
+                self.call_now(py, argument, callable, motors, out.view_mut())
             };
-            let array = answer.cast::<PyArray2<f64>>().map_err(|_| wrong())?;
-            if array.shape() != [expected.0, expected.1] {
-                return Err(wrong());
-            }
-            // An unaligned buffer (rare: a view into unpickled bytes) is read from a copy.
-            let aligned: bool = array.getattr("flags")?.getattr("aligned")?.extract()?;
-            let array = if aligned {
-                array.clone()
+            if self.thread_safe {
+                inside()
             } else {
-                array
-                    .call_method0("copy")?
-                    .cast_into::<PyArray2<f64>>()
-                    .map_err(|_| wrong())?
-            };
-            let values = array.readonly();
-            let values = values.as_array();
-            if let Some((index, v)) = values.indexed_iter().find(|(_, v)| !v.is_finite()) {
-                return Err(CallbackError::new_err(format!(
-                    "the {argument} callable of the {} agent returned {v} at {index:?} for motors {}; every value must be finite",
-                    self.name,
-                    motors.row(index.0)
-                )));
+                self.turnstile.call(py, inside)
             }
-            out.assign(&values);
-            Ok(())
         });
         if let Err(e) = result {
-            self.failure.keep(e);
+            self.calls.keep(e);
             out.fill(f64::NAN);
         }
+    }
+
+    /// The call itself, with the GIL held, checked: an exception, a wrong type, shape
+    /// or a non-finite value is an error naming the callable.
+    fn call_now(
+        &self,
+        py: Python<'_>,
+        argument: &str,
+        callable: &Py<PyAny>,
+        motors: ArrayView2<'_, f64>,
+        mut out: ArrayViewMut2<'_, f64>,
+    ) -> PyResult<()> {
+        let expected = out.dim();
+        let input = motors.to_owned().into_pyarray(py);
+        let answer = callable.call1(py, (input,)).map_err(|e| {
+            let error = CallbackError::new_err(format!(
+                "the {argument} callable of the {} agent raised {}",
+                self.name,
+                e.value(py)
+                    .repr()
+                    .map_or_else(|_| "an exception".to_owned(), |r| r.to_string())
+            ));
+            error.set_cause(py, Some(e));
+            error
+        })?;
+        let answer = answer.bind(py);
+        let wrong = || {
+            CallbackError::new_err(format!(
+                "the {argument} callable of the {} agent must return a float64 array of shape {expected:?} for motors of shape {:?}; it returned {}",
+                self.name,
+                motors.dim(),
+                describe(answer)
+            ))
+        };
+        let array = answer.cast::<PyArray2<f64>>().map_err(|_| wrong())?;
+        if array.shape() != [expected.0, expected.1] {
+            return Err(wrong());
+        }
+        // An unaligned buffer (rare: a view into unpickled bytes) is read from a copy.
+        let aligned: bool = array.getattr("flags")?.getattr("aligned")?.extract()?;
+        let array = if aligned {
+            array.clone()
+        } else {
+            array
+                .call_method0("copy")?
+                .cast_into::<PyArray2<f64>>()
+                .map_err(|_| wrong())?
+        };
+        let values = array.readonly();
+        let values = values.as_array();
+        if let Some((index, v)) = values.indexed_iter().find(|(_, v)| !v.is_finite()) {
+            return Err(CallbackError::new_err(format!(
+                "the {argument} callable of the {} agent returned {v} at {index:?} for motors {}; every value must be finite",
+                self.name,
+                motors.row(index.0)
+            )));
+        }
+        out.assign(&values);
+        Ok(())
     }
 }
 
@@ -582,6 +681,11 @@ impl AgentLaw for Callbacks {
         Calling::Gathered {
             callers: self.concurrent_sets,
         }
+    }
+
+    /// One interpreter thread state for the thread's whole life.
+    fn host_thread(&self, work: &mut (dyn FnMut() + Send)) {
+        crate::host::host_thread(work);
     }
 }
 

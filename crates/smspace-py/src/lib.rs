@@ -11,6 +11,7 @@
 //! an unknown or invalid key is reported as the experiment reader reports it.
 
 mod agent;
+mod host;
 mod progress;
 mod run;
 mod stages;

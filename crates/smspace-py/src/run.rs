@@ -3,7 +3,7 @@
 //! `smspace.run(..., client=client)`) through [`smspace::pipeline::run_with`].
 
 use std::path::PathBuf;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use numpy::{IntoPyArray, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -16,6 +16,7 @@ use smspace::pipeline::{
 };
 use smspace::progress::Progress;
 
+use crate::host::run_interruptible;
 use crate::progress::PyProgress;
 use crate::to_py_err;
 
@@ -158,21 +159,22 @@ fn _run(
         memory_limit_bytes: max_memory,
         busy: BusyFolder::Refuse,
     };
-    let observer = Observer {
+    let observer = Arc::new(Observer {
         progress: PyProgress::new(progress),
         log,
         error: Mutex::new(None),
-    };
-    let backend = distances.map(|callable| PythonDistances {
+    });
+    let backend = Arc::new(distances.map(|callable| PythonDistances {
         callable,
         error: Mutex::new(None),
-    });
-    let summary = py.detach(|| match &backend {
-        Some(b) => pipeline::run_with(&plan, &options, &observer, b),
-        None => pipeline::run(&plan, &options, &observer),
-    });
-    if let Some(e) = backend
-        .as_ref()
+    }));
+    let interrupts = [observer.progress.interrupt()];
+    let (shared, shared_backend) = (observer.clone(), backend.clone());
+    let summary = run_interruptible(py, &interrupts, move || match shared_backend.as_ref() {
+        Some(b) => pipeline::run_with(&plan, &options, shared.as_ref(), b),
+        None => pipeline::run(&plan, &options, shared.as_ref()),
+    })?;
+    if let Some(e) = Option::as_ref(&backend)
         .and_then(|b| b.error.lock().ok().and_then(|mut e| e.take()))
     {
         return Err(e);

@@ -4,7 +4,11 @@
 //!
 //! Parameters are the JSON of the library's parameter structs (`ExploreParams`,
 //! `TraceParams`, `EmbedParams`, `AnalysisParams`); arrays in are float64 views of any
-//! layout, arrays out are moved into NumPy. Each computation runs with the GIL released.
+//! layout, arrays out are moved into NumPy. Each computation runs with the GIL released
+//! on the engine's threads, on its own copy of its inputs, and stops on Ctrl-C
+//! ([`run_interruptible`]).
+
+use std::sync::Arc;
 
 use ndarray::{Array1, Array2, ArrayView3};
 use numpy::{
@@ -21,6 +25,7 @@ use smspace::metric::{
 };
 
 use crate::agent::Agent;
+use crate::host::{run_interruptible, Interrupt};
 use crate::progress::PyProgress;
 use crate::{from_json, to_py_err, value_error};
 
@@ -35,6 +40,18 @@ pub(crate) fn check_finite<'a>(
         ))),
         None => Ok(()),
     }
+}
+
+/// A computation's progress reporter (shared with the engine's threads) and the stop
+/// flags Ctrl-C raises: the reporter's and, with an agent, the agent's.
+fn reporter(
+    progress: Option<Py<PyAny>>,
+    agent: Option<&Agent>,
+) -> (Arc<PyProgress>, Vec<Interrupt>) {
+    let progress = Arc::new(PyProgress::new(progress));
+    let mut interrupts = agent.map(Agent::interrupts).unwrap_or_default();
+    interrupts.push(progress.interrupt());
+    (progress, interrupts)
 }
 
 /// The closures of the sets from their codes (1: closed loop, 0: open polyline).
@@ -156,10 +173,12 @@ fn _explore<'py>(
         }
         w => resolve_workspace(agent, w)?,
     };
-    let progress = PyProgress::new(progress);
-    let found = py
-        .detach(|| explore_with(law, &params, workspace, &progress))
-        .map_err(to_py_err)?;
+    let (progress, interrupts) = reporter(progress, Some(agent));
+    let (law, shared) = (agent.law.clone(), progress.clone());
+    let found = run_interruptible(py, &interrupts, move || {
+        explore_with(law.as_ref(), &params, workspace, shared.as_ref())
+    })?
+    .map_err(to_py_err)?;
     agent.check_callbacks()?;
     progress.check()?;
     let poses = found
@@ -228,7 +247,7 @@ fn _trace<'py>(
 )> {
     let params: TraceParams = from_json(params, "tracing parameters")?;
     let params = params.check().map_err(to_py_err)?;
-    let motors = motors.as_array();
+    let motors = motors.as_array().to_owned();
     check_finite(motors.iter(), "motors")?;
     let sensory = params.method() == smspace::kernel::TraceMethod::Sensory;
     let environment = if sensory || env.is_some() {
@@ -237,20 +256,19 @@ fn _trace<'py>(
         None
     };
     let workspace = resolve_workspace(agent, workspace)?;
-    let law = agent.law.as_ref();
-    let progress = PyProgress::new(progress);
-    let traced = py
-        .detach(|| {
-            trace_sets(
-                law,
-                environment.as_ref(),
-                motors,
-                workspace.as_ref(),
-                &params,
-                &progress,
-            )
-        })
-        .map_err(to_py_err);
+    let (progress, interrupts) = reporter(progress, Some(agent));
+    let (law, shared) = (agent.law.clone(), progress.clone());
+    let traced = run_interruptible(py, &interrupts, move || {
+        trace_sets(
+            law.as_ref(),
+            environment.as_ref(),
+            motors.view(),
+            workspace.as_ref(),
+            &params,
+            shared.as_ref(),
+        )
+    })?
+    .map_err(to_py_err);
     agent.check_callbacks()?;
     progress.check()?;
     let traced = traced?;
@@ -285,12 +303,16 @@ fn _distances<'py>(
     check_finite(points.iter(), "sets")?;
     let closure = closures(closed, points.dim().0)?;
     let built = metric_for(metric, period, memory_limit_bytes)?;
-    let pieces = self::pieces(pieces.as_ref(), points, "pieces")?;
-    let view = sets_view(points, closure.as_deref(), pieces, metric)?;
-    let progress = PyProgress::new(progress);
-    let d = py
-        .detach(|| distance_matrix_with(view, built.metric.as_ref(), &built.params, &progress))
-        .map_err(to_py_err);
+    let pieces = self::pieces(pieces.as_ref(), points, "pieces")?.map(|p| p.to_owned());
+    let points = points.to_owned();
+    let metric = metric.to_owned();
+    let (progress, interrupts) = reporter(progress, None);
+    let shared = progress.clone();
+    let d = run_interruptible(py, &interrupts, move || {
+        let view = sets_view(points.view(), closure.as_deref(), pieces.as_ref().map(|p| p.view()), &metric)?;
+        distance_matrix_with(view, built.metric.as_ref(), &built.params, shared.as_ref())
+            .map_err(to_py_err)
+    })?;
     progress.check()?;
     Ok(d?.into_array().into_pyarray(py))
 }
@@ -325,16 +347,17 @@ fn _distance_tile<'py>(
     );
     let built = metric_for(metric, period, None)?;
     let (rp, cp) = (
-        pieces(rows_pieces.as_ref(), r, "rows_pieces")?,
-        pieces(cols_pieces.as_ref(), c, "cols_pieces")?,
+        pieces(rows_pieces.as_ref(), r, "rows_pieces")?.map(|p| p.to_owned()),
+        pieces(cols_pieces.as_ref(), c, "cols_pieces")?.map(|p| p.to_owned()),
     );
-    let (rv, cv) = (
-        sets_view(r, rc.as_deref(), rp, metric)?,
-        sets_view(c, cc.as_deref(), cp, metric)?,
-    );
+    let (r, c, metric) = (r.to_owned(), c.to_owned(), metric.to_owned());
     let tile = Tile::new(tile.0..tile.1, tile.2..tile.3);
-    let mut out = Array2::zeros(tile.shape());
-    py.detach(|| {
+    let out = run_interruptible(py, &[], move || {
+        let (rv, cv) = (
+            sets_view(r.view(), rc.as_deref(), rp.as_ref().map(|p| p.view()), &metric)?,
+            sets_view(c.view(), cc.as_deref(), cp.as_ref().map(|p| p.view()), &metric)?,
+        );
+        let mut out = Array2::zeros(tile.shape());
         fill_tile(
             rv,
             cv,
@@ -343,8 +366,9 @@ fn _distance_tile<'py>(
             out.view_mut(),
             &smspace::progress::Silent,
         )
-    })
-    .map_err(to_py_err)?;
+        .map_err(to_py_err)?;
+        Ok::<_, PyErr>(out)
+    })??;
     Ok(out.into_pyarray(py))
 }
 
@@ -390,25 +414,27 @@ fn _knn<'py>(
     check_finite(points.iter(), "sets")?;
     let closure = closures(closed, points.dim().0)?;
     let built = metric_for(metric, period, None)?;
-    let pieces = self::pieces(pieces.as_ref(), points, "pieces")?;
-    let view = sets_view(points, closure.as_deref(), pieces, metric)?;
+    let pieces = self::pieces(pieces.as_ref(), points, "pieces")?.map(|p| p.to_owned());
+    let points = points.to_owned();
+    let metric = metric.to_owned();
     let mut params = KnnParams::new().k(k);
     if let Some(p) = pivots {
         params = params.pivots(p);
     }
-    let progress = PyProgress::new(progress);
-    let found = py
-        .detach(|| {
-            knn_with(
-                view,
-                built.metric.as_ref(),
-                &built.params,
-                &params,
-                rows.0..rows.1,
-                &progress,
-            )
-        })
-        .map_err(to_py_err);
+    let (progress, interrupts) = reporter(progress, None);
+    let shared = progress.clone();
+    let found = run_interruptible(py, &interrupts, move || {
+        let view = sets_view(points.view(), closure.as_deref(), pieces.as_ref().map(|p| p.view()), &metric)?;
+        knn_with(
+            view,
+            built.metric.as_ref(),
+            &built.params,
+            &params,
+            rows.0..rows.1,
+            shared.as_ref(),
+        )
+        .map_err(to_py_err)
+    })?;
     progress.check()?;
     let found = found?;
     let indices = found.indices.mapv(|i| i as i64);
@@ -433,8 +459,10 @@ fn _embed<'py>(
     let params: EmbedParams = from_json(params, "embedding parameters")?;
     let method = params.build().map_err(to_py_err)?;
     let d = matrix(distances)?;
-    let progress = PyProgress::new(progress);
-    let embedded = py.detach(|| method.fit(&d, &progress)).map_err(to_py_err);
+    let (progress, interrupts) = reporter(progress, None);
+    let shared = progress.clone();
+    let embedded = run_interruptible(py, &interrupts, move || method.fit(&d, shared.as_ref()))?
+        .map_err(to_py_err);
     progress.check()?;
     let embedded = embedded?;
     let report = serde_json::to_string(&embedded.report).map_err(|e| value_error(e.to_string()))?;
@@ -455,7 +483,7 @@ fn _analyze<'py>(
     let params: AnalysisParams = from_json(params, "analysis parameters")?;
     let params = params.check().map_err(to_py_err)?;
     let d = matrix(distances)?;
-    let poses = poses.as_ref().map(|p| p.as_array());
+    let poses = poses.as_ref().map(|p| p.as_array().to_owned());
     if let Some(p) = &poses {
         check_finite(p.iter(), "poses")?;
         if p.nrows() != d.len() {
@@ -466,10 +494,12 @@ fn _analyze<'py>(
             )));
         }
     }
-    let progress = PyProgress::new(progress);
-    let report = py
-        .detach(|| analyze(&d, poses, &params, &progress))
-        .map_err(to_py_err);
+    let (progress, interrupts) = reporter(progress, None);
+    let shared = progress.clone();
+    let report = run_interruptible(py, &interrupts, move || {
+        analyze(&d, poses.as_ref().map(|p| p.view()), &params, shared.as_ref())
+    })?
+    .map_err(to_py_err);
     progress.check()?;
     serde_json::to_string(&report?).map_err(|e| value_error(e.to_string()))
 }

@@ -13,15 +13,16 @@ stage of the pipeline, on NumPy arrays::
     run = smspace.run("experiments/paper-arm.toml", out="runs/x",
                       overrides={"exploration.n": 500})
 
-Arrays come in as float64 arrays of any order or strides (read in place, never
-copied unless the engine must own them, as the validated distance matrix does) and
-go out as NumPy arrays that own the engine's buffers (no copy). Every long
-computation releases the GIL. Errors of the engine are raised as ``ValueError``
+Arrays come in as float64 arrays of any order or strides (the engine works on its
+own copy) and go out as NumPy arrays that own the engine's buffers (no copy). Every
+long computation releases the GIL and stops within about a second on Ctrl-C
+(``KeyboardInterrupt``). Errors of the engine are raised as ``ValueError``
 (``OSError`` for files) with the messages of the ``smspace`` command-line tool; bad
 arguments as ``TypeError``/``ValueError`` naming the argument.
 
 Agents written in Python: :class:`PythonAgent` (``sense(motors (B, N)) -> (B, K)``,
-called in batches). Distance matrices on a Dask cluster: :mod:`smspace.dask`.
+called in batches, never from two threads at once unless declared
+``thread_safe=True``). Distance matrices on a Dask cluster: :mod:`smspace.dask`.
 """
 
 from __future__ import annotations

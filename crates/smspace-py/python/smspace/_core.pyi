@@ -60,7 +60,20 @@ class PythonAgent(Agent):
     ``("bounded", low, high)``; default ``N`` hinges. ``concurrent_sets`` kernel
     sets (1 to 4096) are traced at once by the sensory method, their readings gathered
     into one call of ``sense`` per round: ``sense`` must answer each row independently
-    of the others in its batch."""
+    of the others in its batch. ``n_motors`` is 1 to 1000, ``n_sensors`` 1 to 100 000.
+
+    ``thread_safe=False`` (the default): the engine never calls ``sense`` or ``pose``
+    from two threads at once, so a simulator with one state (one MuJoCo ``MjData``
+    written by ``sense``) is safe as it is written; the engine's other thread goes on
+    stepping kernel sets meanwhile. ``thread_safe=True`` lets the engine's threads call
+    them concurrently: a promise the user makes, that each call reads only its
+    argument and writes only its result, or keeps its state per thread in
+    ``threading.local()`` (each engine thread keeps one Python thread state for its
+    whole life, so such state lasts from call to call). A wrong promise gives wrong
+    readings, not an error.
+
+    Ctrl-C stops a computation within about a second (``KeyboardInterrupt``); one
+    blocked inside ``sense`` itself is abandoned and ends when ``sense`` returns."""
 
     def __init__(
         self,
@@ -72,6 +85,7 @@ class PythonAgent(Agent):
         name: str = "python",
         pose_space: Literal["planar", "spatial"] = "planar",
         concurrent_sets: int = 256,
+        thread_safe: bool = False,
     ) -> None: ...
 
 def _explore(

@@ -220,6 +220,16 @@ pub trait Agent: Send + Sync + fmt::Debug {
         Calling::Direct
     }
 
+    /// Runs `work`, the whole life of a thread that the engine starts to call this
+    /// agent (the threads of [`Calling::Gathered`] rounds), inside what the agent's
+    /// calls need of a thread. The default runs it as it is. An agent whose calls enter
+    /// an interpreter gives the thread one interpreter thread state for its whole life,
+    /// so that the user's per-thread state (Python's `threading.local`) lasts from one
+    /// call to the next instead of being made anew at every call.
+    fn host_thread(&self, work: &mut (dyn FnMut() + Send)) {
+        work();
+    }
+
     /// The generic rank of the sensory Jacobian `∂s/∂m`, when the agent knows it: a law
     /// learned from data ([`crate::learn::LearnedLaw`]) estimates it from its fits,
     /// where finite differences of its values would see the fit's noise as rank. The

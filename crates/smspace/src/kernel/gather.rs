@@ -16,7 +16,9 @@
 //!
 //! Every call of the agent and the observer, and every progress report, is made on
 //! the group's own thread stack, never on a coroutine's: an interpreter that checks
-//! its stack depth sees an ordinary thread.
+//! its stack depth sees an ordinary thread. Each group's thread runs its whole life
+//! inside the agent's [`Agent::host_thread`] (a Python agent: one interpreter thread
+//! state per thread, kept from call to call).
 //!
 //! The readings of a row do not depend on the rows beside it (the `sense_batch`
 //! contract), so every set is traced exactly as with direct calls, whatever `C` and
@@ -129,7 +131,11 @@ pub(super) fn map_gathered<S, T: Send>(
                 // The coroutines' scopes nest, a few frames each.
                 std::thread::Builder::new()
                     .stack_size(GROUP_STACK_BYTES + slots * SCOPE_STACK_BYTES)
-                    .spawn_scoped(scope, move || group.run(slots, init, work, done))
+                    .spawn_scoped(scope, move || {
+                        let mut part = None;
+                        agent.host_thread(&mut || part = Some(group.run(slots, init, work, done)));
+                        part.expect("the agent's host_thread runs the work it is given")
+                    })
                     .map_err(|source| KernelError::CoroutineStack {
                         bytes: GROUP_STACK_BYTES + slots * SCOPE_STACK_BYTES,
                         source,
