@@ -37,10 +37,6 @@ pub(crate) const POLL: Duration = Duration::from_millis(50);
 /// How long an interrupted computation is given to end before it is abandoned.
 pub(crate) const GRACE: Duration = Duration::from_secs(1);
 
-/// The most threads of the engine's pool per core (`RAYON_NUM_THREADS` above it is
-/// reduced to it, as the command line's `--threads` is).
-pub(crate) const MAX_THREADS_PER_CORE: usize = 4;
-
 /// The stack of each pool thread, bytes (reserved; touched only as used). The engine's
 /// calls from Python used to run on the interpreter's main thread (8 MiB).
 const POOL_STACK_BYTES: usize = 16 << 20;
@@ -119,15 +115,13 @@ pub(crate) fn host_thread(work: &mut (dyn FnMut() + Send)) {
 }
 
 /// The number of threads of the engine's pool: `RAYON_NUM_THREADS` when it is a
-/// positive number, else the cores, at most [`MAX_THREADS_PER_CORE`] per core.
+/// positive number within the limit of [`smspace::threads`] (the module refuses one
+/// beyond it when it is imported), else the cores.
 pub(crate) fn pool_threads() -> usize {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let asked = std::env::var("RAYON_NUM_THREADS")
+    smspace::threads::check_variable()
         .ok()
-        .and_then(|v| v.trim().parse::<usize>().ok())
-        .filter(|&n| n > 0)
-        .unwrap_or(cores);
-    asked.min(MAX_THREADS_PER_CORE * cores)
+        .flatten()
+        .unwrap_or_else(smspace::threads::cores)
 }
 
 /// The engine's thread pool (made at its first use), whose threads each hold one
