@@ -127,7 +127,11 @@ def _workdir(tmp: Path) -> dict:
     bin_dir.mkdir()
     (bin_dir / "smspace").symlink_to(_cli())
     for name in ("python3", "python"):
-        (bin_dir / name).symlink_to(sys.executable)
+        # A wrapper, not a link: a virtual environment's interpreter finds its
+        # packages from the path it is started by.
+        wrapper = bin_dir / name
+        wrapper.write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
+        wrapper.chmod(0o755)
     env = dict(os.environ)
     env["PATH"] = f"{bin_dir}{os.pathsep}{env.get('PATH', '')}"
     return env
