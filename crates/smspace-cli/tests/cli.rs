@@ -548,3 +548,21 @@ fn what_the_agent_cannot_give_is_refused() {
     );
     assert!(!dir.join("s.npy").exists() && !dir.join("x").exists());
 }
+
+#[test]
+fn the_version_is_the_workspace_version_and_the_changelog_names_it() {
+    let (_dir, dir) = temp();
+    let out = ok(&dir, &["--version"]);
+    let version = env!("CARGO_PKG_VERSION");
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout),
+        format!("smspace {version}\n")
+    );
+    // The newest entry of the changelog is this version.
+    let changelog = include_str!("../../../CHANGELOG.md");
+    let newest = changelog
+        .lines()
+        .find_map(|line| line.strip_prefix("## "))
+        .expect("CHANGELOG.md has a version heading");
+    assert_eq!(newest, version);
+}

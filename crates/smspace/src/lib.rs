@@ -66,3 +66,8 @@ pub use error::{Error, Result};
 #[cfg(doctest)]
 #[doc = include_str!("../../../README.md")]
 pub struct ReadmeDoctests;
+
+/// The guide's library chapter (`docs/library.md`), its example run as a doc test too.
+#[cfg(doctest)]
+#[doc = include_str!("../../../docs/library.md")]
+pub struct GuideLibraryDoctests;
