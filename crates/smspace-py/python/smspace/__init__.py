@@ -21,7 +21,9 @@ computation releases the GIL. Errors of the engine are raised as ``ValueError``
 arguments as ``TypeError``/``ValueError`` naming the argument.
 
 Agents written in Python: :class:`PythonAgent` (``sense(motors (B, N)) -> (B, K)``,
-called in batches). Distance matrices on a Dask cluster: :mod:`smspace.dask`.
+called in batches); a MuJoCo model as an agent: :mod:`smspace.mujoco`
+(``smspace.mujoco.agent(model, joints=[...], site="eye")``, needs the ``mujoco``
+package). Distance matrices on a Dask cluster: :mod:`smspace.dask`.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import numpy as np
 
 from . import _core
 from ._core import Agent, CallbackError, PythonAgent
+from . import mujoco  # MuJoCo models as agents (imports the mujoco package on first use)
 
 __version__: str = _core.__version__
 
