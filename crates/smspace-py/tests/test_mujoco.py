@@ -106,7 +106,9 @@ def test_joints_are_motors_and_ranges_bound_them(model):
     # Every hinge and slide joint by default (the ball joint is not one coordinate).
     with pytest.raises(ValueError, match="'loose' has no range"):
         smspace.mujoco.Body(model)
-    assert body.columns[:4] == [("range", 0), ("where", 0), ("where", 1), ("where", 2)]
+    # Every position sensor by default (the velocimeter is left out).
+    assert body.sensors == POSITION_SENSORS
+    assert body.columns == [("range", 0), ("where", 0), ("where", 1), ("where", 2), ("angle", 0)]
 
 
 def test_sensors_and_pose_are_mujocos(model):

@@ -6,7 +6,7 @@ An ``MjModel`` is wrapped as a :class:`smspace.PythonAgent` by names::
 
     model = mujoco.MjModel.from_xml_path("arm.xml")
     agent = smspace.mujoco.agent(model, joints=["shoulder", "elbow", "wrist", "eye"],
-                                 sensors=None, site="eye")       # every sensor
+                                 sensors=None, site="eye")       # every position sensor
     found = smspace.explore(agent, n=1500, seed=1, workspace=(1.75, 0.0, 1.5, 2.0))
     traced = smspace.trace(agent, found.motors, method="sensory")
 
@@ -37,8 +37,8 @@ An ``MjModel`` is wrapped as a :class:`smspace.PythonAgent` by names::
 interleave. By default (``threads=False``) the agent keeps one ``MjData`` shared by
 ``sense`` and ``pose`` and is declared not thread-safe: the engine never calls it
 concurrently (and a lock inside guards the ``MjData`` as well). With ``threads=True``
-every thread that calls the agent gets its own ``MjData`` (``threading.local``) and the
-agent is declared thread-safe (``thread_safe=True``), so that the engine may call it
+every thread that calls the agent gets its own ``MjData`` (kept by the agent, by
+thread id, for as long as the agent lives) and the agent is declared thread-safe (``thread_safe=True``), so that the engine may call it
 from all its threads at once: MuJoCo releases the GIL in ``mj_kinematics`` and
 ``mj_sensorPos``, so the rays of several threads are cast in parallel.
 
@@ -150,7 +150,7 @@ class Body:
     ``model``: an ``MjModel`` or the path of an MJCF (``.xml``) or ``.mjb`` file.
     ``joints``: the names of the joints that are the motors, in order (None: every
     hinge and slide joint of the model, in id order). ``sensors``: the names of the
-    sensors read, in order (None: every sensor). ``site``: the name of the site whose
+    sensors read, in order (None: every position sensor, in id order). ``site``: the name of the site whose
     pose is the ground truth (None: no ground truth). ``pose_space``: ``"planar"``
     ``(x, y, alpha)`` or ``"spatial"`` ``(x, y, z, qw, qx, qy, qz)``. ``threads``:
     one ``MjData`` per calling thread (True) or one shared behind a lock (False).
@@ -185,7 +185,10 @@ class Body:
         self._steps = self._computation(mujoco)
         self._shared = None if self.threads else mujoco.MjData(self.model)
         self._lock = threading.Lock()
-        self._local = threading.local()
+        # One MjData per calling thread, kept by the body (not in a threading.local,
+        # whose values are freed with the thread's Python state: an engine thread may
+        # hold one only while it calls) and freed with it.
+        self._per_thread: dict = {}
         self._count_lock = threading.Lock()
         self.rows_sensed = 0
         """The motor rows :meth:`sense` has answered so far (every call counted)."""
@@ -233,18 +236,18 @@ class Body:
         """The sensors' names, the ``(sensor, component)`` of every column, and the
         columns' indices in ``sensordata``."""
         model = self.model
+        position = int(mujoco.mjtStage.mjSTAGE_POS)
         if sensors is None:
-            ids = list(range(model.nsensor))
+            ids = [s for s in range(model.nsensor) if int(model.sensor_needstage[s]) <= position]
             if not ids:
-                raise ValueError("the model has no sensor: add sensors (e.g. rangefinders) to its <sensor> section")
+                raise ValueError("the model has no position sensor: add sensors (e.g. rangefinders) to its <sensor> section")
         else:
             if isinstance(sensors, str):
                 raise TypeError(f"sensors must be a list of sensor names or None, got the string {sensors!r}")
             ids = [_lookup(model, "sensor", name, model.nsensor) for name in sensors]
             if not ids:
-                raise ValueError("sensors names no sensor: give None for every sensor of the model")
+                raise ValueError("sensors names no sensor: give None for every position sensor of the model")
         names = _names(model, "sensor", model.nsensor)
-        position = int(mujoco.mjtStage.mjSTAGE_POS)
         columns, index = [], []
         for s in ids:
             if int(model.sensor_needstage[s]) > position:
@@ -304,10 +307,12 @@ class Body:
         """This thread's ``MjData`` (``threads=True``), else the shared one."""
         if self._shared is not None:
             return self._shared
-        data = getattr(self._local, "data", None)
+        thread = threading.get_ident()
+        data = self._per_thread.get(thread)
         if data is None:
             data = _mujoco().MjData(self.model)
-            self._local.data = data
+            with self._count_lock:
+                self._per_thread[thread] = data
         return data
 
     def _posture(self, data: Any, row: np.ndarray) -> None:
@@ -433,7 +438,8 @@ def agent(
 ) -> PythonAgent:
     """A :class:`smspace.PythonAgent` whose body is the MuJoCo ``model``: its motors
     are the named ``joints`` (None: every hinge and slide joint), its sensors the
-    named ``sensors`` (None: every sensor, ``K`` = the sum of their dimensions), its
+    named ``sensors`` (None: every position sensor; ``K`` = the sum of their
+    dimensions), its
     ground truth the pose of ``site`` (None: none; ``pose_space="planar"`` ``(x, y,
     alpha)`` or ``"spatial"`` ``(x, y, z, qw, qx, qy, qz)``). A hinge with a range is
     a bounded motor, one without a periodic motor.
