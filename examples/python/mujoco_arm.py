@@ -23,6 +23,20 @@ the three arm joints, the eye's hinge compensating; the manifold of these sets i
 eye's space of positions and headings, a plane times a circle (Betti numbers [1, 1],
 dimension 3).
 
+**Why a working space.** Explored anywhere in reach, the sets do not form the eye's
+disc of positions times a circle. Where the eye is nearer the base than one link
+(1 here), the postures that hold it still form two separate loops, and the tracer
+follows the one through its start; just outside, the two have merged into one loop.
+So the sets near the base fall into two families far (in the curve metric) from the
+one-piece sets around them, and the analysis reads a mixture of scales: on the
+built-in arm (1500 starts anywhere in reach, kinematic method) Betti numbers [1, 0],
+with two H0 bars of 2.6 beside the loop's 1.5. Tracing every piece
+(``trace(..., components="all")``) joins them again: one component and one loop
+standing 2.3 times above the next bar (below the default gap ratio of 3, so still
+read [1, 0]); the sets of an eye kept farther than 1.1 from the base read [1, 2], an
+annulus of positions times a circle. A working space farther than one link from the
+base that does not circle it, as here, gives the plane times a circle, [1, 1].
+
 **Threads.** ``smspace.mujoco.agent`` shares one ``MjData`` between ``sense`` and
 ``pose`` by default, and the engine then calls them from one thread at a time; with
 ``--threads`` every engine thread has its own ``MjData`` and the calls run in
