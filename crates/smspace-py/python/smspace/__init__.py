@@ -22,7 +22,9 @@ arguments as ``TypeError``/``ValueError`` naming the argument.
 
 Agents written in Python: :class:`PythonAgent` (``sense(motors (B, N)) -> (B, K)``,
 called in batches, never from two threads at once unless declared
-``thread_safe=True``). Distance matrices on a Dask cluster: :mod:`smspace.dask`.
+``thread_safe=True``); a MuJoCo model as an agent: :mod:`smspace.mujoco`
+(``smspace.mujoco.agent(model, joints=[...], site="eye")``, needs the ``mujoco``
+package). Distance matrices on a Dask cluster: :mod:`smspace.dask`.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ import numpy as np
 
 from . import _core
 from ._core import Agent, CallbackError, PythonAgent
+from . import mujoco  # MuJoCo models as agents (imports the mujoco package on first use)
 
 __version__: str = _core.__version__
 

@@ -1,0 +1,182 @@
+"""smspace.mujoco: a MuJoCo model as an agent (skipped where the mujoco package is not
+installed), and the example of examples/python/mujoco_arm.py in its small size."""
+
+import importlib.util
+import math
+
+import numpy as np
+import pytest
+
+mujoco = pytest.importorskip(
+    "mujoco", reason="the mujoco package is not installed (pip install mujoco): its tests are skipped"
+)
+
+import smspace  # noqa: E402
+import smspace.mujoco  # noqa: E402
+
+# A small body: a limited hinge, an unlimited hinge, a slide with a range, and a ball
+# joint; a rangefinder, a frame position, a joint position and a velocimeter.
+JOINTS_XML = """
+<mujoco model="joints">
+  <compiler angle="radian"/>
+  <worldbody>
+    <geom name="wall" type="box" pos="4 0 0" size="0.1 4 1"/>
+    <body name="a">
+      <joint name="limited" type="hinge" axis="0 0 1" range="-1.5 2"/>
+      <geom type="capsule" fromto="0 0 0 1 0 0" size="0.05"/>
+      <body name="b" pos="1 0 0">
+        <joint name="free-hinge" type="hinge" axis="0 1 1"/>
+        <geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.05"/>
+        <body name="c" pos="0.5 0 0">
+          <joint name="slider" type="slide" axis="1 0 0" range="-0.2 0.4"/>
+          <geom type="sphere" size="0.05"/>
+          <site name="tip" pos="0.1 0 0" euler="0.3 -0.2 0.5"/>
+          <body name="d" pos="0.2 0 0">
+            <joint name="ball" type="ball"/>
+            <joint name="loose" type="slide" axis="0 0 1"/>
+            <geom type="sphere" size="0.03"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+  <sensor>
+    <rangefinder name="range" site="tip"/>
+    <framepos name="where" objtype="site" objname="tip"/>
+    <jointpos name="angle" joint="limited"/>
+    <velocimeter name="speed" site="tip"/>
+  </sensor>
+</mujoco>
+"""
+
+MOVABLE = ["limited", "free-hinge", "slider"]
+POSITION_SENSORS = ["range", "where", "angle"]
+
+
+@pytest.fixture(scope="module")
+def model():
+    return mujoco.MjModel.from_xml_string(JOINTS_XML)
+
+
+@pytest.fixture(scope="module")
+def example(root):
+    """examples/python/mujoco_arm.py, imported."""
+    path = root / "examples" / "python" / "mujoco_arm.py"
+    spec = importlib.util.spec_from_file_location("mujoco_arm", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def postures(count, seed=0):
+    rng = np.random.default_rng(seed)
+    return np.column_stack([
+        rng.uniform(-1.5, 2.0, count), rng.uniform(-math.pi, math.pi, count), rng.uniform(-0.2, 0.4, count)
+    ])
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (dict(joints=["limited", "elbow"]), r"no joint named 'elbow'; its joints are: 'limited', 'free-hinge', 'slider', 'ball', 'loose'"),
+        (dict(joints=MOVABLE, sensors=["range", "lidar"]), r"no sensor named 'lidar'; its sensors are: 'range', 'where', 'angle', 'speed'"),
+        (dict(joints=MOVABLE, sensors=POSITION_SENSORS, site="eye"), r"no site named 'eye'; its sites are: 'tip'"),
+        (dict(joints=["ball"]), r"the joint 'ball' is a ball joint"),
+        (dict(joints=["loose"]), r"the slide joint 'loose' has no range"),
+        (dict(joints=MOVABLE, sensors=["speed"]), r"the sensor 'speed' measures velocity"),
+        (dict(joints=["limited", "limited"]), r"names a joint twice"),
+    ],
+)
+def test_a_name_the_model_lacks_is_a_clear_error(model, arguments, message):
+    with pytest.raises(ValueError, match=message):
+        smspace.mujoco.agent(model, **arguments)
+
+
+def test_joints_are_motors_and_ranges_bound_them(model):
+    agent = smspace.mujoco.agent(model, joints=MOVABLE, sensors=POSITION_SENSORS, site="tip")
+    assert agent.n_motors == 3
+    assert agent.n_sensors == 1 + 3 + 1
+    assert agent.motor_space == [
+        ("bounded", -1.5, 2.0),
+        ("periodic", 0.0, 2 * math.pi),
+        ("bounded", -0.2, 0.4),
+    ]
+    assert agent.name == "mujoco:joints"
+    body = smspace.mujoco.Body(model, joints=MOVABLE, sensors=None, site="tip", pose_space="spatial")
+    # Every hinge and slide joint by default (the ball joint is not one coordinate).
+    with pytest.raises(ValueError, match="'loose' has no range"):
+        smspace.mujoco.Body(model)
+    # Every position sensor by default (the velocimeter is left out).
+    assert body.sensors == POSITION_SENSORS
+    assert body.columns == [("range", 0), ("where", 0), ("where", 1), ("where", 2), ("angle", 0)]
+
+
+def test_sensors_and_pose_are_mujocos(model):
+    agent = smspace.mujoco.agent(model, joints=MOVABLE, sensors=POSITION_SENSORS, site="tip")
+    spatial = smspace.mujoco.agent(model, joints=MOVABLE, sensors=POSITION_SENSORS, site="tip", pose_space="spatial")
+    motors = postures(40)
+    sensed, planar, poses = agent.sense(motors), agent.poses(motors), spatial.poses(motors)
+    data = mujoco.MjData(model)
+    site = model.site("tip").id
+    for i, row in enumerate(motors):
+        data.qpos[:] = model.qpos0
+        data.qpos[[model.joint(j).qposadr[0] for j in MOVABLE]] = row
+        mujoco.mj_forward(model, data)
+        np.testing.assert_allclose(sensed[i], data.sensordata[:5], rtol=0, atol=1e-12)
+        xpos, xmat = data.site_xpos[site], data.site_xmat[site].reshape(3, 3)
+        np.testing.assert_allclose(planar[i, :2], xpos[:2], rtol=0, atol=1e-12)
+        assert planar[i, 2] == pytest.approx(math.atan2(xmat[1, 0], xmat[0, 0]), abs=1e-12)
+        assert -math.pi <= planar[i, 2] < math.pi
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, data.site_xmat[site])
+        quat *= np.sign(quat[0]) or 1.0
+        np.testing.assert_allclose(poses[i], np.concatenate([xpos, quat]), rtol=0, atol=1e-12)
+        assert poses[i, 3] >= 0
+
+
+def test_the_rays_and_the_eye_of_the_example(example):
+    body = example.body()
+    assert body.joints == ["shoulder", "elbow", "wrist", "eye"]
+    assert body.n_sensors == 12
+    motors = np.random.default_rng(3).uniform(-math.pi, math.pi, size=(200, 4))
+    readings = body.sense(motors)
+    # The room is closed and the obstacles are out of reach: every ray hits.
+    assert readings.min() > 0
+    # The eye is at the end of three links of length 1, heading along the angles' sum.
+    angles = np.cumsum(motors[:, :3], axis=1)
+    poses = body.pose(motors)
+    np.testing.assert_allclose(poses[:, 0], np.cos(angles).sum(axis=1), atol=1e-12)
+    np.testing.assert_allclose(poses[:, 1], np.sin(angles).sum(axis=1), atol=1e-12)
+    heading = np.angle(np.exp(1j * (motors.sum(axis=1) - poses[:, 2])))
+    np.testing.assert_allclose(heading, 0.0, atol=1e-12)
+    # Sensing depends on the eye's pose only (no ray hits the arm): the last two
+    # links swapped (the same two vectors, summed in the other order) and the eye's
+    # hinge turned to keep the heading leave the eye where it was.
+    q1, q2, q3, q4 = motors.T
+    swapped = np.column_stack([q1, q2 + q3, -q3, q4 + q3])
+    np.testing.assert_allclose(body.pose(swapped), poses, atol=1e-12)
+    np.testing.assert_allclose(body.sense(swapped), readings, rtol=0, atol=1e-9)
+    assert body.rows_sensed == 400
+
+
+def test_a_shared_mjdata_and_one_per_thread_trace_the_same_sets(example):
+    shared, threaded = example.body(threads=False), example.body(threads=True)
+    found = smspace.explore(shared.agent(), n=8, seed=4, workspace=example.WORKSPACE)
+    one = smspace.trace(shared.agent(), found.motors, method="sensory", points=30)
+    many = smspace.trace(threaded.agent(), found.motors, method="sensory", points=30)
+    assert len(one) >= 7
+    assert np.array_equal(one.kept, many.kept)
+    assert np.array_equal(one.sets, many.sets)
+    # Each set holds the eye still: the kinematic and the sensory sets agree.
+    poses = shared.pose(one.sets.reshape(-1, 4)).reshape(len(one), 30, 3)
+    assert np.abs(poses - poses[:, :1]).max() < 1e-6
+
+
+def test_the_example_runs_in_its_small_size(example, tmp_path):
+    figures = example.run(sets=60, points=50, out=tmp_path)
+    assert figures["traced_fraction"] >= 0.9, figures
+    assert figures["eye_position_spread"] < 1e-6
+    assert figures["betti"][0] == 1
+    assert figures["sensor_rows_per_start"] > 0
+    assert (tmp_path / "analysis.json").exists() and (tmp_path / "D.npy").exists()
+    assert np.load(tmp_path / "D.npy").shape == (figures["traced"],) * 2
