@@ -1,6 +1,8 @@
 """Benchmarks of the Python package (issue 17), on the paper's 2500 arm sets.
 
     python examples/python/benchmark.py [--cli PATH] [--repeat 3] [--only matrix,agent,dask]
+    python examples/python/benchmark.py --only numba --sets sets.npy [--cli PATH] [--repeat 3]
+        [--numba-fold wrapped|remainder]
 
 1. matrix: ``smspace.distances`` (curve metric) from Python against the same matrix in
    Rust alone (the ``smspace distances`` command, whose own reported time excludes
@@ -10,12 +12,21 @@
 3. dask: ``smspace.dask.distances`` on a LocalCluster of 2 worker processes against
    ``smspace.distances`` in this process.
 
-Build the wheel with ``--release`` for meaningful numbers.
+4. numba: the ``hausdorff`` matrix of the sets in ``--sets`` (an (M, P, N) ``.npy`` of
+   angles, period 2π) by the ``smspace distances`` command (``--threads 2``, its own
+   reported time) against a parallel brute force in Numba (every pair, every point
+   against every point in ``float64``, rows spread over 2 threads), interleaved; it
+   prints both times, the ratio, ``SMSPACE_SIMD`` (the level cap the command ran
+   under), the CPU times of both (less disturbed than wall times by other work on the
+   machine) and the largest difference between the two matrices. Needs ``pip install numba``, not the wheel.
+
+Build the wheel (and the command) with ``--release`` for meaningful numbers.
 """
 
 import argparse
 import os
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -24,10 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-import smspace
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import planar_arm  # noqa: E402
 
 
 def timed(f):
@@ -37,6 +45,8 @@ def timed(f):
 
 
 def paper_sets():
+    import smspace
+
     agent = smspace.Agent.preset("planar-arm")
     found = smspace.explore(agent, n=2500, seed=1)
     seconds, traced = timed(lambda: smspace.trace(agent, found.motors))
@@ -45,6 +55,8 @@ def paper_sets():
 
 
 def bench_matrix(traced, cli, repeat):
+    import smspace
+
     with tempfile.TemporaryDirectory() as folder:
         sets = Path(folder) / "sets.npy"
         np.save(sets, traced.sets)
@@ -65,6 +77,9 @@ def bench_matrix(traced, cli, repeat):
 
 
 def bench_agent(agent, found, repeat):
+    import planar_arm
+    import smspace
+
     numpy_agent = planar_arm.numpy_arm(agent.lights(1))
     rust, python = [], []
     for _ in range(repeat):
@@ -81,6 +96,7 @@ def bench_agent(agent, found, repeat):
 def bench_dask(traced, repeat):
     from distributed import Client, LocalCluster
 
+    import smspace
     import smspace.dask
 
     threads = os.environ.get("SMSPACE_DASK_RAYON_THREADS")
@@ -99,6 +115,88 @@ def bench_dask(traced, repeat):
           f"{100 * (min(remote) / min(local) - 1):+.1f} %; equal: {np.array_equal(D, E)}")
 
 
+def numba_hausdorff_matrix(remainder):
+    """The brute-force Hausdorff matrix with period 2π, compiled by Numba (parallel rows).
+    A coordinate difference ``u`` folds to ``min(r, 2π − r)`` with ``r = |u|`` (angles
+    wrapped into one period, as smspace takes them) or, with ``remainder``, with
+    ``r = |u| mod 2π`` (any angles, as smspace's reference does)."""
+    import numba
+
+    if remainder:
+        @numba.njit(inline="always")
+        def fold(u, tau):
+            r = abs(u) % tau
+            return min(r, tau - r)
+    else:
+        @numba.njit(inline="always")
+        def fold(u, tau):
+            r = abs(u)
+            return min(r, tau - r)
+
+    @numba.njit(parallel=True, cache=False)
+    def matrix(sets):
+        m, p, n = sets.shape
+        tau = 2.0 * np.pi
+        out = np.zeros((m, m))
+        for i in numba.prange(m):
+            row = np.empty(p)
+            col = np.empty(p)
+            for j in range(i + 1, m):
+                row[:] = np.inf
+                col[:] = np.inf
+                for a in range(p):
+                    for b in range(p):
+                        d2 = 0.0
+                        for k in range(n):
+                            w = fold(sets[i, a, k] - sets[j, b, k], tau)
+                            d2 += w * w
+                        if d2 < row[a]:
+                            row[a] = d2
+                        if d2 < col[b]:
+                            col[b] = d2
+                d = np.sqrt(max(row.max(), col.max()))
+                out[i, j] = d
+                out[j, i] = d
+        return out
+
+    return matrix
+
+
+def bench_numba(sets_path, cli, repeat, remainder):
+    import numba
+
+    numba.set_num_threads(2)
+    sets = np.load(sets_path)
+    matrix = numba_hausdorff_matrix(remainder)
+    matrix(sets[:3])  # compile
+    rust, brute, rust_cpu, brute_cpu = [], [], [], []
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "D.npy"
+        for _ in range(repeat):
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            done = subprocess.run(
+                [cli, "distances", "--sets", sets_path, "--metric", "hausdorff", "--threads", "2",
+                 "--out", out],
+                capture_output=True, text=True, check=True,
+            )
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            rust.append(float(re.search(r"in ([0-9.]+) s", done.stderr).group(1)))
+            rust_cpu.append(after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime)
+            cpu = time.process_time()
+            seconds, E = timed(lambda: matrix(sets))
+            brute_cpu.append(time.process_time() - cpu)
+            brute.append(seconds)
+        D = np.load(out)
+    m = len(sets)
+    pairs = m * (m - 1) // 2
+    r, b = min(rust), min(brute)
+    print(f"hausdorff matrix of {m} sets ({pairs} pairs), 2 threads: smspace {r:.3f} s "
+          f"({pairs / r / 1e6:.2f} M pairs/s; runs {fmt(rust)}; SMSPACE_SIMD={os.environ.get('SMSPACE_SIMD', 'default')}), "
+          f"Numba brute force ({'remainder' if remainder else 'wrapped'} fold) {b:.2f} s (runs {fmt(brute)}): {b / r:.0f}x; "
+          f"CPU time (both threads) smspace {fmt(rust_cpu)} s, Numba {fmt(brute_cpu)} s: "
+          f"{min(brute_cpu) / min(rust_cpu):.0f}x; largest difference {np.abs(D - E).max():.1e}")
+
+
 def fmt(values):
     return ", ".join(f"{v:.2f}" for v in values)
 
@@ -108,8 +206,18 @@ def main():
     parser.add_argument("--cli", default=os.environ.get("SMSPACE_CLI", "smspace"))
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--only", default="matrix,agent,dask")
+    parser.add_argument("--sets", help="an (M, P, N) .npy of angles for the numba comparison")
+    parser.add_argument("--numba-fold", choices=["wrapped", "remainder"], default="wrapped",
+                        help="how the Numba brute force folds a difference (see numba_hausdorff_matrix)")
     args = parser.parse_args()
     which = set(args.only.split(","))
+    if "numba" in which:
+        if args.sets is None:
+            parser.error("--only numba needs --sets PATH (an (M, P, N) .npy of angles)")
+        bench_numba(args.sets, args.cli, args.repeat, args.numba_fold == "remainder")
+        which.discard("numba")
+    if not which:
+        return
     agent, found, traced = paper_sets()
     if "matrix" in which:
         bench_matrix(traced, args.cli, args.repeat)

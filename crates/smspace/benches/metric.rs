@@ -18,7 +18,8 @@
 //! are skipped; their closures from `/path/sets.closed.npy`, else all closed loops),
 //! `SMSPACE_BENCH_METRICS=hausdorff,curve` (default both). A size below 2 is skipped,
 //! so `SMSPACE_BENCH_KNN=0` leaves the kNN search out. The SIMD level the kernels
-//! ran with is printed first.
+//! ran with is printed first; `SMSPACE_SIMD=avx512`, `avx2` or `portable` caps it (the
+//! fastest level of the CPU at most that one), for comparisons of the levels.
 //!
 //! Criterion runs every case at least ten times; for the large sizes set
 //! `SMSPACE_BENCH_ONCE=1` to time each size once instead and print seconds and pairs per

@@ -955,3 +955,66 @@ fn inputs_in_any_layout_or_stride_give_the_same_numbers() {
         );
     }
 }
+
+/// One matrix of every kernel (the point metrics and `curve` with both periods and
+/// dimensions 2, 4, 8 and 16 after padding, `surface`), as bits.
+fn every_kernel_matrix() -> Vec<Vec<u64>> {
+    use smspace::metric::{Closure, SetsView, Surface, SurfaceParams};
+    let bits = |d: Array2<f64>| d.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+    let mut out = Vec::new();
+    let kinds = [KINDS[0], KINDS[1], MetricKind::Curve];
+    for (sets, period) in [
+        (arm_like_sets(14, 100, 21), Period::TwoPi),
+        (arm_like_sets(12, 37, 22), Period::None),
+        (uniform_sets(9, 20, 2, 23), Period::TwoPi),
+        (uniform_sets(9, 19, 7, 24), Period::TwoPi),
+        (uniform_sets(8, 18, 13, 25), Period::None),
+    ] {
+        let closure: Vec<Closure> = (0..sets.dim().0)
+            .map(|i| [Closure::Closed, Closure::Open][i % 2])
+            .collect();
+        for kind in kinds {
+            let view = SetsView::new(sets.view()).with_closure(&closure);
+            out.push(bits(
+                distance_matrix(view, &params(kind, period), &Silent).unwrap(),
+            ));
+        }
+    }
+    let sets = uniform_sets(10, 30, 3, 26);
+    for period in PERIODS {
+        let metric = Surface::new(SurfaceParams::default(), period.into()).unwrap();
+        let d = distance_matrix_with(sets.view(), &metric, &DistanceParams::new(), &Silent);
+        out.push(bits(d.unwrap()));
+    }
+    out
+}
+
+#[test]
+fn every_simd_level_gives_the_same_bits() {
+    use smspace::metric::{force_simd_level, simd_level, SimdLevel};
+    // Only this test forces a level in this test binary; the others, running beside
+    // it, get the same bits whichever level runs.
+    assert!(force_simd_level(Some(SimdLevel::Portable)));
+    assert!(simd_level().starts_with("portable"));
+    let portable = every_kernel_matrix();
+    let mut levels = 0;
+    for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
+        if !force_simd_level(Some(level)) {
+            continue;
+        }
+        levels += 1;
+        let name = simd_level();
+        assert!(!name.starts_with("portable"), "{level:?}: {name}");
+        let fast = every_kernel_matrix();
+        for (k, (x, y)) in fast.iter().zip(&portable).enumerate() {
+            assert_eq!(x, y, "matrix {k}: {name} against portable");
+        }
+    }
+    assert!(force_simd_level(None));
+    // Where the CPU has AVX-512 it has AVX2 too, and the default is the fastest.
+    if SimdLevel::Avx512.available() {
+        assert_eq!(levels, 2);
+        assert!(SimdLevel::Avx2.available());
+        assert!(simd_level().starts_with("AVX-512"));
+    }
+}

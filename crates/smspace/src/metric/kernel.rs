@@ -45,13 +45,16 @@
 //!
 //! # Instruction sets
 //!
-//! The kernels run on eight `f32` lanes: one AVX2 register on CPUs with AVX2 + FMA
-//! (also on AVX-512 CPUs), plain arrays elsewhere, chosen at run time. The environment
-//! variable `SMSPACE_SIMD=portable` forces the plain path (for comparisons);
-//! [`simd_level`] says which one runs.
+//! The kernels run on eight `f32` lanes: one 256-bit register on CPUs with AVX-512
+//! (with its mask registers and 32 vector registers) or with AVX2 + FMA, plain arrays
+//! elsewhere, chosen at run time. Every operation rounds the same way on each, so the
+//! distances are the same bit for bit. The environment variable `SMSPACE_SIMD`
+//! (`avx512`, `avx2` or `portable`) caps the level, and [`force_simd_level`] sets it
+//! for the process (for comparisons and tests); [`simd_level`] says which one runs.
 
 mod lanes;
 
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::OnceLock;
 
 pub(crate) use self::lanes::{each, Lanes, Portable, WIDTH};
@@ -703,6 +706,10 @@ impl Eval for BruteEvaluator<'_> {
 /// The instruction set the kernels run with.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum Simd {
+    /// AVX-512 (F, BW, CD, DQ, VL) + FMA: eight lanes per 256-bit register, masks in
+    /// mask registers.
+    #[cfg(target_arch = "x86_64")]
+    Avx512(pulp::x86::V4),
     /// AVX2 + FMA: one 256-bit register per eight lanes.
     #[cfg(target_arch = "x86_64")]
     Avx2(pulp::x86::V3),
@@ -710,30 +717,104 @@ pub(crate) enum Simd {
     Portable,
 }
 
-/// The instruction set of this CPU (AVX2 + FMA when present, unless the environment
-/// variable `SMSPACE_SIMD` is `portable`), detected once.
+/// An instruction set the metric kernels can run with. Every level gives the same
+/// distances, bit for bit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SimdLevel {
+    /// AVX-512 (F, BW, CD, DQ, VL) with FMA, x86-64 only.
+    Avx512,
+    /// AVX2 with FMA, x86-64 only.
+    Avx2,
+    /// Plain arrays, on every CPU.
+    Portable,
+}
+
+impl SimdLevel {
+    /// Every level, fastest first.
+    pub const ALL: [SimdLevel; 3] = [SimdLevel::Avx512, SimdLevel::Avx2, SimdLevel::Portable];
+
+    /// The level's name, as `SMSPACE_SIMD` takes it: `avx512`, `avx2` or `portable`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SimdLevel::Avx512 => "avx512",
+            SimdLevel::Avx2 => "avx2",
+            SimdLevel::Portable => "portable",
+        }
+    }
+
+    /// Whether this CPU has the level's instructions.
+    pub fn available(self) -> bool {
+        self.token().is_some()
+    }
+
+    /// The level's token, where this CPU has it.
+    fn token(self) -> Option<Simd> {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx512 => pulp::x86::V4::try_new().map(Simd::Avx512),
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => pulp::x86::V3::try_new().map(Simd::Avx2),
+            #[cfg(not(target_arch = "x86_64"))]
+            SimdLevel::Avx512 | SimdLevel::Avx2 => None,
+            SimdLevel::Portable => Some(Simd::Portable),
+        }
+    }
+
+    /// The fastest level of this CPU at most as fast as `self`.
+    fn best_up_to(self) -> Simd {
+        SimdLevel::ALL
+            .iter()
+            .skip_while(|&&l| l != self)
+            .find_map(|l| l.token())
+            .unwrap_or(Simd::Portable)
+    }
+}
+
+/// The level forced by [`force_simd_level`]: 0 for none, else 1 + its index in
+/// [`SimdLevel::ALL`].
+static FORCED: AtomicU8 = AtomicU8::new(0);
+
+/// Makes the metric kernels of this process run with `level` (`None`: the default
+/// again), for comparisons and tests; returns `false`, changing nothing, when this CPU
+/// lacks the level. Distances do not depend on the level, only their speed.
+pub fn force_simd_level(level: Option<SimdLevel>) -> bool {
+    let code = match level {
+        None => 0,
+        Some(l) if l.available() => 1 + SimdLevel::ALL.iter().position(|&x| x == l).unwrap_or(0),
+        Some(_) => return false,
+    };
+    FORCED.store(code as u8, Ordering::Relaxed);
+    true
+}
+
+/// The instruction set of the kernels: the one forced by [`force_simd_level`], else
+/// the fastest of this CPU, capped by the environment variable `SMSPACE_SIMD`
+/// (`avx512`, `avx2` or `portable`: the fastest level of this CPU at most that one),
+/// detected once.
 pub(crate) fn simd() -> Simd {
     static CHOICE: OnceLock<Simd> = OnceLock::new();
+    let forced = FORCED.load(Ordering::Relaxed) as usize;
+    if let Some(level) = forced.checked_sub(1).and_then(|k| SimdLevel::ALL.get(k)) {
+        return level.best_up_to();
+    }
     *CHOICE.get_or_init(|| {
-        let forced = std::env::var("SMSPACE_SIMD").is_ok_and(|v| v == "portable");
-        #[cfg(target_arch = "x86_64")]
-        if !forced {
-            if let Some(v3) = pulp::x86::V3::try_new() {
-                return Simd::Avx2(v3);
-            }
-        }
-        let _ = forced;
-        Simd::Portable
+        let cap = std::env::var("SMSPACE_SIMD")
+            .ok()
+            .and_then(|v| SimdLevel::ALL.into_iter().find(|l| l.name() == v.trim()))
+            .unwrap_or(SimdLevel::Avx512);
+        cap.best_up_to()
     })
 }
 
-/// Which instruction set the metric kernels run with on this machine, in words (for
-/// benchmarks and reports): `"AVX2 + FMA, 8 f32 lanes"` or `"portable (no AVX2)"`.
+/// Which instruction set the metric kernels run with, in words (for benchmarks and
+/// reports), e.g. `"AVX-512 (F, BW, CD, DQ, VL) + FMA, 8 f32 lanes"`.
 pub fn simd_level() -> &'static str {
     match simd() {
         #[cfg(target_arch = "x86_64")]
+        Simd::Avx512(_) => "AVX-512 (F, BW, CD, DQ, VL) + FMA, 8 f32 lanes",
+        #[cfg(target_arch = "x86_64")]
         Simd::Avx2(_) => "AVX2 + FMA, 8 f32 lanes",
-        Simd::Portable => "portable (no AVX2 + FMA, or SMSPACE_SIMD=portable)",
+        Simd::Portable => "portable (8 f32 lanes in arrays)",
     }
 }
 
@@ -778,6 +859,14 @@ pub(crate) fn dispatch<D: Driver>(
     driver: D,
 ) -> D::Output {
     match simd() {
+        #[cfg(target_arch = "x86_64")]
+        Simd::Avx512(v4) => v4.vectorize(DriveCall {
+            s: v4,
+            prepared,
+            kind,
+            scratch,
+            driver,
+        }),
         #[cfg(target_arch = "x86_64")]
         Simd::Avx2(v3) => v3.vectorize(DriveCall {
             s: v3,

@@ -94,7 +94,7 @@ use crate::error::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
 
 pub use curve::{Closure, CURVE_TOLERANCE};
-pub use kernel::simd_level;
+pub use kernel::{force_simd_level, simd_level, SimdLevel};
 pub use knn::{knn, knn_bytes, knn_prepared, knn_with, Knn, KnnParams, KnnValidParams, MAX_PIVOTS};
 pub use matrix::{DistanceMatrix, MatrixError, SYMMETRY_TOLERANCE};
 pub use period::{CoordinatePeriods, PeriodError, Periodicity, Periods};

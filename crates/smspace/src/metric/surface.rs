@@ -414,6 +414,8 @@ fn pair(a: &Disks, b: &Disks, periods: &[f64]) -> f64 {
     let call = PairCall { a, b, periods };
     match super::kernel::simd() {
         #[cfg(target_arch = "x86_64")]
+        super::kernel::Simd::Avx512(v4) => v4.vectorize(call),
+        #[cfg(target_arch = "x86_64")]
         super::kernel::Simd::Avx2(v3) => v3.vectorize(call),
         super::kernel::Simd::Portable => pulp::NullaryFnOnce::call(call),
     }

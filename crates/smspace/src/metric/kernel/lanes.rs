@@ -1,11 +1,14 @@
-//! Eight `f32` lanes, the vector type of the filtering kernels: one AVX2 register
-//! through `pulp`'s safe `V3` token (also on AVX-512 CPUs), or plain arrays on CPUs
-//! without AVX2 + FMA. Every method is `#[inline(always)]`, so that it is compiled in
+//! Eight `f32` lanes, the vector type of the filtering kernels: one 256-bit register
+//! through `pulp`'s safe `V4` token on CPUs with AVX-512 (F, BW, CD, DQ, VL: the
+//! comparisons write mask registers, and the compiler has 32 vector registers and the
+//! EVEX encodings), through its `V3` token on CPUs with AVX2 + FMA, or plain arrays
+//! elsewhere. Every operation rounds the same way on all three, so the kernels give the
+//! same bits on each. Every method is `#[inline(always)]`, so that it is compiled in
 //! the caller's target-feature context (a helper that is not inlined loses the
 //! features and calls the software `fma`).
 
 #[cfg(target_arch = "x86_64")]
-use pulp::x86::V3;
+use pulp::x86::{V3, V4};
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::{__m256, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ};
 
@@ -158,6 +161,82 @@ impl Lanes for V3 {
     }
 }
 
+/// AVX-512: the AVX2 + FMA operations in the AVX-512 context (EVEX forms, 32
+/// registers), with comparisons and blends through AVX-512VL mask registers.
+#[cfg(target_arch = "x86_64")]
+impl Lanes for V4 {
+    type V = __m256;
+    #[inline(always)]
+    fn splat(self, x: f32) -> __m256 {
+        (*self).splat(x)
+    }
+    #[inline(always)]
+    fn load(self, x: &[f32; WIDTH]) -> __m256 {
+        pulp::cast(*x)
+    }
+    #[inline(always)]
+    fn array(self, a: __m256) -> [f32; WIDTH] {
+        pulp::cast(a)
+    }
+    #[inline(always)]
+    fn add(self, a: __m256, b: __m256) -> __m256 {
+        (*self).add(a, b)
+    }
+    #[inline(always)]
+    fn sub(self, a: __m256, b: __m256) -> __m256 {
+        (*self).sub(a, b)
+    }
+    #[inline(always)]
+    fn mul(self, a: __m256, b: __m256) -> __m256 {
+        (*self).mul(a, b)
+    }
+    #[inline(always)]
+    fn min(self, a: __m256, b: __m256) -> __m256 {
+        (*self).min(a, b)
+    }
+    #[inline(always)]
+    fn max(self, a: __m256, b: __m256) -> __m256 {
+        (*self).max(a, b)
+    }
+    #[inline(always)]
+    fn mul_add(self, a: __m256, b: __m256, c: __m256) -> __m256 {
+        (*self).mul_add(a, b, c)
+    }
+    #[inline(always)]
+    fn neg_mul_add(self, a: __m256, b: __m256, c: __m256) -> __m256 {
+        (*self).neg_mul_add(a, b, c)
+    }
+    #[inline(always)]
+    fn abs(self, u: __m256) -> __m256 {
+        (*self).abs(u)
+    }
+    #[inline(always)]
+    fn fold(self, u: __m256, t: __m256) -> __m256 {
+        (*self).fold(u, t)
+    }
+    #[inline(always)]
+    fn swrap(self, u: __m256, t: __m256, inv: __m256) -> __m256 {
+        (*self).swrap(u, t, inv)
+    }
+    #[inline(always)]
+    fn le(self, a: __m256, b: __m256) -> u32 {
+        u32::from(self.avx512f._mm256_cmp_ps_mask::<_CMP_LE_OQ>(a, b))
+    }
+    #[inline(always)]
+    fn gt(self, a: __m256, b: __m256) -> u32 {
+        u32::from(self.avx512f._mm256_cmp_ps_mask::<_CMP_GT_OQ>(a, b))
+    }
+    #[inline(always)]
+    fn select_lt(self, a: __m256, b: __m256, x: __m256, y: __m256) -> __m256 {
+        let m = self.avx512f._mm256_cmp_ps_mask::<_CMP_LT_OQ>(a, b);
+        self.avx512f._mm256_mask_blend_ps(m, y, x)
+    }
+    #[inline(always)]
+    fn hmin(self, a: __m256) -> f32 {
+        (*self).hmin(a)
+    }
+}
+
 /// The same operations on arrays, for CPUs without AVX2 + FMA (and the tests).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Portable;
@@ -248,43 +327,61 @@ impl Lanes for Portable {
 mod tests {
     use super::*;
 
-    /// The AVX2 lanes and the portable ones agree bit for bit on every operation.
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn avx2_and_portable_lanes_agree() {
-        let Some(v3) = V3::try_new() else {
-            return;
-        };
+    /// Every operation of the lanes `s` against the portable ones, bit for bit.
+    #[inline(always)]
+    fn agrees_with_portable<S: Lanes>(s: S) {
         let a = [-3.5f32, 0.0, 1.25, 7.0, -0.1, 3.0, 6.2, -6.2];
         let b = [1.0f32, -0.0, 1.25, -2.0, 0.3, 3.5, 0.1, 6.3];
         let t = [std::f32::consts::TAU; WIDTH];
         let inv = [1.0 / std::f32::consts::TAU; WIDTH];
         let p = Portable;
-        v3.vectorize(
-            #[inline(always)]
-            || {
-                let (x, y) = (v3.load(&a), v3.load(&b));
-                let (tv, iv) = (v3.load(&t), v3.load(&inv));
-                let pairs: [([f32; WIDTH], [f32; WIDTH]); 10] = [
-                    (v3.array(v3.abs(x)), p.abs(a)),
-                    (v3.array(v3.add(x, y)), p.add(a, b)),
-                    (v3.array(v3.sub(x, y)), p.sub(a, b)),
-                    (v3.array(v3.mul(x, y)), p.mul(a, b)),
-                    (v3.array(v3.min(x, y)), p.min(a, b)),
-                    (v3.array(v3.max(x, y)), p.max(a, b)),
-                    (v3.array(v3.mul_add(x, y, x)), p.mul_add(a, b, a)),
-                    (v3.array(v3.neg_mul_add(x, y, x)), p.neg_mul_add(a, b, a)),
-                    (v3.array(v3.fold(x, tv)), p.fold(a, t)),
-                    (v3.array(v3.swrap(x, tv, iv)), p.swrap(a, t, inv)),
-                ];
-                for (fast, slow) in pairs {
-                    assert_eq!(fast.map(f32::to_bits), slow.map(f32::to_bits));
-                }
-                assert_eq!(v3.le(x, y), p.le(a, b));
-                assert_eq!(v3.gt(x, y), p.gt(a, b));
-                assert_eq!(v3.hmin(x), p.hmin(a));
-                assert_eq!(v3.array(v3.select_lt(x, y, x, y)), p.select_lt(a, b, a, b));
-            },
-        );
+        let (x, y) = (s.load(&a), s.load(&b));
+        let (tv, iv) = (s.load(&t), s.load(&inv));
+        let pairs: [([f32; WIDTH], [f32; WIDTH]); 10] = [
+            (s.array(s.abs(x)), p.abs(a)),
+            (s.array(s.add(x, y)), p.add(a, b)),
+            (s.array(s.sub(x, y)), p.sub(a, b)),
+            (s.array(s.mul(x, y)), p.mul(a, b)),
+            (s.array(s.min(x, y)), p.min(a, b)),
+            (s.array(s.max(x, y)), p.max(a, b)),
+            (s.array(s.mul_add(x, y, x)), p.mul_add(a, b, a)),
+            (s.array(s.neg_mul_add(x, y, x)), p.neg_mul_add(a, b, a)),
+            (s.array(s.fold(x, tv)), p.fold(a, t)),
+            (s.array(s.swrap(x, tv, iv)), p.swrap(a, t, inv)),
+        ];
+        for (fast, slow) in pairs {
+            assert_eq!(fast.map(f32::to_bits), slow.map(f32::to_bits));
+        }
+        assert_eq!(s.le(x, y), p.le(a, b));
+        assert_eq!(s.gt(x, y), p.gt(a, b));
+        assert_eq!(s.le(y, x), p.le(b, a));
+        assert_eq!(s.gt(y, x), p.gt(b, a));
+        assert_eq!(s.hmin(x), p.hmin(a));
+        assert_eq!(s.array(s.select_lt(x, y, x, y)), p.select_lt(a, b, a, b));
+        assert_eq!(s.array(s.select_lt(y, x, x, y)), p.select_lt(b, a, a, b));
+    }
+
+    /// The AVX2 lanes and the portable ones agree bit for bit on every operation.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_and_portable_lanes_agree() {
+        if let Some(v3) = V3::try_new() {
+            v3.vectorize(
+                #[inline(always)]
+                || agrees_with_portable(v3),
+            );
+        }
+    }
+
+    /// The AVX-512 lanes and the portable ones agree bit for bit on every operation.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx512_and_portable_lanes_agree() {
+        if let Some(v4) = V4::try_new() {
+            v4.vectorize(
+                #[inline(always)]
+                || agrees_with_portable(v4),
+            );
+        }
     }
 }
