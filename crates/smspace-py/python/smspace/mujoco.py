@@ -38,8 +38,8 @@ interleave. By default (``threads=False``) the agent keeps one ``MjData`` shared
 ``sense`` and ``pose`` and is declared not thread-safe: the engine never calls it
 concurrently (and a lock inside guards the ``MjData`` as well). With ``threads=True``
 every thread that calls the agent gets its own ``MjData`` (kept by the agent, by
-thread id, for as long as the agent lives) and the agent is declared thread-safe (``thread_safe=True``), so that the engine may call it
-from all its threads at once: MuJoCo releases the GIL in ``mj_kinematics`` and
+thread id, for as long as the agent lives) and the agent is declared thread-safe
+(``thread_safe=True``), so that the engine may call it from all its threads at once: MuJoCo releases the GIL in ``mj_kinematics`` and
 ``mj_sensorPos``, so the rays of several threads are cast in parallel.
 
 Batches are looped row by row in Python (the MuJoCo calls are per posture); reading
@@ -389,15 +389,7 @@ class Body:
             pose_space=self.pose_space,
             concurrent_sets=concurrent_sets,
         )
-        try:
-            return PythonAgent(**arguments, thread_safe=self.threads)
-        except TypeError as error:
-            if "thread_safe" not in str(error):
-                raise
-            # An engine without the keyword calls its callables from several threads
-            # at once: the shared MjData is guarded by this body's lock, and the
-            # per-thread ones need none.
-            return PythonAgent(**arguments)
+        return PythonAgent(**arguments, thread_safe=self.threads)
 
     def __repr__(self) -> str:
         return (
