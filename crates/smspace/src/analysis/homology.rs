@@ -131,6 +131,37 @@ impl BettiRule {
     }
 }
 
+impl BettiRule {
+    /// The dimensions whose reading is not clear, each with why and what to do: the
+    /// longest bar the rule did not count stands at least `gap_ratio` times above the
+    /// noise floor (a feature, not noise) but without a gap of `gap_ratio` to the bars
+    /// around it, so that `b_k` depends on where the gap is drawn. The sets then form
+    /// families at several scales, as kernel sets near a kinematic singularity do (the
+    /// sensor within one link of an arm's base, where each set splits into pieces).
+    pub fn ambiguities(&self, persistence: &Persistence) -> Vec<String> {
+        let t = persistence.threshold;
+        let floor = self.noise_fraction * t;
+        let betti = self.betti(persistence);
+        let mut out = Vec::new();
+        for (dim, bars) in persistence.diagrams.iter().enumerate() {
+            let mut lengths: Vec<f64> = bars.iter().map(|b| b.length(t)).collect();
+            lengths.sort_by(|a, b| b.total_cmp(a));
+            let counted = betti[dim];
+            let Some(&uncounted) = lengths.get(counted) else {
+                continue;
+            };
+            if uncounted.is_finite() && uncounted >= self.gap_ratio * floor {
+                out.push(format!(
+                    "H{dim}: b{dim} = {counted} is ambiguous: the longest bar not counted ({uncounted:.3}, {:.0} % of the threshold {t:.3}) stands above the noise floor without a gap of {} to the bars around it; the sets form families at several scales, as kernel sets near a kinematic singularity do (the sensor within one link of the base, where each set splits into pieces): explore in a working space away from the singularities, or trace every piece (components = \"all\")",
+                    100.0 * uncounted / t,
+                    self.gap_ratio
+                ));
+            }
+        }
+        out
+    }
+}
+
 /// `min_i max_j d(i, j)`: from this diameter on the Rips complex is a cone.
 pub fn enclosing_radius(distances: ArrayView2<'_, f64>) -> f64 {
     distances

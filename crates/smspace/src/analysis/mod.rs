@@ -362,6 +362,11 @@ pub struct AnalysisReport {
     pub points: usize,
     /// Betti numbers `[b0, b1, …]` by the gap rule.
     pub betti: Vec<usize>,
+    /// The dimensions whose Betti number the diagrams do not settle, with the likely
+    /// cause and the remedy ([`BettiRule::ambiguities`]); empty when every reading is
+    /// clear.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub betti_ambiguities: Vec<String>,
     /// Persistence diagrams: `persistence[k]` lists the bars `[birth, death]` of
     /// dimension `k` (`death` is `null` for a bar alive at the threshold).
     pub persistence: Vec<Vec<(f64, Option<f64>)>>,
@@ -503,6 +508,7 @@ pub fn analyze_on(
     Ok(AnalysisReport {
         points: distances.nrows(),
         betti: rule.betti(&persistence),
+        betti_ambiguities: rule.ambiguities(&persistence),
         persistence: bars(&persistence),
         homology: HomologySummary::of(&persistence, p, subsampling, rule),
         intrinsic_dimension,

@@ -101,7 +101,11 @@ fn analysis_warnings(inputs: &ReportInputs<'_>) -> Vec<Warning> {
             "the analysis did not run: no Betti numbers, intrinsic dimension or agreement with the poses",
         )];
     };
-    let mut out = Vec::new();
+    let mut out: Vec<Warning> = analysis
+        .betti_ambiguities
+        .iter()
+        .map(|why| Warning::new("analyze", format!("the topology is uncertain: {why}")))
+        .collect();
     let d = &analysis.intrinsic_dimension;
     let mut dimension = |name: &str, value: f64, estimate: &DimensionEstimate| {
         if estimate.reliability.is_unreliable() {

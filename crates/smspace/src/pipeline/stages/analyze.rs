@@ -225,6 +225,7 @@ fn analyze_landmarks(
     Ok(AnalysisReport {
         points: l.sets(),
         betti: rule.betti(&persistence),
+        betti_ambiguities: rule.ambiguities(&persistence),
         persistence: crate::analysis::bars(&persistence),
         homology: HomologySummary::of(
             &persistence,
