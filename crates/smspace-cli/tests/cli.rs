@@ -566,3 +566,138 @@ fn the_version_is_the_workspace_version_and_the_changelog_names_it() {
         .expect("CHANGELOG.md has a version heading");
     assert_eq!(newest, version);
 }
+
+/// Runs `smspace ARGS` in `dir` with a progress line for every unit of work (stderr is
+/// a pipe here, not a terminal).
+fn with_progress_lines(dir: &std::path::Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_smspace"))
+        .args(args)
+        .env("SMSPACE_PROGRESS_INTERVAL", "0")
+        .current_dir(dir)
+        .output()
+        .expect("the binary runs")
+}
+
+#[test]
+fn tracing_announces_the_kernel_dimension_and_its_time_and_shows_progress_in_a_log() {
+    let (_guard, dir) = temp();
+    ok(&dir, &["explore", "--n", "8", "--out-dir", "."]);
+    let out = with_progress_lines(
+        &dir,
+        &[
+            "--threads",
+            "1",
+            "trace",
+            "--motors",
+            "motors.npy",
+            "--points",
+            "10",
+            "--step-control",
+            "adaptive",
+            "--out",
+            "sets.npy",
+        ],
+    );
+    let text = stderr(&out);
+    assert!(out.status.success(), "{text}");
+    // Before tracing: the kernel dimension (the arm's sets are curves)...
+    let dimension = text
+        .find("trace: 8 kernel sets of dimension k = 1 (4 motors, Jacobian rank 3): each set is a curve")
+        .unwrap_or_else(|| panic!("no kernel dimension in {text}"));
+    // ...then the time the rest will take, measured on the first set (one thread).
+    let estimate = text
+        .find("for the other 7 sets (the first 1 took")
+        .unwrap_or_else(|| panic!("no estimate in {text}"));
+    assert!(dimension < estimate, "{text}");
+    // Not a terminal: plain progress lines instead of a bar, and the stage's end.
+    assert!(text.contains("trace: 1 of 8 (12.5 %)"), "{text}");
+    assert!(text.contains("trace: 8 of 8 done in"), "{text}");
+    assert!(!text.contains('\r'), "a bar was drawn into a log: {text:?}");
+}
+
+#[test]
+fn a_switch_to_covering_surfaces_is_announced() {
+    let (_guard, dir) = temp();
+    // Four links and the retina hinge: five motors for a 3-D pose, kernels of k = 2.
+    std::fs::write(
+        dir.join("arm4.toml"),
+        "[agent]\nkind = \"planar-arm\"\nlink_lengths = [1.0, 1.0, 1.0, 1.0]\n",
+    )
+    .unwrap();
+    write_npy(
+        dir.join("m.npy"),
+        &ndarray::array![[0.1, 0.2, 0.3, 0.4, 0.5], [1.0, -0.5, 0.8, 1.2, -2.0]],
+    )
+    .unwrap();
+    let text = stderr(&ok(
+        &dir,
+        &[
+            "trace",
+            "--agent",
+            "arm4.toml",
+            "--motors",
+            "m.npy",
+            "--points",
+            "20",
+            "--cover-step",
+            "0.4",
+            "--workspace",
+            "none",
+            "--out",
+            "s.npy",
+        ],
+    ));
+    assert!(
+        text.contains("trace: 2 kernel sets of dimension k = 2 (5 motors, Jacobian rank 3): each set is a 2-D surface, covered densely (tangent step 0.4 rad"),
+        "{text}"
+    );
+    assert!(text.contains("far longer than curves"), "{text}");
+}
+
+#[test]
+fn a_trace_that_keeps_too_few_sets_fails_naming_each_status_and_its_remedy() {
+    let (_guard, dir) = temp();
+    ok(&dir, &["explore", "--n", "4", "--out-dir", "."]);
+    // A working space behind the base, where no explored start lies.
+    let text = fails(
+        &dir,
+        &[
+            "trace",
+            "--motors",
+            "motors.npy",
+            "--points",
+            "8",
+            "--workspace=-2,0,0.2,0.2",
+            "--out",
+            "s.npy",
+        ],
+    );
+    assert!(
+        text.contains("only 0 of 4 sets were traced and kept (2 needed"),
+        "{text}"
+    );
+    assert!(
+        text.contains("4 outside-workspace (the starts lie outside the working space"),
+        "{text}"
+    );
+    assert!(text.contains("Nothing was written."), "{text}");
+    assert!(!dir.join("s.npy").exists());
+    // The blind environment: every set singular, with what that suggests.
+    std::fs::write(dir.join("dark.json"), r#"{"lights": [[-3.0, 0.0]]}"#).unwrap();
+    let text = fails(
+        &dir,
+        &[
+            "trace",
+            "--motors",
+            "motors.npy",
+            "--method",
+            "sensory",
+            "--env",
+            "dark.json",
+            "--out",
+            "dark.npy",
+        ],
+    );
+    assert!(text.contains("singular (the Jacobian lost rank"), "{text}");
+    assert!(text.contains("too few lights in view"), "{text}");
+}

@@ -272,6 +272,12 @@ fn _trace<'py>(
     agent.check_callbacks()?;
     progress.check()?;
     let traced = traced?;
+    // Fewer than two kept sets of two or more: an error naming the statuses.
+    traced
+        .report
+        .summary
+        .require(motors.nrows().min(2))
+        .map_err(to_py_err)?;
     let report = serde_json::to_string(&traced.report).map_err(|e| value_error(e.to_string()))?;
     let kept: Array1<i64> = traced.kept.iter().map(|&k| k as i64).collect();
     let closed: Array1<i64> = traced.closure.iter().map(|c| c.code()).collect();

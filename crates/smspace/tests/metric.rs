@@ -960,7 +960,12 @@ fn inputs_in_any_layout_or_stride_give_the_same_numbers() {
 /// dimensions 2, 4, 8 and 16 after padding, `surface`), as bits.
 fn every_kernel_matrix() -> Vec<Vec<u64>> {
     use smspace::metric::{Closure, SetsView, Surface, SurfaceParams};
-    let bits = |d: Array2<f64>| d.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+    let bits = |d: smspace::metric::DistanceMatrix| {
+        d.into_array()
+            .iter()
+            .map(|x| x.to_bits())
+            .collect::<Vec<u64>>()
+    };
     let mut out = Vec::new();
     let kinds = [KINDS[0], KINDS[1], MetricKind::Curve];
     for (sets, period) in [

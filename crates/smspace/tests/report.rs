@@ -167,7 +167,7 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
         trace: traced.report.summary,
         embedding: embedded.coordinates,
         embed_report: embedded.report,
-        quality: serde_json::json!({"trustworthiness": 0.987654, "continuity": 0.912345}),
+        quality: serde_json::json!({"trustworthiness": 0.987654, "continuity": 0.912345, "k": 10}),
         dydx,
         analysis,
         invariance,
@@ -351,6 +351,8 @@ fn arm_report_has_every_figure_the_numbers_and_an_interactive_view() {
         .map(|name| format!("figures/{name}.png"))
         .collect();
     expected.push("assets/plotly-2.12.1.min.js".to_owned());
+    // The static stand-in of the interactive view: Fig. 5d's image once more.
+    expected.push("figures/fig5d-embedding-probes.png".to_owned());
     expected.sort();
     assert_eq!(loaded, expected, "{html}");
     assert_eq!(
@@ -405,7 +407,8 @@ fn arm_report_has_every_figure_the_numbers_and_an_interactive_view() {
         without_script_bodies(&page)
             .matches("data:image/png;base64,")
             .count(),
-        drawn.len()
+        drawn.len() + 1,
+        "every figure, and Fig. 5d once more as the static view"
     );
     assert!(page.contains("plotly.js v2.12.1") && page.len() > 3_000_000);
 
@@ -732,4 +735,111 @@ fn warnings_open_the_report() {
     assert!(summary.warnings.is_empty(), "{:?}", summary.warnings);
     let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
     assert!(!html.contains("Warnings") && !html.contains("#warnings"));
+}
+
+/// The value of the row `key` of a Markdown table of `md`: `| key | value |`.
+fn md_row<'a>(md: &'a str, key: &str) -> &'a str {
+    md.lines()
+        .find_map(|l| {
+            let cells: Vec<&str> = l.split('|').map(str::trim).collect();
+            if cells.len() == 4 && cells[1] == key {
+                Some(cells[2])
+            } else {
+                None
+            }
+        })
+        .unwrap_or_else(|| panic!("no row {key} in\n{md}"))
+}
+
+#[test]
+fn the_persistence_diagram_draws_infinite_bars_at_the_tables_threshold() {
+    let run = run("planar-arm", 40, true, 3, 0);
+    let inputs = inputs(&run);
+    let dir = tempfile::tempdir().unwrap();
+    let summary = write_report(&inputs, &ReportParams::default(), dir.path()).unwrap();
+    let md = std::fs::read_to_string(dir.path().join(&summary.markdown)).unwrap();
+    // The table: "3.276 (enclosing-radius)".
+    let threshold = md_row(&md, "Rips threshold").split(' ').next().unwrap();
+    let value: f64 = threshold.parse().unwrap();
+    assert!(
+        (value - run.analysis.homology.threshold).abs() <= 1e-3 * value.abs(),
+        "{threshold} vs {}",
+        run.analysis.homology.threshold
+    );
+    // The figure names the same number where it draws the infinite bars.
+    let texts = figure_texts(&inputs, &ReportParams::default()).unwrap();
+    let persistence = texts
+        .iter()
+        .find(|f| f.name == "persistence-diagram")
+        .unwrap();
+    // The legend may wrap its entry over two lines: read the texts in order.
+    let all = persistence
+        .boxes
+        .iter()
+        .map(|t| t.text.as_str())
+        .collect::<Vec<_>>()
+        .join(" ");
+    let wanted = format!("drawn at the Rips threshold {threshold}");
+    assert!(all.contains(&wanted), "{wanted} not in {all}");
+}
+
+#[test]
+fn the_page_has_a_static_view_without_webgl_named_metrics_and_wrapped_configuration() {
+    let run = run("planar-arm", 40, true, 3, 0);
+    let inputs = inputs(&run);
+    let dir = tempfile::tempdir().unwrap();
+    let summary = write_report(&inputs, &ReportParams::default(), dir.path()).unwrap();
+    let html = std::fs::read_to_string(dir.path().join(&summary.html)).unwrap();
+    // The static figure is shown by default; the interactive view is hidden until a
+    // WebGL context can be created.
+    assert!(
+        html.contains("<div id=\"embedding-view\" hidden></div>"),
+        "{html}"
+    );
+    let fallback = html
+        .find("id=\"embedding-fallback\"")
+        .expect("a static image of the embedding");
+    let tag_start = html[..fallback].rfind('<').unwrap();
+    let tag = &html[tag_start..tag_start + html[tag_start..].find('>').unwrap()];
+    assert!(
+        tag.starts_with("<img") && tag.contains("src=\"figures/fig5d-embedding-probes.png\""),
+        "{tag}"
+    );
+    assert!(
+        html.contains("getContext(\"webgl\")") && html.contains("data-plot-status\", \"static\"")
+    );
+    // The interactive view starts coloured by alpha, looking down the ring's axis.
+    assert!(
+        html.contains("\"camera\":{\"eye\":"),
+        "no camera along the ring's axis"
+    );
+    // Figures at their print size: a 7-inch figure is 840 CSS pixels wide.
+    assert!(
+        html.contains("<img width=\"840\" alt=\"Paper Fig. 5d"),
+        "figure widths"
+    );
+    // The configuration block wraps its long lines inside its box.
+    assert!(html.contains("<pre class=\"config\">"));
+    let pre_style = html
+        .lines()
+        .find(|l| l.starts_with("pre {"))
+        .expect("a style for pre");
+    assert!(
+        pre_style.contains("white-space: pre-wrap")
+            && pre_style.contains("overflow-wrap: anywhere"),
+        "{pre_style}"
+    );
+    // The two trustworthiness values are named apart and explained where they stand.
+    for needle in [
+        "trustworthiness of the embedding vs the learned distances (k = ",
+        "trustworthiness of the learned distances vs the poses (k = ",
+        "compare the embedding with the learned distances between the sets",
+        "compare the learned distances with the distances between the observer&#39;s poses",
+    ] {
+        assert!(html.contains(needle), "{needle} missing");
+    }
+    assert!(
+        !html.contains("<td>trustworthiness</td>"),
+        "an unnamed trustworthiness"
+    );
 }

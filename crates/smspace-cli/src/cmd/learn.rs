@@ -169,11 +169,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     print_law(law.report());
     let bar = Bar::new();
     let traced = trace_learned(&law, starts.view(), &trace, &bar)?;
-    anyhow::ensure!(
-        !traced.kept.is_empty(),
-        "no set could be traced ({:?}); see the statuses above. Nothing was written.",
-        traced.report.summary.by_status
-    );
+    traced
+        .report
+        .summary
+        .require(starts.nrows().min(2))
+        .map_err(|e| anyhow::anyhow!("{e}. Nothing was written."))?;
     let errors = match &args.truth_sets {
         Some(path) => Some(truth_errors(&traced, path, &space)?),
         None => None,

@@ -127,11 +127,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &params,
         &bar,
     )?;
-    anyhow::ensure!(
-        !traced.kept.is_empty(),
-        "no set could be traced ({:?}); see the statuses above. Nothing was written.",
-        traced.report.summary.by_status
-    );
+    // Fewer than two kept sets (of two or more) leave nothing to compare: fail here,
+    // naming the statuses and what each suggests, before writing anything.
+    traced
+        .report
+        .summary
+        .require(motors.nrows().min(2))
+        .map_err(|e| anyhow::anyhow!("{e}. Nothing was written."))?;
     // The same writer as the pipeline's trace stage: the sets, the kept motor rows, which
     // sets are closed loops (for the curve metric) and the report.
     let [_, kept_path, _, _, report_path] = traced.save(&args.out)?;

@@ -264,7 +264,8 @@ def trace(
     ``[environment]``), an int seed, or lights ``(L, 2)``; a PythonAgent senses its own
     world). Other keys of the ``[kernel]`` table as keyword arguments (``step=1e-3``,
     ``closure_tolerance=1e-2``, ...). Sets that fail are left out (see ``kept`` and
-    ``report``)."""
+    ``report``); when fewer than two of two or more rows are kept, it raises ValueError
+    naming the count of each status and what it suggests."""
     if not isinstance(agent, Agent):
         raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
     motors = _array(motors, "motors", 2)

@@ -90,7 +90,7 @@ use serde::{Deserialize, Serialize};
 use crate::agent::Workspace;
 use crate::agent::{Agent, Environment};
 use crate::error::{CheckParams, InvalidParameter};
-use crate::progress::Progress;
+use crate::progress::{Note, Progress};
 use curve::Scratch;
 pub use spatial::{extend_along, Spatial};
 use tracer::Tracer;
@@ -129,6 +129,22 @@ pub enum KernelError {
         total: usize,
         /// Count per status.
         by_status: String,
+    },
+    /// Fewer sets were kept than the caller needs (the later stages need two), while
+    /// others failed: the count of each status of the failed sets and what it suggests
+    /// ([`TraceSummary::require`]).
+    #[error("only {kept} of {total} sets were traced and kept ({needed} needed: the later stages compare pairs of sets); the {failed} that failed: {statuses}")]
+    TooFewKept {
+        /// Sets kept.
+        kept: usize,
+        /// Sets attempted.
+        total: usize,
+        /// Sets failed.
+        failed: usize,
+        /// Sets needed.
+        needed: usize,
+        /// Each failure status with its count and advice ([`TraceSummary::failures`]).
+        statuses: String,
     },
     /// The agent has fewer motors than the pose coordinates the kinematic level set
     /// holds fixed.
@@ -644,12 +660,21 @@ pub enum SetStatus {
     CoverBudget,
     /// The loop did not close within `max_steps`.
     NotClosed,
-    /// The Jacobian lost rank (sensory: too few lights in view; kinematic: a singular
-    /// posture).
+    /// The level set is not a manifold of the kernel dimension `k` where the tracer
+    /// stands, so it cannot be followed there: the Jacobian `J` lost rank (its
+    /// `(N − k)`-th singular value is below `rank_tolerance` times the largest: a
+    /// sensor that cannot tell some pose change apart, e.g. too few lights in view or
+    /// a cell that sees nothing, for the sensory method; a singular posture of the body,
+    /// for the kinematic one), or the null direction of `J` turned by more than
+    /// `max_turn` however short the step (two directions nearly null; or noisy
+    /// readings, whose finite differences point anywhere).
     Singular,
-    /// The corrector did not bring a point back onto the set.
+    /// The corrector did not bring a point back onto the set within
+    /// `max_corrector_iterations` (readings that do not repeat exactly, i.e. noise,
+    /// never meet a tight `sensor_tolerance`).
     CorrectorFailed,
-    /// The start lies outside the working space.
+    /// The start's pose lies outside the working space (the starts and the working
+    /// space disagree).
     OutsideWorkspace,
     /// The set left the region a law learned from data covers
     /// ([`Agent::covers`]); it ends there and is not kept.
@@ -657,6 +682,44 @@ pub enum SetStatus {
 }
 
 impl SetStatus {
+    /// The status's name in files and messages (`not-closed`, `singular`, …).
+    pub fn name(self) -> String {
+        serde_json::to_value(self)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_owned))
+            .unwrap_or_default()
+    }
+
+    /// What a set that failed with this status suggests, and what to change; `None`
+    /// for the statuses of kept sets.
+    pub fn advice(self) -> Option<&'static str> {
+        Some(match self {
+            SetStatus::Closed
+            | SetStatus::Open
+            | SetStatus::Point
+            | SetStatus::Pieces
+            | SetStatus::Covered => return None,
+            SetStatus::CoverBudget => {
+                "the covering of a k-D kernel needed more nodes than [kernel] max_cover_points: raise it or cover_step"
+            }
+            SetStatus::NotClosed => {
+                "the loop did not close within [kernel] max_steps: raise max_steps or closure_tolerance; with the sensory method, noisy readings make the trace wander"
+            }
+            SetStatus::Singular => {
+                "the Jacobian lost rank or its null direction jumped: a sensor that cannot tell pose changes apart (too few lights in view, a cell that sees nothing; kernel::tangent_space gives the Jacobian's singular values at a start), a singular posture, or noisy readings (raise [kernel] finite_difference_step above the noise, or lower rank_tolerance)"
+            }
+            SetStatus::CorrectorFailed => {
+                "points could not be brought back onto the set: noisy readings never meet a tight tolerance (loosen [kernel] sensor_tolerance or pose_tolerance, raise max_corrector_iterations)"
+            }
+            SetStatus::OutsideWorkspace => {
+                "the starts lie outside the working space: explore in the same working space ([exploration] workspace_center and workspace_size, or --workspace) or trace without one"
+            }
+            SetStatus::LeftData => {
+                "the sets left the region the law's data covers: record logs that cover the starts' kernels, or take starts inside the log"
+            }
+        })
+    }
+
     /// Whether the set was traced and kept.
     pub fn is_traced(self) -> bool {
         matches!(
@@ -891,6 +954,49 @@ pub struct TruthErrors {
 }
 
 impl TraceSummary {
+    /// Fails with [`KernelError::TooFewKept`] when fewer than `needed` sets were kept
+    /// and some failed (fewer asked for than needed, all traced, is the caller's to
+    /// judge): the pipeline needs 2, `smspace trace` of `M` rows `min(2, M)`.
+    pub fn require(&self, needed: usize) -> Result<(), KernelError> {
+        if self.traced >= needed || self.failed == 0 {
+            return Ok(());
+        }
+        Err(KernelError::TooFewKept {
+            kept: self.traced,
+            total: self.total,
+            failed: self.failed,
+            needed,
+            statuses: self.failures(),
+        })
+    }
+
+    /// The statuses of the failed sets, most frequent first, each with its count and
+    /// what it suggests ([`SetStatus::advice`]): `"2431 singular (…); 69 not-closed
+    /// (…)"`. Empty when no set failed.
+    pub fn failures(&self) -> String {
+        let mut failed: Vec<(usize, SetStatus)> = self
+            .by_status
+            .iter()
+            .filter_map(|(name, &count)| {
+                let status: SetStatus =
+                    serde_json::from_value(serde_json::Value::String(name.clone())).ok()?;
+                (!status.is_traced()).then_some((count, status))
+            })
+            .collect();
+        failed.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.name().cmp(&b.1.name())));
+        failed
+            .iter()
+            .map(|&(count, status)| {
+                format!(
+                    "{count} {} ({})",
+                    status.name(),
+                    status.advice().unwrap_or_default()
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+
     /// What the summary says that a user must know, one sentence each: sets whose
     /// level set has pieces the sampled sets miss, and sets that are single points
     /// (no redundancy). Empty when every traced set is a complete curve or covering.
@@ -1137,14 +1243,42 @@ pub fn trace_sets(
         return Err(KernelError::NoMotors);
     }
     let tracer = Tracer::new(agent, environment, motors, workspace, params)?;
+    progress.note(&Note::KernelDimension {
+        sets: motors.nrows() as u64,
+        motors: n,
+        dimension: tracer.dimension(),
+        covering: (tracer.dimension() >= 2).then_some((params.cover_step, params.max_cover_points)),
+    });
     progress.start("trace", motors.nrows() as u64);
     let rows: Vec<Vec<f64>> = motors.outer_iter().map(|r| r.to_vec()).collect();
     let done = || progress.advance(1);
-    let results: Vec<tracer::SetResult> = tracer.map_starts(
-        &rows,
+    // A first batch of one set per worker, timed, gives the estimate of the rest (the
+    // sets are independent, so the split changes no result).
+    let batch = rayon::current_num_threads().max(1);
+    let mut results: Vec<tracer::SetResult> = Vec::with_capacity(rows.len());
+    if rows.len() > 2 * batch {
+        let clock = std::time::Instant::now();
+        results = tracer.map_starts(
+            &rows[..batch],
+            |caller, scratch, start| tracer.trace(start, caller, scratch),
+            &done,
+        )?;
+        let elapsed = clock.elapsed().as_secs_f64();
+        progress.note(&Note::Estimate {
+            stage: "trace".to_owned(),
+            unit: "sets".to_owned(),
+            done: batch as u64,
+            total: rows.len() as u64,
+            elapsed_seconds: elapsed,
+            remaining_seconds: elapsed * (rows.len() - batch) as f64 / batch as f64,
+        });
+    }
+    let first = results.len();
+    results.extend(tracer.map_starts(
+        &rows[first..],
         |caller, scratch, start| tracer.trace(start, caller, scratch),
         &done,
-    )?;
+    )?);
     // The kept sets' exact sizes, so that the arrays hold no growth slack (up to as much
     // again as the sets, which the memory estimates of the later stages do not count).
     let (values, labels) = results
@@ -1179,10 +1313,7 @@ pub fn trace_sets(
             radii.extend(report.covering_radius);
         }
         summary.with_unvisited_pieces += usize::from(report.unvisited_pieces > 0);
-        let name = serde_json::to_value(report.status)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_owned))
-            .unwrap_or_default();
+        let name = report.status.name();
         *summary.by_status.entry(name).or_default() += 1;
         reports.push(report);
     }

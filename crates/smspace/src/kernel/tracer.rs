@@ -103,6 +103,11 @@ impl<'a> Tracer<'a> {
         Ok(tracer)
     }
 
+    /// The kernel dimension `k` of every set.
+    pub(super) fn dimension(&self) -> usize {
+        self.dimension
+    }
+
     /// The largest numerical rank of the sensory Jacobian over the starts (0 where it
     /// is not finite), and the sensor rows read at each start.
     fn generic_sensory_rank(&self, starts: ArrayView2<'_, f64>) -> (usize, Vec<u64>) {

@@ -8,6 +8,18 @@
 //! folder instead of inside every page); a self-contained page inlines both (PNG as `data:`
 //! URLs, or the SVG text). Either way it loads nothing from any other place.
 //!
+//! **Without WebGL** (a headless browser with no GPU, a remote desktop) plotly.js
+//! cannot draw the 3-D view. The page therefore shows a static figure of the same
+//! embedding by default (Fig. 5d, seen along the ring's axis, or the embedding coloured
+//! by pose) and replaces it by the interactive view only once a WebGL context can be
+//! created; otherwise `<body>` gets `data-plot-status="static"` and `data-webgl="no"`.
+//! The interactive view starts as the static one does: coloured by alpha, seen along
+//! the ring's axis.
+//!
+//! Figures are shown at their print size (1.25 CSS inches per inch of print), so that
+//! their 9-point text reads at about the size of the captions; the configuration block
+//! wraps its long lines instead of running off the page.
+//!
 //! For automated checks (`.ci/browser-check`), a script that runs first records
 //! `window.onerror`, unhandled rejections and `console.error` calls; once
 //! `Plotly.newPlot` has resolved, `<body>` carries `data-plot-status="drawn"`,
@@ -144,17 +156,20 @@ th { background: #f2f2f2; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; }
 figure { margin: 1.5em 0; }
 figure img, figure svg { max-width: 100%; height: auto; border: 1px solid #eee; }
-figcaption { font-size: 0.95em; color: #444; margin-top: 0.3em; }
+figcaption { font-size: 1em; color: #333; margin-top: 0.4em; max-width: 52em; }
 .skipped { color: #555; }
 .warnings { border: 1px solid #d9a400; background: #fff8e1; padding: 0.4em 1em; }
 .warnings li { margin: 0.3em 0; }
-pre { background: #f7f7f7; padding: 1em; overflow-x: auto; border: 1px solid #e5e5e5; }
+table { max-width: 100%; }
+td { overflow-wrap: anywhere; }
+pre { background: #f7f7f7; padding: 1em; border: 1px solid #e5e5e5; max-width: 100%; box-sizing: border-box; white-space: pre-wrap; overflow-wrap: anywhere; overflow-x: auto; }
 #embedding-view { width: 100%; height: 680px; border: 1px solid #eee; }
+#embedding-view[hidden], #embedding-static[hidden] { display: none; }
 nav a { margin-right: 1em; }
 </style>"#;
 
 /// The data of the interactive view: coordinates, colour options and hover text.
-fn plot_spec(inputs: &ReportInputs<'_>) -> Value {
+fn plot_spec(inputs: &ReportInputs<'_>, ring_axes: Option<[[f64; 3]; 3]>) -> Value {
     let (m, d) = inputs.embedding.dim();
     let mut trace = json!({
         "name": "kernel sets",
@@ -186,6 +201,15 @@ fn plot_spec(inputs: &ReportInputs<'_>) -> Value {
         for (k, v) in a {
             l.insert(k.clone(), v.clone());
         }
+    }
+    if let (Some([first, _, axis]), true) = (ring_axes, d >= 3) {
+        // Look down the ring's axis (the static figure's view), its first axis up.
+        let eye: Vec<f64> = axis.iter().map(|a| round4(1.9 * a)).collect();
+        let up: Vec<f64> = first.iter().map(|&a| round4(a)).collect();
+        layout["scene"]["camera"] = json!({
+            "eye": {"x": eye[0], "y": eye[1], "z": eye[2]},
+            "up": {"x": up[0], "y": up[1], "z": up[2]},
+        });
     }
     json!({"data": [trace], "layout": layout})
 }
@@ -325,16 +349,13 @@ fn pose_color_scale(c: usize, values: &[f64]) -> (Value, Value, Value) {
     }
 }
 
-/// One menu button per pose coordinate that colours the points by it, and the
-/// marker of the first (x), which the view starts with.
+/// One menu button per pose coordinate that colours the points by it (alpha first,
+/// the view's start), and the marker the view starts with.
 fn pose_buttons(inputs: &ReportInputs<'_>, marker_size: f64) -> (Vec<Value>, Option<Value>) {
     let m = inputs.embedding.nrows();
     let mut buttons = Vec::new();
     let mut first_marker = None;
-    for (c, (name, unit)) in [("x", "m"), ("y", "m"), ("alpha", "rad")]
-        .into_iter()
-        .enumerate()
-    {
+    for (c, name, unit) in [(2, "alpha", "rad"), (0, "x", "m"), (1, "y", "m")] {
         let Some(values) = (0..m)
             .map(|i| set_pose(inputs, i, c).map(round4))
             .collect::<Option<Vec<f64>>>()
@@ -406,7 +427,26 @@ const PLOT_SCRIPT: &str = r#"<script>
 (function () {
   var body = document.body;
   var div = document.getElementById("embedding-view");
+  var still = document.getElementById("embedding-static");
   var spec = JSON.parse(document.getElementById("embedding-data").textContent);
+  function webgl() {
+    try {
+      var canvas = document.createElement("canvas");
+      return !!(window.WebGLRenderingContext &&
+        (canvas.getContext("webgl") || canvas.getContext("experimental-webgl")));
+    } catch (error) {
+      return false;
+    }
+  }
+  if (!webgl()) {
+    // Keep the static figure; the interactive view cannot be drawn here.
+    body.setAttribute("data-plot-status", "static");
+    body.setAttribute("data-webgl", "no");
+    body.setAttribute("data-errors", String(window.__reportErrors.length));
+    return;
+  }
+  div.hidden = false;
+  if (still) { still.hidden = true; }
   function finish(status) {
     body.setAttribute("data-plot-status", status);
     var found = "no", size = "0x0";
@@ -473,7 +513,23 @@ pub(super) struct Page<'p, 'a> {
     pub(super) warnings: &'p [Warning],
     /// Inline plotly.js and the figures instead of loading them from the run folder.
     pub(super) self_contained: bool,
+    /// The ring frame's axes in the embedding's coordinates (3-D embeddings): the
+    /// interactive view looks down the third.
+    pub(super) ring_axes: Option<[[f64; 3]; 3]>,
 }
+
+/// CSS pixels per inch of print a figure is shown at: 1.25 times the CSS inch, so
+/// that its 9-point text reads at about the size of the page's text and captions.
+const CSS_PX_PER_PRINT_INCH: f64 = 120.0;
+
+/// The figures the static view falls back to, in order of preference: the first
+/// drawn shows the embedding from the interactive view's start (along the ring's
+/// axis, coloured by alpha).
+const FALLBACK_FIGURES: [&str; 3] = [
+    "fig5d-embedding-probes",
+    "embedding-pose",
+    "fig2-learned-manifold",
+];
 
 impl Page<'_, '_> {
     /// The whole page.
@@ -505,18 +561,19 @@ impl Page<'_, '_> {
         out.push_str("<a href=\"#view\">interactive view</a><a href=\"#numbers\">numbers</a><a href=\"#figures\">figures</a><a href=\"#config\">configuration</a></nav>\n");
         self.warnings_html(&mut out);
         out.push_str("<h2 id=\"view\">Interactive view of the embedding</h2>\n");
-        out.push_str("<p>Drag to rotate, scroll to zoom; the menu colours the points by a pose coordinate or by probe orientation; hovering a point shows its set, exploration row and pose.</p>\n");
-        out.push_str("<div id=\"embedding-view\"></div>\n");
+        out.push_str("<p>Drag to rotate, scroll to zoom; the menu colours the points by a pose coordinate or by probe orientation; hovering a point shows its set, exploration row and pose. The view needs WebGL; where the browser has none, a static figure of the same embedding stands in its place.</p>\n");
+        out.push_str("<div id=\"embedding-view\" hidden></div>\n");
+        self.fallback_html(&mut out);
         out.push_str("<h2 id=\"numbers\">Numbers</h2>\n");
         for t in self.tables {
             table_html(t, &mut out);
         }
         self.figures_html(&mut out);
-        out.push_str("<h2 id=\"config\">Configuration</h2>\n<pre>");
+        out.push_str("<h2 id=\"config\">Configuration</h2>\n<pre class=\"config\">");
         out.push_str(&escape(inputs.config_toml));
         out.push_str("</pre>\n");
         out.push_str("<script id=\"embedding-data\" type=\"application/json\">");
-        out.push_str(&script_json(&plot_spec(inputs)));
+        out.push_str(&script_json(&plot_spec(inputs, self.ring_axes)));
         if self.self_contained {
             out.push_str("</script>\n<script>\n");
             out.push_str(PLOTLY_JS);
@@ -547,6 +604,67 @@ impl Page<'_, '_> {
         out.push_str("</ul>\n</section>\n");
     }
 
+    /// The `<img>` of a drawn figure: its file (or its bytes, self-contained) at its
+    /// print size ([`CSS_PX_PER_PRINT_INCH`]); `None` when it has no image.
+    fn image(&self, record: &FigureRecord, rendered: &Rendered, id: &str) -> Option<String> {
+        let alt = escape(&record.caption);
+        let width = rendered.print_inches.map_or(String::new(), |(w, _)| {
+            format!(" width=\"{}\"", (w * CSS_PX_PER_PRINT_INCH).round())
+        });
+        let id = if id.is_empty() {
+            String::new()
+        } else {
+            format!(" id=\"{id}\"")
+        };
+        if self.self_contained {
+            if let Some(png) = &rendered.png {
+                return Some(format!(
+                    "<img{id}{width} alt=\"{alt}\" src=\"data:image/png;base64,{}\">\n",
+                    base64::engine::general_purpose::STANDARD.encode(png)
+                ));
+            }
+            return rendered
+                .svg
+                .as_ref()
+                .map(|svg| format!("{}\n", inline_svg(svg)));
+        }
+        let file = |ext: &str| {
+            record
+                .files
+                .iter()
+                .find(|p| p.extension().is_some_and(|e| e == ext))
+                .map(|p| p.to_string_lossy().replace('\\', "/"))
+        };
+        file("png")
+            .or_else(|| file("svg"))
+            .map(|path| format!("<img{id}{width} alt=\"{alt}\" src=\"{}\">\n", escape(&path)))
+    }
+
+    /// The static stand-in of the interactive view, shown until the page finds that
+    /// the browser can draw WebGL: the first drawn of [`FALLBACK_FIGURES`], or a
+    /// sentence when none was drawn.
+    fn fallback_html(&self, out: &mut String) {
+        out.push_str("<figure id=\"embedding-static\">\n");
+        let chosen = FALLBACK_FIGURES.iter().find_map(|name| {
+            self.figures
+                .iter()
+                .find(|(r, _)| r.name == *name && r.skipped.is_none())
+        });
+        match chosen.and_then(|(r, rendered)| Some((r, self.image(r, rendered, "embedding-fallback")?))) {
+            Some((record, img)) => {
+                out.push_str(&img);
+                out.push_str(&format!(
+                    "<figcaption>A static image of the embedding (the figure {} below), shown because this browser cannot draw the interactive view (no WebGL).</figcaption>\n",
+                    escape(&record.name)
+                ));
+            }
+            None => out.push_str(
+                "<p id=\"embedding-fallback\">This browser cannot draw the interactive view (no WebGL), and no static figure of the embedding was drawn.</p>\n",
+            ),
+        }
+        out.push_str("</figure>\n");
+    }
+
     /// The figures with their captions, and one sentence on those not drawn.
     fn figures_html(&self, out: &mut String) {
         out.push_str("<h2 id=\"figures\">Figures</h2>\n");
@@ -559,26 +677,8 @@ impl Page<'_, '_> {
             }
             let id = escape(&record.name);
             out.push_str(&format!("<figure id=\"{id}\">\n"));
-            let alt = escape(&record.caption);
-            let file = |ext: &str| {
-                record
-                    .files
-                    .iter()
-                    .find(|p| p.extension().is_some_and(|e| e == ext))
-                    .map(|p| p.to_string_lossy().replace('\\', "/"))
-            };
-            if self.self_contained {
-                if let Some(png) = &rendered.png {
-                    out.push_str(&format!(
-                        "<img alt=\"{alt}\" src=\"data:image/png;base64,{}\">\n",
-                        base64::engine::general_purpose::STANDARD.encode(png)
-                    ));
-                } else if let Some(svg) = &rendered.svg {
-                    out.push_str(inline_svg(svg));
-                    out.push('\n');
-                }
-            } else if let Some(path) = file("png").or_else(|| file("svg")) {
-                out.push_str(&format!("<img alt=\"{alt}\" src=\"{}\">\n", escape(&path)));
+            if let Some(img) = self.image(record, rendered, "") {
+                out.push_str(&img);
             }
             out.push_str(&format!(
                 "<figcaption><b>{id}</b>: {}</figcaption>\n</figure>\n",

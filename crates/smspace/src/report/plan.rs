@@ -385,7 +385,7 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
         let cells = surfaces.iter().map(|s| s.cells.len()).max().unwrap_or(0);
         let caption = if d >= 3 {
             format!(
-                "Paper Fig. 5d (section 3.3): the CCA embedding of the {m} kernel sets (grey points) with the {sheets} probe sheets, one per sensor orientation alpha (each the grid of up to {cells} sensor positions at that orientation, drawn as a surface), coloured by alpha on a circular colour map. Left, seen obliquely; right, seen along the axis of the ring the sheets form (the normal of the plane through the sheets' centres; u, v span that plane, w is the axis). The sheets follow one another round the ring in the order of alpha, and the ring closes: the circle of orientations times the plane of positions, the T x R^2 of the paper. The embedding's axes are arbitrary, in the units of the set metric."
+                "Paper Fig. 5d (section 3.3): the CCA embedding of the {m} kernel sets (grey points) with the {sheets} probe sheets, one per sensor orientation alpha (each the grid of up to {cells} sensor positions at that orientation, drawn as a surface), coloured by alpha on a circular colour map. Left (main view), seen along the axis of the ring the sheets form (the normal of the plane through the sheets' centres; u, v span that plane, w is the axis), so that the ring faces the reader; right, the same seen obliquely. The sheets follow one another round the ring in the order of alpha, and the ring closes: the circle of orientations times the plane of positions, the T x R^2 of the paper. The embedding's axes are arbitrary, in the units of the set metric."
             )
         } else {
             format!(
@@ -579,7 +579,7 @@ fn pose_caption(m: usize, recovery: &[Recovery]) -> String {
             .collect(),
     );
     let mut text = format!(
-        "The embedding of the {m} kernel sets coloured by each varying coordinate of the observer's pose (alpha on a circular colour map; in 3-D the oblique view of Fig. 5d)."
+        "The embedding of the {m} kernel sets coloured by each varying coordinate of the observer's pose (alpha on a circular colour map; in 3-D each panel is seen, in the ring frame of Fig. 5d, from the view in which its coordinate shows best: the one whose nearest neighbours on screen share the coordinate most)."
     );
     if !local.is_empty() {
         text.push_str(&format!(

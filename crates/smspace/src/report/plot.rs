@@ -210,6 +210,8 @@ pub(super) struct Rendered {
     pub(super) png: Option<Vec<u8>>,
     /// The SVG text, when SVG was asked for.
     pub(super) svg: Option<String>,
+    /// Its print size in inches, `(width, height)` (`None` when not drawn).
+    pub(super) print_inches: Option<(f64, f64)>,
 }
 
 fn draw_error(name: &str, error: PlotError) -> ReportError {
@@ -229,7 +231,10 @@ pub(super) fn render<F: Figure>(
 ) -> Result<Rendered, ReportError> {
     register_font();
     let (width, height) = figure.size();
-    let mut rendered = Rendered::default();
+    let mut rendered = Rendered {
+        print_inches: Some((f64::from(width) / print.dpi, f64::from(height) / print.dpi)),
+        ..Rendered::default()
+    };
     let (want_png, want_svg) = match formats {
         FigureFormats::PngAndSvg => (true, true),
         FigureFormats::Png => (true, false),

@@ -67,11 +67,7 @@ pub(super) fn tables(inputs: &ReportInputs<'_>) -> Vec<Table> {
     out.push(trace_table(inputs.trace, inputs.law));
     out.push(embed_table(inputs.embed_report));
     if let Some(quality) = inputs.embed_quality {
-        let mut t = Table::key_value("Embedding quality");
-        flatten(quality, "", &mut t);
-        if !t.rows.is_empty() {
-            out.push(t);
-        }
+        out.extend(quality_table(quality));
     }
     if let Some(analysis) = inputs.analysis {
         out.extend(analysis_tables(analysis));
@@ -240,6 +236,48 @@ fn embed_table(e: &EmbedReport) -> Table {
     t
 }
 
+/// The note under the embedding's quality: what its trustworthiness and continuity
+/// compare, told apart from those against the poses.
+pub(super) const EMBEDDING_QUALITY_NOTE: &str = "Trustworthiness and continuity of the embedding (Venna & Kaski) compare the embedding with the learned distances between the sets: trustworthiness is 1 when every set's k nearest sets in the embedding are also among its k nearest by the learned distance (no false neighbours drawn), continuity is 1 when the learned nearest sets stay near in the embedding (no neighbours torn apart). They say how faithfully the embedding draws the learned metric, not whether that metric is spatial: the trustworthiness against the poses (agreement with the observer's poses, below) says that.";
+
+/// The note under the agreement with the poses: what its trustworthiness compares.
+pub(super) const POSE_AGREEMENT_NOTE: &str = "Trustworthiness and continuity against the poses compare the learned distances with the distances between the observer's poses (x, y and alpha, each scaled by its spread): trustworthiness is 1 when every set's k nearest sets by the learned distance are also among its k nearest by pose, continuity when sets of nearby poses are also near by the learned distance. They say whether the learned metric is spatial; the embedding's own trustworthiness (embedding quality, above) compares the embedding with the learned distances instead.";
+
+/// The embedding's quality (`Y.embed.json`): its trustworthiness and continuity named
+/// as the embedding's against the learned distances, with a note on each, and any
+/// other number it holds as it is.
+fn quality_table(quality: &Value) -> Option<Table> {
+    let mut t = Table::key_value("Embedding quality (the embedding against the learned distances)");
+    let k = quality["k"].as_u64();
+    let with_k = |name: &str| match k {
+        Some(k) => format!("{name} (k = {k})"),
+        None => name.to_owned(),
+    };
+    let mut rest = serde_json::Map::new();
+    for (key, value) in quality.as_object().into_iter().flatten() {
+        match key.as_str() {
+            "trustworthiness" => t.push(
+                with_k("trustworthiness of the embedding vs the learned distances"),
+                scalar(value),
+            ),
+            "continuity" => t.push(
+                with_k("continuity of the embedding vs the learned distances"),
+                scalar(value),
+            ),
+            "k" => {}
+            _ => {
+                rest.insert(key.clone(), value.clone());
+            }
+        }
+    }
+    let named = !t.rows.is_empty();
+    flatten(&Value::Object(rest), "", &mut t);
+    if named {
+        t.note = Some(EMBEDDING_QUALITY_NOTE.to_owned());
+    }
+    (!t.rows.is_empty()).then_some(t)
+}
+
 /// Flattens a JSON document into `key.path → value` rows.
 fn flatten(value: &Value, prefix: &str, t: &mut Table) {
     match value {
@@ -356,11 +394,17 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
         let mut t = Table::key_value("Agreement with the observer's poses");
         t.push("Spearman (learned vs pose distances)", num(g.spearman));
         t.push(
-            format!("trustworthiness (k = {})", g.neighbors),
+            format!(
+                "trustworthiness of the learned distances vs the poses (k = {})",
+                g.neighbors
+            ),
             num(g.trustworthiness),
         );
         t.push(
-            format!("continuity (k = {})", g.neighbors),
+            format!(
+                "continuity of the learned distances vs the poses (k = {})",
+                g.neighbors
+            ),
             num(g.continuity),
         );
         for (c, v) in &g.coordinates {
@@ -372,6 +416,7 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
         for (c, v) in &g.pose_scales {
             t.push(format!("spread of {c}"), num(*v));
         }
+        t.note = Some(POSE_AGREEMENT_NOTE.to_owned());
         out.push(t);
     }
     out.extend(a.compensability.as_ref().map(compensability_table));

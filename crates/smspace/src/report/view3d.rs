@@ -62,6 +62,11 @@ pub(super) enum RingSource {
 }
 
 impl Frame {
+    /// The frame's axes (the third is a ring's axis), in the data's coordinates.
+    pub(super) fn axes(&self) -> [V3; 3] {
+        self.axes
+    }
+
     /// Coordinates of `p` in the frame.
     pub(super) fn coords(&self, p: V3) -> V3 {
         let d = sub(p, self.origin);
@@ -165,6 +170,11 @@ impl Camera {
             up: [-se * ca, -se * sa, ce],
             toward: [ce * ca, ce * sa, se],
         }
+    }
+
+    /// Where `p` lands on the screen, `(right, up)`, before scaling.
+    pub(super) fn screen(&self, p: V3) -> [f64; 2] {
+        [dot(p, self.right), dot(p, self.up)]
     }
 
     /// Looking down the third axis: the first axis to the right, the second up.
@@ -325,6 +335,21 @@ impl BoxAxis {
         Self {
             title: format!("{}{}", title.into(), format.suffix()),
             ticks: values.iter().map(|&v| (v, format.label(v))).collect(),
+        }
+    }
+
+    /// An axis of a hinge (the range `[−π, π]`): ticks at `−π/2`, `0` and `π/2`, a
+    /// quarter of the edge from its ends, so that the labels of two axes never crowd
+    /// at the corner where their edges meet.
+    pub(super) fn angles(title: impl Into<String>) -> Self {
+        let half = std::f64::consts::FRAC_PI_2;
+        Self {
+            title: title.into(),
+            ticks: vec![
+                (-half, "\u{2212}\u{3c0}/2".to_owned()),
+                (0.0, "0".to_owned()),
+                (half, "\u{3c0}/2".to_owned()),
+            ],
         }
     }
 

@@ -175,6 +175,8 @@ impl Stage for TraceStage {
             )?,
         };
         if traced.kept.len() < 2 {
+            // Sets failed: the statuses and what each suggests.
+            traced.report.summary.require(2)?;
             return Err(KernelError::NothingTraced {
                 traced: traced.kept.len(),
                 total: motors.nrows(),

@@ -343,10 +343,17 @@ impl KernelSets3d<'_> {
         );
         let projection = Projection::fit(Camera::new(azimuth, 0.45), &corners, rect);
         let box_axes: [BoxAxis; 3] = std::array::from_fn(|j| {
-            BoxAxis::numbered(
-                format!("m{} ({})", axes[j] + 1, self.motor_unit),
-                &ranges[j],
-            )
+            let title = format!("m{} ({})", axes[j] + 1, self.motor_unit);
+            let motor = self.space.motor(axes[j]);
+            let hinge = motor
+                .period()
+                .is_some_and(|t| (t - std::f64::consts::TAU).abs() < 1e-12)
+                && (ranges[j].start + std::f64::consts::PI).abs() < 1e-9;
+            if hinge {
+                BoxAxis::angles(title)
+            } else {
+                BoxAxis::numbered(title, &ranges[j])
+            }
         });
         draw_box(area, &projection, &ranges, &box_axes, print)?;
         let mut items = Vec::new();

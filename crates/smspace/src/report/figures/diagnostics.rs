@@ -11,6 +11,7 @@ use super::super::plot::{
 };
 use super::{Panel, MAX_SCATTER_POINTS};
 use crate::analysis::AnalysisReport;
+use crate::report::tables::num;
 
 /// A straight line between two data points, solid or dashed, in pixels.
 fn data_line<DB: DrawingBackend>(
@@ -27,6 +28,19 @@ fn data_line<DB: DrawingBackend>(
     let local = |p: (i32, i32)| (p.0 - x0, p.1 - y0);
     let strip = area.strip_coord_spec();
     dashed_line(&strip, &[local(pa), local(pb)], style, dash, print)
+}
+
+/// Where the persistence diagram draws a bar that never dies: at the Rips threshold,
+/// the scale the filtration stops at and the number the topology table gives (a bar
+/// alive there has no death to draw), or a little above the finite deaths when the
+/// threshold is not a positive number.
+pub(in crate::report) fn infinite_death(analysis: &AnalysisReport, finite_top: f64) -> f64 {
+    let threshold = analysis.homology.threshold;
+    if threshold.is_finite() && threshold > 0.0 {
+        threshold
+    } else {
+        finite_top.max(1e-9) * 1.06
+    }
 }
 
 /// Rips persistence diagram with the Betti numbers.
@@ -51,14 +65,8 @@ impl Figure for PersistenceDiagram<'_> {
         )
         .map_or(1.0, |(_, hi)| hi);
         let threshold = self.analysis.homology.threshold;
-        let top = if threshold.is_finite() && threshold > 0.0 {
-            threshold.max(finite_top)
-        } else {
-            finite_top
-        }
-        .max(1e-9);
-        let infinity = top * 1.06;
-        let end = top * 1.12;
+        let infinity = infinite_death(self.analysis, finite_top);
+        let end = infinity.max(finite_top).max(1e-9) * 1.1;
         let grey = BLACK.mix(0.6);
         let mut legend = Legend::new();
         let marks: Vec<Mark> = (0..bars.len())
@@ -77,7 +85,14 @@ impl Figure for PersistenceDiagram<'_> {
         }
         legend.add(
             Mark::Line(RGBColor(100, 100, 100), 0.8, Dash::Dashed),
-            "death = \u{221e} (alive at the threshold)",
+            if threshold.is_finite() && threshold > 0.0 {
+                format!(
+                    "death = \u{221e}, drawn at the Rips threshold {}",
+                    num(threshold)
+                )
+            } else {
+                "death = \u{221e} (alive at the largest scale)".to_owned()
+            },
         );
         legend.add(
             Mark::Line(RGBColor(128, 128, 128), 0.6, Dash::Solid),
