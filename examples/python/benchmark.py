@@ -11,14 +11,16 @@
    ``planar_arm.py`` (a PythonAgent) against the built-in arm, both from Python.
 3. dask: ``smspace.dask.distances`` on a LocalCluster of 2 worker processes against
    ``smspace.distances`` in this process.
-
 4. numba: the ``hausdorff`` matrix of the sets in ``--sets`` (an (M, P, N) ``.npy`` of
    angles, period 2π) by the ``smspace distances`` command (``--threads 2``, its own
    reported time) against a parallel brute force in Numba (every pair, every point
    against every point in ``float64``, rows spread over 2 threads), interleaved; it
    prints both times, the ratio, ``SMSPACE_SIMD`` (the level cap the command ran
    under), the CPU times of both (less disturbed than wall times by other work on the
-   machine) and the largest difference between the two matrices. Needs ``pip install numba``, not the wheel.
+   machine) and the largest difference between the two matrices. The brute force folds
+   a difference ``u`` to ``min(r, 2π − r)`` with ``r = |u|`` (angles wrapped, as smspace
+   takes them), or with ``--numba-fold remainder`` ``r = |u| mod 2π`` (any angles).
+   Needs ``pip install numba``, not the wheel.
 
 Build the wheel (and the command) with ``--release`` for meaningful numbers.
 """

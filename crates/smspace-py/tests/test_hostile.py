@@ -13,6 +13,7 @@ import math
 import random
 import subprocess
 import sys
+import types
 
 import numpy as np
 import pytest
@@ -170,7 +171,16 @@ def test_a_lost_dask_task_says_that_the_workers_died():
         from distributed.scheduler import KilledWorker as killed
     from distributed.client import FutureCancelledError
 
-    for error in [killed("task-1", "tcp://127.0.0.1:1"), FutureCancelledError("k", "lost")]:
+    try:  # (its arguments differ between versions of distributed)
+        worker = types.SimpleNamespace(address="tcp://127.0.0.1:1")
+        killed_error = killed("task-1", worker, 3)
+    except TypeError:
+        killed_error = killed("task-1", "tcp://127.0.0.1:1")
+    try:
+        cancelled = FutureCancelledError("k", "lost")
+    except TypeError:
+        cancelled = FutureCancelledError("k")
+    for error in [killed_error, cancelled]:
         with pytest.raises(smspace.dask.WorkersDied, match="workers died or were killed"):
             smspace.dask._result(_Lost(error), "the task of tile (0, 5, 0, 5)")
     # The task's own errors pass unchanged.
