@@ -174,8 +174,8 @@ fn _run(
         Some(b) => pipeline::run_with(&plan, &options, shared.as_ref(), b),
         None => pipeline::run(&plan, &options, shared.as_ref()),
     })?;
-    if let Some(e) = Option::as_ref(&backend)
-        .and_then(|b| b.error.lock().ok().and_then(|mut e| e.take()))
+    if let Some(e) =
+        Option::as_ref(&backend).and_then(|b| b.error.lock().ok().and_then(|mut e| e.take()))
     {
         return Err(e);
     }

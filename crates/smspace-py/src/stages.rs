@@ -258,6 +258,7 @@ fn _trace<'py>(
     let workspace = resolve_workspace(agent, workspace)?;
     let (progress, interrupts) = reporter(progress, Some(agent));
     let (law, shared) = (agent.law.clone(), progress.clone());
+    let rows = motors.nrows();
     let traced = run_interruptible(py, &interrupts, move || {
         trace_sets(
             law.as_ref(),
@@ -276,7 +277,7 @@ fn _trace<'py>(
     traced
         .report
         .summary
-        .require(motors.nrows().min(2))
+        .require(rows.min(2))
         .map_err(to_py_err)?;
     let report = serde_json::to_string(&traced.report).map_err(|e| value_error(e.to_string()))?;
     let kept: Array1<i64> = traced.kept.iter().map(|&k| k as i64).collect();
@@ -315,7 +316,12 @@ fn _distances<'py>(
     let (progress, interrupts) = reporter(progress, None);
     let shared = progress.clone();
     let d = run_interruptible(py, &interrupts, move || {
-        let view = sets_view(points.view(), closure.as_deref(), pieces.as_ref().map(|p| p.view()), &metric)?;
+        let view = sets_view(
+            points.view(),
+            closure.as_deref(),
+            pieces.as_ref().map(|p| p.view()),
+            &metric,
+        )?;
         distance_matrix_with(view, built.metric.as_ref(), &built.params, shared.as_ref())
             .map_err(to_py_err)
     })?;
@@ -360,8 +366,18 @@ fn _distance_tile<'py>(
     let tile = Tile::new(tile.0..tile.1, tile.2..tile.3);
     let out = run_interruptible(py, &[], move || {
         let (rv, cv) = (
-            sets_view(r.view(), rc.as_deref(), rp.as_ref().map(|p| p.view()), &metric)?,
-            sets_view(c.view(), cc.as_deref(), cp.as_ref().map(|p| p.view()), &metric)?,
+            sets_view(
+                r.view(),
+                rc.as_deref(),
+                rp.as_ref().map(|p| p.view()),
+                &metric,
+            )?,
+            sets_view(
+                c.view(),
+                cc.as_deref(),
+                cp.as_ref().map(|p| p.view()),
+                &metric,
+            )?,
         );
         let mut out = Array2::zeros(tile.shape());
         fill_tile(
@@ -430,7 +446,12 @@ fn _knn<'py>(
     let (progress, interrupts) = reporter(progress, None);
     let shared = progress.clone();
     let found = run_interruptible(py, &interrupts, move || {
-        let view = sets_view(points.view(), closure.as_deref(), pieces.as_ref().map(|p| p.view()), &metric)?;
+        let view = sets_view(
+            points.view(),
+            closure.as_deref(),
+            pieces.as_ref().map(|p| p.view()),
+            &metric,
+        )?;
         knn_with(
             view,
             built.metric.as_ref(),
@@ -503,7 +524,12 @@ fn _analyze<'py>(
     let (progress, interrupts) = reporter(progress, None);
     let shared = progress.clone();
     let report = run_interruptible(py, &interrupts, move || {
-        analyze(&d, poses.as_ref().map(|p| p.view()), &params, shared.as_ref())
+        analyze(
+            &d,
+            poses.as_ref().map(|p| p.view()),
+            &params,
+            shared.as_ref(),
+        )
     })?
     .map_err(to_py_err);
     progress.check()?;

@@ -752,23 +752,43 @@ fn an_unclear_betti_reading_is_flagged_with_its_remedy() {
     let mixed = Persistence {
         threshold: 4.57,
         diagrams: vec![
-            vec![bar(0.0, Some(2.62)), bar(0.0, Some(2.60)), bar(0.0, Some(1.11)), bar(0.0, None)],
-            vec![bar(0.5, Some(1.99)), bar(0.6, Some(2.09)), bar(0.7, Some(1.81)), bar(0.2, Some(1.14))],
+            vec![
+                bar(0.0, Some(2.62)),
+                bar(0.0, Some(2.60)),
+                bar(0.0, Some(1.11)),
+                bar(0.0, None),
+            ],
+            vec![
+                bar(0.5, Some(1.99)),
+                bar(0.6, Some(2.09)),
+                bar(0.7, Some(1.81)),
+                bar(0.2, Some(1.14)),
+            ],
         ],
     };
     let rule = BettiRule::default();
     assert_eq!(rule.betti(&mixed), vec![1, 0]);
     let flagged = rule.ambiguities(&mixed);
     assert_eq!(flagged.len(), 2, "{flagged:?}");
-    assert!(flagged[0].starts_with("H0: b0 = 1 is ambiguous"), "{flagged:?}");
-    assert!(flagged[1].starts_with("H1: b1 = 0 is ambiguous"), "{flagged:?}");
+    assert!(
+        flagged[0].starts_with("H0: b0 = 1 is ambiguous"),
+        "{flagged:?}"
+    );
+    assert!(
+        flagged[1].starts_with("H1: b1 = 0 is ambiguous"),
+        "{flagged:?}"
+    );
     assert!(flagged[1].contains("working space"), "{flagged:?}");
     // A circle × plane read clearly: one long H1 bar, the rest near the noise floor.
     let clear = Persistence {
         threshold: 4.0,
         diagrams: vec![
             vec![bar(0.0, Some(0.3)), bar(0.0, Some(0.2)), bar(0.0, None)],
-            vec![bar(0.4, Some(3.0)), bar(0.5, Some(0.9)), bar(0.2, Some(0.4))],
+            vec![
+                bar(0.4, Some(3.0)),
+                bar(0.5, Some(0.9)),
+                bar(0.2, Some(0.4)),
+            ],
         ],
     };
     assert_eq!(rule.betti(&clear), vec![1, 1]);
