@@ -960,7 +960,7 @@ fn inputs_in_any_layout_or_stride_give_the_same_numbers() {
 /// dimensions 2, 4, 8 and 16 after padding, `surface`), as bits.
 fn every_kernel_matrix() -> Vec<Vec<u64>> {
     use smspace::metric::{Closure, SetsView, Surface, SurfaceParams};
-    let bits = |d: Array2<f64>| d.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+    let bits = |d: &Array2<f64>| d.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
     let mut out = Vec::new();
     let kinds = [KINDS[0], KINDS[1], MetricKind::Curve];
     for (sets, period) in [
@@ -976,7 +976,7 @@ fn every_kernel_matrix() -> Vec<Vec<u64>> {
         for kind in kinds {
             let view = SetsView::new(sets.view()).with_closure(&closure);
             out.push(bits(
-                distance_matrix(view, &params(kind, period), &Silent).unwrap(),
+                &distance_matrix(view, &params(kind, period), &Silent).unwrap(),
             ));
         }
     }
@@ -984,7 +984,7 @@ fn every_kernel_matrix() -> Vec<Vec<u64>> {
     for period in PERIODS {
         let metric = Surface::new(SurfaceParams::default(), period.into()).unwrap();
         let d = distance_matrix_with(sets.view(), &metric, &DistanceParams::new(), &Silent);
-        out.push(bits(d.unwrap()));
+        out.push(bits(&d.unwrap()));
     }
     out
 }
