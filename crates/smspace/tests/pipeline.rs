@@ -250,8 +250,10 @@ fn leaves(value: &Value, path: &mut Vec<String>, out: &mut Vec<(Vec<String>, Val
 /// Values of the same type as `value`, different from it, to try in turn (for a
 /// string, the other names the experiment tables accept; for `null`, numbers).
 fn perturbed(value: &Value) -> Vec<toml::Value> {
-    const NAMES: [&str; 27] = [
+    const NAMES: [&str; 29] = [
         "sensory",
+        "secant",
+        "finite-differences",
         "kinematic",
         "auto",
         "adaptive",
