@@ -1,4 +1,4 @@
-//! `smspace._core`: the Python bindings of smspace (issue 17), wrapped by the
+//! `smspace._core`: the Python bindings of smspace, wrapped by the
 //! `smspace` package (`python/smspace/__init__.py`, which the user imports).
 //!
 //! Every function here is one stage of the library on NumPy arrays: arrays come in as

@@ -1,6 +1,6 @@
 //! A kinematic chain of your own (`kind = "chain"`): revolute joints described in TOML,
 //! planar or in 3-D, ending in the pinhole retina of the paper's arm (section 3.1,
-//! generalised as issue 14 asks).
+//! generalised).
 //!
 //! **Kinematics.** Joints are listed from the base outwards. Joint `j` rotates by its
 //! motor `m_j` about its unit `axis_j` (in the frame left by joint `j − 1`), then

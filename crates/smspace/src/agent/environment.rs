@@ -18,7 +18,7 @@
 //! them (`[x, y]` for a 3-D chain, `[x, y, z]` for a planar agent) is refused by
 //! [`Environment::check_for`].
 //!
-//! **Intensities and changes of the environment** (issue 15). Every light has an
+//! **Intensities and changes of the environment**. Every light has an
 //! intensity, a factor on its contribution to every sensor (`1` by default: the JSON
 //! form then has no `intensities` key, and every sensation is bit for bit what it was
 //! without intensities). The changes an agent can experience without moving are

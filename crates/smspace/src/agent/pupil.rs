@@ -1,4 +1,4 @@
-//! The pupil (issue 15, after the paper's conclusion): an aperture motor that scales
+//! The pupil (after the paper's conclusion): an aperture motor that scales
 //! every cell's input, on the paper's arm and on chains.
 //!
 //! `[agent.retina] aperture = [low, high]` adds one bounded motor `a ∈ [low, high]`,

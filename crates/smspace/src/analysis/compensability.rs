@@ -1,5 +1,5 @@
 //! Compensability: which sensory changes the agent's own movements can undo, and which
-//! of those are spatial (issue 15; the paper's conclusion, after Philipona, O'Regan &
+//! of those are spatial (the paper's conclusion, after Philipona, O'Regan &
 //! Nadal 2003, "Is there something out there?", and Philipona's thesis, ch. 6).
 //!
 //! At a base configuration `m` in an environment `E`, with `s = σ_E(m) ∈ ℝ^K`:

@@ -136,7 +136,7 @@ pub struct AnalysisParams {
     /// environment): how many babbled starts are traced with the `sensory` method in
     /// every environment and compared ([`crate::invariance`]). `0` turns it off. Default 300.
     pub invariance_starts: usize,
-    /// The compensability analysis (`[analysis.compensability]`, issue 15;
+    /// The compensability analysis (`[analysis.compensability]`,
     /// [`compensability`]): run by `smspace run` on the babbled configurations when
     /// the table is given. Default: not run.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -380,7 +380,7 @@ pub struct AnalysisReport {
     /// ambiguous base points), when `[analysis.compensability]` asks for it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub compensability: Option<compensability::CompensabilityReport>,
-    /// The landmark path's samples (issue 18), when the run took it: which sets the
+    /// The landmark path's samples, when the run took it: which sets the
     /// homology, the dimension and the agreement were computed on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub scale: Option<ScaleSummary>,

@@ -126,8 +126,8 @@ pub struct Experiment {
     /// Figures and report.
     #[serde(default)]
     pub report: ReportParams,
-    /// The dense or landmark path through distances, embedding and analysis (issue
-    /// 18; [`crate::pipeline::scale`]).
+    /// The dense or landmark path through distances, embedding and analysis
+    /// ([`crate::pipeline::scale`]).
     #[serde(default)]
     pub scale: crate::pipeline::scale::ScaleParams,
 }

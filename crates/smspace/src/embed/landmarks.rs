@@ -1,5 +1,5 @@
 //! An embedding fitted on landmark sets and extended to every set out of sample
-//! (issue 18, the scale path): `M` sets embedded from their `M × L` distances to `L`
+//! (the scale path): `M` sets embedded from their `M × L` distances to `L`
 //! landmarks and the landmarks' `L × L` matrix
 //! ([`crate::metric::landmarks`]), never an `M × M` matrix.
 //!

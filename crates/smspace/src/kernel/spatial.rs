@@ -1,4 +1,4 @@
-//! Spatial kernel sets (issue 15, `[kernel] spatial = "compensable"`): each traced
+//! Spatial kernel sets (`[kernel] spatial = "compensable"`): each traced
 //! `M^i` extended along the motors the compensability analysis found non-spatial
 //! ([`crate::analysis::compensability`]).
 //!
@@ -46,7 +46,7 @@
 //! whose sensors are in the same spatial configuration are at distance 0 whatever their
 //! apertures, so the aperture no longer separates sets, and what is left is the
 //! paper's distance between curves (the `curve` metric reads them as curves, not as
-//! point samples: no sampling gap, issue 12). The point metric `hausdorff` gives the
+//! point samples: no sampling gap). The point metric `hausdorff` gives the
 //! same between the sampled points, whatever the number of slices.
 //!
 //! **Limit.** Between slices the set is not interpolated: the metrics see the union of

@@ -1,5 +1,5 @@
 //! Distances to landmark sets: the landmarks' own `L × L` matrix and every set's `q`
-//! nearest landmarks, without the `M × M` matrix (issue 18, the scale path).
+//! nearest landmarks, without the `M × M` matrix (the scale path).
 //!
 //! # Landmarks
 //!

@@ -1,5 +1,5 @@
 //! The `surface` metric: the Hausdorff distance between kernel sets of dimension
-//! `k ≥ 2` read as sampled surfaces (issue 14).
+//! `k ≥ 2` read as sampled surfaces.
 //!
 //! # Why
 //!

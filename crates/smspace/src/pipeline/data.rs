@@ -1,5 +1,5 @@
-//! The `[data]` table: a run from a sensorimotor log instead of a simulator (issue 16;
-//! paper section 3.2, step 2: manifolds "estimated purely on the basis of unlabelled
+//! The `[data]` table: a run from a sensorimotor log instead of a simulator (the
+//! paper's section 3.2, step 2: manifolds "estimated purely on the basis of unlabelled
 //! sensorimotor data").
 //!
 //! With `[data]`, the run learns the law `ŝ(m)` from the log ([`crate::learn`]) and:

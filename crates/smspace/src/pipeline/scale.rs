@@ -1,5 +1,5 @@
 //! The `[scale]` table: which path a run takes through distances, embedding and
-//! analysis (issue 18).
+//! analysis.
 //!
 //! - **dense**: the full `M × M` matrix `D` (`D.npy`), as the paper does; `8 M²` bytes.
 //! - **landmarks**: never an `M × M` matrix. The `distances` stage writes `L` landmark

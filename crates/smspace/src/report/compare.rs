@@ -1,4 +1,4 @@
-//! Runs side by side (issue 15: the pupil arm and its spatial sets): one page with
+//! Runs side by side (the pupil arm and its spatial sets): one page with
 //! every run's dimension estimates, Betti numbers, agreement with the poses, the
 //! compensability dimension `d` per base point, and the runs' embeddings next to each
 //! other.

@@ -423,7 +423,7 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
     out
 }
 
-/// The compensability analysis (issue 15): `d` and its spread over the base points.
+/// The compensability analysis: `d` and its spread over the base points.
 fn compensability_table(c: &crate::analysis::compensability::CompensabilityReport) -> Table {
     let mut t = Table::key_value(
         "Compensability: sensory changes of the agent's movements that changes of the environment also make",
