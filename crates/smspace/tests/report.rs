@@ -720,6 +720,9 @@ fn warnings_open_the_report() {
     // environment) has no Warnings section.
     let mut clean = self::run("planar-arm", 30, false, 3, 0);
     assert_eq!(clean.trace.by_status.keys().collect::<Vec<_>>(), ["closed"]);
+    // 30 sets are too few for the gap rule to read H0 clearly (a bar at 40 % of the
+    // threshold): that flag is cleared here, as the dimension's below.
+    clean.analysis.betti_ambiguities.clear();
     let d = &mut clean.analysis.intrinsic_dimension;
     for r in [
         &mut d.twonn_detail.reliability,
