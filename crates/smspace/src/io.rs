@@ -620,14 +620,16 @@ impl Outputs {
     }
 }
 
-/// Whether a file can be renamed to `path`: an existing file can; else a new file of
-/// that name is made and removed again (which catches a name that is too long or a
-/// folder that refuses it), leaving nothing behind.
+/// Whether a file can be renamed to `path`: an existing entry that is not a folder can
+/// (a file, or a link, a FIFO or a device node, which the rename replaces without
+/// opening it); else a new file of that name is made and removed again (which catches a
+/// name that is too long or a folder that refuses it), leaving nothing behind.
 fn check_destination(path: &Path) -> Result<(), IoError> {
-    if path.is_file() {
+    let entry = std::fs::symlink_metadata(path);
+    if entry.as_ref().is_ok_and(|m| !m.is_dir()) {
         return Ok(());
     }
-    if path.is_dir() {
+    if entry.is_ok_and(|m| m.is_dir()) {
         return Err(IoError::Write {
             path: path.to_owned(),
             reason: std::io::Error::new(
