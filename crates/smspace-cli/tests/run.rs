@@ -522,7 +522,7 @@ fn devices_fifos_and_thread_counts_beyond_the_limit_are_refused() {
     if Path::new("/dev/zero").exists() {
         fails_with(
             d,
-            &["embed", "/dev/zero", "--out", "Y.npy"],
+            &["embed", "--distances", "/dev/zero", "--out", "Y.npy"],
             "not a regular file",
         );
     }
