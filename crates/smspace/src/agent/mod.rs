@@ -53,7 +53,7 @@ pub use environment::{
 };
 pub use ground_truth::{
     CoordinateKind, GroundTruth, GroundTruthView, Observer, PlanarView, Pose, PoseComponent,
-    PoseCoordinate, PoseSpace,
+    PoseCoordinate, PoseSpace, QUATERNION_NORM_TOLERANCE,
 };
 pub use motor_space::{wrap_period, Motor, MotorSpace};
 pub use pupil::Pupil;

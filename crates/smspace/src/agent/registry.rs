@@ -84,7 +84,11 @@ impl AgentRegistry {
             "paper section 3.1: a planar arm with a pinhole retina at its end",
             PlanarArm::build,
         );
-        r.register("chain", "a kinematic chain of your own, planar or 3-D, with a pinhole retina at its end", super::chain::builder());
+        r.register(
+            "chain",
+            "a kinematic chain of your own, planar or 3-D, with a pinhole retina at its end",
+            super::chain::builder(),
+        );
         r
     }
 
