@@ -34,13 +34,7 @@ from typing import List, Optional
 import pytest
 
 ROOT = Path(__file__).resolve().parents[3]
-# The curve kernel's measurement log (docs/curve-performance.md) is a working record
-# of benchmark runs kept beside the code, outside the guide's navigation: its commands
-# are benchmarks of minutes, not snippets, and its history is its content.
-LOGS = {"curve-performance.md"}
-PAGES = [ROOT / "README.md"] + sorted(
-    p for p in (ROOT / "docs").rglob("*.md") if p.name not in LOGS
-)
+PAGES = [ROOT / "README.md"] + sorted((ROOT / "docs").rglob("*.md"))
 SHELLS = ("sh", "bash", "console", "shell")
 MARKER = re.compile(r"<!--\s*snippet:\s*(skip|requires)\s+(.*?)\s*-->")
 FENCE = re.compile(r"^(`{3,})\s*([\w+-]*)")
@@ -233,7 +227,7 @@ def test_the_readme_lists_every_shipped_experiment():
 
 
 def test_the_docs_speak_of_the_software_not_of_its_history():
-    """README and every guide page (the measurement log aside: see LOGS)."""
+    """README and every guide page."""
     pattern = re.compile(r"\b(issue \d+|issues? #?\d+|(\w+th|first|second|third) session)\b", re.I)
     for page in PAGES:
         hits = pattern.findall(page.read_text(encoding="utf-8"))

@@ -2148,7 +2148,7 @@ pub(crate) fn curve_pair(
     match super::kernel::simd() {
         // The AVX2 code on AVX-512 CPUs too: compiled for AVX-512 (the same eight
         // lanes, mask registers, 32 registers) it took 3–4 % more CPU time on the
-        // paper's arm sets (docs/curve-performance.md).
+        // paper's arm sets (the history of docs/curve-performance.md).
         #[cfg(target_arch = "x86_64")]
         Simd::Avx512(v4) => {
             let v3 = *v4;
