@@ -10,7 +10,7 @@
 
 use std::sync::Arc;
 
-use ndarray::{Array1, Array2, ArrayView3};
+use ndarray::{Array1, Array2, Array3, ArrayView3};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
 };
@@ -146,6 +146,48 @@ fn sets_view_closed<'a>(
             "metric='curve' needs to know which sets are closed loops: pass the result of smspace.trace, or closed= (1: closed loop, 0: open polyline per set, or 'closed'/'open' for all)",
         )),
         None => Ok(SetsView::new(points)),
+    }
+}
+
+/// Sets with their closures and pieces, checked here and copied for a computation on
+/// the engine's threads, which views them there.
+struct OwnedSets {
+    points: Array3<f64>,
+    closure: Option<Vec<Closure>>,
+    pieces: Option<Array2<i64>>,
+    metric: String,
+}
+
+impl OwnedSets {
+    /// `points` with their `closed` codes and `pieces` (the argument `argument`), as
+    /// `metric` reads them.
+    fn new(
+        points: ArrayView3<'_, f64>,
+        closed: Option<PyReadonlyArray1<'_, i64>>,
+        pieces: Option<&PyReadonlyArray2<'_, i64>>,
+        argument: &str,
+        metric: &str,
+    ) -> PyResult<Self> {
+        let closure = closures(closed, points.dim().0)?;
+        let pieces = self::pieces(pieces, points, argument)?.map(|p| p.to_owned());
+        let sets = Self {
+            points: points.to_owned(),
+            closure,
+            pieces,
+            metric: metric.to_owned(),
+        };
+        sets.view()?;
+        Ok(sets)
+    }
+
+    /// The view the metrics take.
+    fn view(&self) -> PyResult<SetsView<'_>> {
+        sets_view(
+            self.points.view(),
+            self.closure.as_deref(),
+            self.pieces.as_ref().map(|p| p.view()),
+            &self.metric,
+        )
     }
 }
 
@@ -308,22 +350,18 @@ fn _distances<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let points = sets.as_array();
     check_finite(points.iter(), "sets")?;
-    let closure = closures(closed, points.dim().0)?;
+    let sets = OwnedSets::new(points, closed, pieces.as_ref(), "pieces", metric)?;
     let built = metric_for(metric, period, memory_limit_bytes)?;
-    let pieces = self::pieces(pieces.as_ref(), points, "pieces")?.map(|p| p.to_owned());
-    let points = points.to_owned();
-    let metric = metric.to_owned();
     let (progress, interrupts) = reporter(progress, None);
     let shared = progress.clone();
     let d = run_interruptible(py, &interrupts, move || {
-        let view = sets_view(
-            points.view(),
-            closure.as_deref(),
-            pieces.as_ref().map(|p| p.view()),
-            &metric,
-        )?;
-        distance_matrix_with(view, built.metric.as_ref(), &built.params, shared.as_ref())
-            .map_err(to_py_err)
+        distance_matrix_with(
+            sets.view()?,
+            built.metric.as_ref(),
+            &built.params,
+            shared.as_ref(),
+        )
+        .map_err(to_py_err)
     })?;
     progress.check()?;
     Ok(d?.into_array().into_pyarray(py))
@@ -352,37 +390,27 @@ fn _distance_tile<'py>(
     rows_pieces: Option<PyReadonlyArray2<'py, i64>>,
     cols_pieces: Option<PyReadonlyArray2<'py, i64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let (r, c) = (rows.as_array(), cols.as_array());
-    let (rc, cc) = (
-        closures(rows_closed, r.dim().0)?,
-        closures(cols_closed, c.dim().0)?,
-    );
+    let rows = OwnedSets::new(
+        rows.as_array(),
+        rows_closed,
+        rows_pieces.as_ref(),
+        "rows_pieces",
+        metric,
+    )?;
+    let cols = OwnedSets::new(
+        cols.as_array(),
+        cols_closed,
+        cols_pieces.as_ref(),
+        "cols_pieces",
+        metric,
+    )?;
     let built = metric_for(metric, period, None)?;
-    let (rp, cp) = (
-        pieces(rows_pieces.as_ref(), r, "rows_pieces")?.map(|p| p.to_owned()),
-        pieces(cols_pieces.as_ref(), c, "cols_pieces")?.map(|p| p.to_owned()),
-    );
-    let (r, c, metric) = (r.to_owned(), c.to_owned(), metric.to_owned());
     let tile = Tile::new(tile.0..tile.1, tile.2..tile.3);
     let out = run_interruptible(py, &[], move || {
-        let (rv, cv) = (
-            sets_view(
-                r.view(),
-                rc.as_deref(),
-                rp.as_ref().map(|p| p.view()),
-                &metric,
-            )?,
-            sets_view(
-                c.view(),
-                cc.as_deref(),
-                cp.as_ref().map(|p| p.view()),
-                &metric,
-            )?,
-        );
         let mut out = Array2::zeros(tile.shape());
         fill_tile(
-            rv,
-            cv,
+            rows.view()?,
+            cols.view()?,
             &tile,
             built.metric.as_ref(),
             out.view_mut(),
@@ -434,11 +462,8 @@ fn _knn<'py>(
 ) -> PyResult<(Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<f64>>)> {
     let points = sets.as_array();
     check_finite(points.iter(), "sets")?;
-    let closure = closures(closed, points.dim().0)?;
+    let sets = OwnedSets::new(points, closed, pieces.as_ref(), "pieces", metric)?;
     let built = metric_for(metric, period, None)?;
-    let pieces = self::pieces(pieces.as_ref(), points, "pieces")?.map(|p| p.to_owned());
-    let points = points.to_owned();
-    let metric = metric.to_owned();
     let mut params = KnnParams::new().k(k);
     if let Some(p) = pivots {
         params = params.pivots(p);
@@ -446,14 +471,8 @@ fn _knn<'py>(
     let (progress, interrupts) = reporter(progress, None);
     let shared = progress.clone();
     let found = run_interruptible(py, &interrupts, move || {
-        let view = sets_view(
-            points.view(),
-            closure.as_deref(),
-            pieces.as_ref().map(|p| p.view()),
-            &metric,
-        )?;
         knn_with(
-            view,
+            sets.view()?,
             built.metric.as_ref(),
             &built.params,
             &params,

@@ -429,6 +429,22 @@ fn check_metric_for_kernels(
     Ok(())
 }
 
+/// A run compares kernel sets: it needs at least 2 (babbled rows and probes together).
+fn check_set_count(
+    exploration: &crate::explore::ExploreParams,
+) -> Result<(), crate::explore::ExploreError> {
+    if exploration.rows() >= 2 {
+        return Ok(());
+    }
+    Err(crate::error::InvalidParameter::new(
+        "exploration",
+        "n",
+        exploration.n,
+        "a run compares kernel sets, so it needs at least 2 sets (the paper uses 2500); raise exploration.n to 2 or more",
+    )
+    .into())
+}
+
 /// Like [`check`], building the agent and the set metric from `registries`: the
 /// built-in kinds and any an embedder registered ([`AgentRegistry::register`],
 /// [`MetricRegistry::register`]), so that a plug-in agent or metric runs through the
@@ -470,17 +486,7 @@ pub fn check_with(
         .exploration
         .check(agent.as_ref())
         .map_err(|err| invalid("exploration")(err.into()))?;
-    if e.exploration.rows() < 2 {
-        let few = crate::error::InvalidParameter::new(
-            "exploration",
-            "n",
-            e.exploration.n,
-            "a run compares kernel sets, so it needs at least 2 sets (the paper uses 2500); raise exploration.n to 2 or more",
-        );
-        return Err(invalid("exploration")(
-            crate::explore::ExploreError::from(few).into(),
-        ));
-    }
+    check_set_count(&e.exploration).map_err(|err| invalid("exploration")(err.into()))?;
     e.kernel
         .check()
         .and_then(|kernel| kernel.check_for(agent.as_ref()))
