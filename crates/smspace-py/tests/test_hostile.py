@@ -113,7 +113,7 @@ def test_embedding_quality_does_not_depend_on_the_scale(cli, tmp_path):
         path = tmp_path / f"D{scale:g}.npy"
         np.save(path, D * scale)
         out = tmp_path / f"Y{scale:g}.npy"
-        cli("embed", path, "--method", "mds", "--dim", "2", "--out", out)
+        cli("embed", "--distances", path, "--method", "mds", "--dim", "2", "--out", out)
         report = json.loads(out.with_suffix(".embed.json").read_text())
         quality = report["quality"]
         dydx = np.load(out.with_suffix(".dydx.npy"))
