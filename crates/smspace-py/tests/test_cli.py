@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 
 import smspace
 
@@ -73,6 +74,8 @@ def test_run_equals_the_cli(cli, root, tmp_path):
     assert run.report == json.loads((tmp_path / "cli" / "analysis.json").read_text())
     assert run.report["betti"][0] == 1
     assert np.array_equal(run.D, run.arrays["D"])
+    with pytest.raises(AttributeError, match=r"wrote no nothing\.npy; its arrays: .*\bD\b"):
+        run.nothing
     # A second run reuses every stage (and says so through log=).
     lines = []
     again = smspace.run(experiment, out=tmp_path / "py", overrides=overrides, log=lines.append)

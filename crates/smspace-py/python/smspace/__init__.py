@@ -198,7 +198,8 @@ class Run:
     """A finished run folder: ``dir``, its ``report`` (``analysis.json`` as a dict),
     ``manifest`` (``manifest.json``) and its arrays by file stem (``arrays["D"]``,
     ``arrays["sets"]``, ``arrays["Y"]``, ``arrays["motors"]``, ``arrays["poses"]``, ...),
-    also as attributes (``run.D``)."""
+    also as attributes (``run.D``). A run on the landmark path (``[scale]``) writes
+    ``D_landmarks`` (every set's distances to the landmarks) instead of ``D``."""
 
     dir: Path
     report: dict = field(repr=False)
@@ -209,7 +210,16 @@ class Run:
         arrays = self.__dict__.get("arrays", {})
         if name in arrays:
             return arrays[name]
-        raise AttributeError(name)
+        if name.startswith("__"):
+            raise AttributeError(name)
+        why = f"the run in {self.__dict__.get('dir')} wrote no {name}.npy; its arrays: {', '.join(sorted(arrays))}"
+        if name == "D" and "D_landmarks" in arrays:
+            why += (
+                "; it took the landmark path, which writes D_landmarks (every set's distances"
+                " to the landmarks) instead of the M x M matrix: run with"
+                " overrides={'scale.path': 'dense'} for D"
+            )
+        raise AttributeError(why)
 
 
 # --- stages -------------------------------------------------------------------------
