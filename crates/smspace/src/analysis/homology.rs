@@ -111,8 +111,7 @@ impl BettiRule {
             .iter()
             .enumerate()
             .map(|(dim, bars)| {
-                let mut lengths: Vec<f64> = bars.iter().map(|b| b.length(t)).collect();
-                lengths.sort_by(|a, b| b.total_cmp(a));
+                let mut lengths = longest_first(bars, t);
                 lengths.push(0.0);
                 let by_gap = (0..lengths.len() - 1)
                     .rev()
@@ -144,8 +143,7 @@ impl BettiRule {
         let betti = self.betti(persistence);
         let mut out = Vec::new();
         for (dim, bars) in persistence.diagrams.iter().enumerate() {
-            let mut lengths: Vec<f64> = bars.iter().map(|b| b.length(t)).collect();
-            lengths.sort_by(|a, b| b.total_cmp(a));
+            let lengths = longest_first(bars, t);
             let counted = betti[dim];
             let Some(&uncounted) = lengths.get(counted) else {
                 continue;
@@ -160,6 +158,13 @@ impl BettiRule {
         }
         out
     }
+}
+
+/// The bars' lengths, longest first, infinite bars cut at `threshold`.
+fn longest_first(bars: &[Bar], threshold: f64) -> Vec<f64> {
+    let mut lengths: Vec<f64> = bars.iter().map(|b| b.length(threshold)).collect();
+    lengths.sort_by(|a, b| b.total_cmp(a));
+    lengths
 }
 
 /// `min_i max_j d(i, j)`: from this diameter on the Rips complex is a cone.
