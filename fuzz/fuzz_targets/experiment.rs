@@ -12,12 +12,12 @@ fuzz_target!(|text: &str| {
     let dir = tempfile::tempdir().expect("a temporary folder");
     let file = dir.path().join("experiment.toml");
     std::fs::write(&file, text).expect("the input is written");
-    if let Ok(loaded) = smspace::config::load_experiment(&file, &[]) {
-        let _ = smspace::pipeline::check(&loaded);
+    if let Ok(loaded) = smspace_pipeline::config::load_experiment(&file, &[]) {
+        let _ = smspace_pipeline::check(&loaded);
     }
     std::fs::write(&file, BASE).expect("the base is written");
     let overrides: Vec<String> = text.lines().map(str::to_owned).collect();
-    if let Ok(loaded) = smspace::config::load_experiment(&file, &overrides) {
-        let _ = smspace::pipeline::check(&loaded);
+    if let Ok(loaded) = smspace_pipeline::config::load_experiment(&file, &overrides) {
+        let _ = smspace_pipeline::check(&loaded);
     }
 });

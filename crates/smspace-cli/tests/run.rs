@@ -260,7 +260,7 @@ fn a_small_experiment_runs_end_to_end_and_is_cached() {
     )
     .unwrap();
     let mut manifest = json(&again.join("manifest.json"));
-    let hash = smspace::pipeline::manifest::hash_file(&again.join("Y.embed.json")).unwrap();
+    let hash = smspace_pipeline::manifest::hash_file(&again.join("Y.embed.json")).unwrap();
     for record in manifest["stages"].as_array_mut().unwrap() {
         if record["stage"] == "embed" {
             record["outputs"]["Y.embed.json"] = serde_json::Value::String(hash.clone());
@@ -579,9 +579,9 @@ fn the_shipped_experiments_are_valid() {
     for entry in std::fs::read_dir(&root).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "toml") {
-            let loaded = smspace::config::load_experiment(&path, &[])
+            let loaded = smspace_pipeline::config::load_experiment(&path, &[])
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-            smspace::pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"));
+            smspace_pipeline::check(&loaded).unwrap_or_else(|e| panic!("{e}"));
             found += 1;
         }
     }
@@ -665,7 +665,7 @@ fn concurrent_runs_into_one_folder_never_mix_their_outputs() {
         assert_eq!(manifest["status"]["state"], "complete", "round {round}");
         for record in manifest["stages"].as_array().unwrap() {
             for (file, hash) in record["outputs"].as_object().unwrap() {
-                let found = smspace::pipeline::manifest::hash_file(&d.join("shared").join(file));
+                let found = smspace_pipeline::manifest::hash_file(&d.join("shared").join(file));
                 assert_eq!(
                     found.ok().as_deref(),
                     hash.as_str(),

@@ -32,7 +32,7 @@ use smspace::agent::{
     check_agent, Agent as AgentLaw, AgentConfig, Calling, Environment, EnvironmentConfig, Motor,
     MotorSpace, Observer, PoseSpace,
 };
-use smspace::config::{load_agent, AgentSpec};
+use smspace_pipeline::config::{load_agent, AgentSpec};
 
 use crate::host::{run_interruptible, Interrupt, Turnstile};
 use crate::{to_py_err, value_error};

@@ -12,6 +12,7 @@
 
 mod agent;
 mod host;
+mod metric;
 mod progress;
 mod run;
 mod stages;
@@ -46,16 +47,21 @@ pub(crate) fn to_py_err<E: std::error::Error + 'static>(error: E) -> PyErr {
     let mut cause: Option<&(dyn std::error::Error + 'static)> = Some(&error);
     while let Some(e) = cause {
         let unreadable = matches!(
-            e.downcast_ref::<smspace::config::ConfigError>(),
-            Some(smspace::config::ConfigError::Read { .. })
+            e.downcast_ref::<smspace_pipeline::config::ConfigError>(),
+            Some(smspace_pipeline::config::ConfigError::Read { .. })
         );
-        // `smspace::Error` wraps its modules' errors transparently (its source is the
+        // `smspace::Error` (and a stage's error) wraps its modules' errors transparently (its source is the
         // inner error's source), so its variants are matched as well.
         let wrapped = matches!(
             e.downcast_ref::<smspace::Error>(),
+            Some(smspace::Error::Io(_))
+        ) || matches!(
+            e.downcast_ref::<smspace_pipeline::Error>(),
             Some(
-                smspace::Error::Io(_)
-                    | smspace::Error::Config(smspace::config::ConfigError::Read { .. })
+                smspace_pipeline::Error::Core(smspace::Error::Io(_))
+                    | smspace_pipeline::Error::Config(
+                        smspace_pipeline::config::ConfigError::Read { .. }
+                    )
             )
         );
         is_io |=
@@ -91,5 +97,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PythonAgent>()?;
     stages::register(m)?;
     run::register(m)?;
+    metric::register(m)?;
     Ok(())
 }

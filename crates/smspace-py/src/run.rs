@@ -1,20 +1,20 @@
 //! `_run`: a whole experiment file into a run folder (`smspace run`), optionally with
 //! the distance stage computed by a Python callable (the Dask backend,
-//! `smspace.run(..., client=client)`) through [`smspace::pipeline::run_with`].
+//! `smspace.run(..., client=client)`) through [`smspace_pipeline::run_with`].
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 use numpy::{IntoPyArray, PyReadonlyArray2};
 use pyo3::prelude::*;
-use smspace::config::load_experiment;
 use smspace::metric::{DistanceMatrix, MetricError, SetsView};
-use smspace::pipeline::manifest::{hash_parts, StageRecord};
-use smspace::pipeline::stages::DistancesStage;
-use smspace::pipeline::{
+use smspace::progress::Progress;
+use smspace_pipeline::config::load_experiment;
+use smspace_pipeline::manifest::{hash_parts, StageRecord};
+use smspace_pipeline::stages::DistancesStage;
+use smspace_pipeline::{
     self, BusyFolder, DistanceBackend, Recompute, RunObserver, RunOptions, StageId,
 };
-use smspace::progress::Progress;
 
 use crate::host::run_interruptible;
 use crate::progress::PyProgress;
@@ -77,7 +77,7 @@ impl DistanceBackend for PythonDistances {
         sets: SetsView<'_>,
         _memory_limit_bytes: Option<u64>,
         _progress: &dyn Progress,
-    ) -> smspace::Result<DistanceMatrix> {
+    ) -> smspace_pipeline::Result<DistanceMatrix> {
         // "2pi", "none" or "[2pi, none, …]", which `Periodicity::parse` reads back.
         let period = stage.period.to_string();
         let answer = Python::attach(|py| -> PyResult<DistanceMatrix> {
@@ -148,7 +148,8 @@ fn _run(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<(PathBuf, String)> {
     let loaded = load_experiment(&path, &overrides).map_err(to_py_err)?;
-    let plan = pipeline::check(&loaded).map_err(to_py_err)?;
+    let metrics = crate::metric::registry();
+    let plan = smspace_pipeline::check_with(&loaded, &metrics).map_err(to_py_err)?;
     let options = RunOptions {
         out_dir: out.unwrap_or_else(|| default_out_dir(&loaded.name, &overrides)),
         recompute: if force {
@@ -171,8 +172,8 @@ fn _run(
     let interrupts = [observer.progress.interrupt()];
     let (shared, shared_backend) = (observer.clone(), backend.clone());
     let summary = run_interruptible(py, &interrupts, move || match shared_backend.as_ref() {
-        Some(b) => pipeline::run_with(&plan, &options, shared.as_ref(), b),
-        None => pipeline::run(&plan, &options, shared.as_ref()),
+        Some(b) => smspace_pipeline::run_with(&plan, &options, shared.as_ref(), b),
+        None => smspace_pipeline::run(&plan, &options, shared.as_ref()),
     })?;
     if let Some(e) =
         Option::as_ref(&backend).and_then(|b| b.error.lock().ok().and_then(|mut e| e.take()))

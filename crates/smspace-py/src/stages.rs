@@ -21,7 +21,7 @@ use smspace::explore::{default_workspace, explore_with, ExploreParams, Workspace
 use smspace::kernel::{trace_sets, Closure, TraceParams};
 use smspace::metric::{
     distance_matrix_with, fill_tile, knn_with, BuiltMetric, DistanceMatrix, DistanceParams,
-    KnnParams, MetricRegistry, SetsView, Tile, TileMerge,
+    KnnParams, SetsView, Tile, TileMerge,
 };
 
 use crate::agent::Agent;
@@ -83,7 +83,8 @@ fn closures(
 }
 
 /// The metric `name` with `period` (`"2pi"`, `"none"`, or one entry per motor:
-/// `"2pi,2pi,none"`), from the built-in registry.
+/// `"2pi,2pi,none"`), from the registry of this process (built-in metrics and those
+/// registered from Python).
 fn metric(name: &str, period: &str, memory_limit_bytes: Option<u64>) -> PyResult<BuiltMetric> {
     let period = smspace::metric::Periodicity::parse(period)
         .map_err(|e| value_error(format!("period: {e}")))?;
@@ -91,7 +92,7 @@ fn metric(name: &str, period: &str, memory_limit_bytes: Option<u64>) -> PyResult
         .metric(name)
         .period(period)
         .memory_limit_bytes(memory_limit_bytes);
-    MetricRegistry::builtin().build(&params).map_err(to_py_err)
+    crate::metric::registry().build(&params).map_err(to_py_err)
 }
 
 /// The piece of every point `(M, P)` int64 (`smspace.trace(..., components="all")`):
@@ -135,6 +136,15 @@ fn sets_view<'a>(
     })
 }
 
+/// Whether the metric `name` reads the sets' closures (an unknown name does not; it
+/// fails when built, naming the known ones).
+fn reads_closure(name: &str) -> bool {
+    let params = DistanceParams::new().metric(name);
+    crate::metric::registry()
+        .build(&params)
+        .is_ok_and(|built| built.metric.records().closure)
+}
+
 fn sets_view_closed<'a>(
     points: ArrayView3<'a, f64>,
     closure: Option<&'a [Closure]>,
@@ -142,9 +152,9 @@ fn sets_view_closed<'a>(
 ) -> PyResult<SetsView<'a>> {
     match closure {
         Some(c) => Ok(SetsView::new(points).with_closure(c)),
-        None if metric == "curve" => Err(value_error(
-            "metric='curve' needs to know which sets are closed loops: pass the result of smspace.trace, or closed= (1: closed loop, 0: open polyline per set, or 'closed'/'open' for all)",
-        )),
+        None if reads_closure(metric) => Err(value_error(format!(
+            "metric={metric:?} needs to know which sets are closed loops: pass the result of smspace.trace, or closed= (1: closed loop, 0: open polyline per set, or 'closed'/'open' for all)"
+        ))),
         None => Ok(SetsView::new(points)),
     }
 }

@@ -25,8 +25,8 @@ use serde::{Deserialize, Serialize};
 
 pub use crate::agent::Workspace;
 use crate::agent::{Agent, AgentConfig, AgentError, GroundTruth, Observer, Pose};
-use crate::error::{CheckParams, InvalidParameter};
 use crate::io::{self, IoError};
+use crate::params::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
 
 /// Errors of exploration.

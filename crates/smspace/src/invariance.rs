@@ -31,7 +31,6 @@ use serde::{Deserialize, Serialize};
 
 use crate::agent::{Agent, Environment, MotorSpace};
 use crate::analysis::agreement::{pearson, upper_triangle};
-use crate::error::InvalidParameter;
 use crate::explore::Workspace;
 use crate::io::{self, IoError};
 use crate::kernel::{trace_sets, TraceMethod, TraceValidParams, TracedSets};
@@ -39,6 +38,7 @@ use crate::metric::{
     distance_matrix_with, Closure, DistanceParams, MetricKind, Period, Periodicity, Periods,
     SetMetric, SetsView,
 };
+use crate::params::InvalidParameter;
 use crate::progress::Progress;
 
 /// Errors of the invariance experiment.

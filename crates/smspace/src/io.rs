@@ -416,10 +416,10 @@ pub fn folder_of(path: &Path) -> PathBuf {
 }
 
 /// Start of the name of every temporary file smspace writes (`.smspace-XXXXXX.part`).
-pub(crate) const TEMP_PREFIX: &str = ".smspace-";
+pub const TEMP_PREFIX: &str = ".smspace-";
 
 /// End of the name of every temporary file smspace writes.
-pub(crate) const TEMP_SUFFIX: &str = ".part";
+pub const TEMP_SUFFIX: &str = ".part";
 
 /// The writer that `fill` closures of [`write_atomic`] and [`Outputs::file`] write into:
 /// buffered, in front of the temporary file.
@@ -997,5 +997,21 @@ mod tests {
         assert_eq!(names.len(), 1);
         let back: Vec<i32> = read_json(&path, "test").unwrap();
         assert_eq!(back, vec![4]);
+    }
+}
+
+/// Formats a byte count as `12.3 GiB`.
+pub fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < UNITS.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{value:.1} {}", UNITS[unit])
     }
 }

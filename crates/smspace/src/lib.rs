@@ -42,7 +42,6 @@
 
 pub mod agent;
 pub mod analysis;
-pub mod config;
 pub mod embed;
 pub mod error;
 pub mod explore;
@@ -50,13 +49,13 @@ pub mod invariance;
 pub mod io;
 pub mod kernel;
 pub mod learn;
+pub mod matrix;
 pub mod metric;
 pub mod neighbours;
-#[cfg(feature = "pipeline")]
-pub mod pipeline;
+pub mod params;
 pub mod progress;
-#[cfg(feature = "pipeline")]
-pub mod report;
+pub mod registry;
+pub mod sets;
 pub mod threads;
 
 pub use error::{Error, Result};

@@ -774,14 +774,21 @@ fn kernels_of_two_dimensions_are_covered_on_their_level_set() {
     let [low, _, high] = summary.covering_radius.unwrap();
     assert!(low <= high);
     // The curve metric does not apply: an error naming hausdorff.
-    let message = smspace::kernel::check_curve_metric(2)
+    let curve = smspace::metric::MetricKind::Curve.with_period(
+        smspace::metric::Period::None,
+        smspace::sets::Closure::Closed,
+    );
+    let message = curve
+        .check_kernels(smspace::sets::KernelShape::of_dimension(2))
         .unwrap_err()
         .to_string();
     assert!(
         message.contains("hausdorff") && message.contains("k = 2"),
         "{message}"
     );
-    assert!(smspace::kernel::check_curve_metric(1).is_ok());
+    assert!(curve
+        .check_kernels(smspace::sets::KernelShape::of_dimension(1))
+        .is_ok());
 }
 
 #[test]

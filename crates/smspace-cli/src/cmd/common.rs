@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Args;
 use smspace::agent::{Agent, Environment, EnvironmentConfig};
-use smspace::config::{load_agent, AgentSpec};
 use smspace::explore::{default_workspace, Workspace};
+use smspace_pipeline::config::{load_agent, AgentSpec};
 
 /// `--agent NAME|FILE`.
 #[derive(Debug, Clone, Args)]
@@ -157,28 +157,21 @@ pub fn memory_available() -> Option<u64> {
     Some(kib * 1024)
 }
 
-/// `--metric`: the distance between two kernel sets.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum MetricArg {
-    /// max of the two directed Hausdorff distances between the sampled points (the paper's)
-    Hausdorff,
-    /// average of the two mean directed distances between the sampled points
-    MeanHausdorff,
-    /// Hausdorff distance between the sets read as polylines (closed loops or open), exact to 1e-10
-    Curve,
-    /// for kernels of dimension k >= 2: Hausdorff distance from the points of one set to the tangent disks of the other's points
-    Surface,
-}
-
-impl MetricArg {
-    /// The library's built-in SIMD metric; `None` for `surface`, which is a
-    /// [`smspace::metric::Surface`].
-    pub fn kind(self) -> Option<smspace::metric::MetricKind> {
-        match self {
-            MetricArg::Hausdorff => Some(smspace::metric::MetricKind::Hausdorff),
-            MetricArg::MeanHausdorff => Some(smspace::metric::MetricKind::MeanHausdorff),
-            MetricArg::Curve => Some(smspace::metric::MetricKind::Curve),
-            MetricArg::Surface => None,
-        }
+/// `--param KEY=VALUE`: a metric's parameter, the value read as TOML (a bare word that
+/// is not TOML is a string).
+pub fn parse_param(text: &str) -> Result<(String, toml::Value), String> {
+    let (key, value) = text
+        .split_once('=')
+        .ok_or_else(|| format!("expected KEY=VALUE, e.g. dimension=3, got {text:?}"))?;
+    let key = key.trim();
+    if key.is_empty() {
+        return Err(format!("no key before '=' in {text:?}"));
     }
+    let value = match toml::from_str::<toml::Table>(&format!("v = {}", value.trim())) {
+        Ok(mut table) => table
+            .remove("v")
+            .unwrap_or(toml::Value::String(value.into())),
+        Err(_) => toml::Value::String(value.trim().to_owned()),
+    };
+    Ok((key.to_owned(), value))
 }

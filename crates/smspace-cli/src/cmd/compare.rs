@@ -1,4 +1,4 @@
-//! `smspace compare`: runs side by side on one page (`smspace::report::compare`).
+//! `smspace compare`: runs side by side on one page (`smspace_pipeline::report::compare`).
 
 use std::path::PathBuf;
 
@@ -18,7 +18,7 @@ pub struct Args {
 
 /// Runs `smspace compare`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    smspace::report::compare::write_comparison(&args.runs, &args.out)?;
+    smspace_pipeline::report::compare::write_comparison(&args.runs, &args.out)?;
     eprintln!(
         "compared {} runs in {}",
         args.runs.len(),

@@ -13,12 +13,13 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::ValueEnum;
 use ndarray::{Array3, Axis, Slice};
+use smspace::kernel::TraceReport;
 use smspace::metric::{
-    self, Closure, DistanceParams, KnnParams, Periodicity, PreparedSets, SetsView, Surface,
-    SurfaceParams, Tile, TileMerge, TileRecord,
+    self, BuiltMetric, Closure, DistanceParams, KnnParams, MetricRegistry, Periodicity,
+    PreparedSets, SetMetric, SetsView, Tile, TileMerge, TileRecord,
 };
 
-use super::common::{sibling, MetricArg};
+use super::common::{parse_param, sibling};
 
 use crate::ui;
 
@@ -34,17 +35,21 @@ pub struct Args {
     /// it.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
-    /// Distance between two sets. `curve` reads every set as a polyline: closed or open
-    /// as recorded by `smspace trace` in SETS.closed.npy next to the sets, or as --curve
-    /// says.
-    #[arg(long, value_enum, default_value_t = MetricArg::Hausdorff)]
-    metric: MetricArg,
-    /// For --metric surface: the kernels' dimension k, that of every point's tangent disk
-    /// (default: the traced dimension from SETS.trace.json beside the sets, else 2).
-    #[arg(long, value_name = "K")]
-    kernel_dimension: Option<usize>,
-    /// For --metric curve: join every set's points into a closed loop or an open
-    /// polyline, instead of reading SETS.closed.npy (1 closed, 0 open per set).
+    /// Distance between two sets: a registered metric (hausdorff, the paper's;
+    /// mean-hausdorff; curve, which reads every set as a polyline, closed or open as
+    /// recorded by `smspace trace` in SETS.closed.npy next to the sets, or as --curve
+    /// says; surface, for kernels of dimension k >= 2). An unknown name lists them.
+    #[arg(long, value_name = "NAME", default_value = "hausdorff")]
+    metric: String,
+    /// A parameter of the metric, as in an experiment's [metric.params] table, the value
+    /// in TOML (e.g. --param dimension=3 --param radius_scale=0.5); repeat for more.
+    /// Parameters the metric does not have are errors that name them. The surface
+    /// metric's dimension defaults to the traced one (SETS.trace.json beside the sets).
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = parse_param)]
+    params: Vec<(String, toml::Value)>,
+    /// For a metric that reads polylines (curve): join every set's points into a closed
+    /// loop or an open polyline, instead of reading SETS.closed.npy (1 closed, 0 open
+    /// per set).
     #[arg(long, value_enum, value_name = "closed|open")]
     curve: Option<CurveArg>,
     /// Period of every motor coordinate: 2pi (hinge joints, the paper's metric), none
@@ -121,13 +126,19 @@ fn parse_rows(text: &str) -> Result<Range<usize>, String> {
     Ok(parse(start)?..parse(end)?)
 }
 
-/// The closures of the sets for `--metric curve`: `--curve`, else `SETS.closed.npy`
-/// next to the sets; `None` for the point metrics.
-fn closure(args: &Args, path: &Path, sets: usize) -> anyhow::Result<Option<Vec<Closure>>> {
-    if args.metric != MetricArg::Curve {
+/// The closures of the sets for a metric that reads them (`--curve`, else
+/// `SETS.closed.npy` next to the sets); `None` for the others.
+fn closure(
+    args: &Args,
+    path: &Path,
+    metric: &dyn SetMetric,
+    sets: usize,
+) -> anyhow::Result<Option<Vec<Closure>>> {
+    if !metric.records().closure {
         anyhow::ensure!(
             args.curve.is_none(),
-            "--curve only applies to --metric curve (the point metrics do not join the points)"
+            "--curve only applies to a metric that reads polylines (curve); the {} metric does not join the points",
+            metric.name()
         );
         return Ok(None);
     }
@@ -138,111 +149,96 @@ fn closure(args: &Args, path: &Path, sets: usize) -> anyhow::Result<Option<Vec<C
         };
         return Ok(Some(vec![closure; sets]));
     }
-    check_curve_dimension(path)?;
     let record = sibling(path, "closed.npy");
     if !record.exists() {
         anyhow::bail!(
-            "--metric curve needs to know which sets are closed loops: {} is missing (smspace trace writes it next to the sets); for sets from elsewhere give --curve closed or --curve open",
+            "--metric {} needs to know which sets are closed loops: {} is missing (smspace trace writes it next to the sets); for sets from elsewhere give --curve closed or --curve open",
+            metric.name(),
             record.display()
         );
     }
     Ok(Some(smspace::kernel::read_closure(&record, sets)?))
 }
 
-/// The `surface` metric of `--metric surface`, its dimension from `--kernel-dimension`,
-/// else `SETS.trace.json`, else 2; `None` for the other metrics.
-fn surface(args: &Args, path: &Path) -> anyhow::Result<Option<Surface>> {
-    if args.metric != MetricArg::Surface {
-        anyhow::ensure!(
-            args.kernel_dimension.is_none(),
-            "--kernel-dimension only applies to --metric surface"
-        );
-        return Ok(None);
-    }
-    let dimension = match args.kernel_dimension {
-        Some(k) => k,
-        None => {
-            let record = sibling(path, "trace.json");
-            if record.exists() {
-                let report: smspace::kernel::TraceReport =
-                    smspace::io::read_json(&record, "trace report")?;
-                let k = smspace::kernel::spatial::curve_dimension(&report);
-                anyhow::ensure!(
-                    k >= 1,
-                    "{} says the sets are points (kernels of dimension 0); --metric surface is for kernels of dimension k >= 2 (use --metric hausdorff)",
-                    record.display()
-                );
-                k
-            } else {
-                SurfaceParams::default().dimension
-            }
-        }
-    };
-    let params = SurfaceParams {
-        dimension,
-        ..SurfaceParams::default()
-    };
-    Ok(Some(
-        Surface::new(params, args.period.clone()).context("--kernel-dimension")?,
-    ))
-}
-
-/// Refuses `--metric curve` on kernels of dimension `k ≥ 2` (point samples of surfaces)
-/// when the trace report `SETS.trace.json` beside the sets says so; sets without a report
-/// are taken as curves.
-fn check_curve_dimension(path: &Path) -> anyhow::Result<()> {
+/// The trace report `SETS.trace.json` beside the sets, when there.
+fn trace_report(path: &Path) -> anyhow::Result<Option<(PathBuf, TraceReport)>> {
     let record = sibling(path, "trace.json");
     if !record.exists() {
-        return Ok(());
+        return Ok(None);
     }
-    let report: smspace::kernel::TraceReport = smspace::io::read_json(&record, "trace report")?;
-    let dimension = smspace::kernel::spatial::curve_dimension(&report);
-    smspace::kernel::check_curve_metric(dimension)
-        .with_context(|| format!("{} (from {})", path.display(), record.display()))?;
-    Ok(())
+    let report: TraceReport = smspace::io::read_json(&record, "trace report")?;
+    Ok(Some((record, report)))
 }
 
-/// The kernel sets, their closures and the metric's parameters.
+/// The metric `--metric` names, with its `--param`s, built for the kernels the trace
+/// report describes (when there), and checked against them.
+fn build_metric(
+    args: &Args,
+    path: &Path,
+    report: Option<&(PathBuf, TraceReport)>,
+) -> anyhow::Result<BuiltMetric> {
+    let mut params = DistanceParams::new()
+        .metric(args.metric.as_str())
+        .period(&args.period)
+        .memory_limit_bytes(args.max_memory.or_else(super::common::memory_available));
+    params.params = args.params.iter().cloned().collect();
+    let shape = report.map(|(_, r)| r.kernel_shape());
+    let built = MetricRegistry::builtin()
+        .build_for(&params, shape)
+        .context("--metric and --param")?;
+    if let (Some(shape), Some((record, _))) = (shape, report) {
+        built
+            .metric
+            .check_kernels(shape)
+            .with_context(|| format!("{} (from {})", path.display(), record.display()))?;
+    }
+    Ok(built)
+}
+
+/// The kernel sets, their closures and pieces, and the metric.
 struct Input {
     path: PathBuf,
     sets: Array3<f64>,
     closure: Option<Vec<Closure>>,
-    /// For `curve`: the piece of every point (`SETS.components.npy`, when there).
+    /// For a metric that reads pieces: the piece of every point
+    /// (`SETS.components.npy`, when there).
     pieces: Option<ndarray::Array2<i64>>,
     params: DistanceParams,
-    /// `--metric surface`: the metric (the built-in metrics run from `params`).
-    surface: Option<Surface>,
+    metric: std::sync::Arc<dyn SetMetric>,
 }
 
 impl Input {
     fn read(args: &Args, path: &Path) -> anyhow::Result<Self> {
         let sets = smspace::io::read_cube(path, "(M, P, N)")?;
-        let closure = closure(args, path, sets.dim().0)?;
+        let report = trace_report(path)?;
+        let built = build_metric(args, path, report.as_ref())?;
+        let metric = built.metric;
+        let closure = closure(args, path, metric.as_ref(), sets.dim().0)?;
         // The pieces of kernels traced with components = "all": no segment of the curve
         // metric joins two of them.
         let record = sibling(path, "components.npy");
-        let pieces = if closure.is_some() && record.exists() {
+        let pieces = if metric.records().pieces && record.exists() {
             let (m, p, _) = sets.dim();
             Some(smspace::kernel::read_pieces(&record, m, p)?)
         } else {
             None
         };
-        let params = DistanceParams::new()
-            .metric(match args.metric.kind() {
-                Some(kind) => kind.name(),
-                None => "surface",
-            })
-            .period(&args.period)
-            .memory_limit_bytes(args.max_memory.or_else(super::common::memory_available));
-        let surface = surface(args, path)?;
-        Ok(Self {
+        let input = Self {
             path: path.to_owned(),
             sets,
             closure,
             pieces,
-            params,
-            surface,
-        })
+            params: built.params,
+            metric,
+        };
+        if let Some((record, report)) = &report {
+            let m = input.sets.dim().0;
+            input
+                .metric
+                .check_sets(&input.view(0..m), &report.extended_along)
+                .with_context(|| format!("{} (from {})", path.display(), record.display()))?;
+        }
+        Ok(input)
     }
 
     /// The sets `range` (all of them for `0..M`), with their closures.
@@ -285,23 +281,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let line = if let Some(k) = args.knn {
         let rows = args.rows.clone().unwrap_or(0..m);
         let knn_params = KnnParams::new().k(k).pivots(args.pivots);
-        let found = match &input.surface {
-            None => metric::knn(
-                input.view(0..m),
-                &input.params,
-                &knn_params,
-                rows.clone(),
-                &bar,
-            ),
-            Some(surface) => metric::knn_with(
-                input.view(0..m),
-                surface,
-                &input.params,
-                &knn_params,
-                rows.clone(),
-                &bar,
-            ),
-        }
+        let found = metric::knn_with(
+            input.view(0..m),
+            input.metric.as_ref(),
+            &input.params,
+            &knn_params,
+            rows.clone(),
+            &bar,
+        )
         .with_context(|| input.context())?;
         let folder = smspace::io::folder_of(&args.out);
         let written = found.save(
@@ -324,12 +311,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     {
         write_tile(&args, &input, &tile, &bar)?
     } else {
-        let d = match &input.surface {
-            None => metric::distance_matrix(input.view(0..m), &input.params, &bar),
-            Some(surface) => {
-                metric::distance_matrix_with(input.view(0..m), surface, &input.params, &bar)
-            }
-        }
+        let d = metric::distance_matrix_with(
+            input.view(0..m),
+            input.metric.as_ref(),
+            &input.params,
+            &bar,
+        )
         .with_context(|| input.context())?;
         d.save(&args.out)?;
         format!(
@@ -355,19 +342,11 @@ fn write_tile(args: &Args, input: &Input, tile: &Tile, bar: &ui::Bar) -> anyhow:
         input.params.memory_limit_bytes,
         "compute smaller tiles",
     )?;
-    let builtin;
-    let metric: &dyn smspace::metric::SetMetric = match &input.surface {
-        Some(surface) => surface,
-        None => {
-            builtin = input.params.check()?.set_metric();
-            builtin.as_ref()
-        }
-    };
     let values = metric::distance_tile(
         input.view(tile.rows.clone()),
         input.view(tile.cols.clone()),
         tile,
-        metric,
+        input.metric.as_ref(),
         bar,
     )
     .with_context(|| input.context())?;

@@ -109,10 +109,10 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub landmark_choice: Option<LandmarkArg>,
     /// Neighbourhood size of trustworthiness and continuity (capped below M/2).
-    #[arg(long, default_value_t = smspace::pipeline::stages::QUALITY_NEIGHBOURS)]
+    #[arg(long, default_value_t = smspace_pipeline::stages::QUALITY_NEIGHBOURS)]
     pub quality_k: usize,
     /// Most (dx, dy) pairs written to <stem>.dydx.npy (0: none).
-    #[arg(long, default_value_t = smspace::pipeline::stages::DYDX_PAIRS)]
+    #[arg(long, default_value_t = smspace_pipeline::stages::DYDX_PAIRS)]
     pub dydx_pairs: usize,
 }
 

@@ -10,7 +10,7 @@ use smspace::invariance::{agent_metric, invariance_measured};
 use smspace::io;
 use smspace::kernel::{TraceMethod, TraceParams};
 
-use super::common::{AgentArgs, MetricArg, WorkspaceArgs};
+use super::common::{AgentArgs, WorkspaceArgs};
 use crate::ui::Bar;
 
 /// Arguments of `smspace invariance`.
@@ -35,9 +35,10 @@ pub struct Args {
     /// Points per traced set.
     #[arg(long, default_value_t = smspace::kernel::TraceParams::default().points)]
     points: usize,
-    /// Distance between two sets (curve: the traced loops and segments as polylines).
-    #[arg(long, value_enum, default_value_t = MetricArg::Hausdorff)]
-    metric: MetricArg,
+    /// Distance between two sets: hausdorff, mean-hausdorff or curve (the traced loops
+    /// and segments as polylines), under the agent's own point metric.
+    #[arg(long, value_name = "NAME", default_value = "hausdorff")]
+    metric: String,
     #[command(flatten)]
     workspace: WorkspaceArgs,
     /// Report (JSON); beside it, for environment e (from 1), OUT_STEM-D-e.npy (the
@@ -98,10 +99,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<Result<Vec<_>, _>>()?;
     let workspace = args.workspace.resolve(agent.as_ref())?;
     let bar = Bar::new();
-    let kind = args.metric.kind().context(
-        "smspace invariance compares the sets under hausdorff, mean-hausdorff or curve; --metric surface is available in smspace distances and in an experiment's [metric] table",
-    )?;
-    let metric = agent_metric(kind, agent.as_ref());
+    let built = smspace::metric::MetricRegistry::builtin()
+        .build(&smspace::metric::DistanceParams::new().metric(args.metric.as_str()))
+        .context("--metric")?;
+    let kernel = built.metric.kernel().with_context(|| format!(
+        "smspace invariance compares the sets under hausdorff, mean-hausdorff or curve; --metric {} is available in smspace distances and in an experiment's [metric] table",
+        args.metric
+    ))?;
+    let metric = agent_metric(kernel.kind, agent.as_ref());
     let measured = invariance_measured(
         agent.as_ref(),
         motors,

@@ -4,11 +4,11 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
-use smspace::config::load_experiment;
-use smspace::pipeline::{
+use smspace::progress::Progress;
+use smspace_pipeline::config::load_experiment;
+use smspace_pipeline::{
     self, manifest::StageRecord, BusyFolder, Recompute, RunObserver, RunOptions, StageId,
 };
-use smspace::progress::Progress;
 
 use super::common::memory_available;
 use crate::ui::Bar;
@@ -49,7 +49,7 @@ fn default_out_dir(name: &str, overrides: &[String]) -> PathBuf {
         return runs.join(name);
     }
     let parts: Vec<&[u8]> = overrides.iter().map(|o| o.as_bytes()).collect();
-    let hash = smspace::pipeline::manifest::hash_parts(&parts);
+    let hash = smspace_pipeline::manifest::hash_parts(&parts);
     runs.join(format!("{name}-{}", &hash[..8]))
 }
 
@@ -98,7 +98,7 @@ impl RunObserver for StageLog {
 /// Runs `smspace run`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let loaded = load_experiment(&args.experiment, &args.overrides)?;
-    let plan = pipeline::check(&loaded)?;
+    let plan = smspace_pipeline::check(&loaded)?;
     let out_dir = match args.out {
         Some(dir) => dir,
         None => {
@@ -137,7 +137,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.experiment.display(),
         options.out_dir.display()
     );
-    let summary = pipeline::run(&plan, &options, &log)?;
+    let summary = smspace_pipeline::run(&plan, &options, &log)?;
     let computed = summary.manifest.stages.iter().filter(|s| !s.cached).count();
     eprintln!(
         "[smspace] done in {:.2} s ({computed} of {} stages computed): {}",

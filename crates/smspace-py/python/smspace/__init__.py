@@ -61,6 +61,8 @@ __all__ = [
     "analyze",
     "run",
     "tile_plan",
+    "register_metric",
+    "metrics",
 ]
 
 ProgressArg = Union[None, bool, Callable[[str, int, int], Any]]
@@ -461,6 +463,35 @@ def _load_run(directory: Path, report: dict) -> Run:
 
 #: Most tiles :func:`tile_plan` lists (each is one task of a cluster).
 MAX_TILES = 1_000_000
+
+
+def register_metric(
+    name: str,
+    distance: Callable[..., float],
+    *,
+    summary: str = "a metric written in Python",
+    is_metric: bool = False,
+    thread_safe: bool = False,
+) -> None:
+    """Adds the set metric ``name`` to those every function builds by name:
+    :func:`distances`, :func:`knn`, the Dask tiles, and :func:`run`'s
+    ``[metric] metric = "name"``, whose ``[metric.params]`` table is passed to
+    ``distance`` as keyword arguments. ``distance(a, b, **params)`` takes the points of
+    two sets, float64 arrays ``(P, N)``, and returns their distance: a finite float of
+    at least 0. ``is_metric=True`` promises the triangle inequality (the nearest-
+    neighbour search then prunes with it). The engine calls ``distance`` once per pair,
+    one call at a time unless ``thread_safe=True`` (then from several threads at once:
+    the callable must not share unguarded state). A built-in name cannot be replaced;
+    registering a name again replaces the earlier callable."""
+    _core.register_metric(
+        name, distance, summary=summary, is_metric=is_metric, thread_safe=thread_safe
+    )
+
+
+def metrics() -> list:
+    """The set metrics registered now, built-in and from :func:`register_metric`:
+    ``[(name, summary)]`` in name order."""
+    return _core.metrics()
 
 
 def tile_plan(sets: int, size: int) -> list:

@@ -5,7 +5,7 @@ the underscored functions below take the engine's parameter structs as JSON.
 """
 
 from os import PathLike
-from typing import Any, Callable, Literal, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -119,6 +119,15 @@ def _distance_tile(
     rows_pieces: Optional[I64] = None,
     cols_pieces: Optional[I64] = None,
 ) -> F64: ...
+def register_metric(
+    name: str,
+    distance: Callable[..., float],
+    *,
+    summary: str = ...,
+    is_metric: bool = ...,
+    thread_safe: bool = ...,
+) -> None: ...
+def metrics() -> List[Tuple[str, str]]: ...
 def _merge_tiles(m: int, tiles: Sequence[Tuple[Bounds, F64]]) -> F64: ...
 def _knn(
     sets: npt.NDArray[np.float64],

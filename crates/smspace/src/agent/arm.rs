@@ -26,7 +26,7 @@ use super::{
     check_positive, wrap_angle, Agent, AgentError, Environment, LightRegion, Observer, Pose,
     PoseSpace, Workspace,
 };
-use crate::error::{CheckParams, InvalidParameter};
+use crate::params::{CheckParams, InvalidParameter};
 
 /// Parameters of the planar arm (`kind = "planar-arm"`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

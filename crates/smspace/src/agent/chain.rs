@@ -68,7 +68,7 @@ use super::{
     wrap_angle, Agent, AgentBuilder, AgentError, ArmParams, Environment, LightRegion, LightSpace,
     Motor, MotorSpace, Observer, PlanarArm, PoseSpace, Workspace, MAX_LINKS, MAX_RETINA_CELLS,
 };
-use crate::error::{CheckParams, InvalidParameter};
+use crate::params::{CheckParams, InvalidParameter};
 
 /// One joint of a chain: `{ axis = [x, y, z], link = [x, y, z], range = [low, high] }`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -812,7 +812,7 @@ impl Observer for Chain {
 
 /// The registry's builder of `kind = "chain"` (joints named by index in errors).
 pub(super) fn builder() -> AgentBuilder {
-    Arc::new(|table: &toml::Table| {
+    Arc::new(|table: &toml::Table, _: &()| {
         let params = ChainParams::from_table(table)?;
         let chain = Chain::new(&params)?;
         let agent: Box<dyn Agent> = match params.retina.aperture {

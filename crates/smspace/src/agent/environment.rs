@@ -34,8 +34,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::{Agent, AgentError};
-use crate::error::InvalidParameter;
 use crate::io::{self, IoError};
+use crate::params::InvalidParameter;
 
 /// A rectangle (minus an inner rectangle) where random lights are drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

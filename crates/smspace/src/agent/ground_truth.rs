@@ -24,7 +24,7 @@ use ndarray::{Array2, ArrayView2, ArrayViewMut2, Axis};
 use serde::{Deserialize, Serialize};
 
 use super::{wrap_angle, AgentError};
-use crate::error::InvalidParameter;
+use crate::params::InvalidParameter;
 
 /// How one pose coordinate behaves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -118,7 +118,7 @@ pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-6;
 /// let rest = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
 /// let rotation = &space.components()[3];
 /// assert!((rotation.distance(&turned, &rest) - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
-/// # Ok::<(), smspace::error::InvalidParameter>(())
+/// # Ok::<(), smspace::params::InvalidParameter>(())
 /// ```
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(try_from = "Vec<PoseCoordinate>", into = "Vec<PoseCoordinate>")]

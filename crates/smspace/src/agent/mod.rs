@@ -61,7 +61,7 @@ pub use registry::{AgentBuilder, AgentRegistry, BuiltAgent};
 pub use toy::{ToyAgent, ToyKind, ToyParams, ToyValidParams};
 pub use workspace::Workspace;
 
-use crate::error::InvalidParameter;
+use crate::params::InvalidParameter;
 
 /// Errors of building agents and environments.
 #[derive(Debug, thiserror::Error)]
@@ -441,7 +441,7 @@ impl AgentConfig {
         if registry.summary(name).is_none() {
             return Err(AgentError::UnknownAgent {
                 name: name.to_owned(),
-                known: registry.kinds().collect::<Vec<_>>().join(", "),
+                known: registry.names().collect::<Vec<_>>().join(", "),
             });
         }
         Ok(Self {
@@ -576,9 +576,11 @@ mod tests {
     #[test]
     fn a_registered_kind_builds_like_a_built_in_one() {
         let mut registry = AgentRegistry::builtin();
-        registry.register_params("long-arm", "an arm with longer links", |p: &ArmParams| {
-            Ok(Box::new(PlanarArm::new(p)?))
-        });
+        registry.register_params(
+            "long-arm",
+            "an arm with longer links",
+            |p: &ArmParams, _: &()| Ok(Box::new(PlanarArm::new(p)?)),
+        );
         let config: AgentConfig =
             toml::from_str("kind = \"long-arm\"\nlink_lengths = [2.0, 2.0]").unwrap();
         let built = registry.build(&config).unwrap();

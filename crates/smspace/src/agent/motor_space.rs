@@ -20,7 +20,7 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::InvalidParameter;
+use crate::params::InvalidParameter;
 
 /// One motor coordinate.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -140,7 +140,7 @@ pub fn wrap_period(x: f64, period: f64) -> f64 {
 /// // The hinge difference wraps, the pupil's does not.
 /// let d = space.distance(&[3.0, 0.0, 0.9], &[-3.0, 0.0, 0.3]);
 /// assert!((d - ((tau - 6.0).powi(2) + 0.36).sqrt()).abs() < 1e-12);
-/// # Ok::<(), smspace::error::InvalidParameter>(())
+/// # Ok::<(), smspace::params::InvalidParameter>(())
 /// ```
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "Vec<Motor>", into = "Vec<Motor>")]

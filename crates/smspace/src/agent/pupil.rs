@@ -23,7 +23,7 @@ use super::{
     Agent, AgentError, CoordinateKind, Environment, LightRegion, LightSpace, Motor, MotorSpace,
     Observer, PoseCoordinate, PoseSpace, Workspace,
 };
-use crate::error::InvalidParameter;
+use crate::params::InvalidParameter;
 
 /// Checks an aperture range `[low, high]`: finite, `0 < low < high` (`key` names it in
 /// the error, e.g. `retina.aperture`).

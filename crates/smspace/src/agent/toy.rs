@@ -21,7 +21,7 @@ use super::{
     check_positive, Agent, AgentError, Environment, LightRegion, MotorSpace, Observer, Pose,
     PoseSpace,
 };
-use crate::error::{CheckParams, InvalidParameter};
+use crate::params::{CheckParams, InvalidParameter};
 
 /// Parameters of the toy agents (`kind = "toy-line"` or `kind = "toy-redundant"`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -6,7 +6,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::{CoordinateKind, PoseSpace};
-use crate::error::InvalidParameter;
+use crate::params::InvalidParameter;
 
 /// The rectangular working space, in the observer's frame.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -156,7 +156,7 @@ pub fn trustworthiness_continuity(
     let (learned, truth) = (DenseDistances::new(learned)?, DenseDistances::new(truth)?);
     neighbours::trustworthiness_continuity(&truth, &learned, k).map_err(|e| match e {
         NeighboursError::TrustworthinessK { points, max, .. } => {
-            crate::error::InvalidParameter::new(
+            crate::params::InvalidParameter::new(
                 "analysis",
                 "neighbors",
                 k,

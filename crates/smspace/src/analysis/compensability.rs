@@ -60,7 +60,7 @@ use ndarray::ArrayView2;
 use serde::{Deserialize, Serialize};
 
 use crate::agent::{check_motor_count, Agent, AgentError, Environment, LightSpace};
-use crate::error::{CheckParams, InvalidParameter};
+use crate::params::{CheckParams, InvalidParameter};
 
 /// Errors of the compensability analysis.
 #[derive(Debug, thiserror::Error)]

@@ -359,7 +359,7 @@ fn twonn_sorted(
 pub fn mle(distances: ArrayView2<'_, f64>, k: usize) -> Result<DimensionEstimate, AnalysisError> {
     let n = distances.nrows();
     if k < 2 || k >= n {
-        return Err(crate::error::InvalidParameter::new(
+        return Err(crate::params::InvalidParameter::new(
             "analysis",
             "mle_neighbors",
             k,

@@ -34,9 +34,9 @@ use ndarray::ArrayView2;
 use serde::{Deserialize, Serialize};
 
 use crate::agent::GroundTruthView;
-use crate::error::{CheckParams, InvalidParameter};
 use crate::metric::DistanceMatrix;
 use crate::neighbours::{farthest_first, DenseDistances, NeighboursError};
+use crate::params::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
 pub use agreement::Agreement;
 pub use dimension::DimensionEstimate;
@@ -295,7 +295,7 @@ pub struct HomologySummary {
 impl HomologySummary {
     /// The summary of `persistence`, computed with `p` on the points of `subsampling`
     /// and read with `rule`.
-    pub(crate) fn of(
+    pub fn of(
         persistence: &Persistence,
         p: &AnalysisParams,
         subsampling: Subsampling,
@@ -318,7 +318,7 @@ impl HomologySummary {
 }
 
 /// The bars `(birth, death)` of every diagram of `persistence` (`None`: never dies).
-pub(crate) fn bars(persistence: &Persistence) -> Vec<Vec<(f64, Option<f64>)>> {
+pub fn bars(persistence: &Persistence) -> Vec<Vec<(f64, Option<f64>)>> {
     persistence
         .diagrams
         .iter()
@@ -351,7 +351,8 @@ pub struct IntrinsicDimension {
     pub sets_used: usize,
 }
 
-pub(crate) fn all_sets() -> String {
+/// The `sets_used` of a summary computed on every set.
+pub fn all_sets() -> String {
     "all".to_owned()
 }
 

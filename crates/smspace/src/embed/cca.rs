@@ -43,8 +43,8 @@ use serde::{Deserialize, Serialize};
 use super::eigen::{classical_mds, distance_scale, landmark_mds, rescaled, EigenSolver};
 use super::{check_dim, check_dim_param, check_distances, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
-use crate::error::InvalidParameter;
 use crate::neighbours::nearest;
+use crate::params::InvalidParameter;
 use crate::progress::Progress;
 
 /// Points per block in the inner loop.

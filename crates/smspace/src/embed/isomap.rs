@@ -30,8 +30,8 @@ use serde::{Deserialize, Serialize};
 use super::eigen::{classical_mds, distance_scale, rescaled, EigenSolver, Triangulation};
 use super::{check_dim, check_dim_param, EmbedError, EmbedReport, Embedded};
 use super::{Embedding, Extender};
-use crate::error::InvalidParameter;
 use crate::neighbours::{self, DenseDistances, FarthestFirst, Knn};
+use crate::params::InvalidParameter;
 use crate::progress::Progress;
 
 /// How landmark Isomap chooses its landmarks.

@@ -37,8 +37,8 @@ pub mod quality;
 use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
 
-use crate::error::{CheckParams, InvalidParameter};
 use crate::metric::DistanceMatrix;
+use crate::params::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
 
 pub use cca::{CcaParams, CcaValidParams, Neighbourhood};

@@ -46,7 +46,7 @@ fn out_distance(y: ArrayView2<'_, f64>, i: usize, j: usize) -> f64 {
 
 fn check_shapes(x: ArrayView2<'_, f64>, y: ArrayView2<'_, f64>) -> Result<(), EmbedError> {
     if x.nrows() != x.ncols() || x.nrows() != y.nrows() {
-        return Err(crate::error::InvalidParameter::new(
+        return Err(crate::params::InvalidParameter::new(
             "embedding",
             "coordinates",
             format!("{} points for a {:?} distance matrix", y.nrows(), x.dim()),

@@ -89,8 +89,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::agent::Workspace;
 use crate::agent::{Agent, Environment};
-use crate::error::{CheckParams, InvalidParameter};
+use crate::params::{CheckParams, InvalidParameter};
 use crate::progress::{Note, Progress};
+pub use crate::sets::Closure;
 use curve::Scratch;
 pub use spatial::{extend_along, Spatial};
 use tracer::Tracer;
@@ -498,25 +499,6 @@ fn seeds_bytes(piece_starts: usize, motor_dim: usize) -> u64 {
         .saturating_mul(8)
 }
 
-/// The `curve` metric reads a set as polylines (its pieces' loops and segments): it
-/// does not apply to kernels of dimension `k ≥ 2`, sampled as point clouds. An error
-/// on the `[metric] metric` key naming the `hausdorff` metric (the point metric, whose
-/// value between two sampled kernels is within their covering radii of the value
-/// between the kernels themselves) when `dimension ≥ 2`.
-pub fn check_curve_metric(dimension: usize) -> Result<(), InvalidParameter> {
-    if dimension < 2 {
-        return Ok(());
-    }
-    Err(InvalidParameter::new(
-        "metric",
-        "metric",
-        "curve",
-        format!(
-            "the kernel sets have dimension k = {dimension}: they are point samples of surfaces, not polylines, so the curve metric does not apply; use metric = \"hausdorff\" (between the sampled points, within the covering radii of the distance between the kernels, see sets.trace.json)"
-        ),
-    ))
-}
-
 /// Most points per kernel set.
 pub const MAX_POINTS: usize = 100_000;
 
@@ -730,45 +712,6 @@ impl SetStatus {
                 | SetStatus::Pieces
                 | SetStatus::Covered
         )
-    }
-}
-
-/// How the points of a traced set are joined into a curve: a closed loop (status
-/// `closed`) or an open polyline (status `open`, and the single points of `point`). The
-/// `curve` metric reads the sets as these polylines; `sets.closed.npy` records it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Closure {
-    /// A closed loop: `P` segments, the last one from `x_{P−1}` back to `x_0`.
-    Closed,
-    /// An open polyline: `P − 1` segments.
-    Open,
-}
-
-impl Closure {
-    /// The name used in files and on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Closure::Closed => "closed",
-            Closure::Open => "open",
-        }
-    }
-
-    /// The code stored in `sets.closed.npy`: 1 for closed, 0 for open.
-    pub fn code(self) -> i64 {
-        match self {
-            Closure::Closed => 1,
-            Closure::Open => 0,
-        }
-    }
-
-    /// The closure of a code of `sets.closed.npy` (1 closed, 0 open), `None` otherwise.
-    pub fn from_code(code: i64) -> Option<Self> {
-        match code {
-            1 => Some(Closure::Closed),
-            0 => Some(Closure::Open),
-            _ => None,
-        }
     }
 }
 

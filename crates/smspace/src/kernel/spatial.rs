@@ -55,7 +55,7 @@
 //! a motor axis, refused by the trace stage) would need its slices joined into a
 //! surface, and its sampled distance would be off by up to half a slice spacing. The
 //! `curve` metric applies only where every slice is a polyline: traced kernels of
-//! dimension `k ≤ 1` ([`curve_dimension`]); slices of `k ≥ 2` coverings are point
+//! dimension `k ≤ 1` ([`TraceReport::kernel_shape`]); slices of `k ≥ 2` coverings are point
 //! clouds (`hausdorff`).
 
 use ndarray::{Array2, Array3};
@@ -63,7 +63,8 @@ use serde::{Deserialize, Serialize};
 
 use super::{Closure, KernelError, TraceParams, TraceReport, TracedSets};
 use crate::agent::{Motor, MotorSpace};
-use crate::error::InvalidParameter;
+use crate::params::InvalidParameter;
+use crate::sets::KernelShape;
 
 /// Which kernel sets the pipeline compares (`[kernel] spatial`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -104,41 +105,16 @@ impl TraceParams {
     }
 }
 
-/// The dimension of the polylines the `curve` metric would read in sets with this trace
-/// report: the largest kernel dimension `k` of a set, less one for every motor the sets
-/// were extended along (their slices are traced kernels, module docs). The `curve`
-/// metric applies when it is at most 1 ([`super::check_curve_metric`]).
-pub fn curve_dimension(report: &TraceReport) -> usize {
-    let k = report.sets.iter().map(|s| s.dimension).max().unwrap_or(0);
-    k.saturating_sub(report.extended_along.len())
-}
-
-/// Checks that the sets of an extended run are recorded as slices (every piece lies in
-/// one slice: its coordinate along every extended motor is constant), as the `curve`
-/// metric needs; sets traced before slices were pieces fail. `Ok` for sets that were
-/// not extended.
-pub fn check_slices(traced: &TracedSets) -> Result<(), KernelError> {
-    let (m, p, _) = traced.sets.dim();
-    for &j in &traced.report.extended_along {
-        for s in 0..m {
-            let mixed = (1..p).any(|q| {
-                traced.pieces[[s, q]] == traced.pieces[[s, q - 1]]
-                    && traced.sets[[s, q, j]] != traced.sets[[s, q - 1, j]]
-            });
-            if mixed {
-                return Err(InvalidParameter::new(
-                    "metric",
-                    "metric",
-                    "curve",
-                    format!(
-                        "set {s} was extended along motor {j} but a piece of it spans several values of that motor (sets written before each slice was its own piece): trace again (smspace run --force trace) or use metric = \"hausdorff\""
-                    ),
-                )
-                .into());
-            }
+impl TraceReport {
+    /// The shape of the traced kernels, as a metric asks for it: the largest kernel
+    /// dimension `k` of a set, and the motors the sets were extended along (their
+    /// slices are traced kernels of dimension `k − extended`, module docs).
+    pub fn kernel_shape(&self) -> KernelShape {
+        KernelShape {
+            dimension: self.sets.iter().map(|s| s.dimension).max().unwrap_or(0),
+            extended: self.extended_along.len(),
         }
     }
-    Ok(())
 }
 
 /// The values of motor `motor` every set is repeated at (module docs), the same for
@@ -355,7 +331,8 @@ mod tests {
         assert_eq!((out.report.points, out.report.sets[0].dimension), (15, 2));
         assert_eq!(out.report.extended_along, vec![2]);
         assert_eq!(out.closure, vec![Closure::Open; 2]);
-        assert_eq!(curve_dimension(&out.report), 1);
+        let shape = out.report.kernel_shape();
+        assert_eq!(shape.dimension - shape.extended, 1);
         // Nothing to extend along: the sets as they were.
         let same = extend_along(two_sets(), &space(), &[], 3).unwrap();
         assert_eq!(same.sets, two_sets().sets);
@@ -396,7 +373,12 @@ mod tests {
         assert_eq!(out.pieces.row(1).to_vec(), open_pieces);
         assert_eq!(out.sets[[1, 4, 0]], out.sets[[1, 3, 0]]);
         // Every piece lies in one slice, pieces numbered in runs (the file's rule).
-        check_slices(&out).unwrap();
+        let curve = MetricKind::Curve.with_period(Period::None, Closure::Closed);
+        let view = |s: &TracedSets| {
+            let v = SetsView::new(s.sets.view()).with_pieces(s.pieces.view());
+            curve.check_sets(&v, &s.report.extended_along)
+        };
+        view(&out).unwrap();
         let dir = tempfile::tempdir().unwrap();
         out.save(&dir.path().join("sets.npy")).unwrap();
         let back = TracedSets::load(&dir.path().join("sets.npy")).unwrap();
@@ -405,7 +387,7 @@ mod tests {
         // Sets extended before slices were pieces (one piece across slices) are refused.
         let mut stale = out;
         stale.pieces.fill(0);
-        let message = check_slices(&stale).unwrap_err().to_string();
+        let message = view(&stale).unwrap_err().to_string();
         assert!(message.contains("hausdorff"), "{message}");
     }
 

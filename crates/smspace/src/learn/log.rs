@@ -14,8 +14,8 @@ use serde::{Deserialize, Serialize};
 use super::law::{LocalModel, LogReport};
 use super::{LawValidParams, LearnError};
 use crate::agent::{Motor, MotorSpace};
-use crate::error::InvalidParameter;
 use crate::io;
+use crate::params::InvalidParameter;
 
 /// The two files of a log.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]

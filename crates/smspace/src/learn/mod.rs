@@ -94,8 +94,8 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{CheckParams, InvalidParameter};
 use crate::io::IoError;
+use crate::params::{CheckParams, InvalidParameter};
 pub use compare::{comparison_period, set_errors, SetErrors};
 use invariants::InvariantModel;
 pub use invariants::{InvariantsReport, MAX_INVARIANTS};

@@ -14,9 +14,9 @@ use serde::{Deserialize, Serialize};
 
 use super::LearnError;
 use crate::agent::{Agent, AgentConfig, Environment, GroundTruth, Workspace};
-use crate::error::InvalidParameter;
 use crate::explore::{explore_in, ExploreParams};
 use crate::io;
+use crate::params::InvalidParameter;
 
 /// Parameters of a simulated log.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -115,7 +115,7 @@ pub const CURVE_TOLERANCE: f64 = 1e-10;
 /// split removes at least a fifth of a piece).
 const MAX_DEPTH: usize = 200;
 
-pub use crate::kernel::Closure;
+use crate::sets::Closure;
 
 /// The segments of every set, laid out for the curve kernels. Built by
 /// [`PreparedSets::new`] when the sets come with their [`Closure`].

@@ -35,8 +35,8 @@ use super::{
     check_rows, closure_for, DistanceParams, MetricError, MetricKind, PreparedSets, SetMetric,
     SetsView,
 };
-use crate::error::{CheckParams, InvalidParameter};
 use crate::neighbours::FarthestFirst;
+use crate::params::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
 
 /// Relative safety margin on the pivot lower bounds (rounding of the distances).

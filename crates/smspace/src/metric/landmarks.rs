@@ -99,8 +99,8 @@ use super::kernel::{Driver, Eval, Scratch};
 use super::knn::Best;
 use super::tiles::Measure;
 use super::{DistanceMatrix, Knn, MetricError, PreparedSets, SetMetric, SetsView};
-use crate::error::{CheckParams, InvalidParameter};
 use crate::neighbours::FarthestFirst;
+use crate::params::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
 
 mod through;

@@ -1,6 +1,7 @@
 //! Set metrics by name: the `metric` key of a `[metric]` table picks an entry of a
-//! [`MetricRegistry`], which builds the metric from the table's period and its own
-//! parameters (`[metric.params]`).
+//! [`MetricRegistry`] (the crate's one [`Registry`] type), which builds the metric from
+//! its own parameters (`[metric.params]`) and a [`MetricContext`]: the table's period,
+//! and the shape of the kernels when the caller knows it.
 //!
 //! The built-in metrics register here, one line each ([`MetricRegistry::builtin`]); an
 //! embedder registers its own the same way and hands the registry to the pipeline
@@ -12,12 +13,12 @@
 //!
 //! ```
 //! use ndarray::ArrayView2;
-//! use smspace::metric::{DistanceParams, MetricError, MetricRegistry, Periodicity, SetMetric};
+//! use smspace::metric::{DistanceParams, MetricContext, MetricError, MetricRegistry, SetMetric};
 //!
 //! /// The distance between the sets' centroids, scaled.
 //! struct Centroids { scale: f64 }
 //! impl SetMetric for Centroids {
-//!     fn name(&self) -> &'static str { "centroids" }
+//!     fn name(&self) -> &str { "centroids" }
 //!     fn distance(&self, a: ArrayView2<'_, f64>, b: ArrayView2<'_, f64>) -> Result<f64, MetricError> {
 //!         let (ca, cb) = (a.mean_axis(ndarray::Axis(0)).unwrap(), b.mean_axis(ndarray::Axis(0)).unwrap());
 //!         Ok(self.scale * (&ca - &cb).mapv(|x| x * x).sum().sqrt())
@@ -30,7 +31,7 @@
 //! impl Default for CentroidParams { fn default() -> Self { Self { scale: 1.0 } } }
 //!
 //! let mut registry = MetricRegistry::builtin();
-//! registry.register_params("centroids", "distance between the centroids", |p: &CentroidParams, _period: &Periodicity| {
+//! registry.register_params("centroids", "distance between the centroids", |p: &CentroidParams, _: &MetricContext| {
 //!     Ok(Box::new(Centroids { scale: p.scale }))
 //! });
 //! let params: DistanceParams = toml::from_str("metric = \"centroids\"\n[params]\nscale = 2.0").unwrap();
@@ -40,13 +41,12 @@
 //! # Ok::<(), MetricError>(())
 //! ```
 
-use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use serde::de::DeserializeOwned;
-use serde::Serialize;
-
-use super::{Closure, DistanceParams, MetricError, MetricKind, Periodicity, SetMetric};
+use super::{
+    Closure, DistanceParams, KernelShape, MetricError, MetricKind, Periodicity, SetMetric,
+};
+use crate::registry::{Builder, Registry, RegistryError};
 
 /// A metric built from its `[metric]` table, with the table resolved (defaults of its
 /// parameters included).
@@ -67,44 +67,48 @@ impl std::fmt::Debug for BuiltMetric {
     }
 }
 
+/// What a metric's builder knows besides its parameters.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MetricContext {
+    /// The point metric's period (`[metric] period`).
+    pub period: Periodicity,
+    /// The shape of the kernels it will measure, when the caller knows it (a run knows
+    /// it from the agent, `smspace distances` from the trace report beside the sets).
+    pub kernels: Option<KernelShape>,
+}
+
 /// Builds a metric of one name from its parameter table (`[metric.params]`) and the
-/// point metric's period; returns the metric and the resolved parameters.
-pub type MetricBuilder = Arc<
-    dyn Fn(&toml::Table, &Periodicity) -> Result<(Box<dyn SetMetric>, toml::Table), MetricError>
-        + Send
-        + Sync,
->;
+/// [`MetricContext`]; returns the metric and the resolved parameters.
+pub type MetricBuilder = Builder<dyn SetMetric, MetricContext, MetricError>;
 
-#[derive(Clone)]
-struct Entry {
-    summary: String,
-    build: MetricBuilder,
-}
+/// The set metrics a run can build, by name: register one with
+/// [`Registry::register_params`] (`|params: &P, context: &MetricContext| …`).
+pub type MetricRegistry = Registry<dyn SetMetric, MetricContext, MetricError>;
 
-/// The set metrics a run can build, by name.
-#[derive(Clone, Default)]
-pub struct MetricRegistry {
-    metrics: BTreeMap<String, Entry>,
-}
+impl RegistryError for MetricError {
+    fn unknown(name: &str, known: String) -> Self {
+        MetricError::UnknownMetric {
+            name: name.to_owned(),
+            known,
+        }
+    }
 
-impl std::fmt::Debug for MetricRegistry {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_list().entries(self.metrics.keys()).finish()
+    fn invalid_table(name: &str, reason: String) -> Self {
+        MetricError::InvalidTable {
+            metric: name.to_owned(),
+            reason,
+        }
     }
 }
 
 /// The parameters of a metric that has none: an empty table.
-#[derive(Debug, Default, Serialize, serde::Deserialize)]
+#[derive(Debug, Default, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
 struct NoParams {}
 
-impl MetricRegistry {
-    /// A registry without any metric.
-    pub fn empty() -> Self {
-        Self::default()
-    }
-
-    /// The built-in metrics ([`MetricKind`]), which run on the SIMD kernels.
+impl Registry<dyn SetMetric, MetricContext, MetricError> {
+    /// The built-in metrics: the three that run on the SIMD kernels ([`MetricKind`])
+    /// and `surface`.
     pub fn builtin() -> Self {
         let mut r = Self::empty();
         for (kind, summary) in [
@@ -121,83 +125,37 @@ impl MetricRegistry {
                 "the Hausdorff distance between the sets read as closed or open polylines",
             ),
         ] {
-            r.register_params(kind.name(), summary, move |_: &NoParams, period| {
-                Ok(kind.with_period(period, Closure::Closed))
+            r.register_params(kind.name(), summary, move |_: &NoParams, context| {
+                Ok(kind.with_period(&context.period, Closure::Closed))
             });
         }
-        r.register_params(
+        r.register(
             "surface",
             "the Hausdorff distance from the samples of one set to the tangent disks of the other's (kernels of dimension k >= 2)",
-            |params: &super::SurfaceParams, period| {
-                Ok(Box::new(super::Surface::new(params.clone(), period.clone())?))
-            },
+            super::surface::default_table(),
+            super::surface::builder(),
         );
         r
     }
 
-    /// Registers (or replaces) the metric `name` with a builder of its own.
-    pub fn register(
-        &mut self,
-        name: impl Into<String>,
-        summary: impl Into<String>,
-        build: MetricBuilder,
-    ) {
-        self.metrics.insert(
-            name.into(),
-            Entry {
-                summary: summary.into(),
-                build,
-            },
-        );
-    }
-
-    /// Registers the metric `name` whose parameters are the serde struct `P` (with
-    /// `#[serde(deny_unknown_fields, default)]`), built by `new` from them and the
-    /// point metric's period (`[metric] period`).
-    pub fn register_params<P, F>(&mut self, name: &str, summary: &str, new: F)
-    where
-        P: DeserializeOwned + Serialize + 'static,
-        F: Fn(&P, &Periodicity) -> Result<Box<dyn SetMetric>, MetricError> + Send + Sync + 'static,
-    {
-        let metric = name.to_owned();
-        let build = move |table: &toml::Table, period: &Periodicity| {
-            let params: P =
-                toml::Value::Table(table.clone())
-                    .try_into()
-                    .map_err(|e: toml::de::Error| MetricError::InvalidTable {
-                        metric: metric.clone(),
-                        reason: e.to_string().trim_end().to_owned(),
-                    })?;
-            let built = new(&params, period)?;
-            let resolved = match toml::Value::try_from(&params) {
-                Ok(toml::Value::Table(t)) => t,
-                _ => table.clone(),
-            };
-            Ok((built, resolved))
-        };
-        self.register(name, summary, Arc::new(build));
-    }
-
-    /// The registered names, in order.
-    pub fn names(&self) -> impl Iterator<Item = &str> {
-        self.metrics.keys().map(String::as_str)
-    }
-
-    /// One line on a metric, if registered.
-    pub fn summary(&self, name: &str) -> Option<&str> {
-        self.metrics.get(name).map(|e| e.summary.as_str())
-    }
-
     /// Builds the metric a `[metric]` table names.
     pub fn build(&self, params: &DistanceParams) -> Result<BuiltMetric, MetricError> {
-        let entry =
-            self.metrics
-                .get(params.metric.as_str())
-                .ok_or_else(|| MetricError::UnknownMetric {
-                    name: params.metric.to_string(),
-                    known: self.names().collect::<Vec<_>>().join(", "),
-                })?;
-        let (metric, resolved) = (entry.build)(&params.params, &params.period)?;
+        self.build_for(params, None)
+    }
+
+    /// Builds the metric a `[metric]` table names, for kernels of the shape `kernels`
+    /// when the caller knows it (a parameter the table leaves out may follow it, as
+    /// the surface metric's `dimension`).
+    pub fn build_for(
+        &self,
+        params: &DistanceParams,
+        kernels: Option<KernelShape>,
+    ) -> Result<BuiltMetric, MetricError> {
+        let context = MetricContext {
+            period: params.period.clone(),
+            kernels,
+        };
+        let (metric, resolved) = self.make(params.metric.as_str(), &params.params, &context)?;
         Ok(BuiltMetric {
             metric: Arc::from(metric),
             params: DistanceParams {

@@ -61,8 +61,8 @@ use super::{
     check_metric, closure_for, prepared, Closure, DistanceMatrix, MetricError, MetricKind,
     Periodicity, PreparedPairs, PreparedSets, SetMetric, SetsView,
 };
-use crate::error::InvalidParameter;
 use crate::io::{self, IoError};
+use crate::params::InvalidParameter;
 use crate::progress::Progress;
 
 /// Rows of a task share a pass over each block of this many columns, so that the

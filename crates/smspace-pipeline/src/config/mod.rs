@@ -1,0 +1,323 @@
+//! Configuration files: TOML tables for the pipeline's stages.
+//!
+//! An agent can be named by a preset (`toy-line`, `toy-redundant`, `planar-arm`) or by
+//! a TOML file whose `[agent]` table holds `kind` and the agent's parameters, with an
+//! optional `[environment]` table (`lights`, `seed`, `region`). Other tables of the
+//! file (an experiment's `[exploration]`, `[kernel]`, …) are left to their stages, so an
+//! experiment file can serve as an agent file. Unknown keys inside `[agent]` and
+//! `[environment]` are errors that name the key.
+//!
+//! ```toml
+//! [agent]
+//! kind = "planar-arm"
+//! link_lengths = [1.0, 1.0, 1.0]
+//! retina_cells = 6
+//! retina_half_width = 1.0
+//! focal_length = 1.0
+//!
+//! [environment]
+//! lights = 10
+//! seed = 1
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::de::DeserializeOwned;
+use serde::Deserialize;
+
+use smspace::agent::{AgentConfig, AgentError, EnvironmentConfig};
+
+mod experiment;
+pub use experiment::*;
+
+/// Errors of configuration files.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read {path}: {reason}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's reason.
+        reason: std::io::Error,
+    },
+    /// The file is not valid TOML, or a table has a wrong or unknown key.
+    #[error("{path}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message, with line, column and key.
+        message: String,
+    },
+    /// A required table is missing.
+    #[error("{path} has no [{table}] table")]
+    MissingTable {
+        /// The file.
+        path: PathBuf,
+        /// The table's name.
+        table: &'static str,
+    },
+    /// The name is neither a preset nor an existing file.
+    #[error(transparent)]
+    Agent(#[from] AgentError),
+    /// The file's `[agent]` table does not describe an agent.
+    #[error("{path}: {reason}")]
+    AgentTable {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, naming the key.
+        reason: AgentError,
+    },
+    /// A `--set stage.key=value` override is malformed or gives a wrong value.
+    #[error("--set {assignment}: {reason}")]
+    Override {
+        /// The override as given.
+        assignment: String,
+        /// What is wrong, and how to write it.
+        reason: String,
+    },
+    /// A value parses but is impossible (checked before anything runs).
+    #[error("{path}{line}: [{table}] {reason}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// `", line N"` when the key is written in the file, `" (from --set)"` when an
+        /// override gave it, empty otherwise.
+        line: String,
+        /// The table (stage) whose parameter is wrong.
+        table: &'static str,
+        /// The stage's own message, naming the key and the value.
+        reason: String,
+    },
+}
+
+/// An agent and, optionally, how to make its environment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AgentSpec {
+    /// The agent's parameters.
+    pub agent: AgentConfig,
+    /// The `[environment]` table, when the file has one.
+    pub environment: Option<EnvironmentConfig>,
+}
+
+fn read_text(path: &Path) -> Result<String, ConfigError> {
+    smspace::io::read_text_bounded(path, smspace::io::MAX_TEXT_BYTES).map_err(|e| match e {
+        smspace::io::IoError::Read { path, reason } => ConfigError::Read { path, reason },
+        other => ConfigError::Read {
+            path: path.to_owned(),
+            reason: std::io::Error::other(other.to_string()),
+        },
+    })
+}
+
+/// Parses TOML text into `T`; errors carry the file, line, column and key.
+pub fn parse_toml<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T, ConfigError> {
+    toml::from_str(text).map_err(|e| ConfigError::Parse {
+        path: path.to_owned(),
+        message: e.to_string().trim_end().to_owned(),
+    })
+}
+
+/// The tables of an agent file; other tables are left to their stages.
+#[derive(Debug, Deserialize)]
+struct AgentFile {
+    agent: Option<AgentConfig>,
+    environment: Option<EnvironmentConfig>,
+}
+
+/// Resolves `--agent`: a preset name, or a TOML file with an `[agent]` table.
+pub fn load_agent(name_or_path: &str) -> Result<AgentSpec, ConfigError> {
+    let path = Path::new(name_or_path);
+    let looks_like_file = path.extension().is_some_and(|e| e == "toml") || path.exists();
+    if !looks_like_file {
+        return Ok(AgentSpec {
+            agent: AgentConfig::preset(name_or_path)?,
+            environment: None,
+        });
+    }
+    let file: AgentFile = parse_toml(path, &read_text(path)?)?;
+    let agent = file.agent.ok_or(ConfigError::MissingTable {
+        path: path.to_owned(),
+        table: "agent",
+    })?;
+    // Built once here so that a wrong key or value is reported with the file.
+    agent.build().map_err(|reason| ConfigError::AgentTable {
+        path: path.to_owned(),
+        reason,
+    })?;
+    Ok(AgentSpec {
+        agent,
+        environment: file.environment,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_and_files() {
+        assert_eq!(load_agent("toy-line").unwrap().agent.name(), "toy-line");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("arm.toml");
+        std::fs::write(
+            &path,
+            "[agent]\nkind = \"planar-arm\"\nretina_cells = 8\n[environment]\nlights = 4\nseed = 9\n[kernel]\npoints = 3\n",
+        )
+        .unwrap();
+        let spec = load_agent(path.to_str().unwrap()).unwrap();
+        let agent = spec.agent.build().unwrap();
+        assert_eq!(agent.sensor_dim(), 8);
+        assert_eq!(spec.environment.unwrap().lights, Some(4));
+    }
+
+    #[test]
+    fn errors_name_file_line_and_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.toml");
+        std::fs::write(&path, "[agent]\nkind = \"planar-arm\"\nfocal = 2.0\n").unwrap();
+        let err = load_agent(path.to_str().unwrap()).unwrap_err().to_string();
+        assert!(err.contains("bad.toml") && err.contains("focal"), "{err}");
+        std::fs::write(
+            &path,
+            "[agent]\nkind = \"planar-arm\"\nretina_cells = \"six\"\n",
+        )
+        .unwrap();
+        let err = load_agent(path.to_str().unwrap()).unwrap_err().to_string();
+        assert!(err.contains("retina_cells"), "{err}");
+        let err = load_agent("missing.toml").unwrap_err().to_string();
+        assert!(err.contains("missing.toml"), "{err}");
+        assert!(load_agent("snake")
+            .unwrap_err()
+            .to_string()
+            .contains("snake"));
+    }
+
+    fn write(dir: &tempfile::TempDir, name: &str, text: &str) -> PathBuf {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    #[test]
+    fn experiments_read_overrides_and_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write(
+            &dir,
+            "small.toml",
+            "description = \"a test\"\n[agent]\nkind = \"toy-redundant\"\n[kernel]\npoints = 20\n[[environment.compare]]\nseed = 2\n",
+        );
+        let loaded = load_experiment(&path, &[]).unwrap();
+        assert_eq!(loaded.name, "small");
+        assert_eq!(loaded.experiment.kernel.points, 20);
+        assert_eq!(loaded.experiment.environment.configs().len(), 2);
+        let loaded = load_experiment(
+            &path,
+            &["kernel.points=30".into(), "kernel.method=sensory".into()],
+        )
+        .unwrap();
+        assert_eq!(loaded.experiment.kernel.points, 30);
+        assert_eq!(
+            loaded.experiment.kernel.method,
+            smspace::kernel::TraceMethod::Sensory
+        );
+        // The resolved TOML reads back to the same experiment.
+        let again: Experiment = toml::from_str(&loaded.resolved_toml()).unwrap();
+        assert_eq!(again.kernel, loaded.experiment.kernel);
+        assert_eq!(again.name.as_deref(), Some("small"));
+    }
+
+    #[test]
+    fn experiment_errors_name_file_line_and_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write(
+            &dir,
+            "bad.toml",
+            "[agent]\nkind = \"planar-arm\"\n[kernel]\npoints = 20\nstpe = 0.1\n",
+        );
+        let err = load_experiment(&path, &[]).unwrap_err().to_string();
+        assert!(
+            err.contains("bad.toml") && err.contains("stpe") && err.contains("line 5"),
+            "{err}"
+        );
+        let path = write(
+            &dir,
+            "bad2.toml",
+            "[agent]\nkind = \"planar-arm\"\n[metrics]\n",
+        );
+        let err = load_experiment(&path, &[]).unwrap_err().to_string();
+        assert!(err.contains("metrics"), "{err}");
+        let path = write(
+            &dir,
+            "ok.toml",
+            "[agent]\nkind = \"planar-arm\"\n[kernel]\npoints = 0\n",
+        );
+        let loaded = load_experiment(&path, &[]).unwrap();
+        let err = loaded
+            .invalid("kernel", "points = 0: must be at least 2")
+            .to_string();
+        assert!(err.contains("ok.toml, line 4: [kernel] points"), "{err}");
+        for bad in ["kernel", "kernel.points", "kernal.points=3", ".x=1"] {
+            let err = load_experiment(&path, &[bad.into()])
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("--set"), "{bad}: {err}");
+        }
+        let err = load_experiment(&path, &["kernel.points=many".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("--set") && err.contains("many"), "{err}");
+        let loaded = load_experiment(&path, &["kernel.points=1".into()]).unwrap();
+        let err = loaded
+            .invalid("kernel", "points = 1: must be at least 2")
+            .to_string();
+        assert!(err.contains("(from --set kernel.points=1)"), "{err}");
+    }
+
+    /// A stage's parameter error names its table and key, so the reader points at the
+    /// key's own line even where the message names other keys too (here `max_step`'s
+    /// message names `step`, written on an earlier line).
+    #[test]
+    fn parameter_errors_are_located_by_their_table_and_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let check = |text: &str, overrides: &[&str]| {
+            let path = write(&dir, "located.toml", text);
+            let overrides: Vec<String> = overrides.iter().map(|o| o.to_string()).collect();
+            let loaded = load_experiment(&path, &overrides).unwrap();
+            crate::check(&loaded).unwrap_err().to_string()
+        };
+        let arm = "[agent]\nkind = \"planar-arm\"\n";
+        let err = check(
+            &format!("{arm}[kernel]\nstep_control = \"adaptive\"\nstep = 0.01\nmax_step = 0.001\n"),
+            &[],
+        );
+        assert!(
+            err.contains("located.toml, line 6: [kernel] invalid kernel parameter max_step"),
+            "{err}"
+        );
+        let err = check(&format!("{arm}retina_cells = 0\n"), &[]);
+        assert!(
+            err.contains("line 3: [agent]") && err.contains("retina_cells = 0"),
+            "{err}"
+        );
+        let err = check(
+            &format!("{arm}[exploration]\nn = 10\nworkspace_center = [1.0, 0.0]\n"),
+            &[],
+        );
+        assert!(
+            err.contains("line 5: [exploration]") && err.contains("workspace_size"),
+            "{err}"
+        );
+        let err = check(
+            &format!("{arm}[environment]\nseed = 2\nlights = 5000\n"),
+            &[],
+        );
+        assert!(err.contains("line 5: [environment]"), "{err}");
+        let err = check(
+            &format!("{arm}[kernel]\npoints = 10\n"),
+            &["kernel.points=0"],
+        );
+        assert!(err.contains("(from --set kernel.points=0)"), "{err}");
+    }
+}

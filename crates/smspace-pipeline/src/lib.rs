@@ -1,0 +1,894 @@
+//! The whole pipeline from an experiment file: explore → trace → distances → embed →
+//! analyze (→ invariance) → report, with a cache (paper section 3.2, steps 1–4, and
+//! section 3.3).
+//!
+//! [`check`] validates every table of the experiment before anything runs, so that an
+//! impossible value is reported with its file, line and key instead of after minutes
+//! of work, and makes a [`Plan`]: one typed stage per table ([`stages`], each behind
+//! the [`Stage`](stages::Stage) trait). [`run`] then runs the stages in order and
+//! writes into one folder:
+//!
+//! | stage | outputs |
+//! |---|---|
+//! | `explore` | `motors.npy` (M0, N), `poses.npy` (M0, d) (when the agent has a ground truth), `probes.npy` (M0, 3) int64, `exploration.json`, `environment.json` (+ `environment-2.json`, … for compared environments) |
+//! | `trace` | `sets.npy` (M, P, N), `sets.kept.npy` (M,) int64 (row of `motors.npy` of each set), `sets.closed.npy` (M,) int64 (1: a closed loop, 0: an open polyline), `sets.trace.json` |
+//! | `distances` | `D.npy` (M, M) |
+//! | `embed` | `Y.npy` (M, d), `Y.embed.json`, `Y.dydx.npy` (pairs, 2) |
+//! | `analyze` | `analysis.json` |
+//! | `invariance` | `invariance.json`, `invariance-D-<e>.npy`, `invariance-sensors-<e>.npy` (only with several environments) |
+//! | `report` | `figures/*.png`, `figures/*.svg`, `report.html`, `report.md`, `report.json` |
+//!
+//! plus `config.resolved.toml` (every parameter, defaults included) and
+//! `manifest.json` ([`manifest::Manifest`]: version, seeds, configuration hash, time per
+//! stage, output hashes). A stage whose key (the hash of the stage struct, which holds
+//! every parameter its computation reads, and the keys of its inputs) is unchanged and whose outputs are intact is not recomputed
+//! ([`Recompute::Changed`]); its outputs are read back instead. A computed stage's
+//! files, the configuration and the manifest with its record are written together
+//! ([`smspace::io::Outputs`], hashed while written), so a failing or interrupted stage
+//! leaves the earlier stages' outputs and records intact; a run that reuses every stage
+//! of an unchanged configuration writes nothing, and so runs from a read-only folder
+//! (the order of the writes is in `runner`'s docs). Each stage's peak memory is
+//! estimated before it starts and held to [`RunOptions::memory_limit_bytes`]. One
+//! process writes a folder at a time ([`lock`]: a second run refuses, or waits with
+//! [`BusyFolder::Wait`]). `docs/RELIABILITY.md` lists these promises and the tests that
+//! check them.
+//!
+//! With a `[data]` table ([`data`]) the run starts from a sensorimotor log: `explore`
+//! picks reference samples of it instead of babbling, and `trace` traces the sets on
+//! the law learned from it (`sets.trace.json` then has the law's report under `law`).
+//!
+//! # Example
+//!
+//! A tiny experiment (the redundant toy of section 2.3) from the library:
+//!
+//! ```
+//! use smspace_pipeline::{BusyFolder, Recompute, RunObserver, RunOptions};
+//! use smspace::progress::{Progress, Silent};
+//!
+//! struct Quiet;
+//! impl RunObserver for Quiet {
+//!     fn progress(&self) -> &dyn Progress { &Silent }
+//! }
+//! let dir = tempfile::tempdir()?;
+//! let file = dir.path().join("tiny.toml");
+//! std::fs::write(&file, r#"
+//!     [agent]
+//!     kind = "toy-redundant"
+//!     [exploration]
+//!     n = 60
+//!     [kernel]
+//!     method = "kinematic"
+//!     points = 12
+//!     [metric]
+//!     period = "none"
+//!     [embedding]
+//!     method = "mds"
+//!     dim = 1
+//!     [analysis]
+//!     mle_neighbors = 8
+//!     [report]
+//!     formats = "svg"
+//!     sample_configurations = 3
+//!     sample_sets = 3
+//! "#)?;
+//! let experiment = smspace_pipeline::config::load_experiment(&file, &[])?;
+//! let plan = smspace_pipeline::check(&experiment)?;
+//! let options = RunOptions {
+//!     out_dir: dir.path().join("run"),
+//!     recompute: Recompute::Changed,
+//!     memory_limit_bytes: None,
+//!     busy: BusyFolder::Refuse,
+//! };
+//! let summary = smspace_pipeline::run(&plan, &options, &Quiet)?;
+//! // The kernel sets m1 + m2 = x form one segment: one component.
+//! assert_eq!(summary.analysis.betti[0], 1);
+//! assert!(summary.dir.join("D.npy").is_file() && summary.dir.join("report.html").is_file());
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+pub mod config;
+pub mod data;
+mod error;
+pub mod lock;
+pub mod manifest;
+mod memory;
+pub mod report;
+mod runner;
+pub mod scale;
+pub mod stages;
+
+pub use error::{Error, Result};
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use crate::config::{ConfigError, LoadedExperiment};
+pub use lock::BusyFolder;
+use lock::FolderLock;
+use manifest::{hash_parts, Manifest, RunStatus, Seeds, StageRecord, SMSPACE_VERSION};
+use runner::Runner;
+use smspace::agent::{Agent, AgentRegistry};
+use smspace::analysis::AnalysisReport;
+use smspace::io::IoError;
+use smspace::kernel::{TraceMethod, TraceParams};
+use smspace::metric::{DistanceParams, KernelShape, MetricError, MetricRegistry, Periodicity};
+use smspace::params::InvalidParameter;
+use smspace::progress::Progress;
+use stages::{
+    AnalyzeInput, AnalyzeStage, DistancesInput, DistancesStage, EmbedInput, EmbedStage,
+    ExploreInput, ExploreStage, InvarianceInput, InvarianceStage, Keyed, ReportInput, ReportStage,
+    TraceInput, TraceStage, World, DYDX_PAIRS, QUALITY_NEIGHBOURS,
+};
+pub use stages::{DistanceBackend, LocalDistances};
+
+/// Errors of a run.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PipelineError {
+    /// The experiment is invalid; nothing ran.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The output folder cannot be made.
+    #[error("cannot create the output folder {path}: {reason}")]
+    CreateDir {
+        /// The folder.
+        path: PathBuf,
+        /// The operating system's reason.
+        reason: std::io::Error,
+    },
+    /// A stage failed; the earlier stages' outputs are intact.
+    #[error("stage `{stage}` failed: {reason}\n(the outputs of the stages before it are intact in {dir}; see manifest.json)")]
+    Stage {
+        /// The stage.
+        stage: &'static str,
+        /// The run folder.
+        dir: PathBuf,
+        /// Why it failed.
+        reason: Box<crate::Error>,
+    },
+    /// Writing the manifest or the resolved configuration failed.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// Another process is writing the run folder (and [`BusyFolder::Refuse`]).
+    #[error("another smspace run is writing {dir} (it holds {lock}); wait for it to end, pass --wait to queue behind it, or choose another --out folder")]
+    Busy {
+        /// The run folder.
+        dir: PathBuf,
+        /// Its lock file.
+        lock: PathBuf,
+    },
+    /// A stage's estimated peak memory (or, before anything runs, the explored
+    /// configurations or their kernel sets) exceeds the run's limit; the stage did
+    /// not start.
+    #[error("{what}: about {} needed, but the limit is {} (the memory available, or --max-memory); {fix}", smspace::metric::human_bytes(*needed), smspace::metric::human_bytes(*available))]
+    OutOfMemory {
+        /// What would not fit, with its size (e.g. `kernel sets (3500 × 100 × 4)`).
+        what: String,
+        /// Bytes needed.
+        needed: u64,
+        /// Bytes available.
+        available: u64,
+        /// Which keys to lower.
+        fix: &'static str,
+    },
+    /// The run folder cannot be written (a read-only folder or file system) and the run
+    /// would have to write it; nothing was written.
+    #[error("{dir} cannot be written, and {what}: a read-only run folder can only be reused as it is (the same experiment and settings, every stage finished); run it into a writable folder with --out{}", reason.as_ref().map(|r| format!(" ({r})")).unwrap_or_default())]
+    ReadOnly {
+        /// The run folder.
+        dir: PathBuf,
+        /// Why the run must write (e.g. "stage `embed` must be computed").
+        what: String,
+        /// The operating system's reason, when a write was tried.
+        reason: Option<std::io::Error>,
+    },
+    /// The lock file of the run folder cannot be opened or locked.
+    #[error("cannot lock the run folder through {path}: {reason}")]
+    Lock {
+        /// The lock file.
+        path: PathBuf,
+        /// The operating system's reason.
+        reason: std::io::Error,
+    },
+}
+
+/// The stages, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StageId {
+    /// Motor babbling and the probe grid.
+    Explore,
+    /// Kernel sets.
+    Trace,
+    /// Distance matrix between sets.
+    Distances,
+    /// Embedding.
+    Embed,
+    /// Topology, dimension, agreement.
+    Analyze,
+    /// Environment invariance (only with several environments).
+    Invariance,
+    /// Figures and report.
+    Report,
+}
+
+impl StageId {
+    /// Every stage, in order.
+    pub const ALL: [StageId; 7] = [
+        StageId::Explore,
+        StageId::Trace,
+        StageId::Distances,
+        StageId::Embed,
+        StageId::Analyze,
+        StageId::Invariance,
+        StageId::Report,
+    ];
+
+    /// The stage's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            StageId::Explore => "explore",
+            StageId::Trace => "trace",
+            StageId::Distances => "distances",
+            StageId::Embed => "embed",
+            StageId::Analyze => "analyze",
+            StageId::Invariance => "invariance",
+            StageId::Report => "report",
+        }
+    }
+}
+
+/// Which stages run again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Recompute {
+    /// Only stages whose parameters or inputs changed, or whose outputs are missing or
+    /// were modified (default).
+    #[default]
+    Changed,
+    /// Every stage (`--force`).
+    All,
+}
+
+/// Options of a run that are not part of the experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunOptions {
+    /// The run folder.
+    pub out_dir: PathBuf,
+    /// Which stages run again.
+    pub recompute: Recompute,
+    /// The run's memory limit in bytes (the command-line tool passes `--max-memory`,
+    /// by default the memory available): every stage's estimated peak is checked
+    /// against it before the stage starts, and the distance matrix against the
+    /// smaller of it and the experiment's `[metric] memory_limit_bytes`. `None`: no
+    /// limit but the experiment's.
+    pub memory_limit_bytes: Option<u64>,
+    /// What to do when another process is writing the run folder ([`lock`]).
+    pub busy: BusyFolder,
+}
+
+/// Receives the run's events; the command-line tool prints them. All methods but
+/// [`progress`](RunObserver::progress) default to doing nothing.
+pub trait RunObserver: Sync {
+    /// The observer of long loops inside stages.
+    fn progress(&self) -> &dyn Progress;
+    /// A stage starts.
+    fn stage_started(&self, _stage: StageId) {}
+    /// A stage ended (computed or reused); `summary` is one line on what it produced.
+    fn stage_finished(&self, _stage: StageId, _record: &StageRecord, _summary: &str) {}
+    /// What a stage says before it is computed ([`Stage::forecast`](stages::Stage::forecast)):
+    /// e.g. that it will take long.
+    fn stage_note(&self, _stage: StageId, _note: &str) {}
+    /// A stage is skipped because the experiment does not need it.
+    fn stage_skipped(&self, _stage: StageId, _why: &str) {}
+    /// Another process holds the run folder and [`BusyFolder::Wait`] waits for it.
+    fn waiting_for_folder(&self, _lock: &Path) {}
+}
+
+/// What [`run`] produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunSummary {
+    /// The run folder.
+    pub dir: PathBuf,
+    /// The manifest written.
+    pub manifest: Manifest,
+    /// The analysis report.
+    pub analysis: AnalysisReport,
+}
+
+/// The experiment with every table checked, as one typed stage per table: what [`run`]
+/// executes.
+#[derive(Debug)]
+pub struct Plan {
+    experiment: LoadedExperiment,
+    world: Keyed<World>,
+    explore: ExploreStage,
+    trace: TraceStage,
+    distances: DistancesStage,
+    embed: EmbedStage,
+    analyze: AnalyzeStage,
+    /// `None`: one environment, or no starts to compare.
+    invariance: Option<InvarianceStage>,
+    report: ReportStage,
+}
+
+impl Plan {
+    /// The experiment.
+    pub fn experiment(&self) -> &LoadedExperiment {
+        &self.experiment
+    }
+
+    /// The agent.
+    pub fn agent(&self) -> &dyn Agent {
+        self.world.agent.as_ref()
+    }
+
+    /// What the cache compares besides the keys of the inputs: every stage's struct as
+    /// JSON (the parameters its computation reads) and its parameter key (the hash of
+    /// its name and that JSON, [`Stage::parameter_key`](stages::Stage::parameter_key)),
+    /// in order; the invariance stage only when it runs. The world's key is
+    /// [`Plan::world_key`].
+    pub fn parameter_keys(&self) -> Vec<(StageId, String, serde_json::Value)> {
+        use stages::Stage;
+        fn entry<S: Stage>(stage: &S) -> (StageId, String, serde_json::Value) {
+            let json = serde_json::to_value(stage).unwrap_or_default();
+            (S::ID, stage.parameter_key(), json)
+        }
+        let mut keys = vec![
+            entry(&self.explore),
+            entry(&self.trace),
+            entry(&self.distances),
+            entry(&self.embed),
+            entry(&self.analyze),
+        ];
+        keys.extend(self.invariance.as_ref().map(entry));
+        keys.push(entry(&self.report));
+        keys
+    }
+
+    /// The key of the agent, its environments and its working space.
+    pub fn world_key(&self) -> &str {
+        &self.world.key
+    }
+}
+
+/// The kinds a run can build by name: agents (`[agent] kind`) and set metrics
+/// (`[metric] metric`). An embedder adds its own to the built-in ones and hands them
+/// to [`check_with`]; an [`AgentRegistry`] or a [`MetricRegistry`] alone stands for
+/// itself with the other's built-in kinds.
+#[derive(Debug, Clone)]
+pub struct Registries {
+    /// Agent kinds.
+    pub agents: AgentRegistry,
+    /// Set metrics.
+    pub metrics: MetricRegistry,
+}
+
+impl Registries {
+    /// The built-in agents and metrics.
+    pub fn builtin() -> Self {
+        Self {
+            agents: AgentRegistry::builtin(),
+            metrics: MetricRegistry::builtin(),
+        }
+    }
+}
+
+impl From<&Registries> for Registries {
+    fn from(registries: &Registries) -> Self {
+        registries.clone()
+    }
+}
+
+impl From<&AgentRegistry> for Registries {
+    fn from(agents: &AgentRegistry) -> Self {
+        Self {
+            agents: agents.clone(),
+            metrics: MetricRegistry::builtin(),
+        }
+    }
+}
+
+impl From<&MetricRegistry> for Registries {
+    fn from(metrics: &MetricRegistry) -> Self {
+        Self {
+            agents: AgentRegistry::builtin(),
+            metrics: metrics.clone(),
+        }
+    }
+}
+
+/// Validates every table of the experiment (agent, environments, working space, and
+/// each stage's parameters) without running anything. Errors name the file, the line
+/// of the key (or the `--set` that gave it) and the key.
+pub fn check(experiment: &LoadedExperiment) -> Result<Plan, ConfigError> {
+    check_with(experiment, Registries::builtin())
+}
+
+/// A run compares kernel sets: it needs at least 2 (babbled rows and probes together).
+fn check_set_count(
+    exploration: &smspace::explore::ExploreParams,
+) -> Result<(), smspace::explore::ExploreError> {
+    if exploration.rows() >= 2 {
+        return Ok(());
+    }
+    Err(smspace::params::InvalidParameter::new(
+        "exploration",
+        "n",
+        exploration.n,
+        "a run compares kernel sets, so it needs at least 2 sets (the paper uses 2500); raise exploration.n to 2 or more",
+    )
+    .into())
+}
+
+/// Like [`check`], building the agent and the set metric from `registries`: the
+/// built-in kinds and any an embedder registered ([`AgentRegistry::register`],
+/// [`MetricRegistry::register`]), so that a plug-in agent or metric runs through the
+/// whole pipeline. `registries` is a [`Registries`], or an [`AgentRegistry`] or
+/// [`MetricRegistry`] alone.
+pub fn check_with(
+    experiment: &LoadedExperiment,
+    registries: impl Into<Registries>,
+) -> Result<Plan, ConfigError> {
+    let registries: Registries = registries.into();
+    let (agent, agent_config, data) = world_parts(experiment, &registries)?;
+    if data.is_some() {
+        check_data_tables(experiment)?;
+    }
+    let metric_table = resolve_metric_period(agent.as_ref(), &experiment.experiment.metric)
+        .map_err(|err| experiment.invalid_error("metric", MetricError::Invalid(err).into()))?;
+    let metric = registries
+        .metrics
+        .build(&metric_table)
+        .map_err(|err| experiment.invalid("metric", crate::Error::from(err)))?;
+    // The resolved agent and metric tables (their defaults included) are what the run
+    // records.
+    let mut experiment = experiment.clone();
+    if experiment.experiment.agent.is_some() {
+        experiment.experiment.agent = Some(agent_config.clone());
+    }
+    experiment.experiment.metric = metric.params.clone();
+    let experiment = &experiment;
+    let e = &experiment.experiment;
+    let invalid = |table| move |err: crate::Error| experiment.invalid_error(table, err);
+    let environments = e
+        .environment
+        .configs()
+        .iter()
+        .map(|c| c.build(agent.as_ref()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|err| invalid("environment")(err.into()))?;
+    let workspace = e
+        .exploration
+        .check(agent.as_ref())
+        .map_err(|err| invalid("exploration")(err.into()))?;
+    check_set_count(&e.exploration).map_err(|err| invalid("exploration")(err.into()))?;
+    e.kernel
+        .check()
+        .and_then(|kernel| kernel.check_for(agent.as_ref()))
+        .map_err(|err| invalid("kernel")(err.into()))?;
+    let invariance = if environments.len() > 1 && e.analysis.invariance_starts > 0 {
+        let kernel = TraceParams {
+            method: TraceMethod::Sensory,
+            ..e.kernel.clone()
+        };
+        kernel
+            .check()
+            .map_err(|err| invalid("kernel")(err.into()))?;
+        // A built-in metric measures the sets under the agent's own point metric.
+        let set_metric = match metric.metric.kernel() {
+            Some(kernel) => Arc::from(smspace::invariance::agent_metric(
+                kernel.kind,
+                agent.as_ref(),
+            )),
+            None => metric.metric.clone(),
+        };
+        Some(InvarianceStage::new(
+            kernel,
+            e.analysis.invariance_starts,
+            metric.params.metric.clone(),
+            set_metric,
+        ))
+    } else {
+        None
+    };
+    if let Ok(Some(k)) = e
+        .kernel
+        .check()
+        .and_then(|p| p.dimension_for(agent.as_ref()))
+    {
+        metric
+            .metric
+            .check_kernels(KernelShape::of_dimension(k))
+            .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
+    }
+    e.embedding
+        .clone()
+        .build()
+        .map_err(|err| invalid("embedding")(err.into()))?;
+    e.analysis
+        .check()
+        .map_err(|err| invalid("analysis")(err.into()))?;
+    e.report
+        .check()
+        .map_err(|err| invalid("report")(err.into()))?;
+    e.scale
+        .check(e.analysis.mle_neighbors)
+        .map_err(|err| invalid("scale")(err.into()))?;
+    let world = World {
+        agent_config,
+        agent,
+        environments,
+        workspace,
+        data,
+    };
+    Ok(Plan {
+        experiment: experiment.clone(),
+        world: world.keyed(),
+        explore: ExploreStage {
+            exploration: e.exploration.clone(),
+        },
+        trace: TraceStage::new(e.kernel.clone(), e.analysis.compensability.as_ref()),
+        distances: DistancesStage::new(&metric)
+            .with_scale(e.scale.clone(), e.analysis.mle_neighbors),
+        embed: EmbedStage {
+            embedding: e.embedding.clone(),
+            quality_neighbours: QUALITY_NEIGHBOURS,
+            dydx_pairs: DYDX_PAIRS,
+            dydx_seed: e.report.seed,
+        },
+        analyze: AnalyzeStage {
+            analysis: e.analysis.clone(),
+        },
+        invariance,
+        report: ReportStage {
+            name: experiment.name.clone(),
+            description: e.description.clone(),
+            config_toml: experiment.resolved_toml(),
+            report: e.report.clone(),
+        },
+    })
+}
+
+/// The agent, its resolved table and the run's data: the `[agent]` table's agent, or,
+/// for a run from logged files without one, the [`data::LoggedBody`] of the log.
+#[allow(clippy::type_complexity)]
+fn world_parts(
+    experiment: &LoadedExperiment,
+    registries: &Registries,
+) -> Result<
+    (
+        Box<dyn Agent>,
+        smspace::agent::AgentConfig,
+        Option<Arc<data::RunData>>,
+    ),
+    ConfigError,
+> {
+    let e = &experiment.experiment;
+    let built = match &e.agent {
+        Some(table) => Some(
+            registries
+                .agents
+                .build(table)
+                .map_err(|err| experiment.invalid_error("agent", err.into()))?,
+        ),
+        None => None,
+    };
+    let data = match &e.data {
+        Some(params) => {
+            let base = experiment.path.parent().unwrap_or(Path::new("."));
+            let checked =
+                data::RunData::check(params, base, built.as_ref().map(|b| b.agent.as_ref()))
+                    .map_err(|err| experiment.invalid_error("data", err.into()))?;
+            Some(Arc::new(checked))
+        }
+        None => None,
+    };
+    match (built, data) {
+        (Some(built), data) => {
+            if let Some(data) = &data {
+                let (log, agent) = (data.motor_space().dim(), built.agent.motor_dim());
+                if log != agent {
+                    return Err(experiment.invalid_parameter(&InvalidParameter::new(
+                        "data",
+                        "motors",
+                        format!("{log} motor columns"),
+                        format!(
+                            "the [agent] has {agent} motors: a log of that agent has one column per motor (or leave [agent] out to learn from the log alone)"
+                        ),
+                    )));
+                }
+            }
+            Ok((built.agent, built.config, data))
+        }
+        (None, Some(data)) => {
+            let mut params = toml::Table::new();
+            params.insert(
+                "source".to_owned(),
+                toml::Value::String("the [data] table's log".to_owned()),
+            );
+            let config = smspace::agent::AgentConfig {
+                kind: "learned".to_owned(),
+                params,
+            };
+            Ok((
+                Box::new(data::LoggedBody::new(data.clone())),
+                config,
+                Some(data),
+            ))
+        }
+        (None, None) => Err(ConfigError::MissingTable {
+            path: experiment.path.clone(),
+            table: "agent",
+        }),
+    }
+}
+
+/// The tables a run from a log constrains: the references are samples of the log (no
+/// probe grid), and the sets are traced by the sensory method (the log has no poses).
+fn check_data_tables(experiment: &LoadedExperiment) -> Result<(), ConfigError> {
+    let e = &experiment.experiment;
+    if e.exploration.probes != smspace::explore::Probes::None {
+        return Err(experiment.invalid_parameter(&InvalidParameter::new(
+            "exploration",
+            "probes",
+            "grid",
+            "with [data] the references are samples of the log, which has no probe grid: set probes = \"none\"",
+        )));
+    }
+    if e.kernel.method != TraceMethod::Sensory {
+        return Err(experiment.invalid_parameter(&InvalidParameter::new(
+            "kernel",
+            "method",
+            "kinematic",
+            "with [data] the sets are traced on the learned law, by what the agent senses: set method = \"sensory\"",
+        )));
+    }
+    Ok(())
+}
+
+/// The `[metric]` table with its period resolved for `agent`: `"motors"` becomes the
+/// periods of the agent's motors (hinges wrap with their period, bounded motors do
+/// not: [`smspace::invariance::motor_periodicity`]), written as `"2pi"` or `"none"` when
+/// all motors are alike, so that a run of hinges records and keys the same table either
+/// way. A uniform period is refused when the motors are not all alike (a uniform
+/// period would wrap a bounded motor or leave a hinge unwrapped), and a per-motor list
+/// must have one entry per motor.
+fn resolve_metric_period(
+    agent: &dyn Agent,
+    table: &DistanceParams,
+) -> Result<DistanceParams, InvalidParameter> {
+    let space = agent.motor_space();
+    let own = smspace::invariance::motor_periodicity(&space);
+    let refuse =
+        |why: String| InvalidParameter::new("metric", "period", table.period.to_string(), why);
+    let period = match &table.period {
+        Periodicity::FromMotors => own,
+        Periodicity::Uniform(_) if space.is_hinges() || space.is_bounded() => table.period.clone(),
+        Periodicity::Uniform(_) => {
+            return Err(refuse(format!(
+                "the {} agent's motors are {space}; a uniform period cannot describe them: set period = \"motors\" (the agent's own: {own}) or one entry per motor",
+                agent.name()
+            )))
+        }
+        Periodicity::PerCoordinate(periods) if periods.dims() != space.dim() => {
+            return Err(refuse(format!(
+                "{} entries for the {} agent's {} motors; give one per motor, or period = \"motors\" ({own})",
+                periods.dims(),
+                agent.name(),
+                space.dim()
+            )))
+        }
+        Periodicity::PerCoordinate(_) => table.period.clone(),
+    };
+    Ok(DistanceParams {
+        period,
+        ..table.clone()
+    })
+}
+
+/// Runs the checked experiment into `options.out_dir` (see the module docs).
+pub fn run(
+    plan: &Plan,
+    options: &RunOptions,
+    observer: &dyn RunObserver,
+) -> Result<RunSummary, PipelineError> {
+    run_with(plan, options, observer, &LocalDistances)
+}
+
+/// Like [`run`], with the distance stage's matrix computed by `distances` (e.g. on a
+/// cluster) instead of in this process; the outputs and keys are the same.
+pub fn run_with(
+    plan: &Plan,
+    options: &RunOptions,
+    observer: &dyn RunObserver,
+    distances: &dyn DistanceBackend,
+) -> Result<RunSummary, PipelineError> {
+    check_memory(plan, options.memory_limit_bytes)?;
+    let mut runner = start(plan, options, observer, distances)?;
+    let world = &plan.world;
+    let motors = plan.agent().motor_dim() as u64;
+    let exploration = runner.run(&plan.explore, &ExploreInput { world }, plan.explore_peak())?;
+    let exploration = &exploration;
+    let rows = exploration.motors.nrows() as u64;
+    let held = memory::Held::default().plus(memory::exploration_bytes(rows, motors));
+    let traced = runner.run(
+        &plan.trace,
+        &TraceInput { world, exploration },
+        plan.trace_peak(held, rows),
+    )?;
+    let traced = &traced;
+    let (m, points) = (traced.sets.dim().0 as u64, traced.sets.dim().1 as u64);
+    let held = held.plus(memory::sets_bytes(m, points, motors));
+    let distances = runner.run(
+        &plan.distances,
+        &DistancesInput {
+            traced,
+            exploration,
+        },
+        plan.distances_peak(held, m),
+    )?;
+    let distances = &distances;
+    let held = held.plus(plan.distances_held(m));
+    let embedded = runner.run(
+        &plan.embed,
+        &EmbedInput { distances },
+        plan.embed_peak(held, m),
+    )?;
+    let analysis = runner.run(
+        &plan.analyze,
+        &AnalyzeInput {
+            exploration,
+            traced,
+            distances,
+            world: plan
+                .analyze
+                .analysis
+                .compensability
+                .is_some()
+                .then_some(world),
+        },
+        plan.analyze_peak(held, m),
+    )?;
+    let invariance = match (&plan.invariance, plan.invariance_peak(held)) {
+        (Some(stage), Some(peak)) => {
+            Some(runner.run(stage, &InvarianceInput { world, exploration }, peak)?)
+        }
+        _ => {
+            observer.stage_skipped(
+                StageId::Invariance,
+                if world.environments.len() < 2 {
+                    "one environment; add [[environment.compare]] tables to compare"
+                } else {
+                    "analysis.invariance_starts = 0"
+                },
+            );
+            None
+        }
+    };
+    runner.run(
+        &plan.report,
+        &ReportInput {
+            world,
+            exploration,
+            traced,
+            embedded: &embedded,
+            analysis: &analysis,
+            invariance: invariance.as_ref(),
+        },
+        plan.report_peak(held, m),
+    )?;
+    runner.finish()?;
+    Ok(RunSummary {
+        dir: runner.dir,
+        manifest: runner.manifest,
+        analysis: analysis.value,
+    })
+}
+
+/// Refuses, before anything runs, an experiment whose explored configurations or kernel
+/// sets alone exceed `limit` bytes (the distance matrix is checked by its stage, which
+/// knows how many sets were traced).
+fn check_memory(plan: &Plan, limit: Option<u64>) -> Result<(), PipelineError> {
+    let Some(available) = limit else {
+        return Ok(());
+    };
+    let e = &plan.explore.exploration;
+    let rows = e.rows();
+    let motors = plan.agent().motor_dim();
+    let pose_dim = plan
+        .agent()
+        .ground_truth()
+        .map_or(0, |o| o.pose_space().dim());
+    let points = plan.trace.kernel.stored_points();
+    let explored = e.bytes(motors, pose_dim);
+    let sets = plan.trace.kernel.sets_bytes(rows, motors);
+    for (what, needed, fix) in [
+        (
+            format!("explored configurations ({rows} × {motors} motors, with poses)"),
+            explored,
+            "lower exploration.n or the probe grid",
+        ),
+        (
+            format!("kernel sets ({rows} × {points} points × {motors} motors)"),
+            explored.saturating_add(sets),
+            "lower exploration.n, the probe grid or kernel.points",
+        ),
+    ] {
+        if needed > available {
+            return Err(PipelineError::OutOfMemory {
+                what,
+                needed,
+                available,
+                fix,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Makes the run folder, takes its lock and reads the previous manifest (the cache).
+/// Nothing is written yet (see [`runner`]'s docs for when and how it is).
+fn start<'a>(
+    plan: &'a Plan,
+    options: &'a RunOptions,
+    observer: &'a dyn RunObserver,
+    distances: &'a dyn DistanceBackend,
+) -> Result<Runner<'a>, PipelineError> {
+    let started = Instant::now();
+    let dir = options.out_dir.clone();
+    std::fs::create_dir_all(&dir).map_err(|reason| PipelineError::CreateDir {
+        path: dir.clone(),
+        reason,
+    })?;
+    // One writer at a time, from before the first file is touched.
+    let lock = FolderLock::acquire(&dir, options.busy, |path| observer.waiting_for_folder(path))?;
+    if lock.access() == lock::Access::Write {
+        lock::remove_stale_parts(&dir);
+    }
+    let loaded = &plan.experiment;
+    let e = &loaded.experiment;
+    let resolved = &plan.report.config_toml;
+    let previous = Manifest::previous(&dir);
+    let manifest = Manifest {
+        smspace_version: SMSPACE_VERSION.to_owned(),
+        experiment: loaded.name.clone(),
+        config_file: loaded.path.clone(),
+        config_hash: hash_parts(&[resolved.as_bytes()]),
+        overrides: loaded.overrides.clone(),
+        seeds: Seeds {
+            exploration: e.exploration.seed,
+            environments: plan
+                .world
+                .environments
+                .iter()
+                .map(|env| env.seed.unwrap_or_default())
+                .collect(),
+            report: e.report.seed,
+        },
+        threads: rayon::current_num_threads(),
+        stages: Vec::new(),
+        total_seconds: 0.0,
+        status: RunStatus::Running,
+    };
+    let matrix_limit_bytes = match (options.memory_limit_bytes, e.metric.memory_limit_bytes) {
+        (Some(run), Some(metric)) => Some(run.min(metric)),
+        (run, metric) => run.or(metric),
+    };
+    Ok(Runner {
+        dir,
+        options,
+        observer,
+        previous,
+        manifest,
+        started,
+        config_toml: resolved,
+        matrix_limit_bytes,
+        writing: false,
+        config_written: false,
+        lock,
+        distances,
+    })
+}

@@ -1,0 +1,615 @@
+//! The learned manifold seen from outside (paper section 3.3): Fig. 5d, the embedding
+//! with one probe sheet per orientation, and the embedding coloured by each pose
+//! coordinate with a measure of how well each is recovered.
+//!
+//! **Views.** The paper's claim is that the sheets (translations of the sensor at one
+//! orientation) stack around a circle, the circle of orientations. The views are
+//! therefore taken in the frame of that ring ([`Frame::ring`]): its axis is the normal
+//! of the plane through the sheets' centres. Fig. 5d's main view looks along that
+//! axis, so that the ring faces the reader; a smaller oblique view (35° above the
+//! ring's plane) shows the sheets' extent along the axis. Each panel of the embedding
+//! coloured by a pose coordinate is seen from the view in which that coordinate
+//! shows: of the view along the axis, two side views and the oblique one, the one
+//! whose screen best predicts the coordinate from a point's nearest neighbours on
+//! screen (the recovery `R²` below, on the 2-D projection). On the paper's arm that
+//! is the view along the axis for alpha (the colour wheel round the ring) and a side
+//! view for x (which runs along the axis).
+//!
+//! **Recovery.** How well the embedding `Y` encodes pose coordinate `c` is measured by
+//! the share of its variance that a point's `k` nearest neighbours in `Y` predict
+//! (`k = M/50`, between 3 and 10):
+//! `R²_c = 1 − Σ_i Δ(c_i, ĉ_i)² / Σ_i s²`, with `ĉ_i` the (circular, for alpha) mean of
+//! `c` over the neighbours, `Δ` the difference (wrapped into `[−π, π)` for alpha) and
+//! `s² = mean_{i<j} Δ(c_i, c_j)² / 2` (the variance for a linear coordinate). `R² = 1`
+//! when neighbours in the embedding share the coordinate, `0` when they say nothing of
+//! it.
+
+use ndarray::{Array2, ArrayView2};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::HPos;
+
+use super::super::plot::{
+    chart_2d, color_bar, hue, label, padded, series_color, stride_sample, with_color_bar, Axis2d,
+    ColorScale, Drawn, Figure, Legend, Mark, Print, TickStyle, Valign, GREY,
+};
+use super::super::view3d::{draw_box, draw_scene, BoxAxis, Camera, Frame, Item, Projection, V3};
+use super::{point3, Panel, ProbeSurface, MAX_SCATTER_POINTS};
+use smspace::agent::wrap_angle;
+
+/// Neighbours of the recovery measure: `M / 50` sets, between 3 and 10 (a fixed 10
+/// would average over a large part of a small run and understate the recovery).
+pub(in crate::report) const RECOVERY_NEIGHBOURS: usize = 10;
+
+/// Most points the recovery measure queries (evenly spaced rows beyond that).
+const RECOVERY_QUERIES: usize = 4000;
+
+/// How well the embedding recovers one pose coordinate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(in crate::report) struct Recovery {
+    /// The pose column (0 = x, 1 = y, 2 = alpha).
+    pub(in crate::report) coordinate: usize,
+    /// `R²` of the neighbours' prediction (module documentation).
+    pub(in crate::report) r2: f64,
+    /// The analysis' Spearman correlation of the learned distance with `|Δc|`.
+    pub(in crate::report) spearman: Option<f64>,
+    /// Neighbours of the prediction.
+    pub(in crate::report) neighbours: usize,
+}
+
+/// The recovery of each pose column of `coordinates` by `embedding` (rows of
+/// `set_poses`), with the analysis' Spearman correlation `spearman(c)` when known.
+pub(in crate::report) fn recovery(
+    embedding: ArrayView2<'_, f64>,
+    set_poses: &Array2<f64>,
+    coordinates: &[usize],
+    spearman: impl Fn(usize) -> Option<f64>,
+) -> Vec<Recovery> {
+    let m = embedding.nrows();
+    let k = (m / 50)
+        .clamp(3, RECOVERY_NEIGHBOURS)
+        .min(m.saturating_sub(1));
+    if k == 0 {
+        return Vec::new();
+    }
+    let queries = stride_sample(m, RECOVERY_QUERIES);
+    let neighbours: Vec<Vec<usize>> = queries.iter().map(|&i| nearest(embedding, i, k)).collect();
+    coordinates
+        .iter()
+        .map(|&c| {
+            let circular = c == 2;
+            let delta = |a: f64, b: f64| if circular { wrap_angle(a - b) } else { a - b };
+            let v = set_poses.column(c);
+            let mut residual = 0.0;
+            for (&i, near) in queries.iter().zip(&neighbours) {
+                let predicted = if circular {
+                    let (s, co) = near
+                        .iter()
+                        .fold((0.0, 0.0), |(s, co), &j| (s + v[j].sin(), co + v[j].cos()));
+                    s.atan2(co)
+                } else {
+                    near.iter().map(|&j| v[j]).sum::<f64>() / near.len() as f64
+                };
+                residual += delta(v[i], predicted).powi(2);
+            }
+            let mut spread = 0.0;
+            let mut pairs = 0.0_f64;
+            for (a, &i) in queries.iter().enumerate() {
+                for &j in &queries[a + 1..] {
+                    spread += 0.5 * delta(v[i], v[j]).powi(2);
+                    pairs += 1.0;
+                }
+            }
+            let variance = spread / pairs.max(1.0);
+            let r2 = if variance > 0.0 {
+                1.0 - residual / queries.len() as f64 / variance
+            } else {
+                f64::NAN
+            };
+            Recovery {
+                coordinate: c,
+                r2,
+                spearman: spearman(c),
+                neighbours: k,
+            }
+        })
+        .collect()
+}
+
+/// The `k` rows of `embedding` nearest to row `i` (Euclidean), ties by index.
+fn nearest(embedding: ArrayView2<'_, f64>, i: usize, k: usize) -> Vec<usize> {
+    let row = embedding.row(i);
+    let mut d: Vec<(f64, usize)> = embedding
+        .outer_iter()
+        .enumerate()
+        .filter(|&(j, _)| j != i)
+        .map(|(j, r)| {
+            let s: f64 = r
+                .iter()
+                .zip(row.iter())
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum();
+            (s, j)
+        })
+        .collect();
+    let k = k.min(d.len());
+    d.select_nth_unstable_by(k.saturating_sub(1), |a, b| {
+        a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
+    });
+    // A fresh list of `k`: collecting `d` itself would reuse (and keep) its allocation
+    // of `m` entries, once per query.
+    d[..k].iter().map(|&(_, j)| j).collect()
+}
+
+/// The ring frame of the embedding ([`Frame::ring`]) from its first three coordinates
+/// and the centres of the probe sheets.
+fn ring_frame(embedding: ArrayView2<'_, f64>, surfaces: &[ProbeSurface]) -> Frame {
+    let rows = stride_sample(embedding.nrows(), MAX_SCATTER_POINTS);
+    let points: Vec<V3> = rows.iter().map(|&i| point3(embedding, i)).collect();
+    let centres: Vec<(V3, f64)> = surfaces
+        .iter()
+        .map(|s| (s.centre(embedding), s.alpha))
+        .collect();
+    Frame::ring(&points, &centres).0
+}
+
+/// The axes of the ring frame ([`Frame::ring`]) in the embedding's first three
+/// coordinates: the ring's plane is spanned by the first two, the third is its axis
+/// (the interactive view looks down it).
+pub(in crate::report) fn ring_frame_axes(
+    embedding: ArrayView2<'_, f64>,
+    surfaces: &[ProbeSurface],
+) -> [V3; 3] {
+    ring_frame(embedding, surfaces).axes()
+}
+
+/// The two ring views of Fig. 5d, `(title, camera)`: the main one along the ring's
+/// axis (the ring faces the viewer), and a smaller oblique one.
+fn ring_views() -> [(&'static str, Camera); 2] {
+    [
+        ("along the ring's axis", Camera::from_above()),
+        ("oblique view", Camera::new(-1.0, 0.6)),
+    ]
+}
+
+/// The views a panel of the embedding coloured by a pose coordinate chooses from, in
+/// the ring frame: along the ring's axis, from the side (looking along `u`, along
+/// `v`), and obliquely.
+fn candidate_views() -> [Camera; 4] {
+    [
+        Camera::from_above(),
+        Camera::new(0.0, 0.0),
+        Camera::new(std::f64::consts::FRAC_PI_2, 0.0),
+        Camera::new(-1.0, 0.6),
+    ]
+}
+
+/// Most points the choice of a view scores (evenly spaced rows beyond that).
+const VIEW_CHOICE_POINTS: usize = 1500;
+
+/// The view in which pose column `c` shows: of [`candidate_views`], the one whose
+/// screen (the 2-D projection of `points`, frame coordinates of the rows `rows`)
+/// predicts `c` best from a point's nearest neighbours on screen (the recovery `R²`
+/// of the module docs, on the projection); ties, and a coordinate that predicts
+/// nothing anywhere, go to the first (along the ring's axis).
+fn view_for(points: &[V3], rows: &[usize], set_poses: &Array2<f64>, c: usize) -> Camera {
+    let sample = stride_sample(points.len(), VIEW_CHOICE_POINTS);
+    let poses = Array2::from_shape_fn((sample.len(), set_poses.ncols()), |(i, k)| {
+        set_poses[[rows[sample[i]], k]]
+    });
+    let views = candidate_views();
+    let mut best = (f64::NEG_INFINITY, 0);
+    for (k, camera) in views.iter().enumerate() {
+        let screen = Array2::from_shape_fn((sample.len(), 2), |(i, j)| {
+            camera.screen(points[sample[i]])[j]
+        });
+        let r2 = recovery(screen.view(), &poses, &[c], |_| None)
+            .first()
+            .map_or(f64::NAN, |r| r.r2);
+        if r2 > best.0 + 1e-9 {
+            best = (r2, k);
+        }
+    }
+    views[best.1]
+}
+
+/// A view's title, centred at the top of `area`.
+fn view_title<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    print: Print,
+    title: &str,
+) -> Drawn {
+    label(
+        area,
+        title,
+        (area.dim_in_pixel().0 as i32 / 2, print.i(4.0)),
+        &print.title(),
+        HPos::Center,
+        Valign::Top,
+    )
+}
+
+/// The projection of `points` into `area` below its title, with room for the box's
+/// labels.
+fn fit(area_size: (u32, u32), print: Print, camera: Camera, points: &[V3]) -> Projection {
+    let (w, h) = area_size;
+    let margin = print.i(24.0);
+    Projection::fit(
+        camera,
+        points,
+        (
+            margin,
+            print.i(20.0) + margin / 2,
+            w as i32 - margin,
+            h as i32 - margin,
+        ),
+    )
+}
+
+/// The corners of the box around `points`.
+fn bounds(points: &[V3]) -> [std::ops::Range<f64>; 3] {
+    std::array::from_fn(|k| padded(points.iter().map(|p| p[k])))
+}
+
+/// The corners of a box.
+fn corners(ranges: &[std::ops::Range<f64>; 3]) -> Vec<V3> {
+    (0..8)
+        .map(|c: usize| {
+            std::array::from_fn(|k| {
+                if c >> k & 1 == 1 {
+                    ranges[k].end
+                } else {
+                    ranges[k].start
+                }
+            })
+        })
+        .collect()
+}
+
+/// The titles of the ring frame's axes.
+fn ring_axes() -> [BoxAxis; 3] {
+    [
+        BoxAxis::titled("u"),
+        BoxAxis::titled("v"),
+        BoxAxis::titled("w: ring axis"),
+    ]
+}
+
+/// Fig. 5d: the embedding with the probe sheets, coloured by orientation.
+pub(in crate::report) struct EmbeddingProbes<'a> {
+    pub(in crate::report) embedding: ArrayView2<'a, f64>,
+    pub(in crate::report) surfaces: &'a [ProbeSurface],
+    pub(in crate::report) panel: Panel,
+}
+
+impl Figure for EmbeddingProbes<'_> {
+    fn size(&self) -> (u32, u32) {
+        let (w, h) = self.panel.grid(2, 1);
+        let columns = if self.embedding.ncols() >= 3 {
+            1.0
+        } else {
+            0.6
+        };
+        (
+            (f64::from(w) * columns).round() as u32,
+            (f64::from(h) * 1.35).round() as u32,
+        )
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn {
+        let print = self.panel.print;
+        let mut legend = Legend::new();
+        legend.add(Mark::Dot(GREY, 1.5), "kernel sets");
+        legend.add(
+            Mark::Patch(hue(0.1), hue(0.1)),
+            "probe sheet (sensor positions at one orientation), coloured by its alpha",
+        );
+        let (body, strip) = legend.split(root, print);
+        let (plot, bar) = with_color_bar(&body, print);
+        if self.embedding.ncols() >= 3 {
+            let frame = ring_frame(self.embedding, self.surfaces);
+            let rows = stride_sample(self.embedding.nrows(), MAX_SCATTER_POINTS);
+            let points: Vec<V3> = rows
+                .iter()
+                .map(|&i| frame.coords(point3(self.embedding, i)))
+                .collect();
+            let items = self.scene(&frame, &points);
+            let ranges = bounds(&points);
+            let main_width = (f64::from(plot.dim_in_pixel().0) * 0.6).round() as u32;
+            let (main, side) = plot.split_horizontally(main_width);
+            for (area, (title, camera)) in [main, side].iter().zip(ring_views()) {
+                view_title(area, print, title)?;
+                let projection = fit(area.dim_in_pixel(), print, camera, &corners(&ranges));
+                draw_box(area, &projection, &ranges, &ring_axes(), print)?;
+                draw_scene(area, &projection, &items)?;
+            }
+        } else {
+            self.draw_plane(&plot)?;
+        }
+        color_bar(&bar, print, ColorScale::Circular, "alpha (rad)")?;
+        legend.draw(&strip, print)
+    }
+}
+
+impl EmbeddingProbes<'_> {
+    /// The grey sets and the sheets' squares, in the ring frame.
+    fn scene(&self, frame: &Frame, points: &[V3]) -> Vec<Item> {
+        let print = self.panel.print;
+        let grey = GREY.mix(0.55);
+        let mut items: Vec<Item> = points
+            .iter()
+            .map(|&p| Item::Point(p, print.i(0.7), grey))
+            .collect();
+        for s in self.surfaces {
+            let color = ColorScale::Circular.color(s.alpha);
+            let edge = RGBColor(color.0 / 2, color.1 / 2, color.2 / 2).to_rgba();
+            for quad in s.quads() {
+                let corners = quad
+                    .iter()
+                    .map(|&i| frame.coords(point3(self.embedding, i)))
+                    .collect();
+                items.push(Item::Polygon(
+                    corners,
+                    color.mix(0.85),
+                    edge,
+                    print.stroke(0.3),
+                ));
+            }
+        }
+        items
+    }
+
+    /// A 2-D embedding: the sets and the sheets in the plane `(q1, q2)`.
+    fn draw_plane<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Drawn {
+        let print = self.panel.print;
+        let e = &self.embedding;
+        let rows = stride_sample(e.nrows(), MAX_SCATTER_POINTS);
+        let title = format!(
+            "Fig. 5d: {} sets, {} sheets",
+            e.nrows(),
+            self.surfaces.len()
+        );
+        let mut chart = chart_2d(
+            area,
+            print,
+            &title,
+            Axis2d::new(padded(e.column(0).iter().copied()), "embedding q1"),
+            Axis2d::new(padded(e.column(1).iter().copied()), "embedding q2"),
+        )?;
+        chart.draw_series(
+            rows.iter().map(|&i| {
+                Circle::new((e[[i, 0]], e[[i, 1]]), print.i(0.7), GREY.mix(0.6).filled())
+            }),
+        )?;
+        for s in self.surfaces {
+            let color = ColorScale::Circular.color(s.alpha);
+            chart.draw_series(s.quads().into_iter().map(|quad| {
+                Polygon::new(
+                    quad.iter()
+                        .map(|&i| (e[[i, 0]], e[[i, 1]]))
+                        .collect::<Vec<_>>(),
+                    color.mix(0.8).filled(),
+                )
+            }))?;
+        }
+        Ok(())
+    }
+}
+
+/// The embedding coloured by each non-constant pose coordinate, one panel each, and a
+/// panel of how well each is recovered.
+pub(in crate::report) struct EmbeddingPose<'a> {
+    pub(in crate::report) embedding: ArrayView2<'a, f64>,
+    pub(in crate::report) set_poses: &'a Array2<f64>,
+    /// The pose columns drawn (0 = x, 1 = y, 2 = alpha).
+    pub(in crate::report) coordinates: Vec<usize>,
+    pub(in crate::report) recovery: Vec<Recovery>,
+    pub(in crate::report) surfaces: &'a [ProbeSurface],
+    pub(in crate::report) panel: Panel,
+}
+
+impl EmbeddingPose<'_> {
+    fn panels(&self) -> u32 {
+        self.coordinates.len() as u32 + u32::from(!self.recovery.is_empty())
+    }
+
+    fn columns(&self) -> u32 {
+        self.panels().clamp(1, 2)
+    }
+}
+
+impl Figure for EmbeddingPose<'_> {
+    fn size(&self) -> (u32, u32) {
+        let rows = self.panels().div_ceil(self.columns());
+        self.panel.grid(self.columns(), rows)
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn {
+        let rows = self.panels().div_ceil(self.columns());
+        let areas = root.split_evenly((rows as usize, self.columns() as usize));
+        let frame =
+            (self.embedding.ncols() >= 3).then(|| ring_frame(self.embedding, self.surfaces));
+        for (area, &c) in areas.iter().zip(&self.coordinates) {
+            self.draw_coordinate(area, c, frame.as_ref())?;
+        }
+        if let Some(area) = areas.get(self.coordinates.len()) {
+            if !self.recovery.is_empty() {
+                self.draw_recovery(area)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl EmbeddingPose<'_> {
+    /// One panel: the embedding coloured by pose column `c`.
+    fn draw_coordinate<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+        c: usize,
+        frame: Option<&Frame>,
+    ) -> Drawn {
+        let print = self.panel.print;
+        let e = &self.embedding;
+        let rows = stride_sample(e.nrows(), MAX_SCATTER_POINTS);
+        let values = self.set_poses.column(c);
+        let scale = if c == 2 {
+            ColorScale::Circular
+        } else {
+            ColorScale::linear(values.iter().copied())
+        };
+        let name = super::coordinate_name(c);
+        let r2 = self
+            .recovery
+            .iter()
+            .find(|r| r.coordinate == c)
+            .map(|r| format!(" (R\u{b2} = {:.2})", r.r2))
+            .unwrap_or_default();
+        let title = format!("coloured by {name}{r2}");
+        let radius = print.i(if rows.len() > 2000 { 0.8 } else { 1.3 });
+        if e.ncols() == 1 {
+            let mut chart = chart_2d(
+                area,
+                print,
+                &title,
+                Axis2d::new(padded(values.iter().copied()), super::coordinate_label(c)),
+                Axis2d::new(padded(e.column(0).iter().copied()), "embedding q1"),
+            )?;
+            chart.draw_series(rows.iter().map(|&i| {
+                Circle::new(
+                    (values[i], e[[i, 0]]),
+                    radius,
+                    scale.color(values[i]).filled(),
+                )
+            }))?;
+            return Ok(());
+        }
+        let (plot, bar) = with_color_bar(area, print);
+        if let Some(frame) = frame {
+            let points: Vec<V3> = rows.iter().map(|&i| frame.coords(point3(*e, i))).collect();
+            view_title(&plot, print, &title)?;
+            let ranges = bounds(&points);
+            let camera = view_for(&points, &rows, self.set_poses, c);
+            let projection = fit(plot.dim_in_pixel(), print, camera, &corners(&ranges));
+            draw_box(&plot, &projection, &ranges, &ring_axes(), print)?;
+            let items: Vec<Item> = rows
+                .iter()
+                .zip(&points)
+                .map(|(&i, &p)| Item::Point(p, radius, scale.color(values[i]).to_rgba()))
+                .collect();
+            draw_scene(&plot, &projection, &items)?;
+        } else {
+            let mut chart = chart_2d(
+                &plot,
+                print,
+                &title,
+                Axis2d::new(padded(e.column(0).iter().copied()), "embedding q1"),
+                Axis2d::new(padded(e.column(1).iter().copied()), "embedding q2"),
+            )?;
+            chart.draw_series(rows.iter().map(|&i| {
+                Circle::new(
+                    (e[[i, 0]], e[[i, 1]]),
+                    radius,
+                    scale.color(values[i]).filled(),
+                )
+            }))?;
+        }
+        color_bar(&bar, print, scale, super::coordinate_label(c))
+    }
+
+    /// The recovery panel: per coordinate, `R²` of the neighbours' prediction and the
+    /// analysis' Spearman correlation.
+    fn draw_recovery<DB: DrawingBackend>(&self, area: &DrawingArea<DB, Shift>) -> Drawn {
+        let print = self.panel.print;
+        let mut legend = Legend::new();
+        legend.add(
+            Mark::Square(series_color(0)),
+            format!(
+                "R\u{b2}: predicted by the {} nearest sets",
+                self.recovery
+                    .first()
+                    .map_or(RECOVERY_NEIGHBOURS, |r| r.neighbours)
+            ),
+        );
+        let with_spearman = self.recovery.iter().any(|r| r.spearman.is_some());
+        if with_spearman {
+            legend.add(
+                Mark::Square(series_color(1)),
+                "Spearman of set distance and |\u{394}c| (analysis)",
+            );
+        }
+        let (plot, strip) = legend.split(area, print);
+        let n = self.recovery.len();
+        let low = self
+            .recovery
+            .iter()
+            .flat_map(|r| [Some(r.r2), r.spearman])
+            .flatten()
+            .filter(|v| v.is_finite())
+            .fold(0.0_f64, f64::min);
+        let names: Vec<(f64, &str)> = self
+            .recovery
+            .iter()
+            .enumerate()
+            .map(|(k, r)| (k as f64, super::coordinate_name(r.coordinate)))
+            .collect();
+        let mut chart = chart_2d(
+            &plot,
+            print,
+            "how well each coordinate is recovered",
+            Axis2d {
+                // One category alone gets a panel as wide as three would, so that its
+                // bars are as wide as usual.
+                range: if n == 1 {
+                    -1.2..1.2
+                } else {
+                    -0.6..n as f64 - 0.4
+                },
+                title: "pose coordinate",
+                ticks: TickStyle::Names(&names),
+            },
+            Axis2d::new(low.min(0.0)..1.05, "score"),
+        )?;
+        let width = if with_spearman { 0.35 } else { 0.6 };
+        for (k, r) in self.recovery.iter().enumerate() {
+            let x = k as f64;
+            let bars = [(Some(r.r2), 0), (r.spearman, 1)];
+            for (value, series) in bars {
+                let Some(v) = value.filter(|v| v.is_finite()) else {
+                    continue;
+                };
+                let left = if with_spearman {
+                    x - width + width * series as f64
+                } else {
+                    x - width / 2.0
+                };
+                chart.draw_series(std::iter::once(Rectangle::new(
+                    [(left, 0.0), (left + width, v)],
+                    series_color(series).filled(),
+                )))?;
+            }
+        }
+        legend.draw(&strip, print)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_rows_are_found_and_do_not_keep_the_scan() {
+        // Points on a line at 0, 1, 2, …: the nearest of row 500 are 499, 501, 498, 502, …
+        let m = 1000;
+        let embedding =
+            ndarray::Array2::from_shape_fn((m, 2), |(i, c)| if c == 0 { i as f64 } else { 0.0 });
+        let mut near = nearest(embedding.view(), 500, 4);
+        near.sort_unstable();
+        assert_eq!(near, vec![498, 499, 501, 502]);
+        // One list of `k` per query: the report keeps thousands of them, so a list
+        // must not hold on to the `m` distances scanned for it.
+        let near = nearest(embedding.view(), 0, 10);
+        assert_eq!(near.len(), 10);
+        assert!(near.capacity() < 2 * 10, "capacity {}", near.capacity());
+    }
+}
