@@ -708,7 +708,7 @@ fn surface_metric_measures_sampled_planes_by_their_gap() {
         }
     }
     // Row blocks and the nearest sets agree with the matrix.
-    run(&["--out", "R.npy", "--rows", "2:5", "--kernel-dimension", "2"]);
+    run(&["--out", "R.npy", "--rows", "2:5", "--param", "dimension=2"]);
     let rows: Array2<f64> = read_npy(dir.path().join("R.npy")).unwrap();
     assert_eq!(rows, d.slice_axis(Axis(0), Slice::from(2..5)));
     run(&["--out", "D.npy", "--knn", "2"]);
@@ -729,12 +729,12 @@ fn surface_metric_measures_sampled_planes_by_their_gap() {
             "X.npy",
             "--metric",
             "hausdorff",
-            "--kernel-dimension",
-            "2",
+            "--param",
+            "dimension=2",
         ],
     );
     assert!(
-        e.contains("--kernel-dimension only applies to --metric surface"),
+        e.contains("hausdorff") && e.contains("dimension") && e.contains("--param"),
         "{e}"
     );
     let e = fails(
@@ -747,8 +747,8 @@ fn surface_metric_measures_sampled_planes_by_their_gap() {
             "X.npy",
             "--metric",
             "surface",
-            "--kernel-dimension",
-            "3",
+            "--param",
+            "dimension=3",
         ],
     );
     assert!(e.contains("dimension") && e.contains("N = 3"), "{e}");

@@ -33,6 +33,12 @@ impl Error {
     }
 }
 
+impl crate::config::LocatedError for Error {
+    fn invalid_parameter(&self) -> Option<&InvalidParameter> {
+        Error::invalid_parameter(self)
+    }
+}
+
 /// Every error of a core module converts through [`smspace::Error`].
 macro_rules! through_core {
     ($($error:ty),* $(,)?) => {

@@ -103,15 +103,15 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use serde::{Deserialize, Serialize};
-
 use crate::config::{ConfigError, LoadedExperiment};
 pub use lock::BusyFolder;
 use lock::FolderLock;
+pub use manifest::StageId;
 use manifest::{hash_parts, Manifest, RunStatus, Seeds, StageRecord, SMSPACE_VERSION};
 use runner::Runner;
 use smspace::agent::{Agent, AgentRegistry};
 use smspace::analysis::AnalysisReport;
+use smspace::embed::EmbeddingRegistry;
 use smspace::io::IoError;
 use smspace::kernel::{TraceMethod, TraceParams};
 use smspace::metric::{DistanceParams, KernelShape, MetricError, MetricRegistry, Periodicity};
@@ -193,52 +193,6 @@ pub enum PipelineError {
         /// The operating system's reason.
         reason: std::io::Error,
     },
-}
-
-/// The stages, in order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum StageId {
-    /// Motor babbling and the probe grid.
-    Explore,
-    /// Kernel sets.
-    Trace,
-    /// Distance matrix between sets.
-    Distances,
-    /// Embedding.
-    Embed,
-    /// Topology, dimension, agreement.
-    Analyze,
-    /// Environment invariance (only with several environments).
-    Invariance,
-    /// Figures and report.
-    Report,
-}
-
-impl StageId {
-    /// Every stage, in order.
-    pub const ALL: [StageId; 7] = [
-        StageId::Explore,
-        StageId::Trace,
-        StageId::Distances,
-        StageId::Embed,
-        StageId::Analyze,
-        StageId::Invariance,
-        StageId::Report,
-    ];
-
-    /// The stage's name.
-    pub fn name(self) -> &'static str {
-        match self {
-            StageId::Explore => "explore",
-            StageId::Trace => "trace",
-            StageId::Distances => "distances",
-            StageId::Embed => "embed",
-            StageId::Analyze => "analyze",
-            StageId::Invariance => "invariance",
-            StageId::Report => "report",
-        }
-    }
 }
 
 /// Which stages run again.
@@ -355,23 +309,36 @@ impl Plan {
 }
 
 /// The kinds a run can build by name: agents (`[agent] kind`) and set metrics
-/// (`[metric] metric`). An embedder adds its own to the built-in ones and hands them
-/// to [`check_with`]; an [`AgentRegistry`] or a [`MetricRegistry`] alone stands for
-/// itself with the other's built-in kinds.
+/// (`[metric] metric`) and embedding methods (`[embedding] method`). An embedder adds
+/// its own to the built-in ones and hands them to [`check_with`]; an
+/// [`AgentRegistry`], a [`MetricRegistry`] or an [`EmbeddingRegistry`] alone stands for
+/// itself with the others' built-ins.
 #[derive(Debug, Clone)]
 pub struct Registries {
     /// Agent kinds.
     pub agents: AgentRegistry,
     /// Set metrics.
     pub metrics: MetricRegistry,
+    /// Embedding methods.
+    pub embeddings: EmbeddingRegistry,
 }
 
 impl Registries {
-    /// The built-in agents and metrics.
+    /// The built-in agents, metrics and embedding methods.
     pub fn builtin() -> Self {
         Self {
             agents: AgentRegistry::builtin(),
             metrics: MetricRegistry::builtin(),
+            embeddings: EmbeddingRegistry::builtin(),
+        }
+    }
+}
+
+impl From<&EmbeddingRegistry> for Registries {
+    fn from(embeddings: &EmbeddingRegistry) -> Self {
+        Self {
+            embeddings: embeddings.clone(),
+            ..Self::builtin()
         }
     }
 }
@@ -386,7 +353,7 @@ impl From<&AgentRegistry> for Registries {
     fn from(agents: &AgentRegistry) -> Self {
         Self {
             agents: agents.clone(),
-            metrics: MetricRegistry::builtin(),
+            ..Self::builtin()
         }
     }
 }
@@ -394,8 +361,8 @@ impl From<&AgentRegistry> for Registries {
 impl From<&MetricRegistry> for Registries {
     fn from(metrics: &MetricRegistry) -> Self {
         Self {
-            agents: AgentRegistry::builtin(),
             metrics: metrics.clone(),
+            ..Self::builtin()
         }
     }
 }
@@ -438,7 +405,9 @@ pub fn check_with(
         check_data_tables(experiment)?;
     }
     let metric_table = resolve_metric_period(agent.as_ref(), &experiment.experiment.metric)
-        .map_err(|err| experiment.invalid_error("metric", MetricError::Invalid(err).into()))?;
+        .map_err(|err| {
+            experiment.invalid_error("metric", smspace::Error::from(MetricError::Invalid(err)))
+        })?;
     let metric = registries
         .metrics
         .build(&metric_table)
@@ -450,6 +419,12 @@ pub fn check_with(
         experiment.experiment.agent = Some(agent_config.clone());
     }
     experiment.experiment.metric = metric.params.clone();
+    let (embedding, embedding_method) = experiment
+        .experiment
+        .embedding
+        .resolve(&registries.embeddings)
+        .map_err(|err| experiment.invalid_error("embedding", smspace::Error::from(err)))?;
+    experiment.experiment.embedding = embedding;
     let experiment = &experiment;
     let e = &experiment.experiment;
     let invalid = |table| move |err: crate::Error| experiment.invalid_error(table, err);
@@ -504,10 +479,6 @@ pub fn check_with(
             .check_kernels(KernelShape::of_dimension(k))
             .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
     }
-    e.embedding
-        .clone()
-        .build()
-        .map_err(|err| invalid("embedding")(err.into()))?;
     e.analysis
         .check()
         .map_err(|err| invalid("analysis")(err.into()))?;
@@ -533,12 +504,11 @@ pub fn check_with(
         trace: TraceStage::new(e.kernel.clone(), e.analysis.compensability.as_ref()),
         distances: DistancesStage::new(&metric)
             .with_scale(e.scale.clone(), e.analysis.mle_neighbors),
-        embed: EmbedStage {
-            embedding: e.embedding.clone(),
-            quality_neighbours: QUALITY_NEIGHBOURS,
-            dydx_pairs: DYDX_PAIRS,
-            dydx_seed: e.report.seed,
-        },
+        embed: EmbedStage::new(e.embedding.clone(), Arc::from(embedding_method)).with_figures(
+            QUALITY_NEIGHBOURS,
+            DYDX_PAIRS,
+            e.report.seed,
+        ),
         analyze: AnalyzeStage {
             analysis: e.analysis.clone(),
         },
@@ -572,7 +542,7 @@ fn world_parts(
             registries
                 .agents
                 .build(table)
-                .map_err(|err| experiment.invalid_error("agent", err.into()))?,
+                .map_err(|err| experiment.invalid_error("agent", smspace::Error::from(err)))?,
         ),
         None => None,
     };
@@ -581,7 +551,7 @@ fn world_parts(
             let base = experiment.path.parent().unwrap_or(Path::new("."));
             let checked =
                 data::RunData::check(params, base, built.as_ref().map(|b| b.agent.as_ref()))
-                    .map_err(|err| experiment.invalid_error("data", err.into()))?;
+                    .map_err(|err| experiment.invalid_error("data", crate::Error::from(err)))?;
             Some(Arc::new(checked))
         }
         None => None,

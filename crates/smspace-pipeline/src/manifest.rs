@@ -153,3 +153,49 @@ mod tests {
         assert!(hash_file(&dir.path().join("missing")).is_err());
     }
 }
+
+/// The stages, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StageId {
+    /// Motor babbling and the probe grid.
+    Explore,
+    /// Kernel sets.
+    Trace,
+    /// Distance matrix between sets.
+    Distances,
+    /// Embedding.
+    Embed,
+    /// Topology, dimension, agreement.
+    Analyze,
+    /// Environment invariance (only with several environments).
+    Invariance,
+    /// Figures and report.
+    Report,
+}
+
+impl StageId {
+    /// Every stage, in order.
+    pub const ALL: [StageId; 7] = [
+        StageId::Explore,
+        StageId::Trace,
+        StageId::Distances,
+        StageId::Embed,
+        StageId::Analyze,
+        StageId::Invariance,
+        StageId::Report,
+    ];
+
+    /// The stage's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            StageId::Explore => "explore",
+            StageId::Trace => "trace",
+            StageId::Distances => "distances",
+            StageId::Embed => "embed",
+            StageId::Analyze => "analyze",
+            StageId::Invariance => "invariance",
+            StageId::Report => "report",
+        }
+    }
+}

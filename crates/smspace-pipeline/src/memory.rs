@@ -26,7 +26,6 @@
 
 use super::scale::ChosenPath;
 use super::Plan;
-use smspace::embed::EmbedParams;
 
 /// Bytes of one float64.
 const F64: u64 = 8;
@@ -194,7 +193,7 @@ impl Plan {
     pub(super) fn embed_peak(&self, held: Held, m: u64) -> Peak {
         if self.distances.path(m as usize) == ChosenPath::Landmarks {
             let l = (self.distances.scale.landmarks as u64).min(m);
-            let dim = self.embed.embedding.clone().build().map_or(3, |e| e.dim()) as u64;
+            let dim = self.embed.method().dim() as u64;
             let block = smspace::embed::landmarks::EXTEND_BLOCK as u64;
             let on_landmarks = self.embed_working(l).0;
             let extension = product(&[m, dim, F64]).saturating_add(product(&[block, l, F64]));
@@ -218,43 +217,14 @@ impl Plan {
     }
 
     /// The embedding method's working set on `m` points, its name and the keys that
-    /// lower it.
+    /// lower it ([`Embedding::working_bytes`]: the method says).
     fn embed_working(&self, m: u64) -> (u64, &'static str, &'static str) {
-        let d = matrix(m);
-        let (working, method, fix) = match &self.embed.embedding {
-            EmbedParams::Cca(p) => {
-                let start = match p.init_landmarks {
-                    Some(l) if (l as u64) < m => {
-                        product(&[l as u64, m.saturating_add(l as u64), F64])
-                    }
-                    _ => mds_bytes(m),
-                };
-                // The stress of every epoch is kept for the report.
-                let epochs = product(&[p.epochs as u64, F64]);
-                (
-                    d.saturating_add(start).saturating_add(epochs),
-                    "CCA",
-                    "lower exploration.n (M), or keep embedding.init_landmarks small",
-                )
-            }
-            EmbedParams::Mds(_) => (
-                mds_bytes(m),
-                "MDS",
-                "lower exploration.n (M), or embed with method = \"cca\" (landmark MDS start)",
-            ),
-            EmbedParams::Isomap(p) => {
-                let geodesics = match p.landmarks {
-                    Some(l) if (l as u64) < m => product(&[2, l as u64, m, F64]),
-                    _ => d.saturating_add(mds_bytes(m)),
-                };
-                (
-                    geodesics,
-                    "Isomap",
-                    "lower exploration.n (M), or set embedding.landmarks",
-                )
-            }
-        };
-        (working, method, fix)
+        let method = self.embed.method();
+        (
+            method.working_bytes(m as usize),
+            method.name(),
+            method.memory_fix(),
+        )
     }
 
     /// `analyze` of `m` sets.
@@ -340,13 +310,6 @@ impl Plan {
             fix: "lower report.max_sets, report.sample_sets or the panel size",
         }
     }
-}
-
-/// Classical MDS of `m` points: the squared copy and the eigensolver's matrices (dense
-/// below 1000 points: the matrix, its eigenvectors and the solver's workspace).
-fn mds_bytes(m: u64) -> u64 {
-    let factor = if m <= 1000 { 4 } else { 2 };
-    matrix(m).saturating_mul(factor)
 }
 
 /// Bytes the run holds for `rows` explored configurations of `motors` motors.

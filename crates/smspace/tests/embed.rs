@@ -73,7 +73,7 @@ fn mds_reproduces_euclidean_points_up_to_rotation() {
         let points = Array2::from_shape_fn((n, 3), |_| rng.gen_range(-1.0..1.0));
         let d = euclidean(&points);
         let e = fit(
-            EmbedParams::Mds(MdsParams::default().dim(3).solver(solver)),
+            EmbedParams::from(MdsParams::default().dim(3).solver(solver)),
             &d,
         );
         let back = euclidean(&e.coordinates);
@@ -102,7 +102,7 @@ fn mds_reports_negative_eigenvalues_of_a_non_euclidean_metric() {
         let k = (i as f64 - j as f64).abs();
         k.min(n as f64 - k) / n as f64
     });
-    let e = fit(EmbedParams::Mds(MdsParams::default().dim(2)), &d);
+    let e = fit(EmbedParams::from(MdsParams::default().dim(2)), &d);
     assert!(e.report.eigenvalues.iter().any(|&v| v < -1e-6));
     assert_eq!(e.report.eigenvalues.len(), n);
 }
@@ -112,9 +112,9 @@ fn isomap_and_cca_keep_circle_neighbours() {
     let points = circle(240, 1);
     let d = euclidean(&points);
     let methods = [
-        EmbedParams::Isomap(IsomapParams::default().dim(2).k(6)),
-        EmbedParams::Cca(CcaParams::default().dim(2).epochs(30)),
-        EmbedParams::Cca(
+        EmbedParams::from(IsomapParams::default().dim(2).k(6)),
+        EmbedParams::from(CcaParams::default().dim(2).epochs(30)),
+        EmbedParams::from(
             CcaParams::default()
                 .dim(2)
                 .epochs(30)
@@ -133,16 +133,16 @@ fn isomap_unrolls_a_swiss_roll() {
     let (points, truth) = swiss_roll(800, 7);
     let d = euclidean(&points);
     let truth_d = euclidean(&truth);
-    let e = fit(EmbedParams::Isomap(IsomapParams::default().dim(2).k(8)), &d);
+    let e = fit(EmbedParams::from(IsomapParams::default().dim(2).k(8)), &d);
     let (t, c) = trustworthiness_continuity(truth_d.view(), e.coordinates.view(), 10).unwrap();
     assert!(t > 0.97 && c > 0.97, "isomap: T = {t}, C = {c}");
     // Straight MDS cannot unroll it.
-    let m = fit(EmbedParams::Mds(MdsParams::default().dim(2)), &d);
+    let m = fit(EmbedParams::from(MdsParams::default().dim(2)), &d);
     let (tm, _) = trustworthiness_continuity(truth_d.view(), m.coordinates.view(), 10).unwrap();
     assert!(tm < t - 0.03, "mds T = {tm}, isomap T = {t}");
     // Landmark Isomap does nearly as well.
     let l = fit(
-        EmbedParams::Isomap(IsomapParams::default().dim(2).k(8).landmarks(Some(60))),
+        EmbedParams::from(IsomapParams::default().dim(2).k(8).landmarks(Some(60))),
         &d,
     );
     let (tl, cl) = trustworthiness_continuity(truth_d.view(), l.coordinates.view(), 10).unwrap();
@@ -167,8 +167,8 @@ fn circle_times_segment_is_recovered_in_3d() {
     }
     let d = euclidean(&points);
     for params in [
-        EmbedParams::Cca(CcaParams::default().dim(3).epochs(30)),
-        EmbedParams::Isomap(IsomapParams::default().dim(3).k(10)),
+        EmbedParams::from(CcaParams::default().dim(3).epochs(30)),
+        EmbedParams::from(IsomapParams::default().dim(3).k(10)),
     ] {
         let e = fit(params.clone(), &d);
         let (t, c) = trustworthiness_continuity(d.view(), e.coordinates.view(), 10).unwrap();
@@ -180,7 +180,10 @@ fn circle_times_segment_is_recovered_in_3d() {
 fn cca_stress_decreases_and_dydx_hugs_the_diagonal() {
     let (points, _) = swiss_roll(300, 2);
     let d = euclidean(&points);
-    let e = fit(EmbedParams::Cca(CcaParams::default().dim(2).epochs(40)), &d);
+    let e = fit(
+        EmbedParams::from(CcaParams::default().dim(2).epochs(40)),
+        &d,
+    );
     let trace = &e.report.stress_trace;
     assert_eq!(trace.len(), 40);
     assert!(trace.iter().all(|s| s.is_finite() && *s >= 0.0));
@@ -212,10 +215,10 @@ fn out_of_sample_points_land_next_to_their_neighbours() {
     let new_to_old =
         Array2::from_shape_fn((new.len(), old.len()), |(a, b)| d_all[[new[a], old[b]]]);
     for params in [
-        EmbedParams::Cca(CcaParams::default().dim(2).epochs(20)),
-        EmbedParams::Mds(MdsParams::default().dim(2)),
-        EmbedParams::Isomap(IsomapParams::default().dim(2).k(6)),
-        EmbedParams::Isomap(IsomapParams::default().dim(2).k(6).landmarks(Some(30))),
+        EmbedParams::from(CcaParams::default().dim(2).epochs(20)),
+        EmbedParams::from(MdsParams::default().dim(2)),
+        EmbedParams::from(IsomapParams::default().dim(2).k(6)),
+        EmbedParams::from(IsomapParams::default().dim(2).k(6).landmarks(Some(30))),
     ] {
         let e = fit(params.clone(), &d_old);
         let placed = e.extend(new_to_old.view()).unwrap();
@@ -246,7 +249,7 @@ fn out_of_sample_points_land_next_to_their_neighbours() {
 fn extending_with_embedded_points_returns_them_for_triangulation() {
     let points = circle(50, 9);
     let d = euclidean(&points);
-    let e = fit(EmbedParams::Mds(MdsParams::default().dim(2)), &d);
+    let e = fit(EmbedParams::from(MdsParams::default().dim(2)), &d);
     let again = e.extend(d.slice_axis(Axis(0), Slice::from(..10))).unwrap();
     for (a, b) in again
         .iter()
@@ -292,10 +295,10 @@ fn results_do_not_depend_on_the_thread_count() {
             .install(|| fit(params, &d).coordinates)
     };
     for params in [
-        EmbedParams::Cca(CcaParams::default().dim(3).epochs(10).seed(4)),
-        EmbedParams::Isomap(IsomapParams::default().dim(2).k(8)),
-        EmbedParams::Isomap(IsomapParams::default().k(8).landmarks(Some(50))),
-        EmbedParams::Mds(MdsParams::default().solver(EigenSolver::Partial)),
+        EmbedParams::from(CcaParams::default().dim(3).epochs(10).seed(4)),
+        EmbedParams::from(IsomapParams::default().dim(2).k(8)),
+        EmbedParams::from(IsomapParams::default().k(8).landmarks(Some(50))),
+        EmbedParams::from(MdsParams::default().solver(EigenSolver::Partial)),
     ] {
         let one = run(1, params.clone());
         let two = run(2, params.clone());
@@ -303,8 +306,8 @@ fn results_do_not_depend_on_the_thread_count() {
         assert!(one == two && two == three, "{params:?}");
     }
     // A different seed gives a different CCA.
-    let a = run(2, EmbedParams::Cca(CcaParams::default().epochs(5).seed(1)));
-    let b = run(2, EmbedParams::Cca(CcaParams::default().epochs(5).seed(2)));
+    let a = run(2, EmbedParams::from(CcaParams::default().epochs(5).seed(1)));
+    let b = run(2, EmbedParams::from(CcaParams::default().epochs(5).seed(2)));
     assert!(a != b);
 }
 
@@ -433,15 +436,32 @@ fn a_disconnected_graph_names_its_components_and_the_fix() {
 
 #[test]
 fn parameters_parse_by_method_name_and_refuse_unknown_fields() {
+    let registry = smspace::embed::EmbeddingRegistry::builtin();
     let p: EmbedParams = serde_json::from_str(r#"{"method": "cca", "epochs": 7}"#).unwrap();
-    assert_eq!(p, EmbedParams::Cca(CcaParams::default().epochs(7)));
+    let (resolved, _) = p.resolve(&registry).unwrap();
+    assert_eq!(resolved, EmbedParams::from(CcaParams::default().epochs(7)));
     let p: EmbedParams =
         serde_json::from_str(r#"{"method": "isomap", "k": 12, "landmarks": 100}"#).unwrap();
     assert_eq!(
-        p,
-        EmbedParams::Isomap(IsomapParams::default().k(12).landmarks(Some(100)))
+        p.resolve(&registry).unwrap().0,
+        EmbedParams::from(IsomapParams::default().k(12).landmarks(Some(100)))
     );
-    assert!(serde_json::from_str::<EmbedParams>(r#"{"method": "mds", "epochs": 3}"#).is_err());
+    // A key of another method, and an unknown method, are errors that name them.
+    let mds: EmbedParams = serde_json::from_str(r#"{"method": "mds", "epochs": 3}"#).unwrap();
+    let err = mds.build().unwrap_err().to_string();
+    assert!(err.contains("mds") && err.contains("epochs"), "{err}");
+    let tsne: EmbedParams = serde_json::from_str(r#"{"method": "tsne"}"#).unwrap();
+    let err = tsne.build().unwrap_err().to_string();
+    assert!(
+        err.contains("tsne") && err.contains("cca, isomap, mds"),
+        "{err}"
+    );
+    // The JSON of the resolved parameters reads back as the same parameters.
+    let json = serde_json::to_string(&resolved).unwrap();
+    assert_eq!(
+        serde_json::from_str::<EmbedParams>(&json).unwrap(),
+        resolved
+    );
     let m = EmbedParams::default().build().unwrap();
     assert_eq!(m.name(), "cca");
     assert_eq!(m.dim(), 3);

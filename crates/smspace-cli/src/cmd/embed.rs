@@ -117,6 +117,23 @@ pub struct Args {
 }
 
 impl Args {
+    /// The parameters of `--method isomap`.
+    fn isomap_params(&self) -> IsomapParams {
+        let d = IsomapParams::default();
+        IsomapParams {
+            dim: self.dim,
+            seed: self.seed,
+            k: self.k.unwrap_or(d.k),
+            landmarks: self.landmarks,
+            landmark_choice: match self.landmark_choice {
+                Some(LandmarkArg::Random) => LandmarkChoice::Random,
+                Some(LandmarkArg::Maxmin) => LandmarkChoice::MaxMin,
+                None => d.landmark_choice,
+            },
+            ..d
+        }
+    }
+
     /// The method's parameters, refusing options that belong to another method.
     fn params(&self) -> anyhow::Result<EmbedParams> {
         let cca_only =
@@ -135,7 +152,7 @@ impl Args {
         Ok(match self.method {
             Method::Cca => {
                 let d = CcaParams::default();
-                EmbedParams::Cca(CcaParams {
+                EmbedParams::from(CcaParams {
                     dim: self.dim,
                     seed: self.seed,
                     epochs: self.epochs.unwrap_or(d.epochs),
@@ -148,22 +165,8 @@ impl Args {
                     ..d
                 })
             }
-            Method::Isomap => {
-                let d = IsomapParams::default();
-                EmbedParams::Isomap(IsomapParams {
-                    dim: self.dim,
-                    seed: self.seed,
-                    k: self.k.unwrap_or(d.k),
-                    landmarks: self.landmarks,
-                    landmark_choice: match self.landmark_choice {
-                        Some(LandmarkArg::Random) => LandmarkChoice::Random,
-                        Some(LandmarkArg::Maxmin) => LandmarkChoice::MaxMin,
-                        None => d.landmark_choice,
-                    },
-                    ..d
-                })
-            }
-            Method::Mds => EmbedParams::Mds(MdsParams {
+            Method::Isomap => EmbedParams::from(self.isomap_params()),
+            Method::Mds => EmbedParams::from(MdsParams {
                 dim: self.dim,
                 seed: self.seed,
                 ..MdsParams::default()
@@ -190,10 +193,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
             (None, Some(ip), Some(dp)) => {
                 let graph = KnnGraph::read(ip, dp)?;
-                let EmbedParams::Isomap(p) = params else {
-                    unreachable!("checked in Args::params")
-                };
-                let e = p
+                // Only Isomap embeds a graph (checked in Args::params).
+                let e = args
+                    .isomap_params()
                     .check()?
                     .fit_knn(&graph, &bar)
                     .with_context(|| format!("cannot embed the kNN graph {}", ip.display()))?;

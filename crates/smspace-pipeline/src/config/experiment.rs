@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::{parse_toml, read_text, ConfigError};
+use super::{parse_toml, read_text, ConfigError, LocatedError};
 use crate::report::ReportParams;
 use smspace::agent::{AgentConfig, EnvironmentConfig, LightRegion};
 use smspace::analysis::AnalysisParams;
@@ -171,10 +171,10 @@ impl LoadedExperiment {
     }
 
     /// An [`Invalid`](ConfigError::Invalid) error for a stage's error: located at the
-    /// line of its key ([`crate::Error::invalid_parameter`]: the table and key it
+    /// line of its key ([`LocatedError::invalid_parameter`]: the table and key it
     /// names), or at the override that set it; errors that name no parameter are
     /// located as [`invalid`](Self::invalid) does, in `table`.
-    pub fn invalid_error(&self, table: &'static str, error: crate::Error) -> ConfigError {
+    pub fn invalid_error(&self, table: &'static str, error: impl LocatedError) -> ConfigError {
         match error.invalid_parameter() {
             Some(parameter) => self.invalid_parameter(parameter),
             None => self.invalid(table, error),

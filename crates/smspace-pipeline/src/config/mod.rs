@@ -30,6 +30,19 @@ use smspace::agent::{AgentConfig, AgentError, EnvironmentConfig};
 mod experiment;
 pub use experiment::*;
 
+/// An error that may be about one parameter, which the experiment reader then locates
+/// at its key's line ([`LoadedExperiment::invalid_error`]).
+pub trait LocatedError: std::fmt::Display {
+    /// The parameter the error is about, if it is about one.
+    fn invalid_parameter(&self) -> Option<&smspace::params::InvalidParameter>;
+}
+
+impl LocatedError for smspace::Error {
+    fn invalid_parameter(&self) -> Option<&smspace::params::InvalidParameter> {
+        smspace::Error::invalid_parameter(self)
+    }
+}
+
 /// Errors of configuration files.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

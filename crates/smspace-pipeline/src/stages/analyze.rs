@@ -12,7 +12,7 @@ use serde::Serialize;
 use ndarray::{Axis, Slice};
 
 use super::{Keyed, LandmarkGraph, SetDistances, Stage, StageContext, StageInput, World};
-use crate::StageId;
+use crate::manifest::StageId;
 use smspace::agent::GroundTruth;
 use smspace::analysis::compensability::compensability;
 use smspace::analysis::dimension::{mle_neighbours, twonn_neighbours};

@@ -9,8 +9,8 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput};
+use crate::manifest::StageId;
 use crate::scale::{ChosenPath, ScaleParams};
-use crate::StageId;
 use smspace::explore::Exploration;
 use smspace::io::{self, IoError, Outputs};
 use smspace::kernel::TracedSets;

@@ -6,15 +6,16 @@
 //! the landmarks' fit against their `L × L` matrix (said in `Y.embed.json`'s `input`).
 
 use std::path::Path;
+use std::sync::Arc;
 
 use ndarray::Array2;
 use serde::Serialize;
 
 use super::{Keyed, SetDistances, Stage, StageContext, StageInput};
-use crate::StageId;
+use crate::manifest::StageId;
 use smspace::embed::landmarks::fit_on_landmarks;
 use smspace::embed::quality::{measure, Quality};
-use smspace::embed::{EmbedFile, EmbedParams, EmbedReport};
+use smspace::embed::{EmbedFile, EmbedParams, EmbedReport, Embedding};
 use smspace::io::{self, Outputs};
 
 /// Pairs of `(dx, dy)` sampled for the CCA `dy–dx` plot (the default of `smspace
@@ -24,9 +25,10 @@ pub const DYDX_PAIRS: usize = 20_000;
 /// default of `smspace embed --quality-k` too).
 pub const QUALITY_NEIGHBOURS: usize = 10;
 
-/// The `embed` stage: the `[embedding]` table, and the figures computed with the
-/// embedding (their seed is `[report] seed`).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// The `embed` stage: the `[embedding]` table (resolved: every parameter), the method
+/// it builds (built-in or registered, [`smspace::embed::EmbeddingRegistry`]), and the
+/// figures computed with the embedding (their seed is `[report] seed`).
+#[derive(Debug, Clone, Serialize)]
 pub struct EmbedStage {
     /// The embedding method and its parameters.
     pub embedding: EmbedParams,
@@ -36,6 +38,54 @@ pub struct EmbedStage {
     pub dydx_pairs: usize,
     /// Seed of the Shepard sample.
     pub dydx_seed: u64,
+    /// The method built from `embedding`.
+    #[serde(skip)]
+    method: Arc<dyn Embedding>,
+}
+
+impl PartialEq for EmbedStage {
+    /// Stages are equal when their keyed fields are (the method is built from them).
+    fn eq(&self, other: &Self) -> bool {
+        (
+            &self.embedding,
+            self.quality_neighbours,
+            self.dydx_pairs,
+            self.dydx_seed,
+        ) == (
+            &other.embedding,
+            other.quality_neighbours,
+            other.dydx_pairs,
+            other.dydx_seed,
+        )
+    }
+}
+
+impl EmbedStage {
+    /// The stage of `method`, built from `embedding`, with the default figures.
+    pub fn new(embedding: EmbedParams, method: Arc<dyn Embedding>) -> Self {
+        Self {
+            embedding,
+            quality_neighbours: QUALITY_NEIGHBOURS,
+            dydx_pairs: DYDX_PAIRS,
+            dydx_seed: 0,
+            method,
+        }
+    }
+
+    /// The same stage with the figures' neighbours, pairs and seed.
+    pub fn with_figures(self, quality_neighbours: usize, dydx_pairs: usize, seed: u64) -> Self {
+        Self {
+            quality_neighbours,
+            dydx_pairs,
+            dydx_seed: seed,
+            ..self
+        }
+    }
+
+    /// The embedding method.
+    pub fn method(&self) -> &dyn Embedding {
+        self.method.as_ref()
+    }
 }
 
 /// What `embed` reads.
@@ -78,7 +128,7 @@ impl Stage for EmbedStage {
         input: &EmbedInput<'_>,
         context: &StageContext<'_>,
     ) -> crate::Result<EmbedOutputs> {
-        let method = self.embedding.clone().build()?;
+        let method = self.method();
         let (coordinates, report, quality, dydx) = match &input.distances.value {
             SetDistances::Dense(distances) => {
                 let fitted = method.fit(distances, context.progress)?;
@@ -93,7 +143,7 @@ impl Stage for EmbedStage {
             }
             SetDistances::Landmarks(graph) => {
                 let l = &graph.landmarks;
-                let fit = fit_on_landmarks(method.as_ref(), l, context.progress)?;
+                let fit = fit_on_landmarks(method, l, context.progress)?;
                 // The landmarks' matrix in the fit's order (increasing set index).
                 let mut order: Vec<usize> = (0..l.len()).collect();
                 order.sort_unstable_by_key(|&a| l.rows[a]);
@@ -131,7 +181,7 @@ impl Stage for EmbedStage {
         dir: &Path,
     ) -> crate::Result<()> {
         // The method's own parameters, as `smspace embed` writes them.
-        let params = self.embedding.clone().build()?.params_json();
+        let params = self.method().params_json();
         let file = EmbedFile {
             report: y.report.clone(),
             params,

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput, World};
 use crate::data::RunData;
-use crate::StageId;
+use crate::manifest::StageId;
 use ndarray::Array2;
 use smspace::agent::GroundTruth;
 use smspace::explore::{explore_with, Exploration, ExploreParams};

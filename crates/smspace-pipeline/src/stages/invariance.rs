@@ -8,8 +8,8 @@ use ndarray::Axis;
 use serde::Serialize;
 
 use super::{Keyed, Stage, StageContext, StageInput, World};
+use crate::manifest::StageId;
 use crate::report::InvarianceData;
-use crate::StageId;
 use smspace::explore::Exploration;
 use smspace::invariance::{invariance_measured, read_invariance, stage_invariance};
 use smspace::io::Outputs;

@@ -7,10 +7,10 @@ use ndarray::{Array2, Axis};
 use serde::Serialize;
 
 use super::{EmbedOutputs, Keyed, Stage, StageContext, StageInput, World};
+use crate::manifest::StageId;
 use crate::report::{
     render_report, InvarianceData, RenderedReport, ReportInputs, ReportParams, SensoryManifold,
 };
-use crate::StageId;
 use smspace::agent::{Agent, Environment};
 use smspace::analysis::AnalysisReport;
 use smspace::explore::Exploration;

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use super::{label, Keyed, Stage, StageContext, StageInput, World};
 use crate::data::DataSource;
-use crate::StageId;
+use crate::manifest::StageId;
 use ndarray::ArrayView2;
 use smspace::analysis::compensability::{compensability, CompensabilityParams};
 use smspace::analysis::AnalysisError;

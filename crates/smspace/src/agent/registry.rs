@@ -4,7 +4,7 @@
 //!
 //! The built-in agents register here, one line each ([`AgentRegistry::builtin`]); an
 //! embedder registers its own kinds the same way and hands the registry to
-//! [`crate::pipeline::check_with`] (a new agent kind is one file plus one
+//! `smspace_pipeline::check_with` (a new agent kind is one file plus one
 //! registration line). A kind's parameters are a serde struct with
 //! `#[serde(deny_unknown_fields, default)]`: unknown keys are errors that name the key,
 //! and the resolved table (defaults included) is what the run records.

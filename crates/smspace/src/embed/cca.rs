@@ -357,6 +357,25 @@ impl Embedding for CcaValidParams {
             progress,
         ))
     }
+
+    /// The matrix again, the start (landmark MDS on `init_landmarks`, or classical
+    /// MDS), and the stress of every epoch, kept for the report.
+    fn working_bytes(&self, points: usize) -> u64 {
+        let m = points as u64;
+        let start = match self.0.init_landmarks {
+            Some(l) if (l as u64) < m => (l as u64)
+                .saturating_mul(m.saturating_add(l as u64))
+                .saturating_mul(8),
+            _ => super::mds_bytes(m),
+        };
+        super::square_bytes(m)
+            .saturating_add(start)
+            .saturating_add((self.0.epochs as u64).saturating_mul(8))
+    }
+
+    fn memory_fix(&self) -> &'static str {
+        "lower exploration.n (M), or keep embedding.init_landmarks small"
+    }
 }
 
 /// The width schedule's end points `(λ_0, λ_1)`.

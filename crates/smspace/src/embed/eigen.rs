@@ -509,9 +509,9 @@ mod tests {
 
     fn methods() -> Vec<Box<dyn Embedding>> {
         [
-            EmbedParams::Cca(CcaParams::default().dim(2).epochs(10)),
-            EmbedParams::Mds(MdsParams::default().dim(2)),
-            EmbedParams::Isomap(IsomapParams::default().dim(2).k(6)),
+            EmbedParams::from(CcaParams::default().dim(2).epochs(10)),
+            EmbedParams::from(MdsParams::default().dim(2)),
+            EmbedParams::from(IsomapParams::default().dim(2).k(6)),
         ]
         .into_iter()
         .map(|p| p.build().unwrap())

@@ -593,4 +593,21 @@ impl Embedding for IsomapValidParams {
         let graph = KnnGraph::from_distances(distances, self.0.k)?;
         self.fit_knn(&graph, progress)
     }
+
+    /// The geodesics from the landmarks (two `L × M` matrices), or all of them and
+    /// classical MDS of their matrix.
+    fn working_bytes(&self, points: usize) -> u64 {
+        let m = points as u64;
+        match self.0.landmarks {
+            Some(l) if (l as u64) < m => 2u64
+                .saturating_mul(l as u64)
+                .saturating_mul(m)
+                .saturating_mul(8),
+            _ => super::square_bytes(m).saturating_add(super::mds_bytes(m)),
+        }
+    }
+
+    fn memory_fix(&self) -> &'static str {
+        "lower exploration.n (M), or set embedding.landmarks"
+    }
 }

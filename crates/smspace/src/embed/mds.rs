@@ -116,4 +116,12 @@ impl Embedding for MdsValidParams {
             extender,
         })
     }
+
+    fn working_bytes(&self, points: usize) -> u64 {
+        super::mds_bytes(points as u64)
+    }
+
+    fn memory_fix(&self) -> &'static str {
+        "lower exploration.n (M), or embed with method = \"cca\" (landmark MDS start)"
+    }
 }

@@ -33,6 +33,7 @@ pub mod isomap;
 pub mod landmarks;
 pub mod mds;
 pub mod quality;
+mod registry;
 
 use ndarray::{Array2, ArrayView2};
 use serde::{Deserialize, Serialize};
@@ -45,6 +46,7 @@ pub use cca::{CcaParams, CcaValidParams, Neighbourhood};
 pub use eigen::EigenSolver;
 pub use isomap::{IsomapParams, IsomapValidParams, KnnGraph, LandmarkChoice};
 pub use mds::{MdsParams, MdsValidParams};
+pub use registry::EmbeddingRegistry;
 
 /// Errors of the embedding stage.
 #[derive(Debug, thiserror::Error)]
@@ -124,6 +126,22 @@ pub enum EmbedError {
     /// Reading a file failed.
     #[error(transparent)]
     Io(#[from] crate::io::IoError),
+    /// No registered embedding method has this name.
+    #[error("unknown embedding method '{name}'; the registered methods are {known}")]
+    UnknownMethod {
+        /// The name given.
+        name: String,
+        /// The registered methods, comma-separated.
+        known: String,
+    },
+    /// A method's parameters (the `[embedding]` table) do not fit it.
+    #[error("invalid [embedding] table for the {method} method: {reason}")]
+    InvalidTable {
+        /// The method.
+        method: String,
+        /// The reader's message, naming the key.
+        reason: String,
+    },
 }
 
 impl EmbedError {
@@ -189,66 +207,153 @@ pub trait Embedding: Send + Sync + std::fmt::Debug {
 
     /// The checked parameters, as JSON, for reports.
     fn params_json(&self) -> serde_json::Value;
-}
 
-/// Parameters of any method, tagged by `method` (for configuration files):
-/// `{"method": "cca", "dim": 3, "epochs": 50}`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "method", rename_all = "lowercase")]
-pub enum EmbedParams {
-    /// Curvilinear Component Analysis.
-    Cca(CcaParams),
-    /// Isomap.
-    Isomap(IsomapParams),
-    /// Classical MDS.
-    Mds(MdsParams),
-}
+    /// Bytes the method works in to embed `points` points, besides the distance matrix
+    /// it is given, for the run's memory estimate. Defaults to the size of that matrix
+    /// again (one working copy).
+    fn working_bytes(&self, points: usize) -> u64 {
+        square_bytes(points as u64)
+    }
 
-impl Default for EmbedParams {
-    /// CCA, the paper's method.
-    fn default() -> Self {
-        Self::Cca(CcaParams::default())
+    /// What lowers [`working_bytes`](Embedding::working_bytes), for the message of a
+    /// run that would not fit.
+    fn memory_fix(&self) -> &'static str {
+        "lower exploration.n (M)"
     }
 }
 
-/// Checked [`EmbedParams`]: one method, ready to fit.
-#[derive(Debug, Clone, PartialEq)]
-pub enum EmbedValidParams {
-    /// Curvilinear Component Analysis.
-    Cca(CcaValidParams),
-    /// Isomap.
-    Isomap(IsomapValidParams),
-    /// Classical MDS.
-    Mds(MdsValidParams),
+/// Bytes of an `m × m` float64 matrix (saturating).
+pub fn square_bytes(m: u64) -> u64 {
+    m.saturating_mul(m).saturating_mul(8)
 }
 
-impl EmbedValidParams {
-    /// The method, as an [`Embedding`].
-    pub fn into_embedding(self) -> Box<dyn Embedding> {
-        match self {
-            Self::Cca(p) => Box::new(p),
-            Self::Isomap(p) => Box::new(p),
-            Self::Mds(p) => Box::new(p),
-        }
+/// Bytes classical MDS works in on `m` points (the centred matrix and the
+/// eigensolver's workspace: four matrices up to 1000 points, two beyond).
+pub fn mds_bytes(m: u64) -> u64 {
+    let factor = if m <= 1000 { 4 } else { 2 };
+    square_bytes(m).saturating_mul(factor)
+}
+
+/// The `[embedding]` table: the method's name in an [`EmbeddingRegistry`] and its
+/// parameters (the rest of the table), as in configuration files:
+/// `{"method": "cca", "dim": 3, "epochs": 50}`.
+///
+/// ```
+/// use smspace::embed::{CcaParams, EmbedParams};
+/// let p: EmbedParams = toml::from_str("method = \"isomap\"\nk = 12").unwrap();
+/// assert_eq!((p.method.as_str(), p.params["k"].as_integer()), ("isomap", Some(12)));
+/// let cca = EmbedParams::from(CcaParams::default().epochs(7));
+/// assert_eq!(cca.method, "cca");
+/// assert_eq!(cca.build()?.name(), "cca");
+/// # Ok::<(), smspace::embed::EmbedError>(())
+/// ```
+#[derive(Debug, Clone, PartialEq)]
+pub struct EmbedParams {
+    /// The method's name (`cca`, `isomap`, `mds`, or a registered one).
+    pub method: String,
+    /// Its parameters.
+    pub params: toml::Table,
+}
+
+impl Default for EmbedParams {
+    /// CCA, the paper's method, with its defaults.
+    fn default() -> Self {
+        Self::from(CcaParams::default())
     }
 }
 
 impl EmbedParams {
-    /// Checks the parameters and returns the method, ready to fit.
-    pub fn build(self) -> Result<Box<dyn Embedding>, EmbedError> {
-        Ok(self.check_params()?.into_embedding())
+    /// The parameters of `method` given as a serde struct (e.g. [`CcaParams`]).
+    pub fn of<P: Serialize>(method: &str, params: &P) -> Self {
+        let params = match toml::Value::try_from(params) {
+            Ok(toml::Value::Table(t)) => t,
+            _ => toml::Table::new(),
+        };
+        Self {
+            method: method.to_owned(),
+            params,
+        }
+    }
+
+    /// Checks the parameters and returns the method, ready to fit (a built-in one).
+    pub fn build(&self) -> Result<Box<dyn Embedding>, EmbedError> {
+        self.build_with(&EmbeddingRegistry::builtin())
+    }
+
+    /// The method, from `registry`.
+    pub fn build_with(
+        &self,
+        registry: &EmbeddingRegistry,
+    ) -> Result<Box<dyn Embedding>, EmbedError> {
+        Ok(registry.make(&self.method, &self.params, &())?.0)
+    }
+
+    /// The same table with every parameter, defaults included, and the method built
+    /// from `registry`.
+    pub fn resolve(
+        &self,
+        registry: &EmbeddingRegistry,
+    ) -> Result<(Self, Box<dyn Embedding>), EmbedError> {
+        let (method, params) = registry.make(&self.method, &self.params, &())?;
+        let resolved = Self {
+            method: self.method.clone(),
+            params,
+        };
+        Ok((resolved, method))
+    }
+}
+
+impl From<CcaParams> for EmbedParams {
+    fn from(params: CcaParams) -> Self {
+        Self::of("cca", &params)
+    }
+}
+
+impl From<IsomapParams> for EmbedParams {
+    fn from(params: IsomapParams) -> Self {
+        Self::of("isomap", &params)
+    }
+}
+
+impl From<MdsParams> for EmbedParams {
+    fn from(params: MdsParams) -> Self {
+        Self::of("mds", &params)
+    }
+}
+
+impl Serialize for EmbedParams {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = serializer.serialize_map(Some(self.params.len() + 1))?;
+        map.serialize_entry("method", &self.method)?;
+        for (key, value) in self.params.iter().filter(|(k, _)| *k != "method") {
+            map.serialize_entry(key, value)?;
+        }
+        map.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for EmbedParams {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let mut params = toml::Table::deserialize(deserializer)?;
+        let method = match params.remove("method") {
+            Some(toml::Value::String(name)) => name,
+            Some(other) => {
+                return Err(serde::de::Error::custom(format!(
+                    "method must be a name (cca, isomap, mds), got {other}"
+                )))
+            }
+            None => return Err(serde::de::Error::missing_field("method")),
+        };
+        Ok(Self { method, params })
     }
 }
 
 impl CheckParams for EmbedParams {
-    type Valid = EmbedValidParams;
+    type Valid = Box<dyn Embedding>;
     type Error = EmbedError;
-    fn check_params(&self) -> Result<EmbedValidParams, EmbedError> {
-        Ok(match self.clone() {
-            Self::Cca(p) => EmbedValidParams::Cca(p.check()?),
-            Self::Isomap(p) => EmbedValidParams::Isomap(p.check()?),
-            Self::Mds(p) => EmbedValidParams::Mds(p.check()?),
-        })
+    fn check_params(&self) -> Result<Box<dyn Embedding>, EmbedError> {
+        self.build()
     }
 }
 

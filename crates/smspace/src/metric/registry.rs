@@ -5,7 +5,7 @@
 //!
 //! The built-in metrics register here, one line each ([`MetricRegistry::builtin`]); an
 //! embedder registers its own the same way and hands the registry to the pipeline
-//! (`pipeline::check_with`, with the agents in a `pipeline::Registries`): a new set
+//! (`smspace_pipeline::check_with`, with the agents in a `smspace_pipeline::Registries`): a new set
 //! metric is one file (a [`SetMetric`] and, if it has parameters, a serde struct) plus
 //! one registration line. A metric's parameters are a serde struct with
 //! `#[serde(deny_unknown_fields, default)]`: unknown keys are errors that name the key,
