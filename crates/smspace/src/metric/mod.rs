@@ -842,7 +842,7 @@ impl MetricName {
     }
 
     /// The built-in metric of this name, if it is one.
-    pub fn kind(&self) -> Option<MetricKind> {
+    pub(crate) fn kind(&self) -> Option<MetricKind> {
         MetricKind::from_name(&self.0)
     }
 }
