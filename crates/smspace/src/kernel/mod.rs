@@ -874,6 +874,72 @@ pub struct SetReport {
     /// rows of the rank estimate at this start.
     #[serde(default)]
     pub sensor_rows: u64,
+    /// The sensor rows of [`sensor_rows`](Self::sensor_rows) by the phase of tracing
+    /// that read them; `None` for the kinematic method.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_row_phases: Option<SensorRowPhases>,
+}
+
+/// Where the sensor rows of one set went: each phase of tracing, its single readings
+/// (the corrector's and the secant's, one row each) apart from its Jacobians (the
+/// rows of finite differences, or of an agent's own Jacobian). The fields sum to
+/// [`SetReport::sensor_rows`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SensorRowPhases {
+    /// The start's own reading, and the rank estimate's rows when the rank is estimated.
+    pub start: u64,
+    /// Following (or covering) the pieces: corrector and secant readings.
+    pub trace_readings: u64,
+    /// Following (or covering) the pieces: Jacobians.
+    pub trace_jacobians: u64,
+    /// Projecting the seeds of the multi-start search for pieces: readings.
+    pub search_readings: u64,
+    /// Projecting the seeds of the multi-start search for pieces: Jacobians.
+    pub search_jacobians: u64,
+    /// Projecting the resampled points onto the set: readings.
+    pub resample_readings: u64,
+    /// Projecting the resampled points onto the set: Jacobians.
+    pub resample_jacobians: u64,
+}
+
+impl SensorRowPhases {
+    /// All the rows counted.
+    pub fn total(&self) -> u64 {
+        self.start
+            + self.trace_readings
+            + self.trace_jacobians
+            + self.search_readings
+            + self.search_jacobians
+            + self.resample_readings
+            + self.resample_jacobians
+    }
+
+    /// The rows of `phase`, `jacobian` ones or single readings.
+    pub(crate) fn add(&mut self, phase: RowPhase, jacobian: bool, rows: u64) {
+        let field = match (phase, jacobian) {
+            (RowPhase::Start, _) => &mut self.start,
+            (RowPhase::Trace, false) => &mut self.trace_readings,
+            (RowPhase::Trace, true) => &mut self.trace_jacobians,
+            (RowPhase::Search, false) => &mut self.search_readings,
+            (RowPhase::Search, true) => &mut self.search_jacobians,
+            (RowPhase::Resample, false) => &mut self.resample_readings,
+            (RowPhase::Resample, true) => &mut self.resample_jacobians,
+        };
+        *field += rows;
+    }
+}
+
+/// The phase of tracing a level set is in, for [`SensorRowPhases`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum RowPhase {
+    /// The start's reading and the rank estimate.
+    Start,
+    /// Following or covering pieces.
+    Trace,
+    /// Projecting the multi-start seeds.
+    Search,
+    /// Projecting resampled points.
+    Resample,
 }
 
 /// Counts of sets by status.
@@ -1206,7 +1272,7 @@ pub fn trace_one(
         ndarray::ArrayView2::from_shape((1, start.len()), start).expect("one row of N values");
     let tracer = Tracer::new(agent, environment, starts, workspace, params)?;
     let mut result = tracer.trace(start, None, &mut Scratch::default());
-    result.report.sensor_rows += tracer.rank_rows(0);
+    tracer.add_rank_rows(&mut result.report, 0);
     Ok((result.points, result.report))
 }
 
@@ -1287,7 +1353,7 @@ pub fn trace_sets(
         .fold((0, 0), |(a, b), (v, q)| (a + v, b + q));
     let results = results.into_iter().enumerate().map(|(index, mut result)| {
         result.report.index = index;
-        result.report.sensor_rows += tracer.rank_rows(index);
+        tracer.add_rank_rows(&mut result.report, index);
         result
     });
     progress.finish();

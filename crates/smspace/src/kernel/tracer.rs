@@ -23,7 +23,9 @@ use super::cover::{
 use super::curve::{resample, trace_branch, Curve, Scratch};
 use super::gather::{self, Caller};
 use super::level_set::{Kinematic, LevelSet, Linearization, Sensory};
-use super::{Components, KernelError, SetReport, SetStatus, TraceMethod, TraceValidParams};
+use super::{
+    Components, KernelError, RowPhase, SetReport, SetStatus, TraceMethod, TraceValidParams,
+};
 use crate::agent::{Agent, Calling, Environment, MotorSpace, Observer, PoseSpace, Workspace};
 
 /// A checked tracing call (see the module docs).
@@ -139,10 +141,14 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// The sensor rows read at start `i` to estimate the rank of the sensory Jacobian
-    /// (0 when it was not estimated).
-    pub(super) fn rank_rows(&self, i: usize) -> u64 {
-        self.rank_rows.get(i).copied().unwrap_or(0)
+    /// Adds to `report` the sensor rows read at start `i` to estimate the rank of the
+    /// sensory Jacobian (none when it was not estimated), in its start phase.
+    pub(super) fn add_rank_rows(&self, report: &mut SetReport, i: usize) {
+        let rows = self.rank_rows.get(i).copied().unwrap_or(0);
+        report.sensor_rows += rows;
+        if let Some(phases) = &mut report.sensor_row_phases {
+            phases.add(RowPhase::Start, false, rows);
+        }
     }
 
     /// `work` on every row, in the rows' order, with a scratch space per caller, and
@@ -200,6 +206,7 @@ impl<'a> Tracer<'a> {
             unvisited_pieces: 0,
             covering_radius: None,
             sensor_rows: 0,
+            sensor_row_phases: None,
         };
         let start_pose = self.observer.map(|o| {
             let motors = ArrayView2::from_shape((1, start.len()), start).expect("one start");
@@ -235,8 +242,10 @@ impl<'a> Tracer<'a> {
             }
             _ => unreachable!("Tracer::new checked the method's needs"),
         };
+        set.set_phase(RowPhase::Trace);
         let mut result = self.trace_on(set, start, start_pose.as_deref(), caller, report, scratch);
         result.report.sensor_rows = set.sensor_rows();
+        result.report.sensor_row_phases = set.sensor_row_phases();
         result
     }
 
@@ -303,7 +312,9 @@ impl<'a> Tracer<'a> {
             // A seed's path to the set does not matter, only where it lands: secant
             // updates (a sensory set with `jacobian = "secant"`) are enough.
             let _ = set.set_linearization(Linearization::Secant);
+            set.set_phase(RowPhase::Search);
             let projected = project_seed(set, &mut m, &self.space, &mut r, &mut delta);
+            set.set_phase(RowPhase::Trace);
             let _ = set.set_linearization(Linearization::Exact);
             if !projected {
                 continue;
@@ -395,6 +406,7 @@ impl<'a> Tracer<'a> {
         }
         .min(p);
         report.max_residual = found.max_residual.max(found.covering.max_residual);
+        set.set_phase(RowPhase::Resample);
         match self.dimension {
             0 => {
                 report.status = SetStatus::Point;
