@@ -18,6 +18,7 @@
 //! `SMSPACE_BENCH_SAVE=DIR` writes each method's sets to `DIR/<jacobian>/sets.npy`
 //! (with the trace report beside it), and `SMSPACE_BENCH_COMPARE=FILE` compares each
 //! method's sets with those of `FILE` (a `sets.npy` written so, e.g. by another build).
+//! `SMSPACE_BENCH_MAX_STEP` sets `[kernel] max_step` (default: the default's).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -83,10 +84,17 @@ fn run(
     motors: ArrayView2<'_, f64>,
     jacobian: JacobianMethod,
 ) -> TracedSets {
+    let defaults = TraceParams::default();
+    let max_step = std::env::var("SMSPACE_BENCH_MAX_STEP")
+        .ok()
+        .map_or(defaults.max_step, |v| {
+            v.parse().expect("SMSPACE_BENCH_MAX_STEP")
+        });
     let params = TraceParams {
         method: TraceMethod::Sensory,
         jacobian,
-        ..TraceParams::default()
+        max_step,
+        ..defaults
     }
     .check()
     .unwrap();

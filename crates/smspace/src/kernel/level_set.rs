@@ -42,6 +42,13 @@ const SECANT_REACH: f64 = 1.0;
 /// of two readings that close is mostly rounding.
 const SECANT_MIN_STEP: f64 = 1e-8;
 
+/// With `jacobian = "secant"`, a traced node is accepted at this many times the sensor
+/// tolerance: a node only carries the Hermite curve, whose points are projected onto
+/// the set to the tolerance itself, and a node off the set by `10³` tolerances
+/// (`10⁻⁹` of the sensor scale, about `10⁻⁹` rad) moves a projected point by less
+/// than that; the last chord iterations of every node are saved.
+const NODE_TOLERANCE_FACTOR: f64 = 1e3;
+
 /// The linearisation lost rank: the set is not a 1-D curve there.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Singular;
@@ -58,6 +65,12 @@ pub(crate) trait LevelSet {
     fn residual_norm(&self, r: &[f64]) -> f64;
     /// A point is on the set when its residual norm is at most this.
     fn tolerance(&self) -> f64;
+    /// The residual norm a traced node is accepted at (the nodes only carry the Hermite
+    /// curve the resampled points are projected from): [`tolerance`](LevelSet::tolerance)
+    /// unless the level set says otherwise.
+    fn node_tolerance(&self) -> f64 {
+        self.tolerance()
+    }
     /// Linearises `F` at `m` and writes the residual at `m` into `r`.
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular>;
     /// The unit null vector of the current linearisation, oriented so that
@@ -1042,6 +1055,13 @@ impl LevelSet for Sensory<'_> {
 
     fn tolerance(&self) -> f64 {
         self.tolerance
+    }
+
+    fn node_tolerance(&self) -> f64 {
+        match self.secant {
+            Some(_) => NODE_TOLERANCE_FACTOR * self.tolerance,
+            None => self.tolerance,
+        }
     }
 
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {

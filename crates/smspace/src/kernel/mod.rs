@@ -656,7 +656,8 @@ pub enum SetStatus {
     Pieces,
     /// A kernel of dimension k ≥ 2, covered densely and sampled farthest first.
     Covered,
-    /// The dense covering of a k-D kernel needed more than `max_cover_points` nodes.
+    /// The dense covering of a k-D kernel needed more than `max_cover_points` nodes,
+    /// or was forecast to need many more before it started (see `cover.rs`).
     CoverBudget,
     /// The loop did not close within `max_steps`.
     NotClosed,
@@ -700,7 +701,7 @@ impl SetStatus {
             | SetStatus::Pieces
             | SetStatus::Covered => return None,
             SetStatus::CoverBudget => {
-                "the covering of a k-D kernel needed more nodes than [kernel] max_cover_points: raise it or cover_step"
+                "the covering of a k-D kernel needed, or was forecast from the motor ranges and cover_step to need, more nodes than [kernel] max_cover_points: raise cover_step (or max_cover_points, at the cost of sensor calls in proportion)"
             }
             SetStatus::NotClosed => {
                 "the loop did not close within [kernel] max_steps: raise max_steps or closure_tolerance; with the sensory method, noisy readings make the trace wander"
