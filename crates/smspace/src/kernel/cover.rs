@@ -42,7 +42,8 @@
 //! the Halton sequence (bases 2, 3, 5, …) shifted by a random vector drawn from
 //! `ChaCha8(piece_seed)` (a Cranley–Patterson rotation), mapped onto the range of
 //! every motor: the same seeds for every set. Each seed is projected onto the level set
-//! by damped Gauss–Newton steps (minimum-norm, at most `0.5` rad each); a projected
+//! by damped Gauss–Newton steps (minimum-norm, at most `0.5` rad each), given up when
+//! 8 iterations in a row do not halve its smallest residual yet; a projected
 //! seed farther than `piece_tolerance` from every piece found (from the traced curve,
 //! or `1.5 cover_step + piece_tolerance` from the covering's nodes) starts a new piece.
 
@@ -67,6 +68,11 @@ const MAX_SEED_STEP: f64 = 0.5;
 pub(crate) const FORECAST_MARGIN: f64 = 10.0;
 /// Iterations of the multi-start projection.
 const SEED_ITERATIONS: usize = 60;
+/// A seed's projection gives up after this many iterations that did not halve the
+/// smallest residual yet seen (a local minimum of `‖s(m) − s⁰‖` off the level set,
+/// or a region the sensors cannot tell apart), where it would take all
+/// [`SEED_ITERATIONS`] to fail.
+const SEED_STALL: usize = 8;
 
 /// A small multiplicative hasher for the grid's integer cell keys (deterministic,
 /// unlike the standard library's random state).
@@ -442,7 +448,8 @@ pub(crate) enum Landing {
 /// Projects `m` onto the level set from anywhere by damped Gauss–Newton steps
 /// (minimum-norm, at most [`MAX_SEED_STEP`] long): [`Landing::OnSet`] when it arrived
 /// within the level set's tolerance. Bounded coordinates are clamped into their ranges
-/// after every step. Once an undamped step is at most `settle` long and the point it
+/// after every step; it gives up after [`SEED_STALL`] iterations that did not halve
+/// the smallest residual seen. Once an undamped step is at most `settle` long and the point it
 /// leads to is `known` (next to a piece already found), the projection stops there
 /// with [`Landing::Known`]: the remaining steps would move it by a fraction of that
 /// step, onto the known piece, and only a new piece matters to the search.
@@ -454,6 +461,8 @@ pub(crate) fn project_seed(
     settle: f64,
     known: &mut dyn FnMut(&[f64]) -> bool,
 ) -> Landing {
+    let mut best = f64::INFINITY;
+    let mut since_best = 0;
     for _ in 0..SEED_ITERATIONS {
         if set.linearize(m, r).is_err() {
             return Landing::Lost;
@@ -464,6 +473,14 @@ pub(crate) fn project_seed(
         }
         if residual <= set.tolerance() {
             return Landing::OnSet;
+        }
+        if residual < 0.5 * best {
+            (best, since_best) = (residual, 0);
+        } else {
+            since_best += 1;
+            if since_best >= SEED_STALL {
+                return Landing::Lost;
+            }
         }
         set.correction(r, delta);
         let length = delta.iter().map(|x| x * x).sum::<f64>().sqrt();
