@@ -135,6 +135,9 @@ fn run(
     sets
 }
 
+/// One phase's rows of a set.
+type Phase = fn(&SensorRowPhases) -> u64;
+
 /// The sensor rows per start of every phase of tracing (mean and median over the
 /// starts).
 fn print_phases(sets: &TracedSets, starts: usize) {
@@ -144,7 +147,7 @@ fn print_phases(sets: &TracedSets, starts: usize) {
         .iter()
         .map(|s| s.sensor_row_phases.unwrap_or_default())
         .collect();
-    let fields: [(&str, fn(&SensorRowPhases) -> u64); 7] = [
+    let fields: [(&str, Phase); 7] = [
         ("start and rank", |p| p.start),
         ("trace: readings", |p| p.trace_readings),
         ("trace: Jacobians", |p| p.trace_jacobians),
