@@ -144,7 +144,10 @@ INTERRUPTED = textwrap.dedent(
             time.sleep(0.01)
             return np.cos(m) @ np.ones((m.shape[1], 3))
         agent = smspace.PythonAgent(sense=sense, n_motors=4, n_sensors=3)
-        call = lambda: smspace.trace(agent, np.zeros((500, 4)) + 0.1, method="sensory")
+        # Three equal sensors: 3-D kernels, covered at a step whose covering is not
+        # refused up front as too large.
+        call = lambda: smspace.trace(agent, np.zeros((500, 4)) + 0.1, method="sensory",
+                                     cover_step=0.5)
     else:  # a sense that blocks
         def sense(m):
             time.sleep(3600)

@@ -1,7 +1,8 @@
 //! What the sensory method costs an agent that is slow to sense: the paper's arm traced
 //! with `method = "sensory"` from `N` explored starts (the paper's working space, the
 //! default environment of 10 lights), printing the sensor rows per start (median, 90th
-//! percentile, largest, mean), the engine's own time, and the projected run time for a
+//! percentile, largest, mean) and by phase of tracing (mean and median over the
+//! starts), the engine's own time, and the projected run time for a
 //! simulator that costs 10 µs and 1 ms per row (engine time + rows × cost: a cost
 //! model, nothing sleeps).
 //!
@@ -17,6 +18,7 @@
 //! `SMSPACE_BENCH_SAVE=DIR` writes each method's sets to `DIR/<jacobian>/sets.npy`
 //! (with the trace report beside it), and `SMSPACE_BENCH_COMPARE=FILE` compares each
 //! method's sets with those of `FILE` (a `sets.npy` written so, e.g. by another build).
+//! `SMSPACE_BENCH_MAX_STEP` sets `[kernel] max_step` (default: the default's).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -24,7 +26,9 @@ use std::time::Instant;
 use ndarray::{ArrayView2, Axis};
 use smspace::agent::{Agent, AgentConfig, Environment, EnvironmentConfig};
 use smspace::explore::{explore, ExploreParams};
-use smspace::kernel::{trace_sets, JacobianMethod, TraceMethod, TraceParams, TracedSets};
+use smspace::kernel::{
+    trace_sets, JacobianMethod, SensorRowPhases, TraceMethod, TraceParams, TracedSets,
+};
 use smspace::metric::{Curve, Period, Periodicity, SetMetric};
 use smspace::progress::Silent;
 
@@ -80,10 +84,17 @@ fn run(
     motors: ArrayView2<'_, f64>,
     jacobian: JacobianMethod,
 ) -> TracedSets {
+    let defaults = TraceParams::default();
+    let max_step = std::env::var("SMSPACE_BENCH_MAX_STEP")
+        .ok()
+        .map_or(defaults.max_step, |v| {
+            v.parse().expect("SMSPACE_BENCH_MAX_STEP")
+        });
     let params = TraceParams {
         method: TraceMethod::Sensory,
         jacobian,
-        ..TraceParams::default()
+        max_step,
+        ..defaults
     }
     .check()
     .unwrap();
@@ -109,6 +120,7 @@ fn run(
         rows.total as f64 / starts as f64,
         rows.total
     );
+    print_phases(&sets, starts);
     println!(
         "  engine time {engine:.3} s ({:.2} ms per start)",
         1e3 * engine / starts as f64
@@ -121,6 +133,36 @@ fn run(
         );
     }
     sets
+}
+
+/// One phase's rows of a set.
+type Phase = fn(&SensorRowPhases) -> u64;
+
+/// The sensor rows per start of every phase of tracing (mean and median over the
+/// starts).
+fn print_phases(sets: &TracedSets, starts: usize) {
+    let phases: Vec<SensorRowPhases> = sets
+        .report
+        .sets
+        .iter()
+        .map(|s| s.sensor_row_phases.unwrap_or_default())
+        .collect();
+    let fields: [(&str, Phase); 7] = [
+        ("start and rank", |p| p.start),
+        ("trace: readings", |p| p.trace_readings),
+        ("trace: Jacobians", |p| p.trace_jacobians),
+        ("piece search: readings", |p| p.search_readings),
+        ("piece search: Jacobians", |p| p.search_jacobians),
+        ("resampling: readings", |p| p.resample_readings),
+        ("resampling: Jacobians", |p| p.resample_jacobians),
+    ];
+    println!("  rows per start by phase (mean, median):");
+    for (name, field) in fields {
+        let mut rows: Vec<u64> = phases.iter().map(field).collect();
+        rows.sort_unstable();
+        let mean = rows.iter().sum::<u64>() as f64 / starts as f64;
+        println!("    {name:<24} {mean:>7.0} {:>7}", rows[rows.len() / 2]);
+    }
 }
 
 /// The `curve` metric between the sets of `a` and `b` through the same starts, and the

@@ -6,7 +6,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use ndarray::{Array2, ArrayView2, ArrayViewMut2, Axis};
 use smspace::agent::{Agent, AgentConfig, Calling, Environment, EnvironmentConfig, Observer};
 use smspace::explore::{explore, ExploreParams};
-use smspace::kernel::{trace_sets, JacobianMethod, TraceMethod, TraceParams, TracedSets};
+use smspace::kernel::{
+    trace_sets, JacobianMethod, SetStatus, TraceMethod, TraceParams, TracedSets,
+};
 use smspace::metric::{Curve, Period, Periodicity, SetMetric};
 use smspace::progress::Silent;
 
@@ -52,8 +54,12 @@ struct Counting {
 
 impl Counting {
     fn new(calling: Calling, truth: bool) -> Self {
+        Self::of(arm(), calling, truth)
+    }
+
+    fn of(arm: Box<dyn Agent>, calling: Calling, truth: bool) -> Self {
         Self {
-            arm: arm(),
+            arm,
             calling,
             truth,
             rows: AtomicU64::new(0),
@@ -126,7 +132,7 @@ fn the_rows_reported_are_the_rows_the_agent_sensed() {
 }
 
 #[test]
-fn secant_sets_stay_within_a_micro_radian_of_finite_differences_in_half_the_rows() {
+fn secant_sets_stay_within_a_micro_radian_of_finite_differences_in_fewer_rows() {
     let arm = arm();
     let env = EnvironmentConfig::default().build(arm.as_ref()).unwrap();
     let motors = arm_starts(10, 7);
@@ -162,9 +168,10 @@ fn secant_sets_stay_within_a_micro_radian_of_finite_differences_in_half_the_rows
         );
     }
     let rows = |t: &TracedSets| t.report.summary.sensor_rows.unwrap();
-    // Measured: 49 201 rows against 111 322 (medians 5 443 and 12 541 per start).
+    // Measured on 100 starts (the trace_rows benchmark): medians 3 525 and 7 587 rows
+    // per start.
     assert!(
-        2 * rows(&secant).total < rows(&exact).total,
+        5 * rows(&secant).total < 3 * rows(&exact).total,
         "secant {:?}, finite differences {:?}",
         rows(&secant),
         rows(&exact)
@@ -194,4 +201,41 @@ fn secant_tracing_is_the_same_on_one_thread_and_two() {
     assert_eq!(one.kept, two.kept);
     assert_eq!(one.sets, two.sets, "not bit for bit");
     assert_eq!(one.report, two.report);
+}
+
+#[test]
+fn three_dimensional_kernels_fail_as_cover_budget_before_any_covering() {
+    // Five links and the retina hinge: six motors for a 3-D pose, k = 3, whose covering
+    // at the default step is forecast at about 2e6 nodes (max_cover_points 1e5). Without
+    // a ground truth the rank is estimated, and the calls are gathered, as a Python
+    // agent's are: once the rank is known, no covering is started.
+    let chain = AgentConfig {
+        kind: "planar-arm".into(),
+        params: toml::from_str("link_lengths = [1.0, 1.0, 1.0, 1.0, 1.0]").unwrap(),
+    }
+    .build()
+    .unwrap();
+    let agent = Counting::of(chain, Calling::Gathered { callers: 2 }, false);
+    let env = EnvironmentConfig::default().build(&agent).unwrap();
+    let starts = 4;
+    let motors = Array2::from_shape_fn((starts, 6), |(i, j)| 0.4 * (i + 1) as f64 - 0.3 * j as f64);
+    let traced = trace(
+        &agent,
+        &env,
+        motors.view(),
+        sensory(JacobianMethod::Secant, 20),
+    );
+    for line in &traced.report.sets {
+        assert_eq!((line.dimension, line.status), (3, SetStatus::CoverBudget));
+    }
+    // The start's reading and a one-sided Jacobian (N rows) per start, for the rank.
+    let sensed = agent.rows.load(Ordering::Relaxed);
+    assert!(sensed <= (starts * (6 + 1)) as u64, "{sensed} rows sensed");
+    let message = traced.report.summary.require(2).unwrap_err().to_string();
+    assert!(
+        message.contains("4 cover-budget")
+            && message.contains("forecast")
+            && message.contains("cover_step"),
+        "{message}"
+    );
 }

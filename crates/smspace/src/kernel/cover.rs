@@ -16,6 +16,14 @@
 //! stops at the range). Nodes are found in a fixed order (breadth first, directions in
 //! a fixed order), so the covering is deterministic.
 //!
+//! A covering costs sensor rows in proportion to its nodes (a linearisation and a
+//! corrector run per lattice direction each). Before any set is covered, the nodes
+//! are forecast as `∏ (range_j / h)` over the `k` widest motor ranges (a kernel that
+//! spans them); a forecast beyond [`FORECAST_MARGIN`] times `max_cover_points` fails
+//! every set at once as `cover-budget`, without reading a sensor for the covering,
+//! instead of covering `max_cover_points` nodes first (for a 3-D kernel of hinges at
+//! the default step, 2·10⁶ nodes forecast against 10⁵ allowed).
+//!
 //! ## Farthest-point subsampling and the covering radius
 //!
 //! `P` nodes are picked farthest first from the start `m⁰` (ties to the lowest node):
@@ -34,7 +42,8 @@
 //! the Halton sequence (bases 2, 3, 5, …) shifted by a random vector drawn from
 //! `ChaCha8(piece_seed)` (a Cranley–Patterson rotation), mapped onto the range of
 //! every motor: the same seeds for every set. Each seed is projected onto the level set
-//! by damped Gauss–Newton steps (minimum-norm, at most `0.5` rad each); a projected
+//! by damped Gauss–Newton steps (minimum-norm, at most `0.5` rad each), given up when
+//! 8 iterations in a row do not halve its smallest residual yet; a projected
 //! seed farther than `piece_tolerance` from every piece found (from the traced curve,
 //! or `1.5 cover_step + piece_tolerance` from the covering's nodes) starts a new piece.
 
@@ -54,8 +63,16 @@ const ACCEPT_FRACTION: f64 = 0.7;
 const PREDICTED_FRACTION: f64 = 0.5;
 /// Longest damped Gauss–Newton step of the multi-start projection, radians.
 const MAX_SEED_STEP: f64 = 0.5;
+/// A covering forecast at more than this many times `max_cover_points` nodes is not
+/// started ([`forecast_nodes`]).
+pub(crate) const FORECAST_MARGIN: f64 = 10.0;
 /// Iterations of the multi-start projection.
 const SEED_ITERATIONS: usize = 60;
+/// A seed's projection gives up after this many iterations that did not halve the
+/// smallest residual yet seen (a local minimum of `‖s(m) − s⁰‖` off the level set,
+/// or a region the sensors cannot tell apart), where it would take all
+/// [`SEED_ITERATIONS`] to fail.
+const SEED_STALL: usize = 8;
 
 /// A small multiplicative hasher for the grid's integer cell keys (deterministic,
 /// unlike the standard library's random state).
@@ -310,6 +327,23 @@ pub(crate) fn cover_piece(
     Ok(())
 }
 
+/// The forecast of a covering's nodes before any is made: a `k`-dimensional kernel
+/// spanning the ranges of `k` motors (the `k` widest) needs about `∏ (range_j / h)`
+/// nodes at the covering's spacing `h`. A kernel set smaller than that needs fewer,
+/// one that winds round a period several times more.
+pub(crate) fn forecast_nodes(space: &MotorSpace, k: usize, step: f64) -> f64 {
+    let mut ranges: Vec<f64> = space
+        .motors()
+        .iter()
+        .map(|motor| {
+            let (low, high) = motor.range();
+            high - low
+        })
+        .collect();
+    ranges.sort_by(|a, b| b.total_cmp(a));
+    ranges.iter().take(k).map(|range| range / step).product()
+}
+
 /// Whether a bounded coordinate of `m` is outside its range.
 fn outside_bounds(space: &MotorSpace, m: &[f64]) -> bool {
     space
@@ -400,27 +434,53 @@ fn radical_inverse(mut i: u64, base: u64) -> f64 {
     inverse
 }
 
+/// Where the projection of a seed ended ([`project_seed`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Landing {
+    /// On the level set, within its tolerance.
+    OnSet,
+    /// Settling next to a piece already found: stopped early.
+    Known,
+    /// Nowhere: the projection failed.
+    Lost,
+}
+
 /// Projects `m` onto the level set from anywhere by damped Gauss–Newton steps
-/// (minimum-norm, at most [`MAX_SEED_STEP`] long); `true` when it arrived within the
-/// level set's tolerance. Bounded coordinates are clamped into their ranges after
-/// every step.
+/// (minimum-norm, at most [`MAX_SEED_STEP`] long): [`Landing::OnSet`] when it arrived
+/// within the level set's tolerance. Bounded coordinates are clamped into their ranges
+/// after every step; it gives up after [`SEED_STALL`] iterations that did not halve
+/// the smallest residual seen. Once an undamped step is at most `settle` long and the point it
+/// leads to is `known` (next to a piece already found), the projection stops there
+/// with [`Landing::Known`]: the remaining steps would move it by a fraction of that
+/// step, onto the known piece, and only a new piece matters to the search.
 pub(crate) fn project_seed(
     set: &mut dyn LevelSet,
     m: &mut [f64],
     space: &MotorSpace,
-    r: &mut [f64],
-    delta: &mut [f64],
-) -> bool {
+    (r, delta): (&mut [f64], &mut [f64]),
+    settle: f64,
+    known: &mut dyn FnMut(&[f64]) -> bool,
+) -> Landing {
+    let mut best = f64::INFINITY;
+    let mut since_best = 0;
     for _ in 0..SEED_ITERATIONS {
         if set.linearize(m, r).is_err() {
-            return false;
+            return Landing::Lost;
         }
         let residual = set.residual_norm(r);
         if !residual.is_finite() {
-            return false;
+            return Landing::Lost;
         }
         if residual <= set.tolerance() {
-            return true;
+            return Landing::OnSet;
+        }
+        if residual < 0.5 * best {
+            (best, since_best) = (residual, 0);
+        } else {
+            since_best += 1;
+            if since_best >= SEED_STALL {
+                return Landing::Lost;
+            }
         }
         set.correction(r, delta);
         let length = delta.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -435,8 +495,11 @@ pub(crate) fn project_seed(
                 *x = x.clamp(low, high);
             }
         }
+        if length <= settle && known(m) {
+            return Landing::Known;
+        }
     }
-    false
+    Landing::Lost
 }
 
 /// Shares `total` points among pieces in proportion to their sizes (largest

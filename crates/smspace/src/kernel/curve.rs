@@ -76,7 +76,9 @@ fn norm(v: &[f64]) -> f64 {
 pub(crate) enum Convergence {
     /// Only a measured residual within the tolerance ends the iteration.
     Measured,
-    /// A Newton step shorter than `0.1 √tol` also ends it, without a further
+    /// A measured residual within the level set's node tolerance
+    /// ([`LevelSet::node_tolerance`]) ends it, and also:
+    /// a Newton step shorter than `0.1 √tol` ends it, without a further
     /// evaluation: Newton's quadratic remainder `½ |F''| |Δ|²` is then far below the
     /// tolerance for second derivatives of order one (the arm's are bounded by its
     /// reach). Used between traced nodes, never for the resampled output points.
@@ -102,12 +104,16 @@ pub(crate) fn correct(
     }
     let mut first_step = 0.0;
     let mut previous = f64::INFINITY;
+    let tolerance = match convergence {
+        Convergence::Measured => set.tolerance(),
+        Convergence::NewtonStep => set.node_tolerance(),
+    };
     for iteration in 0..=max_iterations {
         let residual = set.residual_norm(&scratch.r);
         if !residual.is_finite() {
             return None;
         }
-        if residual <= set.tolerance() {
+        if residual <= tolerance {
             return Some(Corrected {
                 first_step,
                 residual,

@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use ndarray::{ArrayView2, ArrayViewMut2};
 
 use super::gather::Caller;
-use super::{JacobianMethod, TraceValidParams};
+use super::{JacobianMethod, RowPhase, SensorRowPhases, TraceValidParams};
 use crate::agent::{wrap_angle, Agent, CoordinateKind, Environment, Observer, PoseSpace};
 
 /// `value > floor`, false for NaN (so a NaN pivot counts as singular).
@@ -42,6 +42,13 @@ const SECANT_REACH: f64 = 1.0;
 /// of two readings that close is mostly rounding.
 const SECANT_MIN_STEP: f64 = 1e-8;
 
+/// With `jacobian = "secant"`, a traced node is accepted at this many times the sensor
+/// tolerance: a node only carries the Hermite curve, whose points are projected onto
+/// the set to the tolerance itself, and a node off the set by `10³` tolerances
+/// (`10⁻⁹` of the sensor scale, about `10⁻⁹` rad) moves a projected point by less
+/// than that; the last chord iterations of every node are saved.
+const NODE_TOLERANCE_FACTOR: f64 = 1e3;
+
 /// The linearisation lost rank: the set is not a 1-D curve there.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Singular;
@@ -58,6 +65,12 @@ pub(crate) trait LevelSet {
     fn residual_norm(&self, r: &[f64]) -> f64;
     /// A point is on the set when its residual norm is at most this.
     fn tolerance(&self) -> f64;
+    /// The residual norm a traced node is accepted at (the nodes only carry the Hermite
+    /// curve the resampled points are projected from): [`tolerance`](LevelSet::tolerance)
+    /// unless the level set says otherwise.
+    fn node_tolerance(&self) -> f64 {
+        self.tolerance()
+    }
     /// Linearises `F` at `m` and writes the residual at `m` into `r`.
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular>;
     /// The unit null vector of the current linearisation, oriented so that
@@ -80,6 +93,13 @@ pub(crate) trait LevelSet {
     fn sensor_rows(&self) -> u64 {
         0
     }
+    /// The rows of [`sensor_rows`](LevelSet::sensor_rows) by phase (`None` for a level
+    /// set that reads no sensor).
+    fn sensor_row_phases(&self) -> Option<SensorRowPhases> {
+        None
+    }
+    /// The phase of tracing the next readings are counted in.
+    fn set_phase(&mut self, _phase: RowPhase) {}
     /// How the next [`linearize`](LevelSet::linearize) calls may linearise: exactly, or
     /// by a secant update from the last reading when the level set keeps one (the
     /// sensory set with `jacobian = "secant"`; the others always linearise exactly).
@@ -629,6 +649,8 @@ impl<'a> Sensory<'a> {
             environment,
             caller,
             rows: 0,
+            phase: RowPhase::Start,
+            phases: SensorRowPhases::default(),
         };
         let mut target = vec![0.0; k];
         sensor.sense(start, &mut target);
@@ -935,12 +957,17 @@ pub(crate) struct Sensor<'a> {
     caller: Option<&'a Caller<'a>>,
     /// Motor rows sensed so far.
     rows: u64,
+    /// The phase the next rows are counted in, and the rows of each phase.
+    phase: RowPhase,
+    phases: SensorRowPhases,
 }
 
 impl Sensor<'_> {
-    /// The readings of the motor rows `(B, N)` into `sensors` `(B, K)`: one call.
+    /// The readings of the motor rows `(B, N)` into `sensors` `(B, K)`: one call (a
+    /// Jacobian's rows).
     fn sense_batch(&mut self, motors: ArrayView2<'_, f64>, sensors: ArrayViewMut2<'_, f64>) {
         self.rows += motors.nrows() as u64;
+        self.phases.add(self.phase, true, motors.nrows() as u64);
         match self.caller {
             Some(caller) => caller.sense_batch(motors, sensors),
             None => self.agent.sense_batch(self.environment, motors, sensors),
@@ -950,6 +977,7 @@ impl Sensor<'_> {
     /// The readings at one motor row: directly, or as a one-row request of the caller.
     fn sense(&mut self, motors: &[f64], sensors: &mut [f64]) {
         self.rows += 1;
+        self.phases.add(self.phase, false, 1);
         match self.caller {
             Some(caller) => {
                 let (n, k) = (motors.len(), sensors.len());
@@ -972,6 +1000,7 @@ impl Sensor<'_> {
             .agent
             .sense_with_jacobian(self.environment, motors, sensors, jacobian);
         self.rows += u64::from(given);
+        self.phases.add(self.phase, true, u64::from(given));
         given
     }
 }
@@ -1026,6 +1055,13 @@ impl LevelSet for Sensory<'_> {
 
     fn tolerance(&self) -> f64 {
         self.tolerance
+    }
+
+    fn node_tolerance(&self) -> f64 {
+        match self.secant {
+            Some(_) => NODE_TOLERANCE_FACTOR * self.tolerance,
+            None => self.tolerance,
+        }
     }
 
     fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
@@ -1099,6 +1135,14 @@ impl LevelSet for Sensory<'_> {
 
     fn sensor_rows(&self) -> u64 {
         self.sensor.rows
+    }
+
+    fn sensor_row_phases(&self) -> Option<SensorRowPhases> {
+        Some(self.sensor.phases)
+    }
+
+    fn set_phase(&mut self, phase: RowPhase) {
+        self.sensor.phase = phase;
     }
 
     fn set_linearization(&mut self, linearization: Linearization) -> bool {

@@ -51,12 +51,25 @@
 //!   Jacobian's error, far below the tolerances, and a point whose corrector fails is
 //!   projected again from an exact linearisation;
 //! - the linearisation of a node is kept and restored when a rejected adaptive step
-//!   returns to it, and a reading at the point just read is reused.
+//!   returns to it, and a reading at the point just read is reused;
+//! - a traced node is accepted at `10³` times the sensor tolerance (`10⁻⁹` of the
+//!   sensor scale): it only carries the Hermite curve, whose resampled points are
+//!   projected to the tolerance itself.
+//!
+//! With either method, a seed of the search for pieces stops once it settles next to
+//! a piece already found, and gives up after 8 iterations that do not halve its
+//! smallest residual (see `cover.rs`). The rows of every set are reported by phase
+//! ([`SetReport::sensor_row_phases`]: the start, following the pieces, the seeds of
+//! the search, the resampling; single readings apart from Jacobians).
 //!
 //! On the paper's arm the sets agree with those of `finite-differences` within
 //! `2·10⁻⁷` rad (the `curve` metric between the two sets through a start: median
-//! `2·10⁻¹⁰`, largest `1.4·10⁻⁷` over 100 starts), in about 5 200 sensor rows per
-//! start instead of 12 000 (`cargo bench -p smspace --bench trace_rows`).
+//! `2·10⁻¹⁰`, largest `1.4·10⁻⁷` over 100 starts), in about 3 500 sensor rows per
+//! start instead of 7 600 (`cargo bench -p smspace --bench trace_rows`): following the
+//! loop about 2 600 (1 130 readings, 1 510 Jacobian rows: about 380 nodes of the
+//! default `max_step = 0.05`), the search 390, the resampling 480. Longer steps are
+//! the largest remaining saving: `max_step = 0.2` follows the loop in about 1 400 rows,
+//! its sets within `5·10⁻⁷` rad.
 //!
 //! With [`StepControl::Adaptive`] the step grows up to `max_step` while the tangent
 //! turns less than `max_turn` per step and the corrector has little to do, and shrinks
@@ -638,7 +651,8 @@ pub enum SetStatus {
     Pieces,
     /// A kernel of dimension k ≥ 2, covered densely and sampled farthest first.
     Covered,
-    /// The dense covering of a k-D kernel needed more than `max_cover_points` nodes.
+    /// The dense covering of a k-D kernel needed more than `max_cover_points` nodes,
+    /// or was forecast to need many more before it started (see `cover.rs`).
     CoverBudget,
     /// The loop did not close within `max_steps`.
     NotClosed,
@@ -682,7 +696,7 @@ impl SetStatus {
             | SetStatus::Pieces
             | SetStatus::Covered => return None,
             SetStatus::CoverBudget => {
-                "the covering of a k-D kernel needed more nodes than [kernel] max_cover_points: raise it or cover_step"
+                "the covering of a k-D kernel needed, or was forecast from the motor ranges and cover_step to need, more nodes than [kernel] max_cover_points: raise cover_step (or max_cover_points, at the cost of sensor calls in proportion)"
             }
             SetStatus::NotClosed => {
                 "the loop did not close within [kernel] max_steps: raise max_steps or closure_tolerance; with the sensory method, noisy readings make the trace wander"
@@ -817,6 +831,72 @@ pub struct SetReport {
     /// rows of the rank estimate at this start.
     #[serde(default)]
     pub sensor_rows: u64,
+    /// The sensor rows of [`sensor_rows`](Self::sensor_rows) by the phase of tracing
+    /// that read them; `None` for the kinematic method.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_row_phases: Option<SensorRowPhases>,
+}
+
+/// Where the sensor rows of one set went: each phase of tracing, its single readings
+/// (the corrector's and the secant's, one row each) apart from its Jacobians (the
+/// rows of finite differences, or of an agent's own Jacobian). The fields sum to
+/// [`SetReport::sensor_rows`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SensorRowPhases {
+    /// The start's own reading, and the rank estimate's rows when the rank is estimated.
+    pub start: u64,
+    /// Following (or covering) the pieces: corrector and secant readings.
+    pub trace_readings: u64,
+    /// Following (or covering) the pieces: Jacobians.
+    pub trace_jacobians: u64,
+    /// Projecting the seeds of the multi-start search for pieces: readings.
+    pub search_readings: u64,
+    /// Projecting the seeds of the multi-start search for pieces: Jacobians.
+    pub search_jacobians: u64,
+    /// Projecting the resampled points onto the set: readings.
+    pub resample_readings: u64,
+    /// Projecting the resampled points onto the set: Jacobians.
+    pub resample_jacobians: u64,
+}
+
+impl SensorRowPhases {
+    /// All the rows counted.
+    pub fn total(&self) -> u64 {
+        self.start
+            + self.trace_readings
+            + self.trace_jacobians
+            + self.search_readings
+            + self.search_jacobians
+            + self.resample_readings
+            + self.resample_jacobians
+    }
+
+    /// The rows of `phase`, `jacobian` ones or single readings.
+    pub(crate) fn add(&mut self, phase: RowPhase, jacobian: bool, rows: u64) {
+        let field = match (phase, jacobian) {
+            (RowPhase::Start, _) => &mut self.start,
+            (RowPhase::Trace, false) => &mut self.trace_readings,
+            (RowPhase::Trace, true) => &mut self.trace_jacobians,
+            (RowPhase::Search, false) => &mut self.search_readings,
+            (RowPhase::Search, true) => &mut self.search_jacobians,
+            (RowPhase::Resample, false) => &mut self.resample_readings,
+            (RowPhase::Resample, true) => &mut self.resample_jacobians,
+        };
+        *field += rows;
+    }
+}
+
+/// The phase of tracing a level set is in, for [`SensorRowPhases`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum RowPhase {
+    /// The start's reading and the rank estimate.
+    Start,
+    /// Following or covering pieces.
+    Trace,
+    /// Projecting the multi-start seeds.
+    Search,
+    /// Projecting resampled points.
+    Resample,
 }
 
 /// Counts of sets by status.
@@ -1149,7 +1229,7 @@ pub fn trace_one(
         ndarray::ArrayView2::from_shape((1, start.len()), start).expect("one row of N values");
     let tracer = Tracer::new(agent, environment, starts, workspace, params)?;
     let mut result = tracer.trace(start, None, &mut Scratch::default());
-    result.report.sensor_rows += tracer.rank_rows(0);
+    tracer.add_rank_rows(&mut result.report, 0);
     Ok((result.points, result.report))
 }
 
@@ -1230,7 +1310,7 @@ pub fn trace_sets(
         .fold((0, 0), |(a, b), (v, q)| (a + v, b + q));
     let results = results.into_iter().enumerate().map(|(index, mut result)| {
         result.report.index = index;
-        result.report.sensor_rows += tracer.rank_rows(index);
+        tracer.add_rank_rows(&mut result.report, index);
         result
     });
     progress.finish();

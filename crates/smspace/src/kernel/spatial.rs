@@ -244,6 +244,7 @@ mod tests {
             unvisited_pieces: 0,
             covering_radius: None,
             sensor_rows: 0,
+            sensor_row_phases: None,
         }
     }
 

@@ -17,13 +17,16 @@ use ndarray::{Array2, ArrayView2};
 use rayon::prelude::*;
 
 use super::cover::{
-    cover_piece, farthest_points, piece_seeds, project_seed, share_points, CoverSettings, Covering,
-    Grid,
+    cover_piece, farthest_points, forecast_nodes, piece_seeds, project_seed, share_points,
+    CoverSettings, Covering, Grid, Landing, FORECAST_MARGIN,
 };
 use super::curve::{resample, trace_branch, Curve, Scratch};
 use super::gather::{self, Caller};
 use super::level_set::{Kinematic, LevelSet, Linearization, Sensory};
-use super::{Components, KernelError, SetReport, SetStatus, TraceMethod, TraceValidParams};
+use super::{
+    Components, KernelError, RowPhase, SensorRowPhases, SetReport, SetStatus, TraceMethod,
+    TraceValidParams,
+};
 use crate::agent::{Agent, Calling, Environment, MotorSpace, Observer, PoseSpace, Workspace};
 
 /// A checked tracing call (see the module docs).
@@ -108,6 +111,15 @@ impl<'a> Tracer<'a> {
         self.dimension
     }
 
+    /// Whether the covering of a k-D kernel (`k ≥ 2`) is forecast at more than
+    /// [`FORECAST_MARGIN`] times `max_cover_points` nodes (see [`forecast_nodes`]):
+    /// every set then fails at once as `cover-budget`.
+    pub(super) fn covering_too_large(&self) -> bool {
+        self.dimension >= 2
+            && forecast_nodes(&self.space, self.dimension, self.params.cover_step)
+                > FORECAST_MARGIN * self.params.max_cover_points as f64
+    }
+
     /// The largest numerical rank of the sensory Jacobian over the starts (0 where it
     /// is not finite), and the sensor rows read at each start.
     fn generic_sensory_rank(&self, starts: ArrayView2<'_, f64>) -> (usize, Vec<u64>) {
@@ -139,10 +151,14 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// The sensor rows read at start `i` to estimate the rank of the sensory Jacobian
-    /// (0 when it was not estimated).
-    pub(super) fn rank_rows(&self, i: usize) -> u64 {
-        self.rank_rows.get(i).copied().unwrap_or(0)
+    /// Adds to `report` the sensor rows read at start `i` to estimate the rank of the
+    /// sensory Jacobian (none when it was not estimated), in its start phase.
+    pub(super) fn add_rank_rows(&self, report: &mut SetReport, i: usize) {
+        let rows = self.rank_rows.get(i).copied().unwrap_or(0);
+        report.sensor_rows += rows;
+        if let Some(phases) = &mut report.sensor_row_phases {
+            phases.add(RowPhase::Start, false, rows);
+        }
     }
 
     /// `work` on every row, in the rows' order, with a scratch space per caller, and
@@ -200,7 +216,13 @@ impl<'a> Tracer<'a> {
             unvisited_pieces: 0,
             covering_radius: None,
             sensor_rows: 0,
+            sensor_row_phases: (self.params.method == TraceMethod::Sensory)
+                .then(SensorRowPhases::default),
         };
+        if self.covering_too_large() {
+            report.status = SetStatus::CoverBudget;
+            return SetResult::failed(report);
+        }
         let start_pose = self.observer.map(|o| {
             let motors = ArrayView2::from_shape((1, start.len()), start).expect("one start");
             self.poses(o, caller, motors).row(0).to_vec()
@@ -235,8 +257,10 @@ impl<'a> Tracer<'a> {
             }
             _ => unreachable!("Tracer::new checked the method's needs"),
         };
+        set.set_phase(RowPhase::Trace);
         let mut result = self.trace_on(set, start, start_pose.as_deref(), caller, report, scratch);
         result.report.sensor_rows = set.sensor_rows();
+        result.report.sensor_row_phases = set.sensor_row_phases();
         result
     }
 
@@ -303,13 +327,28 @@ impl<'a> Tracer<'a> {
             // A seed's path to the set does not matter, only where it lands: secant
             // updates (a sensory set with `jacobian = "secant"`) are enough.
             let _ = set.set_linearization(Linearization::Secant);
-            let projected = project_seed(set, &mut m, &self.space, &mut r, &mut delta);
+            set.set_phase(RowPhase::Search);
+            let tolerance = self.params.piece_tolerance;
+            let mut known = |m: &[f64]| {
+                let mut wrapped = m.to_vec();
+                self.space.wrap_points(&mut wrapped);
+                found.contains(&self.space, &wrapped, self.params, SETTLED * tolerance)
+            };
+            let landing = project_seed(
+                set,
+                &mut m,
+                &self.space,
+                (&mut r, &mut delta),
+                SETTLE_STEP * tolerance,
+                &mut known,
+            );
+            set.set_phase(RowPhase::Trace);
             let _ = set.set_linearization(Linearization::Exact);
-            if !projected {
+            if landing != Landing::OnSet {
                 continue;
             }
             self.space.wrap_points(&mut m);
-            if found.contains(&self.space, &m, self.params) {
+            if found.contains(&self.space, &m, self.params, tolerance) {
                 continue;
             }
             if self.add_piece(set, &m, &mut found, scratch).is_err() {
@@ -395,6 +434,7 @@ impl<'a> Tracer<'a> {
         }
         .min(p);
         report.max_residual = found.max_residual.max(found.covering.max_residual);
+        set.set_phase(RowPhase::Resample);
         match self.dimension {
             0 => {
                 report.status = SetStatus::Point;
@@ -608,6 +648,15 @@ fn orientation_reference(n: usize) -> Vec<f64> {
     (0..n).map(|k| golden.powi(-(k as i32))).collect()
 }
 
+/// A seed's projection stops next to a piece found once its undamped step is at most
+/// this fraction of `piece_tolerance` and the point it leads to is within
+/// [`SETTLED`] `piece_tolerance` of the piece: Gauss–Newton's remaining steps are a
+/// small fraction of the last one, so the seed would land within `piece_tolerance`
+/// of that piece, where it counts as found anyway.
+const SETTLE_STEP: f64 = 0.5;
+/// See [`SETTLE_STEP`].
+const SETTLED: f64 = 0.25;
+
 /// A projected seed within this many `cover_step`s (plus `piece_tolerance`) of a
 /// covering's node lies on its piece.
 const PIECE_REACH: f64 = 1.5;
@@ -751,12 +800,17 @@ impl Found {
     }
 
     /// Whether `m` (wrapped, on the level set) lies on a piece already found: within
-    /// `piece_tolerance` of a traced curve, of a point piece or of a failed piece's
-    /// point, or within `1.5 cover_step + piece_tolerance` of a covering's node (the
-    /// covering leaves no hole wider than about `cover_step`).
-    fn contains(&self, space: &MotorSpace, m: &[f64], params: &TraceValidParams) -> bool {
+    /// `tolerance` (`piece_tolerance`, or less) of a traced curve, of a point piece or
+    /// of a failed piece's point, or within `1.5 cover_step + tolerance` of a
+    /// covering's node (the covering leaves no hole wider than about `cover_step`).
+    fn contains(
+        &self,
+        space: &MotorSpace,
+        m: &[f64],
+        params: &TraceValidParams,
+        tolerance: f64,
+    ) -> bool {
         let n = self.n;
-        let tolerance = params.piece_tolerance;
         let near_point = |points: &[f64]| {
             points
                 .chunks_exact(n)
