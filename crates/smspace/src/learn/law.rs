@@ -4,9 +4,9 @@
 use std::fmt;
 
 use nalgebra::{DMatrix, SVD};
+use rand::rngs::ChaCha8Rng;
 use rand::seq::index::sample;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 

@@ -2285,20 +2285,20 @@ mod tests {
     use super::*;
     use crate::metric::{reference, Period};
     use ndarray::ArrayView1;
-    use rand::{Rng, SeedableRng};
+    use rand::{RngExt, SeedableRng};
     use std::f64::consts::PI;
 
     #[test]
     fn exact_segment_distance_equals_the_image_by_image_brute_force() {
         // Segments through the seam and points anywhere, 1 to 6 coordinates.
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(7);
         let period = 2.0 * PI;
         let mut crossing = 0;
         for trial in 0..4000 {
             let n = 1 + trial % 6;
-            let start: Vec<f64> = (0..n).map(|_| rng.gen_range(-PI..PI)).collect();
-            let end: Vec<f64> = (0..n).map(|_| rng.gen_range(-PI..PI)).collect();
-            let a: Vec<f64> = (0..n).map(|_| rng.gen_range(-PI..PI)).collect();
+            let start: Vec<f64> = (0..n).map(|_| rng.random_range(-PI..PI)).collect();
+            let end: Vec<f64> = (0..n).map(|_| rng.random_range(-PI..PI)).collect();
+            let a: Vec<f64> = (0..n).map(|_| rng.random_range(-PI..PI)).collect();
             let v: Vec<f64> = start
                 .iter()
                 .zip(&end)
@@ -2333,15 +2333,15 @@ mod tests {
         // Points anywhere and segments through the seam, 8 coordinates (one of them
         // unwrapped): the bound never exceeds the exact distance, and it is a good
         // one (within 20 %) for most of the segments that cross the seam.
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(11);
         let mut period = [2.0 * PI; 8];
         period[7] = f64::INFINITY;
         let (mut crossing, mut close) = (0, 0);
         for trial in 0..4000 {
             let reach = [0.3, 0.8, 1.5, PI][trial % 4];
-            let start: [f64; 8] = std::array::from_fn(|_| rng.gen_range(-PI..PI));
-            let x: [f64; 8] = std::array::from_fn(|_| rng.gen_range(-PI..PI));
-            let v: [f64; 8] = std::array::from_fn(|_| rng.gen_range(-reach..reach));
+            let start: [f64; 8] = std::array::from_fn(|_| rng.random_range(-PI..PI));
+            let x: [f64; 8] = std::array::from_fn(|_| rng.random_range(-PI..PI));
+            let v: [f64; 8] = std::array::from_fn(|_| rng.random_range(-reach..reach));
             let len2: f64 = v.iter().map(|x| x * x).sum();
             let exact = segment_distance2(&x, &start, &v, 1.0 / len2, &period);
             let lower = seam_lower2::<8>(&x, &start, &v, &period);
@@ -2363,15 +2363,15 @@ mod tests {
     /// coordinate, two harmonics per coordinate, all affine in a random pose).
     fn arm_like_loops(m: usize, p: usize, seed: u64) -> ndarray::Array3<f64> {
         use std::f64::consts::TAU;
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
         let family: Vec<[f64; 4]> = (0..20)
-            .map(|_| std::array::from_fn(|_| rng.gen_range(-1.0..1.0)))
+            .map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)))
             .collect();
         let mut sets = ndarray::Array3::zeros((m, p, 4));
         for i in 0..m {
-            let pose: [f64; 3] = std::array::from_fn(|_| rng.gen_range(0.0..1.0));
+            let pose: [f64; 3] = std::array::from_fn(|_| rng.random_range(0.0..1.0));
             let affine = |c: &[f64; 4]| c[0] + c[1] * pose[0] + c[2] * pose[1] + c[3] * pose[2];
-            let phase = rng.gen_range(0.0..TAU);
+            let phase = rng.random_range(0.0..TAU);
             for k in 0..p {
                 let s = TAU * k as f64 / p as f64;
                 let t = phase + s + 0.25 * s.sin();
@@ -2417,15 +2417,15 @@ mod tests {
 
     #[test]
     fn open_segments_rank_like_the_sort_by_value_then_entry() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(12);
         for n in [0, 1, 2, 5, 16, 17, 40] {
             for _ in 0..50 {
                 // Few distinct values, so that ties (broken by the entry) are common.
                 let mut open: Vec<OpenSegment> = (0..n)
                     .map(|e| {
-                        let value = [0.0, 0.25, 1.5, f32::INFINITY][rng.gen_range(0..4)];
-                        let entry = e as u32 | u32::from(rng.gen_bool(0.5)) << 31;
-                        (value, entry, (rng.gen(), rng.gen()))
+                        let value = [0.0, 0.25, 1.5, f32::INFINITY][rng.random_range(0..4)];
+                        let entry = e as u32 | u32::from(rng.random_bool(0.5)) << 31;
+                        (value, entry, (rng.random(), rng.random()))
                     })
                     .collect();
                 let mut sorted = open.clone();
