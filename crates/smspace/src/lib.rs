@@ -50,6 +50,7 @@ pub mod invariance;
 pub mod io;
 pub mod kernel;
 pub mod learn;
+mod linalg;
 pub mod metric;
 pub mod neighbours;
 #[cfg(feature = "pipeline")]
