@@ -38,9 +38,9 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 use ndarray::{Array2, Axis};
+use rand::rngs::ChaCha8Rng;
 use rand::seq::index::sample;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::stages::World;

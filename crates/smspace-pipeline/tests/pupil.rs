@@ -7,8 +7,8 @@
 //! along its optical axis), whose motor is kept.
 
 use ndarray::{Array2, Axis};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 
 use smspace::agent::{
     Agent, AgentConfig, ArmParams, Environment, EnvironmentConfig, Motor, MotorSpace, PlanarArm,
@@ -47,7 +47,7 @@ fn base_points(extra: usize, range: [f64; 2]) -> Array2<f64> {
         if c < 4 {
             arm[[r, c]]
         } else {
-            rng.gen_range(range[0]..range[1])
+            rng.random_range(range[0]..range[1])
         }
     })
 }

@@ -26,9 +26,9 @@ use smspace_pipeline::stages::DistancesStage;
 use smspace_pipeline::{DistanceBackend, Recompute, RunOptions};
 
 fn random_sets(m: usize, p: usize, n: usize, seed: u64) -> Array3<f64> {
-    use rand::{Rng, SeedableRng};
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    Array3::from_shape_fn((m, p, n), |_| rng.gen_range(-1.0..1.0))
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
+    Array3::from_shape_fn((m, p, n), |_| rng.random_range(-1.0..1.0))
 }
 
 #[test]

@@ -2,8 +2,8 @@
 //! extended to every set, against known shapes and against the dense path.
 
 use ndarray::{Array2, Array3};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::embed::landmarks::fit_on_landmarks;
 use smspace::embed::{CcaParams, Embedding, IsomapParams, MdsParams};
 use smspace::metric::landmarks::{
@@ -44,8 +44,8 @@ fn grid(nx: usize, ny: usize, seed: u64) -> Array2<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut points = Array2::zeros((nx * ny, 2));
     for i in 0..nx * ny {
-        points[[i, 0]] = (i % nx) as f64 + rng.gen_range(-0.25..0.25);
-        points[[i, 1]] = (i / nx) as f64 + rng.gen_range(-0.25..0.25);
+        points[[i, 0]] = (i % nx) as f64 + rng.random_range(-0.25..0.25);
+        points[[i, 1]] = (i / nx) as f64 + rng.random_range(-0.25..0.25);
     }
     points
 }
@@ -134,7 +134,7 @@ fn landmark_isomap_unrolls_an_arc_like_the_full_fit() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let step = 1.5 * std::f64::consts::PI / 300.0;
     let angles: Vec<f64> = (0..300)
-        .map(|i| (i as f64 + rng.gen_range(-0.3..0.3)) * step)
+        .map(|i| (i as f64 + rng.random_range(-0.3..0.3)) * step)
         .collect();
     let points = Array2::from_shape_fn((300, 2), |(i, c)| {
         if c == 0 {

@@ -4,7 +4,7 @@
 
 use approx::assert_abs_diff_eq;
 use ndarray::{Array3, Axis};
-use rand::{Rng, SeedableRng};
+use rand::{RngExt, SeedableRng};
 use smspace::metric::{
     distance_matrix_with, knn_with, reference, DistanceParams, KnnParams, Period, SetMetric,
     Surface, SurfaceParams,
@@ -16,14 +16,14 @@ use smspace::progress::Silent;
 /// in each direction (so its points never coincide with another set's), at a random
 /// height. Returns the sets and the heights.
 fn planes(m: usize, side: usize, step: f64, seed: u64) -> (Array3<f64>, Vec<f64>) {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
     let mut sets = Array3::zeros((m, side * side, 3));
     let mut heights = Vec::with_capacity(m);
     for s in 0..m {
-        let h = rng.gen_range(-1.0..1.0);
+        let h = rng.random_range(-1.0..1.0);
         let (dx, dy) = (
-            rng.gen_range(-0.2..0.2) * step,
-            rng.gen_range(-0.2..0.2) * step,
+            rng.random_range(-0.2..0.2) * step,
+            rng.random_range(-0.2..0.2) * step,
         );
         for i in 0..side {
             for j in 0..side {
@@ -73,7 +73,7 @@ fn sampled_parallel_planes_are_as_far_as_their_heights() {
 #[test]
 fn the_matrix_equals_the_pair_calls_for_any_thread_count() {
     // Curved sheets in the 3-torus, some across the seam.
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(9);
     let (m, side) = (9, 6);
     let sets = Array3::from_shape_fn((m, side * side, 3), |(s, p, c)| {
         let (i, j) = ((p / side) as f64, (p % side) as f64);
@@ -84,7 +84,7 @@ fn the_matrix_equals_the_pair_calls_for_any_thread_count() {
             _ => 0.4 * (0.7 * i + 0.1 * s as f64).sin() + 0.05 * j,
         }
     });
-    let sets = sets.mapv(|x| x + rng.gen_range(-1e-3..1e-3));
+    let sets = sets.mapv(|x| x + rng.random_range(-1e-3..1e-3));
     let metric = Surface::new(SurfaceParams::default(), Period::TwoPi.into()).unwrap();
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new()

@@ -15,8 +15,8 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use ndarray::{Array2, Axis};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::analysis::{agreement, dimension, maxmin_landmarks, rips_persistence};
 use smspace::progress::Silent;
 
@@ -25,9 +25,9 @@ use smspace::progress::Silent;
 fn cylinder(n: usize, seed: u64) -> (Array2<f64>, Array2<f64>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let poses = Array2::from_shape_fn((n, 3), |(_, c)| match c {
-        0 => rng.gen_range(0.0..1.0),
+        0 => rng.random_range(0.0..1.0),
         1 => 0.0,
-        _ => rng.gen_range(-3.1..3.1),
+        _ => rng.random_range(-3.1..3.1),
     });
     let point = |i: usize| {
         let a: f64 = poses[[i, 2]];

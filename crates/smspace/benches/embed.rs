@@ -17,8 +17,8 @@ use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use ndarray::Array2;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::embed::{CcaParams, Embedding, IsomapParams, KnnGraph, LandmarkChoice, MdsParams};
 use smspace::metric::DistanceMatrix;
 use smspace::progress::Silent;
@@ -28,11 +28,11 @@ fn circle_times_plane(n: usize, seed: u64) -> Array2<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut p = Array2::zeros((n, 4));
     for i in 0..n {
-        let a: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+        let a: f64 = rng.random_range(0.0..std::f64::consts::TAU);
         p[[i, 0]] = a.cos();
         p[[i, 1]] = a.sin();
-        p[[i, 2]] = rng.gen_range(0.0..2.0);
-        p[[i, 3]] = rng.gen_range(0.0..2.0);
+        p[[i, 2]] = rng.random_range(0.0..2.0);
+        p[[i, 3]] = rng.random_range(0.0..2.0);
     }
     p
 }

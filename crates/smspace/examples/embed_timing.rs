@@ -5,8 +5,8 @@
 use std::time::Instant;
 
 use ndarray::Array2;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::embed::{CcaParams, Embedding, IsomapParams, MdsParams};
 use smspace::progress::Silent;
 
@@ -19,11 +19,11 @@ fn main() {
     let p = Array2::from_shape_fn((n, 4), |_| 0.0);
     let mut p = p;
     for i in 0..n {
-        let a: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+        let a: f64 = rng.random_range(0.0..std::f64::consts::TAU);
         p[[i, 0]] = a.cos();
         p[[i, 1]] = a.sin();
-        p[[i, 2]] = rng.gen_range(0.0..2.0);
-        p[[i, 3]] = rng.gen_range(0.0..2.0);
+        p[[i, 2]] = rng.random_range(0.0..2.0);
+        p[[i, 3]] = rng.random_range(0.0..2.0);
     }
     let d = Array2::from_shape_fn((n, n), |(i, j)| {
         let v = &p.row(i) - &p.row(j);

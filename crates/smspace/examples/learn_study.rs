@@ -5,9 +5,9 @@
 
 use std::time::Instant;
 
+use rand::rngs::ChaCha8Rng;
 use rand::seq::index::sample;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use smspace::agent::{AgentConfig, EnvironmentConfig};
 use smspace::kernel::{trace_sets, TraceParams};
 use smspace::learn::{

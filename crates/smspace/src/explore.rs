@@ -19,8 +19,8 @@
 //! [`MotorSpace`]: crate::agent::MotorSpace
 
 use ndarray::Array2;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 pub use crate::agent::Workspace;
@@ -618,7 +618,7 @@ fn babble(
         }
         draws += 1;
         for (v, &(low, high)) in m.iter_mut().zip(&ranges) {
-            *v = rng.gen_range(low..high);
+            *v = rng.random_range(low..high);
         }
         if let Some(observer) = observer {
             observer.pose(&m, &mut pose);

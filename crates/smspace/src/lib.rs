@@ -49,6 +49,7 @@ pub mod invariance;
 pub mod io;
 pub mod kernel;
 pub mod learn;
+mod linalg;
 pub mod matrix;
 pub mod metric;
 pub mod neighbours;

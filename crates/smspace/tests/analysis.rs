@@ -7,8 +7,8 @@ use std::process::Command;
 
 use approx::assert_abs_diff_eq;
 use ndarray::{Array2, ArrayView2};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::analysis::{
     agreement, analyze, dimension, maxmin_landmarks, rips_persistence, AnalysisError,
     AnalysisParams, BettiRule, Persistence,
@@ -46,7 +46,7 @@ fn points<const D: usize>(
 
 fn circle(n: usize, seed: u64) -> Array2<f64> {
     points(n, seed, |rng| {
-        let a = rng.gen_range(0.0..TAU);
+        let a = rng.random_range(0.0..TAU);
         [a.cos(), a.sin()]
     })
 }
@@ -57,8 +57,8 @@ fn torus(side: usize, seed: u64) -> Array2<f64> {
     let mut data = Vec::new();
     for i in 0..side {
         for j in 0..side {
-            let a = (i as f64 + rng.gen_range(0.0..0.5)) * TAU / side as f64;
-            let b = (j as f64 + rng.gen_range(0.0..0.5)) * TAU / side as f64;
+            let a = (i as f64 + rng.random_range(0.0..0.5)) * TAU / side as f64;
+            let b = (j as f64 + rng.random_range(0.0..0.5)) * TAU / side as f64;
             data.extend_from_slice(&[a.cos(), a.sin(), b.cos(), b.sin()]);
         }
     }
@@ -68,9 +68,9 @@ fn torus(side: usize, seed: u64) -> Array2<f64> {
 fn sphere(n: usize, seed: u64) -> Array2<f64> {
     points(n, seed, |rng| loop {
         let p: [f64; 3] = [
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
         ];
         let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
         if (0.1..=1.0).contains(&r) {
@@ -201,7 +201,7 @@ fn torus_has_two_loops_and_dimension_two() {
     assert_eq!(b, vec![1, 2]);
     // TwoNN assumes Poisson-like sampling, which a jittered grid is not.
     let uniform = euclidean(&points(600, 22, |rng| {
-        let (a, b) = (rng.gen_range(0.0..TAU), rng.gen_range(0.0..TAU));
+        let (a, b) = (rng.random_range(0.0..TAU), rng.random_range(0.0..TAU));
         [a.cos(), a.sin(), b.cos(), b.sin()]
     }));
     let twonn = dimension::twonn(uniform.view(), 0.1).unwrap();
@@ -238,13 +238,13 @@ fn circle_times_segment_has_one_loop_and_dimension_two() {
 }
 
 fn segment() -> Array2<f64> {
-    points(150, 4, |rng| [rng.gen_range(0.0..1.0)])
+    points(150, 4, |rng| [rng.random_range(0.0..1.0)])
 }
 
 fn circle_times_segment() -> Array2<f64> {
     points(500, 5, |rng| {
-        let a = rng.gen_range(0.0..TAU);
-        [a.cos(), a.sin(), rng.gen_range(0.0..0.8)]
+        let a = rng.random_range(0.0..TAU);
+        [a.cos(), a.sin(), rng.random_range(0.0..0.8)]
     })
 }
 
@@ -271,9 +271,9 @@ fn diagrams_match_ripser_on_random_clouds_of_several_sizes() {
     for (seed, n) in [(10u64, 20usize), (11, 60), (12, 120)] {
         let d = euclidean(&points(n, seed, |rng| {
             [
-                rng.gen_range(0.0..1.0),
-                rng.gen_range(0.0..1.0),
-                rng.gen_range(0.0..1.0),
+                rng.random_range(0.0..1.0),
+                rng.random_range(0.0..1.0),
+                rng.random_range(0.0..1.0),
             ]
         }));
         let persistence = rips_persistence(d.view(), 2, None, &Silent).unwrap();
@@ -300,9 +300,9 @@ fn ties_in_distances_match_ripser() {
 /// diameter bands, and a loop that lives through most of them.
 fn thick_circle(n: usize, seed: u64) -> Array2<f64> {
     points(n, seed, |rng| {
-        let a = rng.gen_range(0.0..TAU);
-        let r = 1.0 + rng.gen_range(-0.15..0.15);
-        [r * a.cos(), r * a.sin(), rng.gen_range(0.0..0.4)]
+        let a = rng.random_range(0.0..TAU);
+        let r = 1.0 + rng.random_range(-0.15..0.15);
+        [r * a.cos(), r * a.sin(), rng.random_range(0.0..0.4)]
     })
 }
 
@@ -342,9 +342,9 @@ fn threshold_below_the_loop_death_leaves_an_infinite_bar() {
 fn identical_metrics_agree_perfectly() {
     let poses = points(120, 7, |rng| {
         [
-            rng.gen_range(0.0..2.0),
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-3.0..3.0),
+            rng.random_range(0.0..2.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-3.0..3.0),
         ]
     });
     // The learned metric is exactly the pose metric (alpha scaled like the module's).
@@ -408,10 +408,10 @@ fn alpha_is_circular_in_the_agreement() {
 #[test]
 fn trustworthiness_drops_when_neighbourhoods_are_scrambled() {
     let poses = points(100, 8, |rng| {
-        [rng.gen_range(0.0..1.0), rng.gen_range(0.0..1.0), 0.0]
+        [rng.random_range(0.0..1.0), rng.random_range(0.0..1.0), 0.0]
     });
     let random = euclidean(&points(100, 10, |r| {
-        [r.gen_range(0.0..1.0), r.gen_range(0.0..1.0)]
+        [r.random_range(0.0..1.0), r.random_range(0.0..1.0)]
     }));
     let a = agreement::agreement(random.view(), poses.view(), 10).unwrap();
     assert!(a.trustworthiness < 0.7 && a.continuity < 0.7, "{a:?}");
@@ -422,9 +422,9 @@ fn trustworthiness_drops_when_neighbourhoods_are_scrambled() {
 fn analyze_reports_the_contract_keys() {
     let poses = points(150, 11, |rng| {
         [
-            rng.gen_range(0.0..2.0),
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-3.1..3.1),
+            rng.random_range(0.0..2.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-3.1..3.1),
         ]
     });
     let d = pose_metric(&poses);

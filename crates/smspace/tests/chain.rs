@@ -6,8 +6,8 @@ use std::f64::consts::{FRAC_1_SQRT_2, FRAC_PI_2, PI};
 
 use approx::assert_abs_diff_eq;
 use ndarray::Array2;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::agent::{
     Agent, AgentConfig, Environment, EnvironmentConfig, LightSpace, Motor, Observer, PoseSpace,
 };
@@ -69,7 +69,7 @@ fn random_motors(agent: &dyn Agent, rows: usize, seed: u64) -> Array2<f64> {
         .map(|m| m.range())
         .collect();
     Array2::from_shape_fn((rows, ranges.len()), |(_, j)| {
-        rng.gen_range(ranges[j].0..ranges[j].1)
+        rng.random_range(ranges[j].0..ranges[j].1)
     })
 }
 

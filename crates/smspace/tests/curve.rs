@@ -9,8 +9,8 @@ use std::f64::consts::PI;
 
 use arm_like::{arm_like_sets, uniform_sets};
 use ndarray::{array, Array2, Array3, Axis};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::metric::{
     distance_matrix, distance_rows, fill_rows, fill_tile, knn, reference, Closure, Curve,
     DistanceParams, KnnParams, MetricError, MetricKind, MetricRegistry, Period, Periods,
@@ -189,10 +189,10 @@ fn random_polylines(m: usize, p: usize, n: usize, step: f64, seed: u64) -> Array
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut sets = Array3::zeros((m, p, n));
     for i in 0..m {
-        let mut x: Vec<f64> = (0..n).map(|_| rng.gen_range(-PI..PI)).collect();
+        let mut x: Vec<f64> = (0..n).map(|_| rng.random_range(-PI..PI)).collect();
         for j in 0..p {
             for k in 0..n {
-                x[k] += rng.gen_range(-step..step);
+                x[k] += rng.random_range(-step..step);
                 sets[[i, j, k]] = wrapped(x[k]);
             }
         }
@@ -491,10 +491,10 @@ fn random_walks(m: usize, p: usize, step: f64, periods: &Periods, seed: u64) -> 
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut sets = Array3::zeros((m, p, n));
     for i in 0..m {
-        let mut x: Vec<f64> = (0..n).map(|_| rng.gen_range(-3.0..3.0)).collect();
+        let mut x: Vec<f64> = (0..n).map(|_| rng.random_range(-3.0..3.0)).collect();
         for j in 0..p {
             for k in 0..n {
-                x[k] += rng.gen_range(-step..step);
+                x[k] += rng.random_range(-step..step);
                 sets[[i, j, k]] = match periods.get(k) {
                     Some(t) => (x[k] + 0.5 * t).rem_euclid(t) - 0.5 * t,
                     None => x[k],

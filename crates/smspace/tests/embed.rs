@@ -2,8 +2,8 @@
 
 use approx::assert_abs_diff_eq;
 use ndarray::{Array2, Axis, Slice};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::embed::quality::{shepard_pairs, stress, trustworthiness_continuity};
 use smspace::embed::{
     CcaParams, EigenSolver, EmbedError, EmbedParams, Embedding, IsomapParams, KnnGraph,
@@ -30,7 +30,7 @@ fn euclidean(points: &Array2<f64>) -> Array2<f64> {
 fn circle(n: usize, seed: u64) -> Array2<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut a: Vec<f64> = (0..n)
-        .map(|_| rng.gen_range(0.0..std::f64::consts::TAU))
+        .map(|_| rng.random_range(0.0..std::f64::consts::TAU))
         .collect();
     a.sort_by(f64::total_cmp);
     Array2::from_shape_fn(
@@ -46,8 +46,8 @@ fn swiss_roll(n: usize, seed: u64) -> (Array2<f64>, Array2<f64>) {
     let mut truth = Array2::zeros((n, 2));
     let arc = |t: f64| 0.5 * (t * (1.0 + t * t).sqrt() + t.asinh());
     for i in 0..n {
-        let t = rng.gen_range(1.5 * std::f64::consts::PI..4.5 * std::f64::consts::PI);
-        let h = rng.gen_range(0.0..15.0);
+        let t = rng.random_range(1.5 * std::f64::consts::PI..4.5 * std::f64::consts::PI);
+        let h = rng.random_range(0.0..15.0);
         points[[i, 0]] = t * t.cos();
         points[[i, 1]] = h;
         points[[i, 2]] = t * t.sin();
@@ -70,7 +70,7 @@ fn mds_reproduces_euclidean_points_up_to_rotation() {
         (300, EigenSolver::Partial),
     ] {
         let mut rng = ChaCha8Rng::seed_from_u64(n as u64);
-        let points = Array2::from_shape_fn((n, 3), |_| rng.gen_range(-1.0..1.0));
+        let points = Array2::from_shape_fn((n, 3), |_| rng.random_range(-1.0..1.0));
         let d = euclidean(&points);
         let e = fit(
             EmbedParams::from(MdsParams::default().dim(3).solver(solver)),
@@ -160,10 +160,10 @@ fn circle_times_segment_is_recovered_in_3d() {
     let points = Array2::from_shape_fn((n, 3), |_| 0.0);
     let mut points = points;
     for i in 0..n {
-        let a: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
+        let a: f64 = rng.random_range(0.0..std::f64::consts::TAU);
         points[[i, 0]] = a.cos();
         points[[i, 1]] = a.sin();
-        points[[i, 2]] = rng.gen_range(0.0..1.5);
+        points[[i, 2]] = rng.random_range(0.0..1.5);
     }
     let d = euclidean(&points);
     for params in [

@@ -5,8 +5,8 @@
 use std::path::PathBuf;
 
 use ndarray::{Array2, Axis};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::agent::{Agent, AgentConfig, Environment, EnvironmentConfig, MotorSpace};
 use smspace::kernel::{trace_sets, SetStatus, TraceParams};
 use smspace::learn::{
@@ -34,7 +34,7 @@ fn invariants() -> LawParams {
 /// redundant toy's kernels, the lines `m1 + m2 = const`.
 fn sum_log(samples: usize) -> (MotorSpace, SensorimotorLog) {
     let mut rng = ChaCha8Rng::seed_from_u64(5);
-    let motors = Array2::from_shape_fn((samples, 2), |_| rng.gen_range(-1.5..1.5));
+    let motors = Array2::from_shape_fn((samples, 2), |_| rng.random_range(-1.5..1.5));
     let sensors = Array2::from_shape_fn((samples, 2), |(i, k)| {
         let x: f64 = motors[[i, 0]] + motors[[i, 1]];
         if k == 0 {
@@ -177,7 +177,7 @@ fn impossible_invariant_parameters_and_logs_are_refused_with_the_fix() {
     }
     // Six motors: 728 basis functions, more than the method takes.
     let mut rng = ChaCha8Rng::seed_from_u64(2);
-    let motors: Array2<f64> = Array2::from_shape_fn((3000, 6), |_| rng.gen_range(-3.0..3.0));
+    let motors: Array2<f64> = Array2::from_shape_fn((3000, 6), |_| rng.random_range(-3.0..3.0));
     let sensors = Array2::from_shape_fn((3000, 2), |(i, k)| motors[[i, k]].sin());
     let space = MotorSpace::hinges(6);
     let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();

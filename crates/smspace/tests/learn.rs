@@ -6,8 +6,8 @@ use std::f64::consts::PI;
 use std::path::PathBuf;
 
 use ndarray::{Array2, Axis};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use smspace::agent::{Agent, AgentConfig, Environment, EnvironmentConfig, MotorSpace};
 use smspace::kernel::{trace_sets, SetStatus, TraceParams};
 use smspace::learn::{
@@ -40,9 +40,9 @@ fn hinge_log(
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let motors = Array2::from_shape_fn((samples, 2), |(_, j)| {
         if j == 0 {
-            rng.gen_range(low1..high1)
+            rng.random_range(low1..high1)
         } else {
-            rng.gen_range(-PI..PI)
+            rng.random_range(-PI..PI)
         }
     });
     let k = f(0.0, 0.0).len();
@@ -81,7 +81,7 @@ fn the_law_fits_a_smooth_function_across_the_wrap() {
         let mut largest: f64 = 0.0;
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         for _ in 0..200 {
-            let m = [rng.gen_range(-PI..PI), rng.gen_range(-PI..PI)];
+            let m = [rng.random_range(-PI..PI), rng.random_range(-PI..PI)];
             let mut s = [0.0; 3];
             law.sense(&unused, &m, &mut s);
             for (a, b) in s.iter().zip(smooth(m[0], m[1])) {
@@ -380,7 +380,7 @@ fn the_law_jacobian_is_the_derivative_of_its_value() {
     });
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     for v in sensors.iter_mut() {
-        *v += 0.02 * (rng.gen::<f64>() - 0.5);
+        *v += 0.02 * (rng.random::<f64>() - 0.5);
     }
     let space = MotorSpace::hinges(2);
     let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();

@@ -9,9 +9,9 @@ use std::f64::consts::PI;
 use approx::assert_abs_diff_eq;
 use arm_like::{arm_like_sets, uniform_sets};
 use ndarray::{array, Array2, Array3, Axis, Slice};
+use rand::rngs::ChaCha8Rng;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use smspace::metric::{
     distance_matrix, distance_matrix_with, distance_rows, fill_rows, knn, reference,
     DistanceParams, Hausdorff, KnnParams, MeanHausdorff, MetricError, MetricKind, Period,

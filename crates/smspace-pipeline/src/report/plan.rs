@@ -2,8 +2,8 @@
 //! each deciding from the inputs whether its figure is drawn or skipped (and why).
 
 use ndarray::Array2;
+use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
 use super::figures::{self, Panel, Recovery};
 use super::layout::{self, FigureText};

@@ -248,7 +248,7 @@ fn sample_rows(
     let (grid, babbled): (Vec<usize>, Vec<usize>) =
         (0..kept.len()).partition(|&r| probes[[kept[r], 0]] >= 0);
     let room = most.saturating_sub(grid.len()).min(babbled.len());
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
     let mut rows = grid;
     rows.extend(
         rand::seq::index::sample(&mut rng, babbled.len(), room)

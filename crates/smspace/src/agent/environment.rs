@@ -29,8 +29,8 @@
 
 use std::path::Path;
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 use super::{Agent, AgentError};
@@ -274,15 +274,15 @@ impl Environment {
                 .into());
             }
             let p = [
-                region.center[0] + region.half_size[0] * rng.gen_range(-1.0..1.0),
-                region.center[1] + region.half_size[1] * rng.gen_range(-1.0..1.0),
+                region.center[0] + region.half_size[0] * rng.random_range(-1.0..1.0),
+                region.center[1] + region.half_size[1] * rng.random_range(-1.0..1.0),
             ];
             let angle = (p[1] - region.center[1])
                 .atan2(p[0] - region.center[0])
                 .rem_euclid(2.0 * std::f64::consts::PI);
             let wanted = lights.len() as f64 * sector;
             if !region.contains_excluded(p) && (wanted..wanted + sector).contains(&angle) {
-                let z = heights.map_or(0.0, |[low, high]| rng.gen_range(low..high));
+                let z = heights.map_or(0.0, |[low, high]| rng.random_range(low..high));
                 lights.push([p[0], p[1], z]);
                 draws = 0;
             }

@@ -607,7 +607,7 @@ impl<'a> GroundTruthView<'a> {
 mod tests {
     use super::*;
     use approx::assert_abs_diff_eq;
-    use rand::{Rng, SeedableRng};
+    use rand::{RngExt, SeedableRng};
     use std::f64::consts::PI;
 
     fn space_3d() -> PoseSpace {
@@ -616,8 +616,8 @@ mod tests {
         space
     }
 
-    fn random_unit_quaternion(rng: &mut impl Rng) -> [f64; 4] {
-        let q: [f64; 4] = std::array::from_fn(|_| rng.gen_range(-1.0..1.0));
+    fn random_unit_quaternion(rng: &mut impl RngExt) -> [f64; 4] {
+        let q: [f64; 4] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
         let n = norm(&q);
         q.map(|v| v / n)
     }
@@ -646,7 +646,7 @@ mod tests {
         let space = space_3d();
         let rotation = &space.components()[3];
         assert_eq!(rotation.name, "qw/qx/qy/qz");
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(3);
         for _ in 0..200 {
             let (qa, qb) = (
                 random_unit_quaternion(&mut rng),

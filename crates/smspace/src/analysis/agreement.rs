@@ -284,17 +284,17 @@ pub fn agreement_of(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{Rng, SeedableRng};
+    use rand::{RngExt, SeedableRng};
 
     #[test]
     fn radix_order_equals_a_comparison_sort() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(5);
         let mut values: Vec<f64> = (0..5000)
-            .map(|_| match rng.gen_range(0..4) {
-                0 => rng.gen_range(-1e3..1e3),
-                1 => rng.gen_range(0.0..1e-300),
-                2 => f64::from(rng.gen_range(-3_i32..3)),
-                _ => rng.gen_range(0.0..10.0),
+            .map(|_| match rng.random_range(0..4) {
+                0 => rng.random_range(-1e3..1e3),
+                1 => rng.random_range(0.0..1e-300),
+                2 => f64::from(rng.random_range(-3_i32..3)),
+                _ => rng.random_range(0.0..10.0),
             })
             .collect();
         values.extend([f64::MAX, f64::MIN, 0.0, 1.0, 1.0]);
@@ -328,15 +328,15 @@ mod tests {
                 .collect(),
         )
         .unwrap();
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(9);
         let n = 60;
         let mut poses = ndarray::Array2::<f64>::zeros((n, 5));
         for mut row in poses.outer_iter_mut() {
             // A turn about z by angle a: q = (cos a/2, 0, 0, sin a/2), and the sign of
             // q flipped at random (the same orientation).
-            let a: f64 = rng.gen_range(-3.0..3.0);
-            let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
-            row[0] = rng.gen_range(0.0..1.0);
+            let a: f64 = rng.random_range(-3.0..3.0);
+            let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            row[0] = rng.random_range(0.0..1.0);
             row[1] = sign * (a / 2.0).cos();
             row[4] = sign * (a / 2.0).sin();
         }

@@ -407,8 +407,8 @@ mod tests {
     use std::f64::consts::TAU;
 
     use ndarray::{Array2, Axis};
-    use rand::{Rng, SeedableRng};
-    use rand_chacha::ChaCha8Rng;
+    use rand::rngs::ChaCha8Rng;
+    use rand::{RngExt, SeedableRng};
 
     use super::*;
 
@@ -493,9 +493,9 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         let points = Array2::from_shape_fn((1500, 5), |(_, c)| {
             if c < 3 {
-                rng.gen_range(0.0..1.0)
+                rng.random_range(0.0..1.0)
             } else {
-                0.01 * rng.gen_range(-1.0..1.0)
+                0.01 * rng.random_range(-1.0..1.0)
             }
         });
         let (t, m) = both(&euclidean(&points));
@@ -511,7 +511,7 @@ mod tests {
     #[test]
     fn duplicates_are_flagged() {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let base = Array2::from_shape_fn((300, 3), |_| rng.gen_range(0.0..1.0));
+        let base = Array2::from_shape_fn((300, 3), |_| rng.random_range(0.0..1.0));
         let points = ndarray::concatenate(Axis(0), &[base.view(), base.view()]).unwrap();
         let d = euclidean(&points);
         let near = nearest_distances(d.view(), 20).unwrap();

@@ -1070,8 +1070,8 @@ fn pop_pivot(heap: &mut BinaryHeap<Entry>) -> Option<Entry> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{Rng, SeedableRng};
-    use rand_chacha::ChaCha8Rng;
+    use rand::rngs::ChaCha8Rng;
+    use rand::{RngExt, SeedableRng};
 
     /// `H1` bars of `dist` (`n × n`) reduced over `levels` (the default bands when
     /// `None`), sorted.
@@ -1105,8 +1105,8 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let p: Vec<[f64; 2]> = (0..n)
             .map(|_| {
-                let a = rng.gen_range(0.0..std::f64::consts::TAU);
-                let r = rng.gen_range(0.8..1.2);
+                let a = rng.random_range(0.0..std::f64::consts::TAU);
+                let r = rng.random_range(0.8..1.2);
                 [r * a.cos(), r * a.sin()]
             })
             .collect();

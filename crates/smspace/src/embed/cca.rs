@@ -34,9 +34,9 @@
 //! MDS initial layout and the quality measures use all of them.
 
 use ndarray::{Array2, ArrayView1, ArrayView2};
+use rand::rngs::ChaCha8Rng;
 use rand::seq::SliceRandom;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -345,7 +345,7 @@ impl Embedding for CcaValidParams {
             let mut rng = ChaCha8Rng::seed_from_u64(self.0.seed ^ 0xdead_beef);
             for c in init.used.len()..self.0.dim {
                 for v in init.coordinates.column_mut(c) {
-                    *v = spread * (rng.gen::<f64>() - 0.5);
+                    *v = spread * (rng.random::<f64>() - 0.5);
                 }
             }
         }
@@ -725,7 +725,7 @@ mod tests {
     fn blocks_match_the_scalar_reference_bit_for_bit() {
         let n = 37; // not a multiple of LANES: padding is exercised
         let mut rng = ChaCha8Rng::seed_from_u64(5);
-        let points = Array2::from_shape_fn((n, 5), |_| rng.gen::<f64>());
+        let points = Array2::from_shape_fn((n, 5), |_| rng.random::<f64>());
         let x = Array2::from_shape_fn((n, n), |(i, j)| {
             let d = &points.row(i) - &points.row(j);
             d.dot(&d).sqrt()

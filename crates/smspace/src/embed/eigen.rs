@@ -24,8 +24,8 @@ use faer::matrix_free::eigen::{
 use faer::matrix_free::LinOp;
 use faer::{ColRef, Mat, MatMut, MatRef, Par};
 use ndarray::{Array1, Array2, ArrayView1, ArrayView2, Axis};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -284,7 +284,7 @@ fn partial_eigen(b: &Array2<f64>, count: usize, seed: u64) -> Result<Pairs, Embe
     let params = PartialEigenParams::default();
     let par = Par::Seq;
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_e16e);
-    let v0: Vec<f64> = (0..n).map(|_| rng.gen::<f64>() - 0.5).collect();
+    let v0: Vec<f64> = (0..n).map(|_| rng.random::<f64>() - 0.5).collect();
     let mut vectors = Mat::<f64>::zeros(n, count);
     let mut values = vec![0.0; count];
     let scratch = partial_self_adjoint_eigen_scratch::<f64>(&op, count, par, params);
@@ -369,7 +369,7 @@ pub(crate) fn landmark_mds(
     let n = distances.nrows();
     let l = landmarks.min(n);
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x1a4d_4a2c);
-    let start = rng.gen_range(0..n);
+    let start = rng.random_range(0..n);
     let chosen = farthest_first(&DenseDistances::new(distances)?, l, start)?.rows;
     let sq = Array2::from_shape_fn((l, l), |(a, b)| {
         let d = distances[[chosen[a], chosen[b]]];

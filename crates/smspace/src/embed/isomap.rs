@@ -22,8 +22,8 @@ use std::path::Path;
 
 use ndarray::{Array2, ArrayView2};
 use ndarray_npy::ReadNpyExt;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -467,14 +467,14 @@ impl IsomapValidParams {
                     LandmarkChoice::Random => {
                         let mut all: Vec<usize> = (0..n).collect();
                         for i in 0..l {
-                            let j = rng.gen_range(i..n);
+                            let j = rng.random_range(i..n);
                             all.swap(i, j);
                         }
                         all.truncate(l);
                         let g = csr.geodesics(&all, progress);
                         (all, g)
                     }
-                    LandmarkChoice::MaxMin => maxmin(&csr, l, rng.gen_range(0..n), progress)?,
+                    LandmarkChoice::MaxMin => maxmin(&csr, l, rng.random_range(0..n), progress)?,
                 };
                 let sq = Array2::from_shape_fn((l, l), |(a, b)| {
                     let d = 0.5 * (g[[a, landmarks[b]]] + g[[b, landmarks[a]]]);

@@ -16,8 +16,8 @@
 //!   a CCA embedding keeps `dy ≈ dx` for small `dy` and lets large distances stretch.
 
 use ndarray::{Array2, ArrayView2};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -131,7 +131,7 @@ pub fn shepard_pairs(
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         (0..max_pairs)
             .map(|_| loop {
-                let (i, j) = (rng.gen_range(0..m), rng.gen_range(0..m));
+                let (i, j) = (rng.random_range(0..m), rng.random_range(0..m));
                 if i != j {
                     break (i.max(j), i.min(j));
                 }

@@ -50,7 +50,7 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
-use rand::{Rng, SeedableRng};
+use rand::{RngExt, SeedableRng};
 
 use super::curve::{correct, Convergence, Scratch};
 use super::level_set::LevelSet;
@@ -395,8 +395,8 @@ pub(crate) fn farthest_points(
 /// shifted Halton sequence mapped onto the motor ranges, `N` values each.
 pub(crate) fn piece_seeds(space: &MotorSpace, count: usize, seed: u64) -> Vec<f64> {
     let n = space.dim();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let shift: Vec<f64> = (0..n).map(|_| rng.gen_range(0.0..1.0)).collect();
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
+    let shift: Vec<f64> = (0..n).map(|_| rng.random_range(0.0..1.0)).collect();
     let bases = primes(n);
     let mut out = Vec::with_capacity(count * n);
     for i in 0..count {

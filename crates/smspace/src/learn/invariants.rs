@@ -59,7 +59,11 @@
 //! `coverage_neighbours` samples (default 10) within `h`, the median distance to the
 //! `neighbours`-th (default 40) nearest sample.
 
-use nalgebra::{Cholesky, DMatrix, SymmetricEigen};
+use faer::linalg::matmul::matmul;
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
+use faer::{Accum, Mat, MatRef, Par};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -241,16 +245,16 @@ impl std::fmt::Debug for InvariantModel {
 /// Sums over one block of pairs: `Σ φφᵀ`, `Σ φ`, `Σ ΔΔᵀ` (features without the
 /// constant).
 struct BlockSums {
-    second: DMatrix<f64>,
+    second: Mat<f64>,
     first: Vec<f64>,
-    pairs: DMatrix<f64>,
+    pairs: Mat<f64>,
 }
 
 /// The sums of one block of `(i, j(i))` rows of `log`.
 fn block_sums(basis: &Basis, log: &SensorimotorLog, block: &[(u32, u32)]) -> BlockSums {
     let features = basis.len - 1;
-    let mut phi = DMatrix::<f64>::zeros(block.len(), features);
-    let mut delta = DMatrix::<f64>::zeros(block.len(), features);
+    let mut phi = Mat::<f64>::zeros(block.len(), features);
+    let mut delta = Mat::<f64>::zeros(block.len(), features);
     let mut a = vec![0.0; basis.len];
     let mut b = vec![0.0; basis.len];
     for (r, &(i, j)) in block.iter().enumerate() {
@@ -261,12 +265,26 @@ fn block_sums(basis: &Basis, log: &SensorimotorLog, block: &[(u32, u32)]) -> Blo
             delta[(r, f)] = a[f + 1] - b[f + 1];
         }
     }
-    let first = (0..features).map(|f| phi.column(f).sum()).collect();
+    let first = (0..features).map(|f| phi.col(f).iter().sum()).collect();
     BlockSums {
-        second: phi.tr_mul(&phi),
+        second: gram(phi.as_ref()),
         first,
-        pairs: delta.tr_mul(&delta),
+        pairs: gram(delta.as_ref()),
     }
+}
+
+/// `Xᵀ X`, sequential (the same sums for any number of threads).
+fn gram(x: MatRef<'_, f64>) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(x.ncols(), x.ncols());
+    matmul(
+        out.as_mut(),
+        Accum::Replace,
+        x.transpose(),
+        x,
+        1.0,
+        Par::Seq,
+    );
+    out
 }
 
 /// Smallest ratio `λ_{k+1} / λ_k` that [`largest_gap`] takes for a gap between
@@ -356,8 +374,8 @@ impl SensorIndex {
 /// The second moments of the basis over every log's fitted samples: `Σ` (regularised
 /// by `10⁻¹²` of its mean diagonal), `C` and `μ`, and the number of pairs.
 struct Moments {
-    covariance: DMatrix<f64>,
-    pair_covariance: DMatrix<f64>,
+    covariance: Mat<f64>,
+    pair_covariance: Mat<f64>,
     mean: Vec<f64>,
     pairs: usize,
 }
@@ -366,8 +384,8 @@ impl Moments {
     /// The sums of every log's pairs `(i, j(i))`, block by block, added in block order.
     fn new(basis: &Basis, logs: &[SensorimotorLog], pairs: &[Vec<(u32, u32)>]) -> Self {
         let features = basis.len - 1;
-        let mut second = DMatrix::<f64>::zeros(features, features);
-        let mut pair_sums = DMatrix::<f64>::zeros(features, features);
+        let mut second = Mat::<f64>::zeros(features, features);
+        let mut pair_sums = Mat::<f64>::zeros(features, features);
         let mut first = vec![0.0; features];
         for (log, pairs) in logs.iter().zip(pairs) {
             let blocks: Vec<BlockSums> = pairs
@@ -375,8 +393,8 @@ impl Moments {
                 .map(|block| block_sums(basis, log, block))
                 .collect();
             for block in blocks {
-                second += block.second;
-                pair_sums += block.pairs;
+                second += &block.second;
+                pair_sums += &block.pairs;
                 first
                     .iter_mut()
                     .zip(&block.first)
@@ -386,19 +404,16 @@ impl Moments {
         let total: usize = pairs.iter().map(Vec::len).sum();
         let inverse = 1.0 / total as f64;
         let mean: Vec<f64> = first.iter().map(|x| x * inverse).collect();
-        let mut covariance = second * inverse;
-        for a in 0..features {
-            for b in 0..features {
-                covariance[(a, b)] -= mean[a] * mean[b];
-            }
-        }
-        let trace = covariance.trace();
+        let mut covariance = Mat::from_fn(features, features, |a, b| {
+            second[(a, b)] * inverse - mean[a] * mean[b]
+        });
+        let trace: f64 = (0..features).map(|a| covariance[(a, a)]).sum();
         for a in 0..features {
             covariance[(a, a)] += 1e-12 * trace / features as f64;
         }
         Self {
             covariance,
-            pair_covariance: pair_sums * inverse,
+            pair_covariance: Mat::from_fn(features, features, |a, b| pair_sums[(a, b)] * inverse),
             mean,
             pairs: total,
         }
@@ -411,34 +426,40 @@ impl Moments {
         self,
         params: &LawValidParams,
         path: &std::path::Path,
-    ) -> Result<(Vec<f64>, DMatrix<f64>), LearnError> {
+    ) -> Result<(Vec<f64>, Mat<f64>), LearnError> {
         let features = self.mean.len();
         let samples = self.pairs;
-        let cholesky = Cholesky::new(self.covariance).ok_or_else(|| LearnError::TooFewSamples {
-            path: path.to_owned(),
-            samples,
-            reason: format!(
-                "the {features} basis functions of the invariants are linearly dependent on the samples"
-            ),
-            fix: "record a log that moves every motor over its range",
-        })?;
-        let l = cholesky.l();
+        // Σ = L Lᵀ.
+        let mut l = self.covariance;
+        if !crate::linalg::cholesky_in_place(l.as_mut()) {
+            return Err(LearnError::TooFewSamples {
+                path: path.to_owned(),
+                samples,
+                reason: format!(
+                    "the {features} basis functions of the invariants are linearly dependent on the samples"
+                ),
+                fix: "record a log that moves every motor over its range",
+            });
+        }
+        let l = l.as_ref();
+        let par = Par::Seq;
         // A = L⁻¹ C L⁻ᵀ, symmetric; its eigenvectors y give w = L⁻ᵀ y.
-        let x = l
-            .solve_lower_triangular(&self.pair_covariance)
-            .expect("a Cholesky factor is invertible");
-        let mut a = l
-            .solve_lower_triangular(&x.transpose())
-            .expect("a Cholesky factor is invertible");
-        a = 0.5 * (&a + a.transpose());
-        let eigen = SymmetricEigen::new(a);
+        let mut x = self.pair_covariance;
+        solve_lower_triangular_in_place(l, x.as_mut(), par);
+        let mut a = x.transpose().to_owned();
+        solve_lower_triangular_in_place(l, a.as_mut(), par);
+        let a = Mat::from_fn(features, features, |r, c| 0.5 * (a[(r, c)] + a[(c, r)]));
+        let (eigen, vectors) = crate::linalg::self_adjoint_eigen(a.as_ref()).map_err(|e| {
+            LearnError::TooFewSamples {
+                path: path.to_owned(),
+                samples,
+                reason: format!("the eigenproblem of the invariants does not converge ({e:?})"),
+                fix: "record a log that moves every motor over its range",
+            }
+        })?;
         let mut order: Vec<usize> = (0..features).collect();
-        order.sort_by(|&p, &q| {
-            eigen.eigenvalues[p]
-                .total_cmp(&eigen.eigenvalues[q])
-                .then(p.cmp(&q))
-        });
-        let eigenvalues: Vec<f64> = order.iter().map(|&p| eigen.eigenvalues[p]).collect();
+        order.sort_by(|&p, &q| eigen[p].total_cmp(&eigen[q]).then(p.cmp(&q)));
+        let eigenvalues: Vec<f64> = order.iter().map(|&p| eigen[p]).collect();
         let count = params
             .invariants
             .unwrap_or_else(|| largest_gap(&eigenvalues, params.invariance_threshold));
@@ -453,14 +474,8 @@ impl Moments {
                 fix: "record more samples, or raise invariance_threshold (or set invariants)",
             });
         }
-        let mut selected = DMatrix::<f64>::zeros(features, count);
-        for (c, &p) in order.iter().take(count).enumerate() {
-            selected.set_column(c, &eigen.eigenvectors.column(p));
-        }
-        let w = l
-            .transpose()
-            .solve_upper_triangular(&selected)
-            .expect("a Cholesky factor is invertible");
+        let mut w = Mat::from_fn(features, count, |r, c| vectors[(r, order[c])]);
+        solve_upper_triangular_in_place(l.transpose(), w.as_mut(), par);
         Ok((eigenvalues, w))
     }
 }

@@ -3,10 +3,9 @@
 
 use std::fmt;
 
-use nalgebra::{DMatrix, SVD};
+use rand::rngs::ChaCha8Rng;
 use rand::seq::index::sample;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -860,18 +859,17 @@ impl LearnedLaw {
 /// `n` when `σ_n / σ_1 > 0.1`, else the `r < n` with the largest `σ_r / σ_{r+1}` (0 for a
 /// zero matrix).
 pub(crate) fn gap_rank(matrix: &[f64], rows: usize, n: usize) -> usize {
-    let mut a = DMatrix::<f64>::zeros(rows.max(n), n);
-    for i in 0..rows {
-        for j in 0..n {
-            a[(i, j)] = matrix[i * n + j];
+    // Zero rows below a short matrix: `n` singular values, the missing ones zero.
+    let a = faer::Mat::from_fn(rows.max(n), n, |i, j| {
+        if i < rows {
+            matrix[i * n + j]
+        } else {
+            0.0
         }
-    }
-    let sigma: Vec<f64> = SVD::new(a, false, false)
-        .singular_values
-        .iter()
-        .copied()
-        .collect();
-    let mut sigma = sigma;
+    });
+    // NaN entries: no convergence, read as rank 0 below.
+    let mut sigma =
+        crate::linalg::singular_values(a.as_ref()).unwrap_or_else(|_| vec![f64::NAN; n]);
     sigma.sort_by(|a, b| b.total_cmp(a));
     let largest = sigma.first().copied().unwrap_or(0.0);
     if largest.is_nan() || largest <= 0.0 || !largest.is_finite() {

@@ -5,9 +5,9 @@ use std::f64::consts::TAU;
 use std::path::{Path, PathBuf};
 
 use ndarray::{Array2, ArrayView2};
+use rand::rngs::ChaCha8Rng;
 use rand::seq::index::sample;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 

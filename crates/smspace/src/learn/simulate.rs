@@ -7,8 +7,8 @@
 use std::path::{Path, PathBuf};
 
 use ndarray::{Array2, ArrayView2, ArrayViewMut2};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -122,8 +122,8 @@ fn add_noise(sensors: &mut Array2<f64>, noise: f64, seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x006e_6f69_7365);
     for mut row in sensors.outer_iter_mut() {
         for (v, sd) in row.iter_mut().zip(&deviations) {
-            let u1: f64 = 1.0 - rng.gen::<f64>();
-            let u2: f64 = rng.gen();
+            let u1: f64 = 1.0 - rng.random::<f64>();
+            let u2: f64 = rng.random();
             let normal = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
             *v += noise * sd * normal;
         }

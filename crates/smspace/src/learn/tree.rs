@@ -361,12 +361,14 @@ fn build(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{Rng, SeedableRng};
-    use rand_chacha::ChaCha8Rng;
+    use rand::rngs::ChaCha8Rng;
+    use rand::{RngExt, SeedableRng};
 
     fn random_points(count: usize, dim: usize, seed: u64) -> Vec<f64> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        (0..count * dim).map(|_| rng.gen_range(-1.0..1.0)).collect()
+        (0..count * dim)
+            .map(|_| rng.random_range(-1.0..1.0))
+            .collect()
     }
 
     #[test]

@@ -298,22 +298,22 @@ fn curve_hausdorff<S: Lanes, const N: usize>(
 mod tests {
     use super::*;
     use crate::metric::Period;
-    use rand::{Rng, SeedableRng};
+    use rand::{RngExt, SeedableRng};
     use std::f64::consts::PI;
 
     /// Closed loops on the 4-torus shaped like the arm's kernel sets (one winding
     /// coordinate, two harmonics per coordinate, all affine in a random pose).
     fn arm_like_loops(m: usize, p: usize, seed: u64) -> ndarray::Array3<f64> {
         use std::f64::consts::TAU;
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
         let family: Vec<[f64; 4]> = (0..20)
-            .map(|_| std::array::from_fn(|_| rng.gen_range(-1.0..1.0)))
+            .map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)))
             .collect();
         let mut sets = ndarray::Array3::zeros((m, p, 4));
         for i in 0..m {
-            let pose: [f64; 3] = std::array::from_fn(|_| rng.gen_range(0.0..1.0));
+            let pose: [f64; 3] = std::array::from_fn(|_| rng.random_range(0.0..1.0));
             let affine = |c: &[f64; 4]| c[0] + c[1] * pose[0] + c[2] * pose[1] + c[3] * pose[2];
-            let phase = rng.gen_range(0.0..TAU);
+            let phase = rng.random_range(0.0..TAU);
             for k in 0..p {
                 let s = TAU * k as f64 / p as f64;
                 let t = phase + s + 0.25 * s.sin();

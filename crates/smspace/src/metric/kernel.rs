@@ -901,14 +901,14 @@ impl<S: Lanes, D: Driver> pulp::NullaryFnOnce for DriveCall<'_, S, D> {
 mod tests {
     use super::*;
     use crate::metric::{reference, MetricKind, Period};
-    use rand::{Rng, SeedableRng};
+    use rand::{RngExt, SeedableRng};
 
     /// The portable lanes give the same matrix as the brute force (the AVX2 lanes are
     /// checked against the portable ones in `lanes`, and the whole path in the tests).
     #[test]
     fn portable_kernels_equal_the_brute_force() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let sets = ndarray::Array3::from_shape_fn((12, 21, 3), |_| rng.gen_range(-4.0..4.0));
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(3);
+        let sets = ndarray::Array3::from_shape_fn((12, 21, 3), |_| rng.random_range(-4.0..4.0));
         for period in [Period::TwoPi, Period::None] {
             let prepared = PreparedSets::new(sets.view(), period).unwrap();
             let frame = Frame::<4>::of(&prepared);

@@ -89,9 +89,9 @@
 //! the distances the bounds do not rule out.
 
 use ndarray::Array2;
+use rand::rngs::ChaCha8Rng;
 use rand::seq::index::sample;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -501,7 +501,7 @@ fn max_min(
     let l = params.count.min(m);
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let mut traversal =
-        FarthestFirst::new(m, rng.gen_range(0..m)).expect("the start is drawn in 0..M");
+        FarthestFirst::new(m, rng.random_range(0..m)).expect("the start is drawn in 0..M");
     // Column of each landmark among the landmarks, by set.
     let mut position: Vec<Option<usize>> = vec![None; m];
     let mut rows = Vec::with_capacity(l);

@@ -558,7 +558,7 @@ impl Filter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{Rng, SeedableRng};
+    use rand::{RngExt, SeedableRng};
     use std::f64::consts::{PI, TAU};
 
     /// The `f32` squared distance as the kernels compute it, on the prepared copy.
@@ -577,7 +577,7 @@ mod tests {
     /// mixed, both ways, and are small for angles.
     #[test]
     fn the_filter_error_bound_holds() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(5);
         let cases: [(Vec<f64>, f64); 3] = [
             (vec![TAU; 4], PI),
             (vec![f64::INFINITY; 3], 50.0),
@@ -586,7 +586,7 @@ mod tests {
         for (period, spread) in cases {
             let n = period.len();
             let sets = ndarray::Array3::from_shape_fn((20, 9, n), |_| {
-                rng.gen_range(-spread..spread) + 1000.0
+                rng.random_range(-spread..spread) + 1000.0
             });
             let periods =
                 Periods::new(period.iter().map(|&t| t.is_finite().then_some(t)).collect()).unwrap();

@@ -380,7 +380,7 @@ impl Disks {
                 .iter()
                 .fold(f64::INFINITY, |m, &(d, _)| m.min(d));
             radius[b] = params.radius_scale * nearest.sqrt();
-            let mut moment = nalgebra::DMatrix::<f64>::zeros(n, n);
+            let mut moment = faer::Mat::<f64>::zeros(n, n);
             for &(_, q) in &near[..count] {
                 for c in 0..n {
                     offset[c] = swrap(coords[q * n + c] - coords[b * n + c], periods[c]);
@@ -391,16 +391,15 @@ impl Disks {
                     }
                 }
             }
-            let eigen = nalgebra::SymmetricEigen::new(moment);
+            // An overflowing moment (coordinates near f64::MAX) does not converge: the
+            // coordinate axes then, and the distances report the overflow.
+            let (values, vectors) = crate::linalg::self_adjoint_eigen(moment.as_ref())
+                .unwrap_or_else(|_| (vec![0.0; n], faer::Mat::identity(n, n)));
             let mut rank: Vec<usize> = (0..n).collect();
-            rank.sort_by(|&x, &y| {
-                eigen.eigenvalues[y]
-                    .total_cmp(&eigen.eigenvalues[x])
-                    .then(x.cmp(&y))
-            });
+            rank.sort_by(|&x, &y| values[y].total_cmp(&values[x]).then(x.cmp(&y)));
             for (j, &e) in rank[..k].iter().enumerate() {
                 for c in 0..n {
-                    tangents[(b * k + j) * n + c] = eigen.eigenvectors[(c, e)];
+                    tangents[(b * k + j) * n + c] = vectors[(c, e)];
                 }
             }
         }

@@ -6,8 +6,8 @@
 use std::f64::consts::{PI, TAU};
 
 use ndarray::Array3;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 
 /// `(m, p, 4)` closed curves, coordinates wrapped into `[-π, π)`.
 pub fn arm_like_sets(m: usize, p: usize, seed: u64) -> Array3<f64> {
@@ -15,15 +15,15 @@ pub fn arm_like_sets(m: usize, p: usize, seed: u64) -> Array3<f64> {
     // Coefficients shared by the whole family: offset, amplitude and phase of two
     // harmonics per coordinate, each affine in the pose.
     let family: Vec<[f64; 4]> = (0..4 * 5)
-        .map(|_| std::array::from_fn(|_| rng.gen_range(-1.0..1.0)))
+        .map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0)))
         .collect();
     let winding = [1.0, 0.0, 0.0, 0.0];
     let mut sets = Array3::zeros((m, p, 4));
     for i in 0..m {
-        let pose: [f64; 3] = std::array::from_fn(|_| rng.gen_range(0.0..1.0));
+        let pose: [f64; 3] = std::array::from_fn(|_| rng.random_range(0.0..1.0));
         let affine = |c: &[f64; 4]| c[0] + c[1] * pose[0] + c[2] * pose[1] + c[3] * pose[2];
-        let phase = rng.gen_range(0.0..TAU);
-        let direction = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        let phase = rng.random_range(0.0..TAU);
+        let direction = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
         for k in 0..p {
             let s = TAU * k as f64 / p as f64;
             let t = phase + direction * (s + 0.25 * s.sin());
@@ -44,5 +44,5 @@ pub fn arm_like_sets(m: usize, p: usize, seed: u64) -> Array3<f64> {
 /// `(m, p, n)` points uniform in `[-π, π)`.
 pub fn uniform_sets(m: usize, p: usize, n: usize, seed: u64) -> Array3<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    Array3::from_shape_fn((m, p, n), |_| rng.gen_range(-PI..PI))
+    Array3::from_shape_fn((m, p, n), |_| rng.random_range(-PI..PI))
 }

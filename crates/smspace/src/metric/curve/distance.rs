@@ -385,20 +385,20 @@ mod tests {
     use super::*;
     use crate::metric::{reference, Period};
     use ndarray::ArrayView1;
-    use rand::{Rng, SeedableRng};
+    use rand::{RngExt, SeedableRng};
     use std::f64::consts::PI;
 
     #[test]
     fn exact_segment_distance_equals_the_image_by_image_brute_force() {
         // Segments through the seam and points anywhere, 1 to 6 coordinates.
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(7);
         let period = 2.0 * PI;
         let mut crossing = 0;
         for trial in 0..4000 {
             let n = 1 + trial % 6;
-            let start: Vec<f64> = (0..n).map(|_| rng.gen_range(-PI..PI)).collect();
-            let end: Vec<f64> = (0..n).map(|_| rng.gen_range(-PI..PI)).collect();
-            let a: Vec<f64> = (0..n).map(|_| rng.gen_range(-PI..PI)).collect();
+            let start: Vec<f64> = (0..n).map(|_| rng.random_range(-PI..PI)).collect();
+            let end: Vec<f64> = (0..n).map(|_| rng.random_range(-PI..PI)).collect();
+            let a: Vec<f64> = (0..n).map(|_| rng.random_range(-PI..PI)).collect();
             let v: Vec<f64> = start
                 .iter()
                 .zip(&end)
@@ -433,15 +433,15 @@ mod tests {
         // Points anywhere and segments through the seam, 8 coordinates (one of them
         // unwrapped): the bound never exceeds the exact distance, and it is a good
         // one (within 20 %) for most of the segments that cross the seam.
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(11);
         let mut period = [2.0 * PI; 8];
         period[7] = f64::INFINITY;
         let (mut crossing, mut close) = (0, 0);
         for trial in 0..4000 {
             let reach = [0.3, 0.8, 1.5, PI][trial % 4];
-            let start: [f64; 8] = std::array::from_fn(|_| rng.gen_range(-PI..PI));
-            let x: [f64; 8] = std::array::from_fn(|_| rng.gen_range(-PI..PI));
-            let v: [f64; 8] = std::array::from_fn(|_| rng.gen_range(-reach..reach));
+            let start: [f64; 8] = std::array::from_fn(|_| rng.random_range(-PI..PI));
+            let x: [f64; 8] = std::array::from_fn(|_| rng.random_range(-PI..PI));
+            let v: [f64; 8] = std::array::from_fn(|_| rng.random_range(-reach..reach));
             let len2: f64 = v.iter().map(|x| x * x).sum();
             let exact = segment_distance2(&x, &start, &v, 1.0 / len2, &period);
             let lower = seam_lower2::<8>(&x, &start, &v, &period);

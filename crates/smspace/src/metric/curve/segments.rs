@@ -145,19 +145,19 @@ const RANK_SORT_OPEN: usize = 16;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{Rng, SeedableRng};
+    use rand::{RngExt, SeedableRng};
 
     #[test]
     fn open_segments_rank_like_the_sort_by_value_then_entry() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(12);
         for n in [0, 1, 2, 5, 16, 17, 40] {
             for _ in 0..50 {
                 // Few distinct values, so that ties (broken by the entry) are common.
                 let mut open: Vec<OpenSegment> = (0..n)
                     .map(|e| {
-                        let value = [0.0, 0.25, 1.5, f32::INFINITY][rng.gen_range(0..4)];
-                        let entry = e as u32 | u32::from(rng.gen_bool(0.5)) << 31;
-                        (value, entry, (rng.gen(), rng.gen()))
+                        let value = [0.0, 0.25, 1.5, f32::INFINITY][rng.random_range(0..4)];
+                        let entry = e as u32 | u32::from(rng.random_bool(0.5)) << 31;
+                        (value, entry, (rng.random(), rng.random()))
                     })
                     .collect();
                 let mut sorted = open.clone();
