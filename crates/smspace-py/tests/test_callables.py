@@ -181,3 +181,20 @@ def test_ctrl_c_stops_a_call_within_a_second(kind, tmp_path):
     assert child.returncode == 3, (out, err)
     stopped = float(out.split()[1])
     assert stopped - sent < 1.5, f"KeyboardInterrupt came {stopped - sent:.2f} s after SIGINT"
+
+
+def test_a_python_agent_with_three_dimensional_kernels_fails_fast_as_cover_budget():
+    """Three equal sensors of four motors: kernels of dimension 3, whose covering at the
+    default step is forecast far beyond the budget. Every set fails at once as
+    cover-budget, having read only its start and its Jacobian's rank, not after hours."""
+    rows = []
+
+    def sense(m):
+        rows.append(m.shape[0])
+        return np.cos(m) @ np.ones((m.shape[1], 3))
+
+    agent = smspace.PythonAgent(sense=sense, n_motors=4, n_sensors=3)
+    starts = np.random.default_rng(3).uniform(-1.0, 1.0, size=(20, 4))
+    with pytest.raises(ValueError, match="cover-budget"):
+        smspace.trace(agent, starts, method="sensory")
+    assert sum(rows) <= 20 * (4 + 1) * 3, f"{sum(rows)} sensor rows read for 20 starts"

@@ -25,17 +25,18 @@
 //!    Isomap, classical MDS; section 3.2);
 //! 6. [`analysis`]: topology, dimension and agreement with the poses of the learned
 //!    metric (section 3.3), and [`invariance`], the experiment that traces the same
-//!    starts in several environments (sections 2.2, 2.3, 3.3);
-//! 7. [`report`]: the paper's figures, `report.html` with a 3-D view, `report.md`;
+//!    starts in several environments (sections 2.2, 2.3, 3.3).
 //!
-//! [`pipeline`] runs them all from an experiment file, with a cache; with [`config`]
-//! (parameter and experiment files), [`io`] (`.npy` and JSON interchange),
-//! [`progress`] (observers for long stages) and [`error`].
-//! [`neighbours`] holds the one landmark picker, kNN search and trustworthiness they share.
+//! On the ground floor, the types every stage shares: [`params`] (checked parameters),
+//! [`sets`] (closure records, set views, kernel shapes), [`matrix`] (the validated
+//! distance matrix), [`registry`] (agents, metrics and embedding methods by name),
+//! [`neighbours`] (the one landmark picker, kNN search and trustworthiness), [`io`]
+//! (`.npy` and JSON interchange), [`progress`] (observers for long stages) and
+//! [`threads`]; [`error`] wraps every module's error. No module imports one above it
+//! (`tests/layers.rs`).
 //!
-//! [`pipeline`] and [`report`] (and the experiment files of [`config`]) need the
-//! default `pipeline` feature; without it the crate is the numerics alone (no plotting,
-//! no bundled JavaScript or font).
+//! The figures, the report and the cached run of every stage from an experiment file
+//! are the `smspace-pipeline` crate, which depends on this one.
 //!
 //! The library never prints: progress goes through [`progress::Progress`], and every
 //! failure a user can cause is a [`Result`] carrying the offending file or value.
