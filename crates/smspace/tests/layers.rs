@@ -20,6 +20,7 @@ const FLOORS: Floors<'static> = Floors {
         "io",
         "progress",
         "threads",
+        "linalg",
         "sets",
         "matrix",
         "registry",
