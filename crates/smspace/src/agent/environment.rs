@@ -354,7 +354,7 @@ impl Environment {
     }
 
     /// Reads an environment from its JSON file and checks it.
-    pub fn load(path: &Path) -> Result<Self, crate::Error> {
+    pub fn load(path: &Path) -> Result<Self, AgentError> {
         let env: Environment = io::read_json(path, "environment")?;
         env.check().map_err(|e| match e {
             AgentError::InvalidEnvironment { reason } => AgentError::InvalidEnvironment {

@@ -131,6 +131,9 @@ pub enum AgentError {
         /// What is wrong.
         reason: String,
     },
+    /// An environment file could not be read.
+    #[error(transparent)]
+    Io(#[from] crate::io::IoError),
 }
 
 impl AgentError {
