@@ -430,7 +430,7 @@ fn curve_metric_reads_the_closed_record_or_the_flag() {
     );
     assert!(!out.status.success());
     assert!(
-        stderr(&out).contains("--curve only applies to --metric curve"),
+        stderr(&out).contains("--curve only applies to a metric that reads polylines"),
         "{}",
         stderr(&out)
     );
