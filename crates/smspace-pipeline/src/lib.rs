@@ -374,6 +374,21 @@ pub fn check(experiment: &LoadedExperiment) -> Result<Plan, ConfigError> {
     check_with(experiment, Registries::builtin())
 }
 
+/// Builds the `[embedding]` method from `embeddings` and records its table resolved
+/// (every default) in `experiment`, as the run records it.
+fn resolve_embedding(
+    experiment: &mut LoadedExperiment,
+    embeddings: &EmbeddingRegistry,
+) -> Result<Box<dyn smspace::embed::Embedding>, ConfigError> {
+    let (embedding, method) = experiment
+        .experiment
+        .embedding
+        .resolve(embeddings)
+        .map_err(|err| experiment.invalid_error("embedding", smspace::Error::from(err)))?;
+    experiment.experiment.embedding = embedding;
+    Ok(method)
+}
+
 /// A run compares kernel sets: it needs at least 2 (babbled rows and probes together).
 fn check_set_count(
     exploration: &smspace::explore::ExploreParams,
@@ -419,12 +434,7 @@ pub fn check_with(
         experiment.experiment.agent = Some(agent_config.clone());
     }
     experiment.experiment.metric = metric.params.clone();
-    let (embedding, embedding_method) = experiment
-        .experiment
-        .embedding
-        .resolve(&registries.embeddings)
-        .map_err(|err| experiment.invalid_error("embedding", smspace::Error::from(err)))?;
-    experiment.experiment.embedding = embedding;
+    let embedding_method = resolve_embedding(&mut experiment, &registries.embeddings)?;
     let experiment = &experiment;
     let e = &experiment.experiment;
     let invalid = |table| move |err: crate::Error| experiment.invalid_error(table, err);
