@@ -13,6 +13,7 @@ wall or an obstacle and none hits the arm. MuJoCo runs headless: ``mj_kinematics
     python examples/python/mujoco_arm.py --sets 60       # a small run (the tests')
     python examples/python/mujoco_arm.py --threads       # one MjData per thread
     python examples/python/mujoco_arm.py --out runs/mj   # save the arrays and reports
+    python examples/python/mujoco_arm.py --noise 0.02    # 2 cm of noise on every depth
 
 Stages: ``explore`` in the paper's working space (the eye in the rectangle x from 1 to
 2.5, y from -1 to 1), ``trace`` by the sensory method (the lidar's own readings),
@@ -52,6 +53,7 @@ arrays (``motors.npy``, ``poses.npy``, ``sets.npy``, ``D.npy``, ``Y.npy``) and r
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -146,10 +148,40 @@ def body(threads: bool = False) -> smspace.mujoco.Body:
     return smspace.mujoco.Body(model(), joints=JOINTS, sensors=None, site="eye", threads=threads)
 
 
-def run(sets: int = 1500, seed: int = 1, threads: bool = False, points: int = 100, out=None) -> dict:
-    """Every stage on ``sets`` starts; returns the figures (and saves the arrays and
-    reports into the folder ``out`` when given)."""
+class NoisyDepths:
+    """The lidar's depths plus seeded Gaussian noise of ``sigma`` (metres), as a real
+    rangefinder reads them: the same posture never reads the same twice. The noise of
+    a row is drawn from a generator seeded by ``seed``, the row's bytes and the row's
+    index among the identical rows of the same call, so a run is reproducible and
+    independent of the order in which the engine's threads call."""
+
+    def __init__(self, sense, sigma: float, seed: int = 0) -> None:
+        self.sense = sense
+        self.sigma = float(sigma)
+        self.seed = int(seed)
+
+    def __call__(self, motors) -> np.ndarray:
+        motors = np.asarray(motors, dtype=np.float64)
+        out = np.array(self.sense(motors), dtype=np.float64)
+        seen: dict = {}
+        for i, row in enumerate(motors):
+            key = row.tobytes()
+            repeat = seen.get(key, 0)
+            seen[key] = repeat + 1
+            row_hash = int.from_bytes(hashlib.blake2b(key, digest_size=8).digest(), "little")
+            rng = np.random.default_rng([self.seed, row_hash, repeat])
+            out[i] += self.sigma * rng.standard_normal(out.shape[1])
+        return out
+
+
+def run(sets: int = 1500, seed: int = 1, threads: bool = False, points: int = 100, out=None,
+        noise: float = 0.0) -> dict:
+    """Every stage on ``sets`` starts, the depths read with ``noise`` metres of
+    Gaussian noise; returns the figures (and saves the arrays and reports into the
+    folder ``out`` when given)."""
     arm = body(threads)
+    if noise > 0.0:
+        arm.sense = NoisyDepths(arm.sense, noise, seed)
     agent = arm.agent(name="lidar-arm")
     started = time.perf_counter()
     found = smspace.explore(agent, n=sets, seed=seed, workspace=WORKSPACE)
@@ -169,6 +201,9 @@ def run(sets: int = 1500, seed: int = 1, threads: bool = False, points: int = 10
     ))) if len(traced) else float("nan")
     figures = {
         "starts": sets,
+        "noise": noise,
+        "noise_estimated": (traced.report.get("summary", {}).get("noise")
+                            if isinstance(traced.report, dict) else None),
         "traced": len(traced),
         "traced_fraction": len(traced) / sets,
         "statuses": statuses,
@@ -228,10 +263,14 @@ def main(argv=None) -> int:
     parser.add_argument("--points", type=int, default=100, help="points per kernel set")
     parser.add_argument("--threads", action="store_true", help="one MjData per engine thread")
     parser.add_argument("--out", type=Path, help="a folder for the arrays and reports")
+    parser.add_argument("--noise", type=float, default=0.0,
+                        help="standard deviation of Gaussian noise on every depth, metres (default 0)")
     args = parser.parse_args(argv)
     if args.sets < 20:
         parser.error(f"--sets {args.sets}: give at least 20 starts (the analysis needs neighbours)")
-    figures = run(args.sets, args.seed, args.threads, args.points, args.out)
+    if not math.isfinite(args.noise) or args.noise < 0.0:
+        parser.error(f"--noise {args.noise}: give a standard deviation of 0 or more, in metres")
+    figures = run(args.sets, args.seed, args.threads, args.points, args.out, args.noise)
     print(f"sets traced: {figures['traced']} of {figures['starts']} "
           f"({100 * figures['traced_fraction']:.1f} %); statuses {figures['statuses']}")
     print(f"sensor rows: {figures['sensor_rows']} ({figures['sensor_rows_per_start']:.0f} per start); "

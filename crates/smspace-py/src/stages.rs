@@ -127,7 +127,7 @@ fn sets_view<'a>(
     points: ArrayView3<'a, f64>,
     closure: Option<&'a [Closure]>,
     pieces: Option<ndarray::ArrayView2<'a, i64>>,
-    metric: &str,
+    metric: &Reader,
 ) -> PyResult<SetsView<'a>> {
     let view = sets_view_closed(points, closure, metric)?;
     Ok(match pieces {
@@ -136,24 +136,16 @@ fn sets_view<'a>(
     })
 }
 
-/// Whether the metric `name` reads the sets' closures (an unknown name does not; it
-/// fails when built, naming the known ones).
-fn reads_closure(name: &str) -> bool {
-    let params = DistanceParams::new().metric(name);
-    crate::metric::registry()
-        .build(&params)
-        .is_ok_and(|built| built.metric.records().closure)
-}
-
 fn sets_view_closed<'a>(
     points: ArrayView3<'a, f64>,
     closure: Option<&'a [Closure]>,
-    metric: &str,
+    metric: &Reader,
 ) -> PyResult<SetsView<'a>> {
     match closure {
         Some(c) => Ok(SetsView::new(points).with_closure(c)),
-        None if reads_closure(metric) => Err(value_error(format!(
-            "metric={metric:?} needs to know which sets are closed loops: pass the result of smspace.trace, or closed= (1: closed loop, 0: open polyline per set, or 'closed'/'open' for all)"
+        None if metric.reads_closure => Err(value_error(format!(
+            "metric={:?} needs to know which sets are closed loops: pass the result of smspace.trace, or closed= (1: closed loop, 0: open polyline per set, or 'closed'/'open' for all)",
+            metric.name
         ))),
         None => Ok(SetsView::new(points)),
     }
@@ -165,7 +157,23 @@ struct OwnedSets {
     points: Array3<f64>,
     closure: Option<Vec<Closure>>,
     pieces: Option<Array2<i64>>,
-    metric: String,
+    metric: Reader,
+}
+
+/// What the sets' checks need of the metric: its name (for messages) and whether it
+/// reads the sets' closures (`curve` does).
+struct Reader {
+    name: String,
+    reads_closure: bool,
+}
+
+impl Reader {
+    fn of(built: &BuiltMetric) -> Self {
+        Self {
+            name: built.metric.name().to_owned(),
+            reads_closure: built.metric.records().closure,
+        }
+    }
 }
 
 impl OwnedSets {
@@ -176,7 +184,7 @@ impl OwnedSets {
         closed: Option<PyReadonlyArray1<'_, i64>>,
         pieces: Option<&PyReadonlyArray2<'_, i64>>,
         argument: &str,
-        metric: &str,
+        metric: &BuiltMetric,
     ) -> PyResult<Self> {
         let closure = closures(closed, points.dim().0)?;
         let pieces = self::pieces(pieces, points, argument)?.map(|p| p.to_owned());
@@ -184,7 +192,7 @@ impl OwnedSets {
             points: points.to_owned(),
             closure,
             pieces,
-            metric: metric.to_owned(),
+            metric: Reader::of(metric),
         };
         sets.view()?;
         Ok(sets)
@@ -360,8 +368,8 @@ fn _distances<'py>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let points = sets.as_array();
     check_finite(points.iter(), "sets")?;
-    let sets = OwnedSets::new(points, closed, pieces.as_ref(), "pieces", metric)?;
     let built = metric_for(metric, period, memory_limit_bytes)?;
+    let sets = OwnedSets::new(points, closed, pieces.as_ref(), "pieces", &built)?;
     let (progress, interrupts) = reporter(progress, None);
     let shared = progress.clone();
     let d = run_interruptible(py, &interrupts, move || {
@@ -400,21 +408,21 @@ fn _distance_tile<'py>(
     rows_pieces: Option<PyReadonlyArray2<'py, i64>>,
     cols_pieces: Option<PyReadonlyArray2<'py, i64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let built = metric_for(metric, period, None)?;
     let rows = OwnedSets::new(
         rows.as_array(),
         rows_closed,
         rows_pieces.as_ref(),
         "rows_pieces",
-        metric,
+        &built,
     )?;
     let cols = OwnedSets::new(
         cols.as_array(),
         cols_closed,
         cols_pieces.as_ref(),
         "cols_pieces",
-        metric,
+        &built,
     )?;
-    let built = metric_for(metric, period, None)?;
     let tile = Tile::new(tile.0..tile.1, tile.2..tile.3);
     let out = run_interruptible(py, &[], move || {
         let mut out = Array2::zeros(tile.shape());
@@ -472,8 +480,8 @@ fn _knn<'py>(
 ) -> PyResult<(Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<f64>>)> {
     let points = sets.as_array();
     check_finite(points.iter(), "sets")?;
-    let sets = OwnedSets::new(points, closed, pieces.as_ref(), "pieces", metric)?;
     let built = metric_for(metric, period, None)?;
+    let sets = OwnedSets::new(points, closed, pieces.as_ref(), "pieces", &built)?;
     let mut params = KnnParams::new().k(k);
     if let Some(p) = pivots {
         params = params.pivots(p);

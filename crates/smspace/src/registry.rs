@@ -189,8 +189,9 @@ impl<T: ?Sized, C, E: RegistryError> Registry<T, C, E> {
     }
 }
 
-/// The TOML table of a parameter struct, if it serialises to one.
-fn table_of<P: Serialize>(params: &P) -> Option<toml::Table> {
+/// The TOML table of a parameter struct, if it serialises to one (a struct of named
+/// fields does; `None` fields are left out, as TOML has no null).
+pub fn table_of<P: Serialize>(params: &P) -> Option<toml::Table> {
     match toml::Value::try_from(params) {
         Ok(toml::Value::Table(t)) => Some(t),
         _ => None,

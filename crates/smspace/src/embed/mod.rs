@@ -265,13 +265,9 @@ impl Default for EmbedParams {
 impl EmbedParams {
     /// The parameters of `method` given as a serde struct (e.g. [`CcaParams`]).
     pub fn of<P: Serialize>(method: &str, params: &P) -> Self {
-        let params = match toml::Value::try_from(params) {
-            Ok(toml::Value::Table(t)) => t,
-            _ => toml::Table::new(),
-        };
         Self {
             method: method.to_owned(),
-            params,
+            params: crate::registry::table_of(params).unwrap_or_default(),
         }
     }
 

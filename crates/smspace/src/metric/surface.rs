@@ -175,10 +175,7 @@ impl Surface {
 
 /// The registry's `[metric.params]` table of the surface metric, every default in it.
 pub(super) fn default_table() -> toml::Table {
-    match toml::Value::try_from(SurfaceParams::default()) {
-        Ok(toml::Value::Table(t)) => t,
-        _ => toml::Table::new(),
-    }
+    crate::registry::table_of(&SurfaceParams::default()).unwrap_or_default()
 }
 
 /// The registry's builder of `metric = "surface"`: `dimension`, when the table leaves
@@ -197,10 +194,7 @@ pub(super) fn builder() -> MetricBuilder {
                     reason: e.to_string().trim_end().to_owned(),
                 })?;
         let metric = Surface::new(params, context.period.clone())?;
-        let resolved = match toml::Value::try_from(&metric.params) {
-            Ok(toml::Value::Table(t)) => t,
-            _ => table,
-        };
+        let resolved = crate::registry::table_of(&metric.params).unwrap_or(table);
         Ok((Box::new(metric) as Box<dyn SetMetric>, resolved))
     })
 }
