@@ -16,7 +16,9 @@
 //!    of either set, the nearest chunk of the other (a warm start: the sets are ordered
 //!    curves, so a point's nearest neighbour lies near the nearest chunk) and an
 //!    ordering: blocks far from the other set first, so that `c` reaches its final
-//!    value early. The table only steers the work.
+//!    value early. The table only steers the work. (One pass, lanes over eight chunks
+//!    of `A`: the minima over `B` lane by lane, those over `A` kept per column and
+//!    lane and reduced across lanes once per column at the end.)
 //! 2. *Window.* The eight points of a block of `A` (one lane each) are compared with
 //!    the points of `B` around the middle of the nearest chunk (outward, up to nine
 //!    points): the block is settled as soon as every lane has a `b` whose `f32` value
@@ -38,8 +40,12 @@
 //! round. From the largest coordinate magnitudes and the periods, [`FilterBounds`]
 //! gives `δ` and `rel` with `√g² ≤ √(g̃²·(1 + rel)) + δ` (and the same with `g` and `g̃`
 //! swapped); for four angles `δ ≈ 6·10⁻⁶` rad and `rel ≈ 5·10⁻⁷`. A lane is settled only
-//! when `g̃² ≤ θ(c) = (√c − δ)²/(1 + rel)` (rounded down to `f32`), which proves
-//! `g² ≤ c`; nothing else depends on `f32` values, so every result is exact.
+//! when `g̃² ≤ θ(c) ≤ (√c − δ)²/(1 + rel)` (rounded down to `f32`), which proves
+//! `g² ≤ c`; nothing else depends on `f32` values, so every result is exact. `θ` is
+//! computed without a square root or a division, since `c` rises a few times per pair
+//! and every test waits for it: `2√c ≤ c/s + s` for any `s > 0`, so
+//! `θ(c) = (c − δ·(c/s + s))·(1 − rel)`, with `s = 2^⌊e/2⌋` for `c = m·2^e` (`c/s`
+//! exact, `s/√c ∈ (1/2, 1]`), gives up at most `δ·√c/2 + rel²·c` of the bound.
 //! Coordinates beyond `10¹⁵` (after centring) do not enter the filter: such sets are
 //! compared by brute force in `f64`.
 //!
@@ -93,6 +99,8 @@ pub(crate) struct Scratch {
     col_near: Vec<u32>,
     order: Vec<u32>,
     lane: Vec<[f32; LANES]>,
+    /// Per column of the centre table: the lanes' minima and their block indices.
+    col_lanes: Vec<([f32; LANES], [f32; LANES])>,
     pub(crate) curve: super::curve::CurveScratch,
 }
 
@@ -158,11 +166,40 @@ impl<const N: usize> Frame<N> {
     }
 }
 
-/// The largest `f32` `θ` such that an `f32` squared distance `s̃ ≤ θ` proves the exact
-/// distance at most `√c2`: `θ = (√c2 − delta)² / (1 + rel)`, rounded down (see
-/// [`FilterBounds`]). Negative when nothing can be proven.
+/// An `f32` `θ` such that an `f32` squared distance `s̃ ≤ θ` proves the exact distance
+/// at most `√c2`: `θ ≤ (√c2 − delta)² / (1 + rel)` (see [`FilterBounds`]), within
+/// `delta·√c2/2 + rel²·c2` and one `f32` step of it. Negative when nothing can be
+/// proven.
 #[inline(always)]
 pub(crate) fn threshold(c2: f64, delta: f64, rel: f64) -> f32 {
+    // (√c − δ)² = c − 2δ√c + δ² ≥ c − δ·(c/s + s) for any s > 0 (2√c ≤ c/s + s), and
+    // 1/(1 + rel) ≥ 1 − rel. With s = 2^k, k = ⌊e/2⌋ for c = m·2^e, c/s is exact and
+    // s/√c lies in (1/2, 1]: no square root or division on the path from a new c to
+    // the tests that wait for it. The factors 1 ± nε cover the roundings (rounded
+    // up in the subtracted term, down in the result).
+    if c2 > 1e300 {
+        return threshold_exact(c2, delta, rel);
+    }
+    if c2.is_nan() || c2 < f64::MIN_POSITIVE {
+        return -1.0;
+    }
+    let e = ((c2.to_bits() >> 52) & 0x7ff) as i64 - 1023;
+    let k = e >> 1;
+    let s = f64::from_bits(((k + 1023) as u64) << 52);
+    let inv_s = f64::from_bits(((1023 - k) as u64) << 52);
+    let reach = delta * c2.mul_add(inv_s, s) * (1.0 + 4.0 * f64::EPSILON);
+    let u = c2 - reach;
+    if u <= 0.0 {
+        return -1.0;
+    }
+    f32_at_most(u * ((1.0 - rel) * (1.0 - 8.0 * f64::EPSILON)))
+}
+
+/// The largest `f32` at most `(√c2 − delta)² / (1 + rel)` (up to a few roundings),
+/// negative when nothing can be proven: [`threshold`] with the square root, for `c2`
+/// beyond `10³⁰⁰` and for the tests.
+#[inline(always)]
+pub(crate) fn threshold_exact(c2: f64, delta: f64, rel: f64) -> f32 {
     let margin = c2.sqrt() * (1.0 - 4.0 * f64::EPSILON) - delta;
     if margin <= 0.0 {
         return -1.0;
@@ -246,10 +283,19 @@ pub(crate) fn center_table<S: Lanes, const N: usize>(
     let b_centers = &b_centers[..chunks];
     let groups = chunks.div_ceil(LANES);
     let per_row = frame.chunks_wide / LANES;
+    // Column minima lane by lane over the groups (the lane's block index where
+    // strictly smaller, so the lower index on ties), reduced across lanes once per
+    // column at the end.
+    let lane_index = s.load(&std::array::from_fn(|l| l as f32));
+    scratch.col_lanes.clear();
+    scratch
+        .col_lanes
+        .resize(chunks, ([f32::INFINITY; LANES], [0.0; LANES]));
     for g in 0..groups {
         let ca: [S::V; N] = each(s.splat(0.0), |k| s.load(&a_rows[k * per_row + g]));
         let mut best = s.splat(f32::INFINITY);
         let mut best_at = s.splat(0.0);
+        let index = s.add(lane_index, s.splat((g * LANES) as f32));
         for (beta, cb) in b_centers.iter().enumerate() {
             let mut d = s.splat(0.0);
             for k in 0..N {
@@ -258,12 +304,10 @@ pub(crate) fn center_table<S: Lanes, const N: usize>(
             }
             best_at = s.select_lt(d, best, s.splat(beta as f32), best_at);
             best = s.min(d, best);
-            // Without a branch: which group holds a column's minimum is not predictable.
-            let m = s.hmin(d);
-            let at = (g * LANES) as u32 + s.le(d, s.splat(m)).trailing_zeros();
-            let nearer = m < scratch.col_key[beta];
-            scratch.col_near[beta] = if nearer { at } else { scratch.col_near[beta] };
-            scratch.col_key[beta] = if nearer { m } else { scratch.col_key[beta] };
+            let (col_min, col_at) = &mut scratch.col_lanes[beta];
+            let (m, at) = (s.load(col_min), s.load(col_at));
+            *col_at = s.array(s.select_lt(d, m, index, at));
+            *col_min = s.array(s.min(d, m));
         }
         let (key, at) = (s.array(best), s.array(best_at));
         let live = (chunks - g * LANES).min(LANES);
@@ -271,6 +315,14 @@ pub(crate) fn center_table<S: Lanes, const N: usize>(
         scratch
             .row_near
             .extend(at[..live].iter().map(|&x| x as u32));
+    }
+    for (beta, (col_min, col_at)) in scratch.col_lanes.iter().enumerate() {
+        let (m, at) = (s.load(col_min), s.load(col_at));
+        let smallest = s.hmin(m);
+        // The lowest block index among the lanes holding the minimum.
+        let at = s.select_lt(s.splat(smallest), m, s.splat(f32::INFINITY), at);
+        scratch.col_key[beta] = smallest;
+        scratch.col_near[beta] = s.hmin(at) as u32;
     }
 }
 
@@ -968,17 +1020,112 @@ mod tests {
     fn thresholds_round_down_and_cuts_up() {
         let (delta, rel) = (1e-5, 1e-6);
         for c2 in [1e-12, 0.37, 4.0, 39.0] {
-            let t = threshold(c2, delta, rel);
-            if c2.sqrt() > delta {
-                let x = f64::from(t);
-                assert!((x * (1.0 + rel)).sqrt() + delta <= c2.sqrt());
-                let above = f64::from(t.next_up());
-                assert!((above * (1.0 + rel)).sqrt() + delta > c2.sqrt() * (1.0 - 1e-6));
-            } else {
-                assert!(t < 0.0);
+            for (tight, t) in [
+                (true, threshold_exact(c2, delta, rel)),
+                (false, threshold(c2, delta, rel)),
+            ] {
+                if c2.sqrt() > delta {
+                    let x = f64::from(t);
+                    assert!((x * (1.0 + rel)).sqrt() + delta <= c2.sqrt());
+                    let above = f64::from(t.next_up());
+                    let slack = if tight { 1e-6 } else { 1e-6 + delta };
+                    assert!((above * (1.0 + rel)).sqrt() + delta > c2.sqrt() * (1.0 - slack));
+                } else {
+                    assert!(t < 0.0);
+                }
             }
             let cut = f64::from(cut_above(c2 as f32, delta, rel));
             assert!(cut.sqrt() >= (f64::from(c2 as f32) * (1.0 + rel)).sqrt() + delta);
+        }
+    }
+
+    /// The threshold without a square root is never above the one with it (which
+    /// proves `g ≤ √c`), and gives up at most `δ·√c/2` of it (plus an `f32` step).
+    #[test]
+    fn thresholds_without_a_square_root_stay_below_the_exact_ones() {
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(11);
+        for _ in 0..200_000 {
+            let c2 = 10f64.powf(rng.random_range(-30.0..30.0));
+            let delta = 10f64.powf(rng.random_range(-12.0..2.0));
+            let rel = 10f64.powf(rng.random_range(-9.0..-4.0));
+            let fast = threshold(c2, delta, rel);
+            let exact = threshold_exact(c2, delta, rel);
+            assert!(fast <= exact, "{c2} {delta} {rel}: {fast} > {exact}");
+            let lost = delta * c2.sqrt() / 2.0 + delta * delta + rel * rel * c2;
+            if fast < 0.0 {
+                assert!(f64::from(exact) <= lost + 1e-14 * c2, "{c2} {delta} {rel}");
+            } else {
+                let floor = f64::from(exact) * (1.0 - 3e-7) - lost * (1.0 + 1e-9);
+                assert!(
+                    f64::from(fast) >= floor,
+                    "{c2} {delta} {rel}: {fast} < {floor}"
+                );
+            }
+        }
+        assert!(threshold(0.0, 1e-6, 1e-7) < 0.0);
+        assert!(threshold(1e-14, 1e-6, 1e-7) < 0.0);
+    }
+
+    /// The centre table's nearest chunks and their squared distances are those of a
+    /// scalar search (ties: the lower chunk), on every level.
+    #[test]
+    fn center_tables_match_a_scalar_search() {
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(7);
+        for points in [5, 21, 64, 100, 131] {
+            let sets =
+                ndarray::Array3::from_shape_fn((3, points, 3), |_| rng.random_range(-4.0..4.0));
+            for period in [Period::TwoPi, Period::None] {
+                let prepared = PreparedSets::new(sets.view(), period).unwrap();
+                let frame = Frame::<4>::of(&prepared);
+                let (a, b) = (prepared.set(0), prepared.set(1));
+                let mut scratch = Scratch::default();
+                center_table(Portable, a, b, &frame, &mut scratch);
+                let (c_a, _) = a.centers_narrow.as_chunks::<4>();
+                let (c_b, _) = b.centers_narrow.as_chunks::<4>();
+                let d = |x: &[f32; 4], y: &[f32; 4]| {
+                    (0..4).fold(0.0f32, |acc, k| {
+                        let u = (x[k] - y[k]).abs();
+                        let v = frame.period32[k] - u;
+                        let w = if u < v { u } else { v };
+                        w.mul_add(w, acc)
+                    })
+                };
+                let nearest = |x: &[f32; 4], others: &[[f32; 4]]| {
+                    (0..frame.chunks).fold((f32::INFINITY, 0u32), |(m, at), q| {
+                        let v = d(x, &others[q]);
+                        if v < m {
+                            (v, q as u32)
+                        } else {
+                            (m, at)
+                        }
+                    })
+                };
+                for q in 0..frame.chunks {
+                    let row = nearest(&c_a[q], c_b);
+                    assert_eq!((scratch.row_key[q], scratch.row_near[q]), row, "row {q}");
+                    let col = nearest(&c_b[q], c_a);
+                    assert_eq!((scratch.col_key[q], scratch.col_near[q]), col, "col {q}");
+                }
+            }
+        }
+    }
+
+    /// The far-first order sorts by decreasing key, ties by the lower block.
+    #[test]
+    fn far_first_orders_by_decreasing_key_then_lower_block() {
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(9);
+        for chunks in [1, 2, 7, 13, 16, 17, 40] {
+            for _ in 0..50 {
+                // Few distinct keys, so that ties occur.
+                let key: Vec<f32> = (0..chunks)
+                    .map(|_| f32::from(rng.random_range(0u8..5)) * 0.25)
+                    .collect();
+                let mut order = Vec::new();
+                far_first(&key, &mut order);
+                let mut expected: Vec<u32> = (0..chunks as u32).collect();
+                expected.sort_by(|&x, &y| key[y as usize].total_cmp(&key[x as usize]));
+                assert_eq!(order, expected, "{key:?}");
+            }
         }
     }
 }
