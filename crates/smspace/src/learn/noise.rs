@@ -1,0 +1,448 @@
+//! The sensor noise of a log, measured from the log itself (no truth): how far a
+//! sample's reading lies from what its motor neighbours predict, extrapolated to
+//! neighbours at distance zero.
+//!
+//! # The estimate
+//!
+//! A reading is `s_i = f(m_i) + ε_i` with `ε_i` independent noise of variance `σ²`
+//! (per sensor). At a probe sample `i`, the affine least-squares fit `s ≈ a + bᵀ(m − m_i)`
+//! to its `k` nearest other samples in motor space (not `i` itself) predicts
+//! `ŝ_i = a`; the prediction error `e_i = s_i − ŝ_i` holds the probe's own noise, the
+//! fit's noise (variance `σ² v_i`, `v_i = (XᵀX)⁻¹₀₀` for the fit's design
+//! `X = [1, m_j − m_i]`) and the fit's bias, which the curvature of `f` makes of order
+//! `r_i²` (`r_i²` the mean squared distance of the `k` neighbours):
+//!
+//! ```text
+//! E[e_i² / (1 + v_i)] = σ² + c r_i⁴ + …
+//! ```
+//!
+//! Over [`PROBES`] seeded probes and the neighbour counts `k ∈ {2, 3, 4} (N + 1)`, the
+//! ordinary least-squares line of `y = e² / (1 + v)` against `x = r⁴` has the intercept
+//! `σ̂²` (clamped at 0), per sensor. This is the nearest-neighbour difference estimator
+//! (`E[(s_i − s_j)²] = 2σ² + O(‖m_i − m_j‖²)`, whose intercept in the squared distance
+//! is `2σ²`) with the gradient fitted away, so that the line's slope is set by the
+//! curvature only. The report gives `σ̂` per sensor (sensor units and relative to the
+//! sensor's standard deviation), the overall relative `σ̂` (root mean square over the
+//! sensors), and the **resolution**: the relative size `sqrt(c̄ x̄)` of the curvature
+//! term at the data's typical spacing. A `σ̂` well below the resolution is not
+//! measured: the data's spacing cannot tell noise that small from the law's curvature
+//! ([`NoiseEstimate::measurable`]).
+//!
+//! # The rank of the sensory manifold
+//!
+//! The same probes give the **local dimension** of the sensory manifold: the slope `B`
+//! (`K × N`) of the affine fit to the `4 (N + 1)` nearest samples, each sensor divided
+//! by its standard deviation, has the singular values `β_1 ≥ … ≥ β_N`. Noise alone
+//! gives the fit a slope of singular values up to about
+//!
+//! ```text
+//! β_floor = σ̂ √q (√K + √N),     q = max_j ((XᵀX)⁻¹)_jj  (the slope's variance per unit noise),
+//! ```
+//!
+//! (`σ̂` the relative noise, zero when not measurable). The rank is read from the median
+//! over the probes of `β_r / β_1` (the **spectrum**): among the values above the
+//! median floor `β_floor / β_1`, the rank is `N` when the smallest exceeds
+//! [`FULL_RANK_RATIO`], else the `r` with the largest ratio `β_r / β_{r+1}` (the value
+//! past the last one above the floor counting as the floor). Values under the floor
+//! never count. This is the rank of `∂s/∂m`, hence the kernel dimension `N − r`, seen in
+//! the data rather than in a fitted law ([`LocalRank`]).
+
+use rand::rngs::ChaCha8Rng;
+use rand::seq::index::sample;
+use rand::SeedableRng;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::tree::KdTree;
+use super::SensorimotorLog;
+
+/// Most probe samples of the estimate.
+pub const PROBES: usize = 4096;
+
+/// The neighbour counts of one probe, in multiples of the affine fit's `N + 1`
+/// coefficients.
+const LADDER: [usize; 3] = [2, 3, 4];
+
+/// What the noise estimate found (in the law's report, per log).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NoiseEstimate {
+    /// `σ̂` per sensor, in the sensor's units.
+    pub sigma: Vec<f64>,
+    /// `σ̂` per sensor relative to the sensor's standard deviation over the log.
+    pub relative: Vec<f64>,
+    /// The root mean square of `relative` over the sensors.
+    pub relative_overall: f64,
+    /// The curvature term at the data's typical spacing, relative to the sensors'
+    /// spread (root mean square over the sensors): noise well below it cannot be told
+    /// from the law's own change.
+    pub resolution: f64,
+    /// Probe samples.
+    pub probes: usize,
+}
+
+impl NoiseEstimate {
+    /// Whether `σ̂` stands out of the curvature term: at least a fifth of the
+    /// resolution (else `σ̂` is an upper bound of the order of the resolution).
+    pub fn measurable(&self) -> bool {
+        self.relative_overall >= 0.2 * self.resolution
+    }
+
+    /// The relative noise the law should assume: `σ̂` when it is measurable, else 0
+    /// (noise below the resolution is below the law's own error too).
+    pub fn assumed_relative(&self) -> f64 {
+        if self.measurable() {
+            self.relative_overall
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Per probe and neighbour count: `(x = r⁴, y_c = e_c² / (1 + v))`.
+type Rows = Vec<(f64, Vec<f64>)>;
+
+/// A rank with `β_N / β_1` above this ratio is full (as for the law's Jacobian).
+pub const FULL_RANK_RATIO: f64 = 0.1;
+
+/// The local dimension of the sensory manifold (see the [module docs](self)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LocalRank {
+    /// The rank of `∂s/∂m` the data show.
+    pub rank: usize,
+    /// The median over the probes of `β_r / β_1`, `r = 1..=N`.
+    pub spectrum: Vec<f64>,
+    /// The median over the probes of `β_floor / β_1`.
+    pub floor: f64,
+    /// Probes.
+    pub probes: usize,
+}
+
+/// What one probe's fits found: the noise rows, and, from the largest fit, the
+/// singular values of its scaled slope and `√q`.
+struct Probe {
+    rows: Rows,
+    slope: Option<(Vec<f64>, f64)>,
+}
+
+/// Estimates the noise of `log` and the local rank of its sensory manifold from its rows
+/// `fit` (see the module docs); `seed` picks the probes. `None` when there are too few
+/// rows for the largest neighbour count.
+pub fn estimate_local(
+    log: &SensorimotorLog,
+    fit: &[u32],
+    seed: u64,
+) -> Option<(NoiseEstimate, LocalRank)> {
+    let (n, k) = (log.motors.ncols(), log.sensors.ncols());
+    let largest = LADDER[LADDER.len() - 1] * (n + 1);
+    if fit.len() <= largest + 1 {
+        return None;
+    }
+    let mut points = Vec::with_capacity(fit.len() * n);
+    for &row in fit {
+        points.extend(log.motors.row(row as usize).iter().copied());
+    }
+    let tree = KdTree::new(n, points, fit.to_vec());
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6e6f_6973);
+    let probes = sample(&mut rng, fit.len(), PROBES.min(fit.len())).into_vec();
+    let deviations = deviations(log);
+    let found: Vec<Probe> = probes
+        .par_iter()
+        .map(|&p| probe_rows(log, &tree, fit[p], largest, &deviations))
+        .collect();
+    let mut slopes = Vec::with_capacity(found.len());
+    let mut rows: Rows = Vec::with_capacity(found.len() * LADDER.len());
+    for probe in found {
+        rows.extend(probe.rows);
+        slopes.extend(probe.slope);
+    }
+    if rows.len() < 3 || slopes.is_empty() {
+        return None;
+    }
+    let mut sigma = vec![0.0; k];
+    let mut relative = vec![0.0; k];
+    let mut curvature = 0.0;
+    let mean_x = rows.iter().map(|r| r.0).sum::<f64>() / rows.len() as f64;
+    for c in 0..k {
+        let (intercept, slope) = line(rows.iter().map(|r| (r.0, r.1[c])));
+        sigma[c] = intercept.max(0.0).sqrt();
+        let spread = deviations[c].max(f64::MIN_POSITIVE);
+        relative[c] = sigma[c] / spread;
+        curvature += (slope * mean_x).max(0.0) / (spread * spread);
+    }
+    let relative_overall = (relative.iter().map(|r| r * r).sum::<f64>() / k as f64).sqrt();
+    let noise = NoiseEstimate {
+        sigma,
+        relative,
+        relative_overall,
+        resolution: (curvature / k as f64).sqrt(),
+        probes: probes.len(),
+    };
+    let rank = local_rank(&slopes, noise.assumed_relative(), n, k);
+    Some((noise, rank))
+}
+
+/// The median of `values` (not empty), the upper one of an even count.
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+/// The rank from the probes' slope spectra (see the [module docs](self)).
+fn local_rank(slopes: &[(Vec<f64>, f64)], relative_noise: f64, n: usize, k: usize) -> LocalRank {
+    let spread = (k as f64).sqrt() + (n as f64).sqrt();
+    let spectrum: Vec<f64> = (0..n)
+        .map(|r| {
+            median(
+                slopes
+                    .iter()
+                    .map(|(s, _)| s[r] / s[0].max(f64::MIN_POSITIVE))
+                    .collect(),
+            )
+        })
+        .collect();
+    let floor = median(
+        slopes
+            .iter()
+            .map(|(s, q)| relative_noise * q * spread / s[0].max(f64::MIN_POSITIVE))
+            .collect(),
+    );
+    LocalRank {
+        rank: rank_above_floor(&spectrum, floor),
+        spectrum,
+        floor,
+        probes: slopes.len(),
+    }
+}
+
+/// The rank of a descending spectrum (`spectrum[0] = 1`) whose values at or under
+/// `floor` do not count (see the [module docs](self)).
+pub(crate) fn rank_above_floor(spectrum: &[f64], floor: f64) -> usize {
+    let above = spectrum.iter().take_while(|&&b| b > floor).count();
+    if above == 0 {
+        return 0;
+    }
+    if above == spectrum.len() && spectrum[above - 1] > FULL_RANK_RATIO {
+        return above;
+    }
+    let tiny = f64::MIN_POSITIVE;
+    let next = |r: usize| {
+        spectrum
+            .get(r)
+            .copied()
+            .filter(|_| r < above)
+            .unwrap_or(floor)
+            .max(tiny)
+    };
+    (1..=above)
+        .max_by(|&a, &b| {
+            let gap = |r: usize| spectrum[r - 1] / next(r);
+            gap(a).total_cmp(&gap(b)).then(b.cmp(&a))
+        })
+        .unwrap_or(above)
+}
+
+/// The standard deviation of every sensor over the log.
+pub(super) fn deviations(log: &SensorimotorLog) -> Vec<f64> {
+    log.sensors
+        .columns()
+        .into_iter()
+        .map(|c| {
+            let mean = c.mean().unwrap_or(0.0);
+            (c.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / c.len().max(1) as f64).sqrt()
+        })
+        .collect()
+}
+
+/// The rows of one probe (log row `row`): for every neighbour count of the ladder, the
+/// affine fit to that many nearest other samples, its prediction error at the probe.
+fn probe_rows(
+    log: &SensorimotorLog,
+    tree: &KdTree,
+    row: u32,
+    largest: usize,
+    deviations: &[f64],
+) -> Probe {
+    let n = log.motors.ncols();
+    let centre: Vec<f64> = log.motors.row(row as usize).to_vec();
+    let near: Vec<(f64, u32)> = tree
+        .nearest_rows(&centre, largest + 1)
+        .into_iter()
+        .filter(|&(_, r)| r != row)
+        .take(largest)
+        .collect();
+    let own = log.sensors.row(row as usize);
+    let mut out = Vec::with_capacity(LADDER.len());
+    let mut slope = None;
+    for &multiple in &LADDER {
+        let count = multiple * (n + 1);
+        if near.len() < count {
+            break;
+        }
+        let p = n + 1;
+        // XᵀX and Xᵀs for X = [1, m_j − m_i].
+        let mut gram = vec![0.0; p * p];
+        let mut design = vec![0.0; p];
+        let mut mean_d2 = 0.0;
+        for &(d2, r) in &near[..count] {
+            design[0] = 1.0;
+            for j in 0..n {
+                design[1 + j] = log.motors[(r as usize, j)] - centre[j];
+            }
+            for a in 0..p {
+                for b in 0..p {
+                    gram[a * p + b] += design[a] * design[b];
+                }
+            }
+            mean_d2 += d2;
+        }
+        mean_d2 /= count as f64;
+        let Some(inverse) = invert(&gram, p) else {
+            continue;
+        };
+        // The prediction at the probe is row 0 of (XᵀX)⁻¹ Xᵀ s: Σ_j w_j s_j.
+        let mut weights = vec![0.0; count];
+        for (w, &(_, r)) in weights.iter_mut().zip(&near[..count]) {
+            let mut value = inverse[0];
+            for j in 0..n {
+                value += inverse[1 + j] * (log.motors[(r as usize, j)] - centre[j]);
+            }
+            *w = value;
+        }
+        if count == largest {
+            slope = scaled_slope(log, &near[..count], &inverse, &centre, deviations);
+        }
+        let inflation = 1.0 + inverse[0];
+        let errors: Vec<f64> = own
+            .iter()
+            .enumerate()
+            .map(|(c, &s)| {
+                let predicted: f64 = weights
+                    .iter()
+                    .zip(&near[..count])
+                    .map(|(w, &(_, r))| w * log.sensors[(r as usize, c)])
+                    .sum();
+                (s - predicted) * (s - predicted) / inflation
+            })
+            .collect();
+        out.push((mean_d2 * mean_d2, errors));
+    }
+    Probe { rows: out, slope }
+}
+
+/// The singular values (descending) of the affine fit's slope `B = ((XᵀX)⁻¹ Xᵀ S)_{1..}`
+/// at `centre` with every sensor divided by its standard deviation, and `√q` (see the
+/// [module docs](self)); `inverse` is `(XᵀX)⁻¹`.
+fn scaled_slope(
+    log: &SensorimotorLog,
+    near: &[(f64, u32)],
+    inverse: &[f64],
+    centre: &[f64],
+    deviations: &[f64],
+) -> Option<(Vec<f64>, f64)> {
+    let (n, k) = (log.motors.ncols(), log.sensors.ncols());
+    let p = n + 1;
+    let mut slope = faer::Mat::<f64>::zeros(k, n);
+    let mut x = vec![1.0; p];
+    for &(_, r) in near {
+        for j in 0..n {
+            x[1 + j] = log.motors[(r as usize, j)] - centre[j];
+        }
+        for j in 0..n {
+            let w: f64 = (0..p).map(|q| inverse[(1 + j) * p + q] * x[q]).sum();
+            for c in 0..k {
+                slope[(c, j)] +=
+                    w * log.sensors[(r as usize, c)] / deviations[c].max(f64::MIN_POSITIVE);
+            }
+        }
+    }
+    let mut sigma = crate::linalg::singular_values(slope.as_ref()).ok()?;
+    sigma.sort_by(|a, b| b.total_cmp(a));
+    sigma.resize(n, 0.0);
+    if !(sigma[0].is_finite() && sigma[0] > 0.0) {
+        return None;
+    }
+    let q = (1..p).map(|j| inverse[j * p + j]).fold(0.0, f64::max);
+    Some((sigma, q.sqrt()))
+}
+
+/// The inverse of a symmetric positive definite `p × p` matrix (Gauss–Jordan with
+/// partial pivoting), `None` when it is singular.
+fn invert(matrix: &[f64], p: usize) -> Option<Vec<f64>> {
+    let mut a = matrix.to_vec();
+    let mut inverse = vec![0.0; p * p];
+    for i in 0..p {
+        inverse[i * p + i] = 1.0;
+    }
+    let scale = (0..p).map(|i| a[i * p + i].abs()).fold(0.0, f64::max);
+    for col in 0..p {
+        let pivot = (col..p).max_by(|&x, &y| a[x * p + col].abs().total_cmp(&a[y * p + col].abs()))?;
+        if a[pivot * p + col].abs() <= 1e-12 * scale {
+            return None;
+        }
+        for j in 0..p {
+            a.swap(col * p + j, pivot * p + j);
+            inverse.swap(col * p + j, pivot * p + j);
+        }
+        let d = 1.0 / a[col * p + col];
+        for j in 0..p {
+            a[col * p + j] *= d;
+            inverse[col * p + j] *= d;
+        }
+        for r in 0..p {
+            if r != col {
+                let f = a[r * p + col];
+                if f != 0.0 {
+                    for j in 0..p {
+                        a[r * p + j] -= f * a[col * p + j];
+                        inverse[r * p + j] -= f * inverse[col * p + j];
+                    }
+                }
+            }
+        }
+    }
+    Some(inverse)
+}
+
+/// The ordinary least-squares line `y = intercept + slope x` of the pairs.
+fn line(pairs: impl Iterator<Item = (f64, f64)> + Clone) -> (f64, f64) {
+    let (mut count, mut sx, mut sy) = (0.0, 0.0, 0.0);
+    for (x, y) in pairs.clone() {
+        count += 1.0;
+        sx += x;
+        sy += y;
+    }
+    let (mx, my) = (sx / count, sy / count);
+    let (mut sxx, mut sxy) = (0.0, 0.0);
+    for (x, y) in pairs {
+        sxx += (x - mx) * (x - mx);
+        sxy += (x - mx) * (y - my);
+    }
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    (my - slope * mx, slope)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_line_through_exact_points_is_found() {
+        let points = [(0.0, 1.0), (1.0, 3.0), (2.0, 5.0)];
+        let (a, b) = line(points.iter().copied());
+        approx::assert_abs_diff_eq!(a, 1.0, epsilon = 1e-12);
+        approx::assert_abs_diff_eq!(b, 2.0, epsilon = 1e-12);
+    }
+
+    #[test]
+    fn the_inverse_inverts() {
+        let m = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
+        let inv = invert(&m, 3).unwrap();
+        for i in 0..3 {
+            for j in 0..3 {
+                let v: f64 = (0..3).map(|q| m[i * 3 + q] * inv[q * 3 + j]).sum();
+                approx::assert_abs_diff_eq!(v, if i == j { 1.0 } else { 0.0 }, epsilon = 1e-12);
+            }
+        }
+        assert!(invert(&[1.0, 2.0, 2.0, 4.0], 2).is_none());
+    }
+}
