@@ -19,7 +19,7 @@ for law in "$@"; do
         "$bin" simulate --agent "$here/$law.toml" --n "$samples" --out-dir "$d/log" 2>/dev/null
     fi
     if [ ! -f "$d/truth-$starts.npy" ]; then
-        python3 -c "import numpy as np; np.save('$d/starts-$starts.npy', np.load('$d/log/motors.npy')[:$starts])"
+        python3 "$here/first_rows.py" "$d/log/motors.npy" "$starts" "$d/starts-$starts.npy"
         "$bin" trace --agent "$here/$law.toml" --env "$d/log/environment.json" \
             --motors "$d/starts-$starts.npy" --method sensory --points 100 \
             --out "$d/truth-$starts.npy" 2>/dev/null

@@ -136,7 +136,7 @@ fn the_law_reports_the_noise_the_data_rank_and_what_the_data_cannot_support() {
         report
             .warnings
             .iter()
-            .any(|w| w.contains("5.0") && w.contains("more samples")),
+            .any(|w| w.contains("measured noise σ̂ = ") && w.contains("more samples")),
         "{:?}",
         report.warnings
     );

@@ -43,8 +43,10 @@
 //!
 //! (the nearest-neighbour estimator `E[(s_i − s_j)²] = 2σ² + O(‖m_i − m_j‖²)` with the
 //! gradient fitted away). `σ̂` is reported per sensor and overall (relative to the
-//! sensors' spread), with the resolution `sqrt(c̄ r̄⁴)` under which noise cannot be told
-//! from the law's curvature ([`NoiseEstimate`]).
+//! sensors' spread), with the resolution: the root mean square error of the nearest
+//! fits, noise and curvature together. Unless `σ̂` makes nearly all of it (`σ̂ ≥ 0.95 × resolution`),
+//! the noise is not measured (it is below what the data's spacing resolves) and the law
+//! assumes none ([`NoiseEstimate`]).
 //!
 //! The local fits use it: unless `neighbours` is given, a fit holds at least
 //! `p (σ̂ / 0.005)²` samples (at most `16 p` and a hundredth of the log), so that the
@@ -622,8 +624,8 @@ fn learn_invariants(
     Ok((model, reports, data_rank))
 }
 
-/// What the data cannot support, with the measured noise and what would help: a law
-/// whose held-out error is far above the noise (too few samples for the law's
+/// What the data cannot support, with the measured noise and what would help: a local
+/// law whose held-out error is far above the noise (too few samples for the law's
 /// changes), noise the fit cannot average down, a rank the noise floor hides, or a log
 /// too short to measure the noise.
 fn law_warnings(report: &LawReport, params: &LawValidParams, n: usize) -> Vec<String> {
@@ -655,7 +657,9 @@ fn law_warnings(report: &LawReport, params: &LawValidParams, n: usize) -> Vec<St
             )
         };
         let floor = noise.assumed_relative().max(0.005);
-        if log.held_out_relative_rms > 3.0 * floor && log.held_out_relative_rms > 0.02 {
+        // The local laws' values are what is traced (the invariants law traces z).
+        let local = report.method != LawMethod::Invariants;
+        if local && log.held_out_relative_rms > 3.0 * floor && log.held_out_relative_rms > 0.02 {
             warnings.push(format!(
                 "{}: the law's held-out error ({:.1} % of the sensors' spread) is far above the noise ({measured}): the sensors change faster than the samples' spacing (bandwidth {:.3}) can follow; record more samples (the error falls with the spacing), or try another method",
                 log.motors,
