@@ -55,9 +55,11 @@
 //!
 //! The generic rank of `∂ŝ/∂m` (hence the kernel dimension `k = N − rank`) is read
 //! from the data, at the same probes: the singular values of the slope of the affine
-//! fit to the `4 (N + 1)` nearest samples (sensors divided by their spread), their
-//! median spectrum `β_r / β_1`, and the noise floor `σ̂ √q (√K + √N) / β_1` (`q` the
-//! slope's variance per unit noise); values under the floor do not count, and the rank
+//! fit to the `4 (N + 1)` nearest samples (sensors divided by their spread), with the
+//! share noise adds to their squares removed (`K σ̂² q`, `q` the slope's variance per
+//! unit noise): the median spectrum `sqrt(median(β_r² − K σ̂² q) / median(β_1² − K σ̂²
+//! q))` and the floor `sqrt(K σ̂² q)` on the same scale; values under a tenth of the
+//! floor do not count, and the rank
 //! ends at the largest gap of the rest (`N` when `β_N / β_1 > 0.1`) ([`LocalRank`],
 //! `data_rank` in the [`LawReport`]). The rank of the fitted law's Jacobian (the most
 //! frequent numerical rank at 512 seeded samples, by the largest gap of its singular
@@ -141,7 +143,9 @@ pub use law::{FitSupport, LawReport, LearnedLaw, LogReport};
 pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
 };
-pub use noise::{estimate_local, LocalRank, NoiseEstimate, FULL_RANK_RATIO};
+pub use noise::{
+    estimate_local, LocalRank, NoiseEstimate, FULL_RANK_RATIO, MAX_CORRELATION, MEASURABLE_SHARE,
+};
 pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog};
 pub use tree::{Candidates, KdTree};
 
@@ -649,7 +653,10 @@ fn law_warnings(report: &LawReport, params: &LawValidParams, n: usize) -> Vec<St
         let Some(noise) = &log.noise else { continue };
         let sigma = noise.relative_overall;
         let measured = if noise.measurable() {
-            format!("measured noise σ̂ = {:.2} % of the sensors' spread", 100.0 * sigma)
+            format!(
+                "measured noise σ̂ = {:.2} % of the sensors' spread",
+                100.0 * sigma
+            )
         } else {
             format!(
                 "noise below what the data's spacing resolves (σ̂ ≤ {:.2} % of the sensors' spread)",

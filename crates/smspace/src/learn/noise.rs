@@ -27,26 +27,30 @@
 //! neighbour count, relative to the sensors' spread (noise and curvature at the data's
 //! spacing). Unless `σ̂` makes nearly all of it (`σ̂ ≥ 0.95 resolution`), the
 //! extrapolation is long and the noise is not measured: the data's spacing cannot tell
-//! it from the law's curvature, and it is at most the resolution
-//! ([`NoiseEstimate::measurable`]).
+//! it from the law's curvature, and it is at most the resolution. The same holds when
+//! the errors of a probe and of its nearest sample (each with its own fit at the
+//! smallest count) are correlated (above 0.3): noise is independent between samples,
+//! the law's unexplained change is shared ([`NoiseEstimate::measurable`]).
 //!
 //! # The rank of the sensory manifold
 //!
 //! The same probes give the **local dimension** of the sensory manifold: the slope `B`
 //! (`K × N`) of the affine fit to the `4 (N + 1)` nearest samples, each sensor divided
-//! by its standard deviation, has the singular values `β_1 ≥ … ≥ β_N`. Noise alone
-//! gives the fit a slope of singular values up to about
+//! by its standard deviation, has the singular values `β_1 ≥ … ≥ β_N`. Noise adds
+//! about `K σ̂² q` to every squared singular value (`q = max_j ((XᵀX)⁻¹)_jj`, the
+//! slope's variance per unit noise; `σ̂` the relative noise, zero when not measurable):
+//! the **spectrum** is the median over the probes of `β_r² − K σ̂² q`, relative to that
+//! of `β_1²`, square-rooted (negative medians read 0), and the **floor**
+//! `sqrt(K σ̂² q)` on the same scale:
 //!
 //! ```text
-//! β_floor = σ̂ √q (√K + √N),     q = max_j ((XᵀX)⁻¹)_jj  (the slope's variance per unit noise),
+//! spectrum_r = sqrt(median(β_r² − K σ̂² q) / median(β_1² − K σ̂² q)),   floor = sqrt(median(K σ̂² q) / median(β_1² − K σ̂² q)).
 //! ```
 //!
-//! (`σ̂` the relative noise, zero when not measurable). The rank is read from the median
-//! over the probes of `β_r / β_1` (the **spectrum**): among the values above the
-//! median floor `β_floor / β_1`, the rank is `N` when the smallest exceeds
-//! [`FULL_RANK_RATIO`], else the `r` with the largest ratio `β_r / β_{r+1}` (the value
-//! past the last one above the floor counting as the floor). Values under the floor
-//! never count. This is the rank of `∂s/∂m`, hence the kernel dimension `N − r`, seen in
+//! Values under a tenth of the floor ([`FLOOR_SHARE`]) never count; among the rest the
+//! rank is `N` when the smallest value exceeds [`FULL_RANK_RATIO`], else the `r` with
+//! the largest ratio `spectrum_r / spectrum_{r+1}`. This is the rank of `∂s/∂m`, hence
+//! the kernel dimension `N − r`, seen in
 //! the data rather than in a fitted law ([`LocalRank`]).
 
 use rand::rngs::ChaCha8Rng;
@@ -79,19 +83,26 @@ pub struct NoiseEstimate {
     /// sensors): noise plus the law's curvature at the data's spacing. Noise well below
     /// it cannot be told from the law's own change.
     pub resolution: f64,
+    /// The correlation of the nearest fits' errors at a probe and at its nearest
+    /// sample (mean over the sensors): about 0 for noise, large where the errors are
+    /// the law's own change, which two near samples share.
+    pub neighbour_correlation: f64,
     /// Probe samples.
     pub probes: usize,
 }
 
 impl NoiseEstimate {
-    /// Whether `σ̂` stands out of the curvature term: the noise makes at least 90 % of
-    /// the nearest fits' squared error (`σ̂ ≥ 0.95 resolution`), so that the
-    /// extrapolation to zero spacing is short. Else `σ̂` is not measured: the noise is
-    /// at most the resolution. (On the paper's arm at 10⁵ samples, with no noise, the
-    /// line's intercept makes 73 % of that error: the curvature's share of the error
-    /// hardly grows over the neighbour counts, and the line cannot separate it.)
+    /// Whether `σ̂` stands out of the law's own change: the noise makes at least 90 %
+    /// of the nearest fits' squared error (`σ̂ ≥ 0.95 resolution`), so that the
+    /// extrapolation to zero spacing is short, and the errors at near samples are
+    /// nearly uncorrelated (`neighbour_correlation` below [`MAX_CORRELATION`]), as
+    /// independent noise makes them. Else `σ̂` is not measured: the noise is at most
+    /// the resolution. (On the paper's arm at 10⁵ samples, with no noise, the fits'
+    /// errors are 20 to 50 % of the sensors' spread at every neighbour count: the line
+    /// cannot separate them from noise, their correlation can.)
     pub fn measurable(&self) -> bool {
         self.relative_overall >= MEASURABLE_SHARE * self.resolution
+            && self.neighbour_correlation < MAX_CORRELATION
     }
 
     /// The relative noise the law should assume: `σ̂` when it is measurable, else 0
@@ -110,6 +121,17 @@ type Rows = Vec<(usize, f64, Vec<f64>)>;
 
 /// The least `σ̂ / resolution` of a measured noise ([`NoiseEstimate::measurable`]).
 pub const MEASURABLE_SHARE: f64 = 0.95;
+
+/// Fitted samples per coefficient of the affine fit (`N + 1`) below which the
+/// estimate is not made: the probes' neighbourhoods would overlap too much.
+pub const MIN_SAMPLES_PER_COEFFICIENT: usize = 100;
+
+/// The largest `neighbour_correlation` of a measured noise.
+pub const MAX_CORRELATION: f64 = 0.3;
+
+/// A value of the debiased spectrum counts when it exceeds this share of the noise
+/// floor.
+pub const FLOOR_SHARE: f64 = 0.1;
 
 /// A rank with `β_N / β_1` above this ratio is full (as for the law's Jacobian).
 pub const FULL_RANK_RATIO: f64 = 0.1;
@@ -132,11 +154,13 @@ pub struct LocalRank {
 struct Probe {
     rows: Rows,
     slope: Option<(Vec<f64>, f64)>,
+    /// The prediction errors of the probe and of its nearest sample.
+    pair: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 /// Estimates the noise of `log` and the local rank of its sensory manifold from its rows
 /// `fit` (see the module docs); `seed` picks the probes. `None` when there are too few
-/// rows for the largest neighbour count.
+/// rows (fewer than [`MIN_SAMPLES_PER_COEFFICIENT`] `× (N + 1)`).
 pub fn estimate_local(
     log: &SensorimotorLog,
     fit: &[u32],
@@ -144,7 +168,7 @@ pub fn estimate_local(
 ) -> Option<(NoiseEstimate, LocalRank)> {
     let (n, k) = (log.motors.ncols(), log.sensors.ncols());
     let largest = LADDER[LADDER.len() - 1] * (n + 1);
-    if fit.len() <= largest + 1 {
+    if fit.len() < MIN_SAMPLES_PER_COEFFICIENT * (n + 1) {
         return None;
     }
     let mut points = Vec::with_capacity(fit.len() * n);
@@ -160,10 +184,12 @@ pub fn estimate_local(
         .map(|&p| probe_rows(log, &tree, fit[p], largest, &deviations))
         .collect();
     let mut slopes = Vec::with_capacity(found.len());
+    let mut pairs = Vec::with_capacity(found.len());
     let mut rows: Rows = Vec::with_capacity(found.len() * LADDER.len());
     for probe in found {
         rows.extend(probe.rows);
         slopes.extend(probe.slope);
+        pairs.extend(probe.pair);
     }
     if rows.len() < 3 || slopes.is_empty() {
         return None;
@@ -181,11 +207,24 @@ pub fn estimate_local(
         closest += error / (spread * spread);
     }
     let relative_overall = (relative.iter().map(|r| r * r).sum::<f64>() / k as f64).sqrt();
+    let correlation = (0..k)
+        .map(|c| {
+            let (mut xy, mut xx, mut yy) = (0.0, 0.0, 0.0);
+            for (a, b) in &pairs {
+                xy += a[c] * b[c];
+                xx += a[c] * a[c];
+                yy += b[c] * b[c];
+            }
+            xy / (xx * yy).sqrt().max(f64::MIN_POSITIVE)
+        })
+        .sum::<f64>()
+        / k as f64;
     let noise = NoiseEstimate {
         sigma,
         relative,
         relative_overall,
         resolution: (closest / k as f64).sqrt(),
+        neighbour_correlation: correlation,
         probes: probes.len(),
     };
     let rank = local_rank(&slopes, noise.assumed_relative(), n, k);
@@ -200,25 +239,26 @@ fn median(mut values: Vec<f64>) -> f64 {
 
 /// The rank from the probes' slope spectra (see the [module docs](self)).
 fn local_rank(slopes: &[(Vec<f64>, f64)], relative_noise: f64, n: usize, k: usize) -> LocalRank {
-    let spread = (k as f64).sqrt() + (n as f64).sqrt();
-    let spectrum: Vec<f64> = (0..n)
+    // What noise alone adds to every squared singular value of a probe's slope.
+    let noise = |q: f64| k as f64 * (relative_noise * q).powi(2);
+    let squares: Vec<f64> = (0..n)
         .map(|r| {
             median(
                 slopes
                     .iter()
-                    .map(|(s, _)| s[r] / s[0].max(f64::MIN_POSITIVE))
+                    .map(|(s, q)| s[r] * s[r] - noise(*q))
                     .collect(),
             )
         })
         .collect();
-    let floor = median(
-        slopes
-            .iter()
-            .map(|(s, q)| relative_noise * q * spread / s[0].max(f64::MIN_POSITIVE))
-            .collect(),
-    );
+    let largest = squares[0].max(f64::MIN_POSITIVE);
+    let spectrum: Vec<f64> = squares
+        .iter()
+        .map(|&l| (l.max(0.0) / largest).sqrt())
+        .collect();
+    let floor = (median(slopes.iter().map(|(_, q)| noise(*q)).collect()) / largest).sqrt();
     LocalRank {
-        rank: rank_above_floor(&spectrum, floor),
+        rank: rank_above_floor(&spectrum, FLOOR_SHARE * floor),
         spectrum,
         floor,
         probes: slopes.len(),
@@ -226,30 +266,26 @@ fn local_rank(slopes: &[(Vec<f64>, f64)], relative_noise: f64, n: usize, k: usiz
 }
 
 /// The rank of a descending spectrum (`spectrum[0] = 1`) whose values at or under
-/// `floor` do not count (see the [module docs](self)).
+/// `floor` do not count (see the [module docs](self)): the rank by the largest gap
+/// (`N` when the smallest value exceeds [`FULL_RANK_RATIO`]), at most the count of
+/// values above the floor.
 pub(crate) fn rank_above_floor(spectrum: &[f64], floor: f64) -> usize {
+    let n = spectrum.len();
     let above = spectrum.iter().take_while(|&&b| b > floor).count();
-    if above == 0 {
+    if n == 0 || above == 0 {
         return 0;
     }
-    if above == spectrum.len() && spectrum[above - 1] > FULL_RANK_RATIO {
-        return above;
-    }
-    let tiny = f64::MIN_POSITIVE;
-    let next = |r: usize| {
-        spectrum
-            .get(r)
-            .copied()
-            .filter(|_| r < above)
-            .unwrap_or(floor)
-            .max(tiny)
+    let by_gap = if spectrum[n - 1] > FULL_RANK_RATIO {
+        n
+    } else {
+        (1..n)
+            .max_by(|&a, &b| {
+                let gap = |r: usize| spectrum[r - 1] / spectrum[r].max(f64::MIN_POSITIVE);
+                gap(a).total_cmp(&gap(b)).then(b.cmp(&a))
+            })
+            .unwrap_or(n)
     };
-    (1..=above)
-        .max_by(|&a, &b| {
-            let gap = |r: usize| spectrum[r - 1] / next(r);
-            gap(a).total_cmp(&gap(b)).then(b.cmp(&a))
-        })
-        .unwrap_or(above)
+    by_gap.min(above)
 }
 
 /// The standard deviation of every sensor over the log.
@@ -264,8 +300,73 @@ pub(super) fn deviations(log: &SensorimotorLog) -> Vec<f64> {
         .collect()
 }
 
+/// The `count` samples nearest to log row `row` in `tree`, other than `row`.
+fn nearest_others(log: &SensorimotorLog, tree: &KdTree, row: u32, count: usize) -> Vec<(f64, u32)> {
+    let centre: Vec<f64> = log.motors.row(row as usize).to_vec();
+    tree.nearest_rows(&centre, count + 1)
+        .into_iter()
+        .filter(|&(_, r)| r != row)
+        .take(count)
+        .collect()
+}
+
+/// The affine fit at log row `row` to the samples `near` (not `row`): `(XᵀX)⁻¹` and
+/// the prediction errors `e_c / √(1 + v)` of every sensor at `row` (see the
+/// [module docs](self)); `None` when `XᵀX` is singular.
+fn affine_loo(
+    log: &SensorimotorLog,
+    row: u32,
+    near: &[(f64, u32)],
+) -> Option<(Vec<f64>, Vec<f64>)> {
+    let n = log.motors.ncols();
+    let p = n + 1;
+    let centre = log.motors.row(row as usize);
+    let displacement = |r: u32, j: usize| log.motors[(r as usize, j)] - centre[j];
+    let mut gram = vec![0.0; p * p];
+    let mut design = vec![1.0; p];
+    for &(_, r) in near {
+        for j in 0..n {
+            design[1 + j] = displacement(r, j);
+        }
+        for a in 0..p {
+            for b in 0..p {
+                gram[a * p + b] += design[a] * design[b];
+            }
+        }
+    }
+    let inverse = invert(&gram, p)?;
+    // The prediction at the probe is row 0 of (XᵀX)⁻¹ Xᵀ s: Σ_j w_j s_j.
+    let weights: Vec<f64> = near
+        .iter()
+        .map(|&(_, r)| {
+            inverse[0]
+                + (0..n)
+                    .map(|j| inverse[1 + j] * displacement(r, j))
+                    .sum::<f64>()
+        })
+        .collect();
+    let scale = 1.0 / (1.0 + inverse[0]).sqrt();
+    let errors = log
+        .sensors
+        .row(row as usize)
+        .iter()
+        .enumerate()
+        .map(|(c, &s)| {
+            let predicted: f64 = weights
+                .iter()
+                .zip(near)
+                .map(|(w, &(_, r))| w * log.sensors[(r as usize, c)])
+                .sum();
+            (s - predicted) * scale
+        })
+        .collect();
+    Some((inverse, errors))
+}
+
 /// The rows of one probe (log row `row`): for every neighbour count of the ladder, the
-/// affine fit to that many nearest other samples, its prediction error at the probe.
+/// affine fit to that many nearest other samples, its prediction error at the probe;
+/// at the smallest count, the errors of the probe and of its nearest sample (each with
+/// its own fit), for their correlation.
 fn probe_rows(
     log: &SensorimotorLog,
     tree: &KdTree,
@@ -275,69 +376,34 @@ fn probe_rows(
 ) -> Probe {
     let n = log.motors.ncols();
     let centre: Vec<f64> = log.motors.row(row as usize).to_vec();
-    let near: Vec<(f64, u32)> = tree
-        .nearest_rows(&centre, largest + 1)
-        .into_iter()
-        .filter(|&(_, r)| r != row)
-        .take(largest)
-        .collect();
-    let own = log.sensors.row(row as usize);
+    let near = nearest_others(log, tree, row, largest);
     let mut out = Vec::with_capacity(LADDER.len());
-    let mut slope = None;
+    let (mut slope, mut pair) = (None, None);
     for (step, &multiple) in LADDER.iter().enumerate() {
         let count = multiple * (n + 1);
         if near.len() < count {
             break;
         }
-        let p = n + 1;
-        // XᵀX and Xᵀs for X = [1, m_j − m_i].
-        let mut gram = vec![0.0; p * p];
-        let mut design = vec![0.0; p];
-        let mut mean_d2 = 0.0;
-        for &(d2, r) in &near[..count] {
-            design[0] = 1.0;
-            for j in 0..n {
-                design[1 + j] = log.motors[(r as usize, j)] - centre[j];
-            }
-            for a in 0..p {
-                for b in 0..p {
-                    gram[a * p + b] += design[a] * design[b];
-                }
-            }
-            mean_d2 += d2;
-        }
-        mean_d2 /= count as f64;
-        let Some(inverse) = invert(&gram, p) else {
+        let Some((inverse, errors)) = affine_loo(log, row, &near[..count]) else {
             continue;
         };
-        // The prediction at the probe is row 0 of (XᵀX)⁻¹ Xᵀ s: Σ_j w_j s_j.
-        let mut weights = vec![0.0; count];
-        for (w, &(_, r)) in weights.iter_mut().zip(&near[..count]) {
-            let mut value = inverse[0];
-            for j in 0..n {
-                value += inverse[1 + j] * (log.motors[(r as usize, j)] - centre[j]);
-            }
-            *w = value;
-        }
         if count == largest {
             slope = scaled_slope(log, &near[..count], &inverse, &centre, deviations);
         }
-        let inflation = 1.0 + inverse[0];
-        let errors: Vec<f64> = own
-            .iter()
-            .enumerate()
-            .map(|(c, &s)| {
-                let predicted: f64 = weights
-                    .iter()
-                    .zip(&near[..count])
-                    .map(|(w, &(_, r))| w * log.sensors[(r as usize, c)])
-                    .sum();
-                (s - predicted) * (s - predicted) / inflation
-            })
-            .collect();
-        out.push((step, mean_d2 * mean_d2, errors));
+        if step == 0 {
+            let other = near[0].1;
+            let around = nearest_others(log, tree, other, count);
+            pair = affine_loo(log, other, &around).map(|(_, e)| (errors.clone(), e));
+        }
+        let mean_d2 = near[..count].iter().map(|&(d2, _)| d2).sum::<f64>() / count as f64;
+        let squares = errors.iter().map(|e| e * e).collect();
+        out.push((step, mean_d2 * mean_d2, squares));
     }
-    Probe { rows: out, slope }
+    Probe {
+        rows: out,
+        slope,
+        pair,
+    }
 }
 
 /// The singular values (descending) of the affine fit's slope `B = ((XᵀX)⁻¹ Xᵀ S)_{1..}`
@@ -386,7 +452,8 @@ fn invert(matrix: &[f64], p: usize) -> Option<Vec<f64>> {
     }
     let scale = (0..p).map(|i| a[i * p + i].abs()).fold(0.0, f64::max);
     for col in 0..p {
-        let pivot = (col..p).max_by(|&x, &y| a[x * p + col].abs().total_cmp(&a[y * p + col].abs()))?;
+        let pivot =
+            (col..p).max_by(|&x, &y| a[x * p + col].abs().total_cmp(&a[y * p + col].abs()))?;
         if a[pivot * p + col].abs() <= 1e-12 * scale {
             return None;
         }
