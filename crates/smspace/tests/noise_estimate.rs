@@ -14,7 +14,8 @@ use smspace::agent::{
     MotorSpace, PlanarArm, Tuning,
 };
 use smspace::learn::{
-    estimate_local, learn, simulate, LawParams, LogFiles, SensorimotorLog, SimulateParams,
+    estimate_local, learn, simulate, spectrum_rank, LawParams, LogFiles, SensorimotorLog,
+    SimulateParams,
 };
 
 fn files() -> LogFiles {
@@ -262,4 +263,19 @@ fn the_retina_laws_change_the_readings_and_the_default_is_the_papers() {
             "{e}"
         );
     }
+}
+
+#[test]
+fn the_rank_of_measured_spectra_ends_at_the_last_clear_gap() {
+    // Median slope spectra measured on exact logs of retina laws (experiments/laws):
+    // the paper's arm at 10⁵ samples, far lights at 10⁵ and 10⁶ (the largest ratio is
+    // between the orientation and the weak position there, yet the rank is 3).
+    assert_eq!(spectrum_rank(&[1.0, 0.346, 0.105, 0.021], 0.0), 3);
+    assert_eq!(spectrum_rank(&[1.0, 0.230, 0.068, 0.013], 0.0), 3);
+    assert_eq!(spectrum_rank(&[1.0, 0.147, 0.045, 0.008], 0.0), 3);
+    // The redundant toy, a full-rank law, and values under the floor.
+    assert_eq!(spectrum_rank(&[1.0, 0.0007], 0.0), 1);
+    assert_eq!(spectrum_rank(&[1.0, 0.4], 0.0), 2);
+    assert_eq!(spectrum_rank(&[1.0, 0.147, 0.045, 0.008], 0.1), 2);
+    assert_eq!(spectrum_rank(&[1.0, 0.5], 2.0), 0);
 }

@@ -59,8 +59,9 @@
 //! share noise adds to their squares removed (`K σ̂² q`, `q` the slope's variance per
 //! unit noise): the median spectrum `sqrt(median(β_r² − K σ̂² q) / median(β_1² − K σ̂²
 //! q))` and the floor `sqrt(K σ̂² q)` on the same scale; values under a tenth of the
-//! floor do not count, and the rank
-//! ends at the largest gap of the rest (`N` when `β_N / β_1 > 0.1`) ([`LocalRank`],
+//! floor do not count, and the rank ends at the last ratio of 4 between consecutive
+//! values of the rest, else at their largest ratio (`N` when the smallest exceeds 0.1)
+//! ([`LocalRank`], [`spectrum_rank`],
 //! `data_rank` in the [`LawReport`]). The rank of the fitted law's Jacobian (the most
 //! frequent numerical rank at 512 seeded samples, by the largest gap of its singular
 //! values) is reported beside it (`rank_counts`), and used when the log is too short
@@ -144,7 +145,8 @@ pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
 };
 pub use noise::{
-    estimate_local, LocalRank, NoiseEstimate, FULL_RANK_RATIO, MAX_CORRELATION, MEASURABLE_SHARE,
+    estimate_local, spectrum_rank, LocalRank, NoiseEstimate, CLEAR_GAP, FULL_RANK_RATIO,
+    MAX_CORRELATION, MEASURABLE_SHARE,
 };
 pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog};
 pub use tree::{Candidates, KdTree};
@@ -640,7 +642,7 @@ fn law_warnings(report: &LawReport, params: &LawValidParams, n: usize) -> Vec<St
         );
         return warnings;
     };
-    let hidden = noise::rank_above_floor(&rank.spectrum, 0.0);
+    let hidden = noise::spectrum_rank(&rank.spectrum, 0.0);
     if hidden > rank.rank && rank.floor > 0.0 {
         warnings.push(format!(
             "the noise floor ({:.3} of the largest slope) hides {} of the {hidden} directions the sensors change along: rank {} is used; a longer log (or less noisy sensors) would show whether they are real",

@@ -48,8 +48,9 @@
 //! ```
 //!
 //! Values under a tenth of the floor ([`FLOOR_SHARE`]) never count; among the rest the
-//! rank is `N` when the smallest value exceeds [`FULL_RANK_RATIO`], else the `r` with
-//! the largest ratio `spectrum_r / spectrum_{r+1}`. This is the rank of `∂s/∂m`, hence
+//! rank is `N` when the smallest value exceeds [`FULL_RANK_RATIO`], else the last `r`
+//! whose ratio `spectrum_r / spectrum_{r+1}` is at least [`CLEAR_GAP`] (4), else the `r`
+//! of the largest ratio ([`spectrum_rank`]). This is the rank of `∂s/∂m`, hence
 //! the kernel dimension `N − r`, seen in
 //! the data rather than in a fitted law ([`LocalRank`]).
 
@@ -128,6 +129,10 @@ pub const MIN_SAMPLES_PER_COEFFICIENT: usize = 100;
 
 /// The largest `neighbour_correlation` of a measured noise.
 pub const MAX_CORRELATION: f64 = 0.3;
+
+/// The ratio of consecutive values of the spectrum that ends the rank
+/// ([`spectrum_rank`]).
+pub const CLEAR_GAP: f64 = 4.0;
 
 /// A value of the debiased spectrum counts when it exceeds this share of the noise
 /// floor.
@@ -258,7 +263,7 @@ fn local_rank(slopes: &[(Vec<f64>, f64)], relative_noise: f64, n: usize, k: usiz
         .collect();
     let floor = (median(slopes.iter().map(|(_, q)| noise(*q)).collect()) / largest).sqrt();
     LocalRank {
-        rank: rank_above_floor(&spectrum, FLOOR_SHARE * floor),
+        rank: spectrum_rank(&spectrum, FLOOR_SHARE * floor),
         spectrum,
         floor,
         probes: slopes.len(),
@@ -266,23 +271,26 @@ fn local_rank(slopes: &[(Vec<f64>, f64)], relative_noise: f64, n: usize, k: usiz
 }
 
 /// The rank of a descending spectrum (`spectrum[0] = 1`) whose values at or under
-/// `floor` do not count (see the [module docs](self)): the rank by the largest gap
-/// (`N` when the smallest value exceeds [`FULL_RANK_RATIO`]), at most the count of
-/// values above the floor.
-pub(crate) fn rank_above_floor(spectrum: &[f64], floor: f64) -> usize {
+/// `floor` do not count (see the [module docs](self)): `N` when the smallest value
+/// exceeds [`FULL_RANK_RATIO`]; else the last `r` whose ratio `spectrum_r /
+/// spectrum_{r+1}` reaches [`CLEAR_GAP`] (a weak direction of change, such as the
+/// position seen through far lights, stays above the leak of the kernel's direction
+/// into a fitted slope, however strong the first one), else the `r` of the largest
+/// ratio; at most the count of values above the floor.
+pub fn spectrum_rank(spectrum: &[f64], floor: f64) -> usize {
     let n = spectrum.len();
     let above = spectrum.iter().take_while(|&&b| b > floor).count();
     if n == 0 || above == 0 {
         return 0;
     }
+    let gap = |r: usize| spectrum[r - 1] / spectrum[r].max(f64::MIN_POSITIVE);
     let by_gap = if spectrum[n - 1] > FULL_RANK_RATIO {
         n
+    } else if let Some(r) = (1..n).rev().find(|&r| gap(r) >= CLEAR_GAP) {
+        r
     } else {
         (1..n)
-            .max_by(|&a, &b| {
-                let gap = |r: usize| spectrum[r - 1] / spectrum[r].max(f64::MIN_POSITIVE);
-                gap(a).total_cmp(&gap(b)).then(b.cmp(&a))
-            })
+            .max_by(|&a, &b| gap(a).total_cmp(&gap(b)).then(b.cmp(&a)))
             .unwrap_or(n)
     };
     by_gap.min(above)
