@@ -30,7 +30,9 @@
 //! it from the law's curvature, and it is at most the resolution. The same holds when
 //! the errors of a probe and of its nearest sample (each with its own fit at the
 //! smallest count) are correlated (above 0.3): noise is independent between samples,
-//! the law's unexplained change is shared ([`NoiseEstimate::measurable`]).
+//! the law's unexplained change is shared; and when the resolution exceeds a fifth of
+//! the sensors' spread ([`MAX_RESOLUTION`]: the data do not resolve the law at all)
+//! ([`NoiseEstimate::measurable`]).
 //!
 //! # The rank of the sensory manifold
 //!
@@ -104,6 +106,7 @@ impl NoiseEstimate {
     pub fn measurable(&self) -> bool {
         self.relative_overall >= MEASURABLE_SHARE * self.resolution
             && self.neighbour_correlation < MAX_CORRELATION
+            && self.resolution < MAX_RESOLUTION
     }
 
     /// The relative noise the law should assume: `σ̂` when it is measurable, else 0
@@ -126,6 +129,12 @@ pub const MEASURABLE_SHARE: f64 = 0.95;
 /// Fitted samples per coefficient of the affine fit (`N + 1`) below which the
 /// estimate is not made: the probes' neighbourhoods would overlap too much.
 pub const MIN_SAMPLES_PER_COEFFICIENT: usize = 100;
+
+/// The largest `resolution` at which the noise is measured: where the nearest fits
+/// miss by more than a fifth of the sensors' spread, the data do not resolve the law,
+/// and its unresolved change looks like noise (the paper's arm at 2·10⁴ samples reads
+/// 42 % with no noise).
+pub const MAX_RESOLUTION: f64 = 0.2;
 
 /// The largest `neighbour_correlation` of a measured noise.
 pub const MAX_CORRELATION: f64 = 0.3;
