@@ -204,13 +204,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// What learning found, on stderr: each log's bandwidth and held-out error, and for the
-/// invariants law its eigenvalues and `λ`.
+/// What learning found, on stderr: each log's bandwidth, held-out error and noise, the
+/// rank the data show, for the invariants law its eigenvalues and `λ`, and the warnings.
 fn print_law(report: &smspace::learn::LawReport) {
     for log in &report.logs {
         eprintln!(
             "{}: bandwidth {:.4}, held-out error {:.2e} of the sensors' spread ({} samples held out)",
             log.motors, log.bandwidth, log.held_out_relative_rms, log.held_out
+        );
+        if let Some(noise) = &log.noise {
+            eprintln!(
+                "  noise σ̂ {:.2} % of the sensors' spread{} (per sensor {}; the data resolve {:.2} %)",
+                100.0 * noise.relative_overall,
+                if noise.measurable() { "" } else { ", below the resolution" },
+                noise
+                    .relative
+                    .iter()
+                    .map(|r| format!("{:.2}", 100.0 * r))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+                100.0 * noise.resolution
+            );
+        }
+    }
+    if let Some(rank) = &report.data_rank {
+        eprintln!(
+            "rank of the sensors in the data: {} (slope spectrum {}; noise floor {:.1e})",
+            rank.rank,
+            rank.spectrum
+                .iter()
+                .map(|b| format!("{b:.3}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+            rank.floor
         );
     }
     if let Some(found) = &report.invariants {
@@ -229,6 +255,9 @@ fn print_law(report: &smspace::learn::LawReport) {
                 .held_out_lambda
                 .map_or("-".to_owned(), |l| format!("{l:.3}"))
         );
+    }
+    for warning in &report.warnings {
+        eprintln!("warning: {warning}");
     }
 }
 

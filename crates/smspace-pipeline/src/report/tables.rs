@@ -98,6 +98,36 @@ fn law_rows(t: &mut Table, law: &serde_json::Value) {
                 ),
             );
         }
+        if let Some(sigma) = log["noise"]["relative_overall"].as_f64() {
+            t.push(
+                format!("sensor noise measured, {}", text(&log["motors"])),
+                format!(
+                    "{} of the sensors' spread (the data resolve {})",
+                    num(sigma),
+                    num(log["noise"]["resolution"].as_f64().unwrap_or(f64::NAN))
+                ),
+            );
+        }
+    }
+    if let Some(rank) = law["data_rank"]["rank"].as_u64() {
+        let spectrum: Vec<String> = law["data_rank"]["spectrum"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(serde_json::Value::as_f64)
+            .map(num)
+            .collect();
+        t.push(
+            "rank in the data (slope spectrum; noise floor)",
+            format!(
+                "{rank} ({}; {})",
+                spectrum.join(", "),
+                num(law["data_rank"]["floor"].as_f64().unwrap_or(f64::NAN))
+            ),
+        );
+    }
+    for warning in law["warnings"].as_array().into_iter().flatten() {
+        t.push("warning", text(warning));
     }
     let invariants = &law["invariants"];
     if let (Some(kept), Some(features)) = (

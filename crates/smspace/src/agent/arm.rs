@@ -19,6 +19,26 @@
 //! ```text
 //! s_i = Σ_l exp(−(p_cell_i − p_proj_l)²) / ‖(x, y) − q_l‖ .
 //! ```
+//!
+//! ## Other retina laws
+//!
+//! `[agent.retina]` may change the law (the default is the paper's, bit for bit):
+//! `s_i = Σ_l I_l · τ(p_cell_i − p_proj_l) · φ(‖(x, y) − q_l‖)` with the **tuning**
+//! curve `τ` of width `w` (`tuning_width`, default 1) and the **falloff** `φ` with
+//! distance `d` of length `ℓ` (`falloff_length`, default 1) ([`RetinaLaw`]):
+//!
+//! ```text
+//! tuning = "gaussian" (default)   τ(o) = exp(−(o/w)²)            (the paper's with w = 1)
+//! tuning = "cauchy"               τ(o) = 1 / (1 + (o/w)²)
+//! tuning = "cosine"               τ(o) = cos²(π o / (4w)) for |o| < 2w, else 0
+//! falloff = "inverse" (default)   φ(d) = 1/d                     (the paper's)
+//! falloff = "none"                φ(d) = 1
+//! falloff = "inverse-square"      φ(d) = 1/d²
+//! falloff = "exponential"         φ(d) = exp(−d/ℓ)
+//! ```
+//!
+//! The cosine tuning is a raised cosine: it and its slope vanish at `|o| = 2w`, so the
+//! law stays continuously differentiable (the tracer's Newton corrector needs a slope).
 
 use serde::{Deserialize, Serialize};
 
@@ -47,18 +67,183 @@ pub struct ArmParams {
 
 /// The `[agent.retina]` table of the planar arm (the cells are `retina_cells`,
 /// `retina_half_width` and `focal_length`, the arm's first keys).
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ArmRetinaParams {
     /// A pupil: one more motor, the last, bounded in `[low, high]` (`0 < low < high`),
     /// that scales every cell's input ([`super::Pupil`]). Default: none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub aperture: Option<[f64; 2]>,
+    /// The cells' tuning curve. Default `gaussian` (the paper's).
+    #[serde(skip_serializing_if = "Tuning::is_default")]
+    pub tuning: Tuning,
+    /// The tuning curve's width `w` (image units). Default 1 (the paper's).
+    #[serde(skip_serializing_if = "is_one")]
+    pub tuning_width: f64,
+    /// How a light's input falls with its distance. Default `inverse` (the paper's).
+    #[serde(skip_serializing_if = "Falloff::is_default")]
+    pub falloff: Falloff,
+    /// The length `ℓ` of the `exponential` falloff. Default 1.
+    #[serde(skip_serializing_if = "is_one")]
+    pub falloff_length: f64,
+}
+
+impl Default for ArmRetinaParams {
+    fn default() -> Self {
+        Self {
+            aperture: None,
+            tuning: Tuning::default(),
+            tuning_width: 1.0,
+            falloff: Falloff::default(),
+            falloff_length: 1.0,
+        }
+    }
+}
+
+fn is_one(x: &f64) -> bool {
+    *x == 1.0
+}
+
+/// A retina cell's tuning curve `τ(o)`, `o` the offset of a light's image from the
+/// cell's centre (see the [module docs](self#other-retina-laws)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Tuning {
+    /// `exp(−(o/w)²)`: the paper's with `w = 1`.
+    #[default]
+    Gaussian,
+    /// `1 / (1 + (o/w)²)`: heavy tails, every cell sees every light in front.
+    Cauchy,
+    /// `cos²(π o / (4w))` for `|o| < 2w`, else 0: a cell blind beyond `2w`.
+    Cosine,
+}
+
+impl Tuning {
+    fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// How a light's input falls with its distance `d` to the lens, `φ(d)` (see the
+/// [module docs](self#other-retina-laws)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Falloff {
+    /// `1/d`: the paper's.
+    #[default]
+    Inverse,
+    /// `1`: no falloff.
+    None,
+    /// `1/d²`: a point source's irradiance.
+    InverseSquare,
+    /// `exp(−d/ℓ)`: a medium that absorbs light.
+    Exponential,
+}
+
+impl Falloff {
+    fn is_default(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// The law of a retina cell: tuning curve and falloff with their lengths (see the
+/// [module docs](self#other-retina-laws)); the default is the paper's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RetinaLaw {
+    /// The tuning curve.
+    pub tuning: Tuning,
+    /// Its width `w` (image units, > 0).
+    pub tuning_width: f64,
+    /// The falloff with distance.
+    pub falloff: Falloff,
+    /// The exponential falloff's length `ℓ` (world units, > 0).
+    pub falloff_length: f64,
+}
+
+impl Default for RetinaLaw {
+    fn default() -> Self {
+        Self::PAPER
+    }
+}
+
+impl RetinaLaw {
+    /// The paper's law: `exp(−o²) / d`.
+    pub const PAPER: Self = Self {
+        tuning: Tuning::Gaussian,
+        tuning_width: 1.0,
+        falloff: Falloff::Inverse,
+        falloff_length: 1.0,
+    };
+
+    /// Checks the lengths, `keys` naming them in errors (`[agent]` keys).
+    pub(crate) fn checked(
+        (tuning, tuning_width): (Tuning, f64),
+        (falloff, falloff_length): (Falloff, f64),
+        keys: [&'static str; 2],
+    ) -> Result<Self, AgentError> {
+        for (key, value) in keys.into_iter().zip([tuning_width, falloff_length]) {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(InvalidParameter::new(
+                    "agent",
+                    key,
+                    value,
+                    "must be a finite length greater than zero (1 is the paper's)",
+                )
+                .into());
+            }
+        }
+        Ok(Self {
+            tuning,
+            tuning_width,
+            falloff,
+            falloff_length,
+        })
+    }
+
+    /// `τ(o)`. The Gaussian of width 1 is the paper's `exp(−o²)` bit for bit (`o / 1`
+    /// is `o`).
+    #[inline]
+    pub fn tuning(&self, offset: f64) -> f64 {
+        let x = offset / self.tuning_width;
+        match self.tuning {
+            Tuning::Gaussian => (-x * x).exp(),
+            Tuning::Cauchy => 1.0 / (1.0 + x * x),
+            Tuning::Cosine => {
+                if x.abs() < 2.0 {
+                    let c = (std::f64::consts::FRAC_PI_4 * x).cos();
+                    c * c
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+
+    /// `I · φ(d)` for a light of intensity `I` at squared distance `d2`. The inverse
+    /// falloff is the paper's `I / sqrt(d2)` bit for bit.
+    #[inline]
+    pub fn falloff(&self, intensity: f64, d2: f64) -> f64 {
+        match self.falloff {
+            Falloff::Inverse => intensity / d2.sqrt(),
+            Falloff::None => intensity,
+            Falloff::InverseSquare => intensity / d2,
+            Falloff::Exponential => intensity * (-d2.sqrt() / self.falloff_length).exp(),
+        }
+    }
 }
 
 impl ArmRetinaParams {
     fn is_default(&self) -> bool {
         *self == Self::default()
+    }
+
+    /// The cells' law, checked.
+    fn law(&self) -> Result<RetinaLaw, AgentError> {
+        RetinaLaw::checked(
+            (self.tuning, self.tuning_width),
+            (self.falloff, self.falloff_length),
+            ["retina.tuning_width", "retina.falloff_length"],
+        )
     }
 }
 
@@ -81,6 +266,7 @@ pub struct PlanarArm {
     link_lengths: Vec<f64>,
     cell_positions: Vec<f64>,
     focal_length: f64,
+    law: RetinaLaw,
 }
 
 /// Most retina cells an arm may have (each is a sensor).
@@ -98,6 +284,7 @@ pub struct ArmValidParams {
     retina_half_width: f64,
     focal_length: f64,
     aperture: Option<[f64; 2]>,
+    law: RetinaLaw,
 }
 
 impl CheckParams for ArmParams {
@@ -149,12 +336,14 @@ impl CheckParams for ArmParams {
         if let Some(range) = self.retina.aperture {
             super::pupil::check_aperture("retina.aperture", range)?;
         }
+        let law = self.retina.law()?;
         Ok(ArmValidParams {
             link_lengths: self.link_lengths.clone(),
             retina_cells: self.retina_cells,
             retina_half_width: self.retina_half_width,
             focal_length: self.focal_length,
             aperture: self.retina.aperture,
+            law,
         })
     }
 }
@@ -193,6 +382,7 @@ impl PlanarArm {
             link_lengths: params.link_lengths,
             cell_positions,
             focal_length: params.focal_length,
+            law: params.law,
         }
     }
 
@@ -275,6 +465,7 @@ impl Agent for PlanarArm {
             [pose.x, pose.y, pose.alpha],
             self.focal_length,
             &self.cell_positions,
+            &self.law,
             sensors,
         );
     }
@@ -429,12 +620,14 @@ impl Observer for PlanarArm {
 /// length `focal_length`) senses `Σ_lights exp(−(cell − projection)²) / distance` over
 /// the lights in front (`forward > 0`), with `projection = −focal_length · lateral /
 /// forward`, each light's term times its intensity (`1` by default, bit for bit the
-/// paper's law). Shared by the arm and planar chains, so that both sense bit for bit alike.
+/// paper's law); `law` changes the tuning curve and the falloff ([`RetinaLaw`]).
+/// Shared by the arm and planar chains, so that both sense bit for bit alike.
 pub(crate) fn sense_planar_retina(
     environment: &Environment,
     pose: [f64; 3],
     focal_length: f64,
     cells: &[f64],
+    law: &RetinaLaw,
     sensors: &mut [f64],
 ) {
     let (sin_a, cos_a) = pose[2].sin_cos();
@@ -448,10 +641,9 @@ pub(crate) fn sense_planar_retina(
         }
         let lateral = -sin_a * dx + cos_a * dy;
         let projection = -focal_length * lateral / forward;
-        let inverse_distance = environment.intensity(l) / (dx * dx + dy * dy).sqrt();
+        let falloff = law.falloff(environment.intensity(l), dx * dx + dy * dy);
         for (s, &cell) in sensors.iter_mut().zip(cells) {
-            let offset = cell - projection;
-            *s += (-offset * offset).exp() * inverse_distance;
+            *s += law.tuning(cell - projection) * falloff;
         }
     }
 }

@@ -26,6 +26,10 @@
 //! s_{r,c} = Σ_l exp(−(a_c − a_l)² − (b_r − b_l)²) / ‖q_l − p‖ .
 //! ```
 //!
+//! `[agent.retina] tuning`, `tuning_width`, `falloff`, `falloff_length` change the law
+//! as on the arm ([`RetinaLaw`]): `s_{r,c} = Σ_l I_l τ(a_c − a_l) τ(b_r − b_l) φ(‖q_l − p‖)`
+//! (a row of cells: `τ(b_r − b_l)` with `b_r = 0`, as above).
+//!
 //! **Planar chains.** A chain whose axes are all along `±z`, whose links lie in the
 //! `xy` plane and whose retina is one row is planar: with `σ_j = ±1` the sign of axis
 //! `j`, `θ_j = Σ_{i≤j} σ_i m_i`, the pose is the paper's `(x, y, alpha = θ_N)` and the
@@ -65,8 +69,9 @@ use nalgebra::{Unit, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::{
-    wrap_angle, Agent, AgentBuilder, AgentError, ArmParams, Environment, LightRegion, LightSpace,
-    Motor, MotorSpace, Observer, PlanarArm, PoseSpace, Workspace, MAX_LINKS, MAX_RETINA_CELLS,
+    wrap_angle, Agent, AgentBuilder, AgentError, ArmParams, Environment, Falloff, LightRegion,
+    LightSpace, Motor, MotorSpace, Observer, PlanarArm, PoseSpace, RetinaLaw, Tuning, Workspace,
+    MAX_LINKS, MAX_RETINA_CELLS,
 };
 use crate::params::{CheckParams, InvalidParameter};
 
@@ -122,6 +127,15 @@ pub struct RetinaParams {
     /// that scales every cell's input ([`super::Pupil`]). Default: none.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub aperture: Option<[f64; 2]>,
+    /// The cells' tuning curve ([`RetinaLaw`]; on a grid, the product of the curves
+    /// along the two image axes). Default `gaussian` (the paper's).
+    pub tuning: Tuning,
+    /// The tuning curve's width (image units). Default 1 (the paper's).
+    pub tuning_width: f64,
+    /// How a light's input falls with its distance. Default `inverse` (the paper's).
+    pub falloff: Falloff,
+    /// The length of the `exponential` falloff. Default 1.
+    pub falloff_length: f64,
 }
 
 impl Default for RetinaParams {
@@ -131,6 +145,10 @@ impl Default for RetinaParams {
             half_width: 1.0,
             focal_length: 1.0,
             aperture: None,
+            tuning: Tuning::default(),
+            tuning_width: 1.0,
+            falloff: Falloff::default(),
+            falloff_length: 1.0,
         }
     }
 }
@@ -219,6 +237,7 @@ pub struct ChainValidParams {
     cells: (usize, usize),
     half_width: f64,
     focal_length: f64,
+    law: RetinaLaw,
     kinematics: Kinematics,
     workspace: Option<Workspace>,
 }
@@ -294,6 +313,11 @@ impl CheckParams for ChainParams {
             ));
         }
         let cells = self.check_retina()?;
+        let law = RetinaLaw::checked(
+            (self.retina.tuning, self.retina.tuning_width),
+            (self.retina.falloff, self.retina.falloff_length),
+            ["retina.tuning_width", "retina.falloff_length"],
+        )?;
         let kinematics = planar_kinematics(&self.joints, self.retina.cells);
         let workspace = self.check_workspace(&kinematics)?;
         Ok(ChainValidParams {
@@ -303,6 +327,7 @@ impl CheckParams for ChainParams {
             cells,
             half_width: self.retina.half_width,
             focal_length: self.retina.focal_length,
+            law,
             kinematics,
             workspace,
         })
@@ -410,6 +435,7 @@ pub struct Chain {
     /// Cell centres along the image's second axis (rows; `[0]` for one row).
     rows: Vec<f64>,
     focal_length: f64,
+    law: RetinaLaw,
     workspace: Workspace,
     reach: f64,
     /// The planar arm this chain is, when it is one (links `[L_k, 0, 0]` with `L_k > 0`
@@ -447,6 +473,7 @@ impl Chain {
                 cell_positions(rows, params.half_width)
             },
             focal_length: params.focal_length,
+            law: params.law,
             workspace: Workspace::PAPER,
             reach,
             arm: None,
@@ -565,6 +592,7 @@ impl Chain {
             pose,
             self.focal_length,
             &self.columns,
+            &self.law,
             sensors,
         );
     }
@@ -587,12 +615,11 @@ impl Chain {
             }
             let a = -self.focal_length * ey.dot(&d) / forward;
             let b = -self.focal_length * ez.dot(&d) / forward;
-            let inverse_distance = environment.intensity(l) / d.norm();
+            let falloff = self.law.falloff(environment.intensity(l), d.norm_squared());
             for (row, &cell_b) in sensors.chunks_exact_mut(cols).zip(&self.rows) {
-                let vertical = (-(cell_b - b) * (cell_b - b)).exp() * inverse_distance;
+                let vertical = self.law.tuning(cell_b - b) * falloff;
                 for (s, &cell_a) in row.iter_mut().zip(&self.columns) {
-                    let offset = cell_a - a;
-                    *s += (-offset * offset).exp() * vertical;
+                    *s += self.law.tuning(cell_a - a) * vertical;
                 }
             }
         }

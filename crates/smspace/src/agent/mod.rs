@@ -44,7 +44,10 @@ use std::fmt;
 use ndarray::{ArrayView2, ArrayViewMut2};
 use serde::{Deserialize, Serialize};
 
-pub use arm::{ArmParams, ArmRetinaParams, ArmValidParams, PlanarArm, MAX_LINKS, MAX_RETINA_CELLS};
+pub use arm::{
+    ArmParams, ArmRetinaParams, ArmValidParams, Falloff, PlanarArm, RetinaLaw, Tuning, MAX_LINKS,
+    MAX_RETINA_CELLS,
+};
 pub use chain::{
     Chain, ChainParams, ChainValidParams, ChainWorkspace, JointParams, RetinaCells, RetinaParams,
 };

@@ -42,7 +42,10 @@
 //! eigenvectors of the smallest `λ` up to the largest gap: the `k` that maximises
 //! `λ_{k+1} / λ_k` among the `λ_k` below `invariance_threshold` (default 0.4), when that
 //! ratio is at least [`MIN_GAP`] (else all the `λ` below the threshold); or the
-//! `invariants` smallest when that count is given (at most [`MAX_INVARIANTS`]):
+//! `invariants` smallest when that count is given (at most [`MAX_INVARIANTS`]); without
+//! a given count, at least the rank `r` of `∂s/∂m` that the data show (see
+//! [`super::noise`]): fewer than `r` invariants would trace sets of more than the
+//! kernels' dimension `N − r`:
 //! `z(m) = Wᵀ (φ(m) − μ)`, `Wᵀ Σ W = I`. Several logs (environments) pool their pairs
 //! and samples into one `Σ` and one `C`: the invariants are common to all of them.
 //!
@@ -426,6 +429,7 @@ impl Moments {
         self,
         params: &LawValidParams,
         path: &std::path::Path,
+        least: usize,
     ) -> Result<(Vec<f64>, Mat<f64>), LearnError> {
         let features = self.mean.len();
         let samples = self.pairs;
@@ -460,9 +464,12 @@ impl Moments {
         let mut order: Vec<usize> = (0..features).collect();
         order.sort_by(|&p, &q| eigen[p].total_cmp(&eigen[q]).then(p.cmp(&q)));
         let eigenvalues: Vec<f64> = order.iter().map(|&p| eigen[p]).collect();
-        let count = params
-            .invariants
-            .unwrap_or_else(|| largest_gap(&eigenvalues, params.invariance_threshold));
+        let count = params.invariants.unwrap_or_else(|| {
+            match largest_gap(&eigenvalues, params.invariance_threshold) {
+                0 => 0,
+                gap => gap.max(least).min(MAX_INVARIANTS.min(features)),
+            }
+        });
         if count == 0 {
             return Err(LearnError::TooFewSamples {
                 path: path.to_owned(),
@@ -482,13 +489,16 @@ impl Moments {
 
 impl InvariantModel {
     /// Learns the invariants from the rows `fits[l]` of every log `logs[l]`, and the
-    /// report of every log (held-out rows `held[l]`).
+    /// report of every log (held-out rows `held[l]`); without a given count, at least
+    /// `least` invariants are kept (the rank of the sensors the data show: fewer cannot
+    /// make level sets of the kernels' dimension).
     pub(crate) fn fit(
         logs: &[SensorimotorLog],
         fits: &[Vec<u32>],
         held: &[Vec<u32>],
         space: &MotorSpace,
         params: &LawValidParams,
+        least: usize,
     ) -> Result<(Self, Vec<LogReport>), LearnError> {
         let basis = Basis::new(space);
         let indices: Vec<SensorIndex> = logs
@@ -511,7 +521,7 @@ impl InvariantModel {
         let (features, total) = (moments.mean.len(), moments.pairs);
         let mut mean = vec![0.0; basis.len];
         mean[1..].copy_from_slice(&moments.mean);
-        let (eigenvalues, w) = moments.invariants(params, &logs[0].files.motors)?;
+        let (eigenvalues, w) = moments.invariants(params, &logs[0].files.motors, least)?;
         let count = w.ncols();
         let mut weights = vec![0.0; basis.len * count];
         for f in 0..features {

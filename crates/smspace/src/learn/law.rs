@@ -10,6 +10,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::invariants::{InvariantModel, InvariantsReport};
+use super::noise::{LocalRank, NoiseEstimate};
 use super::tree::{Candidates, KdTree};
 use super::{LawMethod, LawValidParams, LearnError, SensorimotorLog};
 use crate::agent::{Agent, Environment, MotorSpace};
@@ -687,14 +688,23 @@ pub struct LawReport {
     pub method: LawMethod,
     /// Per log: samples, fitted rows, held-out rows, bandwidth, images, error.
     pub logs: Vec<LogReport>,
-    /// The generic rank of the law's Jacobian (the most frequent numerical rank over
-    /// the probed samples, by the largest gap of singular values).
+    /// The rank the tracer uses: that of `data_rank` when the data gave one, else the
+    /// generic rank of the law's Jacobian (the most frequent of `rank_counts`).
     pub rank: usize,
-    /// How often each rank was found at the probed samples (index = rank).
+    /// How often each rank of the law's Jacobian was found at the probed samples
+    /// (index = rank; by the largest gap of singular values).
     pub rank_counts: Vec<usize>,
     /// The `invariants` method's eigenproblem (absent for the local fits).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub invariants: Option<InvariantsReport>,
+    /// The rank of `∂s/∂m` seen in the first log's data, with its evidence (the
+    /// spectrum and the noise floor); when present it is the law's `rank`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data_rank: Option<LocalRank>,
+    /// What the data cannot support (too few samples, too much noise), with the
+    /// measured noise and what would help.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// One log's part of the [`LawReport`].
@@ -721,6 +731,13 @@ pub struct LogReport {
     pub held_out_max_abs: f64,
     /// Held-out samples outside the covered region (not counted in the error).
     pub held_out_uncovered: usize,
+    /// Samples a typical local fit holds, as chosen (the measured noise may raise the
+    /// default; absent for `invariants`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub neighbours: Option<usize>,
+    /// The sensor noise measured from the log (absent when it has too few samples).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<NoiseEstimate>,
 }
 
 /// The models behind a [`LearnedLaw`].
@@ -760,7 +777,7 @@ impl LearnedLaw {
         space: MotorSpace,
         models: Models,
         method: LawMethod,
-        logs: Vec<LogReport>,
+        (logs, data_rank): (Vec<LogReport>, Option<LocalRank>),
         seed: u64,
     ) -> Self {
         let (sensor_dim, invariants) = match &models {
@@ -778,12 +795,17 @@ impl LearnedLaw {
                 rank: 0,
                 rank_counts: Vec::new(),
                 invariants,
+                data_rank,
+                warnings: Vec::new(),
             },
         };
         let counts = law.rank_counts(seed);
-        let rank = (0..counts.len())
-            .max_by_key(|&r| (counts[r], r))
-            .unwrap_or(0);
+        let rank = match &law.report.data_rank {
+            Some(data) => data.rank,
+            None => (0..counts.len())
+                .max_by_key(|&r| (counts[r], r))
+                .unwrap_or(0),
+        };
         law.rank = rank;
         law.report.rank = rank;
         law.report.rank_counts = counts;
@@ -793,6 +815,11 @@ impl LearnedLaw {
     /// What learning found.
     pub fn report(&self) -> &LawReport {
         &self.report
+    }
+
+    /// Adds warnings to the report.
+    pub(crate) fn warn(&mut self, warnings: Vec<String>) {
+        self.report.warnings.extend(warnings);
     }
 
     /// Writes the law's values `ŝ(m)` (or the invariants `z(m)`) into `sensors` (length

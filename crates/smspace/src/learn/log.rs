@@ -12,6 +12,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::law::{LocalModel, LogReport};
+use super::noise::{estimate_local, LocalRank};
 use super::{LawValidParams, LearnError};
 use crate::agent::{Motor, MotorSpace};
 use crate::io;
@@ -234,12 +235,14 @@ fn check_ranges(
     Ok(())
 }
 
-/// Fits one log, holding out samples, and measures the error on them.
+/// Fits one log, holding out samples, and measures the error on them; the noise and
+/// the local rank measured on the fitted rows come with the report (the noise raises
+/// the fit's neighbours, see [`LawValidParams::neighbours_for_noise`]).
 pub(super) fn fit_log(
     log: &SensorimotorLog,
     space: &MotorSpace,
     params: &LawValidParams,
-) -> Result<(LocalModel, LogReport), LearnError> {
+) -> Result<(LocalModel, LogReport, Option<LocalRank>), LearnError> {
     let samples = log.samples();
     let n = space.dim();
     let held = params.holdout(samples);
@@ -257,8 +260,13 @@ pub(super) fn fit_log(
         });
     }
     let (fit, held_rows) = split_rows(samples, held, params.seed);
-    let (model, images) = LocalModel::new(log, &fit, params, space)?;
-    let report = held_out_report(
+    let local = estimate_local(log, &fit, params.seed);
+    let mut chosen = params.clone();
+    if let Some((noise, _)) = &local {
+        chosen.neighbours = Some(params.neighbours_for_noise(n, noise, fit.len()));
+    }
+    let (model, images) = LocalModel::new(log, &fit, &chosen, space)?;
+    let mut report = held_out_report(
         log,
         &held_rows,
         fit.len(),
@@ -271,7 +279,12 @@ pub(super) fn fit_log(
             true
         },
     );
-    Ok((model, report))
+    report.neighbours = Some(chosen.neighbours(n));
+    let rank = local.map(|(noise, rank)| {
+        report.noise = Some(noise);
+        rank
+    });
+    Ok((model, report, rank))
 }
 
 /// The rows of a log held out of the fit (seeded), sorted, and the fitted rows.
@@ -347,5 +360,7 @@ pub(super) fn held_out_report(
         held_out_relative_rms: rms / mean_variance.sqrt().max(f64::MIN_POSITIVE),
         held_out_max_abs: covered.iter().map(|e| e.1).fold(0.0, f64::max),
         held_out_uncovered: errors.len() - covered.len(),
+        neighbours: None,
+        noise: None,
     }
 }

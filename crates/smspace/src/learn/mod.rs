@@ -29,9 +29,49 @@
 //! `bandwidth_factor` times the median, over 512 seeded samples, of the distance to
 //! their `neighbours`-th nearest sample: the data's own spacing.
 //!
-//! The generic rank of `∂ŝ/∂m` (hence the kernel dimension `k = N − rank`) is the most
-//! frequent numerical rank of the fit's Jacobian at 512 seeded samples, read at the
-//! largest gap of its singular values (`N` when `σ_N/σ_1 > 0.1`).
+//! ## Noise and rank, from the data ([`estimate_local`])
+//!
+//! Before the fit, the log's sensor noise is measured on 4096 seeded fitted samples
+//! with no truth: each sample's reading against the affine fit to its `k` nearest
+//! other samples in motor space, `k = 2, 3, 4 × (N + 1)`; the squared prediction
+//! error, corrected for the fit's own noise, is regressed on the squared mean squared
+//! distance of the neighbours, and the intercept is `σ̂²`:
+//!
+//! ```text
+//! E[e_i² / (1 + v_i)] = σ² + c r_i⁴ + …     (v_i = ((XᵀX)⁻¹)₀₀, r_i² the neighbours' mean squared distance)
+//! ```
+//!
+//! (the nearest-neighbour estimator `E[(s_i − s_j)²] = 2σ² + O(‖m_i − m_j‖²)` with the
+//! gradient fitted away). `σ̂` is reported per sensor and overall (relative to the
+//! sensors' spread), with the resolution: the root mean square error of the nearest
+//! fits, noise and curvature together. Unless `σ̂` makes nearly all of it (`σ̂ ≥ 0.95 × resolution`),
+//! the noise is not measured (it is below what the data's spacing resolves) and the law
+//! assumes none ([`NoiseEstimate`]).
+//!
+//! The local fits use it: unless `neighbours` is given, a fit holds at least
+//! `p (σ̂ / 0.005)²` samples (at most `16 p` and a hundredth of the log), so that the
+//! noise left in the law's values is about 0.5 % of the sensors' spread
+//! ([`NOISE_TARGET`]).
+//!
+//! The generic rank of `∂ŝ/∂m` (hence the kernel dimension `k = N − rank`) is read
+//! from the data, at the same probes: the singular values of the slope of the affine
+//! fit to the `4 (N + 1)` nearest samples (sensors divided by their spread), with the
+//! share noise adds to their squares removed (`K σ̂² q`, `q` the slope's variance per
+//! unit noise): the median spectrum `sqrt(median(β_r² − K σ̂² q) / median(β_1² − K σ̂²
+//! q))` and the floor `sqrt(K σ̂² q)` on the same scale; values under a tenth of the
+//! floor do not count, and the rank ends at the last ratio of 4 between consecutive
+//! values of the rest, else at their largest ratio (`N` when the smallest exceeds 0.1)
+//! ([`LocalRank`], [`spectrum_rank`],
+//! `data_rank` in the [`LawReport`]). The rank of the fitted law's Jacobian (the most
+//! frequent numerical rank at 512 seeded samples, by the largest gap of its singular
+//! values) is reported beside it (`rank_counts`), and used when the log is too short
+//! for the data's rank. For `invariants`, at least that many invariants are kept.
+//!
+//! When the data cannot support the law, the report's `warnings` say so with the
+//! measured `σ̂` and what would help: a held-out error far above the noise (the
+//! sensors change faster than the samples' spacing), noise that a fit of the samples
+//! the log allows cannot average down, directions of change hidden under the noise
+//! floor, a log too short to measure its noise.
 //!
 //! ## The law: invariants ([`LawMethod::Invariants`])
 //!
@@ -87,6 +127,7 @@ mod compare;
 mod invariants;
 mod law;
 mod log;
+mod noise;
 mod simulate;
 mod tree;
 
@@ -102,6 +143,10 @@ pub use invariants::{InvariantsReport, MAX_INVARIANTS};
 pub use law::{FitSupport, LawReport, LearnedLaw, LogReport};
 pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
+};
+pub use noise::{
+    estimate_local, spectrum_rank, LocalRank, NoiseEstimate, CLEAR_GAP, FULL_RANK_RATIO,
+    MAX_CORRELATION, MEASURABLE_SHARE,
 };
 pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog};
 pub use tree::{Candidates, KdTree};
@@ -397,6 +442,29 @@ impl LawValidParams {
         }
     }
 
+    /// Samples a typical fit holds on a log whose noise is `noise`, of `fitted` rows:
+    /// the default of [`LawValidParams::neighbours`], raised so that the fit averages
+    /// the noise down to [`NOISE_TARGET`] of the sensors' spread (`p (σ̂ / target)²`
+    /// for `p` coefficients), at most `16 p` and `fitted / 100`. A given `neighbours`
+    /// is kept.
+    pub fn neighbours_for_noise(&self, n: usize, noise: &NoiseEstimate, fitted: usize) -> usize {
+        let default = self.neighbours(n);
+        if self.neighbours.is_some() || self.method == LawMethod::Invariants {
+            return default;
+        }
+        let p = self.coefficients(n);
+        let ratio = noise.assumed_relative() / NOISE_TARGET;
+        let wanted = (p as f64 * ratio * ratio).ceil() as usize;
+        default.max(wanted.min(16 * p).min(fitted / 100))
+    }
+
+    /// Samples a fit on a log of noise `noise` would need to average it down to
+    /// [`NOISE_TARGET`] (see [`LawValidParams::neighbours_for_noise`]), uncapped.
+    fn neighbours_wanted(&self, n: usize, noise: &NoiseEstimate) -> usize {
+        let ratio = noise.assumed_relative() / NOISE_TARGET;
+        ((self.coefficients(n) as f64 * ratio * ratio).ceil() as usize).max(self.neighbours(n))
+    }
+
     /// Samples within the bandwidth that make a configuration covered.
     pub fn coverage_neighbours(&self, n: usize) -> usize {
         self.coverage_neighbours
@@ -440,6 +508,10 @@ impl LawValidParams {
     }
 }
 
+/// The noise a local fit should leave in the law's values, relative to the sensors'
+/// spread: `0.005`.
+pub const NOISE_TARGET: f64 = 0.005;
+
 /// Learns the law from `logs` (at least one; every log's motors in `space`), holding
 /// out samples of each to measure its error. `memory_limit` (bytes), when given, is
 /// checked before anything is built.
@@ -477,57 +549,146 @@ pub fn learn(
             });
         }
     }
-    let (models, reports) = match params.method {
+    let (models, reports, data_rank) = match params.method {
         LawMethod::LocalLinear | LawMethod::LocalQuadratic => {
             let mut models = Vec::with_capacity(logs.len());
             let mut reports = Vec::with_capacity(logs.len());
+            let mut data_rank = None;
             for log in logs {
-                let (model, report) = log::fit_log(log, space, params)?;
+                let (model, report, rank) = log::fit_log(log, space, params)?;
                 models.push(model);
                 reports.push(report);
+                if data_rank.is_none() {
+                    data_rank = rank;
+                }
             }
-            (law::Models::Local(models), reports)
+            (law::Models::Local(models), reports, data_rank)
         }
         LawMethod::Invariants => {
-            let features =
-                InvariantModel::check_motors(n).map_err(|reason| LearnError::TooFewSamples {
-                    path: logs[0].files.motors.clone(),
-                    samples: logs[0].samples(),
-                    reason,
-                    fix: "use method = local-quadratic",
-                })?;
-            let mut fits = Vec::with_capacity(logs.len());
-            let mut held = Vec::with_capacity(logs.len());
-            for log in logs {
-                let samples = log.samples();
-                let holdout = params.holdout(samples);
-                let least = (params.neighbours(n) + 1).max(10 * (features + 1));
-                if samples - holdout < least {
-                    return Err(LearnError::TooFewSamples {
-                        path: log.files.motors.clone(),
-                        samples,
-                        reason: format!(
-                            "the invariants of {n} motors need at least {least} fitted samples (ten per basis function), and {} remain after {holdout} held out",
-                            samples - holdout
-                        ),
-                        fix: "record a longer log, or lower holdout",
-                    });
-                }
-                let (fit, held_rows) = log::split_rows(samples, holdout, params.seed);
-                fits.push(fit);
-                held.push(held_rows);
-            }
-            let (model, reports) = InvariantModel::fit(logs, &fits, &held, space, params)?;
-            (law::Models::Invariants(model), reports)
+            let (model, reports, data_rank) = learn_invariants(logs, space, params)?;
+            (law::Models::Invariants(model), reports, data_rank)
         }
     };
-    Ok(LearnedLaw::new(
+    let mut law = LearnedLaw::new(
         space.clone(),
         models,
         params.method,
-        reports,
+        (reports, data_rank),
         params.seed,
-    ))
+    );
+    let warnings = law_warnings(law.report(), params, n);
+    law.warn(warnings);
+    Ok(law)
+}
+
+/// The `invariants` law of `logs`: the noise and local rank of every log measured on
+/// its fitted rows (the first log's rank is the least count of invariants kept).
+fn learn_invariants(
+    logs: &[SensorimotorLog],
+    space: &crate::agent::MotorSpace,
+    params: &LawValidParams,
+) -> Result<(InvariantModel, Vec<LogReport>, Option<LocalRank>), LearnError> {
+    let n = space.dim();
+    let features = InvariantModel::check_motors(n).map_err(|reason| LearnError::TooFewSamples {
+        path: logs[0].files.motors.clone(),
+        samples: logs[0].samples(),
+        reason,
+        fix: "use method = local-quadratic",
+    })?;
+    let mut fits = Vec::with_capacity(logs.len());
+    let mut held = Vec::with_capacity(logs.len());
+    let mut locals = Vec::with_capacity(logs.len());
+    for log in logs {
+        let samples = log.samples();
+        let holdout = params.holdout(samples);
+        let least = (params.neighbours(n) + 1).max(10 * (features + 1));
+        if samples - holdout < least {
+            return Err(LearnError::TooFewSamples {
+                path: log.files.motors.clone(),
+                samples,
+                reason: format!(
+                    "the invariants of {n} motors need at least {least} fitted samples (ten per basis function), and {} remain after {holdout} held out",
+                    samples - holdout
+                ),
+                fix: "record a longer log, or lower holdout",
+            });
+        }
+        let (fit, held_rows) = log::split_rows(samples, holdout, params.seed);
+        locals.push(estimate_local(log, &fit, params.seed));
+        fits.push(fit);
+        held.push(held_rows);
+    }
+    let data_rank = locals
+        .first()
+        .and_then(|l| l.as_ref())
+        .map(|(_, rank)| rank.clone());
+    let least = data_rank.as_ref().map_or(1, |r| r.rank.max(1));
+    let (model, mut reports) = InvariantModel::fit(logs, &fits, &held, space, params, least)?;
+    for (report, local) in reports.iter_mut().zip(locals) {
+        report.noise = local.map(|(noise, _)| noise);
+    }
+    Ok((model, reports, data_rank))
+}
+
+/// What the data cannot support, with the measured noise and what would help: a local
+/// law whose held-out error is far above the noise (too few samples for the law's
+/// changes), noise the fit cannot average down, a rank the noise floor hides, or a log
+/// too short to measure the noise.
+fn law_warnings(report: &LawReport, params: &LawValidParams, n: usize) -> Vec<String> {
+    let mut warnings = Vec::new();
+    let Some(rank) = &report.data_rank else {
+        warnings.push(
+            "the log has too few samples to measure its noise and the rank of its sensors: record a longer log".to_owned(),
+        );
+        return warnings;
+    };
+    let hidden = noise::spectrum_rank(&rank.spectrum, 0.0);
+    if hidden > rank.rank && rank.floor > 0.0 {
+        warnings.push(format!(
+            "the noise floor ({:.3} of the largest slope) hides {} of the {hidden} directions the sensors change along: rank {} is used; a longer log (or less noisy sensors) would show whether they are real",
+            rank.floor,
+            hidden - rank.rank,
+            rank.rank
+        ));
+    }
+    for log in &report.logs {
+        let Some(noise) = &log.noise else { continue };
+        let sigma = noise.relative_overall;
+        let measured = if noise.measurable() {
+            format!(
+                "measured noise σ̂ = {:.2} % of the sensors' spread",
+                100.0 * sigma
+            )
+        } else {
+            format!(
+                "noise below what the data's spacing resolves (σ̂ ≤ {:.2} % of the sensors' spread)",
+                100.0 * noise.resolution.max(sigma)
+            )
+        };
+        let floor = noise.assumed_relative().max(0.005);
+        // The local laws' values are what is traced (the invariants law traces z).
+        let local = report.method != LawMethod::Invariants;
+        if local && log.held_out_relative_rms > 3.0 * floor && log.held_out_relative_rms > 0.02 {
+            warnings.push(format!(
+                "{}: the law's held-out error ({:.1} % of the sensors' spread) is far above the noise ({measured}): the sensors change faster than the samples' spacing (bandwidth {:.3}) can follow; record more samples (the error falls with the spacing), or try another method",
+                log.motors,
+                100.0 * log.held_out_relative_rms,
+                log.bandwidth
+            ));
+        }
+        if let Some(chosen) = log.neighbours {
+            let wanted = params.neighbours_wanted(n, noise);
+            if wanted > chosen {
+                warnings.push(format!(
+                    "{}: {measured}; averaging it down to {:.1} % needs fits of {wanted} samples, and the log allows {chosen}: record about {:.0}× more samples",
+                    log.motors,
+                    100.0 * NOISE_TARGET,
+                    (wanted as f64 / chosen as f64).ceil()
+                ));
+            }
+        }
+    }
+    warnings
 }
 
 /// The sensor tolerance a learned law can honour (relative to the largest sensor value
