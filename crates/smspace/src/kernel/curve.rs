@@ -7,6 +7,15 @@ use crate::agent::MotorSpace;
 
 /// Smallest step the adaptive control may take before it gives up.
 const MIN_ADAPTIVE_STEP: f64 = 1e-7;
+/// Readings with noise: the adaptive step stays above this many position
+/// uncertainties ([`LevelSet::position_noise`]).
+const MIN_STEP_NOISE: f64 = 4.0;
+/// Readings with noise: a first correction of at most this many position
+/// uncertainties is noise, not a sign that the step was too long.
+const QUIET_NOISE: f64 = 3.0;
+/// Readings with noise: a loop closes within this many position uncertainties (or
+/// `closure_tolerance`, whichever is larger).
+const CLOSURE_NOISE: f64 = 4.0;
 /// Segments longer than this are measured as Hermite arcs, shorter ones as chords
 /// (an arc of length `h` and curvature `κ` exceeds its chord by `κ²h³/24`, below
 /// `10⁻⁹` here for the curvatures of the arm's sets).
@@ -114,6 +123,12 @@ pub(crate) fn correct(
             return None;
         }
         if residual <= tolerance {
+            if set.final_step() {
+                set.correction(&scratch.r, &mut scratch.delta);
+                for (x, d) in m.iter_mut().zip(&scratch.delta) {
+                    *x -= d;
+                }
+            }
             return Some(Corrected {
                 first_step,
                 residual,
@@ -135,8 +150,7 @@ pub(crate) fn correct(
         for (x, d) in m.iter_mut().zip(&scratch.delta) {
             *x -= d;
         }
-        if newton && convergence == Convergence::NewtonStep && step <= 0.1 * set.tolerance().sqrt()
-        {
+        if newton && convergence == Convergence::NewtonStep && step <= set.newton_step_tolerance() {
             return Some(Corrected {
                 first_step,
                 residual: step * step,
@@ -234,8 +248,21 @@ fn follow(
     // predictor m + h t + ½ h² k.
     let mut bend = vec![0.0; n];
     let mut h = params.step;
-    let cos_max_turn = params.max_turn.cos();
-    let mut watch = ClosureWatch::new(space, params.closure_tolerance, n);
+    // Readings with noise: corrections below a few position uncertainties are noise
+    // (nothing to do), steps shorter than a few are not taken, a loop closes within a
+    // few, and the tangent's own noise is allowed on top of `max_turn` (all 0 for
+    // exact readings).
+    let position_noise = set.position_noise();
+    let min_step = MIN_ADAPTIVE_STEP.max(MIN_STEP_NOISE * position_noise);
+    let max_turn = params.max_turn + set.tangent_noise();
+    let cos_max_turn = max_turn.cos();
+    let closure_tolerance = params
+        .closure_tolerance
+        .max(CLOSURE_NOISE * position_noise);
+    let mut watch = ClosureWatch::new(space, closure_tolerance, n);
+    if position_noise > 0.0 {
+        h = h.max(min_step);
+    }
     let bounded = space.has_bounds();
     loop {
         if branch.steps >= params.max_steps {
@@ -264,7 +291,7 @@ fn follow(
         let corrected = match outcome {
             Ok(c) => c,
             Err(status) => {
-                if adaptive && h > MIN_ADAPTIVE_STEP {
+                if adaptive && h > min_step {
                     h /= 2.0;
                     // Re-linearise where the predictor starts: the chord corrector needs it.
                     set.linearize(&m, &mut scratch.r)
@@ -277,7 +304,12 @@ fn follow(
         set.null_vector(&t, &mut t_new);
         let cos_turn: f64 = t.iter().zip(&t_new).map(|(a, b)| a * b).sum();
         let too_sharp = cos_turn < cos_max_turn;
-        if adaptive && h > MIN_ADAPTIVE_STEP && (too_sharp || corrected.first_step > 0.1 * h) {
+        let first_step = if corrected.first_step <= QUIET_NOISE * position_noise {
+            0.0
+        } else {
+            corrected.first_step
+        };
+        if adaptive && h > min_step && (too_sharp || first_step > 0.1 * h) {
             h /= 2.0;
             set.linearize(&m, &mut scratch.r)
                 .map_err(|_| SetStatus::Singular)?;
@@ -307,8 +339,8 @@ fn follow(
             return Err(SetStatus::LeftData);
         }
         if adaptive
-            && corrected.first_step < 0.025 * h
-            && cos_turn.clamp(-1.0, 1.0).acos() < params.max_turn / 4.0
+            && first_step < 0.025 * h
+            && cos_turn.clamp(-1.0, 1.0).acos() < max_turn / 4.0
         {
             h = (h * 1.5).min(params.max_step);
         }
