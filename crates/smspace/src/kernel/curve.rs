@@ -35,6 +35,8 @@ pub(crate) struct Branch {
 /// Result of one corrector run.
 pub(crate) struct Corrected {
     first_step: f64,
+    /// How far the corrector moved the point in all.
+    total_step: f64,
     /// The residual norm at the corrected point.
     pub(crate) residual: f64,
     /// Whether the level set is linearised at the corrected point.
@@ -112,12 +114,14 @@ pub(crate) fn correct(
         set.residual(m, &mut scratch.r);
     }
     let mut first_step = 0.0;
+    let mut total_step = 0.0;
     let mut previous = f64::INFINITY;
-    let tolerance = match convergence {
-        Convergence::Measured => set.tolerance(),
-        Convergence::NewtonStep => set.node_tolerance(),
-    };
     for iteration in 0..=max_iterations {
+        // (A level set with noise scales its tolerance to its current linearisation.)
+        let tolerance = match convergence {
+            Convergence::Measured => set.tolerance(),
+            Convergence::NewtonStep => set.node_tolerance(),
+        };
         let residual = set.residual_norm(&scratch.r);
         if !residual.is_finite() {
             return None;
@@ -125,12 +129,14 @@ pub(crate) fn correct(
         if residual <= tolerance {
             if set.final_step() {
                 set.correction(&scratch.r, &mut scratch.delta);
+                total_step += norm(&scratch.delta);
                 for (x, d) in m.iter_mut().zip(&scratch.delta) {
                     *x -= d;
                 }
             }
             return Some(Corrected {
                 first_step,
+                total_step,
                 residual,
                 linearized: newton,
             });
@@ -147,12 +153,14 @@ pub(crate) fn correct(
         if iteration == 0 {
             first_step = step;
         }
+        total_step += step;
         for (x, d) in m.iter_mut().zip(&scratch.delta) {
             *x -= d;
         }
         if newton && convergence == Convergence::NewtonStep && step <= set.newton_step_tolerance() {
             return Some(Corrected {
                 first_step,
+                total_step,
                 residual: step * step,
                 linearized: true,
             });
@@ -254,11 +262,7 @@ fn follow(
     // exact readings).
     let position_noise = set.position_noise();
     let min_step = MIN_ADAPTIVE_STEP.max(MIN_STEP_NOISE * position_noise);
-    let max_turn = params.max_turn + set.tangent_noise();
-    let cos_max_turn = max_turn.cos();
-    let closure_tolerance = params
-        .closure_tolerance
-        .max(CLOSURE_NOISE * position_noise);
+    let closure_tolerance = params.closure_tolerance.max(CLOSURE_NOISE * position_noise);
     let mut watch = ClosureWatch::new(space, closure_tolerance, n);
     if position_noise > 0.0 {
         h = h.max(min_step);
@@ -303,13 +307,13 @@ fn follow(
         };
         set.null_vector(&t, &mut t_new);
         let cos_turn: f64 = t.iter().zip(&t_new).map(|(a, b)| a * b).sum();
-        let too_sharp = cos_turn < cos_max_turn;
-        let first_step = if corrected.first_step <= QUIET_NOISE * position_noise {
-            0.0
-        } else {
-            corrected.first_step
-        };
-        if adaptive && h > min_step && (too_sharp || first_step > 0.1 * h) {
+        let max_turn = params.max_turn + set.tangent_noise();
+        let too_sharp = cos_turn < max_turn.cos();
+        let (first_step, jumped) = noise_allowance(set, &corrected, h, position_noise);
+        if jumped && !(adaptive && h > min_step) {
+            return Err(SetStatus::CorrectorFailed);
+        }
+        if adaptive && h > min_step && (too_sharp || jumped || first_step > 0.1 * h) {
             h /= 2.0;
             set.linearize(&m, &mut scratch.r)
                 .map_err(|_| SetStatus::Singular)?;
@@ -325,7 +329,8 @@ fn follow(
         m.copy_from_slice(&predicted);
         let travelled = distance(&m, &previous);
         for j in 0..n {
-            bend[j] = if travelled > 0.0 {
+            // (With noise the turn between nodes is mostly the tangents' noise.)
+            bend[j] = if travelled > 0.0 && position_noise == 0.0 {
                 (t_new[j] - t[j]) / travelled
             } else {
                 0.0
@@ -338,14 +343,13 @@ fn follow(
         if !set.covers(&m) {
             return Err(SetStatus::LeftData);
         }
-        if adaptive
-            && first_step < 0.025 * h
-            && cos_turn.clamp(-1.0, 1.0).acos() < max_turn / 4.0
-        {
+        if adaptive && first_step < 0.025 * h && cos_turn.clamp(-1.0, 1.0).acos() < max_turn / 4.0 {
             h = (h * 1.5).min(params.max_step);
         }
 
-        let may_close = adaptive || branch.steps >= params.min_steps;
+        // (With noise, a loop closes after `min_steps` steps, adaptive or not: the
+        // tangent's noise can turn a first few short steps back towards the start.)
+        let may_close = (adaptive && position_noise == 0.0) || branch.steps >= params.min_steps;
         if let Some(tau) = watch.closes(start, &previous, &m, travelled, may_close) {
             if tau < 1.0 && branch.steps > 1 {
                 // The start lies inside the last segment: close from its beginning.
@@ -359,6 +363,25 @@ fn follow(
             return Ok(());
         }
     }
+}
+
+/// The first correction of a step less what the readings' noise explains (a few
+/// position uncertainties, and the tangent's noise times the step: nothing to do),
+/// and whether the corrector left the step's neighbourhood (readings with noise only:
+/// a Gauss–Newton step through a poor slope). For exact readings, the first
+/// correction itself and `false`.
+fn noise_allowance(
+    set: &dyn LevelSet,
+    corrected: &Corrected,
+    h: f64,
+    position_noise: f64,
+) -> (f64, bool) {
+    if position_noise == 0.0 {
+        return (corrected.first_step, false);
+    }
+    let allowance = QUIET_NOISE * position_noise + set.tangent_noise() * h;
+    let jumped = corrected.total_step > 2.0 * h + allowance;
+    ((corrected.first_step - allowance).max(0.0), jumped)
 }
 
 /// The closure test of a trace: the segment just travelled passes within the tolerance

@@ -1044,7 +1044,11 @@ impl<'a> Sensor<'a> {
 
     /// The readings of the motor rows `(B, N)` into `sensors` `(B, K)`: one call (a
     /// Jacobian's rows).
-    pub(crate) fn sense_batch(&mut self, motors: ArrayView2<'_, f64>, sensors: ArrayViewMut2<'_, f64>) {
+    pub(crate) fn sense_batch(
+        &mut self,
+        motors: ArrayView2<'_, f64>,
+        sensors: ArrayViewMut2<'_, f64>,
+    ) {
         self.rows += motors.nrows() as u64;
         self.phases.add(self.phase, true, motors.nrows() as u64);
         match self.caller {

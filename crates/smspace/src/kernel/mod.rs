@@ -88,22 +88,24 @@
 //! (the default) every start is read twice in one batch: equal readings are exact and
 //! the set is traced as above (one sensor row more per set). Otherwise the set is the
 //! level set of the sensors' mean law, `{ m | a(m) = a₀ }` (`noisy.rs`): at every
-//! point one batch of the `2N + 1` rows `{m, m ± ρ e_j}`, repeated `r` times, is a
-//! local linear regression whose intercept `a(m)` (the mean of the readings) is the
-//! level set's function and whose slope `(s̄₊ − s̄₋)/2ρ` its Jacobian; the corrector is
-//! Gauss–Newton with minimum-norm steps. The noise's standard deviation `σ` is
+//! point one batch of rows, the centre `m` read `N + 1` times and the `2N` rows
+//! `m ± ρ e_j`, repeated `r` times, is a local regression whose intercept `a(m)` (the
+//! mean of the centre's readings) is the level set's function and whose slope
+//! `(s̄₊ − s̄₋)/2ρ` its Jacobian; the corrector is Gauss–Newton with minimum-norm steps
+//! and a fresh regression at every iterate. The noise's standard deviation `σ` is
 //! measured at the start from 16 repeats of a first regression (pooled over the rows
 //! and sensors), or given (`noise = σ` in sensor units; `0`: exact, no extra row).
 //! With `g` the smallest of the `N − k` largest singular values of the slope, `ρ`
 //! and `r` aim at a slope error of 2 % (`ρ ∈ [10⁻³, 0.1]` rad, `r ≤ 64`), and a
-//! point's position is uncertain by `σ_pos = σ / (g √(r (2N + 1)))`. Every tolerance
-//! scales with it: a point is on the set when its Gauss–Newton step is below `3 σ_pos`
-//! (and its residual within the noise), corrections below `3 σ_pos` are nothing to do
-//! for the step control, steps stay above `4 σ_pos`, loops close within
-//! `max(closure_tolerance, 4 σ_pos)`, and the tangent's own noise is allowed on top
-//! of `max_turn`. `σ`, `σ_pos`, `ρ` and `r` are reported per set
-//! ([`SetReport::noise`]) and summarised ([`TraceSummary::noise`]); beyond a median
-//! `σ_pos` of [`MAX_POSITION_UNCERTAINTY`] rad, or with most sets failed, the
+//! point's position is uncertain by `σ_pos = σ / (g √(r (N + 1)))`. Every tolerance
+//! scales with it: a point is on the set when its Gauss–Newton step is below `5 σ_pos`
+//! (and its residual within the noise; the step is then taken), corrections below
+//! `3 σ_pos` plus the tangent's noise times the step are nothing to do for the step
+//! control, steps stay above `4 σ_pos`, loops close within
+//! `max(closure_tolerance, 4 σ_pos)` after `min_steps` steps, and the tangent's own
+//! noise is allowed on top of `max_turn`. `σ`, `σ_pos`, `ρ` and `r` are reported per
+//! set ([`SetReport::noise`]) and summarised ([`TraceSummary::noise`]); beyond a
+//! median `σ_pos` of [`MAX_POSITION_UNCERTAINTY`] rad, or with most sets failed, the
 //! summary warns ([`TraceSummary::warnings`]).
 //!
 //! ## Resampling
@@ -1099,9 +1101,16 @@ pub const MAX_POSITION_UNCERTAINTY: f64 = 0.05;
 impl NoiseSummary {
     /// The summary of the noise of `sets` (`None` when none had noise).
     pub fn of(sets: &[SetReport]) -> Option<Self> {
-        let mut sigmas: Vec<f64> = sets.iter().filter_map(|s| s.noise).map(|n| n.sigma).collect();
-        let mut positions: Vec<f64> =
-            sets.iter().filter_map(|s| s.noise).map(|n| n.position).collect();
+        let mut sigmas: Vec<f64> = sets
+            .iter()
+            .filter_map(|s| s.noise)
+            .map(|n| n.sigma)
+            .collect();
+        let mut positions: Vec<f64> = sets
+            .iter()
+            .filter_map(|s| s.noise)
+            .map(|n| n.position)
+            .collect();
         if sigmas.is_empty() {
             return None;
         }

@@ -1,14 +1,14 @@
 //! The sensory level set of readings with noise: the level set of the sensors' mean
 //! law (see the module docs of [`super`], "Noisy sensors").
 //!
-//! At a point `m`, one batch of the `2N + 1` rows `{m, m ± ρ e_j}`, repeated `r`
-//! times, is a local linear regression of the readings: the intercept `a(m)` is the
-//! mean of all its readings, the slope `J_j = (s̄₊ − s̄₋) / 2ρ` (`s̄±` the means of the
+//! At a point `m`, one batch of rows, repeated `r` times, is a local regression of
+//! the readings: the centre `m` read `N + 1` times and the `2N` rows `m ± ρ e_j`. The
+//! intercept `a(m)` is the mean of the centre's `r (N + 1)` readings (no curvature
+//! bias: the mean of the whole stencil would add `ρ²/(2N+1) Σ_j ∂²s/∂m_j²`, which is
+//! not constant on a kernel set and moved the arm's sets by several hundredths of a
+//! radian at `ρ = 0.1`), the slope `J_j = (s̄₊ − s̄₋) / 2ρ` (`s̄±` the means of the
 //! repeats). The set through a start `m⁰` is `{ m | a(m) = a₀ }` with `a₀` the
-//! intercept at the start from [`TARGET_REPEATS`] times as many repeats. The
-//! intercept's curvature bias, `ρ²/(2N+1) Σ_j ∂²s/∂m_j²`, is a smooth function of `m`:
-//! the set is the level set of a slightly smoothed law, and that bias is the same at
-//! the start and along the set to first order.
+//! intercept at the start from [`TARGET_REPEATS`] times as many repeats.
 //!
 //! The corrector is Gauss–Newton with minimum-norm steps `m ← m − J⁺ (a(m) − a₀)`, `J⁺`
 //! the pseudo-inverse of `J` restricted to its `N − k` largest singular values, a
@@ -17,13 +17,16 @@
 //! - `ρ = σ / (√2 ε g)`, clamped to `[RHO_MIN, RHO_MAX]`, and `r = ⌈(σ / (√2 ρ g ε))²⌉`
 //!   clamped to `[1, MAX_REPEATS]`, so that the slope's relative error is about
 //!   `ε = SLOPE_ERROR`;
-//! - a point's position is uncertain by `σ_pos = σ / (g √(r (2N + 1)))`: the corrector
+//! - a point's position is uncertain by `σ_pos = σ / (g √(r (N + 1)))`: the corrector
 //!   accepts a point when its step `|J⁺ r|` is at most [`TOLERANCE_POSITIONS`] `σ_pos`
-//!   and every residual component is within [`RESIDUAL_SIGMAS`] standard deviations
-//!   of the residual's noise, and then takes that last step;
+//!   (`g` where it stands) and every residual component is within
+//!   [`RESIDUAL_SIGMAS`] standard deviations of the residual's noise, and then takes
+//!   that last step; where `g` falls below a tenth of the start's, the set is
+//!   singular;
 //! - the follower takes corrections below a few `σ_pos` as nothing to do, keeps its
-//!   step above a few `σ_pos`, closes loops within a few `σ_pos`, and allows the
-//!   tangent's noise `3 σ / (√2 ρ √r g)` on top of `max_turn`.
+//!   step above a few `σ_pos`, closes loops within a few `σ_pos`, and allows three
+//!   times the noise of the turn between two nodes, `√2 · σ √K / (√2 ρ √r g)`, on
+//!   top of `max_turn`.
 //!
 //! `σ` is `[kernel] noise` when given, otherwise measured at the start: the pooled
 //! standard deviation of the [`ESTIMATE_REPEATS`] repeats of every row of a first
@@ -50,9 +53,17 @@ const MAX_REPEATS: usize = 64;
 pub(crate) const TARGET_REPEATS: usize = 4;
 /// A point is on the set when its Gauss–Newton step is at most this many position
 /// uncertainties.
-pub(crate) const TOLERANCE_POSITIONS: f64 = 3.0;
-/// ... and every residual component within this many standard deviations of its noise.
-pub(crate) const RESIDUAL_SIGMAS: f64 = 6.0;
+pub(crate) const TOLERANCE_POSITIONS: f64 = 5.0;
+/// ... and every residual component within this many standard deviations of its noise
+/// (generous: the intercept's curvature bias differs along the set by a few of them;
+/// the residuals this rules out, of points where the residual is only orthogonal to
+/// the Jacobian's range, are of the order of the sensors' range).
+pub(crate) const RESIDUAL_SIGMAS: f64 = 20.0;
+/// A point where `g` is below the start's over this ratio is singular.
+const SINGULAR_RATIO: f64 = 10.0;
+/// The turn between two nodes allowed on top of `max_turn`, in standard deviations of
+/// the null vector's noise.
+const TURN_SIGMAS: f64 = 3.0;
 
 /// What the two readings of a start say ([`probe`]).
 pub(crate) enum Probe<'a> {
@@ -79,6 +90,8 @@ pub(crate) struct NoisySensory<'a> {
     /// Standard deviation of a residual component.
     residual_sigma: f64,
     tangent_noise: f64,
+    /// `g` at the start.
+    g_start: f64,
     jacobian: Vec<f64>,
     eigenvalues: Vec<f64>,
     eigenvectors: Vec<f64>,
@@ -106,7 +119,11 @@ pub(crate) fn probe<'a>(
             let out = ArrayViewMut2::from_shape((2, k), &mut readings).expect("2 × K readings");
             sensor.sense_batch(motors, out);
             let (first, second) = readings.split_at(k);
-            if first.iter().zip(second).all(|(a, b)| a.to_bits() == b.to_bits()) {
+            if first
+                .iter()
+                .zip(second)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+            {
                 readings.truncate(k);
                 return Probe::Exact(sensor, Some(readings));
             }
@@ -139,6 +156,7 @@ impl<'a> NoisySensory<'a> {
             noise: SetNoise::default(),
             residual_sigma: 0.0,
             tangent_noise: 0.0,
+            g_start: 1.0,
             jacobian: vec![0.0; k * n],
             eigenvalues: vec![0.0; n],
             eigenvectors: vec![0.0; n * n],
@@ -150,19 +168,26 @@ impl<'a> NoisySensory<'a> {
         let sigma = given.unwrap_or(spread);
         set.noise.sigma = sigma;
         let singular = set.decompose().is_err();
-        let g = set.eigenvalues.get(dimension).map_or(0.0, |e| e.max(0.0).sqrt());
+        let g = set
+            .eigenvalues
+            .get(dimension)
+            .map_or(0.0, |e| e.max(0.0).sqrt());
         if singular || !(g > 0.0) || !sigma.is_finite() {
             return Probe::Failed(SetStatus::Singular, set.noise, set.sensor);
         }
+        set.g_start = g;
         set.rho = (sigma / (std::f64::consts::SQRT_2 * SLOPE_ERROR * g)).clamp(RHO_MIN, RHO_MAX);
         let repeats = (sigma / (std::f64::consts::SQRT_2 * set.rho * g * SLOPE_ERROR)).powi(2);
         set.repeats = (repeats.ceil() as usize).clamp(1, MAX_REPEATS);
-        let rows = (set.repeats * (2 * n + 1)) as f64;
+        // The intercept averages the r (N + 1) readings of the centre.
+        let rows = (set.repeats * (n + 1)) as f64;
         set.noise.stencil = set.rho;
         set.noise.repeats = set.repeats;
         set.noise.position = sigma / (g * rows.sqrt());
+        // The null vector moves by about |ΔJ v| / g, ΔJ v of K entries of the slope's
+        // noise each; the turn between two nodes carries two such errors.
         set.tangent_noise =
-            3.0 * sigma / (std::f64::consts::SQRT_2 * set.rho * (set.repeats as f64).sqrt() * g);
+            TURN_SIGMAS * sigma * (k as f64).sqrt() / (set.rho * (set.repeats as f64).sqrt() * g);
         set.residual_sigma = sigma * (1.0 / rows + 1.0 / (TARGET_REPEATS as f64 * rows)).sqrt();
         let repeats = set.repeats;
         set.repeats = TARGET_REPEATS * repeats;
@@ -178,15 +203,17 @@ impl<'a> NoisySensory<'a> {
     /// (0 with one repeat).
     fn regress(&mut self, m: &[f64], intercept: &mut [f64]) -> f64 {
         let (n, k, r, rho) = (self.n, self.k, self.repeats, self.rho);
-        let types = 2 * n + 1;
+        // Every repeat: the centre `N + 1` times, then m ± ρ e_j.
+        let centre = n + 1;
+        let types = centre + 2 * n;
         self.probes.clear();
         for _ in 0..r {
             for row in 0..types {
                 self.probes.extend_from_slice(m);
-                if row > 0 {
-                    let j = (row - 1) / 2;
+                if row >= centre {
+                    let j = (row - centre) / 2;
                     let at = self.probes.len() - n + j;
-                    self.probes[at] += if row % 2 == 1 { rho } else { -rho };
+                    self.probes[at] += if (row - centre) % 2 == 0 { rho } else { -rho };
                 }
             }
         }
@@ -212,10 +239,11 @@ impl<'a> NoisySensory<'a> {
                 .sum::<f64>();
         }
         for (i, a) in intercept.iter_mut().enumerate() {
-            *a = (0..types).map(|row| means[row * k + i]).sum::<f64>() / types as f64;
+            *a = (0..centre).map(|row| means[row * k + i]).sum::<f64>() / centre as f64;
         }
         for j in 0..n {
-            let (plus, minus) = (&means[(2 * j + 1) * k..], &means[(2 * j + 2) * k..]);
+            let plus = &means[(centre + 2 * j) * k..];
+            let minus = &means[(centre + 2 * j + 1) * k..];
             for i in 0..k {
                 self.jacobian[i * n + j] = (plus[i] - minus[i]) / (2.0 * rho);
             }
@@ -224,6 +252,11 @@ impl<'a> NoisySensory<'a> {
             return 0.0;
         }
         (squares / ((r - 1) * types * k) as f64).sqrt()
+    }
+
+    /// The smallest of the `N − k` largest singular values of the current slope.
+    fn g(&self) -> f64 {
+        self.eigenvalues[self.dimension].max(0.0).sqrt()
     }
 
     fn decompose(&mut self) -> Result<(), Singular> {
@@ -270,8 +303,10 @@ impl LevelSet for NoisySensory<'_> {
         step.max(self.tolerance() * largest / noise)
     }
 
+    /// [`TOLERANCE_POSITIONS`] times the position uncertainty at the current
+    /// linearisation (`g` there rather than at the start).
     fn tolerance(&self) -> f64 {
-        TOLERANCE_POSITIONS * self.noise.position
+        TOLERANCE_POSITIONS * self.noise.position * self.g_start / self.g()
     }
 
     fn newton_step_tolerance(&self) -> f64 {
@@ -287,7 +322,7 @@ impl LevelSet for NoisySensory<'_> {
     }
 
     fn tangent_noise(&self) -> f64 {
-        self.tangent_noise
+        self.tangent_noise * self.g_start / self.g()
     }
 
     fn noise(&self) -> Option<SetNoise> {
@@ -300,7 +335,13 @@ impl LevelSet for NoisySensory<'_> {
         for ((ri, a), t) in r.iter_mut().zip(&intercept).zip(&self.target) {
             *ri = a - t;
         }
-        self.decompose()
+        self.decompose()?;
+        // Where the slope is much weaker than at the start, the readings do not fix
+        // the position: as singular as a lost rank.
+        if !(self.g() * SINGULAR_RATIO > self.g_start) {
+            return Err(Singular);
+        }
+        Ok(())
     }
 
     fn null_vector(&self, reference: &[f64], t: &mut [f64]) {
@@ -320,7 +361,8 @@ impl LevelSet for NoisySensory<'_> {
         delta.fill(0.0);
         for e in self.dimension..n {
             let v = &self.eigenvectors[e * n..(e + 1) * n];
-            let coefficient = v.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>() / self.eigenvalues[e];
+            let coefficient =
+                v.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>() / self.eigenvalues[e];
             for (d, vj) in delta.iter_mut().zip(v) {
                 *d += coefficient * vj;
             }
