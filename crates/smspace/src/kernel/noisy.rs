@@ -110,7 +110,7 @@ pub(crate) fn probe<'a>(
 ) -> Probe<'a> {
     let k = sensor.agent.sensor_dim();
     let given = match params.noise {
-        SensorNoise::Sigma(sigma) if sigma == 0.0 => return Probe::Exact(sensor, None),
+        SensorNoise::Sigma(0.0) => return Probe::Exact(sensor, None),
         SensorNoise::Sigma(sigma) => Some(sigma),
         SensorNoise::Auto => {
             let rows = [start, start].concat();
@@ -130,13 +130,13 @@ pub(crate) fn probe<'a>(
             None
         }
     };
-    NoisySensory::new(sensor, start, params, dimension, given)
+    NoisySensory::probe_start(sensor, start, params, dimension, given)
 }
 
 impl<'a> NoisySensory<'a> {
     /// Measures (or takes) `σ` and the slope at the start, picks `ρ` and the repeats,
     /// and reads the start's intercept.
-    fn new(
+    fn probe_start(
         sensor: Sensor<'a>,
         start: &[f64],
         params: &TraceValidParams,
@@ -172,7 +172,10 @@ impl<'a> NoisySensory<'a> {
             .eigenvalues
             .get(dimension)
             .map_or(0.0, |e| e.max(0.0).sqrt());
-        if singular || !(g > 0.0) || !sigma.is_finite() {
+        if singular
+            || g.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+            || !sigma.is_finite()
+        {
             return Probe::Failed(SetStatus::Singular, set.noise, set.sensor);
         }
         set.g_start = g;
@@ -338,7 +341,9 @@ impl LevelSet for NoisySensory<'_> {
         self.decompose()?;
         // Where the slope is much weaker than at the start, the readings do not fix
         // the position: as singular as a lost rank.
-        if !(self.g() * SINGULAR_RATIO > self.g_start) {
+        if (self.g() * SINGULAR_RATIO).partial_cmp(&self.g_start)
+            != Some(std::cmp::Ordering::Greater)
+        {
             return Err(Singular);
         }
         Ok(())
