@@ -208,6 +208,18 @@ fn trace_table(trace: &TraceSummary, law: Option<&serde_json::Value>) -> Table {
             ),
         );
     }
+    if let Some(noise) = &trace.noise {
+        t.push(
+            "sensor noise σ (median) and a traced point's position uncertainty (median / most)",
+            format!(
+                "{} sensor units over {} starts; {} / {} rad",
+                num(noise.sigma),
+                noise.sets,
+                num(noise.position),
+                num(noise.max_position)
+            ),
+        );
+    }
     if let Some(rows) = &trace.sensor_rows {
         t.push(
             "sensor rows per start (median / 90th percentile / most; all)",

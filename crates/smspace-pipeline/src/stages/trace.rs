@@ -105,24 +105,25 @@ impl StageInput for TraceInput<'_> {
     }
 }
 
-/// The learned sets of a run from a simulated log against the agent's true sets through
+/// The learned sets of a run from a simulated log (or the sets of an agent with
+/// simulated noise) against the true sets of `agent` (the exact agent) through
 /// the same starts (traced with the same `[kernel]` parameters on the agent in the main
 /// environment, where the log was simulated), by [`smspace::learn::set_errors`]; `None`
 /// when the motors mix hinges and bounded motors (no single period to compare under) or
 /// no start was traced in both.
 fn truth_errors(
     world: &World,
+    agent: &dyn smspace::agent::Agent,
     motors: ArrayView2<'_, f64>,
     params: &TraceValidParams,
     learned: &TracedSets,
     progress: &dyn smspace::progress::Progress,
 ) -> crate::Result<Option<TruthErrors>> {
-    let Some(period) = smspace::learn::comparison_period(&world.agent.motor_space().periods())
-    else {
+    let Some(period) = smspace::learn::comparison_period(&agent.motor_space().periods()) else {
         return Ok(None);
     };
     let truth = trace_sets(
-        world.agent.as_ref(),
+        agent,
         world.environments.first(),
         motors,
         world.workspace.as_ref(),
@@ -161,19 +162,35 @@ impl Stage for TraceStage {
                 // A report of numbers and names always serialises.
                 traced.report.law = serde_json::to_value(law.report()).ok();
                 if matches!(data.source, DataSource::Simulate(_)) && !traced.kept.is_empty() {
-                    traced.report.summary.truth =
-                        truth_errors(world, motors, &params, &traced, context.progress)?;
+                    traced.report.summary.truth = truth_errors(
+                        world,
+                        world.agent.as_ref(),
+                        motors,
+                        &params,
+                        &traced,
+                        context.progress,
+                    )?;
                 }
                 traced
             }
-            None => trace_sets(
-                world.agent.as_ref(),
-                world.environments.first(),
-                motors,
-                world.workspace.as_ref(),
-                &params,
-                context.progress,
-            )?,
+            None => {
+                let mut traced = trace_sets(
+                    world.agent.as_ref(),
+                    world.environments.first(),
+                    motors,
+                    world.workspace.as_ref(),
+                    &params,
+                    context.progress,
+                )?;
+                // An agent with simulated noise: the sets against the exact agent's.
+                if let Some(exact) = world.agent.noiseless() {
+                    if !traced.kept.is_empty() {
+                        traced.report.summary.truth =
+                            truth_errors(world, exact, motors, &params, &traced, context.progress)?;
+                    }
+                }
+                traced
+            }
         };
         if traced.kept.len() < 2 {
             // Sets failed: the statuses and what each suggests.
@@ -234,6 +251,12 @@ impl Stage for TraceStage {
             line.push_str(&format!(
                 "; against the agent's true sets ({} in both): median {:.4} rad, 90th percentile {:.4} rad",
                 t.compared, t.median, t.p90
+            ));
+        }
+        if let Some(noise) = &s.noise {
+            line.push_str(&format!(
+                "; noisy sensors: σ = {:.3e} (median over {} starts), position uncertainty {:.4} rad (median)",
+                noise.sigma, noise.sets, noise.position
             ));
         }
         if let Some(rows) = s.sensor_rows {

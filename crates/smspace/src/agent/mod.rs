@@ -33,6 +33,7 @@ mod chain;
 mod environment;
 mod ground_truth;
 mod motor_space;
+mod noisy;
 mod pupil;
 mod registry;
 mod toy;
@@ -59,6 +60,7 @@ pub use ground_truth::{
     PoseCoordinate, PoseSpace, QUATERNION_NORM_TOLERANCE,
 };
 pub use motor_space::{wrap_period, Motor, MotorSpace};
+pub use noisy::{NoiseParams, NoisyAgent, STD_SAMPLE_ROWS, STD_SAMPLE_SEED};
 pub use pupil::Pupil;
 pub use registry::{AgentBuilder, AgentRegistry, BuiltAgent};
 pub use toy::{ToyAgent, ToyKind, ToyParams, ToyValidParams};
@@ -337,6 +339,14 @@ pub trait Agent: Send + Sync + fmt::Debug {
     /// `[−3, 3]`; unused in the plane.
     fn default_light_heights(&self) -> [f64; 2] {
         [-3.0, 3.0]
+    }
+
+    /// The same agent without the simulated noise of its readings, when it adds some
+    /// ([`NoisyAgent`], an `[agent.noise]` table): for evaluation only (a run compares
+    /// the sets traced from the noisy readings with the exact ones). The default is
+    /// none.
+    fn noiseless(&self) -> Option<&dyn Agent> {
+        None
     }
 }
 

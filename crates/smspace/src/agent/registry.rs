@@ -21,7 +21,10 @@
 //! # Ok::<(), smspace::agent::AgentError>(())
 //! ```
 
-use super::{Agent, AgentConfig, AgentError, PlanarArm, ToyAgent, ToyKind, ToyParams};
+use super::{
+    Agent, AgentConfig, AgentError, NoiseParams, NoisyAgent, PlanarArm, ToyAgent, ToyKind,
+    ToyParams,
+};
 use crate::registry::{Builder, Registry, RegistryError};
 
 /// An agent built from its table, with the table resolved (defaults included).
@@ -86,9 +89,27 @@ impl Registry<dyn Agent, (), AgentError> {
     }
 
     /// Builds the agent an `[agent]` table describes, and checks that its parts agree
-    /// ([`check_agent`](super::check_agent)).
+    /// ([`check_agent`](super::check_agent)). A `noise` subtable, of any kind, wraps
+    /// the agent in a [`NoisyAgent`] ([`NoiseParams`]; no noise: the agent itself).
     pub fn build(&self, config: &AgentConfig) -> Result<BuiltAgent, AgentError> {
-        let (agent, params) = self.make(&config.kind, &config.params, &())?;
+        let mut table = config.params.clone();
+        let noise = table.remove("noise");
+        let (mut agent, mut params) = self.make(&config.kind, &table, &())?;
+        if let Some(noise) = noise {
+            let noise: NoiseParams = noise.try_into().map_err(|e: toml::de::Error| {
+                AgentError::invalid_table(
+                    &config.kind,
+                    format!("[agent.noise]: {}", e.to_string().trim_end()),
+                )
+            })?;
+            noise.check()?;
+            if let Ok(toml::Value::Table(resolved)) = toml::Value::try_from(noise) {
+                params.insert("noise".to_owned(), toml::Value::Table(resolved));
+            }
+            if noise.is_noisy() {
+                agent = Box::new(NoisyAgent::new(agent, noise)?);
+            }
+        }
         super::check_agent(agent.as_ref())?;
         Ok(BuiltAgent {
             agent,

@@ -7,6 +7,15 @@ use crate::agent::MotorSpace;
 
 /// Smallest step the adaptive control may take before it gives up.
 const MIN_ADAPTIVE_STEP: f64 = 1e-7;
+/// Readings with noise: the adaptive step stays above this many position
+/// uncertainties ([`LevelSet::position_noise`]).
+const MIN_STEP_NOISE: f64 = 4.0;
+/// Readings with noise: a first correction of at most this many position
+/// uncertainties is noise, not a sign that the step was too long.
+const QUIET_NOISE: f64 = 3.0;
+/// Readings with noise: a loop closes within this many position uncertainties (or
+/// `closure_tolerance`, whichever is larger).
+const CLOSURE_NOISE: f64 = 4.0;
 /// Segments longer than this are measured as Hermite arcs, shorter ones as chords
 /// (an arc of length `h` and curvature `κ` exceeds its chord by `κ²h³/24`, below
 /// `10⁻⁹` here for the curvatures of the arm's sets).
@@ -26,6 +35,8 @@ pub(crate) struct Branch {
 /// Result of one corrector run.
 pub(crate) struct Corrected {
     first_step: f64,
+    /// How far the corrector moved the point in all.
+    total_step: f64,
     /// The residual norm at the corrected point.
     pub(crate) residual: f64,
     /// Whether the level set is linearised at the corrected point.
@@ -103,19 +114,29 @@ pub(crate) fn correct(
         set.residual(m, &mut scratch.r);
     }
     let mut first_step = 0.0;
+    let mut total_step = 0.0;
     let mut previous = f64::INFINITY;
-    let tolerance = match convergence {
-        Convergence::Measured => set.tolerance(),
-        Convergence::NewtonStep => set.node_tolerance(),
-    };
     for iteration in 0..=max_iterations {
+        // (A level set with noise scales its tolerance to its current linearisation.)
+        let tolerance = match convergence {
+            Convergence::Measured => set.tolerance(),
+            Convergence::NewtonStep => set.node_tolerance(),
+        };
         let residual = set.residual_norm(&scratch.r);
         if !residual.is_finite() {
             return None;
         }
         if residual <= tolerance {
+            if set.final_step() {
+                set.correction(&scratch.r, &mut scratch.delta);
+                total_step += norm(&scratch.delta);
+                for (x, d) in m.iter_mut().zip(&scratch.delta) {
+                    *x -= d;
+                }
+            }
             return Some(Corrected {
                 first_step,
+                total_step,
                 residual,
                 linearized: newton,
             });
@@ -132,13 +153,14 @@ pub(crate) fn correct(
         if iteration == 0 {
             first_step = step;
         }
+        total_step += step;
         for (x, d) in m.iter_mut().zip(&scratch.delta) {
             *x -= d;
         }
-        if newton && convergence == Convergence::NewtonStep && step <= 0.1 * set.tolerance().sqrt()
-        {
+        if newton && convergence == Convergence::NewtonStep && step <= set.newton_step_tolerance() {
             return Some(Corrected {
                 first_step,
+                total_step,
                 residual: step * step,
                 linearized: true,
             });
@@ -234,8 +256,17 @@ fn follow(
     // predictor m + h t + ½ h² k.
     let mut bend = vec![0.0; n];
     let mut h = params.step;
-    let cos_max_turn = params.max_turn.cos();
-    let mut watch = ClosureWatch::new(space, params.closure_tolerance, n);
+    // Readings with noise: corrections below a few position uncertainties are noise
+    // (nothing to do), steps shorter than a few are not taken, a loop closes within a
+    // few, and the tangent's own noise is allowed on top of `max_turn` (all 0 for
+    // exact readings).
+    let position_noise = set.position_noise();
+    let min_step = MIN_ADAPTIVE_STEP.max(MIN_STEP_NOISE * position_noise);
+    let closure_tolerance = params.closure_tolerance.max(CLOSURE_NOISE * position_noise);
+    let mut watch = ClosureWatch::new(space, closure_tolerance, n);
+    if position_noise > 0.0 {
+        h = h.max(min_step);
+    }
     let bounded = space.has_bounds();
     loop {
         if branch.steps >= params.max_steps {
@@ -264,7 +295,7 @@ fn follow(
         let corrected = match outcome {
             Ok(c) => c,
             Err(status) => {
-                if adaptive && h > MIN_ADAPTIVE_STEP {
+                if adaptive && h > min_step {
                     h /= 2.0;
                     // Re-linearise where the predictor starts: the chord corrector needs it.
                     set.linearize(&m, &mut scratch.r)
@@ -276,8 +307,13 @@ fn follow(
         };
         set.null_vector(&t, &mut t_new);
         let cos_turn: f64 = t.iter().zip(&t_new).map(|(a, b)| a * b).sum();
-        let too_sharp = cos_turn < cos_max_turn;
-        if adaptive && h > MIN_ADAPTIVE_STEP && (too_sharp || corrected.first_step > 0.1 * h) {
+        let max_turn = params.max_turn + set.tangent_noise();
+        let too_sharp = cos_turn < max_turn.cos();
+        let (first_step, jumped) = noise_allowance(set, &corrected, h, position_noise);
+        if jumped && !(adaptive && h > min_step) {
+            return Err(SetStatus::CorrectorFailed);
+        }
+        if adaptive && h > min_step && (too_sharp || jumped || first_step > 0.1 * h) {
             h /= 2.0;
             set.linearize(&m, &mut scratch.r)
                 .map_err(|_| SetStatus::Singular)?;
@@ -293,7 +329,8 @@ fn follow(
         m.copy_from_slice(&predicted);
         let travelled = distance(&m, &previous);
         for j in 0..n {
-            bend[j] = if travelled > 0.0 {
+            // (With noise the turn between nodes is mostly the tangents' noise.)
+            bend[j] = if travelled > 0.0 && position_noise == 0.0 {
                 (t_new[j] - t[j]) / travelled
             } else {
                 0.0
@@ -306,14 +343,13 @@ fn follow(
         if !set.covers(&m) {
             return Err(SetStatus::LeftData);
         }
-        if adaptive
-            && corrected.first_step < 0.025 * h
-            && cos_turn.clamp(-1.0, 1.0).acos() < params.max_turn / 4.0
-        {
+        if adaptive && first_step < 0.025 * h && cos_turn.clamp(-1.0, 1.0).acos() < max_turn / 4.0 {
             h = (h * 1.5).min(params.max_step);
         }
 
-        let may_close = adaptive || branch.steps >= params.min_steps;
+        // (With noise, a loop closes after `min_steps` steps, adaptive or not: the
+        // tangent's noise can turn a first few short steps back towards the start.)
+        let may_close = (adaptive && position_noise == 0.0) || branch.steps >= params.min_steps;
         if let Some(tau) = watch.closes(start, &previous, &m, travelled, may_close) {
             if tau < 1.0 && branch.steps > 1 {
                 // The start lies inside the last segment: close from its beginning.
@@ -327,6 +363,25 @@ fn follow(
             return Ok(());
         }
     }
+}
+
+/// The first correction of a step less what the readings' noise explains (a few
+/// position uncertainties, and the tangent's noise times the step: nothing to do),
+/// and whether the corrector left the step's neighbourhood (readings with noise only:
+/// a Gauss–Newton step through a poor slope). For exact readings, the first
+/// correction itself and `false`.
+fn noise_allowance(
+    set: &dyn LevelSet,
+    corrected: &Corrected,
+    h: f64,
+    position_noise: f64,
+) -> (f64, bool) {
+    if position_noise == 0.0 {
+        return (corrected.first_step, false);
+    }
+    let allowance = QUIET_NOISE * position_noise + set.tangent_noise() * h;
+    let jumped = corrected.total_step > 2.0 * h + allowance;
+    ((corrected.first_step - allowance).max(0.0), jumped)
 }
 
 /// The closure test of a trace: the segment just travelled passes within the tolerance

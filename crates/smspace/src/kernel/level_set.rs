@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use ndarray::{ArrayView2, ArrayViewMut2};
 
 use super::gather::Caller;
-use super::{JacobianMethod, RowPhase, SensorRowPhases, TraceValidParams};
+use super::{JacobianMethod, RowPhase, SensorRowPhases, SetNoise, TraceValidParams};
 use crate::agent::{wrap_angle, Agent, CoordinateKind, Environment, Observer, PoseSpace};
 
 /// `value > floor`, false for NaN (so a NaN pivot counts as singular).
@@ -83,6 +83,33 @@ pub(crate) trait LevelSet {
     /// Whether the corrector should re-linearise at every iteration (Newton) rather
     /// than reuse the current linearisation (chord method) while it converges.
     fn newton(&self) -> bool;
+    /// A Newton step at most this long ends the corrector between traced nodes
+    /// ([`Convergence::NewtonStep`](super::curve::Convergence::NewtonStep)). The
+    /// default is `0.1 √tolerance`.
+    fn newton_step_tolerance(&self) -> f64 {
+        0.1 * self.tolerance().sqrt()
+    }
+    /// Whether the corrector, once the residual is within the tolerance, still moves
+    /// the point by the last correction (readings with noise: the corrected point is
+    /// the best estimate; exact readings: the point stays). Default `false`.
+    fn final_step(&self) -> bool {
+        false
+    }
+    /// The uncertainty of a corrected point's position (radians) that the readings'
+    /// noise leaves: corrections below a few of it are noise, and a closure needs a
+    /// tolerance above it. 0 for exact readings (the default).
+    fn position_noise(&self) -> f64 {
+        0.0
+    }
+    /// The uncertainty of the null direction (radians) that the readings' noise
+    /// leaves, added to `max_turn`. 0 for exact readings (the default).
+    fn tangent_noise(&self) -> f64 {
+        0.0
+    }
+    /// The noise measured for this level set (`None` for exact readings).
+    fn noise(&self) -> Option<SetNoise> {
+        None
+    }
     /// Whether the level set's function is known at `m` (a law learned from data: near
     /// its samples only).
     fn covers(&self, _m: &[f64]) -> bool {
@@ -643,17 +670,23 @@ impl<'a> Sensory<'a> {
         params: &TraceValidParams,
         dimension: usize,
     ) -> Self {
-        let (n, k) = (agent.motor_dim(), agent.sensor_dim());
-        let mut sensor = Sensor {
-            agent,
-            environment,
-            caller,
-            rows: 0,
-            phase: RowPhase::Start,
-            phases: SensorRowPhases::default(),
-        };
-        let mut target = vec![0.0; k];
+        let mut sensor = Sensor::new(agent, environment, caller);
+        let mut target = vec![0.0; agent.sensor_dim()];
         sensor.sense(start, &mut target);
+        Self::with_target(sensor, target, start, params, dimension)
+    }
+
+    /// [`new`](Self::new) with the start's reading `target` already taken through
+    /// `sensor` (which counts it).
+    pub(crate) fn with_target(
+        sensor: Sensor<'a>,
+        target: Vec<f64>,
+        start: &[f64],
+        params: &TraceValidParams,
+        dimension: usize,
+    ) -> Self {
+        let agent = sensor.agent;
+        let (n, k) = (agent.motor_dim(), agent.sensor_dim());
         let scale = target.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
         let mut set = Self {
             sensor,
@@ -909,8 +942,37 @@ impl<'a> Sensory<'a> {
     /// The eigen-decomposition of `JᵀJ` (ascending), singular when the smallest
     /// eigenvalue that should be nonzero is negligible.
     fn decompose(&mut self) -> Result<(), Singular> {
-        let n = self.n;
-        let (jacobian, k) = self.active();
+        let (n, dimension, rank_tolerance) = (self.n, self.dimension, self.rank_tolerance);
+        let (jacobian, k) = match &self.held {
+            Some(_) => (&self.held_jacobian, self.n - self.dimension),
+            None => (&self.jacobian, self.k),
+        };
+        let decomposition = Decomposition {
+            eigenvalues: &mut self.eigenvalues,
+            eigenvectors: &mut self.eigenvectors,
+        };
+        decomposition.of(jacobian, k, n, dimension, rank_tolerance)
+    }
+}
+
+/// The eigen-decomposition of `JᵀJ` a sensory level set keeps: eigenvalues increasing,
+/// eigenvectors row by row (`N × N`).
+pub(crate) struct Decomposition<'b> {
+    pub(crate) eigenvalues: &'b mut [f64],
+    pub(crate) eigenvectors: &'b mut [f64],
+}
+
+impl Decomposition<'_> {
+    /// Decomposes `JᵀJ` for `J` of `k` rows and `n` columns (row-major); fails when
+    /// `σ_{n−dimension}/σ_max` is at most `rank_tolerance` (or not a number).
+    pub(crate) fn of(
+        self,
+        jacobian: &[f64],
+        k: usize,
+        n: usize,
+        dimension: usize,
+        rank_tolerance: f64,
+    ) -> Result<(), Singular> {
         let mut gram = DMatrix::<f64>::zeros(n, n);
         for a in 0..n {
             for b in 0..=a {
@@ -931,8 +993,8 @@ impl<'a> Sensory<'a> {
             }
         }
         let largest = self.eigenvalues[n - 1];
-        let smallest_nonzero = if n > self.dimension {
-            self.eigenvalues[self.dimension]
+        let smallest_nonzero = if n > dimension {
+            self.eigenvalues[dimension]
         } else {
             largest
         };
@@ -941,7 +1003,7 @@ impl<'a> Sensory<'a> {
         } else {
             0.0
         };
-        if !exceeds(ratio, self.rank_tolerance) {
+        if !exceeds(ratio, rank_tolerance) {
             return Err(Singular);
         }
         Ok(())
@@ -952,20 +1014,41 @@ impl<'a> Sensory<'a> {
 /// [`Caller`] of a gathered round, counting the motor rows sensed either way (the
 /// rows a simulator or a robot answers for the set: what a set costs its user).
 pub(crate) struct Sensor<'a> {
-    agent: &'a dyn Agent,
+    pub(crate) agent: &'a dyn Agent,
     environment: &'a Environment,
     caller: Option<&'a Caller<'a>>,
     /// Motor rows sensed so far.
-    rows: u64,
+    pub(crate) rows: u64,
     /// The phase the next rows are counted in, and the rows of each phase.
-    phase: RowPhase,
-    phases: SensorRowPhases,
+    pub(crate) phase: RowPhase,
+    pub(crate) phases: SensorRowPhases,
 }
 
-impl Sensor<'_> {
+impl<'a> Sensor<'a> {
+    /// The sensors of `agent` in `environment`, read through `caller` when given; no
+    /// row counted yet, in the start phase.
+    pub(crate) fn new(
+        agent: &'a dyn Agent,
+        environment: &'a Environment,
+        caller: Option<&'a Caller<'a>>,
+    ) -> Self {
+        Self {
+            agent,
+            environment,
+            caller,
+            rows: 0,
+            phase: RowPhase::Start,
+            phases: SensorRowPhases::default(),
+        }
+    }
+
     /// The readings of the motor rows `(B, N)` into `sensors` `(B, K)`: one call (a
     /// Jacobian's rows).
-    fn sense_batch(&mut self, motors: ArrayView2<'_, f64>, sensors: ArrayViewMut2<'_, f64>) {
+    pub(crate) fn sense_batch(
+        &mut self,
+        motors: ArrayView2<'_, f64>,
+        sensors: ArrayViewMut2<'_, f64>,
+    ) {
         self.rows += motors.nrows() as u64;
         self.phases.add(self.phase, true, motors.nrows() as u64);
         match self.caller {

@@ -80,6 +80,34 @@
 //! reaches a bound of a bounded motor ends there; the set is then traced the other way
 //! from the start too, and is an open segment (status `open`).
 //!
+//! ## Noisy sensors
+//!
+//! Readings that change between two calls at the same motors (a robot, a simulator
+//! with noise, [`crate::agent::NoisyAgent`]) cannot meet a tolerance of `10⁻¹²`, nor
+//! give a Jacobian by differences `10⁻⁶` rad apart. With `[kernel] noise = "auto"`
+//! (the default) every start is read twice in one batch: equal readings are exact and
+//! the set is traced as above (one sensor row more per set). Otherwise the set is the
+//! level set of the sensors' mean law, `{ m | a(m) = a₀ }` (`noisy.rs`): at every
+//! point one batch of rows, the centre `m` read `N + 1` times and the `2N` rows
+//! `m ± ρ e_j`, repeated `r` times, is a local regression whose intercept `a(m)` (the
+//! mean of the centre's readings) is the level set's function and whose slope
+//! `(s̄₊ − s̄₋)/2ρ` its Jacobian; the corrector is Gauss–Newton with minimum-norm steps
+//! and a fresh regression at every iterate. The noise's standard deviation `σ` is
+//! measured at the start from 16 repeats of a first regression (pooled over the rows
+//! and sensors), or given (`noise = σ` in sensor units; `0`: exact, no extra row).
+//! With `g` the smallest of the `N − k` largest singular values of the slope, `ρ`
+//! and `r` aim at a slope error of 2 % (`ρ ∈ [10⁻³, 0.1]` rad, `r ≤ 64`), and a
+//! point's position is uncertain by `σ_pos = σ / (g √(r (N + 1)))`. Every tolerance
+//! scales with it: a point is on the set when its Gauss–Newton step is below `5 σ_pos`
+//! (and its residual within the noise; the step is then taken), corrections below
+//! `3 σ_pos` plus the tangent's noise times the step are nothing to do for the step
+//! control, steps stay above `4 σ_pos`, loops close within
+//! `max(closure_tolerance, 4 σ_pos)` after `min_steps` steps, and the tangent's own
+//! noise is allowed on top of `max_turn`. `σ`, `σ_pos`, `ρ` and `r` are reported per
+//! set ([`SetReport::noise`]) and summarised ([`TraceSummary::noise`]); beyond a
+//! median `σ_pos` of [`MAX_POSITION_UNCERTAINTY`] rad, or with most sets failed, the
+//! summary warns ([`TraceSummary::warnings`]).
+//!
 //! ## Resampling
 //!
 //! The traced nodes with their tangents define a piecewise cubic Hermite curve. Its
@@ -92,6 +120,7 @@ mod cover;
 mod curve;
 mod gather;
 mod level_set;
+mod noisy;
 pub mod spatial;
 mod tracer;
 
@@ -276,6 +305,82 @@ impl std::str::FromStr for JacobianMethod {
     }
 }
 
+/// The noise of the sensors the `sensory` method reads (`[kernel] noise`): `"auto"` or
+/// a standard deviation in sensor units. Noisy readings are traced on the level set of
+/// their mean (see the module docs, "Noisy sensors").
+///
+/// ```
+/// use smspace::kernel::{SensorNoise, TraceParams};
+/// let p: TraceParams = toml::from_str("noise = 0.02").unwrap();
+/// assert_eq!(p.noise, SensorNoise::Sigma(0.02));
+/// let p: TraceParams = toml::from_str("noise = \"auto\"").unwrap();
+/// assert_eq!(p.noise, SensorNoise::Auto);
+/// assert!(toml::from_str::<TraceParams>("noise = \"foo\"").unwrap_err().to_string().contains("noise"));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum SensorNoise {
+    /// Read every start twice in one batch: equal readings are exact (traced as
+    /// exact, one sensor row more per set); otherwise the noise is measured from
+    /// repeated readings.
+    #[default]
+    Auto,
+    /// This standard deviation, in sensor units; `0` is exact readings.
+    Sigma(f64),
+}
+
+impl SensorNoise {
+    /// Whether it is `auto` (the default).
+    pub fn is_auto(&self) -> bool {
+        *self == SensorNoise::Auto
+    }
+}
+
+impl Serialize for SensorNoise {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self {
+            SensorNoise::Auto => serializer.serialize_str("auto"),
+            SensorNoise::Sigma(sigma) => serializer.serialize_f64(*sigma),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for SensorNoise {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = SensorNoise;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("\"auto\" or a standard deviation ≥ 0 in sensor units")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<SensorNoise, E> {
+                v.parse().map_err(E::custom)
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<SensorNoise, E> {
+                Ok(SensorNoise::Sigma(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<SensorNoise, E> {
+                Ok(SensorNoise::Sigma(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<SensorNoise, E> {
+                Ok(SensorNoise::Sigma(v as f64))
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
+}
+
+impl std::str::FromStr for SensorNoise {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "auto" => Ok(SensorNoise::Auto),
+            other => other.parse::<f64>().map(SensorNoise::Sigma).map_err(|_| {
+                format!("invalid noise '{other}'; use \"auto\" or a standard deviation ≥ 0 in sensor units (0: exact readings)")
+            }),
+        }
+    }
+}
+
 /// Parameters of kernel-set tracing (the `[kernel]` table).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -317,6 +422,11 @@ pub struct TraceParams {
     /// Sensory method: a set is singular where `σ_{N−1}/σ_max` of the sensory Jacobian
     /// falls below this (too few lights in view). Default `1e-4`.
     pub rank_tolerance: f64,
+    /// Sensory method: the standard deviation of the sensors' noise, in sensor units
+    /// ([`SensorNoise`]): `"auto"` (measured at every start from repeated readings),
+    /// or a number (`0`: exact readings). Default `"auto"`.
+    #[serde(skip_serializing_if = "SensorNoise::is_auto")]
+    pub noise: SensorNoise,
     /// Which pieces of a level set make the set `M^i`: `connected` (the paper's: the
     /// piece through `m^i`) or `all` (every configuration with the sensation of
     /// `m^i`). Default `connected`.
@@ -396,6 +506,7 @@ impl Default for TraceParams {
             finite_difference_step: 1e-6,
             jacobian: JacobianMethod::Secant,
             rank_tolerance: 1e-4,
+            noise: SensorNoise::Auto,
             components: Components::Connected,
             piece_starts: 16,
             piece_seed: 0,
@@ -426,6 +537,7 @@ pub struct TraceValidParams {
     pub(crate) finite_difference_step: f64,
     pub(crate) jacobian: JacobianMethod,
     pub(crate) rank_tolerance: f64,
+    pub(crate) noise: SensorNoise,
     pub(crate) components: Components,
     pub(crate) piece_starts: usize,
     pub(crate) piece_seed: u64,
@@ -568,6 +680,15 @@ impl CheckParams for TraceParams {
                 "must be in [0, 1)",
             ));
         }
+        if let SensorNoise::Sigma(sigma) = self.noise {
+            if !(sigma.is_finite() && sigma >= 0.0) {
+                return Err(invalid(
+                    "noise",
+                    sigma,
+                    "must be \"auto\" or a standard deviation ≥ 0 in sensor units (0: exact readings)",
+                ));
+            }
+        }
         for (key, value) in [
             ("points", self.points),
             ("max_steps", self.max_steps),
@@ -627,6 +748,7 @@ impl CheckParams for TraceParams {
             finite_difference_step: self.finite_difference_step,
             jacobian: self.jacobian,
             rank_tolerance: self.rank_tolerance,
+            noise: self.noise,
             components: self.components,
             piece_starts: self.piece_starts,
             piece_seed: self.piece_seed,
@@ -835,6 +957,28 @@ pub struct SetReport {
     /// that read them; `None` for the kinematic method.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor_row_phases: Option<SensorRowPhases>,
+    /// The sensory method on readings with noise: the noise measured at the start and
+    /// what it leaves of a point's position; `None` for exact readings.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<SetNoise>,
+}
+
+/// The noise of the readings of one set, as the `sensory` method measured (or was
+/// given) it at the start (see the module docs, "Noisy sensors").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct SetNoise {
+    /// The standard deviation `σ` of a reading, pooled over the sensors (sensor
+    /// units): measured from repeated readings at the start with `noise = "auto"`, or
+    /// the `noise` given.
+    pub sigma: f64,
+    /// The position uncertainty `σ_pos` of a traced point (radians): `σ` over the
+    /// smallest singular value `g` of the sensory Jacobian's `N − k` at the start and
+    /// over the square root of the readings of one regression.
+    pub position: f64,
+    /// The offset `ρ` of the regressions (radians).
+    pub stencil: f64,
+    /// The repeats of every row of a regression.
+    pub repeats: usize,
 }
 
 /// Where the sensor rows of one set went: each phase of tracing, its single readings
@@ -930,6 +1074,55 @@ pub struct TraceSummary {
     /// method).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor_rows: Option<SensorRows>,
+    /// The sensory method on readings with noise ([`SetReport::noise`]): the noise
+    /// over the starts; `None` for exact readings.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<NoiseSummary>,
+}
+
+/// The noise of the readings over the starts ([`SetNoise`] of every start read with
+/// noise).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NoiseSummary {
+    /// Starts whose readings had noise.
+    pub sets: usize,
+    /// The median of their measured standard deviation `σ` (sensor units).
+    pub sigma: f64,
+    /// The median position uncertainty `σ_pos` of a traced point (radians).
+    pub position: f64,
+    /// Its largest value.
+    pub max_position: f64,
+}
+
+/// Beyond this median position uncertainty (radians) the sets traced from noisy
+/// readings are too blurred to trust, and the run says so.
+pub const MAX_POSITION_UNCERTAINTY: f64 = 0.05;
+
+impl NoiseSummary {
+    /// The summary of the noise of `sets` (`None` when none had noise).
+    pub fn of(sets: &[SetReport]) -> Option<Self> {
+        let mut sigmas: Vec<f64> = sets
+            .iter()
+            .filter_map(|s| s.noise)
+            .map(|n| n.sigma)
+            .collect();
+        let mut positions: Vec<f64> = sets
+            .iter()
+            .filter_map(|s| s.noise)
+            .map(|n| n.position)
+            .collect();
+        if sigmas.is_empty() {
+            return None;
+        }
+        sigmas.sort_by(f64::total_cmp);
+        positions.sort_by(f64::total_cmp);
+        Some(Self {
+            sets: sigmas.len(),
+            sigma: sigmas[sigmas.len() / 2],
+            position: positions[positions.len() / 2],
+            max_position: positions[positions.len() - 1],
+        })
+    }
 }
 
 /// Sensor rows per start: what tracing costs an agent that is slow to sense.
@@ -1030,6 +1223,21 @@ impl TraceSummary {
                 "{} of {} sets miss pieces of their level set: other motor configurations give the same sensation and are not in M^i (the multi-start search found them); the sets are incomplete, and the learned manifold can have the wrong topology. Trace with components = \"all\" (smspace trace --components all)",
                 self.with_unvisited_pieces, self.total
             ));
+        }
+        if let Some(noise) = &self.noise {
+            let blurred = noise.position > MAX_POSITION_UNCERTAINTY;
+            if blurred || (noise.sets > 0 && 2 * self.failed > self.total) {
+                out.push(format!(
+                    "the sensors are noisy (σ = {:.3e} sensor units, median over {} starts) and the sets traced from them are {}: a traced point's position is uncertain by {:.4} rad (median; {:.4} at most, the tracer tolerates up to {MAX_POSITION_UNCERTAINTY} rad), and {} of {} sets failed. Average more readings per point (a less noisy simulator or sensor), or record a log and learn the law from it (smspace learn, the [data] table), which averages the noise over many samples",
+                    noise.sigma,
+                    noise.sets,
+                    if blurred { "too blurred to trust" } else { "mostly lost" },
+                    noise.position,
+                    noise.max_position,
+                    self.failed,
+                    self.total
+                ));
+            }
         }
         let points = self.by_status.get("point").copied().unwrap_or(0);
         if points > 0 && points == self.traced {
@@ -1342,6 +1550,7 @@ pub fn trace_sets(
     }
     let rows: Vec<u64> = reports.iter().map(|r| r.sensor_rows).collect();
     summary.sensor_rows = SensorRows::of(&rows);
+    summary.noise = NoiseSummary::of(&reports);
     radii.sort_by(f64::total_cmp);
     summary.covering_radius =
         (!radii.is_empty()).then(|| [radii[0], radii[radii.len() / 2], radii[radii.len() - 1]]);

@@ -245,6 +245,7 @@ mod tests {
             covering_radius: None,
             sensor_rows: 0,
             sensor_row_phases: None,
+            noise: None,
         }
     }
 

@@ -22,7 +22,8 @@ use super::cover::{
 };
 use super::curve::{resample, trace_branch, Curve, Scratch};
 use super::gather::{self, Caller};
-use super::level_set::{Kinematic, LevelSet, Linearization, Sensory};
+use super::level_set::{Kinematic, LevelSet, Linearization, Sensor, Sensory};
+use super::noisy::{probe, Probe};
 use super::{
     Components, KernelError, RowPhase, SensorRowPhases, SetReport, SetStatus, TraceMethod,
     TraceValidParams,
@@ -218,6 +219,7 @@ impl<'a> Tracer<'a> {
             sensor_rows: 0,
             sensor_row_phases: (self.params.method == TraceMethod::Sensory)
                 .then(SensorRowPhases::default),
+            noise: None,
         };
         if self.covering_too_large() {
             report.status = SetStatus::CoverBudget;
@@ -239,21 +241,47 @@ impl<'a> Tracer<'a> {
         }
         let mut kinematic;
         let mut sensory;
+        let mut noisy;
         let set: &mut dyn LevelSet = match (self.params.method, self.observer, self.environment) {
             (TraceMethod::Kinematic, Some(observer), _) => {
                 kinematic = Kinematic::new(observer, start, self.params.pose_tolerance);
                 &mut kinematic
             }
             (_, _, Some(environment)) => {
-                sensory = Sensory::new(
-                    self.agent,
-                    environment,
-                    caller,
-                    start,
-                    self.params,
-                    self.dimension,
-                );
-                &mut sensory
+                let sensor = Sensor::new(self.agent, environment, caller);
+                match probe(sensor, start, self.params, self.dimension) {
+                    Probe::Exact(sensor, reading) => {
+                        sensory = match reading {
+                            Some(target) => Sensory::with_target(
+                                sensor,
+                                target,
+                                start,
+                                self.params,
+                                self.dimension,
+                            ),
+                            None => Sensory::new(
+                                self.agent,
+                                environment,
+                                caller,
+                                start,
+                                self.params,
+                                self.dimension,
+                            ),
+                        };
+                        &mut sensory
+                    }
+                    Probe::Noisy(set) => {
+                        noisy = set;
+                        noisy.as_mut()
+                    }
+                    Probe::Failed(status, noise, sensor) => {
+                        report.status = status;
+                        report.noise = Some(noise);
+                        report.sensor_rows = sensor.rows;
+                        report.sensor_row_phases = Some(sensor.phases);
+                        return SetResult::failed(report);
+                    }
+                }
             }
             _ => unreachable!("Tracer::new checked the method's needs"),
         };
@@ -261,6 +289,7 @@ impl<'a> Tracer<'a> {
         let mut result = self.trace_on(set, start, start_pose.as_deref(), caller, report, scratch);
         result.report.sensor_rows = set.sensor_rows();
         result.report.sensor_row_phases = set.sensor_row_phases();
+        result.report.noise = set.noise();
         result
     }
 

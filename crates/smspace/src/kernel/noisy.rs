@@ -1,0 +1,404 @@
+//! The sensory level set of readings with noise: the level set of the sensors' mean
+//! law (see the module docs of [`super`], "Noisy sensors").
+//!
+//! At a point `m`, one batch of rows, repeated `r` times, is a local regression of
+//! the readings: the centre `m` read `N + 1` times and the `2N` rows `m ± ρ e_j`. The
+//! intercept `a(m)` is the mean of the centre's `r (N + 1)` readings (no curvature
+//! bias: the mean of the whole stencil would add `ρ²/(2N+1) Σ_j ∂²s/∂m_j²`, which is
+//! not constant on a kernel set and moved the arm's sets by several hundredths of a
+//! radian at `ρ = 0.1`), the slope `J_j = (s̄₊ − s̄₋) / 2ρ` (`s̄±` the means of the
+//! repeats). The set through a start `m⁰` is `{ m | a(m) = a₀ }` with `a₀` the
+//! intercept at the start from [`TARGET_REPEATS`] times as many repeats.
+//!
+//! The corrector is Gauss–Newton with minimum-norm steps `m ← m − J⁺ (a(m) − a₀)`, `J⁺`
+//! the pseudo-inverse of `J` restricted to its `N − k` largest singular values, a
+//! fresh regression at every iterate (no secant updates). With `σ` the noise's
+//! standard deviation and `g` the smallest of those singular values at the start:
+//! - `ρ = σ / (√2 ε g)`, clamped to `[RHO_MIN, RHO_MAX]`, and `r = ⌈(σ / (√2 ρ g ε))²⌉`
+//!   clamped to `[1, MAX_REPEATS]`, so that the slope's relative error is about
+//!   `ε = SLOPE_ERROR`;
+//! - a point's position is uncertain by `σ_pos = σ / (g √(r (N + 1)))`: the corrector
+//!   accepts a point when its step `|J⁺ r|` is at most [`TOLERANCE_POSITIONS`] `σ_pos`
+//!   (`g` where it stands) and every residual component is within
+//!   [`RESIDUAL_SIGMAS`] standard deviations of the residual's noise, and then takes
+//!   that last step; where `g` falls below a tenth of the start's, the set is
+//!   singular;
+//! - the follower takes corrections below a few `σ_pos` as nothing to do, keeps its
+//!   step above a few `σ_pos`, closes loops within a few `σ_pos`, and allows three
+//!   times the noise of the turn between two nodes, `√2 · σ √K / (√2 ρ √r g)`, on
+//!   top of `max_turn`.
+//!
+//! `σ` is `[kernel] noise` when given, otherwise measured at the start: the pooled
+//! standard deviation of the [`ESTIMATE_REPEATS`] repeats of every row of a first
+//! regression (`(r − 1)` degrees of freedom per row and sensor).
+
+use ndarray::{ArrayView2, ArrayViewMut2};
+
+use super::level_set::{Decomposition, LevelSet, Sensor, Singular};
+use super::{SensorNoise, SetNoise, SetStatus, TraceValidParams};
+
+/// Repeats of the first regression at a start, whose spread measures the noise.
+pub(crate) const ESTIMATE_REPEATS: usize = 16;
+/// Offset `ρ` of the first regression at a start, radians.
+const FIRST_RHO: f64 = 0.05;
+/// Smallest offset `ρ` of the regressions, radians.
+const RHO_MIN: f64 = 1e-3;
+/// Largest offset `ρ` of the regressions, radians.
+const RHO_MAX: f64 = 0.1;
+/// The relative error of the slope that `ρ` and the repeats aim at.
+const SLOPE_ERROR: f64 = 0.02;
+/// Most repeats of a regression.
+const MAX_REPEATS: usize = 64;
+/// The start's intercept takes this many times the repeats of the others.
+pub(crate) const TARGET_REPEATS: usize = 4;
+/// A point is on the set when its Gauss–Newton step is at most this many position
+/// uncertainties.
+pub(crate) const TOLERANCE_POSITIONS: f64 = 5.0;
+/// ... and every residual component within this many standard deviations of its noise
+/// (generous: the intercept's curvature bias differs along the set by a few of them;
+/// the residuals this rules out, of points where the residual is only orthogonal to
+/// the Jacobian's range, are of the order of the sensors' range).
+pub(crate) const RESIDUAL_SIGMAS: f64 = 20.0;
+/// A point where `g` is below the start's over this ratio is singular.
+const SINGULAR_RATIO: f64 = 10.0;
+/// The turn between two nodes allowed on top of `max_turn`, in standard deviations of
+/// the null vector's noise.
+const TURN_SIGMAS: f64 = 3.0;
+
+/// What the two readings of a start say ([`probe`]).
+pub(crate) enum Probe<'a> {
+    /// Equal readings (or `noise = 0`): the exact level set, with the sensor and the
+    /// start's reading when one was taken.
+    Exact(Sensor<'a>, Option<Vec<f64>>),
+    /// Readings with noise: the level set of their mean.
+    Noisy(Box<NoisySensory<'a>>),
+    /// Readings with noise, and the level set cannot be followed from this start.
+    Failed(SetStatus, SetNoise, Sensor<'a>),
+}
+
+/// The level set of the mean law (see the module docs).
+pub(crate) struct NoisySensory<'a> {
+    sensor: Sensor<'a>,
+    n: usize,
+    k: usize,
+    dimension: usize,
+    rank_tolerance: f64,
+    rho: f64,
+    repeats: usize,
+    target: Vec<f64>,
+    noise: SetNoise,
+    /// Standard deviation of a residual component.
+    residual_sigma: f64,
+    tangent_noise: f64,
+    /// `g` at the start.
+    g_start: f64,
+    jacobian: Vec<f64>,
+    eigenvalues: Vec<f64>,
+    eigenvectors: Vec<f64>,
+    probes: Vec<f64>,
+    readings: Vec<f64>,
+}
+
+/// Reads the start twice in one batch (`noise = "auto"`) and decides how to trace:
+/// exactly when the readings are equal (or `noise = 0`), otherwise on the level set of
+/// the mean law, `σ` measured or given.
+pub(crate) fn probe<'a>(
+    mut sensor: Sensor<'a>,
+    start: &[f64],
+    params: &TraceValidParams,
+    dimension: usize,
+) -> Probe<'a> {
+    let k = sensor.agent.sensor_dim();
+    let given = match params.noise {
+        SensorNoise::Sigma(0.0) => return Probe::Exact(sensor, None),
+        SensorNoise::Sigma(sigma) => Some(sigma),
+        SensorNoise::Auto => {
+            let rows = [start, start].concat();
+            let mut readings = vec![0.0; 2 * k];
+            let motors = ArrayView2::from_shape((2, start.len()), &rows).expect("2 × N rows");
+            let out = ArrayViewMut2::from_shape((2, k), &mut readings).expect("2 × K readings");
+            sensor.sense_batch(motors, out);
+            let (first, second) = readings.split_at(k);
+            if first
+                .iter()
+                .zip(second)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+            {
+                readings.truncate(k);
+                return Probe::Exact(sensor, Some(readings));
+            }
+            None
+        }
+    };
+    NoisySensory::probe_start(sensor, start, params, dimension, given)
+}
+
+impl<'a> NoisySensory<'a> {
+    /// Measures (or takes) `σ` and the slope at the start, picks `ρ` and the repeats,
+    /// and reads the start's intercept.
+    fn probe_start(
+        sensor: Sensor<'a>,
+        start: &[f64],
+        params: &TraceValidParams,
+        dimension: usize,
+        given: Option<f64>,
+    ) -> Probe<'a> {
+        let (n, k) = (sensor.agent.motor_dim(), sensor.agent.sensor_dim());
+        let mut set = Self {
+            sensor,
+            n,
+            k,
+            dimension,
+            rank_tolerance: params.rank_tolerance,
+            rho: FIRST_RHO,
+            repeats: ESTIMATE_REPEATS,
+            target: vec![0.0; k],
+            noise: SetNoise::default(),
+            residual_sigma: 0.0,
+            tangent_noise: 0.0,
+            g_start: 1.0,
+            jacobian: vec![0.0; k * n],
+            eigenvalues: vec![0.0; n],
+            eigenvectors: vec![0.0; n * n],
+            probes: Vec::new(),
+            readings: Vec::new(),
+        };
+        let mut intercept = vec![0.0; k];
+        let spread = set.regress(start, &mut intercept);
+        let sigma = given.unwrap_or(spread);
+        set.noise.sigma = sigma;
+        let singular = set.decompose().is_err();
+        let g = set
+            .eigenvalues
+            .get(dimension)
+            .map_or(0.0, |e| e.max(0.0).sqrt());
+        if singular
+            || g.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+            || !sigma.is_finite()
+        {
+            return Probe::Failed(SetStatus::Singular, set.noise, set.sensor);
+        }
+        set.g_start = g;
+        set.rho = (sigma / (std::f64::consts::SQRT_2 * SLOPE_ERROR * g)).clamp(RHO_MIN, RHO_MAX);
+        let repeats = (sigma / (std::f64::consts::SQRT_2 * set.rho * g * SLOPE_ERROR)).powi(2);
+        set.repeats = (repeats.ceil() as usize).clamp(1, MAX_REPEATS);
+        // The intercept averages the r (N + 1) readings of the centre.
+        let rows = (set.repeats * (n + 1)) as f64;
+        set.noise.stencil = set.rho;
+        set.noise.repeats = set.repeats;
+        set.noise.position = sigma / (g * rows.sqrt());
+        // The null vector moves by about |ΔJ v| / g, ΔJ v of K entries of the slope's
+        // noise each; the turn between two nodes carries two such errors.
+        set.tangent_noise =
+            TURN_SIGMAS * sigma * (k as f64).sqrt() / (set.rho * (set.repeats as f64).sqrt() * g);
+        set.residual_sigma = sigma * (1.0 / rows + 1.0 / (TARGET_REPEATS as f64 * rows)).sqrt();
+        let repeats = set.repeats;
+        set.repeats = TARGET_REPEATS * repeats;
+        let mut target = vec![0.0; k];
+        set.regress(start, &mut target);
+        set.repeats = repeats;
+        set.target = target;
+        Probe::Noisy(Box::new(set))
+    }
+
+    /// One regression at `m` (see the module docs): the intercept into `intercept`, the
+    /// slope into the Jacobian; returns the pooled standard deviation of the repeats
+    /// (0 with one repeat).
+    fn regress(&mut self, m: &[f64], intercept: &mut [f64]) -> f64 {
+        let (n, k, r, rho) = (self.n, self.k, self.repeats, self.rho);
+        // Every repeat: the centre `N + 1` times, then m ± ρ e_j.
+        let centre = n + 1;
+        let types = centre + 2 * n;
+        self.probes.clear();
+        for _ in 0..r {
+            for row in 0..types {
+                self.probes.extend_from_slice(m);
+                if row >= centre {
+                    let j = (row - centre) / 2;
+                    let at = self.probes.len() - n + j;
+                    self.probes[at] += if (row - centre) % 2 == 0 { rho } else { -rho };
+                }
+            }
+        }
+        self.readings.clear();
+        self.readings.resize(r * types * k, 0.0);
+        let motors = ArrayView2::from_shape((r * types, n), &self.probes).expect("probe rows");
+        let out =
+            ArrayViewMut2::from_shape((r * types, k), &mut self.readings).expect("reading rows");
+        self.sensor.sense_batch(motors, out);
+        // Means of every row type over the repeats, and the spread about them.
+        let mut means = vec![0.0; types * k];
+        for repeat in self.readings.chunks_exact(types * k) {
+            for (mean, v) in means.iter_mut().zip(repeat) {
+                *mean += v / r as f64;
+            }
+        }
+        let mut squares = 0.0;
+        for repeat in self.readings.chunks_exact(types * k) {
+            squares += repeat
+                .iter()
+                .zip(&means)
+                .map(|(v, mean)| (v - mean).powi(2))
+                .sum::<f64>();
+        }
+        for (i, a) in intercept.iter_mut().enumerate() {
+            *a = (0..centre).map(|row| means[row * k + i]).sum::<f64>() / centre as f64;
+        }
+        for j in 0..n {
+            let plus = &means[(centre + 2 * j) * k..];
+            let minus = &means[(centre + 2 * j + 1) * k..];
+            for i in 0..k {
+                self.jacobian[i * n + j] = (plus[i] - minus[i]) / (2.0 * rho);
+            }
+        }
+        if r < 2 {
+            return 0.0;
+        }
+        (squares / ((r - 1) * types * k) as f64).sqrt()
+    }
+
+    /// The smallest of the `N − k` largest singular values of the current slope.
+    fn g(&self) -> f64 {
+        self.eigenvalues[self.dimension].max(0.0).sqrt()
+    }
+
+    fn decompose(&mut self) -> Result<(), Singular> {
+        let decomposition = Decomposition {
+            eigenvalues: &mut self.eigenvalues,
+            eigenvectors: &mut self.eigenvectors,
+        };
+        decomposition.of(
+            &self.jacobian,
+            self.k,
+            self.n,
+            self.dimension,
+            self.rank_tolerance,
+        )
+    }
+}
+
+impl LevelSet for NoisySensory<'_> {
+    fn motor_dim(&self) -> usize {
+        self.n
+    }
+
+    fn rows(&self) -> usize {
+        self.k
+    }
+
+    fn residual(&mut self, m: &[f64], r: &mut [f64]) {
+        // Every reading is a regression: the linearisation comes with it.
+        let _ = self.linearize(m, r);
+    }
+
+    /// The Gauss–Newton step `|J⁺ r|` (radians), or more when a residual component is
+    /// beyond the noise (a point where the residual is only orthogonal to the
+    /// Jacobian's range is not on the set).
+    fn residual_norm(&self, r: &[f64]) -> f64 {
+        let mut delta = vec![0.0; self.n];
+        self.correction(r, &mut delta);
+        let step = delta.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let largest = r.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+        let noise = RESIDUAL_SIGMAS * self.residual_sigma;
+        if largest.is_nan() {
+            return f64::NAN;
+        }
+        step.max(self.tolerance() * largest / noise)
+    }
+
+    /// [`TOLERANCE_POSITIONS`] times the position uncertainty at the current
+    /// linearisation (`g` there rather than at the start).
+    fn tolerance(&self) -> f64 {
+        TOLERANCE_POSITIONS * self.noise.position * self.g_start / self.g()
+    }
+
+    fn newton_step_tolerance(&self) -> f64 {
+        self.tolerance()
+    }
+
+    fn final_step(&self) -> bool {
+        true
+    }
+
+    fn position_noise(&self) -> f64 {
+        self.noise.position
+    }
+
+    fn tangent_noise(&self) -> f64 {
+        self.tangent_noise * self.g_start / self.g()
+    }
+
+    fn noise(&self) -> Option<SetNoise> {
+        Some(self.noise)
+    }
+
+    fn linearize(&mut self, m: &[f64], r: &mut [f64]) -> Result<(), Singular> {
+        let mut intercept = vec![0.0; self.k];
+        self.regress(m, &mut intercept);
+        for ((ri, a), t) in r.iter_mut().zip(&intercept).zip(&self.target) {
+            *ri = a - t;
+        }
+        self.decompose()?;
+        // Where the slope is much weaker than at the start, the readings do not fix
+        // the position: as singular as a lost rank.
+        if (self.g() * SINGULAR_RATIO).partial_cmp(&self.g_start)
+            != Some(std::cmp::Ordering::Greater)
+        {
+            return Err(Singular);
+        }
+        Ok(())
+    }
+
+    fn null_vector(&self, reference: &[f64], t: &mut [f64]) {
+        let v0 = &self.eigenvectors[..self.n];
+        let dot: f64 = v0.iter().zip(reference).map(|(a, b)| a * b).sum();
+        let sign = if dot < 0.0 { -1.0 } else { 1.0 };
+        for (tj, v) in t.iter_mut().zip(v0) {
+            *tj = sign * v;
+        }
+    }
+
+    fn correction(&self, r: &[f64], delta: &mut [f64]) {
+        let (n, k) = (self.n, self.k);
+        let g: Vec<f64> = (0..n)
+            .map(|j| (0..k).map(|i| self.jacobian[i * n + j] * r[i]).sum())
+            .collect();
+        delta.fill(0.0);
+        for e in self.dimension..n {
+            let v = &self.eigenvectors[e * n..(e + 1) * n];
+            let coefficient =
+                v.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>() / self.eigenvalues[e];
+            for (d, vj) in delta.iter_mut().zip(v) {
+                *d += coefficient * vj;
+            }
+        }
+    }
+
+    fn jacobian(&self) -> (&[f64], usize) {
+        (&self.jacobian, self.k)
+    }
+
+    fn null_basis(&self, k: usize, basis: &mut [f64]) {
+        basis[..k * self.n].copy_from_slice(&self.eigenvectors[..k * self.n]);
+    }
+
+    fn newton(&self) -> bool {
+        true
+    }
+
+    fn covers(&self, m: &[f64]) -> bool {
+        self.sensor.agent.covers(m)
+    }
+
+    fn sensor_rows(&self) -> u64 {
+        self.sensor.rows
+    }
+
+    fn sensor_row_phases(&self) -> Option<super::SensorRowPhases> {
+        Some(self.sensor.phases)
+    }
+
+    fn set_phase(&mut self, phase: super::RowPhase) {
+        self.sensor.phase = phase;
+    }
+}
