@@ -105,7 +105,7 @@ fn is_one(x: &f64) -> bool {
 }
 
 /// A retina cell's tuning curve `τ(o)`, `o` the offset of a light's image from the
-/// cell's centre (see the [module docs](self#other-retina-laws)).
+/// cell's centre (see the arm module's docs, "Other retina laws").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Tuning {
@@ -125,7 +125,7 @@ impl Tuning {
 }
 
 /// How a light's input falls with its distance `d` to the lens, `φ(d)` (see the
-/// [module docs](self#other-retina-laws)).
+/// arm module's docs, "Other retina laws").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Falloff {
@@ -147,7 +147,7 @@ impl Falloff {
 }
 
 /// The law of a retina cell: tuning curve and falloff with their lengths (see the
-/// [module docs](self#other-retina-laws)); the default is the paper's.
+/// arm module's docs, "Other retina laws"); the default is the paper's.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RetinaLaw {
     /// The tuning curve.

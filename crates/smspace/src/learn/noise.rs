@@ -150,7 +150,7 @@ pub const FLOOR_SHARE: f64 = 0.1;
 /// A rank with `β_N / β_1` above this ratio is full (as for the law's Jacobian).
 pub const FULL_RANK_RATIO: f64 = 0.1;
 
-/// The local dimension of the sensory manifold (see the [module docs](self)).
+/// The local dimension of the sensory manifold (see the noise module's docs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LocalRank {
     /// The rank of `∂s/∂m` the data show.
@@ -174,7 +174,7 @@ struct Probe {
 
 /// Estimates the noise of `log` and the local rank of its sensory manifold from its rows
 /// `fit` (see the module docs); `seed` picks the probes. `None` when there are too few
-/// rows (fewer than [`MIN_SAMPLES_PER_COEFFICIENT`] `× (N + 1)`).
+/// rows (fewer than `MIN_SAMPLES_PER_COEFFICIENT` `× (N + 1)`).
 pub fn estimate_local(
     log: &SensorimotorLog,
     fit: &[u32],
@@ -251,7 +251,7 @@ fn median(mut values: Vec<f64>) -> f64 {
     values[values.len() / 2]
 }
 
-/// The rank from the probes' slope spectra (see the [module docs](self)).
+/// The rank from the probes' slope spectra (see the noise module's docs).
 fn local_rank(slopes: &[(Vec<f64>, f64)], relative_noise: f64, n: usize, k: usize) -> LocalRank {
     // What noise alone adds to every squared singular value of a probe's slope.
     let noise = |q: f64| k as f64 * (relative_noise * q).powi(2);
@@ -280,7 +280,7 @@ fn local_rank(slopes: &[(Vec<f64>, f64)], relative_noise: f64, n: usize, k: usiz
 }
 
 /// The rank of a descending spectrum (`spectrum[0] = 1`) whose values at or under
-/// `floor` do not count (see the [module docs](self)): `N` when the smallest value
+/// `floor` do not count (see the noise module's docs): `N` when the smallest value
 /// exceeds [`FULL_RANK_RATIO`]; else the last `r` whose ratio `spectrum_r /
 /// spectrum_{r+1}` reaches [`CLEAR_GAP`] (a weak direction of change, such as the
 /// position seen through far lights, stays above the leak of the kernel's direction
@@ -329,7 +329,7 @@ fn nearest_others(log: &SensorimotorLog, tree: &KdTree, row: u32, count: usize) 
 
 /// The affine fit at log row `row` to the samples `near` (not `row`): `(XᵀX)⁻¹` and
 /// the prediction errors `e_c / √(1 + v)` of every sensor at `row` (see the
-/// [module docs](self)); `None` when `XᵀX` is singular.
+/// noise module's docs); `None` when `XᵀX` is singular.
 fn affine_loo(
     log: &SensorimotorLog,
     row: u32,
@@ -425,7 +425,7 @@ fn probe_rows(
 
 /// The singular values (descending) of the affine fit's slope `B = ((XᵀX)⁻¹ Xᵀ S)_{1..}`
 /// at `centre` with every sensor divided by its standard deviation, and `√q` (see the
-/// [module docs](self)); `inverse` is `(XᵀX)⁻¹`.
+/// noise module's docs); `inverse` is `(XᵀX)⁻¹`.
 fn scaled_slope(
     log: &SensorimotorLog,
     near: &[(f64, u32)],
