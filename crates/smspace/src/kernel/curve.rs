@@ -275,23 +275,7 @@ fn follow(
         for j in 0..n {
             predicted[j] = m[j] + h * t[j] + 0.5 * h * h * bend[j];
         }
-        let outcome = correct(
-            set,
-            &mut predicted,
-            scratch,
-            params.max_corrector_iterations,
-            Convergence::NewtonStep,
-        )
-        .ok_or(SetStatus::CorrectorFailed)
-        .and_then(|c| {
-            if c.linearized {
-                return Ok(c);
-            }
-            match set.linearize(&predicted, &mut scratch.r) {
-                Ok(()) => Ok(c),
-                Err(_) => Err(SetStatus::Singular),
-            }
-        });
+        let outcome = correct_step(set, &mut predicted, params, scratch);
         let corrected = match outcome {
             Ok(c) => c,
             Err(status) => {
@@ -362,6 +346,32 @@ fn follow(
         if bounded && stops_on_bound(space, &previous, &m, &mut branch.nodes) {
             return Ok(());
         }
+    }
+}
+
+/// The corrector from a predicted point, linearised where it lands (the next null
+/// vector is read there): `corrector-failed` when it does not converge, `singular`
+/// when the Jacobian there is.
+fn correct_step(
+    set: &mut dyn LevelSet,
+    predicted: &mut [f64],
+    params: &TraceValidParams,
+    scratch: &mut Scratch,
+) -> Result<Corrected, SetStatus> {
+    let corrected = correct(
+        set,
+        predicted,
+        scratch,
+        params.max_corrector_iterations,
+        Convergence::NewtonStep,
+    )
+    .ok_or(SetStatus::CorrectorFailed)?;
+    if corrected.linearized {
+        return Ok(corrected);
+    }
+    match set.linearize(predicted, &mut scratch.r) {
+        Ok(()) => Ok(corrected),
+        Err(_) => Err(SetStatus::Singular),
     }
 }
 
