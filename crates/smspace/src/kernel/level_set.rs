@@ -955,6 +955,51 @@ impl<'a> Sensory<'a> {
     }
 }
 
+/// The null vector `v₀` (the eigenvector of `JᵀJ` with the smallest eigenvalue) into
+/// `t`, oriented along `reference` (`t · reference ≥ 0`).
+pub(crate) fn oriented_null_vector(v0: &[f64], reference: &[f64], t: &mut [f64]) {
+    let dot: f64 = v0.iter().zip(reference).map(|(a, b)| a * b).sum();
+    let sign = if dot < 0.0 { -1.0 } else { 1.0 };
+    for (tj, v) in t.iter_mut().zip(v0) {
+        *tj = sign * v;
+    }
+}
+
+/// An eigen-decomposition of `JᵀJ` (ascending, eigenvectors row by row), read: the
+/// first `dimension` eigenvectors span the null space, the others the row space.
+pub(crate) struct Decomposed<'b> {
+    pub(crate) eigenvalues: &'b [f64],
+    pub(crate) eigenvectors: &'b [f64],
+    pub(crate) dimension: usize,
+}
+
+impl Decomposed<'_> {
+    /// The minimum-norm step `δ = J⁺ r = Σ_{e ≥ dimension} v_e (v_eᵀ Jᵀ r) / λ_e` into
+    /// `delta` (`N` values), `J` of `k` rows (row-major).
+    pub(crate) fn minimum_norm_step(
+        &self,
+        jacobian: &[f64],
+        k: usize,
+        r: &[f64],
+        delta: &mut [f64],
+    ) {
+        let n = delta.len();
+        let mut g = vec![0.0; n];
+        for (j, gj) in g.iter_mut().enumerate() {
+            *gj = (0..k).map(|i| jacobian[i * n + j] * r[i]).sum();
+        }
+        delta.fill(0.0);
+        for e in self.dimension..n {
+            let v = &self.eigenvectors[e * n..(e + 1) * n];
+            let coefficient =
+                v.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>() / self.eigenvalues[e];
+            for (d, vj) in delta.iter_mut().zip(v) {
+                *d += coefficient * vj;
+            }
+        }
+    }
+}
+
 /// The eigen-decomposition of `JᵀJ` a sensory level set keeps: eigenvalues increasing,
 /// eigenvectors row by row (`N × N`).
 pub(crate) struct Decomposition<'b> {
@@ -1172,30 +1217,17 @@ impl LevelSet for Sensory<'_> {
     }
 
     fn null_vector(&self, reference: &[f64], t: &mut [f64]) {
-        let v0 = &self.eigenvectors[..self.n];
-        let dot: f64 = v0.iter().zip(reference).map(|(a, b)| a * b).sum();
-        let sign = if dot < 0.0 { -1.0 } else { 1.0 };
-        for (tj, v) in t.iter_mut().zip(v0) {
-            *tj = sign * v;
-        }
+        oriented_null_vector(&self.eigenvectors[..self.n], reference, t);
     }
 
     fn correction(&self, r: &[f64], delta: &mut [f64]) {
-        let n = self.n;
         let (jacobian, k) = self.active();
-        let mut g = vec![0.0; n];
-        for (j, gj) in g.iter_mut().enumerate() {
-            *gj = (0..k).map(|i| jacobian[i * n + j] * r[i]).sum();
-        }
-        delta.fill(0.0);
-        for e in self.dimension..n {
-            let v = &self.eigenvectors[e * n..(e + 1) * n];
-            let coefficient =
-                v.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>() / self.eigenvalues[e];
-            for (d, vj) in delta.iter_mut().zip(v) {
-                *d += coefficient * vj;
-            }
-        }
+        let range = Decomposed {
+            eigenvalues: &self.eigenvalues,
+            eigenvectors: &self.eigenvectors,
+            dimension: self.dimension,
+        };
+        range.minimum_norm_step(jacobian, k, r, delta);
     }
 
     fn jacobian(&self) -> (&[f64], usize) {

@@ -34,7 +34,9 @@
 
 use ndarray::{ArrayView2, ArrayViewMut2};
 
-use super::level_set::{Decomposition, LevelSet, Sensor, Singular};
+use super::level_set::{
+    oriented_null_vector, Decomposed, Decomposition, LevelSet, Sensor, Singular,
+};
 use super::{SensorNoise, SetNoise, SetStatus, TraceValidParams};
 
 /// Repeats of the first regression at a start, whose spread measures the noise.
@@ -350,28 +352,16 @@ impl LevelSet for NoisySensory<'_> {
     }
 
     fn null_vector(&self, reference: &[f64], t: &mut [f64]) {
-        let v0 = &self.eigenvectors[..self.n];
-        let dot: f64 = v0.iter().zip(reference).map(|(a, b)| a * b).sum();
-        let sign = if dot < 0.0 { -1.0 } else { 1.0 };
-        for (tj, v) in t.iter_mut().zip(v0) {
-            *tj = sign * v;
-        }
+        oriented_null_vector(&self.eigenvectors[..self.n], reference, t);
     }
 
     fn correction(&self, r: &[f64], delta: &mut [f64]) {
-        let (n, k) = (self.n, self.k);
-        let g: Vec<f64> = (0..n)
-            .map(|j| (0..k).map(|i| self.jacobian[i * n + j] * r[i]).sum())
-            .collect();
-        delta.fill(0.0);
-        for e in self.dimension..n {
-            let v = &self.eigenvectors[e * n..(e + 1) * n];
-            let coefficient =
-                v.iter().zip(&g).map(|(a, b)| a * b).sum::<f64>() / self.eigenvalues[e];
-            for (d, vj) in delta.iter_mut().zip(v) {
-                *d += coefficient * vj;
-            }
-        }
+        let range = Decomposed {
+            eigenvalues: &self.eigenvalues,
+            eigenvectors: &self.eigenvectors,
+            dimension: self.dimension,
+        };
+        range.minimum_norm_step(&self.jacobian, self.k, r, delta);
     }
 
     fn jacobian(&self) -> (&[f64], usize) {
