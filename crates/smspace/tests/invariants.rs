@@ -229,3 +229,55 @@ fn learning_the_invariants_is_the_same_for_one_thread_and_many() {
     };
     assert_eq!(run(1), run(3));
 }
+
+/// An arm whose six cells have cosine tuning: poses far apart often read nearly the
+/// same values (a cell's blind band), so about a fifth of the nearest sensory pairs are
+/// aliased. Set aside, they leave the pose's functions with `λ` far below the rest, and
+/// the traced sets follow the true ones.
+#[test]
+fn aliased_sensory_pairs_are_set_aside_and_the_pose_functions_stand_out() {
+    let arm: AgentConfig =
+        toml::from_str("kind = \"planar-arm\"\n[retina]\ntuning = \"cosine\"\n").unwrap();
+    let arm = arm.build().unwrap();
+    let environment = EnvironmentConfig::default().build(arm.as_ref()).unwrap();
+    let simulated = simulate(
+        arm.as_ref(),
+        &environment,
+        arm.default_workspace(),
+        &SimulateParams {
+            samples: 60_000,
+            noise: 0.0,
+            seed: 3,
+        },
+    )
+    .unwrap();
+    let space = arm.motor_space();
+    let starts = simulated
+        .motors
+        .select(Axis(0), &[7, 800, 9000, 21000, 40000, 52000]);
+    let log = SensorimotorLog::new(simulated.motors, simulated.sensors, files(), &space).unwrap();
+    let law = learn(&[log], &space, &LawParams::default().check().unwrap(), None).unwrap();
+    let found = law.report().invariants.clone().unwrap();
+    assert!(
+        found.kept_pairs < found.pairs * 19 / 20 && 2 * found.kept_pairs >= found.pairs,
+        "{found:?}"
+    );
+    let count = found.invariants;
+    assert!(count >= 4, "{found:?}");
+    assert!(
+        found.eigenvalues[count - 1] < 0.1 && found.eigenvalues[count] > 0.3,
+        "{found:?}"
+    );
+    let learned = trace_learned(&law, starts.view(), &law_trace_params(), &Silent).unwrap();
+    let truth = trace_sets(
+        arm.as_ref(),
+        Some(&environment),
+        starts.view(),
+        None,
+        &TraceParams::default().check().unwrap(),
+        &Silent,
+    )
+    .unwrap();
+    let errors = set_errors(&learned, &truth, Period::TwoPi).unwrap();
+    assert!(errors.compared >= 4 && errors.median < 0.1, "{errors:?}");
+}

@@ -22,6 +22,20 @@ fn first_rows(a: &Array2<f64>, count: usize) -> Array2<f64> {
     a.select(ndarray::Axis(0), &(0..count).collect::<Vec<_>>())
 }
 
+/// The local quadratic law: these tests measure the local laws (the default,
+/// `invariants`, is tested in `tests/invariants.rs`).
+fn local_quadratic() -> LawParams {
+    LawParams {
+        method: LawMethod::LocalQuadratic,
+        ..LawParams::default()
+    }
+}
+
+#[test]
+fn the_default_law_is_the_invariants() {
+    assert_eq!(LawParams::default().method, LawMethod::Invariants);
+}
+
 fn files() -> LogFiles {
     LogFiles {
         motors: PathBuf::from("m.npy"),
@@ -120,7 +134,7 @@ fn ring_sets(low1: f64) -> (smspace::kernel::TracedSets, Array2<f64>) {
     let space = MotorSpace::hinges(2);
     let starts = ndarray::array![[-0.5, -2.0], [-0.25, 0.3], [-1.0, 1.7]];
     let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
-    let params = LawParams::default().check().unwrap();
+    let params = local_quadratic().check().unwrap();
     let law = learn(&[log], &space, &params, None).unwrap();
     assert_eq!(law.report().rank, 1, "{:?}", law.report());
     let traced = trace_learned(&law, starts.view(), &TraceParams::default(), &Silent).unwrap();
@@ -165,7 +179,7 @@ fn a_learned_smooth_law_traces_its_curved_level_sets_quickly_and_closely() {
     let (motors, sensors) = hinge_log(8000, -PI, PI, bowl);
     let space = MotorSpace::hinges(2);
     let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
-    let law = learn(&[log], &space, &LawParams::default().check().unwrap(), None).unwrap();
+    let law = learn(&[log], &space, &local_quadratic().check().unwrap(), None).unwrap();
     assert_eq!(law.report().rank, 1, "{:?}", law.report());
     // Loops around the maximum (π/2, 0) and the minimum (−π/2, π), away from the
     // saddles' level 0.
@@ -238,7 +252,7 @@ fn bad_logs_are_refused_with_the_file_and_the_fix() {
         &space,
     )
     .unwrap();
-    let params = LawParams::default().check().unwrap();
+    let params = local_quadratic().check().unwrap();
     let e = message(learn(&[small], &space, &params, None).unwrap_err());
     assert!(
         e.contains("too few samples (40)") && e.contains("local-linear"),
@@ -260,7 +274,7 @@ fn periodic_motors_are_wrapped_and_learning_is_deterministic() {
     for (x, y) in a.motors.iter().zip(&b.motors) {
         assert!((x - y).abs() < 1e-12);
     }
-    let params = LawParams::default().check().unwrap();
+    let params = local_quadratic().check().unwrap();
     let first = learn(std::slice::from_ref(&a), &space, &params, None).unwrap();
     let second = learn(&[a], &space, &params, None).unwrap();
     assert_eq!(first.report(), second.report());
@@ -285,7 +299,7 @@ fn a_simulated_arm_log_is_seeded_and_its_law_has_rank_3() {
     let space = arm.motor_space();
     let starts = log.motors.select(Axis(0), &[3, 500, 9000, 15000]);
     let checked = SensorimotorLog::new(log.motors, log.sensors, files(), &space).unwrap();
-    let law_params = LawParams::default().check().unwrap();
+    let law_params = local_quadratic().check().unwrap();
     let law = learn(&[checked], &space, &law_params, None).unwrap();
     assert_eq!(law.report().rank, 3, "{:?}", law.report());
     // The true sets against themselves: zero error (the learned sets against them are
@@ -440,7 +454,7 @@ fn a_noisy_log_traces_level_sets_of_the_range_held_at_the_start() {
     let space = toy.motor_space();
     let files = files();
     let log = SensorimotorLog::new(log.motors, log.sensors, files, &space).unwrap();
-    let law = learn(&[log], &space, &LawParams::default().check().unwrap(), None).unwrap();
+    let law = learn(&[log], &space, &local_quadratic().check().unwrap(), None).unwrap();
     let traced = trace_learned(
         &law,
         starts.view(),

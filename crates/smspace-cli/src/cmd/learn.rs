@@ -35,11 +35,11 @@ pub struct Args {
     /// LOW:HIGH, or a comma-separated list of these, one per motor.
     #[arg(long, default_value = "2pi")]
     period: String,
-    /// The law: local-quadratic or local-linear (regressions of the sensors around each
-    /// configuration), or invariants (the functions of the motors that sensory neighbours
-    /// share, in a Fourier basis of the motors: the kernels are their level sets; at most
-    /// five motors).
-    #[arg(long, default_value = "local-quadratic", value_parser = parse_method)]
+    /// The law: invariants (the functions of the motors that sensory neighbours share,
+    /// in a Fourier basis of the motors: the kernels are their level sets; the default),
+    /// or local-quadratic or local-linear (regressions of the sensors around each
+    /// configuration, which average them over their bandwidth).
+    #[arg(long, default_value = "invariants", value_parser = parse_method)]
     method: LawMethod,
     /// With --method invariants: how many invariants to keep (default: those up to the
     /// largest gap of the eigenvalues below --invariance-threshold).

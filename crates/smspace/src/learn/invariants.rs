@@ -40,7 +40,9 @@
 //! `wᵀ Σ w = 1`, `λ = E[(z_i − z_j(i))²] / Var z`: 2 for a function whose values at the
 //! pair are independent, towards 0 for an invariant. The **invariants** are the
 //! eigenvectors of the smallest `λ` up to the largest gap: the `k` that maximises
-//! `λ_{k+1} / λ_k` among the `λ_k` below `invariance_threshold` (default 0.4), when that
+//! `λ_{k+1} / max(λ_k, ZERO_SHARE × threshold)` among the `λ_k` below
+//! `invariance_threshold` (default 0.4; [`ZERO_SHARE`] = 0.01: ratios between exact
+//! invariants are rounding), when that
 //! ratio is at least [`MIN_GAP`] (else all the `λ` below the threshold); or the
 //! `invariants` smallest when that count is given (at most [`MAX_INVARIANTS`]); without
 //! a given count, at least the rank `r` of `∂s/∂m` that the data show (see
@@ -48,6 +50,22 @@
 //! kernels' dimension `N − r`:
 //! `z(m) = Wᵀ (φ(m) − μ)`, `Wᵀ Σ W = I`. Several logs (environments) pool their pairs
 //! and samples into one `Σ` and one `C`: the invariants are common to all of them.
+//!
+//! # Aliased pairs
+//!
+//! Two poses far apart can read nearly the same sensor values (a cell's blind band, a
+//! light seen by no cell, three cells for a 3-D pose): their pair is *aliased*, and an
+//! invariant changes between its two samples as much as any function does. A fifth of
+//! aliased pairs raises every `λ` of the invariants by about `0.4`, which hides the gap.
+//! So the problem is solved again without them, [`TRIM_ROUNDS`] times: with the `w` of
+//! the invariants the count rule below keeps (not every `λ` below the threshold: a
+//! function that is not invariant would choose the pairs that make it look so), the change
+//! `d_i = ‖Wᵀ (φ(m_i) − φ(m_j(i)))‖²` of every pair is measured, the pairs with `d_i`
+//! above [`ALIASED_FACTOR`] times the median are set aside (never more than half), and
+//! `C` is the mean over the rest (`Σ` and `μ` stay those of every fitted sample). The
+//! report gives the pairs kept. On a retina with cosine tuning (6 cells) at 10⁵
+//! samples, a quarter of the pairs are aliased; the smallest `λ` fall from 0.11–0.4 to
+//! 0–0.03, with a gap of 15 after the ninth.
 //!
 //! # The law and its kernels
 //!
@@ -105,13 +123,20 @@ pub struct InvariantsReport {
     pub eigenvalues: Vec<f64>,
     /// Sample pairs (each fitted sample and its nearest in sensor space).
     pub pairs: usize,
+    /// The pairs left after the aliased ones were set aside (see the module docs,
+    /// "Aliased pairs"): `C` and the eigenvalues are theirs.
+    pub kept_pairs: usize,
     /// The mean `λ` of the kept invariants on the fitted pairs.
     pub fitted_lambda: f64,
     /// The same on the held-out samples, each paired with its nearest fitted sample in
     /// sensor space (`E[(z_i − z_j)²]` over them and the invariants; `Var z = 1` on the
-    /// fitted samples): near `fitted_lambda` when the invariants generalise. Absent
-    /// without held-out samples.
+    /// fitted samples), over the pairs that are not aliased (a change at most
+    /// [`ALIASED_FACTOR`] times the median, as in the fit): near `fitted_lambda` when
+    /// the invariants generalise. Absent without held-out samples.
     pub held_out_lambda: Option<f64>,
+    /// The share of the held-out pairs set aside as aliased (their invariants change
+    /// more than [`ALIASED_FACTOR`] times the median): poses the sensors confuse.
+    pub held_out_aliased: Option<f64>,
 }
 
 /// One motor's three basis functions.
@@ -294,10 +319,16 @@ fn gram(x: MatRef<'_, f64>) -> Mat<f64> {
 /// invariants and the rest.
 pub const MIN_GAP: f64 = 2.0;
 
+/// Share of the threshold under which a `λ` counts as zero in the ratios of
+/// [`largest_gap`]: a ratio between two exact invariants (orientation seen through far
+/// lights, `λ ≈ 10⁻⁵`) is rounding, not a gap.
+pub const ZERO_SHARE: f64 = 0.01;
+
 /// How many of the ascending eigenvalues `λ` are invariants: those up to the largest
-/// ratio `λ_{k+1} / λ_k` among the `λ_k` below `threshold`, when that ratio is at least
-/// [`MIN_GAP`]; else (no clear gap: too few samples to tell invariants apart) all those
-/// below `threshold`. At most [`MAX_INVARIANTS`]; 0 when none is below `threshold`.
+/// ratio `λ_{k+1} / max(λ_k, ZERO_SHARE × threshold)` among the `λ_k` below
+/// `threshold`, when that ratio is at least [`MIN_GAP`]; else (no clear gap: too few
+/// samples to tell invariants apart) all those below `threshold`. At most
+/// [`MAX_INVARIANTS`]; 0 when none is below `threshold`.
 fn largest_gap(eigenvalues: &[f64], threshold: f64) -> usize {
     let below = eigenvalues
         .iter()
@@ -306,7 +337,7 @@ fn largest_gap(eigenvalues: &[f64], threshold: f64) -> usize {
         .min(MAX_INVARIANTS);
     let ratio = |k: usize| {
         let next = eigenvalues.get(k).copied().unwrap_or(f64::INFINITY);
-        next / eigenvalues[k - 1].max(f64::MIN_POSITIVE)
+        next / eigenvalues[k - 1].max(ZERO_SHARE * threshold)
     };
     // The first of equal ratios.
     match (1..=below).max_by(|&a, &b| ratio(a).total_cmp(&ratio(b)).then(b.cmp(&a))) {
@@ -422,19 +453,18 @@ impl Moments {
         }
     }
 
-    /// The generalised eigenproblem `C w = λ Σ w`: every `λ` ascending, and the `W`
-    /// (`F × count`, `Wᵀ Σ W = I`) of the invariants kept (see the module docs); errors
-    /// name `path` (the first log's motors).
-    fn invariants(
-        self,
-        params: &LawValidParams,
+    /// The generalised eigenproblem `C w = λ Σ w`: every `λ` ascending and the `w` of
+    /// the `columns` smallest (`F × columns`, `Wᵀ Σ W = I`); errors name `path` (the
+    /// first log's motors).
+    fn solve(
+        &self,
+        columns: usize,
         path: &std::path::Path,
-        least: usize,
     ) -> Result<(Vec<f64>, Mat<f64>), LearnError> {
         let features = self.mean.len();
         let samples = self.pairs;
         // Σ = L Lᵀ.
-        let mut l = self.covariance;
+        let mut l = self.covariance.clone();
         if !crate::linalg::cholesky_in_place(l.as_mut()) {
             return Err(LearnError::TooFewSamples {
                 path: path.to_owned(),
@@ -448,7 +478,7 @@ impl Moments {
         let l = l.as_ref();
         let par = Par::Seq;
         // A = L⁻¹ C L⁻ᵀ, symmetric; its eigenvectors y give w = L⁻ᵀ y.
-        let mut x = self.pair_covariance;
+        let mut x = self.pair_covariance.clone();
         solve_lower_triangular_in_place(l, x.as_mut(), par);
         let mut a = x.transpose().to_owned();
         solve_lower_triangular_in_place(l, a.as_mut(), par);
@@ -464,27 +494,179 @@ impl Moments {
         let mut order: Vec<usize> = (0..features).collect();
         order.sort_by(|&p, &q| eigen[p].total_cmp(&eigen[q]).then(p.cmp(&q)));
         let eigenvalues: Vec<f64> = order.iter().map(|&p| eigen[p]).collect();
-        let count = params.invariants.unwrap_or_else(|| {
-            match largest_gap(&eigenvalues, params.invariance_threshold) {
-                0 => 0,
-                gap => gap.max(least).min(MAX_INVARIANTS.min(features)),
-            }
+        let mut w = Mat::from_fn(features, columns.min(features), |r, c| {
+            vectors[(r, order[c])]
         });
-        if count == 0 {
-            return Err(LearnError::TooFewSamples {
-                path: path.to_owned(),
-                samples,
-                reason: format!(
-                    "no combination of the basis is invariant enough: the smallest λ is {:.3}, not below invariance_threshold = {}",
-                    eigenvalues[0], params.invariance_threshold
-                ),
-                fix: "record more samples, or raise invariance_threshold (or set invariants)",
-            });
-        }
-        let mut w = Mat::from_fn(features, count, |r, c| vectors[(r, order[c])]);
         solve_upper_triangular_in_place(l.transpose(), w.as_mut(), par);
         Ok((eigenvalues, w))
     }
+
+    /// `C` over the pairs `kept` only (`Σ` and `μ` stay those of every fitted sample).
+    fn keep_pairs(&mut self, basis: &Basis, logs: &[SensorimotorLog], kept: &[Vec<(u32, u32)>]) {
+        let mut pair_sums = Mat::<f64>::zeros(self.mean.len(), self.mean.len());
+        for (log, pairs) in logs.iter().zip(kept) {
+            let blocks: Vec<BlockSums> = pairs
+                .par_chunks(BLOCK)
+                .map(|block| block_sums(basis, log, block))
+                .collect();
+            for block in blocks {
+                pair_sums += &block.pairs;
+            }
+        }
+        let total: usize = kept.iter().map(Vec::len).sum();
+        let inverse = 1.0 / total.max(1) as f64;
+        self.pair_covariance = Mat::from_fn(pair_sums.nrows(), pair_sums.ncols(), |a, b| {
+            pair_sums[(a, b)] * inverse
+        });
+    }
+}
+
+/// How many invariants to keep from the ascending `eigenvalues`: the given count, else
+/// those up to the largest gap below the threshold and at least `least` (0 when none is
+/// below the threshold).
+fn invariant_count(eigenvalues: &[f64], params: &LawValidParams, least: usize) -> usize {
+    let features = eigenvalues.len();
+    params.invariants.unwrap_or_else(|| {
+        match largest_gap(eigenvalues, params.invariance_threshold) {
+            0 => 0,
+            gap => gap.max(least).min(MAX_INVARIANTS.min(features)),
+        }
+    })
+}
+
+/// Rounds of setting aliased pairs aside (module docs, "Aliased pairs").
+const TRIM_ROUNDS: usize = 2;
+
+/// A pair is aliased when its invariants change by more than this factor times the
+/// median change of the pairs.
+pub const ALIASED_FACTOR: f64 = 9.0;
+
+/// The pairs of every log whose change `‖Wᵀ (φ(m_i) − φ(m_j))‖²` is at most
+/// [`ALIASED_FACTOR`] times the median over all pairs; the changes are collected in pair
+/// order, so the choice is the same for any thread count.
+fn unaliased_pairs(
+    basis: &Basis,
+    logs: &[SensorimotorLog],
+    pairs: &[Vec<(u32, u32)>],
+    w: MatRef<'_, f64>,
+) -> Vec<Vec<(u32, u32)>> {
+    let changes: Vec<Vec<f64>> = logs
+        .iter()
+        .zip(pairs)
+        .map(|(log, pairs)| {
+            pairs
+                .par_iter()
+                .map(|&(i, j)| {
+                    let (mut a, mut b) = (vec![0.0; basis.len], vec![0.0; basis.len]);
+                    basis.values(&log.motors.row(i as usize).to_vec(), &mut a);
+                    basis.values(&log.motors.row(j as usize).to_vec(), &mut b);
+                    (0..w.ncols())
+                        .map(|c| {
+                            let z: f64 = (0..w.nrows())
+                                .map(|f| w[(f, c)] * (a[f + 1] - b[f + 1]))
+                                .sum();
+                            z * z
+                        })
+                        .sum()
+                })
+                .collect()
+        })
+        .collect();
+    let mut all: Vec<f64> = changes.iter().flatten().copied().collect();
+    if all.is_empty() {
+        return pairs.to_vec();
+    }
+    let middle = all.len() / 2;
+    let median = *all.select_nth_unstable_by(middle, f64::total_cmp).1;
+    let limit = ALIASED_FACTOR * median;
+    pairs
+        .iter()
+        .zip(&changes)
+        .map(|(pairs, changes)| {
+            pairs
+                .iter()
+                .zip(changes)
+                .filter(|(_, &change)| change <= limit)
+                .map(|(&pair, _)| pair)
+                .collect()
+        })
+        .collect()
+}
+
+/// The mean of `changes` at most [`ALIASED_FACTOR`] times their median, and the share
+/// of the others; `None` when empty. Added in order: the same for any thread count.
+fn unaliased_mean(changes: &[f64]) -> Option<(f64, f64)> {
+    if changes.is_empty() {
+        return None;
+    }
+    let mut sorted = changes.to_vec();
+    let middle = sorted.len() / 2;
+    let limit = ALIASED_FACTOR * *sorted.select_nth_unstable_by(middle, f64::total_cmp).1;
+    let (sum, kept) = changes
+        .iter()
+        .filter(|&&c| c <= limit)
+        .fold((0.0, 0usize), |(s, k), c| (s + c, k + 1));
+    let aliased = (changes.len() - kept) as f64 / changes.len() as f64;
+    Some((sum / kept.max(1) as f64, aliased))
+}
+
+/// The invariants of the pairs `pairs`, after [`TRIM_ROUNDS`] rounds of setting aliased
+/// pairs aside.
+fn learn_invariants(
+    basis: &Basis,
+    logs: &[SensorimotorLog],
+    pairs: &[Vec<(u32, u32)>],
+    params: &LawValidParams,
+    least: usize,
+) -> Result<Learned, LearnError> {
+    let path = &logs[0].files.motors;
+    let mut moments = Moments::new(basis, logs, pairs);
+    let mut kept_pairs = moments.pairs;
+    let (mut eigenvalues, _) = moments.solve(0, path)?;
+    for _ in 0..TRIM_ROUNDS {
+        // The invariants the count rule keeps judge the pairs (a function above the
+        // gap would choose pairs that make it look invariant).
+        let judges = invariant_count(&eigenvalues, params, least);
+        if judges == 0 {
+            break;
+        }
+        let (_, w) = moments.solve(judges, path)?;
+        let kept = unaliased_pairs(basis, logs, pairs, w.as_ref());
+        kept_pairs = kept.iter().map(Vec::len).sum();
+        moments.keep_pairs(basis, logs, &kept);
+        eigenvalues = moments.solve(0, path)?.0;
+    }
+    let count = invariant_count(&eigenvalues, params, least);
+    if count == 0 {
+        return Err(LearnError::TooFewSamples {
+            path: path.to_owned(),
+            samples: moments.pairs,
+            reason: format!(
+                "no combination of the basis is invariant enough: the smallest λ is {:.3}, not below invariance_threshold = {}",
+                eigenvalues[0], params.invariance_threshold
+            ),
+            fix: "record more samples, or raise invariance_threshold (or set invariants)",
+        });
+    }
+    let (_, w) = moments.solve(count, path)?;
+    Ok(Learned {
+        eigenvalues,
+        w,
+        kept_pairs,
+        mean: moments.mean,
+    })
+}
+
+/// What [`learn_invariants`] finds.
+struct Learned {
+    /// Every `λ`, ascending.
+    eigenvalues: Vec<f64>,
+    /// The kept invariants' `w` (`F × count`).
+    w: Mat<f64>,
+    /// Pairs left after setting the aliased ones aside.
+    kept_pairs: usize,
+    /// `μ`, the basis' mean over the fitted samples.
+    mean: Vec<f64>,
 }
 
 impl InvariantModel {
@@ -516,12 +698,17 @@ impl InvariantModel {
                     .collect()
             })
             .collect();
-        let moments = Moments::new(&basis, logs, &pairs);
+        let Learned {
+            eigenvalues,
+            w,
+            kept_pairs,
+            mean: fitted_mean,
+        } = learn_invariants(&basis, logs, &pairs, params, least)?;
+        let total: usize = pairs.iter().map(Vec::len).sum();
         drop(pairs);
-        let (features, total) = (moments.mean.len(), moments.pairs);
+        let features = basis.len - 1;
         let mut mean = vec![0.0; basis.len];
-        mean[1..].copy_from_slice(&moments.mean);
-        let (eigenvalues, w) = moments.invariants(params, &logs[0].files.motors, least)?;
+        mean[1..].copy_from_slice(&fitted_mean);
         let count = w.ncols();
         let mut weights = vec![0.0; basis.len * count];
         for f in 0..features {
@@ -546,33 +733,34 @@ impl InvariantModel {
                     .then_some(params.invariance_threshold),
                 eigenvalues: eigenvalues[..shown].to_vec(),
                 pairs: total,
+                kept_pairs,
                 fitted_lambda: eigenvalues[..count].iter().sum::<f64>() / count as f64,
                 held_out_lambda: None,
+                held_out_aliased: None,
             },
         };
         let mut reports = Vec::with_capacity(logs.len());
-        let (mut held_sum, mut held_pairs) = (0.0, 0usize);
+        let mut changes = Vec::new();
         for (((log, fit), held_rows), index) in logs.iter().zip(fits).zip(held).zip(&indices) {
-            held_sum += model.held_out_change(log, held_rows, index);
-            held_pairs += held_rows.len();
+            changes.extend(model.held_out_changes(log, held_rows, index));
             reports.push(model.add_log(log, fit, held_rows, params)?);
         }
-        if held_pairs > 0 {
-            model.report.held_out_lambda = Some(held_sum / (held_pairs * count) as f64);
+        if let Some((lambda, aliased)) = unaliased_mean(&changes) {
+            model.report.held_out_lambda = Some(lambda / count as f64);
+            model.report.held_out_aliased = Some(aliased);
         }
         Ok((model, reports))
     }
 
-    /// `Σ_i ‖z(m_i) − z(m_j(i))‖²` over the held-out rows `i` of `log`, `j(i)` the
-    /// fitted row nearest in sensor space. The changes are collected, then added in row
-    /// order: the same sum for any thread count.
-    fn held_out_change(
+    /// `‖z(m_i) − z(m_j(i))‖²` for the held-out rows `i` of `log`, in row order, `j(i)`
+    /// the fitted row nearest in sensor space.
+    fn held_out_changes(
         &self,
         log: &SensorimotorLog,
         held_rows: &[u32],
         index: &SensorIndex,
-    ) -> f64 {
-        let changes: Vec<f64> = held_rows
+    ) -> Vec<f64> {
+        held_rows
             .par_iter()
             .map(|&i| {
                 let j = index.nearest_other(log, i);
@@ -584,8 +772,7 @@ impl InvariantModel {
                     .map(|(x, y)| (x - y) * (x - y))
                     .sum::<f64>()
             })
-            .collect();
-        changes.iter().sum()
+            .collect()
     }
 
     /// Adds the coverage of one log (its fitted rows `fit`) and measures `ŝ = g(z)` on
@@ -770,8 +957,14 @@ mod tests {
             0.009, 0.014, 0.018, 0.024, 0.030, 0.038, 0.051, 0.062, 0.108, 0.547, 0.561,
         ];
         assert_eq!(largest_gap(&arm, 0.4), 9);
-        // The redundant toy: one exact invariant (m1 + m2).
-        assert_eq!(largest_gap(&[3.5e-5, 0.012, 0.147, 0.81, 1.97], 0.4), 1);
+        // Lights far away: the orientation's two functions exact, the position's seven
+        // weaker, then the jump (not at the rounding between the first two).
+        let far = [
+            1e-6, 3e-5, 0.006, 0.015, 0.021, 0.031, 0.036, 0.044, 0.060, 0.524, 0.541,
+        ];
+        assert_eq!(largest_gap(&far, 0.4), 9);
+        // The redundant toy: two invariants (m1 + m2 and its square).
+        assert_eq!(largest_gap(&[3.5e-5, 0.012, 0.147, 0.81, 1.97], 0.4), 2);
         assert_eq!(largest_gap(&[0.5, 0.6], 0.4), 0);
         // Every eigenvalue below the threshold: all of them.
         assert_eq!(largest_gap(&[0.01, 0.02], 0.4), 2);

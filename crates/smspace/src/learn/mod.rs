@@ -86,9 +86,13 @@
 //! C w = λ Σ w,   C = mean_i (φ_i − φ_j(i))(φ_i − φ_j(i))ᵀ,   Σ = Cov(φ),   λ = E[(z_i − z_j(i))²] / Var z.
 //! ```
 //!
+//! Pairs whose samples read alike from poses far apart (aliased pairs) are set aside:
+//! twice, the change of the functions below the threshold is measured on every pair
+//! and `C` is taken again over the pairs whose change is at most 9 times the median.
 //! The invariants `z(m) = Wᵀ(φ(m) − μ)` are the eigenvectors of the smallest `λ` up to
-//! the largest gap (a ratio of at least 2 between consecutive `λ`; else all of them)
-//! among those below `invariance_threshold` (0.4; an unrelated function has `λ ≈ 2`). When the sensors are a function of the pose of the sensor that tells
+//! the largest gap (a ratio of at least 2 between consecutive `λ`, those under a
+//! hundredth of the threshold counting as zero; else all of them) among those below
+//! `invariance_threshold` (0.4; an unrelated function has `λ ≈ 2`). When the sensors are a function of the pose of the sensor that tells
 //! poses apart, the invariants are functions of the pose, and the kernel through `m^i`
 //! is the level set `z(m) = z(m^i)`: that is what is traced, with the exact Jacobian
 //! `Wᵀ ∂φ/∂m`. For a chain of hinges the pose is a trigonometric polynomial of degree one
@@ -268,13 +272,14 @@ impl LearnError {
 pub enum LawMethod {
     /// A local affine fit `a + B d` (cheaper, more bias).
     LocalLinear,
-    /// A local quadratic fit (the default: its error is lower at the same data, see
-    /// the README's comparison).
-    #[default]
+    /// A local quadratic fit (lower error than `local-linear` at the same data).
     LocalQuadratic,
     /// The functions of the motors (a tensor Fourier basis) that sensory neighbours
     /// share, learned once for all the logs; the kernels are their level sets (see the
-    /// [module docs](self#the-law-invariants-lawmethodinvariants)).
+    /// [module docs](self#the-law-invariants-lawmethodinvariants)). The default: the
+    /// local laws average the sensors over their bandwidth, and the curves traced on
+    /// them drift into wrong loops.
+    #[default]
     Invariants,
 }
 
@@ -296,7 +301,7 @@ impl std::str::FromStr for LawMethod {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct LawParams {
-    /// The regression. Default `local-quadratic`.
+    /// The law. Default `invariants`.
     pub method: LawMethod,
     /// Samples a typical fit holds: the bandwidth is the median distance to the
     /// `neighbours`-th nearest sample. Default `4p + 20` with `p` the fit's
@@ -328,7 +333,7 @@ pub struct LawParams {
 impl Default for LawParams {
     fn default() -> Self {
         Self {
-            method: LawMethod::LocalQuadratic,
+            method: LawMethod::Invariants,
             neighbours: None,
             bandwidth_factor: 1.0,
             coverage_neighbours: None,
