@@ -235,6 +235,15 @@ fn bad_logs_name_the_file_and_the_fix() {
     write_npy(dir.join("s30.npy"), &first_rows(&sensors, 30)).unwrap();
     let e = learn("m30.npy", "s30.npy", &["--period", "none"]);
     assert!(
+        e.contains("m30.npy has too few samples (30)") && e.contains("record a longer log"),
+        "{e}"
+    );
+    let e = learn(
+        "m30.npy",
+        "s30.npy",
+        &["--period", "none", "--method", "local-quadratic"],
+    );
+    assert!(
         e.contains("m30.npy has too few samples (30)") && e.contains("local-linear"),
         "{e}"
     );

@@ -161,7 +161,7 @@ fn a_simulated_log_is_learned_and_traced_with_the_agent_as_ground_truth() {
     let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(
         markdown.contains("learned law (method, rank of its Jacobian)")
-            && markdown.contains("local-quadratic, rank 1")
+            && markdown.contains("invariants, rank 1")
             && markdown.contains("held-out error of the law"),
         "{markdown}"
     );

@@ -58,8 +58,9 @@
 //! invariant changes between its two samples as much as any function does. A fifth of
 //! aliased pairs raises every `λ` of the invariants by about `0.4`, which hides the gap.
 //! So the problem is solved again without them, [`TRIM_ROUNDS`] times: with the `w` of
-//! the invariants the count rule below keeps (not every `λ` below the threshold: a
-//! function that is not invariant would choose the pairs that make it look so), the change
+//! every `λ` below `invariance_threshold` in the first round, then of the invariants
+//! the count rule below keeps (a function that is not invariant would choose the pairs
+//! that make it look so; every round judges all the pairs afresh), the change
 //! `d_i = ‖Wᵀ (φ(m_i) − φ(m_j(i)))‖²` of every pair is measured, the pairs with `d_i`
 //! above [`ALIASED_FACTOR`] times the median are set aside (never more than half), and
 //! `C` is the mean over the rest (`Σ` and `μ` stay those of every fitted sample). The
@@ -622,19 +623,25 @@ fn learn_invariants(
     let path = &logs[0].files.motors;
     let mut moments = Moments::new(basis, logs, pairs);
     let mut kept_pairs = moments.pairs;
-    let (mut eigenvalues, _) = moments.solve(0, path)?;
-    for _ in 0..TRIM_ROUNDS {
-        // The invariants the count rule keeps judge the pairs (a function above the
-        // gap would choose pairs that make it look invariant).
-        let judges = invariant_count(&eigenvalues, params, least);
+    // One solve per round gives every λ and the w of as many functions as may be kept.
+    let (mut eigenvalues, mut w) = moments.solve(MAX_INVARIANTS, path)?;
+    for round in 0..TRIM_ROUNDS {
+        // First every function below the threshold judges the pairs (aliased pairs
+        // change many of them), then only the invariants the count rule keeps (a
+        // function above the gap would choose the pairs that make it look invariant).
+        let count = invariant_count(&eigenvalues, params, least);
+        let below = eigenvalues
+            .iter()
+            .take_while(|&&l| l < params.invariance_threshold)
+            .count();
+        let judges = if round == 0 { count.max(below) } else { count }.min(w.ncols());
         if judges == 0 {
             break;
         }
-        let (_, w) = moments.solve(judges, path)?;
-        let kept = unaliased_pairs(basis, logs, pairs, w.as_ref());
+        let kept = unaliased_pairs(basis, logs, pairs, w.subcols(0, judges));
         kept_pairs = kept.iter().map(Vec::len).sum();
         moments.keep_pairs(basis, logs, &kept);
-        eigenvalues = moments.solve(0, path)?.0;
+        (eigenvalues, w) = moments.solve(MAX_INVARIANTS, path)?;
     }
     let count = invariant_count(&eigenvalues, params, least);
     if count == 0 {
@@ -648,10 +655,9 @@ fn learn_invariants(
             fix: "record more samples, or raise invariance_threshold (or set invariants)",
         });
     }
-    let (_, w) = moments.solve(count, path)?;
     Ok(Learned {
         eigenvalues,
-        w,
+        w: w.subcols(0, count.min(w.ncols())).to_owned(),
         kept_pairs,
         mean: moments.mean,
     })
