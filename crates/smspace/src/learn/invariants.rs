@@ -73,8 +73,9 @@ use serde::{Deserialize, Serialize};
 use super::law::{covered, image_tree};
 use super::log::held_out_report;
 use super::tree::KdTree;
-use super::{LawValidParams, LearnError, LogReport, SensorimotorLog};
+use super::{observe, LawValidParams, LearnError, LogReport, SensorimotorLog};
 use crate::agent::{Motor, MotorSpace};
+use crate::progress::Progress;
 
 /// Most invariants kept (the tree of the held-out regression holds one coordinate per
 /// invariant).
@@ -385,7 +386,12 @@ struct Moments {
 
 impl Moments {
     /// The sums of every log's pairs `(i, j(i))`, block by block, added in block order.
-    fn new(basis: &Basis, logs: &[SensorimotorLog], pairs: &[Vec<(u32, u32)>]) -> Self {
+    fn new(
+        basis: &Basis,
+        logs: &[SensorimotorLog],
+        pairs: &[Vec<(u32, u32)>],
+        progress: &dyn Progress,
+    ) -> Self {
         let features = basis.len - 1;
         let mut second = Mat::<f64>::zeros(features, features);
         let mut pair_sums = Mat::<f64>::zeros(features, features);
@@ -393,7 +399,11 @@ impl Moments {
         for (log, pairs) in logs.iter().zip(pairs) {
             let blocks: Vec<BlockSums> = pairs
                 .par_chunks(BLOCK)
-                .map(|block| block_sums(basis, log, block))
+                .map(|block| {
+                    let sums = block_sums(basis, log, block);
+                    progress.advance(block.len() as u64);
+                    sums
+                })
                 .collect();
             for block in blocks {
                 second += &block.second;
@@ -492,36 +502,48 @@ impl InvariantModel {
     /// report of every log (held-out rows `held[l]`); without a given count, at least
     /// `least` invariants are kept (the rank of the sensors the data show: fewer cannot
     /// make level sets of the kernels' dimension).
+    /// `progress` sees the stages of [`observe`] from [`observe::SENSOR_TREE`] on.
     pub(crate) fn fit(
         logs: &[SensorimotorLog],
-        fits: &[Vec<u32>],
-        held: &[Vec<u32>],
+        (fits, held): (&[Vec<u32>], &[Vec<u32>]),
         space: &MotorSpace,
         params: &LawValidParams,
-        least: usize,
+        (least, progress): (usize, &dyn Progress),
     ) -> Result<(Self, Vec<LogReport>), LearnError> {
         let basis = Basis::new(space);
-        let indices: Vec<SensorIndex> = logs
-            .iter()
-            .zip(fits)
-            .map(|(log, fit)| SensorIndex::new(log, fit))
-            .collect();
-        let pairs: Vec<Vec<(u32, u32)>> = logs
-            .iter()
-            .zip(fits)
-            .zip(&indices)
-            .map(|((log, fit), index)| {
-                fit.par_iter()
-                    .map(|&i| (i, index.nearest_other(log, i)))
+        let fitted: u64 = fits.iter().map(|f| f.len() as u64).sum();
+        let indices: Vec<SensorIndex> =
+            observe::stage(progress, observe::SENSOR_TREE, logs.len() as u64, || {
+                logs.iter()
+                    .zip(fits)
+                    .map(|(log, fit)| {
+                        let index = SensorIndex::new(log, fit);
+                        progress.advance(1);
+                        index
+                    })
                     .collect()
-            })
-            .collect();
-        let moments = Moments::new(&basis, logs, &pairs);
+            });
+        let pairs: Vec<Vec<(u32, u32)>> = observe::stage(progress, observe::PAIRS, fitted, || {
+            logs.iter()
+                .zip(fits)
+                .zip(&indices)
+                .map(|((log, fit), index)| {
+                    observe::map_rows(fit, progress, |i| (i, index.nearest_other(log, i)))
+                })
+                .collect()
+        });
+        let moments = observe::stage(progress, observe::BASIS, fitted, || {
+            Moments::new(&basis, logs, &pairs, progress)
+        });
         drop(pairs);
         let (features, total) = (moments.mean.len(), moments.pairs);
         let mut mean = vec![0.0; basis.len];
         mean[1..].copy_from_slice(&moments.mean);
-        let (eigenvalues, w) = moments.invariants(params, &logs[0].files.motors, least)?;
+        let (eigenvalues, w) = observe::stage(progress, observe::EIGEN, 1, || {
+            let solved = moments.invariants(params, &logs[0].files.motors, least);
+            progress.advance(1);
+            solved
+        })?;
         let count = w.ncols();
         let mut weights = vec![0.0; basis.len * count];
         for f in 0..features {
@@ -553,9 +575,14 @@ impl InvariantModel {
         let mut reports = Vec::with_capacity(logs.len());
         let (mut held_sum, mut held_pairs) = (0.0, 0usize);
         for (((log, fit), held_rows), index) in logs.iter().zip(fits).zip(held).zip(&indices) {
-            held_sum += model.held_out_change(log, held_rows, index);
+            held_sum += observe::stage(
+                progress,
+                observe::HELD_PAIRS,
+                held_rows.len() as u64,
+                || model.held_out_change(log, held_rows, (index, progress)),
+            );
             held_pairs += held_rows.len();
-            reports.push(model.add_log(log, fit, held_rows, params)?);
+            reports.push(model.add_log(log, (fit, held_rows), params, progress)?);
         }
         if held_pairs > 0 {
             model.report.held_out_lambda = Some(held_sum / (held_pairs * count) as f64);
@@ -570,21 +597,18 @@ impl InvariantModel {
         &self,
         log: &SensorimotorLog,
         held_rows: &[u32],
-        index: &SensorIndex,
+        (index, progress): (&SensorIndex, &dyn Progress),
     ) -> f64 {
-        let changes: Vec<f64> = held_rows
-            .par_iter()
-            .map(|&i| {
-                let j = index.nearest_other(log, i);
-                let (mut a, mut b) = (vec![0.0; self.count], vec![0.0; self.count]);
-                self.invariants(&log.motors.row(i as usize).to_vec(), &mut a);
-                self.invariants(&log.motors.row(j as usize).to_vec(), &mut b);
-                a.iter()
-                    .zip(&b)
-                    .map(|(x, y)| (x - y) * (x - y))
-                    .sum::<f64>()
-            })
-            .collect();
+        let changes: Vec<f64> = observe::map_rows(held_rows, progress, |i| {
+            let j = index.nearest_other(log, i);
+            let (mut a, mut b) = (vec![0.0; self.count], vec![0.0; self.count]);
+            self.invariants(&log.motors.row(i as usize).to_vec(), &mut a);
+            self.invariants(&log.motors.row(j as usize).to_vec(), &mut b);
+            a.iter()
+                .zip(&b)
+                .map(|(x, y)| (x - y) * (x - y))
+                .sum::<f64>()
+        });
         changes.iter().sum()
     }
 
@@ -594,12 +618,12 @@ impl InvariantModel {
     fn add_log(
         &mut self,
         log: &SensorimotorLog,
-        fit: &[u32],
-        held_rows: &[u32],
+        (fit, held_rows): (&[u32], &[u32]),
         params: &LawValidParams,
+        progress: &dyn Progress,
     ) -> Result<LogReport, LearnError> {
         let n = self.space.dim();
-        let (tree, bandwidth, images) = image_tree(log, fit, &self.space, params)?;
+        let (tree, bandwidth, images) = image_tree(log, fit, &self.space, params, progress)?;
         self.coverage.push(Coverage {
             tree,
             bandwidth,
@@ -607,18 +631,24 @@ impl InvariantModel {
         });
         let at = self.coverage.len() - 1;
         let count = self.count;
-        let mut z_points = vec![0.0; fit.len() * count];
-        z_points
-            .par_chunks_mut(count)
-            .zip(fit.par_iter())
-            .for_each(|(out, &row)| self.invariants(&log.motors.row(row as usize).to_vec(), out));
-        let z_tree = KdTree::new(count, z_points, fit.to_vec());
+        let z_tree = observe::stage(progress, observe::INVARIANT_TREE, 1, || {
+            let mut z_points = vec![0.0; fit.len() * count];
+            z_points
+                .par_chunks_mut(count)
+                .zip(fit.par_iter())
+                .for_each(|(out, &row)| {
+                    self.invariants(&log.motors.row(row as usize).to_vec(), out)
+                });
+            let z_tree = KdTree::new(count, z_points, fit.to_vec());
+            progress.advance(1);
+            z_tree
+        });
         let model = &*self;
         Ok(held_out_report(
             log,
-            held_rows,
-            fit.len(),
+            (held_rows, fit.len()),
             (bandwidth, images),
+            progress,
             |m, s| {
                 let coverage = &model.coverage[at];
                 if !covered(
