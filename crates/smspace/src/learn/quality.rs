@@ -151,4 +151,53 @@ mod tests {
         };
         assert_eq!(points.curve_closure_rate(), None);
     }
+
+    /// An `invariants` report of a log of `fitted` samples, rank 3, with the `λ` of the
+    /// fitted pairs and of the held-out samples.
+    fn report(fitted: usize, fitted_lambda: f64, held_out_lambda: f64) -> LawReport {
+        serde_json::from_value(serde_json::json!({
+            "method": "invariants",
+            "logs": [{
+                "motors": "m.npy", "sensors": "s.npy", "samples": fitted + 100,
+                "fitted": fitted, "held_out": 100, "bandwidth": 0.2,
+                "images_per_sample": 2.0, "held_out_relative_rms": 0.01,
+                "held_out_max_abs": 0.05, "held_out_uncovered": 0
+            }],
+            "rank": 3,
+            "rank_counts": [0, 0, 0, 512, 0],
+            "invariants": {
+                "features": 80, "invariants": 9, "threshold": 0.4,
+                "eigenvalues": [0.01, 0.02], "pairs": fitted,
+                "fitted_lambda": fitted_lambda, "held_out_lambda": held_out_lambda
+            }
+        }))
+        .unwrap()
+    }
+
+    #[test]
+    fn invariants_that_do_not_generalise_are_warned() {
+        let (quality, warnings) = assess(&report(1_000_000, 0.04, 0.05), 4);
+        assert!(warnings.is_empty(), "{warnings:?}");
+        let (per, dimension) = quality.samples_per_dimension.unwrap();
+        approx::assert_relative_eq!(per, 100.0, max_relative = 1e-12);
+        assert_eq!(dimension, 3);
+        approx::assert_relative_eq!(quality.neighbour_change.unwrap(), 0.05f64.sqrt());
+        approx::assert_relative_eq!(quality.held_out_ratio.unwrap(), 1.25);
+        // Held-out neighbours change 5× more than fitted ones.
+        let (_, warnings) = assess(&report(1_000_000, 0.04, 0.2), 4);
+        assert_eq!(warnings.len(), 1, "{warnings:?}");
+        assert!(warnings[0].contains("5.0× more"), "{warnings:?}");
+        assert!(warnings[0].contains("record more samples"), "{warnings:?}");
+        // Too few samples for a 3-D sensory manifold: 20 per dimension.
+        let (quality, warnings) = assess(&report(8000, 0.04, 0.05), 4);
+        approx::assert_relative_eq!(
+            quality.samples_per_dimension.unwrap().0,
+            20.0,
+            max_relative = 1e-12
+        );
+        assert!(
+            warnings[0].contains("record about 64000 samples (8× more)"),
+            "{warnings:?}"
+        );
+    }
 }
