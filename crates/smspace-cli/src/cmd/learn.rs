@@ -320,7 +320,9 @@ fn print_law(report: &smspace::learn::LawReport) {
         );
     }
     let quality = &report.quality;
-    if let Some((per, dimension)) = quality.samples_per_dimension {
+    if let (Some(per), Some(dimension)) =
+        (quality.samples_per_dimension, quality.resolved_dimension)
+    {
         eprintln!("{per:.0} fitted samples per dimension (of {dimension})");
     }
     if let (Some(change), Some(ratio)) = (quality.neighbour_change, quality.held_out_ratio) {

@@ -165,8 +165,8 @@ fn law_rows(t: &mut Table, law: &serde_json::Value) {
 /// rate of the traced curves.
 fn quality_rows(t: &mut Table, quality: &serde_json::Value) {
     if let (Some(per), Some(dimension)) = (
-        quality["samples_per_dimension"][0].as_f64(),
-        quality["samples_per_dimension"][1].as_u64(),
+        quality["samples_per_dimension"].as_f64(),
+        quality["resolved_dimension"].as_u64(),
     ) {
         t.push(
             "fitted samples per dimension (of the dimension resolved)",

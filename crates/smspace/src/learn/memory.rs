@@ -10,7 +10,7 @@
 //! | the log | `8 S (N + K)`, and the local fits' copy of the sensors, `8 S K` |
 //! | k-d trees | the tree of the fitted samples with their periodic images (at most `1.5^P` per sample: the bandwidth is below a quarter period), `S_f 1.5^P (8N + 8)`; the plain tree of the bandwidth, `S_f (8N + 8)`; for `invariants`, the larger of the sensor tree (`S_f (8K + 8)`) and the tree of the invariants (`S_f (8 · 32 + 8)`), and the pairs `8 S_f` |
 //! | basis | `invariants`: every block's sums of `φφᵀ` and `ΔΔᵀ` (`⌈S_f / 8192⌉ · 2 F² · 8`, `F = 3^N − 1`), and `Σ`, `C`, their factor and eigenvectors (`5 F² · 8`) |
-//! | per thread | `invariants`: one block's `φ` and `Δ` (`2 · min(8192, S_f) · F · 8`); local fits: the samples of one fit and the candidates of the next (`(1.5^P + 2) · neighbours · (3 + N + 2p + 2K) · 8`, `p` the fit's coefficients); times `T` |
+//! | per thread | `invariants`: one block's `φ` and `Δ` (`2 · min(8192, S_f) · F · 8`); local fits: the samples of one fit and the candidates of the next (`(1.5^P + 2) · neighbours · (3 + N + 2p + 2K) · 8`, `p` the fit's coefficients); times `T` (the law's report gives one thread's: it is the same for any thread count) |
 //! | traced sets | `(M, P_s, N)` float64 and the piece of every point (`8 M P_s (N + 1)`), given by the caller |
 //!
 //! The estimate is an upper bound for the trees (the images are counted at their most)
@@ -39,22 +39,30 @@ pub struct MemoryEstimate {
     pub tree_bytes: u64,
     /// The invariants' basis sums and matrices (0 for the local fits).
     pub basis_bytes: u64,
-    /// Every worker thread's buffers.
-    pub thread_bytes: u64,
+    /// One worker thread's buffers.
+    pub bytes_per_thread: u64,
     /// The traced sets (0 until the caller adds them: [`MemoryEstimate::with_sets`]).
     pub sets_bytes: u64,
-    /// Worker threads counted.
-    pub threads: usize,
+    /// Worker threads counted in the total; `None` in the law's report, which is the
+    /// same for any thread count (the total then counts one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub threads: Option<usize>,
 }
 
 impl MemoryEstimate {
+    /// Every worker thread's buffers together.
+    pub fn threads_bytes(&self) -> u64 {
+        self.bytes_per_thread
+            .saturating_mul(self.threads.unwrap_or(1) as u64)
+    }
+
     /// The sum of the parts.
     pub fn total_bytes(&self) -> u64 {
         [
             self.log_bytes,
             self.tree_bytes,
             self.basis_bytes,
-            self.thread_bytes,
+            self.threads_bytes(),
             self.sets_bytes,
         ]
         .into_iter()
@@ -80,11 +88,13 @@ impl MemoryEstimate {
         if self.basis_bytes > 0 {
             text.push_str(&format!(", basis {}", human(self.basis_bytes)));
         }
-        text.push_str(&format!(
-            ", {} threads {}",
-            self.threads,
-            human(self.thread_bytes)
-        ));
+        match self.threads {
+            Some(threads) => text.push_str(&format!(
+                ", {threads} threads {}",
+                human(self.threads_bytes())
+            )),
+            None => text.push_str(&format!(", {} per thread", human(self.bytes_per_thread))),
+        }
         if self.sets_bytes > 0 {
             text.push_str(&format!(", sets {}", human(self.sets_bytes)));
         }
@@ -96,7 +106,7 @@ impl MemoryEstimate {
         let parts = [
             (self.log_bytes.saturating_add(self.tree_bytes), 0),
             (self.basis_bytes, 1),
-            (self.thread_bytes, 2),
+            (self.threads_bytes(), 2),
             (self.sets_bytes, 3),
         ];
         let largest = parts.iter().max_by_key(|p| p.0).map_or(0, |p| p.1);
@@ -134,7 +144,7 @@ impl LawValidParams {
         threads: usize,
     ) -> MemoryEstimate {
         let mut estimate = MemoryEstimate {
-            threads,
+            threads: Some(threads),
             ..MemoryEstimate::default()
         };
         let add = |a: &mut u64, b: u64| *a = a.saturating_add(b);
@@ -165,7 +175,6 @@ impl LawValidParams {
             };
             add(&mut estimate.tree_bytes, own);
         }
-        let threads = threads.max(1) as u64;
         match self.method {
             LawMethod::Invariants => {
                 let features = 3u64.saturating_pow(n as u32) - 1;
@@ -176,19 +185,15 @@ impl LawValidParams {
                     .saturating_add(5)
                     .saturating_mul(square);
                 let rows = BASIS_BLOCK.min(fitted_total);
-                estimate.thread_bytes = (2 * rows)
-                    .saturating_mul(features)
-                    .saturating_mul(8)
-                    .saturating_mul(threads);
+                estimate.bytes_per_thread = (2 * rows).saturating_mul(features).saturating_mul(8);
             }
             LawMethod::LocalLinear | LawMethod::LocalQuadratic => {
                 let k = shapes.iter().map(|s| s.1).max().unwrap_or(0) as u64;
                 let p = self.coefficients(n) as u64;
                 let held = ((images + 2.0) * self.neighbours(n) as f64).ceil() as u64;
-                estimate.thread_bytes = held
+                estimate.bytes_per_thread = held
                     .saturating_mul(3 + n as u64 + 2 * p + 2 * k)
-                    .saturating_mul(8)
-                    .saturating_mul(threads);
+                    .saturating_mul(8);
             }
         }
         estimate
@@ -233,8 +238,8 @@ mod tests {
         }
         .check()
         .unwrap();
-        // Five motors: 242 functions, the basis sums of 10⁷ samples dominate.
-        let estimate = params.memory(&[(10_000_000, 6)], 5, 5, 2);
+        // Seven motors: 2186 functions, whose basis sums dominate.
+        let estimate = params.memory(&[(1_000_000, 6)], 7, 7, 2);
         assert!(estimate.basis_bytes > estimate.tree_bytes, "{estimate:?}");
         assert!(estimate.fix().contains("basis"));
         let sets = MemoryEstimate::default().with_sets(1 << 30);

@@ -603,7 +603,14 @@ pub fn learn_with_progress(
     law.warn(warnings);
     let (quality, warnings) = quality::assess(law.report(), n);
     law.warn(warnings);
-    law.describe(quality, Some(memory));
+    // The report is the same for any thread count: one thread's buffers.
+    law.describe(
+        quality,
+        Some(MemoryEstimate {
+            threads: None,
+            ..memory
+        }),
+    );
     Ok(law)
 }
 

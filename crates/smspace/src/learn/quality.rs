@@ -44,10 +44,13 @@ pub const MIN_CLOSURE_RATE: f64 = 0.5;
 /// The law's quality without the truth (see the module docs).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct LawQuality {
-    /// Fitted samples of the first log per dimension it must resolve, `S_f^{1/d}`,
-    /// with that dimension `d`.
+    /// Fitted samples of the first log per dimension it must resolve, `S_f^{1/d}`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub samples_per_dimension: Option<(f64, usize)>,
+    pub samples_per_dimension: Option<f64>,
+    /// That dimension `d`: the rank in the data for `invariants`, `N` for the local
+    /// fits.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resolved_dimension: Option<usize>,
     /// `invariants`: the root mean square change of an invariant between a held-out
     /// sample and its nearest fitted sensory neighbour, relative to its spread (`√λ`
     /// held out; 0 exact, `√2` unrelated).
@@ -72,7 +75,8 @@ pub(super) fn assess(report: &LawReport, n: usize) -> (LawQuality, Vec<String>) 
     };
     if let Some(first) = report.logs.first().filter(|_| dimension > 0) {
         let per = (first.fitted as f64).powf(1.0 / dimension as f64);
-        quality.samples_per_dimension = Some((per, dimension));
+        quality.samples_per_dimension = Some(per);
+        quality.resolved_dimension = Some(dimension);
         if per < MIN_SAMPLES_PER_DIMENSION {
             let wanted = MIN_SAMPLES_PER_DIMENSION.powi(dimension as i32);
             let what = match report.method {
@@ -178,9 +182,9 @@ mod tests {
     fn invariants_that_do_not_generalise_are_warned() {
         let (quality, warnings) = assess(&report(1_000_000, 0.04, 0.05), 4);
         assert!(warnings.is_empty(), "{warnings:?}");
-        let (per, dimension) = quality.samples_per_dimension.unwrap();
+        let per = quality.samples_per_dimension.unwrap();
         approx::assert_relative_eq!(per, 100.0, max_relative = 1e-12);
-        assert_eq!(dimension, 3);
+        assert_eq!(quality.resolved_dimension, Some(3));
         approx::assert_relative_eq!(quality.neighbour_change.unwrap(), 0.05f64.sqrt());
         approx::assert_relative_eq!(quality.held_out_ratio.unwrap(), 1.25);
         // Held-out neighbours change 5× more than fitted ones.
@@ -191,7 +195,7 @@ mod tests {
         // Too few samples for a 3-D sensory manifold: 20 per dimension.
         let (quality, warnings) = assess(&report(8000, 0.04, 0.05), 4);
         approx::assert_relative_eq!(
-            quality.samples_per_dimension.unwrap().0,
+            quality.samples_per_dimension.unwrap(),
             20.0,
             max_relative = 1e-12
         );
