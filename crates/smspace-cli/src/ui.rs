@@ -43,15 +43,20 @@ const DEFAULT_LINE_INTERVAL: f64 = 5.0;
 /// seconds, `trace: 120 of 2500 (4.8 %), 12 s so far, about 4 min 02 s left`, and a
 /// last one when such a stage ends. The library's notes (the kernel dimension, the
 /// estimated time) are printed as they come, either way.
+///
+/// With timings ([`Bar::with_timings`]) every stage prints how long it took as it ends:
+/// `pairs: 900000 in 12 s`.
 pub struct Bar {
     state: Mutex<Option<Shown>>,
     terminal: bool,
     interval: f64,
+    timings: bool,
 }
 
 /// What is on screen for the current stage.
 enum Shown {
-    Bar(ProgressBar),
+    /// The bar, the stage and when it started.
+    Bar(ProgressBar, String, Instant),
     Lines(Lines),
 }
 
@@ -83,6 +88,15 @@ impl Bar {
             state: Mutex::new(None),
             terminal: std::io::stderr().is_terminal(),
             interval,
+            timings: false,
+        }
+    }
+
+    /// A bar that also prints every stage's duration as it ends.
+    pub fn with_timings() -> Self {
+        Self {
+            timings: true,
+            ..Self::new()
         }
     }
 }
@@ -134,7 +148,7 @@ impl smspace::progress::Progress for Bar {
                 .progress_chars("=> "),
             );
             bar.set_message(stage.to_owned());
-            Shown::Bar(bar)
+            Shown::Bar(bar, stage.to_owned(), Instant::now())
         } else {
             Shown::Lines(Lines {
                 stage: stage.to_owned(),
@@ -149,7 +163,7 @@ impl smspace::progress::Progress for Bar {
 
     fn advance(&self, done: u64) {
         let line = match self.state.lock().expect("progress lock").as_mut() {
-            Some(Shown::Bar(bar)) => {
+            Some(Shown::Bar(bar, _, _)) => {
                 bar.inc(done);
                 None
             }
@@ -166,9 +180,18 @@ impl smspace::progress::Progress for Bar {
 
     fn finish(&self) {
         match self.state.lock().expect("progress lock").take() {
-            Some(Shown::Bar(bar)) => bar.finish_and_clear(),
-            // A stage that printed lines says that it ended.
-            Some(Shown::Lines(lines)) if lines.last.is_some() => {
+            Some(Shown::Bar(bar, stage, started)) => {
+                bar.finish_and_clear();
+                if self.timings {
+                    eprintln!(
+                        "{stage}: {} in {}",
+                        bar.position(),
+                        human_duration(started.elapsed().as_secs_f64())
+                    );
+                }
+            }
+            // A stage that printed lines (or is timed) says that it ended.
+            Some(Shown::Lines(lines)) if lines.last.is_some() || self.timings => {
                 let elapsed = lines.started.elapsed().as_secs_f64();
                 eprintln!(
                     "{}: {} of {} done in {}",
@@ -185,7 +208,7 @@ impl smspace::progress::Progress for Bar {
     fn note(&self, note: &Note) {
         let state = self.state.lock().expect("progress lock");
         match state.as_ref() {
-            Some(Shown::Bar(bar)) => bar.println(note.to_string()),
+            Some(Shown::Bar(bar, _, _)) => bar.println(note.to_string()),
             _ => eprintln!("{note}"),
         }
     }

@@ -134,11 +134,35 @@ fn learn_with_the_invariants_traces_the_lines_and_reports_the_eigenvalues() {
     let (_guard, dir) = temp();
     let starts = toy_log_and_starts(&dir, &[]);
     let learn = |extra: &[&str]| learn_toy(&[&["--method", "invariants"], extra].concat());
-    let out = ok_owned(&dir, &learn(&[]));
+    let out = ok_owned(&dir, &learn(&["--verbose"]));
+    let text = common::stderr(&out);
+    assert!(text.contains("invariants of 8 basis functions"), "{text}");
+    // The estimate before it starts, every stage's time, the quality figures.
     assert!(
-        common::stderr(&out).contains("invariants of 8 basis functions"),
-        "{}",
-        common::stderr(&out)
+        text.contains(
+            "learning from 5000 samples (1 logs, 2 motors) and tracing 4 sets need about"
+        ),
+        "{text}"
+    );
+    for stage in ["log", "noise", "pairs", "basis sums", "held out", "trace"] {
+        assert!(
+            text.lines().any(|l| l.starts_with(&format!("{stage}: "))),
+            "no time for {stage}: {text}"
+        );
+    }
+    assert!(
+        text.contains("fitted samples per dimension (of 1)"),
+        "{text}"
+    );
+    assert!(text.contains("% of the curves closed"), "{text}");
+    let law = json(&dir, "sets.law.json");
+    assert!(
+        law["quality"]["closure_rate"].as_f64().unwrap() > 0.5,
+        "{law}"
+    );
+    assert!(
+        law["memory"]["log_bytes"].as_u64().unwrap() == 5000 * 4 * 8,
+        "{law}"
     );
     let sets: Array3<f64> = read_npy(dir.join("sets.npy")).unwrap();
     let kept: Array1<i64> = read_npy(dir.join("sets.kept.npy")).unwrap();

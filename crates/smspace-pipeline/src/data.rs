@@ -46,8 +46,9 @@ use serde::{Deserialize, Serialize};
 use super::stages::World;
 use smspace::agent::{Agent, Environment, MotorSpace, Observer};
 use smspace::learn::{
-    declared_space, learn, parse_motor_declarations, simulate, LawParams, LawValidParams,
-    LearnError, LearnedLaw, LogFiles, SensorimotorLog, SimulateParams,
+    declared_space, gib_bytes, learn_with_progress, parse_motor_declarations, simulate, LawParams,
+    LawValidParams, LearnError, LearnedLaw, LogFiles, SensorimotorLog, SimulateParams,
+    DEFAULT_MEMORY_LIMIT_GIB,
 };
 use smspace::params::InvalidParameter;
 
@@ -73,10 +74,20 @@ pub struct DataParams {
     /// The learned law's parameters.
     #[serde(default)]
     pub law: LawParams,
+    /// The most memory learning may need, in GiB: the estimate from the log's shape and
+    /// the law's parameters ([`smspace::learn::MemoryEstimate`]) is checked against it
+    /// (and the run's own limit, `--max-memory`) before anything is built. Default
+    /// [`DEFAULT_MEMORY_LIMIT_GIB`] (16).
+    #[serde(default = "default_memory_limit_gib")]
+    pub memory_limit_gib: f64,
 }
 
 fn default_period() -> String {
     "2pi".to_owned()
+}
+
+fn default_memory_limit_gib() -> f64 {
+    DEFAULT_MEMORY_LIMIT_GIB
 }
 
 /// Where the log comes from, as the run's key records it.
@@ -101,6 +112,8 @@ pub struct RunData {
     /// The law's parameters, as given.
     pub law_params: LawParams,
     law_valid: LawValidParams,
+    /// `memory_limit_gib` in bytes.
+    memory_limit_bytes: u64,
     space: MotorSpace,
     sensor_dim: usize,
     logs: Mutex<Option<Arc<Vec<SensorimotorLog>>>>,
@@ -136,6 +149,13 @@ impl RunData {
         agent: Option<&dyn Agent>,
     ) -> Result<Self, LearnError> {
         let law_valid = params.law.check()?;
+        if !(params.memory_limit_gib.is_finite() && params.memory_limit_gib > 0.0) {
+            return Err(invalid(
+                "memory_limit_gib",
+                params.memory_limit_gib,
+                "must be a finite number of GiB greater than zero (default 16)",
+            ));
+        }
         match (&params.simulate, params.motors.is_empty() && params.sensors.is_empty()) {
             (Some(_), false) => Err(invalid(
                 "simulate",
@@ -257,6 +277,7 @@ impl RunData {
             source,
             law_params: params.law.clone(),
             law_valid,
+            memory_limit_bytes: gib_bytes(params.memory_limit_gib),
             space,
             sensor_dim,
             logs: Mutex::new(logs.map(Arc::new)),
@@ -346,19 +367,29 @@ impl RunData {
         Ok(made)
     }
 
-    /// The law learned from [`logs`](Self::logs), learned once; `memory_limit` (bytes)
-    /// is checked before it is built.
+    /// The law learned from [`logs`](Self::logs), learned once, its stages reported to
+    /// `progress`; the smaller of `memory_limit` (bytes) and `[data]
+    /// memory_limit_gib` is checked before it is built.
     pub fn law(
         &self,
         world: &World,
         memory_limit: Option<u64>,
+        progress: &dyn smspace::progress::Progress,
     ) -> Result<Arc<LearnedLaw>, LearnError> {
         let mut law = self.law.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(law) = law.as_ref() {
             return Ok(law.clone());
         }
         let logs = self.logs(world)?;
-        let learned = Arc::new(learn(&logs, &self.space, &self.law_valid, memory_limit)?);
+        let limit =
+            memory_limit.map_or(self.memory_limit_bytes, |l| l.min(self.memory_limit_bytes));
+        let learned = Arc::new(learn_with_progress(
+            &logs,
+            &self.space,
+            &self.law_valid,
+            Some(limit),
+            progress,
+        )?);
         *law = Some(learned.clone());
         Ok(learned)
     }

@@ -317,6 +317,42 @@ fn check_npy_size(path: &Path, file: &mut File) -> Result<(), IoError> {
     Ok(())
 }
 
+/// The shape a `.npy` file's header announces, read without the data (so that the
+/// memory a computation on it needs can be estimated before anything is allocated);
+/// `None` when the header does not parse (the array reader then says why).
+pub fn npy_shape(path: &Path) -> Result<Option<Vec<usize>>, IoError> {
+    let mut file = open_regular(path)?;
+    let mut head = Vec::with_capacity(4096);
+    std::io::Read::read_to_end(&mut std::io::Read::take(&mut file, 65_536), &mut head).map_err(
+        |reason| IoError::Read {
+            path: path.to_owned(),
+            reason,
+        },
+    )?;
+    let Some((start, end)) = npy_header_range(&head) else {
+        return Ok(None);
+    };
+    let Some(header) = head
+        .get(start..end)
+        .and_then(|h| std::str::from_utf8(h).ok())
+    else {
+        return Ok(None);
+    };
+    let shape = header
+        .split("'shape'")
+        .nth(1)
+        .and_then(|s| s.split('(').nth(1))
+        .and_then(|s| s.split(')').next());
+    Ok(shape.and_then(|shape| {
+        shape
+            .split(',')
+            .map(str::trim)
+            .filter(|e| !e.is_empty())
+            .map(|e| e.parse::<usize>().ok())
+            .collect()
+    }))
+}
+
 /// Reads a `float64` `.npy` array of any dimension, checking that every entry is finite.
 pub fn read_f64(path: &Path) -> Result<ArrayD<f64>, IoError> {
     let array = read_any::<f64>(path)?;

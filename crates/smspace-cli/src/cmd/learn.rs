@@ -9,9 +9,11 @@ use clap::Args as ClapArgs;
 use smspace::io;
 use smspace::kernel::TraceParams;
 use smspace::learn::{
-    declared_space, law_trace_params, learn, parse_motor_declarations, trace_learned, LawMethod,
-    LawParams, LogFiles, SensorimotorLog,
+    declared_space, gib_bytes, law_trace_params, learn_with_progress, parse_motor_declarations,
+    trace_learned, LawMethod, LawParams, LawValidParams, LogFiles, MotorDeclaration,
+    SensorimotorLog, DEFAULT_MEMORY_LIMIT_GIB,
 };
+use smspace::progress::Progress;
 
 use crate::ui::Bar;
 
@@ -75,10 +77,18 @@ pub struct Args {
     /// `<stem>.errors.json`.
     #[arg(long, value_name = "FILE")]
     truth_sets: Option<PathBuf>,
-    /// Refuse to start when learning needs more than this many bytes (default: the
-    /// memory available, MemAvailable in /proc/meminfo).
+    /// Samples of each log held out of the fit to measure the law's error (default
+    /// min(S/10, 2000)).
+    #[arg(long, value_name = "COUNT")]
+    holdout: Option<usize>,
+    /// Refuse to start when learning and the traced sets need more than this many bytes
+    /// (default: the memory available, MemAvailable in /proc/meminfo, at most 16 GiB).
     #[arg(long, value_name = "BYTES")]
     max_memory: Option<u64>,
+    /// Print how long each stage took (reading the logs, the noise, the k-d trees, the
+    /// pairs and basis sums, the held-out samples, tracing) as it ends.
+    #[arg(long)]
+    verbose: bool,
 }
 
 fn parse_method(s: &str) -> Result<LawMethod, String> {
@@ -100,58 +110,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         neighbours: args.neighbours,
         bandwidth_factor: args.bandwidth_factor,
         seed: args.seed,
+        holdout: args.holdout,
         invariants: args.invariants,
         invariance_threshold: args.invariance_threshold,
         ..LawParams::default()
     }
     .check()?;
-    let limit = args.max_memory.or_else(super::common::memory_available);
-    let on_disk: u64 = args
-        .motors
-        .iter()
-        .chain(&args.sensors)
-        .filter_map(|p| std::fs::metadata(p).ok())
-        .map(|m| m.len())
-        .sum();
-    super::common::check_memory(
-        "logs",
-        on_disk,
-        limit,
-        "learn from fewer samples (cut the logs)",
-    )?;
-    let first = io::read_matrix(&args.motors[0], None, "(S, N)")?;
-    let space = declared_space(&declarations, first.view(), &args.motors[0])?;
-    drop(first);
-    let logs = args
-        .motors
-        .iter()
-        .zip(&args.sensors)
-        .map(|(motors, sensors)| {
-            SensorimotorLog::load(
-                LogFiles {
-                    motors: motors.clone(),
-                    sensors: sensors.clone(),
-                },
-                &space,
-            )
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let samples: usize = logs.iter().map(SensorimotorLog::samples).sum();
-    let periodic = space.motors().iter().filter(|m| m.is_periodic()).count();
-    let needed: u64 = logs
-        .iter()
-        .map(|l| params.bytes(l.samples(), space.dim(), l.sensors.ncols(), periodic))
-        .sum();
-    eprintln!(
-        "learning from {samples} samples ({} logs, {space}): at most {} of memory",
-        logs.len(),
-        smspace::metric::human_bytes(needed)
-    );
-    let starts = io::read_matrix(
-        &args.starts,
-        Some(space.dim()),
-        &format!("(M, {})", space.dim()),
-    )?;
     let trace = TraceParams {
         points: args.points,
         max_steps: args.max_steps,
@@ -159,15 +123,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..law_trace_params()
     };
     trace.check()?;
-    super::common::check_memory(
-        "kernel sets",
-        trace.sets_bytes(starts.nrows() as u64, space.dim()),
-        args.max_memory,
-        "trace fewer starts per call, or lower --points",
+    let limit = args.max_memory.unwrap_or_else(|| {
+        let default = gib_bytes(DEFAULT_MEMORY_LIMIT_GIB);
+        super::common::memory_available().map_or(default, |a| a.min(default))
+    });
+    let bar = if args.verbose {
+        Bar::with_timings()
+    } else {
+        Bar::new()
+    };
+    check_memory_first(&args, &declarations, (&params, &trace), limit)?;
+    let first = io::read_matrix(&args.motors[0], None, "(S, N)")?;
+    let space = declared_space(&declarations, first.view(), &args.motors[0])?;
+    drop(first);
+    let logs = read_logs(&args, &space, &bar)?;
+    let starts = io::read_matrix(
+        &args.starts,
+        Some(space.dim()),
+        &format!("(M, {})", space.dim()),
     )?;
-    let law = learn(&logs, &space, &params, limit)?;
+    let law = learn_with_progress(&logs, &space, &params, Some(limit), &bar)?;
+    drop(logs);
     print_law(law.report());
-    let bar = Bar::new();
     let traced = trace_learned(&law, starts.view(), &trace, &bar)?;
     traced
         .report
@@ -178,10 +155,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(path) => Some(truth_errors(&traced, path, &space)?),
         None => None,
     };
+    // The law's report with what tracing showed (the closure rate, its warning).
+    let report = law.report().with_trace(&traced.report.summary);
     // The writer of `smspace trace`, and the law's report, all together.
     let mut outputs = io::Outputs::new();
     traced.write_into(&mut outputs, &args.out)?;
-    outputs.json(&io::sibling(&args.out, "law.json"), law.report())?;
+    outputs.json(&io::sibling(&args.out, "law.json"), &report)?;
     if let Some(errors) = &errors {
         outputs.json(&io::sibling(&args.out, "errors.json"), errors)?;
     }
@@ -194,14 +173,98 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let summary = &traced.report.summary;
     eprintln!(
-        "traced {} of {} sets on the learned law (rank {}); {} failed {:?}",
+        "traced {} of {} sets on the learned law (rank {}); {} failed {:?}{}",
         summary.traced,
         summary.total,
-        law.report().rank,
+        report.rank,
         summary.failed,
-        summary.by_status
+        summary.by_status,
+        report
+            .quality
+            .closure_rate
+            .map_or(String::new(), |r| format!(
+                "; {:.1} % of the curves closed",
+                100.0 * r
+            ))
     );
+    // Only the warnings tracing added: the law's own were printed before it.
+    for warning in report.warnings.iter().skip(law.report().warnings.len()) {
+        eprintln!("warning: {warning}");
+    }
     Ok(())
+}
+
+/// The memory learning and tracing need, from the shapes the files' headers announce
+/// (nothing read yet), on stderr; refused above `limit` with the parts and what to
+/// lower. Files whose header does not parse are left to the readers, which say why.
+fn check_memory_first(
+    args: &Args,
+    declarations: &[MotorDeclaration],
+    (params, trace): (&LawValidParams, &TraceParams),
+    limit: u64,
+) -> anyhow::Result<()> {
+    let mut shapes = Vec::with_capacity(args.motors.len());
+    let mut motors = 0;
+    for (m, s) in args.motors.iter().zip(&args.sensors) {
+        match (io::npy_shape(m)?, io::npy_shape(s)?) {
+            (Some(m), Some(s)) if m.len() == 2 && s.len() == 2 => {
+                motors = m[1];
+                shapes.push((m[0], s[1]));
+            }
+            _ => return Ok(()),
+        }
+    }
+    let periodic = if declarations.len() == 1 {
+        usize::from(matches!(declarations[0], MotorDeclaration::Periodic(_))) * motors
+    } else {
+        declarations
+            .iter()
+            .filter(|d| matches!(d, MotorDeclaration::Periodic(_)))
+            .count()
+    };
+    let starts = io::npy_shape(&args.starts)?
+        .and_then(|s| s.first().copied())
+        .unwrap_or(0);
+    let estimate = params
+        .memory(&shapes, motors, periodic, rayon::current_num_threads())
+        .with_sets(trace.sets_bytes(starts as u64, motors));
+    let samples: usize = shapes.iter().map(|s| s.0).sum();
+    eprintln!(
+        "learning from {samples} samples ({} logs, {motors} motors) and tracing {starts} sets need about {} ({}); the limit is {}",
+        shapes.len(),
+        smspace::metric::human_bytes(estimate.total_bytes()),
+        estimate.parts(),
+        smspace::metric::human_bytes(limit)
+    );
+    estimate.check(samples, limit)?;
+    Ok(())
+}
+
+/// Reads and checks every log, as the stage `log` of `bar`.
+fn read_logs(
+    args: &Args,
+    space: &smspace::agent::MotorSpace,
+    bar: &Bar,
+) -> anyhow::Result<Vec<SensorimotorLog>> {
+    bar.start("log", args.motors.len() as u64);
+    let logs = args
+        .motors
+        .iter()
+        .zip(&args.sensors)
+        .map(|(motors, sensors)| {
+            let log = SensorimotorLog::load(
+                LogFiles {
+                    motors: motors.clone(),
+                    sensors: sensors.clone(),
+                },
+                space,
+            );
+            bar.advance(1);
+            log
+        })
+        .collect::<Result<Vec<_>, _>>();
+    bar.finish();
+    Ok(logs?)
 }
 
 /// What learning found, on stderr: each log's bandwidth, held-out error and noise, the
@@ -254,6 +317,17 @@ fn print_law(report: &smspace::learn::LawReport) {
             found
                 .held_out_lambda
                 .map_or("-".to_owned(), |l| format!("{l:.3}"))
+        );
+    }
+    let quality = &report.quality;
+    if let (Some(per), Some(dimension)) =
+        (quality.samples_per_dimension, quality.resolved_dimension)
+    {
+        eprintln!("{per:.0} fitted samples per dimension (of {dimension})");
+    }
+    if let (Some(change), Some(ratio)) = (quality.neighbour_change, quality.held_out_ratio) {
+        eprintln!(
+            "the invariants change by {change:.3} of their spread between held-out sensory neighbours ({ratio:.2}× the fitted pairs' λ)"
         );
     }
     for warning in &report.warnings {

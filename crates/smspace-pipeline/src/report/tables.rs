@@ -126,6 +126,7 @@ fn law_rows(t: &mut Table, law: &serde_json::Value) {
             ),
         );
     }
+    quality_rows(t, &law["quality"]);
     for warning in law["warnings"].as_array().into_iter().flatten() {
         t.push("warning", text(warning));
     }
@@ -156,6 +157,36 @@ fn law_rows(t: &mut Table, law: &serde_json::Value) {
                 format!("{} / {}", num(fitted), num(held)),
             );
         }
+    }
+}
+
+/// The rows of a learned law's quality without the truth (`LawQuality`): samples per
+/// dimension, the invariants' change between held-out sensory neighbours, the closure
+/// rate of the traced curves.
+fn quality_rows(t: &mut Table, quality: &serde_json::Value) {
+    if let (Some(per), Some(dimension)) = (
+        quality["samples_per_dimension"].as_f64(),
+        quality["resolved_dimension"].as_u64(),
+    ) {
+        t.push(
+            "fitted samples per dimension (of the dimension resolved)",
+            format!("{} ({dimension})", num(per)),
+        );
+    }
+    if let (Some(change), Some(ratio)) = (
+        quality["neighbour_change"].as_f64(),
+        quality["held_out_ratio"].as_f64(),
+    ) {
+        t.push(
+            "change of the invariants between held-out sensory neighbours (of their spread; held-out / fitted λ)",
+            format!("{}; {}", num(change), num(ratio)),
+        );
+    }
+    if let Some(rate) = quality["closure_rate"].as_f64() {
+        t.push(
+            "traced curves that closed",
+            format!("{:.1} %", 100.0 * rate),
+        );
     }
 }
 

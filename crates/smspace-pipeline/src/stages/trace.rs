@@ -157,10 +157,9 @@ impl Stage for TraceStage {
         let motors = input.exploration.motors.view();
         let traced = match &world.data {
             Some(data) => {
-                let law = data.law(world, context.memory_limit_bytes)?;
+                let law = data.law(world, context.memory_limit_bytes, context.progress)?;
+                // Its report's `law`: the law's, with the closure rate and warnings.
                 let mut traced = trace_learned(&law, motors, &self.kernel, context.progress)?;
-                // A report of numbers and names always serialises.
-                traced.report.law = serde_json::to_value(law.report()).ok();
                 if matches!(data.source, DataSource::Simulate(_)) && !traced.kept.is_empty() {
                     traced.report.summary.truth = truth_errors(
                         world,
@@ -270,8 +269,19 @@ impl Stage for TraceStage {
                 "; covering radius {low:.3} / {median:.3} / {high:.3} rad (min / median / max)"
             ));
         }
+        if let Some(rate) = s.closure_rate {
+            line.push_str(&format!("; {:.0} % of the curves closed", 100.0 * rate));
+        }
         for warning in s.warnings() {
             line.push_str(&format!("; warning: {warning}"));
+        }
+        // A learned law's warnings (too few samples, noise, low closure).
+        if let Some(law) = &t.report.law {
+            for warning in law["warnings"].as_array().into_iter().flatten() {
+                if let Some(warning) = warning.as_str() {
+                    line.push_str(&format!("; warning: {warning}"));
+                }
+            }
         }
         line
     }

@@ -986,6 +986,10 @@ pub struct TraceSummary {
     /// over the starts; `None` for exact readings.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseSummary>,
+    /// The share of the sets traced as curves that closed
+    /// ([`TraceSummary::curve_closure_rate`]); `None` when no set was a curve.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub closure_rate: Option<f64>,
 }
 
 /// Sensor rows per start: what tracing costs an agent that is slow to sense.
@@ -1033,6 +1037,20 @@ pub struct TruthErrors {
 }
 
 impl TraceSummary {
+    /// The share of the sets traced as curves that closed: a loop back to its start, a
+    /// segment ending on the bounds of bounded motors, or pieces,
+    /// `(closed + open + pieces) / (total − point − covered − cover-budget)`; `None`
+    /// when no set was traced as a curve. On a law learned from data, whose level sets
+    /// wander where the data are poor, a quality figure without the truth.
+    pub fn curve_closure_rate(&self) -> Option<f64> {
+        let count = |status: SetStatus| self.by_status.get(&status.name()).copied().unwrap_or(0);
+        let closed = count(SetStatus::Closed) + count(SetStatus::Open) + count(SetStatus::Pieces);
+        let curves = self.total.saturating_sub(
+            count(SetStatus::Point) + count(SetStatus::Covered) + count(SetStatus::CoverBudget),
+        );
+        (curves > 0).then(|| closed as f64 / curves as f64)
+    }
+
     /// Fails with [`KernelError::TooFewKept`] when fewer than `needed` sets were kept
     /// and some failed (fewer asked for than needed, all traced, is the caller's to
     /// judge): the pipeline needs 2, `smspace trace` of `M` rows `min(2, M)`.
@@ -1418,6 +1436,7 @@ pub fn trace_sets(
     summary.covering_radius =
         (!radii.is_empty()).then(|| [radii[0], radii[radii.len() / 2], radii[radii.len() - 1]]);
     summary.traced = kept.len();
+    summary.closure_rate = summary.curve_closure_rate();
     summary.failed = summary.total - summary.traced;
     let pieces = ndarray::Array2::from_shape_vec((kept.len(), p), pieces)
         .expect("every kept set has a piece for each of its P points");

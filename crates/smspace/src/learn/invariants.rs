@@ -92,8 +92,9 @@ use serde::{Deserialize, Serialize};
 use super::law::{covered, image_tree};
 use super::log::held_out_report;
 use super::tree::KdTree;
-use super::{LawValidParams, LearnError, LogReport, SensorimotorLog};
+use super::{observe, LawValidParams, LearnError, LogReport, SensorimotorLog};
 use crate::agent::{Motor, MotorSpace};
+use crate::progress::Progress;
 
 /// Most invariants kept (the tree of the held-out regression holds one coordinate per
 /// invariant).
@@ -417,7 +418,12 @@ struct Moments {
 
 impl Moments {
     /// The sums of every log's pairs `(i, j(i))`, block by block, added in block order.
-    fn new(basis: &Basis, logs: &[SensorimotorLog], pairs: &[Vec<(u32, u32)>]) -> Self {
+    fn new(
+        basis: &Basis,
+        logs: &[SensorimotorLog],
+        pairs: &[Vec<(u32, u32)>],
+        progress: &dyn Progress,
+    ) -> Self {
         let features = basis.len - 1;
         let mut second = Mat::<f64>::zeros(features, features);
         let mut pair_sums = Mat::<f64>::zeros(features, features);
@@ -425,7 +431,11 @@ impl Moments {
         for (log, pairs) in logs.iter().zip(pairs) {
             let blocks: Vec<BlockSums> = pairs
                 .par_chunks(BLOCK)
-                .map(|block| block_sums(basis, log, block))
+                .map(|block| {
+                    let sums = block_sums(basis, log, block);
+                    progress.advance(block.len() as u64);
+                    sums
+                })
                 .collect();
             for block in blocks {
                 second += &block.second;
@@ -618,13 +628,32 @@ fn learn_invariants(
     logs: &[SensorimotorLog],
     pairs: &[Vec<(u32, u32)>],
     params: &LawValidParams,
-    least: usize,
+    (least, progress): (usize, &dyn Progress),
+) -> Result<Learned, LearnError> {
+    let fitted: usize = pairs.iter().map(Vec::len).sum();
+    let mut moments = observe::stage(progress, observe::BASIS, fitted as u64, || {
+        Moments::new(basis, logs, pairs, progress)
+    });
+    observe::stage(progress, observe::EIGEN, 1 + TRIM_ROUNDS as u64, || {
+        solve_without_aliased(&mut moments, basis, logs, pairs, params, (least, progress))
+    })
+}
+
+/// The eigenproblem of `moments`, solved again after each of [`TRIM_ROUNDS`] rounds of
+/// setting aliased pairs aside (a step of `progress` per solve).
+fn solve_without_aliased(
+    moments: &mut Moments,
+    basis: &Basis,
+    logs: &[SensorimotorLog],
+    pairs: &[Vec<(u32, u32)>],
+    params: &LawValidParams,
+    (least, progress): (usize, &dyn Progress),
 ) -> Result<Learned, LearnError> {
     let path = &logs[0].files.motors;
-    let mut moments = Moments::new(basis, logs, pairs);
     let mut kept_pairs = moments.pairs;
     // One solve per round gives every λ and the w of as many functions as may be kept.
     let (mut eigenvalues, mut w) = moments.solve(MAX_INVARIANTS, path)?;
+    progress.advance(1);
     for round in 0..TRIM_ROUNDS {
         // First every function below the threshold judges the pairs (aliased pairs
         // change many of them), then only the invariants the count rule keeps (a
@@ -636,12 +665,15 @@ fn learn_invariants(
             .count();
         let judges = if round == 0 { count.max(below) } else { count }.min(w.ncols());
         if judges == 0 {
+            // Nothing to judge by: the rounds left are done.
+            progress.advance((TRIM_ROUNDS - round) as u64);
             break;
         }
         let kept = unaliased_pairs(basis, logs, pairs, w.subcols(0, judges));
         kept_pairs = kept.iter().map(Vec::len).sum();
         moments.keep_pairs(basis, logs, &kept);
         (eigenvalues, w) = moments.solve(MAX_INVARIANTS, path)?;
+        progress.advance(1);
     }
     let count = invariant_count(&eigenvalues, params, least);
     if count == 0 {
@@ -659,7 +691,7 @@ fn learn_invariants(
         eigenvalues,
         w: w.subcols(0, count.min(w.ncols())).to_owned(),
         kept_pairs,
-        mean: moments.mean,
+        mean: moments.mean.clone(),
     })
 }
 
@@ -680,36 +712,42 @@ impl InvariantModel {
     /// report of every log (held-out rows `held[l]`); without a given count, at least
     /// `least` invariants are kept (the rank of the sensors the data show: fewer cannot
     /// make level sets of the kernels' dimension).
+    /// `progress` sees the stages of [`observe`] from [`observe::SENSOR_TREE`] on.
     pub(crate) fn fit(
         logs: &[SensorimotorLog],
-        fits: &[Vec<u32>],
-        held: &[Vec<u32>],
+        (fits, held): (&[Vec<u32>], &[Vec<u32>]),
         space: &MotorSpace,
         params: &LawValidParams,
-        least: usize,
+        (least, progress): (usize, &dyn Progress),
     ) -> Result<(Self, Vec<LogReport>), LearnError> {
         let basis = Basis::new(space);
-        let indices: Vec<SensorIndex> = logs
-            .iter()
-            .zip(fits)
-            .map(|(log, fit)| SensorIndex::new(log, fit))
-            .collect();
-        let pairs: Vec<Vec<(u32, u32)>> = logs
-            .iter()
-            .zip(fits)
-            .zip(&indices)
-            .map(|((log, fit), index)| {
-                fit.par_iter()
-                    .map(|&i| (i, index.nearest_other(log, i)))
+        let fitted: u64 = fits.iter().map(|f| f.len() as u64).sum();
+        let indices: Vec<SensorIndex> =
+            observe::stage(progress, observe::SENSOR_TREE, logs.len() as u64, || {
+                logs.iter()
+                    .zip(fits)
+                    .map(|(log, fit)| {
+                        let index = SensorIndex::new(log, fit);
+                        progress.advance(1);
+                        index
+                    })
                     .collect()
-            })
-            .collect();
+            });
+        let pairs: Vec<Vec<(u32, u32)>> = observe::stage(progress, observe::PAIRS, fitted, || {
+            logs.iter()
+                .zip(fits)
+                .zip(&indices)
+                .map(|((log, fit), index)| {
+                    observe::map_rows(fit, progress, |i| (i, index.nearest_other(log, i)))
+                })
+                .collect()
+        });
         let Learned {
             eigenvalues,
             w,
             kept_pairs,
             mean: fitted_mean,
-        } = learn_invariants(&basis, logs, &pairs, params, least)?;
+        } = learn_invariants(&basis, logs, &pairs, params, (least, progress))?;
         let total: usize = pairs.iter().map(Vec::len).sum();
         drop(pairs);
         let features = basis.len - 1;
@@ -748,8 +786,13 @@ impl InvariantModel {
         let mut reports = Vec::with_capacity(logs.len());
         let mut changes = Vec::new();
         for (((log, fit), held_rows), index) in logs.iter().zip(fits).zip(held).zip(&indices) {
-            changes.extend(model.held_out_changes(log, held_rows, index));
-            reports.push(model.add_log(log, fit, held_rows, params)?);
+            changes.extend(observe::stage(
+                progress,
+                observe::HELD_PAIRS,
+                held_rows.len() as u64,
+                || model.held_out_changes(log, held_rows, (index, progress)),
+            ));
+            reports.push(model.add_log(log, (fit, held_rows), params, progress)?);
         }
         if let Some((lambda, aliased)) = unaliased_mean(&changes) {
             model.report.held_out_lambda = Some(lambda / count as f64);
@@ -764,21 +807,18 @@ impl InvariantModel {
         &self,
         log: &SensorimotorLog,
         held_rows: &[u32],
-        index: &SensorIndex,
+        (index, progress): (&SensorIndex, &dyn Progress),
     ) -> Vec<f64> {
-        held_rows
-            .par_iter()
-            .map(|&i| {
-                let j = index.nearest_other(log, i);
-                let (mut a, mut b) = (vec![0.0; self.count], vec![0.0; self.count]);
-                self.invariants(&log.motors.row(i as usize).to_vec(), &mut a);
-                self.invariants(&log.motors.row(j as usize).to_vec(), &mut b);
-                a.iter()
-                    .zip(&b)
-                    .map(|(x, y)| (x - y) * (x - y))
-                    .sum::<f64>()
-            })
-            .collect()
+        observe::map_rows(held_rows, progress, |i| {
+            let j = index.nearest_other(log, i);
+            let (mut a, mut b) = (vec![0.0; self.count], vec![0.0; self.count]);
+            self.invariants(&log.motors.row(i as usize).to_vec(), &mut a);
+            self.invariants(&log.motors.row(j as usize).to_vec(), &mut b);
+            a.iter()
+                .zip(&b)
+                .map(|(x, y)| (x - y) * (x - y))
+                .sum::<f64>()
+        })
     }
 
     /// Adds the coverage of one log (its fitted rows `fit`) and measures `ŝ = g(z)` on
@@ -787,12 +827,12 @@ impl InvariantModel {
     fn add_log(
         &mut self,
         log: &SensorimotorLog,
-        fit: &[u32],
-        held_rows: &[u32],
+        (fit, held_rows): (&[u32], &[u32]),
         params: &LawValidParams,
+        progress: &dyn Progress,
     ) -> Result<LogReport, LearnError> {
         let n = self.space.dim();
-        let (tree, bandwidth, images) = image_tree(log, fit, &self.space, params)?;
+        let (tree, bandwidth, images) = image_tree(log, fit, &self.space, params, progress)?;
         self.coverage.push(Coverage {
             tree,
             bandwidth,
@@ -800,18 +840,24 @@ impl InvariantModel {
         });
         let at = self.coverage.len() - 1;
         let count = self.count;
-        let mut z_points = vec![0.0; fit.len() * count];
-        z_points
-            .par_chunks_mut(count)
-            .zip(fit.par_iter())
-            .for_each(|(out, &row)| self.invariants(&log.motors.row(row as usize).to_vec(), out));
-        let z_tree = KdTree::new(count, z_points, fit.to_vec());
+        let z_tree = observe::stage(progress, observe::INVARIANT_TREE, 1, || {
+            let mut z_points = vec![0.0; fit.len() * count];
+            z_points
+                .par_chunks_mut(count)
+                .zip(fit.par_iter())
+                .for_each(|(out, &row)| {
+                    self.invariants(&log.motors.row(row as usize).to_vec(), out)
+                });
+            let z_tree = KdTree::new(count, z_points, fit.to_vec());
+            progress.advance(1);
+            z_tree
+        });
         let model = &*self;
         Ok(held_out_report(
             log,
-            held_rows,
-            fit.len(),
+            (held_rows, fit.len()),
             (bandwidth, images),
+            progress,
             |m, s| {
                 let coverage = &model.coverage[at];
                 if !covered(

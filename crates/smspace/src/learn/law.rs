@@ -10,10 +10,13 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::invariants::{InvariantModel, InvariantsReport};
+use super::memory::MemoryEstimate;
 use super::noise::{LocalRank, NoiseEstimate};
+use super::quality::LawQuality;
 use super::tree::{Candidates, KdTree};
-use super::{LawMethod, LawValidParams, LearnError, SensorimotorLog};
+use super::{observe, LawMethod, LawValidParams, LearnError, SensorimotorLog};
 use crate::agent::{Agent, Environment, MotorSpace};
+use crate::progress::Progress;
 
 /// Most samples whose neighbour distances fix the bandwidth, and at which the rank of
 /// the law's Jacobian is estimated.
@@ -358,9 +361,10 @@ impl LocalModel {
         fit: &[u32],
         params: &LawValidParams,
         space: &MotorSpace,
+        progress: &dyn Progress,
     ) -> Result<(Self, f64), LearnError> {
         let (n, k) = (log.motors.ncols(), log.sensors.ncols());
-        let (tree, bandwidth, images) = image_tree(log, fit, space, params)?;
+        let (tree, bandwidth, images) = image_tree(log, fit, space, params, progress)?;
         let mut sensors = vec![0.0; log.sensors.len()];
         for (out, row) in sensors.chunks_mut(k).zip(log.sensors.outer_iter()) {
             out.iter_mut().zip(row).for_each(|(a, &b)| *a = b);
@@ -529,12 +533,28 @@ pub(super) fn covered(
 /// The bandwidth `h` of a log's fitted rows (`bandwidth_factor` times the median
 /// distance to the `neighbours`-th nearest sample), refused when it reaches a quarter
 /// of the shortest period, and the k-d tree of those rows with their periodic images
-/// within `h` of the ends, with the images per fitted row.
+/// within `h` of the ends, with the images per fitted row: the stage
+/// [`observe::TREE`] of `progress` (two steps: the bandwidth, then the images' tree).
 pub(super) fn image_tree(
     log: &SensorimotorLog,
     fit: &[u32],
     space: &MotorSpace,
     params: &LawValidParams,
+    progress: &dyn Progress,
+) -> Result<(KdTree, f64, f64), LearnError> {
+    progress.start(observe::TREE, 2);
+    let built = build_image_tree(log, fit, space, params, progress);
+    progress.finish();
+    built
+}
+
+/// [`image_tree`]'s work.
+fn build_image_tree(
+    log: &SensorimotorLog,
+    fit: &[u32],
+    space: &MotorSpace,
+    params: &LawValidParams,
+    progress: &dyn Progress,
 ) -> Result<(KdTree, f64, f64), LearnError> {
     let n = log.motors.ncols();
     let mut points = Vec::with_capacity(fit.len() * n);
@@ -563,9 +583,12 @@ pub(super) fn image_tree(
             });
         }
     }
+    progress.advance(1);
     let (points, rows) = periodic_images(log, fit, space, bandwidth);
     let images = rows.len() as f64 / fit.len().max(1) as f64;
-    Ok((KdTree::new(n, points, rows), bandwidth, images))
+    let tree = KdTree::new(n, points, rows);
+    progress.advance(1);
+    Ok((tree, bandwidth, images))
 }
 
 /// Solves `(G + ridge·tr)·C = R` in place (`G` upper triangle given, `p × p`; `R`
@@ -705,6 +728,14 @@ pub struct LawReport {
     /// measured noise and what would help.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// The law's quality without the truth: samples per dimension, the invariants'
+    /// change between held-out sensory neighbours, and after tracing the closure rate
+    /// (see the `quality` module).
+    #[serde(default)]
+    pub quality: LawQuality,
+    /// The memory learning was estimated to need before it started.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub memory: Option<MemoryEstimate>,
 }
 
 /// One log's part of the [`LawReport`].
@@ -778,7 +809,7 @@ impl LearnedLaw {
         models: Models,
         method: LawMethod,
         (logs, data_rank): (Vec<LogReport>, Option<LocalRank>),
-        seed: u64,
+        (seed, progress): (u64, &dyn Progress),
     ) -> Self {
         let (sensor_dim, invariants) = match &models {
             Models::Local(models) => (models.iter().map(|m| m.k).sum(), None),
@@ -797,9 +828,11 @@ impl LearnedLaw {
                 invariants,
                 data_rank,
                 warnings: Vec::new(),
+                quality: LawQuality::default(),
+                memory: None,
             },
         };
-        let counts = law.rank_counts(seed);
+        let counts = law.rank_counts(seed, progress);
         let rank = match &law.report.data_rank {
             Some(data) => data.rank,
             None => (0..counts.len())
@@ -820,6 +853,12 @@ impl LearnedLaw {
     /// Adds warnings to the report.
     pub(crate) fn warn(&mut self, warnings: Vec<String>) {
         self.report.warnings.extend(warnings);
+    }
+
+    /// Sets the report's quality figures and memory estimate.
+    pub(crate) fn describe(&mut self, quality: LawQuality, memory: Option<MemoryEstimate>) {
+        self.report.quality = quality;
+        self.report.memory = memory;
     }
 
     /// Writes the law's values `ŝ(m)` (or the invariants `z(m)`) into `sensors` (length
@@ -852,8 +891,8 @@ impl LearnedLaw {
     }
 
     /// Numerical ranks of the law's Jacobian at seeded fitted samples of the first log:
-    /// counts per rank `0..=N`.
-    fn rank_counts(&self, seed: u64) -> Vec<usize> {
+    /// counts per rank `0..=N` (the stage [`observe::RANK`] of `progress`).
+    fn rank_counts(&self, seed: u64, progress: &dyn Progress) -> Vec<usize> {
         let n = self.space.dim();
         let tree = match &self.models {
             Models::Local(models) => match models.first() {
@@ -863,17 +902,19 @@ impl LearnedLaw {
             Models::Invariants(model) => model.probe_tree(),
         };
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7261);
-        let probes = sample(&mut rng, tree.len(), PROBES.min(tree.len())).into_vec();
-        let ranks: Vec<usize> = probes
-            .par_iter()
-            .map(|&i| {
-                let m = tree.point(i).to_vec();
+        let probes: Vec<u32> = sample(&mut rng, tree.len(), PROBES.min(tree.len()))
+            .into_iter()
+            .map(|i| i as u32)
+            .collect();
+        let ranks = observe::stage(progress, observe::RANK, probes.len() as u64, || {
+            observe::map_rows(&probes, progress, |i| {
+                let m = tree.point(i as usize).to_vec();
                 let mut s = vec![0.0; self.sensor_dim];
                 let mut j = vec![0.0; self.sensor_dim * n];
                 self.evaluate_with_jacobian(&m, &mut s, &mut j);
                 gap_rank(&j, self.sensor_dim, n)
             })
-            .collect();
+        });
         let mut counts = vec![0; n + 1];
         for r in ranks {
             counts[r] += 1;

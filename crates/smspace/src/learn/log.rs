@@ -8,15 +8,15 @@ use ndarray::{Array2, ArrayView2};
 use rand::rngs::ChaCha8Rng;
 use rand::seq::index::sample;
 use rand::SeedableRng;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::law::{LocalModel, LogReport};
 use super::noise::{estimate_local, LocalRank};
-use super::{LawValidParams, LearnError};
+use super::{observe, LawValidParams, LearnError};
 use crate::agent::{Motor, MotorSpace};
 use crate::io;
 use crate::params::InvalidParameter;
+use crate::progress::Progress;
 
 /// The two files of a log.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -242,6 +242,7 @@ pub(super) fn fit_log(
     log: &SensorimotorLog,
     space: &MotorSpace,
     params: &LawValidParams,
+    progress: &dyn Progress,
 ) -> Result<(LocalModel, LogReport, Option<LocalRank>), LearnError> {
     let samples = log.samples();
     let n = space.dim();
@@ -260,17 +261,21 @@ pub(super) fn fit_log(
         });
     }
     let (fit, held_rows) = split_rows(samples, held, params.seed);
-    let local = estimate_local(log, &fit, params.seed);
+    let local = observe::stage(progress, observe::NOISE, 1, || {
+        let local = estimate_local(log, &fit, params.seed);
+        progress.advance(1);
+        local
+    });
     let mut chosen = params.clone();
     if let Some((noise, _)) = &local {
         chosen.neighbours = Some(params.neighbours_for_noise(n, noise, fit.len()));
     }
-    let (model, images) = LocalModel::new(log, &fit, &chosen, space)?;
+    let (model, images) = LocalModel::new(log, &fit, &chosen, space, progress)?;
     let mut report = held_out_report(
         log,
-        &held_rows,
-        fit.len(),
+        (&held_rows, fit.len()),
         (model.bandwidth(), images),
+        progress,
         |m, s| {
             if !model.covers(m) {
                 return false;
@@ -305,34 +310,34 @@ pub(super) fn split_rows(samples: usize, held: usize, seed: u64) -> (Vec<u32>, V
     (fit, held_rows)
 }
 
-/// The report of one log: its law's error on the held-out rows, where
-/// `predict(m, ŝ)` writes the law's sensor values and returns whether the law covers
-/// `m` (uncovered rows are counted apart).
+/// The report of one log: its law's error on the held-out rows (of `fitted` rows
+/// fitted), where `predict(m, ŝ)` writes the law's sensor values and returns whether
+/// the law covers `m` (uncovered rows are counted apart); the stage
+/// [`observe::HELD_OUT`] of `progress`.
 pub(super) fn held_out_report(
     log: &SensorimotorLog,
-    held_rows: &[u32],
-    fitted: usize,
+    (held_rows, fitted): (&[u32], usize),
     (bandwidth, images): (f64, f64),
-    predict: impl Fn(&[f64], &mut [f64]) -> bool + Sync,
+    progress: &dyn Progress,
+    predict: impl Fn(&[f64], &mut [f64]) -> bool + Sync + Send,
 ) -> LogReport {
     let k = log.sensors.ncols();
-    let errors: Vec<Option<(f64, f64)>> = held_rows
-        .par_iter()
-        .map(|&i| {
-            let i = i as usize;
-            let m = log.motors.row(i).to_vec();
-            let mut s = vec![0.0; k];
-            if !predict(&m, &mut s) {
-                return None;
-            }
-            let (mut squares, mut largest) = (0.0, 0.0f64);
-            for (a, b) in s.iter().zip(log.sensors.row(i)) {
-                squares += (a - b) * (a - b);
-                largest = largest.max((a - b).abs());
-            }
-            Some((squares, largest))
-        })
-        .collect();
+    progress.start(observe::HELD_OUT, held_rows.len() as u64);
+    let errors: Vec<Option<(f64, f64)>> = observe::map_rows(held_rows, progress, |i| {
+        let i = i as usize;
+        let m = log.motors.row(i).to_vec();
+        let mut s = vec![0.0; k];
+        if !predict(&m, &mut s) {
+            return None;
+        }
+        let (mut squares, mut largest) = (0.0, 0.0f64);
+        for (a, b) in s.iter().zip(log.sensors.row(i)) {
+            squares += (a - b) * (a - b);
+            largest = largest.max((a - b).abs());
+        }
+        Some((squares, largest))
+    });
+    progress.finish();
     let covered: Vec<(f64, f64)> = errors.iter().flatten().copied().collect();
     let mean_variance = log
         .sensors

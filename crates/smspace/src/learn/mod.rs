@@ -131,7 +131,10 @@ mod compare;
 mod invariants;
 mod law;
 mod log;
+mod memory;
 mod noise;
+pub mod observe;
+mod quality;
 mod simulate;
 mod tree;
 
@@ -148,10 +151,12 @@ pub use law::{FitSupport, LawReport, LearnedLaw, LogReport};
 pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
 };
+pub use memory::{gib_bytes, MemoryEstimate, DEFAULT_MEMORY_LIMIT_GIB};
 pub use noise::{
     estimate_local, spectrum_rank, LocalRank, NoiseEstimate, CLEAR_GAP, FULL_RANK_RATIO,
     MAX_CORRELATION, MEASURABLE_SHARE,
 };
+pub use quality::{LawQuality, MAX_HELD_OUT_RATIO, MIN_CLOSURE_RATE, MIN_SAMPLES_PER_DIMENSION};
 pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog};
 pub use tree::{Candidates, KdTree};
 
@@ -228,7 +233,7 @@ pub enum LearnError {
         expected: usize,
     },
     /// Learning would need more memory than allowed.
-    #[error("learning from {samples} samples needs about {} but the limit is {} (the memory available, or --max-memory); {fix}", crate::metric::human_bytes(*needed), crate::metric::human_bytes(*available))]
+    #[error("learning from {samples} samples needs about {} ({parts}) but the limit is {}; {fix}", crate::metric::human_bytes(*needed), crate::metric::human_bytes(*available))]
     OutOfMemory {
         /// Samples.
         samples: usize,
@@ -236,6 +241,8 @@ pub enum LearnError {
         needed: u64,
         /// Bytes allowed.
         available: u64,
+        /// The parts of the estimate ([`MemoryEstimate::parts`]).
+        parts: String,
         /// What to lower.
         fix: &'static str,
     },
@@ -492,19 +499,11 @@ impl LawValidParams {
     /// motors, as the bandwidth is below a quarter period).
     /// For `invariants`, the tree of the sensors and that of the invariants (at most
     /// 32 coordinates) come in their stead of the plain tree, with the pairs.
+    /// The basis sums and matrices of `invariants` and the worker threads' buffers (on
+    /// rayon's current pool) count too: [`LawValidParams::memory`] in all.
     pub fn bytes(&self, samples: usize, n: usize, k: usize, periodic: usize) -> u64 {
-        let s = samples as u64;
-        let arrays = s.saturating_mul(8 * (n + 2 * k) as u64);
-        let images = (s as f64 * 1.5f64.powi(periodic as i32)).ceil() as u64;
-        let trees = match self.method {
-            LawMethod::Invariants => KdTree::bytes(s, k)
-                .max(KdTree::bytes(s, invariants::MAX_INVARIANTS))
-                .saturating_add(s.saturating_mul(8)),
-            _ => KdTree::bytes(s, n),
-        };
-        arrays
-            .saturating_add(trees)
-            .saturating_add(KdTree::bytes(images, n))
+        self.memory(&[(samples, k)], n, periodic, rayon::current_num_threads())
+            .total_bytes()
     }
 
     /// The method.
@@ -519,31 +518,55 @@ pub const NOISE_TARGET: f64 = 0.005;
 
 /// Learns the law from `logs` (at least one; every log's motors in `space`), holding
 /// out samples of each to measure its error. `memory_limit` (bytes), when given, is
-/// checked before anything is built.
+/// checked before anything is built. [`learn_with_progress`] reports its stages.
 pub fn learn(
     logs: &[SensorimotorLog],
     space: &crate::agent::MotorSpace,
     params: &LawValidParams,
     memory_limit: Option<u64>,
 ) -> Result<LearnedLaw, LearnError> {
+    learn_with_progress(logs, space, params, memory_limit, &crate::progress::Silent)
+}
+
+impl MemoryEstimate {
+    /// Refuses an estimate above `limit` bytes, with its parts and what to lower
+    /// ([`LearnError::OutOfMemory`]); `samples` are those of the logs.
+    pub fn check(&self, samples: usize, limit: u64) -> Result<(), LearnError> {
+        let needed = self.total_bytes();
+        if needed > limit {
+            return Err(LearnError::OutOfMemory {
+                samples,
+                needed,
+                available: limit,
+                parts: self.parts(),
+                fix: self.fix(),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// [`learn`], reporting its stages to `progress` ([`observe`] lists them): the same
+/// law whatever observer and thread count.
+pub fn learn_with_progress(
+    logs: &[SensorimotorLog],
+    space: &crate::agent::MotorSpace,
+    params: &LawValidParams,
+    memory_limit: Option<u64>,
+    progress: &dyn crate::progress::Progress,
+) -> Result<LearnedLaw, LearnError> {
     if logs.is_empty() {
         return Err(LearnError::NoLog);
     }
     let n = space.dim();
     let periodic = space.motors().iter().filter(|m| m.is_periodic()).count();
-    if let Some(available) = memory_limit {
-        let needed = logs
-            .iter()
-            .map(|l| params.bytes(l.samples(), n, l.sensors.ncols(), periodic))
-            .fold(0u64, u64::saturating_add);
-        if needed > available {
-            return Err(LearnError::OutOfMemory {
-                samples: logs.iter().map(SensorimotorLog::samples).sum(),
-                needed,
-                available,
-                fix: "learn from fewer samples (cut the log), or raise --max-memory",
-            });
-        }
+    let shapes: Vec<(usize, usize)> = logs
+        .iter()
+        .map(|l| (l.samples(), l.sensors.ncols()))
+        .collect();
+    let memory = params.memory(&shapes, n, periodic, rayon::current_num_threads());
+    if let Some(limit) = memory_limit {
+        memory.check(logs.iter().map(SensorimotorLog::samples).sum(), limit)?;
     }
     for log in logs {
         if log.motors.ncols() != n {
@@ -560,7 +583,7 @@ pub fn learn(
             let mut reports = Vec::with_capacity(logs.len());
             let mut data_rank = None;
             for log in logs {
-                let (model, report, rank) = log::fit_log(log, space, params)?;
+                let (model, report, rank) = log::fit_log(log, space, params, progress)?;
                 models.push(model);
                 reports.push(report);
                 if data_rank.is_none() {
@@ -570,7 +593,7 @@ pub fn learn(
             (law::Models::Local(models), reports, data_rank)
         }
         LawMethod::Invariants => {
-            let (model, reports, data_rank) = learn_invariants(logs, space, params)?;
+            let (model, reports, data_rank) = learn_invariants(logs, space, params, progress)?;
             (law::Models::Invariants(model), reports, data_rank)
         }
     };
@@ -579,10 +602,20 @@ pub fn learn(
         models,
         params.method,
         (reports, data_rank),
-        params.seed,
+        (params.seed, progress),
     );
     let warnings = law_warnings(law.report(), params, n);
     law.warn(warnings);
+    let (quality, warnings) = quality::assess(law.report(), n);
+    law.warn(warnings);
+    // The report is the same for any thread count: one thread's buffers.
+    law.describe(
+        quality,
+        Some(MemoryEstimate {
+            threads: None,
+            ..memory
+        }),
+    );
     Ok(law)
 }
 
@@ -592,6 +625,7 @@ fn learn_invariants(
     logs: &[SensorimotorLog],
     space: &crate::agent::MotorSpace,
     params: &LawValidParams,
+    progress: &dyn crate::progress::Progress,
 ) -> Result<(InvariantModel, Vec<LogReport>, Option<LocalRank>), LearnError> {
     let n = space.dim();
     let features = InvariantModel::check_motors(n).map_err(|reason| LearnError::TooFewSamples {
@@ -619,16 +653,22 @@ fn learn_invariants(
             });
         }
         let (fit, held_rows) = log::split_rows(samples, holdout, params.seed);
-        locals.push(estimate_local(log, &fit, params.seed));
         fits.push(fit);
         held.push(held_rows);
     }
+    progress.start(observe::NOISE, logs.len() as u64);
+    for (log, fit) in logs.iter().zip(&fits) {
+        locals.push(estimate_local(log, fit, params.seed));
+        progress.advance(1);
+    }
+    progress.finish();
     let data_rank = locals
         .first()
         .and_then(|l| l.as_ref())
         .map(|(_, rank)| rank.clone());
     let least = data_rank.as_ref().map_or(1, |r| r.rank.max(1));
-    let (model, mut reports) = InvariantModel::fit(logs, &fits, &held, space, params, least)?;
+    let (model, mut reports) =
+        InvariantModel::fit(logs, (&fits, &held), space, params, (least, progress))?;
     for (report, local) in reports.iter_mut().zip(locals) {
         report.noise = local.map(|(noise, _)| noise);
     }
@@ -727,6 +767,8 @@ pub fn law_trace_params() -> crate::kernel::TraceParams {
 /// sensor tolerance to at least [`LAW_SENSOR_TOLERANCE`]; the law ignores the
 /// environment, so an empty one is passed). Sets that leave the covered region have the
 /// status `left-data`. [`law_trace_params`] gives parameters suited to a learned law.
+/// The report's `law` is the law's report completed with the closure rate of the sets
+/// and its warnings ([`LawReport::with_trace`]).
 pub fn trace_learned(
     law: &LearnedLaw,
     starts: ndarray::ArrayView2<'_, f64>,
@@ -740,12 +782,9 @@ pub fn trace_learned(
     }
     .check()?;
     let unused = crate::agent::Environment::from_lights(Vec::new());
-    Ok(crate::kernel::trace_sets(
-        law,
-        Some(&unused),
-        starts,
-        None,
-        &params,
-        progress,
-    )?)
+    let mut traced =
+        crate::kernel::trace_sets(law, Some(&unused), starts, None, &params, progress)?;
+    // A report of numbers and names always serialises.
+    traced.report.law = serde_json::to_value(law.report().with_trace(&traced.report.summary)).ok();
+    Ok(traced)
 }
