@@ -175,16 +175,38 @@ fn impossible_invariant_parameters_and_logs_are_refused_with_the_fix() {
             "{e}"
         );
     }
-    // Six motors: 728 basis functions, more than the method takes.
+    // Eight motors: 6560 basis functions, more than the method takes.
     let mut rng = ChaCha8Rng::seed_from_u64(2);
-    let motors: Array2<f64> = Array2::from_shape_fn((3000, 6), |_| rng.random_range(-3.0..3.0));
+    let motors: Array2<f64> = Array2::from_shape_fn((3000, 8), |_| rng.random_range(-3.0..3.0));
     let sensors = Array2::from_shape_fn((3000, 2), |(i, k)| motors[[i, k]].sin());
-    let space = MotorSpace::hinges(6);
-    let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
+    let space = MotorSpace::hinges(8);
+    let log = SensorimotorLog::new(motors.clone(), sensors.clone(), files(), &space).unwrap();
     let e = learn(&[log], &space, &invariants().check().unwrap(), None)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("728") && e.contains("local-quadratic"), "{e}");
+    assert!(
+        e.contains("6560")
+            && e.contains("at most 2186 (7 motors)")
+            && e.contains("local-quadratic"),
+        "{e}"
+    );
+    // Seven motors whose eigenproblem does not fit in the memory allowed: the error
+    // names the basis and the fix.
+    let space = MotorSpace::hinges(7);
+    let motors = motors.slice(ndarray::s![.., ..7]).to_owned();
+    let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
+    let e = learn(
+        &[log],
+        &space,
+        &invariants().check().unwrap(),
+        Some(100 << 20),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("the limit is 100") && e.contains("F × F") && e.contains("--max-memory"),
+        "{e}"
+    );
     // Too few samples for the 8 functions of two motors.
     let (space, log) = sum_log(60);
     let e = learn(&[log], &space, &invariants().check().unwrap(), None)
@@ -228,4 +250,159 @@ fn learning_the_invariants_is_the_same_for_one_thread_and_many() {
         })
     };
     assert_eq!(run(1), run(3));
+}
+
+/// A 3-D chain of six hinges: a base turning about z, four pitch joints in the
+/// vertical plane and a roll of the retina. The retina's pose is 5-D (the base's turn,
+/// the position in the plane, the pitch and the roll), so the kernels are 1-D.
+fn chain_6() -> Box<dyn Agent> {
+    AgentConfig {
+        kind: "chain".into(),
+        params: toml::from_str(
+            r#"
+            joints = [
+                { axis = [0, 0, 1], link = [0, 0, 0.5] },
+                { axis = [0, 1, 0], link = [1.0, 0, 0] },
+                { axis = [0, 1, 0], link = [0.8, 0, 0] },
+                { axis = [0, 1, 0], link = [0.5, 0, 0] },
+                { axis = [0, 1, 0], link = [0.3, 0, 0] },
+                { axis = [1, 0, 0], link = [0, 0, 0] },
+            ]
+            retina = { cells = [3, 3], half_width = 1.0, focal_length = 1.0 }
+            "#,
+        )
+        .unwrap(),
+    }
+    .build()
+    .unwrap()
+}
+
+/// A log of 12 000 samples of [`chain_6`], and the retina's pose of every sample as
+/// its position and the nine entries of its rotation matrix (`(S, 12)`).
+fn chain_6_log() -> (SensorimotorLog, Array2<f64>) {
+    let chain = chain_6();
+    let environment = EnvironmentConfig::default().build(chain.as_ref()).unwrap();
+    let simulated = simulate(
+        chain.as_ref(),
+        &environment,
+        chain.default_workspace(),
+        &SimulateParams {
+            samples: 12_000,
+            noise: 0.0,
+            seed: 3,
+        },
+    )
+    .unwrap();
+    let q = simulated.poses.as_ref().unwrap().poses().clone();
+    let poses = Array2::from_shape_fn((q.nrows(), 12), |(i, c)| {
+        let (w, x, y, z) = (q[[i, 3]], q[[i, 4]], q[[i, 5]], q[[i, 6]]);
+        match c {
+            0..=2 => q[[i, c]],
+            3 => 1.0 - 2.0 * (y * y + z * z),
+            4 => 2.0 * (x * y - z * w),
+            5 => 2.0 * (x * z + y * w),
+            6 => 2.0 * (x * y + z * w),
+            7 => 1.0 - 2.0 * (x * x + z * z),
+            8 => 2.0 * (y * z - x * w),
+            9 => 2.0 * (x * z - y * w),
+            10 => 2.0 * (y * z + x * w),
+            _ => 1.0 - 2.0 * (x * x + y * y),
+        }
+    });
+    let space = chain.motor_space();
+    let log = SensorimotorLog::new(simulated.motors, simulated.sensors, files(), &space).unwrap();
+    (log, poses)
+}
+
+/// Six motors (728 basis functions) from a short log: the invariants are functions of
+/// the retina's pose (they differ little between samples of nearly the same pose, and
+/// as little between held-out sensory neighbours as between fitted ones), their
+/// Jacobian is the derivative of their values, and one thread learns what two do.
+#[test]
+fn the_invariants_of_a_six_joint_chain_are_functions_of_its_pose() {
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let (log, poses) = chain_6_log();
+            let motors = log.motors.clone();
+            let space = chain_6().motor_space();
+            let law = learn(&[log], &space, &invariants().check().unwrap(), None).unwrap();
+            (law, motors, poses)
+        })
+    };
+    let (law, motors, poses) = run(1);
+    let (other, _, _) = run(2);
+    assert_eq!(
+        format!("{:?}", law.report()),
+        format!("{:?}", other.report())
+    );
+    let report = law.report();
+    let found = report.invariants.as_ref().unwrap();
+    assert_eq!(found.features, 728);
+    assert_eq!(report.rank, 5, "{report:?}");
+    assert!(found.invariants >= 5, "{found:?}");
+    let held_lambda = found.held_out_lambda.unwrap();
+    assert!(
+        found.fitted_lambda < 0.4 && held_lambda < 2.0 * found.fitted_lambda + 0.05,
+        "{found:?}"
+    );
+    // Every 40th sample and the sample nearest to it in pose (position and rotation
+    // matrix): z differs by a small part of its spread (Var z = 1 over the fitted
+    // samples; for unrelated values the mean square is 2).
+    let count = found.invariants;
+    let unused = Environment::from_lights(Vec::new());
+    let z = |m: &[f64]| {
+        let mut z = vec![0.0; count];
+        law.sense(&unused, m, &mut z);
+        z
+    };
+    let (mut change, mut pairs) = (0.0, 0);
+    for i in (0..motors.nrows()).step_by(40) {
+        let gap = |j: usize| {
+            poses
+                .row(i)
+                .iter()
+                .zip(poses.row(j))
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+        };
+        let j = (0..motors.nrows())
+            .filter(|&j| j != i)
+            .min_by(|&a, &b| gap(a).total_cmp(&gap(b)))
+            .unwrap();
+        let (a, b) = (
+            z(motors.row(i).as_slice().unwrap()),
+            z(motors.row(j).as_slice().unwrap()),
+        );
+        change += a.iter().zip(&b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / count as f64;
+        pairs += 1;
+    }
+    let change = change / pairs as f64;
+    assert!(
+        change < 0.2,
+        "mean squared change between pose neighbours {change}"
+    );
+    // The exact Jacobian against central differences.
+    let m = [0.4, -1.2, 2.0, 0.7, -2.5, 1.1];
+    let mut value = vec![0.0; count];
+    let mut jacobian = vec![0.0; count * 6];
+    assert!(law.sense_with_jacobian(&unused, &m, &mut value, &mut jacobian));
+    assert_eq!(value, z(&m));
+    for j in 0..6 {
+        let (mut plus, mut minus) = (m, m);
+        plus[j] += 1e-6;
+        minus[j] -= 1e-6;
+        let (a, b) = (z(&plus), z(&minus));
+        for c in 0..count {
+            let numeric = (a[c] - b[c]) / 2e-6;
+            assert!(
+                (numeric - jacobian[c * 6 + j]).abs() < 1e-5 * (1.0 + numeric.abs()),
+                "∂z{c}/∂m{j}: {numeric} vs {}",
+                jacobian[c * 6 + j]
+            );
+        }
+    }
 }

@@ -38,7 +38,7 @@ pub struct Args {
     /// The law: local-quadratic or local-linear (regressions of the sensors around each
     /// configuration), or invariants (the functions of the motors that sensory neighbours
     /// share, in a Fourier basis of the motors: the kernels are their level sets; at most
-    /// five motors).
+    /// seven motors).
     #[arg(long, default_value = "local-quadratic", value_parser = parse_method)]
     method: LawMethod,
     /// With --method invariants: how many invariants to keep (default: those up to the

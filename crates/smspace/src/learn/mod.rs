@@ -96,7 +96,8 @@
 //! it exactly. The report gives the eigenvalues, `λ` on the fitted pairs and on the
 //! held-out samples (each with its nearest fitted sample in sensor space), and the
 //! held-out error of `ŝ = g(z)`, `g` the mean sensor values of the 8 fitted samples
-//! nearest in `z`. At most five motors (242 functions). See the `invariants` module.
+//! nearest in `z`. At most seven motors (2186 functions; past five motors `Σ` and `C`
+//! are summed over `max(2^36 / F², 64 F)` seeded pairs). See the `invariants` module.
 //!
 //! ## Coverage (status `left-data`)
 //!
@@ -486,7 +487,9 @@ impl LawValidParams {
     /// the tree of periodic images (at most `1.5^P` images per sample for `P` periodic
     /// motors, as the bandwidth is below a quarter period).
     /// For `invariants`, the tree of the sensors and that of the invariants (at most
-    /// 32 coordinates) come in their stead of the plain tree, with the pairs.
+    /// 32 coordinates) come in their stead of the plain tree, with the pairs, and the
+    /// eigenproblem's `F × F` matrices (`F = 3^N − 1`: 0.3 GB for 7 motors; counted
+    /// with every log, though the logs share them).
     pub fn bytes(&self, samples: usize, n: usize, k: usize, periodic: usize) -> u64 {
         let s = samples as u64;
         let arrays = s.saturating_mul(8 * (n + 2 * k) as u64);
@@ -494,7 +497,8 @@ impl LawValidParams {
         let trees = match self.method {
             LawMethod::Invariants => KdTree::bytes(s, k)
                 .max(KdTree::bytes(s, invariants::MAX_INVARIANTS))
-                .saturating_add(s.saturating_mul(8)),
+                .saturating_add(s.saturating_mul(8))
+                .saturating_add(InvariantModel::bytes(n, rayon::current_num_threads())),
             _ => KdTree::bytes(s, n),
         };
         arrays
@@ -532,11 +536,17 @@ pub fn learn(
             .map(|l| params.bytes(l.samples(), n, l.sensors.ncols(), periodic))
             .fold(0u64, u64::saturating_add);
         if needed > available {
+            let basis = params.method == LawMethod::Invariants
+                && InvariantModel::bytes(n, rayon::current_num_threads()) > available / 2;
             return Err(LearnError::OutOfMemory {
                 samples: logs.iter().map(SensorimotorLog::samples).sum(),
                 needed,
                 available,
-                fix: "learn from fewer samples (cut the log), or raise --max-memory",
+                fix: if basis {
+                    "most of it is the invariants' eigenproblem, whose F × F matrices (F = 3^N − 1 basis functions) do not shrink with the log: raise --max-memory, or learn with method = local-quadratic"
+                } else {
+                    "learn from fewer samples (cut the log), or raise --max-memory"
+                },
             });
         }
     }
