@@ -287,6 +287,9 @@ impl std::fmt::Debug for InvariantModel {
     }
 }
 
+/// One block of `(i, j(i))` pairs.
+type Block<'a> = &'a [(u32, u32)];
+
 /// Rows per block of the sums of `Σ` and `C` for `features` basis functions:
 /// [`BLOCK_VALUES`]` / F`, from 64 to 8192.
 fn block_rows(features: usize) -> usize {
@@ -482,7 +485,7 @@ impl Moments {
         for (log, pairs) in logs.iter().zip(pairs) {
             let blocks: Vec<&[(u32, u32)]> = pairs.chunks(block_rows(features)).collect();
             for group in blocks.chunks(group) {
-                let tasks: Vec<(&[(u32, u32)], (usize, usize))> = group
+                let tasks: Vec<(Block<'_>, (usize, usize))> = group
                     .iter()
                     .flat_map(|&block| tiles.iter().map(move |&tile| (block, tile)))
                     .collect();
