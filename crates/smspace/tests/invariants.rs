@@ -175,16 +175,38 @@ fn impossible_invariant_parameters_and_logs_are_refused_with_the_fix() {
             "{e}"
         );
     }
-    // Six motors: 728 basis functions, more than the method takes.
+    // Eight motors: 6560 basis functions, more than the method takes.
     let mut rng = ChaCha8Rng::seed_from_u64(2);
-    let motors: Array2<f64> = Array2::from_shape_fn((3000, 6), |_| rng.random_range(-3.0..3.0));
+    let motors: Array2<f64> = Array2::from_shape_fn((3000, 8), |_| rng.random_range(-3.0..3.0));
     let sensors = Array2::from_shape_fn((3000, 2), |(i, k)| motors[[i, k]].sin());
-    let space = MotorSpace::hinges(6);
-    let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
+    let space = MotorSpace::hinges(8);
+    let log = SensorimotorLog::new(motors.clone(), sensors.clone(), files(), &space).unwrap();
     let e = learn(&[log], &space, &invariants().check().unwrap(), None)
         .unwrap_err()
         .to_string();
-    assert!(e.contains("728") && e.contains("local-quadratic"), "{e}");
+    assert!(
+        e.contains("6560")
+            && e.contains("at most 2186 (7 motors)")
+            && e.contains("local-quadratic"),
+        "{e}"
+    );
+    // Seven motors whose eigenproblem does not fit in the memory allowed: the error
+    // names the basis and the fix.
+    let space = MotorSpace::hinges(7);
+    let motors = Array2::from_shape_fn((3000, 7), |(i, j)| motors[[i, j]]);
+    let log = SensorimotorLog::new(motors, sensors, files(), &space).unwrap();
+    let e = learn(
+        &[log],
+        &space,
+        &invariants().check().unwrap(),
+        Some(100 << 20),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("the limit is 100") && e.contains("F × F") && e.contains("--max-memory"),
+        "{e}"
+    );
     // Too few samples for the 8 functions of two motors.
     let (space, log) = sum_log(60);
     let e = learn(&[log], &space, &invariants().check().unwrap(), None)
@@ -280,4 +302,129 @@ fn aliased_sensory_pairs_are_set_aside_and_the_pose_functions_stand_out() {
     .unwrap();
     let errors = set_errors(&learned, &truth, Period::TwoPi).unwrap();
     assert!(errors.compared >= 4 && errors.median < 0.1, "{errors:?}");
+}
+
+/// A planar chain of six hinges (links 1.0, 0.9, …, 0.5) whose sensors read the pose
+/// of its end, `(x, y, cos α, sin α)`: 12 000 samples, and the poses (the sensors).
+fn chain_6_log() -> (SensorimotorLog, Array2<f64>) {
+    let samples = 12_000;
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let motors = Array2::from_shape_fn((samples, 6), |_| {
+        rng.random_range(-std::f64::consts::PI..std::f64::consts::PI)
+    });
+    let sensors = Array2::from_shape_fn((samples, 4), |(i, k)| {
+        let (mut x, mut y, mut alpha) = (0.0, 0.0, 0.0);
+        for j in 0..6 {
+            alpha += motors[[i, j]];
+            let length = 1.0 - 0.1 * j as f64;
+            x += length * f64::cos(alpha);
+            y += length * f64::sin(alpha);
+        }
+        [x, y, alpha.cos(), alpha.sin()][k]
+    });
+    let poses = sensors.clone();
+    let log = SensorimotorLog::new(motors, sensors, files(), &MotorSpace::hinges(6)).unwrap();
+    (log, poses)
+}
+
+/// Six motors (728 basis functions) from a short log: the invariants are functions of
+/// the chain's pose (they differ little between samples of nearly the same pose, and
+/// as little between held-out sensory neighbours as between fitted ones), their
+/// Jacobian is the derivative of their values, and one thread learns what two do.
+#[test]
+fn the_invariants_of_a_six_hinge_chain_are_functions_of_its_pose() {
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let (log, poses) = chain_6_log();
+            let motors = log.motors.clone();
+            let space = MotorSpace::hinges(6);
+            // 12 000 samples in six dimensions: the 4th nearest sample (not the 40th)
+            // lies within a quarter period, as the coverage needs.
+            let params = LawParams {
+                neighbours: Some(4),
+                ..invariants()
+            };
+            let law = learn(&[log], &space, &params.check().unwrap(), None).unwrap();
+            (law, motors, poses)
+        })
+    };
+    let (law, motors, poses) = run(1);
+    let (other, _, _) = run(2);
+    assert_eq!(
+        format!("{:?}", law.report()),
+        format!("{:?}", other.report())
+    );
+    let report = law.report();
+    let found = report.invariants.as_ref().unwrap();
+    assert_eq!(found.features, 728);
+    // The law's Jacobian has the rank of the pose (x, y, α) nearly everywhere.
+    let mode = (0..report.rank_counts.len())
+        .max_by_key(|&r| report.rank_counts[r])
+        .unwrap();
+    assert_eq!(mode, 3, "{report:?}");
+    assert!(found.invariants >= 3, "{found:?}");
+    let held_lambda = found.held_out_lambda.unwrap();
+    assert!(
+        found.fitted_lambda < 0.4 && held_lambda < 2.0 * found.fitted_lambda + 0.05,
+        "{found:?}"
+    );
+    // Every 40th sample and the sample nearest to it in pose: z differs by a small part of its spread (Var z = 1 over the fitted
+    // samples; for unrelated values the mean square is 2).
+    let count = found.invariants;
+    let unused = Environment::from_lights(Vec::new());
+    let z = |m: &[f64]| {
+        let mut z = vec![0.0; count];
+        law.sense(&unused, m, &mut z);
+        z
+    };
+    let (mut change, mut pairs) = (0.0, 0);
+    for i in (0..motors.nrows()).step_by(40) {
+        let gap = |j: usize| {
+            poses
+                .row(i)
+                .iter()
+                .zip(poses.row(j))
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+        };
+        let j = (0..motors.nrows())
+            .filter(|&j| j != i)
+            .min_by(|&a, &b| gap(a).total_cmp(&gap(b)))
+            .unwrap();
+        let (a, b) = (
+            z(motors.row(i).as_slice().unwrap()),
+            z(motors.row(j).as_slice().unwrap()),
+        );
+        change += a.iter().zip(&b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / count as f64;
+        pairs += 1;
+    }
+    let change = change / pairs as f64;
+    assert!(
+        change < 0.2,
+        "mean squared change between pose neighbours {change}"
+    );
+    // The exact Jacobian against central differences.
+    let m = [0.4, -1.2, 2.0, 0.7, -2.5, 1.1];
+    let mut value = vec![0.0; count];
+    let mut jacobian = vec![0.0; count * 6];
+    assert!(law.sense_with_jacobian(&unused, &m, &mut value, &mut jacobian));
+    assert_eq!(value, z(&m));
+    for j in 0..6 {
+        let (mut plus, mut minus) = (m, m);
+        plus[j] += 1e-6;
+        minus[j] -= 1e-6;
+        let (a, b) = (z(&plus), z(&minus));
+        for c in 0..count {
+            let numeric = (a[c] - b[c]) / 2e-6;
+            assert!(
+                (numeric - jacobian[c * 6 + j]).abs() < 1e-5 * (1.0 + numeric.abs()),
+                "∂z{c}/∂m{j}: {numeric} vs {}",
+                jacobian[c * 6 + j]
+            );
+        }
+    }
 }

@@ -38,9 +38,9 @@ pub struct Args {
     #[arg(long, default_value = "2pi")]
     period: String,
     /// The law: invariants (the functions of the motors that sensory neighbours share,
-    /// in a Fourier basis of the motors: the kernels are their level sets; the default),
-    /// or local-quadratic or local-linear (regressions of the sensors around each
-    /// configuration, which average them over their bandwidth).
+    /// in a Fourier basis of the motors: the kernels are their level sets; at most seven
+    /// motors; the default), or local-quadratic or local-linear (regressions of the
+    /// sensors around each configuration, which average them over their bandwidth).
     #[arg(long, default_value = "invariants", value_parser = parse_method)]
     method: LawMethod,
     /// With --method invariants: how many invariants to keep (default: those up to the

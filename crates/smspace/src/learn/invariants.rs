@@ -68,6 +68,24 @@
 //! samples, a quarter of the pairs are aliased; the smallest `λ` fall from 0.11–0.4 to
 //! 0–0.03, with a gap of 15 after the ninth.
 //!
+//! # Which pairs, and the cost
+//!
+//! `Σ` and `C` take `P F²` multiply-adds each for `P` pairs. Every fitted sample is
+//! paired while `P F² ≤ 2^36` ([`PAIR_PRODUCTS`]: all of 10⁶ samples up to five motors);
+//! past that, `max(2^36 / F², 64 F)` fitted samples drawn with the law's seed
+//! ([`pair_count`]: about 130 000 for six motors, `64 F = 139 904` for seven, each
+//! with its nearest neighbour among all the fitted samples). The sums run over blocks of
+//! at most 8192 pairs (`2^21 / F` rows), each block's upper triangle in tiles of 256
+//! columns, one task per tile; the blocks' sums are added in block order, so the result
+//! is the same for any number of threads. The eigenproblem then takes `O(F³)` (about
+//! `10¹¹` for seven motors: seconds), and its eight `F × F` matrices are the method's
+//! memory past the log (`64 F²` bytes: 0.3 GB for seven motors), estimated before
+//! learning starts. The basis of `N` motors has `3^N − 1` functions, so the method takes
+//! at most [`MAX_MOTORS`] (seven: 2186 functions); a chain of eight hinges would need
+//! 6560. Tracing evaluates `φ` and its `N` derivatives as tensor products of the
+//! motors' factors (`(N + 1) 3^N` products) and applies `W` in one pass over its rows:
+//! `(1 + 2N/3) 3^N` times the number of invariants multiply-adds per linearisation.
+//!
 //! # The law and its kernels
 //!
 //! The traced law is `z(m)`, with its exact Jacobian `∂z/∂m = Wᵀ ∂φ/∂m`: the kernel set
@@ -86,6 +104,9 @@ use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
 use faer::{Accum, Mat, MatRef, Par};
+use rand::rngs::ChaCha8Rng;
+use rand::seq::index::sample;
+use rand::SeedableRng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -94,22 +115,43 @@ use super::log::held_out_report;
 use super::tree::KdTree;
 use super::{observe, LawValidParams, LearnError, LogReport, SensorimotorLog};
 use crate::agent::{Motor, MotorSpace};
-use crate::progress::Progress;
+use crate::progress::{Progress, Silent};
 
 /// Most invariants kept (the tree of the held-out regression holds one coordinate per
 /// invariant).
 pub const MAX_INVARIANTS: usize = 32;
 
-/// Most basis functions (`3^N − 1`): five motors.
-pub const MAX_FEATURES: usize = 242;
+/// Most motors: the basis of seven has `3^7 − 1 = 2186` functions, and its matrices
+/// `Σ`, `C` take 38 MB each.
+pub const MAX_MOTORS: usize = 7;
+
+/// Most basis functions (`3^N − 1`): [`MAX_MOTORS`] motors.
+pub const MAX_FEATURES: usize = 2186;
 
 /// Fitted samples whose mean sensor values are `ŝ` at a configuration (nearest in
 /// invariant space).
 pub const REGRESSION_NEIGHBOURS: usize = 8;
 
-/// Samples per block of the sums of `Σ` and `C` (each block's sums are taken apart and
-/// added in block order, so the result does not depend on the thread count).
-const BLOCK: usize = 8192;
+/// Least pairs per basis function that the sums of `Σ` and `C` take (all the fitted
+/// samples when there are fewer).
+pub const PAIRS_PER_FEATURE: usize = 64;
+
+/// Pairs times squared basis size (`P F²`, the multiply-adds of each of `Σ` and `C`)
+/// up to which every fitted sample is paired: `2^36`, all of 10⁶ samples up to five
+/// motors; past it `max(2^36 / F², 64 F)` seeded samples are.
+pub const PAIR_PRODUCTS: f64 = 68_719_476_736.0;
+
+/// Basis values per block of the sums of `Σ` and `C` (`rows × F`, at most 8192 rows):
+/// each block's sums are taken apart and added in block order, so the result does not
+/// depend on the thread count.
+const BLOCK_VALUES: usize = 1 << 21;
+
+/// Columns per tile of a block's sums: a block of more than 256 basis functions is
+/// summed by tiles of its upper triangle, one task each.
+const TILE: usize = 256;
+
+/// Bytes of the blocks' sums held at once (a group of blocks summed in parallel).
+const GROUP_BYTES: usize = 1 << 26;
 
 /// What the eigenproblem found, in the law's report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -272,49 +314,96 @@ impl std::fmt::Debug for InvariantModel {
     }
 }
 
-/// Sums over one block of pairs: `Σ φφᵀ`, `Σ φ`, `Σ ΔΔᵀ` (features without the
-/// constant).
-struct BlockSums {
+/// One block of `(i, j(i))` pairs.
+type Block<'a> = &'a [(u32, u32)];
+
+/// Rows per block of the sums of `Σ` and `C` for `features` basis functions:
+/// [`BLOCK_VALUES`]` / F`, from 64 to 8192.
+fn block_rows(features: usize) -> usize {
+    (BLOCK_VALUES / features.max(1)).clamp(64, 8192)
+}
+
+/// The column ranges of the tiles of a block's sums ([`TILE`] columns each).
+fn tiles(features: usize) -> Vec<(usize, usize)> {
+    (0..features)
+        .step_by(TILE)
+        .map(|start| (start, (start + TILE).min(features)))
+        .collect()
+}
+
+/// One task's sums over one block of pairs, for the basis functions (without the
+/// constant) of columns `start..end`: rows `0..end` of those columns of `Σ φφᵀ` and
+/// `Σ ΔΔᵀ` (their part of the upper triangle), and `Σ φ` of those columns.
+struct TileSums {
+    start: usize,
     second: Mat<f64>,
     first: Vec<f64>,
     pairs: Mat<f64>,
 }
 
-/// The sums of one block of `(i, j(i))` rows of `log`.
-fn block_sums(basis: &Basis, log: &SensorimotorLog, block: &[(u32, u32)]) -> BlockSums {
-    let features = basis.len - 1;
-    let mut phi = Mat::<f64>::zeros(block.len(), features);
-    let mut delta = Mat::<f64>::zeros(block.len(), features);
+/// The sums of one block of `(i, j(i))` rows of `log`, columns `start..end`.
+fn tile_sums(
+    basis: &Basis,
+    log: &SensorimotorLog,
+    block: &[(u32, u32)],
+    (start, end): (usize, usize),
+) -> TileSums {
+    let mut phi = Mat::<f64>::zeros(block.len(), end);
+    let mut delta = Mat::<f64>::zeros(block.len(), end);
     let mut a = vec![0.0; basis.len];
     let mut b = vec![0.0; basis.len];
     for (r, &(i, j)) in block.iter().enumerate() {
         basis.values(&log.motors.row(i as usize).to_vec(), &mut a);
         basis.values(&log.motors.row(j as usize).to_vec(), &mut b);
-        for f in 0..features {
+        for f in 0..end {
             phi[(r, f)] = a[f + 1];
             delta[(r, f)] = a[f + 1] - b[f + 1];
         }
     }
-    let first = (0..features).map(|f| phi.col(f).iter().sum()).collect();
-    BlockSums {
-        second: gram(phi.as_ref()),
+    let first = (start..end).map(|f| phi.col(f).iter().sum()).collect();
+    TileSums {
+        start,
+        second: upper_tile(phi.as_ref(), start),
         first,
-        pairs: gram(delta.as_ref()),
+        pairs: upper_tile(delta.as_ref(), start),
     }
 }
 
-/// `Xᵀ X`, sequential (the same sums for any number of threads).
-fn gram(x: MatRef<'_, f64>) -> Mat<f64> {
-    let mut out = Mat::<f64>::zeros(x.ncols(), x.ncols());
+/// `Xᵀ X[:, start..]`, sequential (the same sums for any number of threads); for
+/// `start = 0`, `Xᵀ X`.
+fn upper_tile(x: MatRef<'_, f64>, start: usize) -> Mat<f64> {
+    let right = x.subcols(start, x.ncols() - start);
+    let mut out = Mat::<f64>::zeros(x.ncols(), right.ncols());
     matmul(
         out.as_mut(),
         Accum::Replace,
         x.transpose(),
-        x,
+        right,
         1.0,
         Par::Seq,
     );
     out
+}
+
+/// Copies the upper triangle of `m` onto its lower one.
+fn mirror_upper(m: &mut Mat<f64>) {
+    for c in 0..m.ncols() {
+        for r in c + 1..m.nrows() {
+            m[(r, c)] = m[(c, r)];
+        }
+    }
+}
+
+/// Pairs the sums of `Σ` and `C` take for `features` basis functions out of `fitted`
+/// samples: all while `fitted F² ≤` [`PAIR_PRODUCTS`], else `max(PAIR_PRODUCTS / F²,
+/// 64 F)` ([`PAIRS_PER_FEATURE`]), at most `fitted`.
+pub(crate) fn pair_count(features: usize, fitted: usize) -> usize {
+    let squared = (features * features) as f64;
+    if fitted as f64 * squared <= PAIR_PRODUCTS {
+        return fitted;
+    }
+    let budget = (PAIR_PRODUCTS / squared) as usize;
+    budget.max(PAIRS_PER_FEATURE * features).min(fitted)
 }
 
 /// Smallest ratio `λ_{k+1} / λ_k` that [`largest_gap`] takes for a gap between
@@ -417,7 +506,8 @@ struct Moments {
 }
 
 impl Moments {
-    /// The sums of every log's pairs `(i, j(i))`, block by block, added in block order.
+    /// The sums of every log's pairs `(i, j(i))`, block by block, added in block order
+    /// (a group of blocks, and the tiles of each, summed in parallel).
     fn new(
         basis: &Basis,
         logs: &[SensorimotorLog],
@@ -425,26 +515,39 @@ impl Moments {
         progress: &dyn Progress,
     ) -> Self {
         let features = basis.len - 1;
+        let tiles = tiles(features);
+        let group = (GROUP_BYTES / (16 * features * features)).max(1);
         let mut second = Mat::<f64>::zeros(features, features);
         let mut pair_sums = Mat::<f64>::zeros(features, features);
         let mut first = vec![0.0; features];
         for (log, pairs) in logs.iter().zip(pairs) {
-            let blocks: Vec<BlockSums> = pairs
-                .par_chunks(BLOCK)
-                .map(|block| {
-                    let sums = block_sums(basis, log, block);
-                    progress.advance(block.len() as u64);
-                    sums
-                })
-                .collect();
-            for block in blocks {
-                second += &block.second;
-                pair_sums += &block.pairs;
-                first
-                    .iter_mut()
-                    .zip(&block.first)
-                    .for_each(|(a, b)| *a += b);
+            let blocks: Vec<&[(u32, u32)]> = pairs.chunks(block_rows(features)).collect();
+            for group in blocks.chunks(group) {
+                let tasks: Vec<(Block<'_>, (usize, usize))> = group
+                    .iter()
+                    .flat_map(|&block| tiles.iter().map(move |&tile| (block, tile)))
+                    .collect();
+                let sums: Vec<TileSums> = tasks
+                    .into_par_iter()
+                    .map(|(block, tile)| tile_sums(basis, log, block, tile))
+                    .collect();
+                for tile in sums {
+                    let (rows, width) = tile.second.shape();
+                    let mut part = second.as_mut().submatrix_mut(0, tile.start, rows, width);
+                    part += &tile.second;
+                    let mut part = pair_sums.as_mut().submatrix_mut(0, tile.start, rows, width);
+                    part += &tile.pairs;
+                    first[tile.start..]
+                        .iter_mut()
+                        .zip(&tile.first)
+                        .for_each(|(a, b)| *a += b);
+                }
+                progress.advance(group.iter().map(|block| block.len() as u64).sum());
             }
+        }
+        if tiles.len() > 1 {
+            mirror_upper(&mut second);
+            mirror_upper(&mut pair_sums);
         }
         let total: usize = pairs.iter().map(Vec::len).sum();
         let inverse = 1.0 / total as f64;
@@ -514,21 +617,7 @@ impl Moments {
 
     /// `C` over the pairs `kept` only (`Σ` and `μ` stay those of every fitted sample).
     fn keep_pairs(&mut self, basis: &Basis, logs: &[SensorimotorLog], kept: &[Vec<(u32, u32)>]) {
-        let mut pair_sums = Mat::<f64>::zeros(self.mean.len(), self.mean.len());
-        for (log, pairs) in logs.iter().zip(kept) {
-            let blocks: Vec<BlockSums> = pairs
-                .par_chunks(BLOCK)
-                .map(|block| block_sums(basis, log, block))
-                .collect();
-            for block in blocks {
-                pair_sums += &block.pairs;
-            }
-        }
-        let total: usize = kept.iter().map(Vec::len).sum();
-        let inverse = 1.0 / total.max(1) as f64;
-        self.pair_covariance = Mat::from_fn(pair_sums.nrows(), pair_sums.ncols(), |a, b| {
-            pair_sums[(a, b)] * inverse
-        });
+        self.pair_covariance = Moments::new(basis, logs, kept, &Silent).pair_covariance;
     }
 }
 
@@ -707,6 +796,29 @@ struct Learned {
     mean: Vec<f64>,
 }
 
+/// The fitted rows of every log that the sums of `Σ` and `C` pair: all of them, or
+/// (past [`PAIR_PRODUCTS`]) [`pair_count`] of them in all, each log's share drawn with
+/// `seed`, in row order.
+fn paired_rows(fits: &[Vec<u32>], features: usize, seed: u64) -> Vec<Vec<u32>> {
+    let total: usize = fits.iter().map(Vec::len).sum();
+    let wanted = pair_count(features, total);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7061_6972);
+    fits.iter()
+        .map(|fit| {
+            let share = (wanted as f64 * fit.len() as f64 / total as f64).ceil() as usize;
+            if share >= fit.len() {
+                return fit.clone();
+            }
+            let mut rows: Vec<u32> = sample(&mut rng, fit.len(), share)
+                .into_iter()
+                .map(|k| fit[k])
+                .collect();
+            rows.sort_unstable();
+            rows
+        })
+        .collect()
+}
+
 impl InvariantModel {
     /// Learns the invariants from the rows `fits[l]` of every log `logs[l]`, and the
     /// report of every log (held-out rows `held[l]`); without a given count, at least
@@ -721,7 +833,6 @@ impl InvariantModel {
         (least, progress): (usize, &dyn Progress),
     ) -> Result<(Self, Vec<LogReport>), LearnError> {
         let basis = Basis::new(space);
-        let fitted: u64 = fits.iter().map(|f| f.len() as u64).sum();
         let indices: Vec<SensorIndex> =
             observe::stage(progress, observe::SENSOR_TREE, logs.len() as u64, || {
                 logs.iter()
@@ -733,15 +844,19 @@ impl InvariantModel {
                     })
                     .collect()
             });
-        let pairs: Vec<Vec<(u32, u32)>> = observe::stage(progress, observe::PAIRS, fitted, || {
-            logs.iter()
-                .zip(fits)
-                .zip(&indices)
-                .map(|((log, fit), index)| {
-                    observe::map_rows(fit, progress, |i| (i, index.nearest_other(log, i)))
-                })
-                .collect()
-        });
+        let paired = paired_rows(fits, basis.len - 1, params.seed);
+        let paired_count: u64 = paired.iter().map(|rows| rows.len() as u64).sum();
+        let pairs: Vec<Vec<(u32, u32)>> =
+            observe::stage(progress, observe::PAIRS, paired_count, || {
+                logs.iter()
+                    .zip(&paired)
+                    .zip(&indices)
+                    .map(|((log, rows), index)| {
+                        observe::map_rows(rows, progress, |i| (i, index.nearest_other(log, i)))
+                    })
+                    .collect()
+            });
+        drop(paired);
         let Learned {
             eigenvalues,
             w,
@@ -907,36 +1022,45 @@ impl InvariantModel {
         self.combine(&phi, out);
     }
 
-    /// `out = Wᵀ (v − μ)` for `v` of length `3^N` (the constant's row of `W` is 0);
-    /// `centred = false` leaves `μ` out (derivatives).
-    fn combine_with(&self, v: &[f64], out: &mut [f64], centred: bool) {
+    /// `out = Wᵀ (φ − μ)` for `φ` of length `3^N` (the constant's row of `W` is 0).
+    fn combine(&self, phi: &[f64], out: &mut [f64]) {
         out.fill(0.0);
         for f in 1..self.basis.len {
-            let x = if centred { v[f] - self.mean[f] } else { v[f] };
+            let x = phi[f] - self.mean[f];
             let row = &self.weights[f * self.count..(f + 1) * self.count];
             out.iter_mut().zip(row).for_each(|(o, w)| *o += w * x);
         }
     }
 
-    fn combine(&self, phi: &[f64], out: &mut [f64]) {
-        self.combine_with(phi, out, true);
-    }
-
     /// `z(m)` into `value` (`count`) and, when asked, `∂z/∂m` into `jacobian`
-    /// (`count × N`, row-major).
+    /// (`count × N`, row-major): one pass over `W`, each of its rows applied to `φ − μ`
+    /// and to the `∂φ/∂m_j` that are not zero (those of the functions that have a
+    /// factor of motor `j`).
     pub(crate) fn evaluate(&self, m: &[f64], value: &mut [f64], jacobian: Option<&mut [f64]>) {
         let n = self.space.dim();
         let Some(jac) = jacobian else {
             self.invariants(m, value);
             return;
         };
-        let mut phi = vec![0.0; self.basis.len];
-        let mut derivatives = vec![0.0; n * self.basis.len];
+        let (len, count) = (self.basis.len, self.count);
+        let mut phi = vec![0.0; len];
+        let mut derivatives = vec![0.0; n * len];
         self.basis.with_derivatives(m, &mut phi, &mut derivatives);
-        self.combine(&phi, value);
-        let mut column = vec![0.0; self.count];
-        for (j, d) in derivatives.chunks(self.basis.len).enumerate() {
-            self.combine_with(d, &mut column, false);
+        // Column j of the Jacobian in columns[j·count..].
+        let mut columns = vec![0.0; n * count];
+        value.fill(0.0);
+        for f in 1..len {
+            let row = &self.weights[f * count..(f + 1) * count];
+            let x = phi[f] - self.mean[f];
+            value.iter_mut().zip(row).for_each(|(o, w)| *o += w * x);
+            for (j, column) in columns.chunks_mut(count).enumerate() {
+                let d = derivatives[j * len + f];
+                if d != 0.0 {
+                    column.iter_mut().zip(row).for_each(|(o, w)| *o += w * d);
+                }
+            }
+        }
+        for (j, column) in columns.chunks(count).enumerate() {
             for (c, &v) in column.iter().enumerate() {
                 jac[c * n + j] = v;
             }
@@ -954,10 +1078,29 @@ impl InvariantModel {
     pub(crate) fn check_motors(n: usize) -> Result<usize, String> {
         Basis::features(n).ok_or_else(|| {
             format!(
-                "the invariants' basis has 3^N − 1 functions, {} for {n} motors: at most {MAX_FEATURES} (five motors)",
+                "the invariants' basis has 3^N − 1 functions, {} for {n} motors: at most {MAX_FEATURES} ({MAX_MOTORS} motors)",
                 3f64.powi(n as i32) - 1.0
             )
         })
+    }
+
+    /// Bytes the eigenproblem of `n` motors holds at most, besides the log, its trees
+    /// and the threads' blocks: eight `F × F` matrices (the sums, `Σ`, `C`, the
+    /// Cholesky factor, the whitened `C`, its eigenvectors and the eigensolver's
+    /// scratch), a group of blocks' sums ([`GROUP_BYTES`], or one block's `16 F²`), and
+    /// for the `pairs` pairs their rows twice (all, and those kept) and their changes.
+    pub(crate) fn shared_bytes(n: usize, pairs: u64) -> u64 {
+        let features = 3u64.saturating_pow(n as u32).saturating_sub(1);
+        let matrices = features.saturating_mul(features).saturating_mul(8 * 8);
+        let group = (GROUP_BYTES as u64).max(features.saturating_mul(features).saturating_mul(16));
+        matrices
+            .saturating_add(group)
+            .saturating_add(pairs.saturating_mul(24))
+    }
+
+    /// Bytes each thread holds: its block of `φ` and `Δ` (`2 ×` [`BLOCK_VALUES`] values).
+    pub(crate) fn thread_bytes() -> u64 {
+        16 * BLOCK_VALUES as u64
     }
 }
 
@@ -965,6 +1108,7 @@ impl InvariantModel {
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+    use rand::RngExt;
 
     #[test]
     fn basis_derivatives_are_the_derivatives_of_its_values() {
@@ -1029,9 +1173,104 @@ mod tests {
     fn the_basis_size_is_bounded() {
         assert_eq!(Basis::features(4), Some(80));
         assert_eq!(Basis::features(5), Some(242));
-        assert_eq!(Basis::features(6), None);
-        assert!(InvariantModel::check_motors(7)
+        assert_eq!(Basis::features(6), Some(728));
+        assert_eq!(Basis::features(7), Some(2186));
+        assert_eq!(Basis::features(8), None);
+        assert!(InvariantModel::check_motors(8)
             .unwrap_err()
-            .contains("2186"));
+            .contains("6560"));
+        // Seven motors: eight matrices of 2186² values, 306 MB, and the blocks.
+        let bytes = InvariantModel::shared_bytes(7, 139_904) + 2 * InvariantModel::thread_bytes();
+        assert!((300 << 20..500 << 20).contains(&bytes), "{bytes}");
+    }
+
+    #[test]
+    fn seven_motors_derivatives_are_the_derivatives_of_the_values() {
+        let mut motors = vec![Motor::HINGE; 7];
+        motors[4] = Motor::Bounded {
+            low: -2.0,
+            high: 0.5,
+        };
+        let space = MotorSpace::new(motors).unwrap();
+        let basis = Basis::new(&space);
+        let len = 2187;
+        assert_eq!(basis.len, len);
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..3 {
+            let mut m = [0.0; 7];
+            for (j, x) in m.iter_mut().enumerate() {
+                *x = if j == 4 {
+                    rng.random_range(-2.0..0.5)
+                } else {
+                    rng.random_range(-3.0..3.0)
+                };
+            }
+            let mut phi = vec![0.0; len];
+            let mut d = vec![0.0; 7 * len];
+            basis.with_derivatives(&m, &mut phi, &mut d);
+            // The last function: sin of every hinge times 2u² − 1 of the bounded motor.
+            let u = (m[4] + 0.75) / 1.25;
+            let expected: f64 = (0..7)
+                .map(|j| {
+                    if j == 4 {
+                        2.0 * u * u - 1.0
+                    } else {
+                        m[j].sin()
+                    }
+                })
+                .product();
+            assert_relative_eq!(phi[len - 1], expected, max_relative = 1e-12);
+            let step = 1e-6;
+            for j in 0..7 {
+                let (mut plus, mut minus) = (m, m);
+                plus[j] += step;
+                minus[j] -= step;
+                let (mut a, mut b) = (vec![0.0; len], vec![0.0; len]);
+                basis.values(&plus, &mut a);
+                basis.values(&minus, &mut b);
+                for f in 0..len {
+                    let numeric = (a[f] - b[f]) / (2.0 * step);
+                    assert!((numeric - d[j * len + f]).abs() < 1e-8, "{j} {f}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_pairs_are_all_samples_up_to_five_motors_and_64_per_function_past_them() {
+        assert_eq!(pair_count(80, 1_000_000), 1_000_000);
+        assert_eq!(pair_count(242, 1_000_000), 1_000_000);
+        assert_eq!(pair_count(728, 1_000_000), 129_663);
+        assert_eq!(pair_count(2186, 1_000_000), 64 * 2186);
+        assert_eq!(pair_count(2186, 50_000), 50_000);
+        assert_eq!(block_rows(80), 8192);
+        assert_eq!(block_rows(242), 8192);
+        assert_eq!(block_rows(2186), 959);
+        assert_eq!(tiles(80), vec![(0, 80)]);
+        assert_eq!(tiles(600), vec![(0, 256), (256, 512), (512, 600)]);
+    }
+
+    #[test]
+    fn tiled_sums_are_the_symmetric_sums() {
+        // 26 columns in tiles of 10: the upper triangle's tiles, mirrored.
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let x = Mat::from_fn(50, 26, |_, _| rng.random_range(-1.0..1.0));
+        let full = upper_tile(x.as_ref(), 0);
+        let mut tiled = Mat::<f64>::zeros(26, 26);
+        for start in [0, 10, 20] {
+            let end = (start + 10).min(26);
+            let part = upper_tile(x.as_ref().subcols(0, end), start);
+            for c in 0..end - start {
+                for r in 0..end {
+                    tiled[(r, start + c)] = part[(r, c)];
+                }
+            }
+        }
+        mirror_upper(&mut tiled);
+        for r in 0..26 {
+            for c in 0..26 {
+                assert_relative_eq!(tiled[(r, c)], full[(r, c)], max_relative = 1e-12);
+            }
+        }
     }
 }

@@ -9,8 +9,8 @@
 //! |---|---|
 //! | the log | `8 S (N + K)`, and the local fits' copy of the sensors, `8 S K` |
 //! | k-d trees | the tree of the fitted samples with their periodic images (at most `1.5^P` per sample: the bandwidth is below a quarter period), `S_f 1.5^P (8N + 8)`; the plain tree of the bandwidth, `S_f (8N + 8)`; for `invariants`, the larger of the sensor tree (`S_f (8K + 8)`) and the tree of the invariants (`S_f (8 · 32 + 8)`), and the pairs `8 S_f` |
-//! | basis | `invariants`: every block's sums of `φφᵀ` and `ΔΔᵀ` (`⌈S_f / 8192⌉ · 2 F² · 8`, `F = 3^N − 1`), and `Σ`, `C`, their factor and eigenvectors (`5 F² · 8`) |
-//! | per thread | `invariants`: one block's `φ` and `Δ` (`2 · min(8192, S_f) · F · 8`); local fits: the samples of one fit and the candidates of the next (`(1.5^P + 2) · neighbours · (3 + N + 2p + 2K) · 8`, `p` the fit's coefficients); times `T` (the law's report gives one thread's: it is the same for any thread count) |
+//! | basis | `invariants`: eight `F × F` matrices (`64 F²`, `F = 3^N − 1`: the sums, `Σ`, `C`, the factor, the whitened `C`, its eigenvectors, scratch), a group of blocks' sums (64 MiB, or one block's `16 F²`), and the `P_p` pairs' rows, kept rows and changes (`24 P_p`; `P_p = S_f` up to five motors, about 140 000 past) |
+//! | per thread | `invariants`: one block's `φ` and `Δ` (`2 · 2^21` values, `32 MiB`); local fits: the samples of one fit and the candidates of the next (`(1.5^P + 2) · neighbours · (3 + N + 2p + 2K) · 8`, `p` the fit's coefficients); times `T` (the law's report gives one thread's: it is the same for any thread count) |
 //! | traced sets | `(M, P_s, N)` float64 and the piece of every point (`8 M P_s (N + 1)`), given by the caller |
 //!
 //! The estimate is an upper bound for the trees (the images are counted at their most)
@@ -18,7 +18,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::invariants::MAX_INVARIANTS;
+use super::invariants::{pair_count, InvariantModel, MAX_INVARIANTS};
 use super::tree::KdTree;
 use super::{LawMethod, LawValidParams};
 
@@ -26,9 +26,6 @@ use super::{LawMethod, LawValidParams};
 /// `smspace learn` unless `--max-memory` is given): 16 GiB, which a log of ten million
 /// samples of the paper's arm stays well under.
 pub const DEFAULT_MEMORY_LIMIT_GIB: f64 = 16.0;
-
-/// Samples per block of the invariants' basis sums (as `invariants::BLOCK`).
-const BASIS_BLOCK: u64 = 8192;
 
 /// What learning needs, part by part (see the module docs), in bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -177,15 +174,10 @@ impl LawValidParams {
         }
         match self.method {
             LawMethod::Invariants => {
-                let features = 3u64.saturating_pow(n as u32) - 1;
-                let square = features.saturating_mul(features).saturating_mul(8);
-                let blocks = fitted_total.div_ceil(BASIS_BLOCK);
-                estimate.basis_bytes = blocks
-                    .saturating_mul(2)
-                    .saturating_add(5)
-                    .saturating_mul(square);
-                let rows = BASIS_BLOCK.min(fitted_total);
-                estimate.bytes_per_thread = (2 * rows).saturating_mul(features).saturating_mul(8);
+                let features = 3usize.saturating_pow(n as u32) - 1;
+                let pairs = pair_count(features, fitted_total as usize) as u64;
+                estimate.basis_bytes = InvariantModel::shared_bytes(n, pairs);
+                estimate.bytes_per_thread = InvariantModel::thread_bytes();
             }
             LawMethod::LocalLinear | LawMethod::LocalQuadratic => {
                 let k = shapes.iter().map(|s| s.1).max().unwrap_or(0) as u64;

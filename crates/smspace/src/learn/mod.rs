@@ -100,7 +100,8 @@
 //! it exactly. The report gives the eigenvalues, `λ` on the fitted pairs and on the
 //! held-out samples (each with its nearest fitted sample in sensor space), and the
 //! held-out error of `ŝ = g(z)`, `g` the mean sensor values of the 8 fitted samples
-//! nearest in `z`. At most five motors (242 functions). See the `invariants` module.
+//! nearest in `z`. At most seven motors (2186 functions; past five motors `Σ` and `C`
+//! are summed over `max(2^36 / F², 64 F)` seeded pairs). See the `invariants` module.
 //!
 //! ## Coverage (status `left-data`)
 //!
