@@ -244,8 +244,9 @@ fn readings_that_differ_by_rounding_are_traced_as_exact() {
 
 #[test]
 fn noisy_sets_that_are_kept_are_their_loops_and_retraced_ones_are_named() {
-    // 5 % noise on the arm of `experiments/paper-arm-noise.toml`, at starts whose noisy
-    // traces ran back over themselves (or failed) without the check.
+    // 5 % noise on the arm of `experiments/paper-arm-noise.toml`: at starts 14 and 10 the
+    // noisy trace runs back over its own path (start 10: back to the start heading the
+    // other way), at 110 it closes on its loop.
     let params = NoiseParams {
         relative: 0.05,
         sigma: 0.0,
@@ -254,7 +255,7 @@ fn noisy_sets_that_are_kept_are_their_loops_and_retraced_ones_are_named() {
     let agent = NoisyAgent::new(arm(), params).unwrap();
     let env = EnvironmentConfig::default().build(&agent).unwrap();
     let all = starts(120, 1);
-    let motors = all.select(ndarray::Axis(0), &[74, 3, 55, 110]);
+    let motors = all.select(ndarray::Axis(0), &[14, 10, 110]);
     let mut p = sensory(SensorNoise::Auto);
     p.points = 100;
     p.max_steps = 20_000;
@@ -265,11 +266,11 @@ fn noisy_sets_that_are_kept_are_their_loops_and_retraced_ones_are_named() {
         let doubled = set.noise.expect("noisy readings").doubled;
         if set.status == SetStatus::Retraced {
             retraced += 1;
-            assert!(doubled > MAX_DOUBLED, "{set:?}");
         } else if set.status.is_traced() {
             assert!(doubled <= MAX_DOUBLED, "{set:?}");
         }
     }
+    assert!(retraced >= 1, "{:?}", noisy.report.summary);
     assert!(!noisy.kept.is_empty(), "{:?}", noisy.report.summary);
     // Never a silently wrong set: what is kept lies along the whole true loop.
     let errors = smspace::learn::set_errors(&noisy, &exact, Period::TwoPi).unwrap();
