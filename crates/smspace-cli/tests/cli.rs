@@ -372,6 +372,18 @@ fn bad_inputs_give_clear_errors() {
         ),
         (
             vec![
+                "trace", "--noise", "loud", "--motors", "good.npy", "--out", "s.npy",
+            ],
+            "invalid noise 'loud'; use \"auto\" or a standard deviation",
+        ),
+        (
+            vec![
+                "trace", "--noise", "-0.1", "--motors", "good.npy", "--out", "s.npy",
+            ],
+            "noise = -0.1",
+        ),
+        (
+            vec![
                 "trace", "--method", "sensory", "--motors", "good.npy", "--out", "s.npy",
             ],
             "needs an environment",

@@ -6,7 +6,9 @@ use smspace::agent::{
     sense_rows, Agent, AgentConfig, Environment, EnvironmentConfig, NoiseParams, NoisyAgent,
 };
 use smspace::explore::{explore, ExploreParams};
-use smspace::kernel::{trace_sets, SensorNoise, TraceMethod, TraceParams, TracedSets};
+use smspace::kernel::{
+    trace_sets, SensorNoise, SetStatus, TraceMethod, TraceParams, TracedSets, MAX_DOUBLED,
+};
 use smspace::metric::Period;
 use smspace::progress::Silent;
 
@@ -198,4 +200,86 @@ fn bad_noise_values_name_their_key() {
         .unwrap();
     assert!(built.agent.noiseless().is_some());
     assert!(built.config.params["noise"].get("seed").is_some());
+}
+
+#[test]
+fn readings_that_differ_by_rounding_are_traced_as_exact() {
+    // A simulator that is not bit-reproducible: two readings of the same motors differ
+    // by about 10⁻¹⁴ of the sensors' spread, far below the exact corrector's tolerance.
+    let agent = noisy_arm(1e-14);
+    let env = EnvironmentConfig::default().build(&agent).unwrap();
+    let motors = starts(5, 9);
+    let rounded = trace(&agent, &env, motors.view(), sensory(SensorNoise::Auto));
+    let exact = trace(
+        agent.inner(),
+        &env,
+        motors.view(),
+        sensory(SensorNoise::Auto),
+    );
+    assert!(rounded.report.summary.noise.is_none());
+    assert_eq!(rounded.kept, exact.kept);
+    for (a, e) in rounded.report.sets.iter().zip(&exact.report.sets) {
+        assert!(a.noise.is_none(), "set {}: {:?}", a.index, a.noise);
+        // Exact-path costs, not the hundreds of thousands of rows of a noisy set.
+        assert!(a.sensor_rows < 4 * e.sensor_rows.max(1000), "{a:?}");
+    }
+    let errors = smspace::learn::set_errors(&rounded, &exact, Period::TwoPi).unwrap();
+    assert!(errors.p90 <= 1e-6, "{errors:?}");
+    // Readings that differ above the tolerance are noise.
+    let agent = noisy_arm(1e-9);
+    let mut p = sensory(SensorNoise::Auto);
+    p.max_steps = 1;
+    p.piece_starts = 0;
+    let noisy = trace_sets(
+        &agent,
+        Some(&env),
+        motors.view(),
+        None,
+        &p.check().unwrap(),
+        &Silent,
+    )
+    .unwrap();
+    assert!(noisy.report.sets.iter().all(|s| s.noise.is_some()));
+}
+
+#[test]
+fn noisy_sets_that_are_kept_are_their_loops_and_retraced_ones_are_named() {
+    // 5 % noise on the arm of `experiments/paper-arm-noise.toml`: at starts 14 and 10 the
+    // noisy trace runs back over its own path (start 10: back to the start heading the
+    // other way), at 110 it closes on its loop.
+    let params = NoiseParams {
+        relative: 0.05,
+        sigma: 0.0,
+        seed: 1,
+    };
+    let agent = NoisyAgent::new(arm(), params).unwrap();
+    let env = EnvironmentConfig::default().build(&agent).unwrap();
+    let all = starts(120, 1);
+    let motors = all.select(ndarray::Axis(0), &[14, 10, 110]);
+    let mut p = sensory(SensorNoise::Auto);
+    p.points = 100;
+    p.max_steps = 20_000;
+    let noisy = trace(&agent, &env, motors.view(), p.clone());
+    let exact = trace(agent.inner(), &env, motors.view(), p);
+    let mut retraced = 0;
+    for set in &noisy.report.sets {
+        let doubled = set.noise.expect("noisy readings").doubled;
+        if set.status == SetStatus::Retraced {
+            retraced += 1;
+        } else if set.status.is_traced() {
+            assert!(doubled <= MAX_DOUBLED, "{set:?}");
+        }
+    }
+    assert!(retraced >= 1, "{:?}", noisy.report.summary);
+    assert!(!noisy.kept.is_empty(), "{:?}", noisy.report.summary);
+    // Never a silently wrong set: what is kept lies along the whole true loop.
+    let errors = smspace::learn::set_errors(&noisy, &exact, Period::TwoPi).unwrap();
+    assert!(errors.p90 <= 0.3, "{errors:?}");
+    let warned = noisy
+        .report
+        .summary
+        .warnings()
+        .iter()
+        .any(|w| w.contains("ran back over their own path"));
+    assert_eq!(warned, retraced > 0);
 }

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use smspace::io;
-use smspace::kernel::{trace_sets, Components, StepControl, TraceMethod, TraceParams};
+use smspace::kernel::{trace_sets, Components, SensorNoise, StepControl, TraceMethod, TraceParams};
 
 use super::common::{AgentArgs, EnvArgs, WorkspaceArgs};
 use crate::ui::Bar;
@@ -43,6 +43,12 @@ pub struct Args {
     /// Seeds of the multi-start search for pieces per set (0: no search, no check).
     #[arg(long, default_value_t = TraceParams::default().piece_starts)]
     piece_starts: usize,
+    /// Sensory method: the sensors' noise, `auto` (read every start twice: readings
+    /// that differ beyond the corrector's tolerance are noisy, their noise measured at
+    /// the start and the set traced on the level set of their mean) or a standard
+    /// deviation in sensor units (0: exact readings).
+    #[arg(long, value_name = "auto|SIGMA", default_value = "auto", value_parser = parse_noise, allow_negative_numbers = true)]
+    noise: SensorNoise,
     /// Kernels of dimension k ≥ 2: the tangent step of the dense covering (radians).
     #[arg(long, default_value_t = TraceParams::default().cover_step, allow_negative_numbers = true)]
     cover_step: f64,
@@ -66,6 +72,10 @@ fn parse_method(s: &str) -> Result<TraceMethod, String> {
 }
 
 fn parse_components(s: &str) -> Result<Components, String> {
+    s.parse()
+}
+
+fn parse_noise(s: &str) -> Result<SensorNoise, String> {
     s.parse()
 }
 
@@ -93,6 +103,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         components: args.components,
         piece_starts: args.piece_starts,
         cover_step: args.cover_step,
+        noise: args.noise,
         ..TraceParams::default()
     }
     .check()?;

@@ -80,6 +80,9 @@ fn trace_warnings(inputs: &ReportInputs<'_>) -> Vec<Warning> {
             "cover-budget" => format!(
                 "{sets} were left out because the dense covering of their k-dimensional kernel needed more than max_cover_points nodes (raise cover_step or max_cover_points)"
             ),
+            "retraced" => format!(
+                "{sets} were left out because their noisy traces ran back over their own path"
+            ),
             other => format!("{sets} have status {other} (see sets.trace.json)"),
         };
         out.push(Warning::new("trace", message));

@@ -78,6 +78,10 @@ impl Scratch {
     }
 }
 
+/// Readings with noise: the next tangent is oriented by the heading from this many
+/// nodes back.
+const HEADING_NODES: usize = 3;
+
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -289,7 +293,14 @@ fn follow(
                 return Err(status);
             }
         };
-        set.null_vector(&t, &mut t_new);
+        next_tangent(
+            set,
+            &branch.nodes,
+            &predicted,
+            &t,
+            position_noise > 0.0,
+            &mut t_new,
+        );
         let cos_turn: f64 = t.iter().zip(&t_new).map(|(a, b)| a * b).sum();
         let max_turn = params.max_turn + set.tangent_noise();
         let too_sharp = cos_turn < max_turn.cos();
@@ -340,6 +351,12 @@ fn follow(
                 branch.nodes.truncate(branch.nodes.len() - n);
                 branch.tangents.truncate(branch.tangents.len() - n);
             }
+            // (With noise, a trace that comes back to the start heading the other
+            // way has run back along its own path: no loop.)
+            let heading: f64 = t.iter().zip(direction).map(|(a, b)| a * b).sum();
+            if position_noise > 0.0 && heading < 0.0 {
+                return Err(SetStatus::Retraced);
+            }
             branch.closes_at = Some(watch.image.clone());
             return Ok(());
         }
@@ -347,6 +364,32 @@ fn follow(
             return Ok(());
         }
     }
+}
+
+/// The null vector at `at` (where the level set is linearised) into `t_new`, oriented
+/// along the previous tangent `t`; with noisy readings along the heading from the
+/// node [`HEADING_NODES`] back to `at` instead (positions are known far better than a
+/// noisy tangent, which a poorly determined null direction can turn round).
+fn next_tangent(
+    set: &dyn LevelSet,
+    nodes: &[f64],
+    at: &[f64],
+    t: &[f64],
+    noisy: bool,
+    t_new: &mut [f64],
+) {
+    let n = at.len();
+    if !noisy {
+        set.null_vector(t, t_new);
+        return;
+    }
+    let back = (nodes.len() / n).saturating_sub(1 + HEADING_NODES);
+    let from = &nodes[back * n..(back + 1) * n];
+    let mut heading: Vec<f64> = at.iter().zip(from).map(|(a, b)| a - b).collect();
+    if norm(&heading) == 0.0 {
+        heading.copy_from_slice(t);
+    }
+    set.null_vector(&heading, t_new);
 }
 
 /// The corrector from a predicted point, linearised where it lands (the next null
@@ -513,6 +556,85 @@ pub(crate) struct Curve {
     pub closed: bool,
 }
 
+/// Points of the polyline a curve is checked on for doubling back ([`doubled_back`]).
+const DOUBLING_POINTS: usize = 200;
+/// Pairs of points closer than this many of their spacings pair up (see [`doubled_back`]).
+const DOUBLING_REACH: f64 = 1.5;
+/// ... when their chords are parallel or antiparallel to within this cosine.
+const DOUBLING_COSINE: f64 = 0.8;
+
+/// The fraction of a curve that runs over another part of itself (see the module docs
+/// of [`super`], "Noisy sensors"): the polyline through its nodes is cut into
+/// [`DOUBLING_POINTS`] points equally spaced in arc length `Δ`, and a point doubles
+/// when another point at least `DOUBLING_POINTS / 20` points away along the curve
+/// (round the loop for a closed curve) lies within [`DOUBLING_REACH`] `Δ` of it (torus
+/// distance) with chords parallel or antiparallel (`|cos| ≥` [`DOUBLING_COSINE`]). A
+/// simple loop or segment has none (two passes of a smooth curve cross rather than
+/// run alongside); a trace that the noisy tangent turned back runs over its own path.
+pub(crate) fn doubled_back(space: &MotorSpace, curve: &Curve) -> f64 {
+    let n = space.dim();
+    let count = curve.nodes.len() / n;
+    let node = |i: usize| &curve.nodes[i * n..(i + 1) * n];
+    let mut arc = Vec::with_capacity(count);
+    arc.push(0.0);
+    for i in 1..count {
+        arc.push(arc[i - 1] + distance(node(i - 1), node(i)));
+    }
+    let total = arc.last().copied().unwrap_or(0.0);
+    if count < 2 || total <= 0.0 {
+        return 0.0;
+    }
+    let q = DOUBLING_POINTS;
+    let spacing = total / q as f64;
+    // Points at arc lengths i Δ (unwrapped) and their chords to the next one.
+    let mut points = vec![0.0; (q + 1) * n];
+    let mut segment = 0;
+    for i in 0..=q {
+        let s = (i as f64 * spacing).min(total);
+        while segment + 2 < count && arc[segment + 1] < s {
+            segment += 1;
+        }
+        let width = arc[segment + 1] - arc[segment];
+        let c = if width > 0.0 {
+            (s - arc[segment]) / width
+        } else {
+            0.0
+        };
+        for (j, p) in points[i * n..(i + 1) * n].iter_mut().enumerate() {
+            *p = node(segment)[j] + c * (node(segment + 1)[j] - node(segment)[j]);
+        }
+    }
+    let chord = |i: usize| -> Vec<f64> {
+        (0..n)
+            .map(|j| points[(i + 1) * n + j] - points[i * n + j])
+            .collect()
+    };
+    let chords: Vec<Vec<f64>> = (0..q).map(chord).collect();
+    let window = q / 20;
+    let mut doubled = 0;
+    for i in 0..q {
+        let pi = &points[i * n..(i + 1) * n];
+        let pairs = (0..q).any(|k| {
+            let apart = i.abs_diff(k);
+            let apart = if curve.closed {
+                apart.min(q - apart)
+            } else {
+                apart
+            };
+            if apart <= window
+                || space.distance(pi, &points[k * n..(k + 1) * n]) > DOUBLING_REACH * spacing
+            {
+                return false;
+            }
+            let (a, b) = (&chords[i], &chords[k]);
+            let cos = a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>() / (norm(a) * norm(b));
+            cos.abs() >= DOUBLING_COSINE
+        });
+        doubled += usize::from(pairs);
+    }
+    doubled as f64 / q as f64
+}
+
 /// Resamples `curve` to `points` points equally spaced in arc length (a closed loop
 /// gets `points` points without repeating the start; an open curve includes both
 /// ends), each projected back onto the level set. Between nodes the curve is the cubic
@@ -642,4 +764,56 @@ fn project_point(
     }
     set.set_linearization(Linearization::Exact);
     Err(SetStatus::CorrectorFailed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A loop of radius 1 in the first two of four hinges, `count` nodes from angle
+    /// `from` to `to` (unwrapped).
+    fn arc(count: usize, from: f64, to: f64) -> Vec<f64> {
+        (0..count)
+            .flat_map(|i| {
+                let a = from + (to - from) * i as f64 / (count - 1) as f64;
+                [a.cos(), a.sin(), 0.3, -0.2]
+            })
+            .collect()
+    }
+
+    fn curve(nodes: Vec<f64>, closed: bool) -> Curve {
+        let tangents = vec![0.0; nodes.len()];
+        Curve {
+            nodes,
+            tangents,
+            closed,
+        }
+    }
+
+    #[test]
+    fn a_simple_loop_does_not_double_back_and_a_retraced_one_does() {
+        let space = MotorSpace::hinges(4);
+        let tau = std::f64::consts::TAU;
+        let simple = curve(arc(400, 0.0, tau), true);
+        assert_eq!(doubled_back(&space, &simple), 0.0);
+        // Out along a third of the loop and back again, then "closed" at the start.
+        let mut there_and_back = arc(200, 0.0, tau / 3.0);
+        there_and_back.extend(arc(200, tau / 3.0, 0.0));
+        let retraced = curve(there_and_back, true);
+        assert!(doubled_back(&space, &retraced) > 0.8);
+        // Round twice (a loop that missed its closure once) runs alongside itself too.
+        let twice = curve(arc(800, 0.0, 2.0 * tau), true);
+        assert!(doubled_back(&space, &twice) > 0.8);
+        // An open segment, and a loop that nearly touches itself at one place.
+        let segment = curve(arc(100, 0.0, 2.0), false);
+        assert_eq!(doubled_back(&space, &segment), 0.0);
+        // A peanut whose waist brings two parallel stretches 0.2 apart (10 spacings).
+        let mut waist: Vec<f64> = arc(400, 0.0, tau);
+        for p in waist.chunks_exact_mut(4) {
+            let r = 0.1 + p[0] * p[0];
+            p[0] *= r;
+            p[1] *= r;
+        }
+        assert_eq!(doubled_back(&space, &curve(waist, true)), 0.0);
+    }
 }

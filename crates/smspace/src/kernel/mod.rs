@@ -85,8 +85,10 @@
 //! Readings that change between two calls at the same motors (a robot, a simulator
 //! with noise, [`crate::agent::NoisyAgent`]) cannot meet a tolerance of `10⁻¹²`, nor
 //! give a Jacobian by differences `10⁻⁶` rad apart. With `[kernel] noise = "auto"`
-//! (the default) every start is read twice in one batch: equal readings are exact and
-//! the set is traced as above (one sensor row more per set). Otherwise the set is the
+//! (the default) every start is read twice in one batch: readings equal to within the
+//! exact corrector's own tolerance (`|s₁ − s₂| ≤ sensor_tolerance · max |s₁|` in every
+//! sensor: rounding, from a simulator that is not bit-reproducible, is no noise) are
+//! exact and the set is traced as above (one sensor row more per set). Otherwise the set is the
 //! level set of the sensors' mean law, `{ m | a(m) = a₀ }` (`noisy.rs`): at every
 //! point one batch of rows, the centre `m` read `N + 1` times and the `2N` rows
 //! `m ± ρ e_j`, repeated `r` times, is a local regression whose intercept `a(m)` (the
@@ -98,13 +100,25 @@
 //! With `g` the smallest of the `N − k` largest singular values of the slope, `ρ`
 //! and `r` aim at a slope error of 2 % (`ρ ∈ [10⁻³, 0.1]` rad, `r ≤ 64`), and a
 //! point's position is uncertain by `σ_pos = σ / (g √(r (N + 1)))`. Every tolerance
-//! scales with it: a point is on the set when its Gauss–Newton step is below `5 σ_pos`
-//! (and its residual within the noise; the step is then taken), corrections below
+//! scales with it: a point is on the set when the residual's part in the slope's
+//! range, `|Uᵀ r| / g`, is below `5 σ_pos` (and every residual component within the
+//! noise; a last step is then taken); the corrector's steps are damped,
+//! `Δ = Σ_e v_e (v_eᵀ Jᵀ r) / (λ_e + μ²)` with `μ = σ (√K + √N) / (ρ √(2r))` the
+//! slope's noise, so that a direction the noise leaves uncertain does not throw the
+//! point along the set; corrections below
 //! `3 σ_pos` plus the tangent's noise times the step are nothing to do for the step
 //! control, steps stay above `4 σ_pos`, loops close within
 //! `max(closure_tolerance, 4 σ_pos)` after `min_steps` steps, and the tangent's own
-//! noise is allowed on top of `max_turn`. `σ`, `σ_pos`, `ρ` and `r` are reported per
-//! set ([`SetReport::noise`]) and summarised ([`TraceSummary::noise`]); beyond a
+//! noise is allowed on top of `max_turn`; each new tangent is oriented along the
+//! path's heading over the last three nodes rather than along the last tangent, and a
+//! seed of the piece search lands on a piece already found within
+//! `max(piece_tolerance, 10 σ_pos)`. A noisy null direction can still turn a trace
+//! round: a trace that comes back to its start heading the other way, or whose curve
+//! runs back over its own path (more than [`MAX_DOUBLED`] of the polyline through its
+//! nodes, cut into 200 points `Δ` apart, lies within `1.5 Δ` of a point at least ten
+//! points away along it, with parallel or antiparallel chords, `|cos| ≥ 0.8`; a simple
+//! curve has none), is [`SetStatus::Retraced`], not kept, and the summary warns.
+//! `σ`, `σ_pos`, `ρ`, `r` and the doubled fraction are reported per set ([`SetReport::noise`]) and summarised ([`TraceSummary::noise`]); beyond a
 //! median `σ_pos` of [`MAX_POSITION_UNCERTAINTY`] rad, or with most sets failed, the
 //! summary warns ([`TraceSummary::warnings`]).
 //!
@@ -136,7 +150,7 @@ use crate::params::{CheckParams, InvalidParameter};
 use crate::progress::{Note, Progress};
 pub use crate::sets::Closure;
 use curve::Scratch;
-pub use noise::{NoiseSummary, SensorNoise, SetNoise, MAX_POSITION_UNCERTAINTY};
+pub use noise::{NoiseSummary, SensorNoise, SetNoise, MAX_DOUBLED, MAX_POSITION_UNCERTAINTY};
 pub use spatial::{extend_along, Spatial};
 use tracer::Tracer;
 pub use tracer::{tangent_space, TangentSpace};
@@ -723,6 +737,12 @@ pub enum SetStatus {
     /// The set left the region a law learned from data covers
     /// ([`Agent::covers`]); it ends there and is not kept.
     LeftData,
+    /// Noisy readings: the traced curve runs back over its own path (more than
+    /// [`MAX_DOUBLED`] of it pairs up with a part farther along, or it came back to
+    /// the start heading the other way; see the module docs, "Noisy sensors"): the
+    /// tangent's noise turned the trace round, so the set is a part of the loop gone
+    /// over twice, not the loop. Not kept.
+    Retraced,
 }
 
 impl SetStatus {
@@ -760,6 +780,9 @@ impl SetStatus {
             }
             SetStatus::LeftData => {
                 "the sets left the region the law's data covers: record logs that cover the starts' kernels, or take starts inside the log"
+            }
+            SetStatus::Retraced => {
+                "the noisy readings turned the trace back over its own path (where the sensors' slope is weak their null direction is poorly determined): average more readings per point (a less noisy sensor or simulator), or record a log and learn the law from it (smspace learn)"
             }
         })
     }
@@ -1117,6 +1140,17 @@ impl TraceSummary {
                     noise.max_position,
                     self.failed,
                     self.total
+                ));
+            }
+            let retraced = self.by_status.get("retraced").copied().unwrap_or(0);
+            if retraced > 0 {
+                out.push(format!(
+                    "{retraced} of {} sets traced from noisy readings (σ = {:.3e} sensor units, position uncertainty {:.4} rad, medians) ran back over their own path: more than {:.0} % of each curve lies alongside another part of it, where the noise of the sensors' slope turned the trace round, so they are pieces of their loops gone over twice and were left out ({} sets kept). Average more readings per point (a less noisy simulator or sensor), or record a log and learn the law from it (smspace learn, the [data] table)",
+                    self.total,
+                    noise.sigma,
+                    noise.position,
+                    100.0 * MAX_DOUBLED,
+                    self.traced
                 ));
             }
         }

@@ -21,7 +21,8 @@ use super::SetReport;
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum SensorNoise {
-    /// Read every start twice in one batch: equal readings are exact (traced as
+    /// Read every start twice in one batch: readings equal to within
+    /// `sensor_tolerance` of the largest one are exact (traced as
     /// exact, one sensor row more per set); otherwise the noise is measured from
     /// repeated readings.
     #[default]
@@ -99,6 +100,11 @@ pub struct SetNoise {
     pub stencil: f64,
     /// The repeats of every row of a regression.
     pub repeats: usize,
+    /// The fraction of the traced curve that runs back over its own path (0 for a
+    /// simple loop or segment; beyond [`MAX_DOUBLED`] the set is
+    /// [`SetStatus::Retraced`](super::SetStatus::Retraced)); 0 when not traced.
+    #[serde(default)]
+    pub doubled: f64,
 }
 
 /// The noise of the readings over the starts ([`SetNoise`] of every start read with
@@ -114,6 +120,12 @@ pub struct NoiseSummary {
     /// Its largest value.
     pub max_position: f64,
 }
+
+/// Beyond this fraction of a curve traced from noisy readings running back over its
+/// own path, the set is [`SetStatus::Retraced`](super::SetStatus::Retraced) and not
+/// kept (the fraction of a simple loop is 0; of a trace turned round by noise,
+/// 0.15–1).
+pub const MAX_DOUBLED: f64 = 0.1;
 
 /// Beyond this median position uncertainty (radians) the sets traced from noisy
 /// readings are too blurred to trust, and the run says so.

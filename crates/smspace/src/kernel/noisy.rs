@@ -10,16 +10,20 @@
 //! repeats). The set through a start `m⁰` is `{ m | a(m) = a₀ }` with `a₀` the
 //! intercept at the start from [`TARGET_REPEATS`] times as many repeats.
 //!
-//! The corrector is Gauss–Newton with minimum-norm steps `m ← m − J⁺ (a(m) − a₀)`, `J⁺`
-//! the pseudo-inverse of `J` restricted to its `N − k` largest singular values, a
-//! fresh regression at every iterate (no secant updates). With `σ` the noise's
+//! The corrector is damped Gauss–Newton, `m ← m − Σ_e v_e (v_eᵀ Jᵀ (a(m) − a₀)) /
+//! (λ_e + μ²)` over the eigenpairs `(λ_e, v_e)` of `JᵀJ` of its `N − k` largest
+//! singular values, `μ = σ (√K + √N) / (ρ √(2r))` the expected spectral norm of the
+//! slope's noise (a minimum-norm step where the slope stands well above its noise),
+//! with a fresh regression at every iterate (no secant updates). With `σ` the noise's
 //! standard deviation and `g` the smallest of those singular values at the start:
 //! - `ρ = σ / (√2 ε g)`, clamped to `[RHO_MIN, RHO_MAX]`, and `r = ⌈(σ / (√2 ρ g ε))²⌉`
 //!   clamped to `[1, MAX_REPEATS]`, so that the slope's relative error is about
 //!   `ε = SLOPE_ERROR`;
 //! - a point's position is uncertain by `σ_pos = σ / (g √(r (N + 1)))`: the corrector
-//!   accepts a point when its step `|J⁺ r|` is at most [`TOLERANCE_POSITIONS`] `σ_pos`
-//!   (`g` where it stands) and every residual component is within
+//!   accepts a point when the residual's part in the slope's range, `|Uᵀ r| / g`, is
+//!   at most [`TOLERANCE_POSITIONS`] `σ_pos` (`g` where it stands; unlike the step
+//!   `|J⁺ r|`, it does not grow where a noisy slope's weakest direction is
+//!   underestimated) and every residual component is within
 //!   [`RESIDUAL_SIGMAS`] standard deviations of the residual's noise, and then takes
 //!   that last step; where `g` falls below a tenth of the start's, the set is
 //!   singular;
@@ -34,9 +38,7 @@
 
 use ndarray::{ArrayView2, ArrayViewMut2};
 
-use super::level_set::{
-    oriented_null_vector, Decomposed, Decomposition, LevelSet, Sensor, Singular,
-};
+use super::level_set::{oriented_null_vector, Decomposition, LevelSet, Sensor, Singular};
 use super::{SensorNoise, SetNoise, SetStatus, TraceValidParams};
 
 /// Repeats of the first regression at a start, whose spread measures the noise.
@@ -69,7 +71,7 @@ const TURN_SIGMAS: f64 = 3.0;
 
 /// What the two readings of a start say ([`probe`]).
 pub(crate) enum Probe<'a> {
-    /// Equal readings (or `noise = 0`): the exact level set, with the sensor and the
+    /// Equal readings, to within the exact corrector's tolerance (or `noise = 0`): the exact level set, with the sensor and the
     /// start's reading when one was taken.
     Exact(Sensor<'a>, Option<Vec<f64>>),
     /// Readings with noise: the level set of their mean.
@@ -102,7 +104,8 @@ pub(crate) struct NoisySensory<'a> {
 }
 
 /// Reads the start twice in one batch (`noise = "auto"`) and decides how to trace:
-/// exactly when the readings are equal (or `noise = 0`), otherwise on the level set of
+/// exactly when the readings are equal to within the exact corrector's tolerance
+/// ([`repeats_exactly`]; or `noise = 0`), otherwise on the level set of
 /// the mean law, `σ` measured or given.
 pub(crate) fn probe<'a>(
     mut sensor: Sensor<'a>,
@@ -121,11 +124,7 @@ pub(crate) fn probe<'a>(
             let out = ArrayViewMut2::from_shape((2, k), &mut readings).expect("2 × K readings");
             sensor.sense_batch(motors, out);
             let (first, second) = readings.split_at(k);
-            if first
-                .iter()
-                .zip(second)
-                .all(|(a, b)| a.to_bits() == b.to_bits())
-            {
+            if repeats_exactly(first, second, params.sensor_tolerance) {
                 readings.truncate(k);
                 return Probe::Exact(sensor, Some(readings));
             }
@@ -133,6 +132,27 @@ pub(crate) fn probe<'a>(
         }
     };
     NoisySensory::probe_start(sensor, start, params, dimension, given)
+}
+
+/// Whether two readings of the same motors are exact: they differ nowhere by more
+/// than the exact corrector's own tolerance, `sensor_tolerance` times the largest
+/// sensor value of the first (the scale of [`super::level_set::Sensory`]'s residual),
+/// so that a simulator whose readings differ only by rounding (not bit-reproducible)
+/// is traced as exact. Readings that are not finite are never exact.
+fn repeats_exactly(first: &[f64], second: &[f64], sensor_tolerance: f64) -> bool {
+    if first
+        .iter()
+        .zip(second)
+        .all(|(a, b)| a.to_bits() == b.to_bits())
+    {
+        return true;
+    }
+    let largest = first.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+    let scale = if largest > 0.0 { largest } else { 1.0 };
+    first
+        .iter()
+        .zip(second)
+        .all(|(a, b)| (a - b).abs() <= sensor_tolerance * scale)
 }
 
 impl<'a> NoisySensory<'a> {
@@ -259,6 +279,29 @@ impl<'a> NoisySensory<'a> {
         (squares / ((r - 1) * types * k) as f64).sqrt()
     }
 
+    /// The norm of the residual's projection on the slope's range, `|Uᵀ r|`.
+    fn range_norm(&self, r: &[f64]) -> f64 {
+        let (n, k) = (self.n, self.k);
+        let jt_r: Vec<f64> = (0..n)
+            .map(|j| (0..k).map(|i| self.jacobian[i * n + j] * r[i]).sum())
+            .collect();
+        let mut squares = 0.0;
+        for e in self.dimension..n {
+            let v = &self.eigenvectors[e * n..(e + 1) * n];
+            let lambda = self.eigenvalues[e];
+            if lambda > 0.0 {
+                squares += v.iter().zip(&jt_r).map(|(a, b)| a * b).sum::<f64>().powi(2) / lambda;
+            }
+        }
+        squares.sqrt()
+    }
+
+    /// The expected spectral norm of the slope's noise, `σ (√K + √N) / (ρ √(2r))`.
+    fn slope_noise(&self) -> f64 {
+        self.noise.sigma * ((self.k as f64).sqrt() + (self.n as f64).sqrt())
+            / (self.rho * (2.0 * self.repeats as f64).sqrt())
+    }
+
     /// The smallest of the `N − k` largest singular values of the current slope.
     fn g(&self) -> f64 {
         self.eigenvalues[self.dimension].max(0.0).sqrt()
@@ -293,13 +336,12 @@ impl LevelSet for NoisySensory<'_> {
         let _ = self.linearize(m, r);
     }
 
-    /// The Gauss–Newton step `|J⁺ r|` (radians), or more when a residual component is
+    /// The residual's part in the slope's range over `g`, `|Uᵀ r| / g` (radians: the
+    /// Gauss–Newton step along the weakest direction), or more when a residual component is
     /// beyond the noise (a point where the residual is only orthogonal to the
     /// Jacobian's range is not on the set).
     fn residual_norm(&self, r: &[f64]) -> f64 {
-        let mut delta = vec![0.0; self.n];
-        self.correction(r, &mut delta);
-        let step = delta.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let step = self.range_norm(r) / self.g();
         let largest = r.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
         let noise = RESIDUAL_SIGMAS * self.residual_sigma;
         if largest.is_nan() {
@@ -355,13 +397,25 @@ impl LevelSet for NoisySensory<'_> {
         oriented_null_vector(&self.eigenvectors[..self.n], reference, t);
     }
 
+    /// The damped Gauss–Newton step `Σ_e v_e (v_eᵀ Jᵀ r) / (λ_e + μ²)` over the
+    /// range's eigenvectors, `μ` the slope's noise ([`Self::slope_noise`]): the
+    /// minimum-norm step where the slope is well above its noise, shortened along the
+    /// directions its noise makes uncertain.
     fn correction(&self, r: &[f64], delta: &mut [f64]) {
-        let range = Decomposed {
-            eigenvalues: &self.eigenvalues,
-            eigenvectors: &self.eigenvectors,
-            dimension: self.dimension,
-        };
-        range.minimum_norm_step(&self.jacobian, self.k, r, delta);
+        let (n, k) = (self.n, self.k);
+        let jt_r: Vec<f64> = (0..n)
+            .map(|j| (0..k).map(|i| self.jacobian[i * n + j] * r[i]).sum())
+            .collect();
+        let mu = self.slope_noise();
+        delta.fill(0.0);
+        for e in self.dimension..n {
+            let v = &self.eigenvectors[e * n..(e + 1) * n];
+            let c = v.iter().zip(&jt_r).map(|(a, b)| a * b).sum::<f64>()
+                / (self.eigenvalues[e].max(0.0) + mu * mu);
+            for (d, vj) in delta.iter_mut().zip(v) {
+                *d += c * vj;
+            }
+        }
     }
 
     fn jacobian(&self) -> (&[f64], usize) {

@@ -20,13 +20,13 @@ use super::cover::{
     cover_piece, farthest_points, forecast_nodes, piece_seeds, project_seed, share_points,
     CoverSettings, Covering, Grid, Landing, FORECAST_MARGIN,
 };
-use super::curve::{resample, trace_branch, Curve, Scratch};
+use super::curve::{doubled_back, resample, trace_branch, Curve, Scratch};
 use super::gather::{self, Caller};
 use super::level_set::{Kinematic, LevelSet, Linearization, Sensor, Sensory};
 use super::noisy::{probe, Probe};
 use super::{
     Components, KernelError, RowPhase, SensorRowPhases, SetReport, SetStatus, TraceMethod,
-    TraceValidParams,
+    TraceValidParams, MAX_DOUBLED,
 };
 use crate::agent::{Agent, Calling, Environment, MotorSpace, Observer, PoseSpace, Workspace};
 
@@ -289,7 +289,6 @@ impl<'a> Tracer<'a> {
         let mut result = self.trace_on(set, start, start_pose.as_deref(), caller, report, scratch);
         result.report.sensor_rows = set.sensor_rows();
         result.report.sensor_row_phases = set.sensor_row_phases();
-        result.report.noise = set.noise();
         result
     }
 
@@ -303,6 +302,7 @@ impl<'a> Tracer<'a> {
         mut report: SetReport,
         scratch: &mut Scratch,
     ) -> SetResult {
+        report.noise = set.noise();
         let found = match self.find_pieces(set, start, scratch) {
             Ok(found) => found,
             Err((status, steps)) => {
@@ -311,6 +311,23 @@ impl<'a> Tracer<'a> {
                 return SetResult::failed(report);
             }
         };
+        if let Some(noise) = report.noise.as_mut() {
+            // Noisy readings: a trace that ran back over its own path is no loop.
+            let used = match self.params.components {
+                Components::All => found.curves.len(),
+                Components::Connected => found.curves.len().min(1),
+            };
+            noise.doubled = found.curves[..used]
+                .iter()
+                .map(|c| doubled_back(&self.space, c))
+                .fold(0.0, f64::max);
+            if noise.doubled > MAX_DOUBLED {
+                report.status = SetStatus::Retraced;
+                report.steps = found.steps;
+                report.pieces = found.count();
+                return SetResult::failed(report);
+            }
+        }
         report.pieces = found.count();
         report.unvisited_pieces = found.failed
             + match self.params.components {
@@ -357,7 +374,12 @@ impl<'a> Tracer<'a> {
             // updates (a sensory set with `jacobian = "secant"`) are enough.
             let _ = set.set_linearization(Linearization::Secant);
             set.set_phase(RowPhase::Search);
-            let tolerance = self.params.piece_tolerance;
+            // (Noisy readings: a point on the set is only known to within a few
+            // position uncertainties, on either curve.)
+            let tolerance = self
+                .params
+                .piece_tolerance
+                .max(PIECE_NOISE * set.position_noise());
             let mut known = |m: &[f64]| {
                 let mut wrapped = m.to_vec();
                 self.space.wrap_points(&mut wrapped);
@@ -689,6 +711,12 @@ const SETTLED: f64 = 0.25;
 /// A projected seed within this many `cover_step`s (plus `piece_tolerance`) of a
 /// covering's node lies on its piece.
 const PIECE_REACH: f64 = 1.5;
+
+/// Readings with noise: a seed lands on a piece already found within this many
+/// position uncertainties of it (or `piece_tolerance`, whichever is larger): the
+/// corrector leaves a point within a few of them of the set, on the piece traced
+/// and on the seed alike.
+const PIECE_NOISE: f64 = 10.0;
 
 /// Follows a 1-D level set through `start` both ways (or once round a loop): the
 /// curve, the steps taken and the largest corrector residual.
