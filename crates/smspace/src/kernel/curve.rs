@@ -345,24 +345,68 @@ fn follow(
         // (With noise, a loop closes after `min_steps` steps, adaptive or not: the
         // tangent's noise can turn a first few short steps back towards the start.)
         let may_close = (adaptive && position_noise == 0.0) || branch.steps >= params.min_steps;
-        if let Some(tau) = watch.closes(start, &previous, &m, travelled, may_close) {
-            if tau < 1.0 && branch.steps > 1 {
-                // The start lies inside the last segment: close from its beginning.
-                branch.nodes.truncate(branch.nodes.len() - n);
-                branch.tangents.truncate(branch.tangents.len() - n);
-            }
-            // (With noise, a trace that comes back to the start heading the other
-            // way has run back along its own path: no loop.)
-            let heading: f64 = t.iter().zip(direction).map(|(a, b)| a * b).sum();
-            if position_noise > 0.0 && heading < 0.0 {
-                return Err(SetStatus::Retraced);
-            }
-            branch.closes_at = Some(watch.image.clone());
-            return Ok(());
+        let step = Step {
+            previous: &previous,
+            m: &m,
+            t: &t,
+            travelled,
+        };
+        let bounds = bounded.then_some(space);
+        let noisy = position_noise > 0.0;
+        if let Some(end) = branch_ends(
+            &mut watch,
+            branch,
+            (start, direction),
+            step,
+            may_close,
+            noisy,
+            bounds,
+        ) {
+            return end;
         }
-        if bounded && stops_on_bound(space, &previous, &m, &mut branch.nodes) {
-            return Ok(());
+    }
+}
+
+/// The last step of a branch: from `previous` to `m` (`travelled` long), tangent `t`.
+struct Step<'a> {
+    previous: &'a [f64],
+    m: &'a [f64],
+    t: &'a [f64],
+    travelled: f64,
+}
+
+/// Whether the branch ends with `step`: `Ok` when it closes its loop (from the last
+/// segment's beginning when the start lies inside it; `closes_at` set) or stops on a
+/// motor's bound (`bounds`: the space, when it has bounds); `Err(Retraced)` when a noisy
+/// trace comes back to its start heading the other way (it has run back along its own
+/// path: no loop); `None` to go on.
+fn branch_ends(
+    watch: &mut ClosureWatch,
+    branch: &mut Branch,
+    (start, direction): (&[f64], &[f64]),
+    step: Step<'_>,
+    may_close: bool,
+    noisy: bool,
+    bounds: Option<&MotorSpace>,
+) -> Option<Result<(), SetStatus>> {
+    let n = start.len();
+    if let Some(tau) = watch.closes(start, step.previous, step.m, step.travelled, may_close) {
+        if tau < 1.0 && branch.steps > 1 {
+            branch.nodes.truncate(branch.nodes.len() - n);
+            branch.tangents.truncate(branch.tangents.len() - n);
         }
+        let heading: f64 = step.t.iter().zip(direction).map(|(a, b)| a * b).sum();
+        if noisy && heading < 0.0 {
+            return Some(Err(SetStatus::Retraced));
+        }
+        branch.closes_at = Some(watch.image.clone());
+        return Some(Ok(()));
+    }
+    match bounds {
+        Some(space) if stops_on_bound(space, step.previous, step.m, &mut branch.nodes) => {
+            Some(Ok(()))
+        }
+        _ => None,
     }
 }
 
