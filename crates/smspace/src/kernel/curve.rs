@@ -253,9 +253,7 @@ fn follow(
     branch.tangents.extend_from_slice(direction);
     let mut m = start.to_vec();
     let mut t = direction.to_vec();
-    let mut predicted = vec![0.0; n];
-    let mut previous = vec![0.0; n];
-    let mut t_new = vec![0.0; n];
+    let (mut predicted, mut previous, mut t_new) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     // Change of the unit tangent per unit length (curvature vector), for a second-order
     // predictor m + h t + ½ h² k.
     let mut bend = vec![0.0; n];
@@ -284,10 +282,7 @@ fn follow(
             Ok(c) => c,
             Err(status) => {
                 if adaptive && h > min_step {
-                    h /= 2.0;
-                    // Re-linearise where the predictor starts: the chord corrector needs it.
-                    set.linearize(&m, &mut scratch.r)
-                        .map_err(|_| SetStatus::Singular)?;
+                    halve(set, &m, scratch, &mut h)?;
                     continue;
                 }
                 return Err(status);
@@ -309,9 +304,7 @@ fn follow(
             return Err(SetStatus::CorrectorFailed);
         }
         if adaptive && h > min_step && (too_sharp || jumped || first_step > 0.1 * h) {
-            h /= 2.0;
-            set.linearize(&m, &mut scratch.r)
-                .map_err(|_| SetStatus::Singular)?;
+            halve(set, &m, scratch, &mut h)?;
             continue;
         }
         if too_sharp {
@@ -323,10 +316,11 @@ fn follow(
         std::mem::swap(&mut previous, &mut m);
         m.copy_from_slice(&predicted);
         let travelled = distance(&m, &previous);
-        for j in 0..n {
-            // (With noise the turn between nodes is mostly the tangents' noise.)
-            bend[j] = if travelled > 0.0 && position_noise == 0.0 {
-                (t_new[j] - t[j]) / travelled
+        // (With noise the turn between nodes is mostly the tangents' noise.)
+        let curving = travelled > 0.0 && position_noise == 0.0;
+        for ((b, new), old) in bend.iter_mut().zip(&t_new).zip(&t) {
+            *b = if curving {
+                (new - old) / travelled
             } else {
                 0.0
             };
@@ -351,20 +345,24 @@ fn follow(
             t: &t,
             travelled,
         };
-        let bounds = bounded.then_some(space);
-        let noisy = position_noise > 0.0;
-        if let Some(end) = branch_ends(
-            &mut watch,
-            branch,
-            (start, direction),
-            step,
-            may_close,
-            noisy,
-            bounds,
-        ) {
+        let ends = (may_close, position_noise > 0.0, bounded.then_some(space));
+        if let Some(end) = branch_ends(&mut watch, branch, (start, direction), step, ends) {
             return end;
         }
     }
+}
+
+/// Halves the step `h` and linearises the set again at `m`, where the predictor
+/// starts (the chord corrector needs it).
+fn halve(
+    set: &mut dyn LevelSet,
+    m: &[f64],
+    scratch: &mut Scratch,
+    h: &mut f64,
+) -> Result<(), SetStatus> {
+    *h /= 2.0;
+    set.linearize(m, &mut scratch.r)
+        .map_err(|_| SetStatus::Singular)
 }
 
 /// The last step of a branch: from `previous` to `m` (`travelled` long), tangent `t`.
@@ -385,9 +383,7 @@ fn branch_ends(
     branch: &mut Branch,
     (start, direction): (&[f64], &[f64]),
     step: Step<'_>,
-    may_close: bool,
-    noisy: bool,
-    bounds: Option<&MotorSpace>,
+    (may_close, noisy, bounds): (bool, bool, Option<&MotorSpace>),
 ) -> Option<Result<(), SetStatus>> {
     let n = start.len();
     if let Some(tau) = watch.closes(start, step.previous, step.m, step.travelled, may_close) {
