@@ -108,7 +108,7 @@ impl MemoryEstimate {
         ];
         let largest = parts.iter().max_by_key(|p| p.0).map_or(0, |p| p.1);
         match largest {
-            1 => "the invariants' basis of 3^N − 1 functions dominates: learn from fewer samples, or use method = local-quadratic (no basis), or raise the limit ([data] memory_limit_gib, smspace learn --max-memory)",
+            1 => "the invariants' basis of 3^N − 1 functions dominates (its F × F matrices do not shrink with the log): use method = local-quadratic (no basis), or raise the limit ([data] memory_limit_gib, smspace learn --max-memory)",
             2 => "the worker threads' buffers dominate: use fewer threads (--threads), or raise the limit ([data] memory_limit_gib, smspace learn --max-memory)",
             3 => "the traced sets dominate: trace fewer starts, or fewer points per set ([kernel] points, --points)",
             _ => "the log and its k-d trees dominate: learn from fewer samples (cut the log: the error of the law falls slowly with the samples), hold more of them out ([data.law] holdout, --holdout), or raise the limit ([data] memory_limit_gib, smspace learn --max-memory)",
@@ -230,8 +230,8 @@ mod tests {
         }
         .check()
         .unwrap();
-        // Seven motors: 2186 functions, whose basis sums dominate.
-        let estimate = params.memory(&[(1_000_000, 6)], 7, 7, 2);
+        // Seven motors: 2186 functions, whose matrices dominate a log of 10⁵ samples.
+        let estimate = params.memory(&[(100_000, 6)], 7, 7, 2);
         assert!(estimate.basis_bytes > estimate.tree_bytes, "{estimate:?}");
         assert!(estimate.fix().contains("basis"));
         let sets = MemoryEstimate::default().with_sets(1 << 30);
