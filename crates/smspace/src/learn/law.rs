@@ -777,7 +777,7 @@ pub(crate) enum Models {
     /// side.
     Local(Vec<LocalModel>),
     /// The invariants of all logs together; the law's values are the invariants.
-    Invariants(InvariantModel),
+    Invariants(Box<InvariantModel>),
 }
 
 /// The law learned from one or several logs (one per environment): the sensor values

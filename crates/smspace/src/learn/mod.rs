@@ -595,7 +595,7 @@ pub fn learn_with_progress(
         }
         LawMethod::Invariants => {
             let (model, reports, data_rank) = learn_invariants(logs, space, params, progress)?;
-            (law::Models::Invariants(model), reports, data_rank)
+            (law::Models::Invariants(Box::new(model)), reports, data_rank)
         }
     };
     let mut law = LearnedLaw::new(
