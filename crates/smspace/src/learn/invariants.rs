@@ -175,11 +175,11 @@ pub struct InvariantsReport {
     /// The same on the held-out samples, each paired with its nearest fitted sample in
     /// sensor space (`E[(z_i − z_j)²]` over them and the invariants; `Var z = 1` on the
     /// fitted samples), over the pairs that are not aliased (a change at most
-    /// [`ALIASED_FACTOR`] times the median, as in the fit): near `fitted_lambda` when
+    /// 9 times the median, as in the fit): near `fitted_lambda` when
     /// the invariants generalise. Absent without held-out samples.
     pub held_out_lambda: Option<f64>,
     /// The share of the held-out pairs set aside as aliased (their invariants change
-    /// more than [`ALIASED_FACTOR`] times the median): poses the sensors confuse.
+    /// more than 9 times the median): poses the sensors confuse.
     pub held_out_aliased: Option<f64>,
 }
 
