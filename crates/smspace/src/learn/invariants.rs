@@ -676,9 +676,7 @@ fn unaliased_pairs(
     if all.is_empty() {
         return pairs.to_vec();
     }
-    let middle = all.len() / 2;
-    let median = *all.select_nth_unstable_by(middle, f64::total_cmp).1;
-    let limit = ALIASED_FACTOR * median;
+    let limit = aliased_limit(&mut all);
     pairs
         .iter()
         .zip(&changes)
@@ -693,15 +691,20 @@ fn unaliased_pairs(
         .collect()
 }
 
+/// [`ALIASED_FACTOR`] times the median of `changes` (not empty; reordered): the
+/// largest change of a pair that is not aliased.
+fn aliased_limit(changes: &mut [f64]) -> f64 {
+    let middle = changes.len() / 2;
+    ALIASED_FACTOR * *changes.select_nth_unstable_by(middle, f64::total_cmp).1
+}
+
 /// The mean of `changes` at most [`ALIASED_FACTOR`] times their median, and the share
 /// of the others; `None` when empty. Added in order: the same for any thread count.
 fn unaliased_mean(changes: &[f64]) -> Option<(f64, f64)> {
     if changes.is_empty() {
         return None;
     }
-    let mut sorted = changes.to_vec();
-    let middle = sorted.len() / 2;
-    let limit = ALIASED_FACTOR * *sorted.select_nth_unstable_by(middle, f64::total_cmp).1;
+    let limit = aliased_limit(&mut changes.to_vec());
     let (sum, kept) = changes
         .iter()
         .filter(|&&c| c <= limit)
