@@ -681,11 +681,25 @@ fn warnings_open_the_report() {
         "TwoNN: 80.0 % of the points have their two nearest neighbours equally far".to_owned(),
     ];
     let extra = [Warning::new("trace", "a warning passed on by the pipeline")];
+    // A law learned from too small a log warns in its report (`law` of sets.trace.json).
+    let law = serde_json::json!({
+        "method": "invariants",
+        "warnings": ["9000 fitted samples are 21 per dimension of a sensory manifold of dimension 3"],
+    });
     let mut inputs = inputs(&run);
     inputs.warnings = &extra;
+    inputs.law = Some(&law);
     inputs.environments = &run.environments[..1];
     let dir = tempfile::tempdir().unwrap();
     let summary = write_report(&inputs, &ReportParams::default(), dir.path()).unwrap();
+    assert_eq!(
+        summary.warnings[0],
+        Warning::new(
+            "learn",
+            "9000 fitted samples are 21 per dimension of a sensory manifold of dimension 3"
+        ),
+        "the law's warnings come first"
+    );
     let messages: Vec<&str> = summary
         .warnings
         .iter()

@@ -2,7 +2,9 @@
 //! stages' outputs so that nobody has to find it in a log — sets the tracer could not
 //! trace or kept as single points (`sets.trace.json`), intrinsic-dimension estimates
 //! the data make unreliable (`analysis.json`, [`smspace::analysis::dimension`]),
-//! analyses that did not run, and whatever the pipeline passes on
+//! analyses that did not run, the warnings of a law learned from a log (too few samples,
+//! invariants that do not predict held-out readings: `law` of `sets.trace.json`), and
+//! whatever the pipeline passes on
 //! ([`ReportInputs::warnings`](super::ReportInputs::warnings)).
 
 use serde::{Deserialize, Serialize};
@@ -31,7 +33,8 @@ impl Warning {
 
 /// Every warning of the run, in the order of the stages.
 pub(super) fn warnings(inputs: &ReportInputs<'_>) -> Vec<Warning> {
-    let mut out = trace_warnings(inputs);
+    let mut out = law_warnings(inputs);
+    out.extend(trace_warnings(inputs));
     out.extend(analysis_warnings(inputs));
     out.extend(invariance_warnings(inputs));
     out.extend(inputs.warnings.iter().cloned());
@@ -41,6 +44,19 @@ pub(super) fn warnings(inputs: &ReportInputs<'_>) -> Vec<Warning> {
 /// `n of total sets`, with the right plural.
 fn of_sets(n: usize, total: usize) -> String {
     format!("{n} of {total} set{}", if total == 1 { "" } else { "s" })
+}
+
+/// The warnings of the law the sets were traced on, when it was learned from a log:
+/// the data cannot support it, and the learned sets may be far from the true ones.
+fn law_warnings(inputs: &ReportInputs<'_>) -> Vec<Warning> {
+    inputs
+        .law
+        .and_then(|law| law["warnings"].as_array())
+        .into_iter()
+        .flatten()
+        .filter_map(|message| message.as_str())
+        .map(|message| Warning::new("learn", message))
+        .collect()
 }
 
 /// The sets whose status is neither `closed` nor `open`.
