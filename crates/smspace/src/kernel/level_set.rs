@@ -127,6 +127,12 @@ pub(crate) trait LevelSet {
     }
     /// The phase of tracing the next readings are counted in.
     fn set_phase(&mut self, _phase: RowPhase) {}
+    /// Whether `m`, where a seed of the piece search landed on the set to within
+    /// [`tolerance`](LevelSet::tolerance), is on the set indeed: always for exact
+    /// readings; for noisy ones a test of the residual the slope cannot remove.
+    fn confirms_piece(&mut self, _m: &[f64]) -> bool {
+        true
+    }
     /// How the next [`linearize`](LevelSet::linearize) calls may linearise: exactly, or
     /// by a secant update from the last reading when the level set keeps one (the
     /// sensory set with `jacobian = "secant"`; the others always linearise exactly).

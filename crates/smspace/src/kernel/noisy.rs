@@ -63,6 +63,9 @@ pub(crate) const TOLERANCE_POSITIONS: f64 = 5.0;
 /// the residuals this rules out, of points where the residual is only orthogonal to
 /// the Jacobian's range, are of the order of the sensors' range).
 pub(crate) const RESIDUAL_SIGMAS: f64 = 20.0;
+/// A new piece of a noisy set is confirmed when the residual outside the slope's range
+/// is within this many standard deviations of its χ² above the χ²'s mean.
+const PIECE_SIGMAS: f64 = 6.0;
 /// A point where `g` is below the start's over this ratio is singular.
 const SINGULAR_RATIO: f64 = 10.0;
 /// The turn between two nodes allowed on top of `max_turn`, in standard deviations of
@@ -444,5 +447,33 @@ impl LevelSet for NoisySensory<'_> {
 
     fn set_phase(&mut self, phase: super::RowPhase) {
         self.sensor.phase = phase;
+    }
+
+    /// Reads `m` again with [`TARGET_REPEATS`] times the repeats and tests the
+    /// residual's part outside the slope's range, `|r|² − |Uᵀ r|²`, against its noise:
+    /// on the set it is a χ² of `K − (N − k)` degrees of freedom in units of the
+    /// residual's variance; a seed that only came close to the set (where the mean
+    /// readings approach the start's without reaching them) leaves more than
+    /// [`PIECE_SIGMAS`] standard deviations of that χ² above its mean.
+    fn confirms_piece(&mut self, m: &[f64]) -> bool {
+        let freedom = self.k.saturating_sub(self.n - self.dimension);
+        if freedom == 0 {
+            return true;
+        }
+        let repeats = self.repeats;
+        self.repeats = TARGET_REPEATS * repeats;
+        let mut r = vec![0.0; self.k];
+        let linearized = self.linearize(m, &mut r);
+        self.repeats = repeats;
+        if linearized.is_err() {
+            return false;
+        }
+        // Both intercepts averaged TARGET_REPEATS r (N + 1) readings.
+        let rows = (TARGET_REPEATS * repeats * (self.n + 1)) as f64;
+        let variance = 2.0 * self.noise.sigma.powi(2) / rows;
+        let outside = (r.iter().map(|x| x * x).sum::<f64>() - self.range_norm(&r).powi(2)).max(0.0)
+            / variance;
+        let freedom = freedom as f64;
+        outside <= freedom + PIECE_SIGMAS * (2.0 * freedom).sqrt()
     }
 }

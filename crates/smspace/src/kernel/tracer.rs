@@ -402,6 +402,12 @@ impl<'a> Tracer<'a> {
             if found.contains(&self.space, &m, self.params, tolerance) {
                 continue;
             }
+            set.set_phase(RowPhase::Search);
+            let confirmed = set.confirms_piece(&m);
+            set.set_phase(RowPhase::Trace);
+            if !confirmed {
+                continue;
+            }
             if self.add_piece(set, &m, &mut found, scratch).is_err() {
                 // A piece that cannot be traced is still a piece: remember where.
                 found.failed += 1;
