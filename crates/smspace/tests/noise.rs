@@ -43,6 +43,15 @@ fn sensory(noise: SensorNoise) -> TraceParams {
     }
 }
 
+/// The sensory method as `experiments/paper-arm-noise.toml` runs it (docs/noise.md).
+fn as_in_the_study() -> TraceParams {
+    TraceParams {
+        points: 100,
+        max_steps: 20_000,
+        ..sensory(SensorNoise::Auto)
+    }
+}
+
 fn trace(
     agent: &dyn Agent,
     env: &Environment,
@@ -256,9 +265,7 @@ fn noisy_sets_that_are_kept_are_their_loops_and_retraced_ones_are_named() {
     let env = EnvironmentConfig::default().build(&agent).unwrap();
     let all = starts(120, 1);
     let motors = all.select(ndarray::Axis(0), &[14, 10, 110]);
-    let mut p = sensory(SensorNoise::Auto);
-    p.points = 100;
-    p.max_steps = 20_000;
+    let p = as_in_the_study();
     let noisy = trace(&agent, &env, motors.view(), p.clone());
     let exact = trace(agent.inner(), &env, motors.view(), p);
     let mut retraced = 0;
@@ -294,9 +301,7 @@ fn the_piece_search_takes_no_near_miss_of_noisy_readings_for_a_piece() {
     let env = EnvironmentConfig::default().build(&agent).unwrap();
     let all = starts(120, 1);
     let motors = all.select(ndarray::Axis(0), &[10, 27, 49]);
-    let mut p = sensory(SensorNoise::Auto);
-    p.points = 100;
-    p.max_steps = 20_000;
+    let p = as_in_the_study();
     let noisy = trace(&agent, &env, motors.view(), p.clone());
     let exact = trace(agent.inner(), &env, motors.view(), p);
     for (set, truth) in noisy.report.sets.iter().zip(&exact.report.sets) {
