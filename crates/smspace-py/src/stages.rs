@@ -286,7 +286,7 @@ fn resolve_workspace(
 
 /// `_trace(agent, motors, params_json, env, workspace, progress)`: the kernel sets,
 /// `(sets (M, P, N), kept (M,) int64, closed (M,) int64, pieces (M, P) int64,
-/// report_json)`.
+/// report_json)`; the report carries the summary's warnings as `warnings`.
 #[pyfunction]
 #[pyo3(signature = (agent, motors, params, env=None, workspace=None, progress=None))]
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
@@ -339,7 +339,17 @@ fn _trace<'py>(
         .summary
         .require(rows.min(2))
         .map_err(to_py_err)?;
-    let report = serde_json::to_string(&traced.report).map_err(|e| value_error(e.to_string()))?;
+    // The report, with what its summary says a user must know (`warnings`: noisy
+    // sensors, sets left out, missed pieces), which `smspace.trace` raises as warnings.
+    let mut report =
+        serde_json::to_value(&traced.report).map_err(|e| value_error(e.to_string()))?;
+    if let Some(fields) = report.as_object_mut() {
+        fields.insert(
+            "warnings".to_owned(),
+            serde_json::Value::from(traced.report.summary.warnings()),
+        );
+    }
+    let report = report.to_string();
     let kept: Array1<i64> = traced.kept.iter().map(|&k| k as i64).collect();
     let closed: Array1<i64> = traced.closure.iter().map(|c| c.code()).collect();
     Ok((

@@ -35,6 +35,21 @@
 //! `σ` is `[kernel] noise` when given, otherwise measured at the start: the pooled
 //! standard deviation of the [`ESTIMATE_REPEATS`] repeats of every row of a first
 //! regression (`(r − 1)` degrees of freedom per row and sensor).
+//!
+//! **Discontinuous sensors.** A sensor that jumps between two neighbouring postures (a
+//! rangefinder whose ray passes the edge of an obstacle) gives a slope of
+//! `jump / 2ρ` wherever the stencil straddles the edge, which turns the null
+//! direction anywhere. The two one-sided slopes `d± = ±(s̄± − a) / ρ` of a smooth
+//! sensor differ by `ρ s''` (and the noise); across a jump one of them carries
+//! `jump / ρ`. A sensor is *torn* at `m` when for some motor
+//! `|d₊ − d₋| > JUMP_RATIO · min(|d₊|, |d₋|) + JUMP_SIGMAS · σ √(2/r + 4/(r(N+1))) / ρ`
+//! (the second term: [`JUMP_SIGMAS`] standard deviations of `d₊ − d₋`'s noise). When
+//! the first regression at the start finds a torn sensor, the sensors are
+//! discontinuous: `ρ` is kept at most [`FIRST_RHO`] (a narrower stencil straddles
+//! fewer edges) and in every regression the torn sensors' rows of the slope are set to
+//! 0 (they still count in the residual, where the intercept, read at the centre only,
+//! has no jump). With too few sensors left the slope loses rank and the point is
+//! singular. Where the first regression finds no torn sensor, nothing changes.
 
 use ndarray::{ArrayView2, ArrayViewMut2};
 
@@ -43,7 +58,8 @@ use super::{SensorNoise, SetNoise, SetStatus, TraceValidParams};
 
 /// Repeats of the first regression at a start, whose spread measures the noise.
 pub(crate) const ESTIMATE_REPEATS: usize = 16;
-/// Offset `ρ` of the first regression at a start, radians.
+/// Offset `ρ` of the first regression at a start, radians; the largest `ρ` for
+/// discontinuous sensors.
 const FIRST_RHO: f64 = 0.05;
 /// Smallest offset `ρ` of the regressions, radians.
 const RHO_MIN: f64 = 1e-3;
@@ -68,6 +84,11 @@ const SINGULAR_RATIO: f64 = 10.0;
 /// The turn between two nodes allowed on top of `max_turn`, in standard deviations of
 /// the null vector's noise.
 const TURN_SIGMAS: f64 = 3.0;
+/// A sensor is torn (see the module docs) when its one-sided slopes differ by more
+/// than this many times the smaller one...
+pub(crate) const JUMP_RATIO: f64 = 2.0;
+/// ... plus this many standard deviations of their difference's noise.
+pub(crate) const JUMP_SIGMAS: f64 = 6.0;
 
 /// What the two readings of a start say ([`probe`]).
 pub(crate) enum Probe<'a> {
@@ -101,6 +122,11 @@ pub(crate) struct NoisySensory<'a> {
     eigenvectors: Vec<f64>,
     probes: Vec<f64>,
     readings: Vec<f64>,
+    /// Whether the first regression found a torn sensor: torn sensors are then left
+    /// out of every slope.
+    discontinuous: bool,
+    /// The sensors left out of the last slope.
+    torn: usize,
 }
 
 /// Reads the start twice in one batch (`noise = "auto"`) and decides how to trace:
@@ -184,9 +210,14 @@ impl<'a> NoisySensory<'a> {
             eigenvectors: vec![0.0; n * n],
             probes: Vec::new(),
             readings: Vec::new(),
+            discontinuous: true,
+            torn: 0,
         };
         let mut intercept = vec![0.0; k];
+        // The first regression looks for torn sensors (σ from its own repeats).
         let spread = set.regress(start, &mut intercept);
+        set.discontinuous = set.torn > 0;
+        set.noise.discontinuous = set.discontinuous;
         let sigma = given.unwrap_or(spread);
         set.noise.sigma = sigma;
         let singular = set.decompose().is_err();
@@ -201,7 +232,12 @@ impl<'a> NoisySensory<'a> {
             return Probe::Failed(SetStatus::Singular, set.noise, set.sensor);
         }
         set.g_start = g;
-        set.rho = (sigma / (std::f64::consts::SQRT_2 * SLOPE_ERROR * g)).clamp(RHO_MIN, RHO_MAX);
+        let rho_max = if set.discontinuous {
+            FIRST_RHO
+        } else {
+            RHO_MAX
+        };
+        set.rho = (sigma / (std::f64::consts::SQRT_2 * SLOPE_ERROR * g)).clamp(RHO_MIN, rho_max);
         let repeats = (sigma / (std::f64::consts::SQRT_2 * set.rho * g * SLOPE_ERROR)).powi(2);
         set.repeats = (repeats.ceil() as usize).clamp(1, MAX_REPEATS);
         // The intercept averages the r (N + 1) readings of the centre.
@@ -273,10 +309,41 @@ impl<'a> NoisySensory<'a> {
                 self.jacobian[i * n + j] = (plus[i] - minus[i]) / (2.0 * rho);
             }
         }
-        if r < 2 {
-            return 0.0;
+        let spread = if r < 2 {
+            0.0
+        } else {
+            (squares / ((r - 1) * types * k) as f64).sqrt()
+        };
+        if self.discontinuous {
+            let sigma = if self.noise.sigma > 0.0 {
+                self.noise.sigma
+            } else {
+                spread
+            };
+            self.leave_out_torn(&means[centre * k..], intercept, sigma);
         }
-        (squares / ((r - 1) * types * k) as f64).sqrt()
+        spread
+    }
+
+    /// Sets to 0 the slope's rows of the torn sensors (see the module docs), from the
+    /// means of the `2N` offset rows (`m + ρ e_j`, `m − ρ e_j`, ...) and the intercept;
+    /// counts them in `torn`.
+    fn leave_out_torn(&mut self, offsets: &[f64], intercept: &[f64], sigma: f64) {
+        let (n, k, r, rho) = (self.n, self.k, self.repeats as f64, self.rho);
+        let noise = JUMP_SIGMAS * sigma * (2.0 / r + 4.0 / (r * (n + 1) as f64)).sqrt() / rho;
+        self.torn = 0;
+        for (i, a) in intercept.iter().enumerate() {
+            let torn = (0..n).any(|j| {
+                let plus = (offsets[2 * j * k + i] - a) / rho;
+                let minus = (a - offsets[(2 * j + 1) * k + i]) / rho;
+                // Not finite: torn as well (a NaN compares false).
+                !((plus - minus).abs() <= JUMP_RATIO * plus.abs().min(minus.abs()) + noise)
+            });
+            if torn {
+                self.jacobian[i * n..(i + 1) * n].fill(0.0);
+                self.torn += 1;
+            }
+        }
     }
 
     /// The norm of the residual's projection on the slope's range, `|Uᵀ r|`.
