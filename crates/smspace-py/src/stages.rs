@@ -333,21 +333,23 @@ fn _trace<'py>(
     agent.check_callbacks()?;
     progress.check()?;
     let traced = traced?;
+    // What the summary says a user must know (noisy sensors, with their measured noise;
+    // sets left out; missed pieces): in the report as `warnings`, which `smspace.trace`
+    // raises as warnings, and after the error when too few sets are kept.
+    let warnings = traced.report.summary.warnings();
     // Fewer than two kept sets of two or more: an error naming the statuses.
-    traced
-        .report
-        .summary
-        .require(rows.min(2))
-        .map_err(to_py_err)?;
-    // The report, with what its summary says a user must know (`warnings`: noisy
-    // sensors, sets left out, missed pieces), which `smspace.trace` raises as warnings.
+    if let Err(error) = traced.report.summary.require(rows.min(2)) {
+        let mut message = error.to_string();
+        for warning in &warnings {
+            message.push_str(". ");
+            message.push_str(warning);
+        }
+        return Err(value_error(message));
+    }
     let mut report =
         serde_json::to_value(&traced.report).map_err(|e| value_error(e.to_string()))?;
     if let Some(fields) = report.as_object_mut() {
-        fields.insert(
-            "warnings".to_owned(),
-            serde_json::Value::from(traced.report.summary.warnings()),
-        );
+        fields.insert("warnings".to_owned(), serde_json::Value::from(warnings));
     }
     let report = report.to_string();
     let kept: Array1<i64> = traced.kept.iter().map(|&k| k as i64).collect();
