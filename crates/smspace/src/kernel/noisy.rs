@@ -99,6 +99,14 @@ pub(crate) const JUMP_SIGMAS: f64 = 6.0;
 /// gap (a jump strays by 3/4 of it or more; a smooth sensor by `O(ρ²)`).
 pub(crate) const JUMP_SHARE: f64 = 0.375;
 
+/// Whether `value ≤ limit` (false when either is not a number).
+fn within(value: f64, limit: f64) -> bool {
+    matches!(
+        value.partial_cmp(&limit),
+        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+    )
+}
+
 /// What the two readings of a start say ([`probe`]).
 pub(crate) enum Probe<'a> {
     /// Equal readings, to within the exact corrector's tolerance (or `noise = 0`): the exact level set, with the sensor and the
@@ -365,7 +373,10 @@ impl<'a> NoisySensory<'a> {
     /// docs; not finite: torn as well).
     fn is_torn(&self, i: usize, j: usize, noise: f64) -> bool {
         let (plus, minus) = self.sides[i * self.n + j];
-        !((plus - minus).abs() <= JUMP_RATIO * plus.abs().min(minus.abs()) + noise)
+        !within(
+            (plus - minus).abs(),
+            JUMP_RATIO * plus.abs().min(minus.abs()) + noise,
+        )
     }
 
     /// Sets to 0 the slope's rows of the sensors the last regression tears (see the
@@ -409,7 +420,7 @@ impl<'a> NoisySensory<'a> {
             let stray = (half_plus - 0.5 * (plus + central))
                 .abs()
                 .max((half_minus - 0.5 * (minus + central)).abs());
-            !(stray <= JUMP_SHARE * gap + half_noise)
+            !within(stray, JUMP_SHARE * gap + half_noise)
         });
         self.rho *= 2.0;
         self.sides = first;
