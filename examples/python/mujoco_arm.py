@@ -15,6 +15,11 @@ wall or an obstacle and none hits the arm. MuJoCo runs headless: ``mj_kinematics
     python examples/python/mujoco_arm.py --out runs/mj   # save the arrays and reports
     python examples/python/mujoco_arm.py --noise 0.02    # 2 cm of noise on every depth
 
+With ``--noise`` the sets are traced from the noisy depths (the tracer measures the
+noise and leaves the rays that jump past an obstacle's edge out of the slope), and the
+exact sets through the same starts are traced too: the example prints the set error
+(``curve`` metric), the measured noise and the sensor rows per set (docs/noise.md).
+
 Stages: ``explore`` in the paper's working space (the eye in the rectangle x from 1 to
 2.5, y from -1 to 1), ``trace`` by the sensory method (the lidar's own readings),
 ``distances`` (curve metric), ``embed`` (CCA, 3-D) and ``analyze`` (Betti numbers,
