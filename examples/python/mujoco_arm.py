@@ -235,7 +235,7 @@ def run(sets: int = 1500, seed: int = 1, threads: bool = False, points: int = 10
         "traced": len(traced),
         "traced_fraction": len(traced) / sets,
         "statuses": summary["by_status"],
-        "warnings": traced.report.get("warnings", []),
+        "warnings": traced.warnings,
         "sensor_rows": rows,
         "sensor_rows_per_start": rows / sets,
         "sensor_rows_per_set": (summary.get("sensor_rows") or {}).get("median"),

@@ -286,7 +286,8 @@ fn resolve_workspace(
 
 /// `_trace(agent, motors, params_json, env, workspace, progress)`: the kernel sets,
 /// `(sets (M, P, N), kept (M,) int64, closed (M,) int64, pieces (M, P) int64,
-/// report_json)`; the report carries the summary's warnings as `warnings`.
+/// report_json)`; the report carries the summary's warnings as `warnings` (which
+/// `smspace.trace` takes out of it: its report is `sets.trace.json`'s).
 #[pyfunction]
 #[pyo3(signature = (agent, motors, params, env=None, workspace=None, progress=None))]
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]

@@ -228,7 +228,7 @@ def test_what_a_trace_warns_of_is_raised_and_named_in_the_error(example):
     found = smspace.explore(arm, n=40, seed=1, workspace=None)
     with pytest.warns(smspace.TraceWarning, match="sets miss pieces of their level set"):
         traced = smspace.trace(arm, found.motors, method="kinematic", points=30, workspace=None)
-    assert any("miss pieces" in w for w in traced.report["warnings"])
+    assert any("miss pieces" in w for w in traced.warnings)
     # Depths read with 3 m of noise: no set is kept, and the error gives the measured
     # noise as well as the statuses.
     body = example.body()

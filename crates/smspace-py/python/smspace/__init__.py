@@ -182,14 +182,16 @@ class Traced:
     """Kernel sets: ``sets`` (M, P, N), ``kept`` (M,) int64 (the motor row of each set),
     ``closed`` (M,) int64 (1: closed loop, 0: open polyline), ``pieces`` (M, P) int64
     (the piece of every point: 0 for sets of one piece; with ``components="all"`` the
-    metrics join no two pieces) and the tracing ``report`` (dict: statuses, steps,
-    residuals per set)."""
+    metrics join no two pieces), the tracing ``report`` (dict: statuses, steps,
+    residuals per set; ``sets.trace.json``) and its ``warnings`` (list of str: what
+    the summary says a user must know, each raised as a :class:`TraceWarning`)."""
 
     sets: np.ndarray
     kept: np.ndarray
     closed: np.ndarray
     pieces: np.ndarray
     report: dict = field(repr=False)
+    warnings: list = field(default_factory=list, repr=False)
 
     def __len__(self) -> int:
         return int(self.sets.shape[0])
@@ -288,7 +290,7 @@ def trace(
     naming the count of each status and what it suggests. What the sets' summary says
     a user must know (noisy sensors that blur or turn round the sets, with the measured
     noise; sets that miss pieces of their level set) is raised as a
-    :class:`TraceWarning` each, and listed in ``report["warnings"]``."""
+    :class:`TraceWarning` each, and listed in ``warnings``."""
     if not isinstance(agent, Agent):
         raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
     motors = _array(motors, "motors", 2)
@@ -302,9 +304,11 @@ def trace(
         _progress(progress),
     )
     report = json.loads(report)
-    for message in report.get("warnings", []):
+    messages = report.pop("warnings", [])
+    for message in messages:
         warnings.warn(message, TraceWarning, stacklevel=2)
-    return Traced(sets=sets, kept=kept, closed=closed, pieces=pieces, report=report)
+    return Traced(sets=sets, kept=kept, closed=closed, pieces=pieces, report=report,
+                  warnings=messages)
 
 
 def _sets_args(sets: Any, closed: Any, pieces: Any = None) -> tuple:
