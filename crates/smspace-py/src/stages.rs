@@ -286,7 +286,8 @@ fn resolve_workspace(
 
 /// `_trace(agent, motors, params_json, env, workspace, progress)`: the kernel sets,
 /// `(sets (M, P, N), kept (M,) int64, closed (M,) int64, pieces (M, P) int64,
-/// report_json)`.
+/// report_json)`; the report carries the summary's warnings as `warnings` (which
+/// `smspace.trace` takes out of it: its report is `sets.trace.json`'s).
 #[pyfunction]
 #[pyo3(signature = (agent, motors, params, env=None, workspace=None, progress=None))]
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
@@ -333,13 +334,25 @@ fn _trace<'py>(
     agent.check_callbacks()?;
     progress.check()?;
     let traced = traced?;
+    // What the summary says a user must know (noisy sensors, with their measured noise;
+    // sets left out; missed pieces): in the report as `warnings`, which `smspace.trace`
+    // raises as warnings, and after the error when too few sets are kept.
+    let warnings = traced.report.summary.warnings();
     // Fewer than two kept sets of two or more: an error naming the statuses.
-    traced
-        .report
-        .summary
-        .require(rows.min(2))
-        .map_err(to_py_err)?;
-    let report = serde_json::to_string(&traced.report).map_err(|e| value_error(e.to_string()))?;
+    if let Err(error) = traced.report.summary.require(rows.min(2)) {
+        let mut message = error.to_string();
+        for warning in &warnings {
+            message.push_str(". ");
+            message.push_str(warning);
+        }
+        return Err(value_error(message));
+    }
+    let mut report =
+        serde_json::to_value(&traced.report).map_err(|e| value_error(e.to_string()))?;
+    if let Some(fields) = report.as_object_mut() {
+        fields.insert("warnings".to_owned(), serde_json::Value::from(warnings));
+    }
+    let report = report.to_string();
     let kept: Array1<i64> = traced.kept.iter().map(|&k| k as i64).collect();
     let closed: Array1<i64> = traced.closure.iter().map(|c| c.code()).collect();
     Ok((

@@ -180,3 +180,59 @@ def test_the_example_runs_in_its_small_size(example, tmp_path):
     assert figures["sensor_rows_per_start"] > 0
     assert (tmp_path / "analysis.json").exists() and (tmp_path / "D.npy").exists()
     assert np.load(tmp_path / "D.npy").shape == (figures["traced"],) * 2
+
+
+def test_the_examples_noise_is_seeded_and_gaussian(example):
+    motors = np.random.default_rng(5).uniform(-math.pi, math.pi, size=(400, 4))
+    motors[200:300] = motors[7]  # 101 identical rows
+    noise = example.NoisyDepths(lambda m: np.zeros((len(m), 12)), sigma=0.02, seed=3)
+    once, again = noise(motors), noise(motors)
+    np.testing.assert_array_equal(once, again)
+    # Identical rows of one batch read differently; the same row alone reads as the
+    # first of them, and the order of the rows changes nothing but which repeat is which.
+    assert len(np.unique(once[200:300, 0])) == 100
+    np.testing.assert_array_equal(noise(motors[7:8])[0], once[7])
+    order = np.random.default_rng(6).permutation(400)
+    shuffled = np.empty_like(once)
+    shuffled[order] = noise(motors[order])
+    np.testing.assert_array_equal(np.delete(shuffled, np.r_[7, 200:300], 0), np.delete(once, np.r_[7, 200:300], 0))
+    np.testing.assert_array_equal(np.sort(shuffled[np.r_[7, 200:300]], 0), np.sort(once[np.r_[7, 200:300]], 0))
+    # Another seed, other draws; the draws are standard normal times sigma.
+    assert not np.array_equal(example.NoisyDepths(noise.sense, 0.02, seed=4)(motors), once)
+    draws = example.NoisyDepths(noise.sense, 1.0, seed=8)(np.random.default_rng(9).normal(size=(5000, 4)))
+    assert abs(draws.mean()) < 0.02 and abs(draws.std() - 1.0) < 0.02
+    assert abs(np.mean(np.abs(draws) < 1.0) - 0.6827) < 0.01
+
+
+def test_noisy_depths_trace_near_the_exact_sets(example):
+    # The rays pass the edges of the room's obstacles as the arm moves: the tracer
+    # leaves the sensors that jump out of the slope where they jump (0 of 20 sets
+    # were traced at 1 cm of noise before it did).
+    exact = example.body()
+    noisy = example.body()
+    noisy.sense = example.NoisyDepths(noisy.sense, 0.01, seed=1)
+    found = smspace.explore(exact.agent(), n=3, seed=2, workspace=example.WORKSPACE)
+    truth = smspace.trace(exact.agent(), found.motors, method="sensory", points=30)
+    traced = smspace.trace(noisy.agent(), found.motors, method="sensory", points=30)
+    assert len(traced) >= 2, traced.report["summary"]
+    noise = traced.report["summary"]["noise"]
+    assert noise["sigma"] == pytest.approx(0.01, rel=0.1)
+    assert any(s["noise"].get("discontinuous") for s in traced.report["sets"])
+    errors = example.set_errors(traced, truth)
+    assert len(errors) >= 2 and errors.max() < 0.01, errors
+
+
+def test_what_a_trace_warns_of_is_raised_and_named_in_the_error(example):
+    # Sets that miss pieces of their level set (the arm anywhere in reach): a warning.
+    arm = smspace.Agent.preset("planar-arm")
+    found = smspace.explore(arm, n=40, seed=1, workspace=None)
+    with pytest.warns(smspace.TraceWarning, match="sets miss pieces of their level set"):
+        traced = smspace.trace(arm, found.motors, method="kinematic", points=30, workspace=None)
+    assert any("miss pieces" in w for w in traced.warnings)
+    # Depths read with 3 m of noise: no set is kept, and the error gives the measured
+    # noise as well as the statuses.
+    body = example.body()
+    body.sense = example.NoisyDepths(body.sense, 3.0, seed=1)
+    found = smspace.explore(example.body().agent(), n=2, seed=2, workspace=example.WORKSPACE)
+    with pytest.raises(ValueError, match=r"only 0 of 2 sets(.|\n)*the sensors are noisy \(σ = 2\.9"):
+        smspace.trace(body.agent(), found.motors, method="sensory", points=20)

@@ -33,6 +33,7 @@ import json
 import math
 import os
 import sys
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Optional, Sequence, Union
@@ -49,6 +50,7 @@ __all__ = [
     "Agent",
     "PythonAgent",
     "CallbackError",
+    "TraceWarning",
     "Exploration",
     "Traced",
     "Embedded",
@@ -169,19 +171,27 @@ class Exploration:
     probes: np.ndarray
 
 
+class TraceWarning(UserWarning):
+    """What a trace's summary says a user must know: the sensors are noisy and the
+    sets traced from them are blurred, lost or ran back over themselves (the message
+    gives the measured noise), or sets miss pieces of their level set."""
+
+
 @dataclass
 class Traced:
     """Kernel sets: ``sets`` (M, P, N), ``kept`` (M,) int64 (the motor row of each set),
     ``closed`` (M,) int64 (1: closed loop, 0: open polyline), ``pieces`` (M, P) int64
     (the piece of every point: 0 for sets of one piece; with ``components="all"`` the
-    metrics join no two pieces) and the tracing ``report`` (dict: statuses, steps,
-    residuals per set)."""
+    metrics join no two pieces), the tracing ``report`` (dict: statuses, steps,
+    residuals per set; ``sets.trace.json``) and its ``warnings`` (list of str: what
+    the summary says a user must know, each raised as a :class:`TraceWarning`)."""
 
     sets: np.ndarray
     kept: np.ndarray
     closed: np.ndarray
     pieces: np.ndarray
     report: dict = field(repr=False)
+    warnings: list = field(default_factory=list, repr=False)
 
     def __len__(self) -> int:
         return int(self.sets.shape[0])
@@ -277,7 +287,10 @@ def trace(
     world). Other keys of the ``[kernel]`` table as keyword arguments (``step=1e-3``,
     ``closure_tolerance=1e-2``, ...). Sets that fail are left out (see ``kept`` and
     ``report``); when fewer than two of two or more rows are kept, it raises ValueError
-    naming the count of each status and what it suggests."""
+    naming the count of each status and what it suggests. What the sets' summary says
+    a user must know (noisy sensors that blur or turn round the sets, with the measured
+    noise; sets that miss pieces of their level set) is raised as a
+    :class:`TraceWarning` each, and listed in ``warnings``."""
     if not isinstance(agent, Agent):
         raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
     motors = _array(motors, "motors", 2)
@@ -290,7 +303,12 @@ def trace(
         _workspace_arg(workspace),
         _progress(progress),
     )
-    return Traced(sets=sets, kept=kept, closed=closed, pieces=pieces, report=json.loads(report))
+    report = json.loads(report)
+    messages = report.pop("warnings", [])
+    for message in messages:
+        warnings.warn(message, TraceWarning, stacklevel=2)
+    return Traced(sets=sets, kept=kept, closed=closed, pieces=pieces, report=report,
+                  warnings=messages)
 
 
 def _sets_args(sets: Any, closed: Any, pieces: Any = None) -> tuple:

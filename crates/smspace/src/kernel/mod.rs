@@ -123,6 +123,8 @@
 //! nodes, cut into 200 points `Δ` apart, lies within `1.5 Δ` of a point at least ten
 //! points away along it, with parallel or antiparallel chords, `|cos| ≥ 0.8`; a simple
 //! curve has none), is [`SetStatus::Retraced`], not kept, and the summary warns.
+//! Sensors that jump between neighbouring postures (a rangefinder past an edge) are
+//! told from smooth ones at two scales and left out of the slope where they jump.
 //! `σ`, `σ_pos`, `ρ`, `r` and the doubled fraction are reported per set ([`SetReport::noise`]) and summarised ([`TraceSummary::noise`]); beyond a
 //! median `σ_pos` of [`MAX_POSITION_UNCERTAINTY`] rad, or with most sets failed, the
 //! summary warns ([`TraceSummary::warnings`]).

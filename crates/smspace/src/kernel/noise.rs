@@ -105,6 +105,11 @@ pub struct SetNoise {
     /// [`SetStatus::Retraced`](super::SetStatus::Retraced)); 0 when not traced.
     #[serde(default)]
     pub doubled: f64,
+    /// Whether the first regression found a sensor that jumps between neighbouring
+    /// postures (a rangefinder's ray past an obstacle's edge): such sensors are left
+    /// out of the slope wherever they jump (see the module docs, "Noisy sensors").
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub discontinuous: bool,
 }
 
 /// The noise of the readings over the starts ([`SetNoise`] of every start read with

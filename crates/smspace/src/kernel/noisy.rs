@@ -35,6 +35,26 @@
 //! `σ` is `[kernel] noise` when given, otherwise measured at the start: the pooled
 //! standard deviation of the [`ESTIMATE_REPEATS`] repeats of every row of a first
 //! regression (`(r − 1)` degrees of freedom per row and sensor).
+//!
+//! **Discontinuous sensors.** A sensor that jumps between two neighbouring postures (a
+//! rangefinder whose ray passes the edge of an obstacle) gives a slope of
+//! `jump / 2ρ` wherever the stencil straddles the edge, which turns the null
+//! direction anywhere. The two one-sided slopes `d± = ±(s̄± − a) / ρ` of a smooth
+//! sensor differ by `ρ s''` (and the noise); across a jump one of them carries
+//! `jump / ρ`. A sensor is *torn* at `m` when for some motor
+//! `|d₊ − d₋| > JUMP_RATIO · min(|d₊|, |d₋|) + JUMP_SIGMAS · σ √(2/r + 4/(r(N+1))) / ρ`
+//! (the second term: [`JUMP_SIGMAS`] standard deviations of `d₊ − d₋`'s noise). A
+//! smooth sensor can be torn too (a strong curvature over `ρ`); a jump is told from it
+//! at two scales: a smooth sensor's one-sided slope at `ρ/2` is `(d± + c)/2` to
+//! `O(ρ²)` (`c` the central slope), while across a jump at `e ≤ ρ` it strays from that
+//! by `3/4` or `5/4` of `jump / ρ`, that is of the gap `|d₊ − d₋|`. When the first
+//! regression at a start finds a torn sensor, one more regression at `ρ/2` decides:
+//! if some torn sensor strays by more than [`JUMP_SHARE`] of its gap (plus the noise),
+//! the sensors are discontinuous: `ρ` is kept at most [`FIRST_RHO`] (a narrower
+//! stencil straddles fewer edges) and in every regression the torn sensors' rows of
+//! the slope are set to 0 (they still count in the residual, where the intercept,
+//! read at the centre only, has no jump). With too few sensors left the slope loses
+//! rank and the point is singular. Otherwise nothing changes.
 
 use ndarray::{ArrayView2, ArrayViewMut2};
 
@@ -43,7 +63,8 @@ use super::{SensorNoise, SetNoise, SetStatus, TraceValidParams};
 
 /// Repeats of the first regression at a start, whose spread measures the noise.
 pub(crate) const ESTIMATE_REPEATS: usize = 16;
-/// Offset `ρ` of the first regression at a start, radians.
+/// Offset `ρ` of the first regression at a start, radians; the largest `ρ` for
+/// discontinuous sensors.
 const FIRST_RHO: f64 = 0.05;
 /// Smallest offset `ρ` of the regressions, radians.
 const RHO_MIN: f64 = 1e-3;
@@ -71,6 +92,23 @@ const SINGULAR_RATIO: f64 = 10.0;
 /// The turn between two nodes allowed on top of `max_turn`, in standard deviations of
 /// the null vector's noise.
 const TURN_SIGMAS: f64 = 3.0;
+/// A sensor is torn (see the module docs) when its one-sided slopes differ by more
+/// than this many times the smaller one...
+pub(crate) const JUMP_RATIO: f64 = 2.0;
+/// ... plus this many standard deviations of their difference's noise.
+pub(crate) const JUMP_SIGMAS: f64 = 6.0;
+/// A torn sensor jumps when its one-sided slope at `ρ/2` strays from the halfway
+/// point of its one-sided and central slopes at `ρ` by more than this share of their
+/// gap (a jump strays by 3/4 of it or more; a smooth sensor by `O(ρ²)`).
+pub(crate) const JUMP_SHARE: f64 = 0.375;
+
+/// Whether `value ≤ limit` (false when either is not a number).
+fn within(value: f64, limit: f64) -> bool {
+    matches!(
+        value.partial_cmp(&limit),
+        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+    )
+}
 
 /// What the two readings of a start say ([`probe`]).
 pub(crate) enum Probe<'a> {
@@ -104,6 +142,17 @@ pub(crate) struct NoisySensory<'a> {
     eigenvectors: Vec<f64>,
     probes: Vec<f64>,
     readings: Vec<f64>,
+    /// Whether the first regression found a torn sensor: torn sensors are then left
+    /// out of every slope.
+    discontinuous: bool,
+    /// The one-sided slopes `(d₊, d₋)` of the last regression, sensor by sensor and
+    /// motor by motor.
+    sides: Vec<(f64, f64)>,
+    /// The noise `σ` the torn sensors are judged with: `σ` once known, else the
+    /// spread of the last regression's repeats.
+    torn_sigma: f64,
+    /// The sensors left out of the last slope.
+    torn: usize,
 }
 
 /// Reads the start twice in one batch (`noise = "auto"`) and decides how to trace:
@@ -187,9 +236,19 @@ impl<'a> NoisySensory<'a> {
             eigenvectors: vec![0.0; n * n],
             probes: Vec::new(),
             readings: Vec::new(),
+            discontinuous: false,
+            torn: 0,
+            sides: Vec::new(),
+            torn_sigma: 0.0,
         };
         let mut intercept = vec![0.0; k];
+        // The first regression, and whether its sensors jump (σ from its own repeats).
         let spread = set.regress(start, &mut intercept);
+        set.discontinuous = set.jumps(start);
+        if set.discontinuous {
+            set.leave_out_torn();
+        }
+        set.noise.discontinuous = set.discontinuous;
         let sigma = given.unwrap_or(spread);
         set.noise.sigma = sigma;
         let singular = set.decompose().is_err();
@@ -204,7 +263,12 @@ impl<'a> NoisySensory<'a> {
             return Probe::Failed(SetStatus::Singular, set.noise, set.sensor);
         }
         set.g_start = g;
-        set.rho = (sigma / (std::f64::consts::SQRT_2 * SLOPE_ERROR * g)).clamp(RHO_MIN, RHO_MAX);
+        let rho_max = if set.discontinuous {
+            FIRST_RHO
+        } else {
+            RHO_MAX
+        };
+        set.rho = (sigma / (std::f64::consts::SQRT_2 * SLOPE_ERROR * g)).clamp(RHO_MIN, rho_max);
         let repeats = (sigma / (std::f64::consts::SQRT_2 * set.rho * g * SLOPE_ERROR)).powi(2);
         set.repeats = (repeats.ceil() as usize).clamp(1, MAX_REPEATS);
         // The intercept averages the r (N + 1) readings of the centre.
@@ -276,10 +340,95 @@ impl<'a> NoisySensory<'a> {
                 self.jacobian[i * n + j] = (plus[i] - minus[i]) / (2.0 * rho);
             }
         }
-        if r < 2 {
-            return 0.0;
+        let spread = if r < 2 {
+            0.0
+        } else {
+            (squares / ((r - 1) * types * k) as f64).sqrt()
+        };
+        // The one-sided slopes d± of every sensor and motor, for the torn sensors.
+        self.sides.clear();
+        for (i, a) in intercept.iter().enumerate() {
+            for j in 0..n {
+                let plus = (means[(centre + 2 * j) * k + i] - a) / rho;
+                let minus = (a - means[(centre + 2 * j + 1) * k + i]) / rho;
+                self.sides.push((plus, minus));
+            }
         }
-        (squares / ((r - 1) * types * k) as f64).sqrt()
+        self.torn_sigma = if self.noise.sigma > 0.0 {
+            self.noise.sigma
+        } else {
+            spread
+        };
+        if self.discontinuous {
+            self.leave_out_torn();
+        }
+        spread
+    }
+
+    /// The standard deviation of `d₊ − d₋` (see the module docs) in the last
+    /// regression, times [`JUMP_SIGMAS`].
+    fn torn_noise(&self) -> f64 {
+        let (n, r) = (self.n as f64, self.repeats as f64);
+        JUMP_SIGMAS * self.torn_sigma * (2.0 / r + 4.0 / (r * (n + 1.0))).sqrt() / self.rho
+    }
+
+    /// Whether the last regression tears sensor `i` along motor `j` (see the module
+    /// docs; not finite: torn as well).
+    fn is_torn(&self, i: usize, j: usize, noise: f64) -> bool {
+        let (plus, minus) = self.sides[i * self.n + j];
+        !within(
+            (plus - minus).abs(),
+            JUMP_RATIO * plus.abs().min(minus.abs()) + noise,
+        )
+    }
+
+    /// Sets to 0 the slope's rows of the sensors the last regression tears (see the
+    /// module docs); counts them in `torn`.
+    fn leave_out_torn(&mut self) {
+        let (n, noise) = (self.n, self.torn_noise());
+        self.torn = 0;
+        for i in 0..self.k {
+            if (0..n).any(|j| self.is_torn(i, j, noise)) {
+                self.jacobian[i * n..(i + 1) * n].fill(0.0);
+                self.torn += 1;
+            }
+        }
+    }
+
+    /// Whether the sensors jump at `m`, after a first regression there (see the module
+    /// docs): a sensor torn along a motor whose one-sided slopes at `ρ/2` stray from
+    /// the halfway point of those at `ρ` and the central slope by more than
+    /// [`JUMP_SHARE`] of the gap between them (a smooth sensor's stray by `O(ρ²)`
+    /// only). One more regression, at `ρ/2`, when some sensor is torn; the first
+    /// regression's slope is kept.
+    fn jumps(&mut self, m: &[f64]) -> bool {
+        let (n, k, noise) = (self.n, self.k, self.torn_noise());
+        let torn: Vec<usize> = (0..k * n)
+            .filter(|&e| self.is_torn(e / n, e % n, noise))
+            .collect();
+        if torn.is_empty() {
+            return false;
+        }
+        let (first, jacobian) = (self.sides.clone(), self.jacobian.clone());
+        let mut intercept = vec![0.0; k];
+        self.rho /= 2.0;
+        self.regress(m, &mut intercept);
+        // The noise of a one-sided slope at ρ/2 (ρ is halved here).
+        let half_noise =
+            JUMP_SIGMAS * self.torn_sigma * (2.0 / self.repeats as f64).sqrt() / self.rho;
+        let jump = torn.iter().any(|&e| {
+            let ((plus, minus), (half_plus, half_minus)) = (first[e], self.sides[e]);
+            let central = 0.5 * (plus + minus);
+            let gap = (plus - minus).abs();
+            let stray = (half_plus - 0.5 * (plus + central))
+                .abs()
+                .max((half_minus - 0.5 * (minus + central)).abs());
+            !within(stray, JUMP_SHARE * gap + half_noise)
+        });
+        self.rho *= 2.0;
+        self.sides = first;
+        self.jacobian = jacobian;
+        jump
     }
 
     /// The norm of the residual's projection on the slope's range, `|Uᵀ r|`.
