@@ -112,12 +112,8 @@
 //! noise is allowed on top of `max_turn`; each new tangent is oriented along the
 //! path's heading over the last three nodes rather than along the last tangent, and a
 //! seed of the piece search lands on a piece already found within
-//! `max(piece_tolerance, 10 σ_pos)`. A seed that lands elsewhere is a new piece only
-//! when the point, read again with 4 times the repeats, passes a χ² test: the
-//! residual's part outside the slope's range, `(|r|² − |Uᵀ r|²) / (2σ² / (4r (N + 1)))`,
-//! at most `f + 6 √(2f)` for `f = K − (N − k)` degrees of freedom (a seed that only
-//! came close to the set, where the mean readings approach the start's without
-//! reaching them, leaves hundreds). A noisy null direction can still turn a trace
+//! `max(piece_tolerance, 10 σ_pos)`; one that lands elsewhere is a new piece only
+//! when, read again, the residual outside the slope's range passes a χ² test. A noisy null direction can still turn a trace
 //! round: a trace that comes back to its start heading the other way, or whose curve
 //! runs back over its own path (more than [`MAX_DOUBLED`] of the polyline through its
 //! nodes, cut into 200 points `Δ` apart, lies within `1.5 Δ` of a point at least ten

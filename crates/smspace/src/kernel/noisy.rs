@@ -32,6 +32,13 @@
 //!   times the noise of the turn between two nodes, `√2 · σ √K / (√2 ρ √r g)`, on
 //!   top of `max_turn`.
 //!
+//! A seed of the piece search that lands away from the pieces found is a new piece only
+//! when the point, read again with [`TARGET_REPEATS`] times the repeats, passes a χ²
+//! test: the residual's part outside the slope's range, `(|r|² − |Uᵀ r|²) / (2σ² /
+//! (4r (N + 1)))`, is at most `f + 6 √(2f)` for `f = K − (N − k)` degrees of freedom (a
+//! seed that only came close to the set, where the mean readings approach the start's
+//! without reaching them, leaves hundreds).
+//!
 //! `σ` is `[kernel] noise` when given, otherwise measured at the start: the pooled
 //! standard deviation of the [`ESTIMATE_REPEATS`] repeats of every row of a first
 //! regression (`(r − 1)` degrees of freedom per row and sensor).
