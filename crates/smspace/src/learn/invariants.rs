@@ -59,12 +59,12 @@
 //! aliased pairs raises every `λ` of the invariants by about `0.4`, which hides the gap.
 //! So the problem is solved again without them, [`TRIM_ROUNDS`] times: with the `w` of
 //! every `λ` below `invariance_threshold` (or of the given count of invariants, when
-//! it is larger), never padded up to the rank `r` the count rule keeps at least: a
-//! function that is not invariant would choose the pairs that make it look so (with
-//! three cells for a 3-D pose at 10⁶ samples, one `λ` is below the threshold at first;
-//! two more functions judging with it set aside the pairs that change them, and they,
-//! not the pose, become the three invariants). Every round judges all the pairs
-//! afresh: the change
+//! it is larger), and in the last round of the invariants the count rule keeps; never
+//! padded up to the rank `r` the count rule keeps at least: a function that is not
+//! invariant would choose the pairs that make it look so (with three cells for a 3-D
+//! pose at 10⁶ samples, one `λ` is below the threshold at first; two more functions
+//! judging with it set aside the pairs that change them, and they, not the pose, become
+//! the three invariants). Every round judges all the pairs afresh: the change
 //! `d_i = ‖Wᵀ (φ(m_i) − φ(m_j(i)))‖²` of every pair is measured, the pairs with `d_i`
 //! above [`ALIASED_FACTOR`] times the median are set aside (never more than half), and
 //! `C` is the mean over the rest (`Σ` and `μ` stay those of every fitted sample). The
@@ -639,12 +639,16 @@ fn invariant_count(eigenvalues: &[f64], params: &LawValidParams, least: usize) -
 }
 
 /// Rounds of setting aliased pairs aside (module docs, "Aliased pairs").
-const TRIM_ROUNDS: usize = 2;
+const TRIM_ROUNDS: usize = 3;
 
-/// How many of the functions of the ascending `eigenvalues` judge the pairs in a
-/// trimming round: every one below `invariance_threshold`, and at least the given count
-/// (module docs, "Aliased pairs"); never the rank the count rule keeps at least.
-fn aliased_judges(eigenvalues: &[f64], params: &LawValidParams) -> usize {
+/// How many of the functions of the ascending `eigenvalues` judge the pairs in trimming
+/// round `round`: every one below `invariance_threshold` (at least the given count),
+/// and in the last round the count rule's invariants; never padded up to the rank the
+/// count rule keeps at least (module docs, "Aliased pairs").
+fn aliased_judges(eigenvalues: &[f64], params: &LawValidParams, round: usize) -> usize {
+    if round + 1 == TRIM_ROUNDS {
+        return invariant_count(eigenvalues, params, 0);
+    }
     let below = eigenvalues
         .iter()
         .take_while(|&&l| l < params.invariance_threshold)
@@ -766,7 +770,7 @@ fn solve_without_aliased(
         // many of them), never padded up to the rank `least`: a function above the
         // threshold is not invariant, and as a judge it would set aside the pairs
         // that change it and look invariant in the next round.
-        let judges = aliased_judges(&eigenvalues, params).min(w.ncols());
+        let judges = aliased_judges(&eigenvalues, params, round).min(w.ncols());
         if judges == 0 {
             // Nothing to judge by: the rounds left are done.
             progress.advance((TRIM_ROUNDS - round) as u64);
@@ -1190,17 +1194,23 @@ mod tests {
         // Three cells for a 3-D pose at 10⁶ samples, first solve: one λ below the
         // threshold. It alone judges the pairs, though the rank (3) keeps three.
         let first = [0.133, 0.498, 0.575, 0.645, 0.714];
-        assert_eq!(aliased_judges(&first, &params), 1);
+        assert_eq!(aliased_judges(&first, &params, 0), 1);
         assert_eq!(invariant_count(&first, &params, 3), 3);
         // The second solve: every function below the threshold judges, not only those
         // up to the largest gap (the first, 0.0025 against 0.109).
         let second = [
             0.0025, 0.109, 0.198, 0.220, 0.252, 0.265, 0.301, 0.314, 0.379, 0.726,
         ];
-        assert_eq!(aliased_judges(&second, &params), 9);
+        assert_eq!(aliased_judges(&second, &params, 1), 9);
         assert_eq!(invariant_count(&second, &params, 0), 1);
+        // The last round: only the invariants up to the gap judge (a function above it
+        // would set aside the pairs that change it).
+        let last = [1e-6, 1e-5, 0.15, 0.6, 1.4];
+        assert_eq!(aliased_judges(&last, &params, TRIM_ROUNDS - 1), 2);
+        assert_eq!(aliased_judges(&last, &params, 0), 3);
         // Nothing below the threshold: no judge.
-        assert_eq!(aliased_judges(&[0.5, 0.6], &params), 0);
+        assert_eq!(aliased_judges(&[0.5, 0.6], &params, 0), 0);
+        assert_eq!(aliased_judges(&[0.5, 0.6], &params, TRIM_ROUNDS - 1), 0);
         // A given count judges, and so does every function below the threshold.
         let given = super::super::LawParams {
             invariants: Some(4),
@@ -1208,8 +1218,9 @@ mod tests {
         }
         .check_params()
         .unwrap();
-        assert_eq!(aliased_judges(&first, &given), 4);
-        assert_eq!(aliased_judges(&second, &given), 9);
+        assert_eq!(aliased_judges(&first, &given, 0), 4);
+        assert_eq!(aliased_judges(&second, &given, 1), 9);
+        assert_eq!(aliased_judges(&second, &given, TRIM_ROUNDS - 1), 4);
     }
 
     #[test]
