@@ -58,9 +58,13 @@
 //! invariant changes between its two samples as much as any function does. A fifth of
 //! aliased pairs raises every `λ` of the invariants by about `0.4`, which hides the gap.
 //! So the problem is solved again without them, [`TRIM_ROUNDS`] times: with the `w` of
-//! every `λ` below `invariance_threshold` in the first round, then of the invariants
-//! the count rule below keeps (a function that is not invariant would choose the pairs
-//! that make it look so; every round judges all the pairs afresh), the change
+//! every `λ` below `invariance_threshold` (or of the given count of invariants, when
+//! it is larger), and in the last round of the invariants the count rule keeps; never
+//! padded up to the rank `r` the count rule keeps at least: a function that is not
+//! invariant would choose the pairs that make it look so (with three cells for a 3-D
+//! pose at 10⁶ samples, one `λ` is below the threshold at first; two more functions
+//! judging with it set aside the pairs that change them, and they, not the pose, become
+//! the three invariants). Every round judges all the pairs afresh: the change
 //! `d_i = ‖Wᵀ (φ(m_i) − φ(m_j(i)))‖²` of every pair is measured, the pairs with `d_i`
 //! above [`ALIASED_FACTOR`] times the median are set aside (never more than half), and
 //! `C` is the mean over the rest (`Σ` and `μ` stay those of every fitted sample). The
@@ -635,7 +639,22 @@ fn invariant_count(eigenvalues: &[f64], params: &LawValidParams, least: usize) -
 }
 
 /// Rounds of setting aliased pairs aside (module docs, "Aliased pairs").
-const TRIM_ROUNDS: usize = 2;
+const TRIM_ROUNDS: usize = 3;
+
+/// How many of the functions of the ascending `eigenvalues` judge the pairs in trimming
+/// round `round`: every one below `invariance_threshold` (at least the given count),
+/// and in the last round the count rule's invariants; never padded up to the rank the
+/// count rule keeps at least (module docs, "Aliased pairs").
+fn aliased_judges(eigenvalues: &[f64], params: &LawValidParams, round: usize) -> usize {
+    if round + 1 == TRIM_ROUNDS {
+        return invariant_count(eigenvalues, params, 0);
+    }
+    let below = eigenvalues
+        .iter()
+        .take_while(|&&l| l < params.invariance_threshold)
+        .count();
+    params.invariants.unwrap_or(0).max(below)
+}
 
 /// A pair is aliased when its invariants change by more than this factor times the
 /// median change of the pairs.
@@ -747,15 +766,11 @@ fn solve_without_aliased(
     let (mut eigenvalues, mut w) = moments.solve(MAX_INVARIANTS, path)?;
     progress.advance(1);
     for round in 0..TRIM_ROUNDS {
-        // First every function below the threshold judges the pairs (aliased pairs
-        // change many of them), then only the invariants the count rule keeps (a
-        // function above the gap would choose the pairs that make it look invariant).
-        let count = invariant_count(&eigenvalues, params, least);
-        let below = eigenvalues
-            .iter()
-            .take_while(|&&l| l < params.invariance_threshold)
-            .count();
-        let judges = if round == 0 { count.max(below) } else { count }.min(w.ncols());
+        // Every function below the threshold judges the pairs (aliased pairs change
+        // many of them), never padded up to the rank `least`: a function above the
+        // threshold is not invariant, and as a judge it would set aside the pairs
+        // that change it and look invariant in the next round.
+        let judges = aliased_judges(&eigenvalues, params, round).min(w.ncols());
         if judges == 0 {
             // Nothing to judge by: the rounds left are done.
             progress.advance((TRIM_ROUNDS - round) as u64);
@@ -1170,6 +1185,42 @@ mod tests {
         // The arm at 10⁴ samples: no clear gap, every λ below the threshold.
         let sparse = [0.124, 0.233, 0.330, 0.432, 0.461, 0.512];
         assert_eq!(largest_gap(&sparse, 0.4), 3);
+    }
+
+    #[test]
+    fn the_judges_of_aliased_pairs_are_never_padded_up_to_the_rank() {
+        use crate::params::CheckParams;
+        let params = super::super::LawParams::default().check_params().unwrap();
+        // Three cells for a 3-D pose at 10⁶ samples, first solve: one λ below the
+        // threshold. It alone judges the pairs, though the rank (3) keeps three.
+        let first = [0.133, 0.498, 0.575, 0.645, 0.714];
+        assert_eq!(aliased_judges(&first, &params, 0), 1);
+        assert_eq!(invariant_count(&first, &params, 3), 3);
+        // The second solve: every function below the threshold judges, not only those
+        // up to the largest gap (the first, 0.0025 against 0.109).
+        let second = [
+            0.0025, 0.109, 0.198, 0.220, 0.252, 0.265, 0.301, 0.314, 0.379, 0.726,
+        ];
+        assert_eq!(aliased_judges(&second, &params, 1), 9);
+        assert_eq!(invariant_count(&second, &params, 0), 1);
+        // The last round: only the invariants up to the gap judge (a function above it
+        // would set aside the pairs that change it).
+        let last = [1e-6, 1e-5, 0.15, 0.6, 1.4];
+        assert_eq!(aliased_judges(&last, &params, TRIM_ROUNDS - 1), 2);
+        assert_eq!(aliased_judges(&last, &params, 0), 3);
+        // Nothing below the threshold: no judge.
+        assert_eq!(aliased_judges(&[0.5, 0.6], &params, 0), 0);
+        assert_eq!(aliased_judges(&[0.5, 0.6], &params, TRIM_ROUNDS - 1), 0);
+        // A given count judges, and so does every function below the threshold.
+        let given = super::super::LawParams {
+            invariants: Some(4),
+            ..Default::default()
+        }
+        .check_params()
+        .unwrap();
+        assert_eq!(aliased_judges(&first, &given, 0), 4);
+        assert_eq!(aliased_judges(&second, &given, 1), 9);
+        assert_eq!(aliased_judges(&second, &given, TRIM_ROUNDS - 1), 4);
     }
 
     #[test]

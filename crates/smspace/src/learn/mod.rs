@@ -87,7 +87,8 @@
 //! ```
 //!
 //! Pairs whose samples read alike from poses far apart (aliased pairs) are set aside:
-//! twice, the change of the functions below the threshold is measured on every pair
+//! three times, the change of the functions below the threshold (in the last round,
+//! of the invariants kept) is measured on every pair
 //! and `C` is taken again over the pairs whose change is at most 9 times the median.
 //! The invariants `z(m) = Wᵀ(φ(m) − μ)` are the eigenvectors of the smallest `λ` up to
 //! the largest gap (a ratio of at least 2 between consecutive `λ`, those under a
