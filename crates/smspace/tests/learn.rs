@@ -317,6 +317,40 @@ fn a_simulated_arm_log_is_seeded_and_its_law_has_rank_3() {
     // A set compared with itself.
     let zero = set_errors(&truth, &truth, Period::TwoPi).unwrap();
     assert!(zero.p90 < 1e-9);
+    // Motors that mix hinges and a bounded motor (the last one, say, a pupil's
+    // aperture): a turn of a hinge is no error, a shift of the bounded motor is one of
+    // its size (the shifted set's extreme point is that far from every true point).
+    let mixed = smspace::learn::comparison_period(&[
+        Some(std::f64::consts::TAU),
+        Some(std::f64::consts::TAU),
+        Some(std::f64::consts::TAU),
+        None,
+    ])
+    .unwrap();
+    assert_eq!(mixed.to_string(), "[2pi, 2pi, 2pi, none]");
+    let mut turned = truth.clone();
+    turned
+        .sets
+        .index_axis_mut(Axis(2), 0)
+        .mapv_inplace(|m| m + std::f64::consts::TAU);
+    assert!(set_errors(&turned, &truth, &mixed).unwrap().p90 < 1e-9);
+    let mut shifted = truth.clone();
+    shifted
+        .sets
+        .index_axis_mut(Axis(2), 3)
+        .mapv_inplace(|m| m + 0.5);
+    let errors = set_errors(&shifted, &truth, &mixed).unwrap();
+    assert!(
+        (errors.median - 0.5).abs() < 1e-9 && (errors.p90 - 0.5).abs() < 1e-9,
+        "{errors:?}"
+    );
+    // Under 2π on every motor a shift by a whole turn would be no error.
+    shifted
+        .sets
+        .index_axis_mut(Axis(2), 3)
+        .mapv_inplace(|m| m - 0.5 + std::f64::consts::TAU);
+    assert!(set_errors(&shifted, &truth, Period::TwoPi).unwrap().p90 < 1e-9);
+    assert!(set_errors(&shifted, &truth, &mixed).unwrap().median > 1.0);
 }
 
 #[test]

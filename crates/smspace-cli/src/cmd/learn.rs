@@ -73,7 +73,8 @@ pub struct Args {
     out: PathBuf,
     /// The true sets through the same starts (as written by `smspace trace` on the
     /// simulated agent): the Hausdorff distance between each learned set and its true
-    /// one (curve metric, radians) is printed (median, 90th percentile) and written to
+    /// one (radians; curves as polylines, surfaces as tangent disks, under the motors'
+    /// periods) is printed (median, 90th percentile) and written to
     /// `<stem>.errors.json`.
     #[arg(long, value_name = "FILE")]
     truth_sets: Option<PathBuf>,
@@ -301,6 +302,16 @@ fn print_law(report: &smspace::learn::LawReport) {
                 .join(" "),
             rank.floor
         );
+        if report.rank_source == smspace::learn::RankSource::Invariants {
+            let probed: usize = report.rank_counts.iter().sum();
+            eprintln!(
+                "the invariants change along {} directions at {} of {probed} probed samples: the kernels are traced at rank {} (the slopes' rank {} counts the sensors' curvature across the samples' spacing, or directions the invariants miss)",
+                report.rank,
+                report.rank_counts.get(report.rank).copied().unwrap_or(0),
+                report.rank,
+                rank.rank
+            );
+        }
     }
     if let Some(found) = &report.invariants {
         eprintln!(
@@ -336,18 +347,14 @@ fn print_law(report: &smspace::learn::LawReport) {
 }
 
 /// The set errors of the learned sets against the true ones in `path` (the same
-/// starts), under the motors' period (all hinges: `2pi`; no periodic motor: `none`).
+/// starts), under the motors' periods (hinges wrapped by `2π`, bounded motors not).
 fn truth_errors(
     traced: &smspace::kernel::TracedSets,
     path: &std::path::Path,
     space: &smspace::agent::MotorSpace,
 ) -> anyhow::Result<smspace::learn::SetErrors> {
     let truth = smspace::kernel::TracedSets::load(path)?;
-    let Some(period) = smspace::learn::comparison_period(&space.periods()) else {
-        anyhow::bail!(
-            "--truth-sets compares sets of all-hinge (2pi) or all-bounded motors; these motors are {space}"
-        );
-    };
-    smspace::learn::set_errors(traced, &truth, period)
+    let period = smspace::learn::comparison_period(&space.periods())?;
+    smspace::learn::set_errors(traced, &truth, &period)
         .map_err(|e| anyhow::anyhow!("--truth-sets {}: {e}", path.display()))
 }

@@ -126,6 +126,15 @@ fn law_rows(t: &mut Table, law: &serde_json::Value) {
             ),
         );
     }
+    if law["rank_source"].as_str() == Some("invariants") {
+        t.push(
+            "rank traced",
+            format!(
+                "{} (the invariants' Jacobian at nearly every probed sample, below the data's)",
+                law["rank"].as_u64().unwrap_or(0)
+            ),
+        );
+    }
     quality_rows(t, &law["quality"]);
     for warning in law["warnings"].as_array().into_iter().flatten() {
         t.push("warning", text(warning));

@@ -108,9 +108,8 @@ impl StageInput for TraceInput<'_> {
 /// The learned sets of a run from a simulated log (or the sets of an agent with
 /// simulated noise) against the true sets of `agent` (the exact agent) through
 /// the same starts (traced with the same `[kernel]` parameters on the agent in the main
-/// environment, where the log was simulated), by [`smspace::learn::set_errors`]; `None`
-/// when the motors mix hinges and bounded motors (no single period to compare under) or
-/// no start was traced in both.
+/// environment, where the log was simulated), by [`smspace::learn::set_errors`] under
+/// the motors' periods; `None` when no start was traced in both.
 fn truth_errors(
     world: &World,
     agent: &dyn smspace::agent::Agent,
@@ -119,7 +118,7 @@ fn truth_errors(
     learned: &TracedSets,
     progress: &dyn smspace::progress::Progress,
 ) -> crate::Result<Option<TruthErrors>> {
-    let Some(period) = smspace::learn::comparison_period(&agent.motor_space().periods()) else {
+    let Ok(period) = smspace::learn::comparison_period(&agent.motor_space().periods()) else {
         return Ok(None);
     };
     let truth = trace_sets(
@@ -130,7 +129,7 @@ fn truth_errors(
         params,
         progress,
     )?;
-    Ok(smspace::learn::set_errors(learned, &truth, period)
+    Ok(smspace::learn::set_errors(learned, &truth, &period)
         .ok()
         .map(|e| TruthErrors {
             compared: e.compared,

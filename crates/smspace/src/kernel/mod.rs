@@ -1013,7 +1013,8 @@ pub struct TraceSummary {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseSummary>,
     /// The share of the sets traced as curves that closed
-    /// ([`TraceSummary::curve_closure_rate`]); `None` when no set was a curve.
+    /// ([`TraceSummary::curve_closure_rate`]); `None` when no set was a curve (kernels
+    /// of dimension 0 or at least 2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub closure_rate: Option<f64>,
 }
@@ -1473,7 +1474,13 @@ pub fn trace_sets(
     summary.covering_radius =
         (!radii.is_empty()).then(|| [radii[0], radii[radii.len() / 2], radii[radii.len() - 1]]);
     summary.traced = kept.len();
-    summary.closure_rate = summary.curve_closure_rate();
+    // The closure rate counts curves only: a trace of surfaces (its failures too) has
+    // none.
+    summary.closure_rate = if reports.iter().any(|r| r.dimension == 1) {
+        summary.curve_closure_rate()
+    } else {
+        None
+    };
     summary.failed = summary.total - summary.traced;
     let pieces = ndarray::Array2::from_shape_vec((kept.len(), p), pieces)
         .expect("every kept set has a piece for each of its P points");

@@ -1,13 +1,16 @@
 //! Learned kernel sets measured against the true ones (simulated logs, where the truth
-//! is known): per start, the Hausdorff distance between the two sets read as polylines
-//! on the motor torus (the `curve` metric, so that the sampling of 100 points along a
-//! set adds no error of its own).
+//! is known): per start, the Hausdorff distance between the two sets on the motor torus,
+//! read so that the sampling of a set adds no error of its own to first order: curves
+//! (`k = 1`) as polylines (the `curve` metric), surfaces of dimension `k ≥ 2` as their
+//! points' tangent disks (the `surface` metric with that `k`). Sets of different
+//! dimensions (a law whose rank differs from the truth's) are compared point to point
+//! (`hausdorff`).
 
 use serde::{Deserialize, Serialize};
 
 use super::LearnError;
 use crate::kernel::{Closure, TracedSets};
-use crate::metric::{MetricKind, Period};
+use crate::metric::{MetricKind, Periodicity, Periods, SetMetric, Surface, SurfaceParams};
 
 /// The set errors of one comparison.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -23,30 +26,27 @@ pub struct SetErrors {
     pub p90: f64,
 }
 
-/// The one period under which [`set_errors`] compares sets of motors with these periods
-/// (`None`: not wrapped): `2pi` when every motor is a hinge, none when none is; `None`
-/// for a mix of both.
-pub fn comparison_period(periods: &[Option<f64>]) -> Option<Period> {
-    if periods
-        .iter()
-        .all(|p| p.is_some_and(|p| (p - std::f64::consts::TAU).abs() < 1e-12))
-    {
-        Some(Period::TwoPi)
-    } else if periods.iter().all(Option::is_none) {
-        Some(Period::None)
-    } else {
-        None
-    }
+/// The point metric's periods under which [`set_errors`] compares sets of motors with
+/// these periods (`None`: not wrapped): `2pi` when every motor is a hinge, none when
+/// none is, and one period per motor for a mix (hinges wrapped, bounded motors not).
+pub fn comparison_period(periods: &[Option<f64>]) -> Result<Periodicity, LearnError> {
+    Periods::new(periods.to_vec())
+        .map(Periodicity::from)
+        .map_err(|e| LearnError::Compare {
+            reason: format!("the motors' periods cannot be compared under: {e}"),
+        })
 }
 
 /// The Hausdorff distance between the learned and the true set of every start traced in
-/// both (the same starts, the same point count), under the point metric `period`. A
-/// set that is a closed loop in both is read as a loop, otherwise as an open polyline.
+/// both (the same starts, the same point count), under the point metric `period`
+/// ([`comparison_period`] of the motors). A curve that is a closed loop in both is read
+/// as a loop, otherwise as an open polyline; see the module docs for surfaces.
 pub fn set_errors(
     learned: &TracedSets,
     truth: &TracedSets,
-    period: Period,
+    period: impl Into<Periodicity>,
 ) -> Result<SetErrors, LearnError> {
+    let period = period.into();
     if learned.sets.dim().1 != truth.sets.dim().1 || learned.sets.dim().2 != truth.sets.dim().2 {
         return Err(LearnError::Compare {
             reason: format!(
@@ -56,6 +56,7 @@ pub fn set_errors(
             ),
         });
     }
+    let (learned_dims, truth_dims) = (learned.dimensions(), truth.dimensions());
     let mut per_set = Vec::new();
     let mut j = 0;
     for (i, &row) in learned.kept.iter().enumerate() {
@@ -71,7 +72,12 @@ pub fn set_errors(
             } else {
                 Closure::Open
             };
-        let metric = MetricKind::Curve.with_period(period, closure);
+        let metric = comparison_metric(
+            (learned_dims[i], truth_dims[j]),
+            &period,
+            closure,
+            learned.sets.dim().1,
+        )?;
         let distance = metric
             .distance(
                 learned.sets.index_axis(ndarray::Axis(0), i),
@@ -95,5 +101,31 @@ pub fn set_errors(
         median: quantile(0.5),
         p90: quantile(0.9),
         per_set,
+    })
+}
+
+/// The metric that compares a learned set of dimension `dims.0` with a true one of
+/// dimension `dims.1` (see the module docs), sets of `points` points.
+fn comparison_metric(
+    dims: (usize, usize),
+    period: &Periodicity,
+    closure: Closure,
+    points: usize,
+) -> Result<Box<dyn SetMetric>, LearnError> {
+    Ok(match dims {
+        (a, b) if a <= 1 && b <= 1 => MetricKind::Curve.with_period(period, closure),
+        (a, b) if a == b => {
+            let params = SurfaceParams {
+                dimension: a,
+                neighbours: (2 * a).max(8).min(points.saturating_sub(1)).max(a),
+                ..SurfaceParams::default()
+            };
+            Box::new(
+                Surface::new(params, period.clone()).map_err(|e| LearnError::Compare {
+                    reason: e.to_string(),
+                })?,
+            )
+        }
+        _ => MetricKind::Hausdorff.with_period(period, closure),
     })
 }

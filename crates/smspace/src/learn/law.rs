@@ -712,8 +712,13 @@ pub struct LawReport {
     /// Per log: samples, fitted rows, held-out rows, bandwidth, images, error.
     pub logs: Vec<LogReport>,
     /// The rank the tracer uses: that of `data_rank` when the data gave one, else the
-    /// generic rank of the law's Jacobian (the most frequent of `rank_counts`).
+    /// generic rank of the law's Jacobian (the most frequent of `rank_counts`); for
+    /// `invariants`, the invariants' rank when it is lower than the data's at nearly
+    /// every probed sample (see `rank_source`).
     pub rank: usize,
+    /// Where `rank` comes from.
+    #[serde(default)]
+    pub rank_source: RankSource,
     /// How often each rank of the law's Jacobian was found at the probed samples
     /// (index = rank; by the largest gap of singular values).
     pub rank_counts: Vec<usize>,
@@ -736,6 +741,29 @@ pub struct LawReport {
     /// The memory learning was estimated to need before it started.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub memory: Option<MemoryEstimate>,
+}
+
+/// The share of the probed samples at which the invariants' Jacobian must have one
+/// rank, lower than the data's, for the law to be traced at that rank
+/// ([`RankSource::Invariants`]).
+pub const UNANIMOUS_SHARE: f64 = 0.9;
+
+/// Where the rank of a [`LawReport`] comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RankSource {
+    /// The rank of the sensors' local slopes in the data (`data_rank`).
+    #[default]
+    Data,
+    /// The invariants' Jacobian, lower than the data's rank at nearly every probed
+    /// sample ([`UNANIMOUS_SHARE`]): the kernels of a law whose values are the
+    /// invariants have that rank. The data's slopes over-read it when the sensors curve
+    /// across a neighbourhood of the samples' spacing (wide neighbourhoods in many
+    /// motors); a direction the invariants' basis cannot express would also show so,
+    /// and then the sets are too large.
+    Invariants,
+    /// The law's Jacobian (`rank_counts`), the log being too short for a data rank.
+    Law,
 }
 
 /// One log's part of the [`LawReport`].
@@ -824,6 +852,7 @@ impl LearnedLaw {
                 method,
                 logs,
                 rank: 0,
+                rank_source: RankSource::Data,
                 rank_counts: Vec::new(),
                 invariants,
                 data_rank,
@@ -833,12 +862,20 @@ impl LearnedLaw {
             },
         };
         let counts = law.rank_counts(seed, progress);
-        let rank = match &law.report.data_rank {
-            Some(data) => data.rank,
-            None => (0..counts.len())
-                .max_by_key(|&r| (counts[r], r))
-                .unwrap_or(0),
+        let generic = (0..counts.len())
+            .max_by_key(|&r| (counts[r], r))
+            .unwrap_or(0);
+        let probed: usize = counts.iter().sum();
+        let nearly_all =
+            counts.get(generic).copied().unwrap_or(0) as f64 >= UNANIMOUS_SHARE * probed as f64;
+        let (rank, source) = match &law.report.data_rank {
+            Some(data) if method == LawMethod::Invariants && generic < data.rank && nearly_all => {
+                (generic, RankSource::Invariants)
+            }
+            Some(data) => (data.rank, RankSource::Data),
+            None => (generic, RankSource::Law),
         };
+        law.report.rank_source = source;
         law.rank = rank;
         law.report.rank = rank;
         law.report.rank_counts = counts;

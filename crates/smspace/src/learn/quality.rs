@@ -3,8 +3,9 @@
 //!
 //! - **Samples per dimension** `S_f^{1/d}`: the fitted samples `S_f` of a log spread over
 //!   the dimension `d` the method must resolve. For `invariants` the pairs are nearest
-//!   neighbours in sensor space, whose manifold has the dimension `r` of the sensors'
-//!   rank (`data_rank`); for the local fits, the fits live in motor space, `d = N`. Below
+//!   neighbours in sensor space, whose manifold has the dimension `r` of the law's rank
+//!   (`rank`: the data's, or the invariants' where lower); for the local fits, the fits
+//!   live in motor space, `d = N`. Below
 //!   [`MIN_SAMPLES_PER_DIMENSION`] the neighbours are too far apart to share their
 //!   invariants (or the fits to follow the law): warned, with the samples that would
 //!   reach it, `MIN_SAMPLES_PER_DIMENSION^d`.
@@ -22,8 +23,9 @@
 //! - **Closure rate** (after tracing, [`LawReport::with_trace`]): the share of the sets
 //!   traced as curves that closed (a loop back to its start, or a segment ending on
 //!   the bounds of bounded motors): `(closed + open + pieces) / (total − point −
-//!   covered − cover-budget)` ([`TraceSummary::curve_closure_rate`]). A law whose level sets wander does not close them;
-//!   below [`MIN_CLOSURE_RATE`] it is warned.
+//!   covered − cover-budget)` ([`TraceSummary::curve_closure_rate`]), none when the
+//!   kernels are not curves (surfaces have no closure). A law whose level sets wander
+//!   does not close them; below [`MIN_CLOSURE_RATE`] it is warned.
 //!
 //! The held-out error of the sensor values and the noise estimate are in each log's
 //! report; their warnings come with the law's own.
@@ -80,7 +82,7 @@ pub(super) fn assess(report: &LawReport, n: usize) -> (LawQuality, Vec<String>) 
     let mut quality = LawQuality::default();
     let mut warnings = Vec::new();
     let dimension = match report.method {
-        LawMethod::Invariants => report.data_rank.as_ref().map_or(report.rank, |r| r.rank),
+        LawMethod::Invariants => report.rank,
         LawMethod::LocalLinear | LawMethod::LocalQuadratic => n,
     };
     if let Some(first) = report.logs.first().filter(|_| dimension > 0) {
@@ -91,7 +93,7 @@ pub(super) fn assess(report: &LawReport, n: usize) -> (LawQuality, Vec<String>) 
             let wanted = MIN_SAMPLES_PER_DIMENSION.powi(dimension as i32);
             let what = match report.method {
                 LawMethod::Invariants => {
-                    format!("a sensory manifold of dimension {dimension} (the rank the data show)")
+                    format!("a sensory manifold of dimension {dimension} (the law's rank)")
                 }
                 _ => format!("the {dimension} motors the local fits span"),
             };
@@ -139,7 +141,7 @@ impl LawReport {
     /// what would help.
     pub fn with_trace(&self, summary: &TraceSummary) -> LawReport {
         let mut report = self.clone();
-        report.quality.closure_rate = summary.curve_closure_rate();
+        report.quality.closure_rate = summary.closure_rate;
         if let Some(rate) = report.quality.closure_rate {
             if rate < MIN_CLOSURE_RATE {
                 let other = match report.method {
