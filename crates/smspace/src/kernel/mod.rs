@@ -86,44 +86,17 @@
 //! with noise, [`crate::agent::NoisyAgent`]) cannot meet a tolerance of `10⁻¹²`, nor
 //! give a Jacobian by differences `10⁻⁶` rad apart. With `[kernel] noise = "auto"`
 //! (the default) every start is read twice in one batch: readings equal to within the
-//! exact corrector's own tolerance (`|s₁ − s₂| ≤ sensor_tolerance · max |s₁|` in every
-//! sensor: rounding, from a simulator that is not bit-reproducible, is no noise) are
-//! exact and the set is traced as above (one sensor row more per set). Otherwise the set is the
-//! level set of the sensors' mean law, `{ m | a(m) = a₀ }` (`noisy.rs`): at every
-//! point one batch of rows, the centre `m` read `N + 1` times and the `2N` rows
-//! `m ± ρ e_j`, repeated `r` times, is a local regression whose intercept `a(m)` (the
-//! mean of the centre's readings) is the level set's function and whose slope
-//! `(s̄₊ − s̄₋)/2ρ` its Jacobian; the corrector is Gauss–Newton with minimum-norm steps
-//! and a fresh regression at every iterate. The noise's standard deviation `σ` is
-//! measured at the start from 16 repeats of a first regression (pooled over the rows
-//! and sensors), or given (`noise = σ` in sensor units; `0`: exact, no extra row).
-//! With `g` the smallest of the `N − k` largest singular values of the slope, `ρ`
-//! and `r` aim at a slope error of 2 % (`ρ ∈ [10⁻³, 0.1]` rad, `r ≤ 64`), and a
-//! point's position is uncertain by `σ_pos = σ / (g √(r (N + 1)))`. Every tolerance
-//! scales with it: a point is on the set when the residual's part in the slope's
-//! range, `|Uᵀ r| / g`, is below `5 σ_pos` (and every residual component within the
-//! noise; a last step is then taken); the corrector's steps are damped,
-//! `Δ = Σ_e v_e (v_eᵀ Jᵀ r) / (λ_e + μ²)` with `μ = σ (√K + √N) / (ρ √(2r))` the
-//! slope's noise, so that a direction the noise leaves uncertain does not throw the
-//! point along the set; corrections below
-//! `3 σ_pos` plus the tangent's noise times the step are nothing to do for the step
-//! control, steps stay above `4 σ_pos`, loops close within
-//! `max(closure_tolerance, 4 σ_pos)` after `min_steps` steps, and the tangent's own
-//! noise is allowed on top of `max_turn`; each new tangent is oriented along the
-//! path's heading over the last three nodes rather than along the last tangent, and a
-//! seed of the piece search lands on a piece already found within
-//! `max(piece_tolerance, 10 σ_pos)`; one that lands elsewhere is a new piece only
-//! when, read again, the residual outside the slope's range passes a χ² test. A noisy null direction can still turn a trace
-//! round: a trace that comes back to its start heading the other way, or whose curve
-//! runs back over its own path (more than [`MAX_DOUBLED`] of the polyline through its
-//! nodes, cut into 200 points `Δ` apart, lies within `1.5 Δ` of a point at least ten
-//! points away along it, with parallel or antiparallel chords, `|cos| ≥ 0.8`; a simple
-//! curve has none), is [`SetStatus::Retraced`], not kept, and the summary warns.
-//! Sensors that jump between neighbouring postures (a rangefinder past an edge) are
-//! told from smooth ones at two scales and left out of the slope where they jump.
-//! `σ`, `σ_pos`, `ρ`, `r` and the doubled fraction are reported per set ([`SetReport::noise`]) and summarised ([`TraceSummary::noise`]); beyond a
-//! median `σ_pos` of [`MAX_POSITION_UNCERTAINTY`] rad, or with most sets failed, the
-//! summary warns ([`TraceSummary::warnings`]).
+//! exact corrector's own tolerance are exact and the set is traced as above (one sensor
+//! row more per set). Otherwise the set is the level set of the sensors' mean law,
+//! `{ m | a(m) = a₀ }`, `a(m)` the intercept of a local regression of repeated readings
+//! around `m` and its slope the Jacobian, with the noise's `σ` measured at the start
+//! (or given) and every step, tolerance and stopping rule scaled to the uncertainty
+//! `σ_pos` of a point's position (the `noisy` module's docs give the equations).
+//! `σ`, `σ_pos`, `ρ`, `r` and the doubled fraction are reported per set
+//! ([`SetReport::noise`]) and summarised ([`TraceSummary::noise`]); beyond a median
+//! `σ_pos` of [`MAX_POSITION_UNCERTAINTY`] rad, or with most sets failed, the summary
+//! warns ([`TraceSummary::warnings`]); a trace that runs back over its own path is
+//! [`SetStatus::Retraced`] ([`MAX_DOUBLED`]).
 //!
 //! ## Resampling
 //!
