@@ -869,7 +869,11 @@ impl LearnedLaw {
         let nearly_all =
             counts.get(generic).copied().unwrap_or(0) as f64 >= UNANIMOUS_SHARE * probed as f64;
         let (rank, source) = match &law.report.data_rank {
-            Some(data) if method == LawMethod::Invariants && generic < data.rank && nearly_all => {
+            Some(data)
+                if method == LawMethod::Invariants
+                    && (1..data.rank).contains(&generic)
+                    && nearly_all =>
+            {
                 (generic, RankSource::Invariants)
             }
             Some(data) => (data.rank, RankSource::Data),
