@@ -1333,6 +1333,16 @@ pub fn trace_one(
     Ok((result.points, result.report))
 }
 
+/// The closure rate of a trace ([`TraceSummary::curve_closure_rate`]) when its kernels
+/// are curves; `None` for a trace of points or surfaces, whose failures are no curves.
+fn closure_rate(summary: &TraceSummary, reports: &[SetReport]) -> Option<f64> {
+    if reports.iter().any(|r| r.dimension == 1) {
+        summary.curve_closure_rate()
+    } else {
+        None
+    }
+}
+
 /// Traces the kernel set of every motor row, in parallel. Sets are independent and
 /// deterministic, so the output is identical for any number of threads.
 ///
@@ -1447,13 +1457,7 @@ pub fn trace_sets(
     summary.covering_radius =
         (!radii.is_empty()).then(|| [radii[0], radii[radii.len() / 2], radii[radii.len() - 1]]);
     summary.traced = kept.len();
-    // The closure rate counts curves only: a trace of surfaces (its failures too) has
-    // none.
-    summary.closure_rate = if reports.iter().any(|r| r.dimension == 1) {
-        summary.curve_closure_rate()
-    } else {
-        None
-    };
+    summary.closure_rate = closure_rate(&summary, &reports);
     summary.failed = summary.total - summary.traced;
     let pieces = ndarray::Array2::from_shape_vec((kept.len(), p), pieces)
         .expect("every kept set has a piece for each of its P points");
