@@ -713,3 +713,75 @@ fn a_trace_that_keeps_too_few_sets_fails_naming_each_status_and_its_remedy() {
     assert!(text.contains("singular (the Jacobian lost rank"), "{text}");
     assert!(text.contains("too few lights in view"), "{text}");
 }
+
+#[test]
+fn an_output_that_names_an_input_is_refused_before_any_work() {
+    let (_guard, dir) = temp();
+    std::fs::create_dir(dir.join("log")).unwrap();
+    let motors = Array2::from_shape_fn((50, 4), |(i, j)| 0.01 * (i + j) as f64);
+    let sensors = Array2::from_shape_fn((50, 3), |(i, j)| (0.1 * (i * j) as f64).sin());
+    write_npy(dir.join("log/motors.npy"), &motors).unwrap();
+    write_npy(dir.join("log/sensors.npy"), &sensors).unwrap();
+    write_npy(dir.join("starts.npy"), &motors).unwrap();
+    let before = std::fs::read(dir.join("log/motors.npy")).unwrap();
+    let learn = |out: &str| {
+        fails(
+            &dir,
+            &[
+                "learn",
+                "--motors",
+                "log/motors.npy",
+                "--sensors",
+                "log/sensors.npy",
+                "--starts",
+                "starts.npy",
+                "--out",
+                out,
+            ],
+        )
+    };
+    // By path, through `..`, by the other inputs, and as a hard link.
+    std::fs::hard_link(dir.join("log/sensors.npy"), dir.join("linked.npy")).unwrap();
+    for (out, input) in [
+        ("log/motors.npy", "--motors"),
+        ("log/../log/motors.npy", "--motors"),
+        ("log/sensors.npy", "--sensors"),
+        ("starts.npy", "--starts"),
+        ("linked.npy", "--sensors"),
+    ] {
+        let err = learn(out);
+        assert!(
+            err.contains("refusing to write") && err.contains(input) && err.contains("elsewhere"),
+            "{out}: {err}"
+        );
+    }
+    assert_eq!(std::fs::read(dir.join("log/motors.npy")).unwrap(), before);
+    // A missing output folder is found before learning.
+    let err = learn("missing/sets.npy");
+    assert!(
+        err.contains("does not exist") && err.contains("mkdir"),
+        "{err}"
+    );
+    assert!(!err.contains("learning from"), "{err}");
+    // trace and sense alike.
+    for command in ["trace", "sense"] {
+        let err = fails(
+            &dir,
+            &[command, "--motors", "starts.npy", "--out", "./starts.npy"],
+        );
+        assert!(err.contains("the input --motors"), "{command}: {err}");
+    }
+    assert_eq!(
+        read_npy::<_, Array2<f64>>(dir.join("starts.npy")).unwrap(),
+        motors
+    );
+    // A run folder that holds the experiment file.
+    std::fs::create_dir(dir.join("run")).unwrap();
+    std::fs::write(
+        dir.join("run/exp.toml"),
+        "name = \"x\"\n[agent]\nkind = \"toy-redundant\"\n",
+    )
+    .unwrap();
+    let err = fails(&dir, &["run", "run/exp.toml", "--out", "run"]);
+    assert!(err.contains("holds the input experiment file"), "{err}");
+}

@@ -274,6 +274,22 @@ impl Plan {
         &self.experiment
     }
 
+    /// The files the run reads: the experiment file and, with a `[data]` table of
+    /// files, every log's motors and sensors; no output of the run may replace them
+    /// ([`smspace::io::check_folder_spares_inputs`]).
+    pub fn input_files(&self) -> Vec<(&'static str, PathBuf)> {
+        let mut files = vec![("experiment file", self.experiment.path.clone())];
+        if let Some(data) = &self.world.data {
+            if let data::DataSource::Files { logs, .. } = &data.source {
+                for (motors, _, sensors, _) in logs {
+                    files.push(("[data] motors", motors.clone()));
+                    files.push(("[data] sensors", sensors.clone()));
+                }
+            }
+        }
+        files
+    }
+
     /// The agent.
     pub fn agent(&self) -> &dyn Agent {
         self.world.agent.as_ref()
@@ -819,6 +835,13 @@ fn start<'a>(
 ) -> Result<Runner<'a>, PipelineError> {
     let started = Instant::now();
     let dir = options.out_dir.clone();
+    // The run folder is the run's to fill and replace: no input may lie in it.
+    let inputs = plan.input_files();
+    let inputs: Vec<smspace::io::Input<'_>> = inputs
+        .iter()
+        .map(|(what, path)| smspace::io::Input::new(what, path))
+        .collect();
+    smspace::io::check_folder_spares_inputs(&dir, &inputs)?;
     std::fs::create_dir_all(&dir).map_err(|reason| PipelineError::CreateDir {
         path: dir.clone(),
         reason,

@@ -103,6 +103,28 @@ pub enum IoError {
         /// The value found.
         value: f64,
     },
+    /// An output names one of the command's input files: writing it would replace the
+    /// input.
+    #[error("refusing to write {output}: it is the input {what} {input}, which writing would replace; write the output elsewhere (another --out, or another run folder) and nothing is lost")]
+    OutputIsInput {
+        /// The output that was not written.
+        output: PathBuf,
+        /// The input it names (the same file by path, link or inode).
+        input: PathBuf,
+        /// Which input it is (e.g. `--motors`, `[data] sensors`).
+        what: String,
+    },
+    /// An output folder holds one of the command's input files, which the files written
+    /// into the folder could replace.
+    #[error("refusing to write into {folder}: it holds the input {what} {input}, which the files written there could replace; give another output folder, or move the input out of it")]
+    InputInOutputFolder {
+        /// The output folder.
+        folder: PathBuf,
+        /// The input inside it.
+        input: PathBuf,
+        /// Which input it is.
+        what: String,
+    },
     /// The file could not be written.
     #[error("cannot write {path}: {reason}")]
     Write {
@@ -451,6 +473,131 @@ pub fn folder_of(path: &Path) -> PathBuf {
     }
 }
 
+/// An input file of a command, named by what gives it (`--motors`, `[data] sensors`),
+/// that no output may replace ([`check_outputs_spare_inputs`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Input<'a> {
+    /// What gives the file: an option or a key, for the message.
+    pub what: &'a str,
+    /// The file.
+    pub path: &'a Path,
+}
+
+impl<'a> Input<'a> {
+    /// The input `path`, given by `what`.
+    pub fn new(what: &'a str, path: &'a Path) -> Self {
+        Self { what, path }
+    }
+}
+
+/// `path` made absolute and resolved as far as it exists: its longest existing
+/// ancestor canonicalised (links and `..` resolved), the rest appended as written.
+fn resolved(path: &Path) -> PathBuf {
+    if let Ok(full) = std::fs::canonicalize(path) {
+        return full;
+    }
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_owned());
+    let mut rest = Vec::new();
+    let mut head = absolute.as_path();
+    loop {
+        if let Ok(full) = std::fs::canonicalize(head) {
+            return rest.iter().rev().fold(full, |p, part| p.join(part));
+        }
+        match (head.parent(), head.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_owned());
+                head = parent;
+            }
+            _ => return absolute,
+        }
+    }
+}
+
+/// Whether `a` and `b` name the same file: the same device and inode when both exist
+/// (hard links, symbolic links, `..` and `.` alike), else the same resolved path.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return (x.dev(), x.ino()) == (y.dev(), y.ino());
+        }
+    }
+    resolved(a) == resolved(b)
+}
+
+/// Refuses any of `outputs` that names one of `inputs` (by path, link or inode; see
+/// [`same_file`]): a command must never write over the files it reads. Every command
+/// and the pipeline call this before their work starts, and again on the files they
+/// stage.
+///
+/// ```
+/// # let dir = tempfile::tempdir().unwrap();
+/// use smspace::io::{check_outputs_spare_inputs, Input};
+/// let motors = dir.path().join("motors.npy");
+/// std::fs::write(&motors, b"").unwrap();
+/// let same = dir.path().join(".").join("motors.npy");
+/// let inputs = [Input::new("--motors", &motors)];
+/// assert!(check_outputs_spare_inputs([same.as_path()], &inputs).is_err());
+/// assert!(check_outputs_spare_inputs([dir.path().join("sets.npy").as_path()], &inputs).is_ok());
+/// ```
+pub fn check_outputs_spare_inputs<'p>(
+    outputs: impl IntoIterator<Item = &'p Path>,
+    inputs: &[Input<'_>],
+) -> Result<(), IoError> {
+    for output in outputs {
+        if let Some(input) = inputs.iter().find(|i| same_file(output, i.path)) {
+            return Err(IoError::OutputIsInput {
+                output: output.to_owned(),
+                input: input.path.to_owned(),
+                what: input.what.to_owned(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Refuses `path` as an output when its folder does not exist or is not a folder:
+/// checked before the work that makes the output, so that a long computation does not
+/// end at a folder that cannot take its result.
+pub fn check_output_folder(path: &Path) -> Result<(), IoError> {
+    let folder = folder_of(path);
+    if folder.is_dir() {
+        return Ok(());
+    }
+    let reason = if folder.exists() {
+        format!("{} is not a folder", folder.display())
+    } else {
+        format!(
+            "its folder {} does not exist; create it first (mkdir -p {})",
+            folder.display(),
+            folder.display()
+        )
+    };
+    Err(IoError::Write {
+        path: path.to_owned(),
+        reason: std::io::Error::new(std::io::ErrorKind::NotFound, reason),
+    })
+}
+
+/// Refuses an output folder that holds one of `inputs`, at any depth (a run folder,
+/// whose files are all smspace's to replace): by resolved path, so that links and `..`
+/// cannot hide an input inside it.
+pub fn check_folder_spares_inputs(folder: &Path, inputs: &[Input<'_>]) -> Result<(), IoError> {
+    let folder_resolved = resolved(folder);
+    for input in inputs {
+        let parent = resolved(&folder_of(input.path));
+        if parent.starts_with(&folder_resolved) {
+            return Err(IoError::InputInOutputFolder {
+                folder: folder.to_owned(),
+                input: input.path.to_owned(),
+                what: input.what.to_owned(),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// Start of the name of every temporary file smspace writes (`.smspace-XXXXXX.part`).
 pub const TEMP_PREFIX: &str = ".smspace-";
 
@@ -594,6 +741,8 @@ fn fill_json<T: Serialize + ?Sized>(
 #[derive(Debug, Default)]
 pub struct Outputs {
     staged: Vec<Staged>,
+    /// Files no staged path may name (see [`Outputs::sparing`]).
+    inputs: Vec<(String, PathBuf)>,
 }
 
 impl Outputs {
@@ -602,11 +751,29 @@ impl Outputs {
         Self::default()
     }
 
+    /// No file yet; every file staged later is first checked not to name one of
+    /// `inputs` ([`check_outputs_spare_inputs`]), before a byte of it is written.
+    pub fn sparing(inputs: &[Input<'_>]) -> Self {
+        Self {
+            staged: Vec::new(),
+            inputs: inputs
+                .iter()
+                .map(|i| (i.what.to_owned(), i.path.to_owned()))
+                .collect(),
+        }
+    }
+
     /// Stages `path`, written by `fill`.
     pub fn file<F>(&mut self, path: &Path, fill: F) -> Result<(), IoError>
     where
         F: FnOnce(&mut OutputWriter<'_>) -> std::io::Result<()>,
     {
+        let inputs: Vec<Input<'_>> = self
+            .inputs
+            .iter()
+            .map(|(what, path)| Input::new(what, path))
+            .collect();
+        check_outputs_spare_inputs([path], &inputs)?;
         self.staged.push(stage(path, fill)?);
         Ok(())
     }
@@ -1037,6 +1204,42 @@ mod tests {
         write_npy(&path, &array![[1_i64, 2]]).unwrap();
         let err = read_matrix(&path, None, "(M, N)").unwrap_err();
         assert!(err.to_string().contains("astype(numpy.float64)"), "{err}");
+    }
+
+    #[test]
+    fn an_output_naming_an_input_is_refused_by_path_link_and_inode() {
+        let dir = tempfile::tempdir().unwrap();
+        let log = dir.path().join("log");
+        std::fs::create_dir(&log).unwrap();
+        let motors = log.join("motors.npy");
+        std::fs::write(&motors, b"motors").unwrap();
+        let inputs = [Input::new("--motors", &motors)];
+        let dotted = dir.path().join("log/../log/./motors.npy");
+        let hard = dir.path().join("hard.npy");
+        std::fs::hard_link(&motors, &hard).unwrap();
+        let soft = dir.path().join("soft.npy");
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(&motors, &soft).unwrap();
+        for output in [&motors, &dotted, &hard, &soft] {
+            let err = check_outputs_spare_inputs([output.as_path()], &inputs)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains("--motors") && err.contains("motors.npy") && err.contains("elsewhere"),
+                "{err}"
+            );
+        }
+        // Staging through `Outputs::sparing` refuses it before writing anything.
+        let mut outputs = Outputs::sparing(&inputs);
+        assert!(outputs.npy(&dotted, &ndarray::array![1.0]).is_err());
+        assert_eq!(std::fs::read(&motors).unwrap(), b"motors");
+        // A new file beside it, and a folder that does not hold it, are fine.
+        check_outputs_spare_inputs([log.join("sets.npy").as_path()], &inputs).unwrap();
+        check_folder_spares_inputs(&dir.path().join("run"), &inputs).unwrap();
+        let err = check_folder_spares_inputs(dir.path(), &inputs)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("holds the input --motors"), "{err}");
     }
 
     #[test]

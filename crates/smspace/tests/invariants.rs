@@ -106,6 +106,77 @@ fn the_invariant_of_a_redundant_sum_is_the_sum_and_its_level_sets_are_the_kernel
         .all(|s| s.status != SetStatus::Closed));
 }
 
+/// `log` with the rows `rows` recorded again after it: the same motor commands, the
+/// sensors plus noise of standard deviation `noise` (0: the same readings).
+fn with_repeats(log: &SensorimotorLog, rows: &[usize], noise: f64, seed: u64) -> SensorimotorLog {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let motors = ndarray::concatenate![Axis(0), log.motors, log.motors.select(Axis(0), rows)];
+    let mut again = log.sensors.select(Axis(0), rows);
+    again.mapv_inplace(|v| v + noise * (rng.random::<f64>() - 0.5) * 12f64.sqrt());
+    let sensors = ndarray::concatenate![Axis(0), log.sensors, again];
+    let space = MotorSpace::bounded(2, -1.5, 1.5).unwrap();
+    SensorimotorLog::new(motors, sensors, files(), &space).unwrap()
+}
+
+/// The largest distance of a traced point from its start's line `m1 + m2 = c`, over
+/// the sets of `law` through `starts`, and the sets kept.
+fn sum_line_error(law: &LearnedLaw, starts: &Array2<f64>) -> (f64, usize) {
+    let traced = trace_learned(law, starts.view(), &law_trace_params(), &Silent).unwrap();
+    let mut worst: f64 = 0.0;
+    for (set, &row) in traced.sets.outer_iter().zip(&traced.kept) {
+        let c = starts[[row, 0]] + starts[[row, 1]];
+        for point in set.outer_iter() {
+            worst = worst.max((point[0] + point[1] - c).abs());
+        }
+    }
+    (worst, traced.kept.len())
+}
+
+#[test]
+fn repeated_samples_are_learned_from_once_and_counted() {
+    // A robot that holds still records a sample again: every row twice, or half the
+    // rows again with fresh sensor noise. A repeat's nearest sensory neighbour is its
+    // own twin, a pair no function of the motors changes across; left in, every
+    // eigenvalue falls to zero and every function passes for an invariant.
+    let (space, log) = sum_log(3000);
+    let params = invariants().check().unwrap();
+    let starts = ndarray::array![[0.3, -0.5], [-1.0, 0.4], [0.9, 0.3]];
+    let clean = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+    let clean_count = clean.report().invariants.as_ref().unwrap().invariants;
+    let (clean_error, clean_kept) = sum_line_error(&clean, &starts);
+    assert_eq!(clean.report().logs[0].repeated, 0);
+    let every: Vec<usize> = (0..3000).collect();
+    let half: Vec<usize> = (0..3000).step_by(2).collect();
+    for (repeated, noise) in [
+        (with_repeats(&log, &every, 0.0, 1), 0.0),
+        (with_repeats(&log, &half, 1e-3, 2), 1e-3),
+    ] {
+        let law = learn(std::slice::from_ref(&repeated), &space, &params, None).unwrap();
+        let report = law.report();
+        let found = report.invariants.as_ref().unwrap();
+        let expected = repeated.samples() - 3000;
+        assert_eq!(report.logs[0].repeated, expected, "noise {noise}");
+        assert_eq!(report.logs[0].samples, repeated.samples());
+        assert_eq!(found.invariants, clean_count, "noise {noise}: {found:?}");
+        assert!(found.eigenvalues[2] > 0.1, "noise {noise}: {found:?}");
+        assert!(
+            report
+                .warnings
+                .iter()
+                .any(|w| w.contains(&format!("{expected} of"))
+                    && w.contains("repeat an earlier sample's motor command")),
+            "{:?}",
+            report.warnings
+        );
+        let (error, kept) = sum_line_error(&law, &starts);
+        assert_eq!(kept, clean_kept);
+        assert!(
+            error < clean_error + 2e-3,
+            "noise {noise}: {error} rad from the lines, {clean_error} without repeats"
+        );
+    }
+}
+
 /// The paper's arm from a simulated log of 50 000 samples (no noise): the invariants
 /// give the sets' dimension (rank 3, one-dimensional kernels) and sets within a tenth
 /// of a radian of the true ones (curve metric). At 10⁶ samples the README measures

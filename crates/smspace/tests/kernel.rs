@@ -650,6 +650,130 @@ impl Agent for BlindCart {
     }
 }
 
+/// Two hinges and no ground truth. The first sensor reads `x = sin m1 + sin(m2)/2`;
+/// the second, with `Spot::Local`, reacts only within about 0.15 rad of `SPOT` (a light
+/// seen from one spot), so the sensors change along one motor direction almost
+/// everywhere and along both at `SPOT`; with `Spot::Everywhere` it reads
+/// `cos m1 + sin m2`, and the sensors change along both directions everywhere.
+#[derive(Debug)]
+enum Spot {
+    Local,
+    Everywhere,
+}
+
+const SPOT: [f64; 2] = [0.5, -0.3];
+
+impl Agent for Spot {
+    fn motor_dim(&self) -> usize {
+        2
+    }
+    fn sensor_dim(&self) -> usize {
+        2
+    }
+    fn sense(&self, _: &Environment, m: &[f64], s: &mut [f64]) {
+        s[0] = m[0].sin() + 0.5 * m[1].sin();
+        s[1] = match self {
+            Spot::Local => {
+                let d1 = wrap_angle(m[0] - SPOT[0]);
+                let d2 = wrap_angle(m[1] - SPOT[1]);
+                (-(d1 * d1 + d2 * d2) / 0.02).exp() * (d1 - d2 + 0.8)
+            }
+            Spot::Everywhere => m[0].cos() + m[1].sin(),
+        };
+    }
+    fn name(&self) -> &str {
+        "spot"
+    }
+}
+
+#[test]
+fn one_start_at_a_special_spot_does_not_decide_the_dimension_of_every_set() {
+    let region = LightRegion {
+        center: [0.0, 2.0],
+        half_size: [3.0, 1.0],
+        exclusion_half_size: [0.0, 0.0],
+    };
+    let env = Environment::random(4, 3, &region).unwrap();
+    let sensory = TraceParams {
+        method: TraceMethod::Sensory,
+        noise: smspace::kernel::SensorNoise::Sigma(0.0),
+        ..TraceParams::default()
+    };
+    // Four starts whose curves x = const stay far from the spot, and the spot itself.
+    let starts = ndarray::array![
+        [-1.2, -0.6],
+        [-1.0, 0.0],
+        [2.0, 2.0],
+        [-0.5, -2.0],
+        [SPOT[0], SPOT[1]]
+    ];
+    let traced = trace(&Spot::Local, Some(&env), starts.view(), sensory.clone());
+    let summary = &traced.report.summary;
+    let rank = summary
+        .sensory_rank
+        .as_ref()
+        .expect("the rank the starts show");
+    assert_eq!((rank.rank, rank.disagreeing.clone()), (1, vec![(4, 2)]));
+    for (i, line) in traced.report.sets.iter().enumerate().take(4) {
+        assert_eq!(line.dimension, 1, "{line:?}");
+        assert!(traced.kept.contains(&i), "{summary:?}");
+    }
+    for (set, &row) in traced.sets.outer_iter().zip(&traced.kept).take(4) {
+        let x0 = starts[[row, 0]].sin() + 0.5 * starts[[row, 1]].sin();
+        for p in set.outer_iter() {
+            assert_abs_diff_eq!(p[0].sin() + 0.5 * p[1].sin(), x0, epsilon = 1e-6);
+        }
+    }
+    let warnings = summary.warnings().join("\n");
+    assert!(
+        warnings.contains("starts 4 (rank 2)") && warnings.contains("motor directions"),
+        "{warnings}"
+    );
+    assert!(!warnings.contains("pose"), "{warnings}");
+    // Sensors of full rank everywhere: every set a point, said in sensors and motors.
+    let traced = trace(&Spot::Everywhere, Some(&env), starts.view(), sensory);
+    let summary = &traced.report.summary;
+    assert_eq!(summary.by_status.get("point"), Some(&summary.traced));
+    let warnings = summary.warnings().join("\n");
+    assert!(
+        warnings.contains("single point") && warnings.contains("all 2 motor directions"),
+        "{warnings}"
+    );
+    assert!(!warnings.contains("pose"), "{warnings}");
+}
+
+#[test]
+fn a_declared_noise_below_the_readings_rounding_is_exact_and_an_absurd_one_is_refused() {
+    let region = LightRegion {
+        center: [0.0, 2.0],
+        half_size: [3.0, 1.0],
+        exclusion_half_size: [0.0, 0.0],
+    };
+    let env = Environment::random(4, 3, &region).unwrap();
+    let motors = ndarray::array![[0.3, 0.2], [-0.6, 0.4], [0.1, -0.2]];
+    let with = |noise: f64| TraceParams {
+        method: TraceMethod::Sensory,
+        noise: smspace::kernel::SensorNoise::Sigma(noise),
+        ..TraceParams::default()
+    };
+    let exact = trace(&BlindCart, Some(&env), motors.view(), with(0.0));
+    assert_eq!(exact.kept.len(), 3, "{:?}", exact.report.summary);
+    for tiny in [1e-300, 1e-17, 1e-16] {
+        let traced = trace(&BlindCart, Some(&env), motors.view(), with(tiny));
+        assert_eq!(
+            traced.kept, exact.kept,
+            "{tiny}: {:?}",
+            traced.report.summary
+        );
+        assert!(traced.report.summary.noise.is_none(), "{tiny}");
+        for (a, b) in traced.sets.iter().zip(exact.sets.iter()) {
+            assert_abs_diff_eq!(a, b, epsilon = 1e-9);
+        }
+    }
+    let err = with(1e300).check().unwrap_err().to_string();
+    assert!(err.contains("noise") && err.contains("overflows"), "{err}");
+}
+
 #[test]
 fn without_a_ground_truth_the_sensory_method_traces_and_the_kinematic_one_explains() {
     let cart = BlindCart;

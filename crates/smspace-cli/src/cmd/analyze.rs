@@ -45,6 +45,15 @@ pub struct Args {
 
 /// Runs `smspace analyze`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(out) = &args.out {
+        super::common::spare_inputs(
+            &[out],
+            &[
+                ("--distances", Some(args.distances.as_path())),
+                ("--poses", args.poses.as_deref()),
+            ],
+        )?;
+    }
     let params = AnalysisParams {
         max_homology_dim: args.max_dim,
         threshold: args.threshold,

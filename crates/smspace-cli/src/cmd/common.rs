@@ -18,6 +18,12 @@ pub struct AgentArgs {
 }
 
 impl AgentArgs {
+    /// The agent file, when `--agent` names a file rather than a preset.
+    pub fn file(&self) -> Option<&Path> {
+        let path = Path::new(&self.agent);
+        path.is_file().then_some(path)
+    }
+
     /// Resolves and builds the agent.
     pub fn load(&self) -> anyhow::Result<(AgentSpec, Box<dyn Agent>)> {
         let spec = load_agent(&self.agent)?;
@@ -123,6 +129,23 @@ impl WorkspaceArgs {
             }
         }
     }
+}
+
+/// Refuses, before any work, an output that names one of the inputs (by path, link or
+/// inode; `None` inputs are skipped): the library's check, which the files staged later
+/// pass again ([`smspace::io::Outputs::sparing`]).
+pub fn spare_inputs(outputs: &[&Path], inputs: &[(&str, Option<&Path>)]) -> anyhow::Result<()> {
+    let inputs = present(inputs);
+    smspace::io::check_outputs_spare_inputs(outputs.iter().copied(), &inputs)?;
+    Ok(())
+}
+
+/// The inputs that are given, for [`smspace::io::check_outputs_spare_inputs`].
+pub fn present<'a>(inputs: &[(&'a str, Option<&'a Path>)]) -> Vec<smspace::io::Input<'a>> {
+    inputs
+        .iter()
+        .filter_map(|(what, path)| path.map(|p| smspace::io::Input::new(what, p)))
+        .collect()
 }
 
 /// The file beside `out` named `<stem>.<suffix>` (`sets.npy` → `sets.trace.json`), for

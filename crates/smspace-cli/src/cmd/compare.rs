@@ -18,6 +18,18 @@ pub struct Args {
 
 /// Runs `smspace compare`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // The page must not replace a file of the runs it reads.
+    let mut files = Vec::new();
+    for run in &args.runs {
+        if let Ok(entries) = std::fs::read_dir(run) {
+            files.extend(entries.filter_map(|e| e.ok()).map(|e| e.path()));
+        }
+    }
+    let inputs: Vec<(&str, Option<&std::path::Path>)> = files
+        .iter()
+        .map(|f| ("run file", Some(f.as_path())))
+        .collect();
+    super::common::spare_inputs(&[&args.out], &inputs)?;
     smspace_pipeline::report::compare::write_comparison(&args.runs, &args.out)?;
     eprintln!(
         "compared {} runs in {}",

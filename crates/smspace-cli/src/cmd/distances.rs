@@ -271,6 +271,22 @@ impl Input {
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
+    let folder = smspace::io::folder_of(&args.out);
+    let (knn_indices, knn_distances) = (
+        folder.join("knn_indices.npy"),
+        folder.join("knn_distances.npy"),
+    );
+    let mut inputs: Vec<(&str, Option<&Path>)> = vec![("--sets", args.sets.as_deref())];
+    inputs.extend(args.merge.iter().map(|p| ("--merge", Some(p.as_path()))));
+    super::common::spare_inputs(
+        &[
+            &args.out,
+            &sibling(&args.out, "tile.json"),
+            &knn_indices,
+            &knn_distances,
+        ],
+        &inputs,
+    )?;
     if !args.merge.is_empty() {
         return merge(&args, started);
     }

@@ -178,6 +178,15 @@ impl Args {
 /// Runs `smspace embed`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
+    super::common::spare_inputs(
+        &[&args.out, &sibling(&args.out, "extended.npy")],
+        &[
+            ("--distances", args.distances.as_deref()),
+            ("--knn-indices", args.knn_indices.as_deref()),
+            ("--knn-distances", args.knn_distances.as_deref()),
+            ("--extend", args.extend.as_deref()),
+        ],
+    )?;
     let params = args.params()?;
     let params_json = serde_json::to_value(&params).context("cannot describe the parameters")?;
     let bar = ui::Bar::new();

@@ -20,6 +20,13 @@ pub struct Args {
 
 /// Runs `smspace env`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::spare_inputs(
+        &[&args.out],
+        &[
+            ("--env", args.env.env.as_deref()),
+            ("--agent", args.agent.file()),
+        ],
+    )?;
     let (spec, agent) = args.agent.load()?;
     let environment = args.env.resolve_or_default(&spec, agent.as_ref())?;
     environment.save(&args.out)?;

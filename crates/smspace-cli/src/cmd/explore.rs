@@ -42,6 +42,12 @@ pub struct Args {
 
 /// Runs `smspace explore`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let written: Vec<PathBuf> = smspace::explore::EXPLORATION_FILES
+        .iter()
+        .map(|f| args.out_dir.join(f))
+        .collect();
+    let written: Vec<&std::path::Path> = written.iter().map(PathBuf::as_path).collect();
+    super::common::spare_inputs(&written, &[("--agent", args.agent.file())])?;
     let (spec, agent) = args.agent.load()?;
     let workspace = args.workspace.resolve(agent.as_ref())?;
     let params = ExploreParams {

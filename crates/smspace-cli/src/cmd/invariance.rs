@@ -50,6 +50,13 @@ pub struct Args {
 
 /// Runs `smspace invariance`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::spare_inputs(
+        &[&args.out],
+        &[
+            ("--motors", Some(args.motors.as_path())),
+            ("--agent", args.agent.file()),
+        ],
+    )?;
     let (spec, agent) = args.agent.load()?;
     anyhow::ensure!(
         args.env_seeds.len() >= 2,

@@ -104,6 +104,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.motors.len(),
         args.sensors.len()
     );
+    let inputs: Vec<(&str, Option<&std::path::Path>)> = args
+        .motors
+        .iter()
+        .map(|p| ("--motors", Some(p.as_path())))
+        .chain(
+            args.sensors
+                .iter()
+                .map(|p| ("--sensors", Some(p.as_path()))),
+        )
+        .chain([
+            ("--starts", Some(args.starts.as_path())),
+            ("--truth-sets", args.truth_sets.as_deref()),
+        ])
+        .collect();
+    super::common::spare_inputs(&[&args.out], &inputs)?;
+    // A folder that cannot take the output is found now, not after learning.
+    io::check_output_folder(&args.out)?;
     let declarations = parse_motor_declarations(&args.period)
         .map_err(|reason| anyhow::anyhow!("--period {}: {reason}", args.period))?;
     let params = LawParams {
@@ -159,7 +176,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The law's report with what tracing showed (the closure rate, its warning).
     let report = law.report().with_trace(&traced.report.summary);
     // The writer of `smspace trace`, and the law's report, all together.
-    let mut outputs = io::Outputs::new();
+    let mut outputs = io::Outputs::sparing(&super::common::present(&inputs));
     traced.write_into(&mut outputs, &args.out)?;
     outputs.json(&io::sibling(&args.out, "law.json"), &report)?;
     if let Some(errors) = &errors {
@@ -276,6 +293,12 @@ fn print_law(report: &smspace::learn::LawReport) {
             "{}: bandwidth {:.4}, held-out error {:.2e} of the sensors' spread ({} samples held out)",
             log.motors, log.bandwidth, log.held_out_relative_rms, log.held_out
         );
+        if log.repeated > 0 {
+            eprintln!(
+                "  {} of {} samples repeat an earlier motor command and were learned from once",
+                log.repeated, log.samples
+            );
+        }
         if let Some(noise) = &log.noise {
             eprintln!(
                 "  noise σ̂ {:.2} % of the sensors' spread{} (per sensor {}; the data resolve {:.2} %)",

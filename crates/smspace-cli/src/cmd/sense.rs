@@ -24,6 +24,15 @@ pub struct Args {
 
 /// Runs `smspace sense`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    super::common::spare_inputs(
+        &[&args.out],
+        &[
+            ("--motors", Some(args.motors.as_path())),
+            ("--env", args.env.env.as_deref()),
+            ("--agent", args.agent.file()),
+        ],
+    )?;
+    io::check_output_folder(&args.out)?;
     let (spec, agent) = args.agent.load()?;
     let environment = args.env.resolve_or_default(&spec, agent.as_ref())?;
     let n = agent.motor_dim();

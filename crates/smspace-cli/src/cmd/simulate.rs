@@ -40,6 +40,18 @@ pub struct Args {
 
 /// Runs `smspace simulate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let written: Vec<PathBuf> = smspace::learn::SIMULATED_LOG_FILES
+        .iter()
+        .map(|f| args.out_dir.join(f))
+        .collect();
+    let written: Vec<&std::path::Path> = written.iter().map(PathBuf::as_path).collect();
+    super::common::spare_inputs(
+        &written,
+        &[
+            ("--env", args.env.env.as_deref()),
+            ("--agent", args.agent.file()),
+        ],
+    )?;
     let (spec, agent) = args.agent.load()?;
     let environment = args.env.resolve_or_default(&spec, agent.as_ref())?;
     let workspace = args.workspace.resolve(agent.as_ref())?;

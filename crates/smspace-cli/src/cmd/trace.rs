@@ -92,6 +92,13 @@ fn parse_step_control(s: &str) -> Result<StepControl, String> {
 
 /// Runs `smspace trace`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let inputs = [
+        ("--motors", Some(args.motors.as_path())),
+        ("--env", args.env.env.as_deref()),
+        ("--agent", args.agent.file()),
+    ];
+    super::common::spare_inputs(&[&args.out], &inputs)?;
+    io::check_output_folder(&args.out)?;
     let (spec, agent) = args.agent.load()?;
     let params = TraceParams {
         method: args.method,
@@ -147,7 +154,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("{e}. Nothing was written."))?;
     // The same writer as the pipeline's trace stage: the sets, the kept motor rows, which
     // sets are closed loops (for the curve metric) and the report.
-    let [_, kept_path, _, _, report_path] = traced.save(&args.out)?;
+    let mut outputs = io::Outputs::sparing(&super::common::present(&inputs));
+    let [_, kept_path, _, _, report_path] = traced.write_into(&mut outputs, &args.out)?;
+    outputs.commit()?;
     let summary = &traced.report.summary;
     eprintln!(
         "traced {} of {} sets ({:?}, {:?} steps); {} failed{}",

@@ -1098,8 +1098,14 @@ impl<'a> Sensor<'a> {
     pub(crate) fn sense_batch(
         &mut self,
         motors: ArrayView2<'_, f64>,
-        sensors: ArrayViewMut2<'_, f64>,
+        mut sensors: ArrayViewMut2<'_, f64>,
     ) {
+        // A non-finite motor row is the tracer's own failure: it never reaches the
+        // agent (a user's callable), and its readings are not numbers, which fail the set.
+        if motors.iter().any(|v| !v.is_finite()) {
+            sensors.fill(f64::NAN);
+            return;
+        }
         self.rows += motors.nrows() as u64;
         self.phases.add(self.phase, true, motors.nrows() as u64);
         match self.caller {
@@ -1110,6 +1116,10 @@ impl<'a> Sensor<'a> {
 
     /// The readings at one motor row: directly, or as a one-row request of the caller.
     fn sense(&mut self, motors: &[f64], sensors: &mut [f64]) {
+        if motors.iter().any(|v| !v.is_finite()) {
+            sensors.fill(f64::NAN);
+            return;
+        }
         self.rows += 1;
         self.phases.add(self.phase, false, 1);
         match self.caller {
@@ -1130,6 +1140,9 @@ impl<'a> Sensor<'a> {
         sensors: &mut [f64],
         jacobian: &mut [f64],
     ) -> bool {
+        if motors.iter().any(|v| !v.is_finite()) {
+            return false;
+        }
         let given = self
             .agent
             .sense_with_jacobian(self.environment, motors, sensors, jacobian);

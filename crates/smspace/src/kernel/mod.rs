@@ -129,7 +129,7 @@ use curve::Scratch;
 pub use noise::{NoiseSummary, SensorNoise, SetNoise, MAX_DOUBLED, MAX_POSITION_UNCERTAINTY};
 pub use spatial::{extend_along, Spatial};
 use tracer::Tracer;
-pub use tracer::{tangent_space, TangentSpace};
+pub use tracer::{tangent_space, SensoryRank, TangentSpace};
 
 /// Errors of tracing kernel sets (failures of single sets are statuses, not errors).
 #[derive(Debug, thiserror::Error)]
@@ -597,11 +597,12 @@ impl CheckParams for TraceParams {
             ));
         }
         if let SensorNoise::Sigma(sigma) = self.noise {
-            if !(sigma.is_finite() && sigma >= 0.0) {
+            // A σ whose square overflows leaves every regression's weights infinite.
+            if !(sigma.is_finite() && sigma >= 0.0 && (sigma * sigma).is_finite()) {
                 return Err(invalid(
                     "noise",
                     sigma,
-                    "must be \"auto\" or a standard deviation ≥ 0 in sensor units (0: exact readings)",
+                    "must be \"auto\" or a finite standard deviation ≥ 0 of one reading in sensor units (0: exact readings); one whose square overflows (above about 1e154) is no sensor's noise",
                 ));
             }
         }
@@ -990,6 +991,9 @@ pub struct TraceSummary {
     /// of dimension 0 or at least 2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub closure_rate: Option<f64>,
+    /// Without a ground truth: the sensory rank the starts show, and those of another.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensory_rank: Option<SensoryRank>,
 }
 
 /// Sensor rows per start: what tracing costs an agent that is slow to sense.
@@ -1132,7 +1136,11 @@ impl TraceSummary {
             }
         }
         let points = self.by_status.get("point").copied().unwrap_or(0);
-        if points > 0 && points == self.traced {
+        let rank = &self.sensory_rank;
+        out.extend(rank.iter().filter_map(SensoryRank::disagreement_warning));
+        if let (true, Some(rank)) = (points > 0 && points == self.traced, rank) {
+            out.push(rank.points_warning(points, self.total));
+        } else if points > 0 && points == self.traced {
             out.push(format!(
                 "every traced set ({points} of {}) is a single point: the kernel dimension is k = 0 (as many pose coordinates as motors, no redundancy), so the sets carry no shape and the method learns nothing beyond the configurations themselves",
                 self.total
@@ -1459,6 +1467,7 @@ pub fn trace_sets(
     summary.traced = kept.len();
     summary.closure_rate = closure_rate(&summary, &reports);
     summary.failed = summary.total - summary.traced;
+    summary.sensory_rank = tracer.sensory_rank();
     let pieces = ndarray::Array2::from_shape_vec((kept.len(), p), pieces)
         .expect("every kept set has a piece for each of its P points");
     let sets =

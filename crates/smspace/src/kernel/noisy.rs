@@ -220,6 +220,19 @@ pub(crate) fn probe<'a>(
     let k = sensor.agent.sensor_dim();
     let given = match params.noise {
         SensorNoise::Sigma(0.0) => return Probe::Exact(sensor, None),
+        SensorNoise::Sigma(sigma) if sigma < TINY_SIGMA => {
+            // Below the rounding of the readings, a declared σ is exact readings.
+            let mut reading = vec![0.0; k];
+            sensor.sense_batch(
+                ArrayView2::from_shape((1, start.len()), start).expect("1 × N row"),
+                ArrayViewMut2::from_shape((1, k), &mut reading).expect("1 × K reading"),
+            );
+            let largest = reading.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+            if sigma <= params.sensor_tolerance * largest {
+                return Probe::Exact(sensor, Some(reading));
+            }
+            Some(sigma)
+        }
         SensorNoise::Sigma(sigma) => Some(sigma),
         SensorNoise::Auto => {
             let rows = [start, start].concat();
@@ -237,6 +250,11 @@ pub(crate) fn probe<'a>(
     };
     NoisySensory::probe_start(sensor, start, params, dimension, given)
 }
+
+/// A declared `σ` below this is compared with the start's reading: at most
+/// `sensor_tolerance` times its largest value (the rounding of the readings, the exact
+/// corrector's own tolerance), the readings are traced as exact.
+const TINY_SIGMA: f64 = 1e-8;
 
 /// Whether two readings of the same motors are exact: they differ nowhere by more
 /// than the exact corrector's own tolerance, `sensor_tolerance` times the largest
@@ -310,7 +328,7 @@ impl<'a> NoisySensory<'a> {
             .map_or(0.0, |e| e.max(0.0).sqrt());
         if singular
             || g.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
-            || !sigma.is_finite()
+            || !(sigma / g).is_finite()
         {
             return Probe::Failed(SetStatus::Singular, set.noise, set.sensor);
         }

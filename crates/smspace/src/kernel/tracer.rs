@@ -6,9 +6,11 @@
 //! the pose (paper section 2.1). The observer read is
 //! [`Agent::sensed_configuration`], the ground truth unless the motors also change an
 //! attribute of the sensor (a pupil's aperture, held fixed with the pose). Without one (the `sensory` method only), it is the
-//! generic rank of the sensory Jacobian, estimated as its largest numerical rank over
-//! the starts (singular values above `rank_tolerance` times the largest; a start
-//! where fewer lights are in view has a lower rank, never a higher one). Sets of
+//! generic rank of the sensory Jacobian, estimated at every start (singular values
+//! above `rank_tolerance` times the largest) and taken as the rank most starts show
+//! (the larger on a tie): one start at a special spot (a sensor at its peak, a light
+//! seen from one spot only, fewer lights in view) cannot decide the dimension of every
+//! set. The starts of another rank are listed ([`SensoryRank`]) and warned about. Sets of
 //! dimension 0 are single points, of dimension 1 curves the follower traces, of
 //! larger dimension surfaces the covering samples (`cover.rs`).
 
@@ -46,6 +48,81 @@ pub(super) struct Tracer<'a> {
     /// Sensor rows read at each start to estimate the rank (empty when it was not
     /// estimated).
     rank_rows: Vec<u64>,
+    /// The rank estimated from the starts' sensors, when it was.
+    sensory_rank: Option<SensoryRank>,
+}
+
+/// The rank of the sensory Jacobian as the starts show it, for an agent without a
+/// ground truth (see the module docs): the rank the sets are traced at, and the starts
+/// that show another.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct SensoryRank {
+    /// The motors `N`.
+    pub motors: usize,
+    /// The rank most starts show; the sets are traced at dimension `N − rank`.
+    pub rank: usize,
+    /// The starts measured.
+    pub starts: usize,
+    /// `(start, its rank)` of every start (row, from 0) of another rank.
+    pub disagreeing: Vec<(usize, usize)>,
+}
+
+impl SensoryRank {
+    /// The rank most of `ranks` show (the larger on a tie), and the others.
+    pub(super) fn of(ranks: &[usize], motors: usize) -> Self {
+        let mut counts = std::collections::BTreeMap::new();
+        for &r in ranks {
+            *counts.entry(r).or_insert(0usize) += 1;
+        }
+        let rank = counts
+            .iter()
+            .max_by_key(|&(r, c)| (*c, *r))
+            .map_or(0, |(r, _)| *r);
+        Self {
+            motors,
+            rank,
+            starts: ranks.len(),
+            disagreeing: ranks
+                .iter()
+                .enumerate()
+                .filter(|&(_, &r)| r != rank)
+                .map(|(i, &r)| (i, r))
+                .collect(),
+        }
+    }
+
+    /// The warning when some starts show another rank than most.
+    pub fn disagreement_warning(&self) -> Option<String> {
+        if self.disagreeing.is_empty() {
+            return None;
+        }
+        let listed: Vec<String> = self
+            .disagreeing
+            .iter()
+            .take(20)
+            .map(|(i, r)| format!("{i} (rank {r})"))
+            .collect();
+        Some(format!(
+            "the sensors change along {} of the {} motor directions at {} of {} starts, and along another number at starts {}{}: a sensor at its peak or on a flat spot, or a sensor that reacts at a few configurations only, changes along fewer or more directions there. Every set is traced at the kernel dimension most starts show, k = {} − {} = {}; a set through a disagreeing start may fail or be of another shape. Trace from starts away from such spots, or check the sensors there",
+            self.rank,
+            self.motors,
+            self.starts - self.disagreeing.len(),
+            self.starts,
+            listed.join(", "),
+            if self.disagreeing.len() > 20 { ", …" } else { "" },
+            self.motors,
+            self.rank,
+            self.motors - self.rank.min(self.motors)
+        ))
+    }
+
+    /// The warning when every traced set (`points` of `total`) is a single point.
+    pub fn points_warning(&self, points: usize, total: usize) -> String {
+        format!(
+            "every traced set ({points} of {total}) is a single point: the sensors change along all {} motor directions (the rank of their Jacobian is {}, at most starts), so no motor change leaves the sensations unchanged, the kernel dimension is k = 0 and the sets carry no shape",
+            self.motors, self.rank
+        )
+    }
 }
 
 impl<'a> Tracer<'a> {
@@ -82,6 +159,7 @@ impl<'a> Tracer<'a> {
             dimension: 0,
             seeds: Vec::new(),
             rank_rows: Vec::new(),
+            sensory_rank: None,
         };
         tracer.seeds = piece_seeds(&tracer.space, params.piece_starts, params.piece_seed);
         tracer.dimension = match (declared, agent.sensory_rank()) {
@@ -94,10 +172,13 @@ impl<'a> Tracer<'a> {
                 supported_dimension(agent, rank, jacobian)?
             }
             (None, None) => {
-                let (rank, rows) = tracer.generic_sensory_rank(starts);
+                let (ranks, rows) = tracer.sensory_ranks(starts);
                 tracer.rank_rows = rows;
+                let found = SensoryRank::of(&ranks, agent.motor_dim());
+                let rank = found.rank;
+                tracer.sensory_rank = Some(found);
                 let jacobian = format!(
-                    "the sensory Jacobian, of rank {rank}: its largest numerical rank over the {} starts (singular values above rank_tolerance = {} times the largest)",
+                    "the sensory Jacobian, of rank {rank}: the numerical rank most of the {} starts show (singular values above rank_tolerance = {} times the largest)",
                     starts.nrows(),
                     params.rank_tolerance
                 );
@@ -112,6 +193,11 @@ impl<'a> Tracer<'a> {
         self.dimension
     }
 
+    /// The rank estimated from the starts' sensors, when it was.
+    pub(super) fn sensory_rank(&self) -> Option<SensoryRank> {
+        self.sensory_rank.clone()
+    }
+
     /// Whether the covering of a k-D kernel (`k ≥ 2`) is forecast at more than
     /// [`FORECAST_MARGIN`] times `max_cover_points` nodes (see [`forecast_nodes`]):
     /// every set then fails at once as `cover-budget`.
@@ -121,11 +207,11 @@ impl<'a> Tracer<'a> {
                 > FORECAST_MARGIN * self.params.max_cover_points as f64
     }
 
-    /// The largest numerical rank of the sensory Jacobian over the starts (0 where it
-    /// is not finite), and the sensor rows read at each start.
-    fn generic_sensory_rank(&self, starts: ArrayView2<'_, f64>) -> (usize, Vec<u64>) {
+    /// The numerical rank of the sensory Jacobian at every start (0 where it is not
+    /// finite), and the sensor rows read at each start.
+    fn sensory_ranks(&self, starts: ArrayView2<'_, f64>) -> (Vec<usize>, Vec<u64>) {
         let Some(environment) = self.environment else {
-            return (0, vec![0; starts.nrows()]);
+            return (vec![0; starts.nrows()], vec![0; starts.nrows()]);
         };
         let n = self.agent.motor_dim();
         let rows: Vec<Vec<f64>> = starts.outer_iter().map(|r| r.to_vec()).collect();
@@ -145,10 +231,10 @@ impl<'a> Tracer<'a> {
         // A start whose coroutine could not be given a stack counts as rank 0.
         match self.map_starts(&rows, rank, &|| {}) {
             Ok(ranks) => (
-                ranks.iter().map(|r| r.0).max().unwrap_or(0),
+                ranks.iter().map(|r| r.0).collect(),
                 ranks.iter().map(|r| r.1).collect(),
             ),
-            Err(_) => (0, vec![0; starts.nrows()]),
+            Err(_) => (vec![0; starts.nrows()], vec![0; starts.nrows()]),
         }
     }
 

@@ -797,6 +797,11 @@ pub struct LogReport {
     /// The sensor noise measured from the log (absent when it has too few samples).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseEstimate>,
+    /// Samples that repeat an earlier sample's motor command
+    /// ([`REPEAT_TOLERANCE`](super::REPEAT_TOLERANCE)): counted once, left out of the
+    /// fit and the held-out samples (`samples` counts them).
+    #[serde(default)]
+    pub repeated: usize,
 }
 
 /// The models behind a [`LearnedLaw`].

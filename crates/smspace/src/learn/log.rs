@@ -367,5 +367,62 @@ pub(super) fn held_out_report(
         held_out_uncovered: errors.len() - covered.len(),
         neighbours: None,
         noise: None,
+        repeated: 0,
+    }
+}
+
+/// Two motor values within this fraction of their motor's scale (its period, or its
+/// range in the log) are the same command: a row whose every motor is the same as an
+/// earlier row's repeats it (a robot holding still records the same configuration
+/// again, with the same readings or with fresh sensor noise).
+pub const REPEAT_TOLERANCE: f64 = 1e-9;
+
+/// Which rows of `log` repeat an earlier row's motor command (see
+/// [`REPEAT_TOLERANCE`]), and how many do.
+pub(crate) fn repeated_rows(log: &SensorimotorLog, space: &MotorSpace) -> (Vec<bool>, usize) {
+    let steps: Vec<f64> = space
+        .motors()
+        .iter()
+        .zip(log.motors.columns())
+        .map(|(motor, column)| {
+            let range = column.iter().fold(f64::NEG_INFINITY, |a, &v| a.max(v))
+                - column.iter().fold(f64::INFINITY, |a, &v| a.min(v));
+            let scale = motor.period().unwrap_or(range);
+            if scale > 0.0 && scale.is_finite() {
+                REPEAT_TOLERANCE * scale
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let mut seen = std::collections::HashSet::with_capacity(log.samples());
+    let mut count = 0;
+    let flags = log
+        .motors
+        .outer_iter()
+        .map(|row| {
+            let key: Vec<i64> = row
+                .iter()
+                .zip(&steps)
+                .map(|(&v, step)| (v / step).round() as i64)
+                .collect();
+            let repeat = !seen.insert(key);
+            count += usize::from(repeat);
+            repeat
+        })
+        .collect();
+    (flags, count)
+}
+
+/// `log` without the rows `repeated` marks: one sample per motor command. A repeat
+/// would pair with its own twin as its nearest sensory neighbour, a pair that every
+/// function of the motors leaves unchanged, and with enough of them every function
+/// passes for an invariant.
+pub(crate) fn without_repeats(log: &SensorimotorLog, repeated: &[bool]) -> SensorimotorLog {
+    let rows: Vec<usize> = (0..log.samples()).filter(|&i| !repeated[i]).collect();
+    SensorimotorLog {
+        motors: log.motors.select(ndarray::Axis(0), &rows),
+        sensors: log.sensors.select(ndarray::Axis(0), &rows),
+        files: log.files.clone(),
     }
 }

@@ -159,6 +159,7 @@ pub use invariants::{InvariantsReport, MAX_INVARIANTS};
 pub use law::{FitSupport, LawReport, LearnedLaw, LogReport, RankSource, UNANIMOUS_SHARE};
 pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
+    REPEAT_TOLERANCE,
 };
 pub use memory::{gib_bytes, MemoryEstimate, DEFAULT_MEMORY_LIMIT_GIB};
 pub use noise::{
@@ -166,7 +167,7 @@ pub use noise::{
     MAX_CORRELATION, MEASURABLE_SHARE,
 };
 pub use quality::{LawQuality, MAX_HELD_OUT_RATIO, MIN_CLOSURE_RATE, MIN_SAMPLES_PER_DIMENSION};
-pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog};
+pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog, SIMULATED_LOG_FILES};
 pub use tree::{Candidates, KdTree};
 
 /// Errors of learning from data.
@@ -586,7 +587,20 @@ pub fn learn_with_progress(
             });
         }
     }
-    let (models, reports, data_rank) = match params.method {
+    // One sample per motor command: repeats are counted, then left out.
+    let repeats: Vec<(Vec<bool>, usize)> = logs
+        .iter()
+        .map(|log| log::repeated_rows(log, space))
+        .collect();
+    let unique: Option<Vec<SensorimotorLog>> = repeats.iter().any(|r| r.1 > 0).then(|| {
+        logs.iter()
+            .zip(&repeats)
+            .map(|(log, (flags, _))| log::without_repeats(log, flags))
+            .collect()
+    });
+    let original = logs;
+    let logs = unique.as_deref().unwrap_or(logs);
+    let (models, mut reports, data_rank) = match params.method {
         LawMethod::LocalLinear | LawMethod::LocalQuadratic => {
             let mut models = Vec::with_capacity(logs.len());
             let mut reports = Vec::with_capacity(logs.len());
@@ -606,6 +620,10 @@ pub fn learn_with_progress(
             (law::Models::Invariants(Box::new(model)), reports, data_rank)
         }
     };
+    for ((report, (_, repeated)), log) in reports.iter_mut().zip(&repeats).zip(original) {
+        report.repeated = *repeated;
+        report.samples = log.samples();
+    }
     let mut law = LearnedLaw::new(
         space.clone(),
         models,
@@ -613,7 +631,8 @@ pub fn learn_with_progress(
         (reports, data_rank),
         (params.seed, progress),
     );
-    let warnings = law_warnings(law.report(), params, n);
+    let mut warnings = law_warnings(law.report(), params, n);
+    warnings.extend(repeat_warnings(law.report()));
     law.warn(warnings);
     let (quality, warnings) = quality::assess(law.report(), n);
     law.warn(warnings);
@@ -682,6 +701,29 @@ fn learn_invariants(
         report.noise = local.map(|(noise, _)| noise);
     }
     Ok((model, reports, data_rank))
+}
+
+/// Logs of which at least this share of samples repeat an earlier motor command are
+/// warned about ([`LogReport::repeated`]).
+pub const REPEAT_WARNING_SHARE: f64 = 0.05;
+
+/// A warning for every log where at least [`REPEAT_WARNING_SHARE`] of the samples
+/// repeat an earlier motor command.
+fn repeat_warnings(report: &LawReport) -> Vec<String> {
+    report
+        .logs
+        .iter()
+        .filter(|log| log.repeated as f64 >= REPEAT_WARNING_SHARE * log.samples as f64)
+        .map(|log| {
+            format!(
+                "{}: {} of {} samples repeat an earlier sample's motor command (the robot held still, or rows were recorded twice); each command was learned from once, as a repeat's nearest sensory neighbour is its own twin, which tells nothing about the kernels. The law rests on the {} distinct commands: record more distinct configurations for a finer law",
+                log.motors,
+                log.repeated,
+                log.samples,
+                log.samples - log.repeated
+            )
+        })
+        .collect()
 }
 
 /// What the data cannot support, with the measured noise and what would help: a local

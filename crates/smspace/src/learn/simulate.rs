@@ -143,6 +143,16 @@ pub struct LogRecord {
     pub files: Vec<String>,
 }
 
+/// The files [`SimulatedLog::save`] writes into its folder (`poses.npy` only when the
+/// agent has a ground truth).
+pub const SIMULATED_LOG_FILES: [&str; 5] = [
+    "motors.npy",
+    "sensors.npy",
+    "poses.npy",
+    "environment.json",
+    "log.json",
+];
+
 impl SimulatedLog {
     /// Bytes of a log of `samples` rows: motors, sensors, poses, and the exploration's
     /// arrays while it is made.
@@ -159,6 +169,7 @@ impl SimulatedLog {
         record: &LogRecord,
     ) -> Result<Vec<PathBuf>, io::IoError> {
         let mut outputs = io::Outputs::new();
+        // The names of `SIMULATED_LOG_FILES`.
         outputs.npy(&dir.join("motors.npy"), &self.motors)?;
         outputs.npy(&dir.join("sensors.npy"), &self.sensors)?;
         if let Some(poses) = &self.poses {
