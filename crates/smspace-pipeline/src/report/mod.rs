@@ -622,8 +622,7 @@ pub fn render_report(
         figures: &figures,
         warnings: &warnings,
         self_contained: params.self_contained,
-        ring_axes: (inputs.embedding.ncols() >= 3)
-            .then(|| figures::ring_frame_axes(inputs.embedding, &derived.surfaces)),
+        ring_axes: derived.ring_frame.map(|frame| frame.axes()),
     };
     let html_path = PathBuf::from("report.html");
     files.push((html_path.clone(), page.html().into_bytes()));

@@ -8,6 +8,7 @@ use rand::SeedableRng;
 use super::figures::{self, Panel, Recovery};
 use super::layout::{self, FigureText};
 use super::plot::{self, Print};
+use super::view3d::Frame;
 use super::{FigureFormats, InvarianceData, ReportError, ReportInputs, ReportParams};
 use smspace::agent::{MotorSpace, PlanarView};
 
@@ -21,6 +22,9 @@ pub(super) struct Derived {
     space: MotorSpace,
     /// The probe sheets, one per orientation (none without planar poses).
     pub(super) surfaces: Vec<figures::ProbeSurface>,
+    /// The ring frame of a 3-D embedding ([`figures::ring_frame`]), shared by Fig. 5d,
+    /// `embedding-pose` and the interactive view.
+    pub(super) ring_frame: Option<Frame>,
 }
 
 /// Why the figures of poses are skipped when there are none.
@@ -56,11 +60,14 @@ pub(super) fn derive(inputs: &ReportInputs<'_>) -> Derived {
         .as_ref()
         .map(|poses| figures::probe_surfaces(inputs.probes, inputs.kept, poses))
         .unwrap_or_default();
+    let ring_frame = (inputs.embedding.ncols() >= 3)
+        .then(|| figures::ring_frame(inputs.embedding, &surfaces));
     Derived {
         set_poses,
         motor_unit,
         space,
         surfaces,
+        ring_frame,
     }
 }
 
@@ -406,6 +413,7 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
             Planned::EmbeddingProbes(figures::EmbeddingProbes {
                 embedding: self.inputs.embedding.reborrow(),
                 surfaces,
+                frame: self.derived.ring_frame,
                 panel: self.panel,
             })
         };
@@ -449,12 +457,16 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
         } else if varying.is_empty() {
             Planned::Skip("every pose coordinate is constant over the sets".to_owned())
         } else {
+            // Chosen here, once: the PNG, the SVG and the layout check draw the same.
+            let views = self.derived.ring_frame.map(|frame| {
+                figures::PoseViews::choose(self.inputs.embedding, frame, set_poses, &varying)
+            });
             Planned::EmbeddingPose(figures::EmbeddingPose {
                 embedding: self.inputs.embedding.reborrow(),
                 set_poses,
                 coordinates: varying,
                 recovery,
-                surfaces: &self.derived.surfaces,
+                views,
                 panel: self.panel,
             })
         };

@@ -24,10 +24,11 @@
 //! when neighbours in the embedding share the coordinate, `0` when they say nothing of
 //! it.
 
-use ndarray::{Array2, ArrayView2};
+use ndarray::{Array2, ArrayView1, ArrayView2};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::HPos;
+use rayon::prelude::*;
 
 use super::super::plot::{
     chart_2d, color_bar, hue, label, padded, series_color, stride_sample, with_color_bar, Axis2d,
@@ -66,54 +67,93 @@ pub(in crate::report) fn recovery(
     spearman: impl Fn(usize) -> Option<f64>,
 ) -> Vec<Recovery> {
     let m = embedding.nrows();
-    let k = (m / 50)
-        .clamp(3, RECOVERY_NEIGHBOURS)
-        .min(m.saturating_sub(1));
+    let k = recovery_neighbours(m);
     if k == 0 {
         return Vec::new();
     }
     let queries = stride_sample(m, RECOVERY_QUERIES);
-    let neighbours: Vec<Vec<usize>> = queries.iter().map(|&i| nearest(embedding, i, k)).collect();
+    let near = neighbourhoods(embedding, &queries, k);
     coordinates
         .iter()
         .map(|&c| {
-            let circular = c == 2;
-            let delta = |a: f64, b: f64| if circular { wrap_angle(a - b) } else { a - b };
             let v = set_poses.column(c);
-            let mut residual = 0.0;
-            for (&i, near) in queries.iter().zip(&neighbours) {
-                let predicted = if circular {
-                    let (s, co) = near
-                        .iter()
-                        .fold((0.0, 0.0), |(s, co), &j| (s + v[j].sin(), co + v[j].cos()));
-                    s.atan2(co)
-                } else {
-                    near.iter().map(|&j| v[j]).sum::<f64>() / near.len() as f64
-                };
-                residual += delta(v[i], predicted).powi(2);
-            }
-            let mut spread = 0.0;
-            let mut pairs = 0.0_f64;
-            for (a, &i) in queries.iter().enumerate() {
-                for &j in &queries[a + 1..] {
-                    spread += 0.5 * delta(v[i], v[j]).powi(2);
-                    pairs += 1.0;
-                }
-            }
-            let variance = spread / pairs.max(1.0);
-            let r2 = if variance > 0.0 {
-                1.0 - residual / queries.len() as f64 / variance
-            } else {
-                f64::NAN
-            };
+            let variance = spread(&queries, v, c);
             Recovery {
                 coordinate: c,
-                r2,
+                r2: r2(residual(&queries, &near, v, c), variance, queries.len()),
                 spearman: spearman(c),
                 neighbours: k,
             }
         })
         .collect()
+}
+
+/// Neighbours of the recovery measure among `m` points: `m / 50`, between 3 and
+/// [`RECOVERY_NEIGHBOURS`], at most `m − 1` (0: nothing to measure).
+fn recovery_neighbours(m: usize) -> usize {
+    (m / 50)
+        .clamp(3, RECOVERY_NEIGHBOURS)
+        .min(m.saturating_sub(1))
+}
+
+/// The `k` nearest rows of `embedding` to each row of `queries` ([`nearest`]), the
+/// queries shared among the threads (each list is the same for any thread count).
+fn neighbourhoods(embedding: ArrayView2<'_, f64>, queries: &[usize], k: usize) -> Vec<Vec<usize>> {
+    queries
+        .par_iter()
+        .map(|&i| nearest(embedding, i, k))
+        .collect()
+}
+
+/// The difference of two values of pose column `c`: wrapped into `[−π, π)` for alpha
+/// (column 2).
+fn delta(c: usize, a: f64, b: f64) -> f64 {
+    if c == 2 {
+        wrap_angle(a - b)
+    } else {
+        a - b
+    }
+}
+
+/// `Σ_i Δ(c_i, ĉ_i)²` over the queries, `ĉ_i` the (circular, for alpha) mean of the
+/// values `v` of column `c` over the neighbours `near` of query `i`.
+fn residual(queries: &[usize], near: &[Vec<usize>], v: ArrayView1<'_, f64>, c: usize) -> f64 {
+    let mut residual = 0.0;
+    for (&i, near) in queries.iter().zip(near) {
+        let predicted = if c == 2 {
+            let (s, co) = near
+                .iter()
+                .fold((0.0, 0.0), |(s, co), &j| (s + v[j].sin(), co + v[j].cos()));
+            s.atan2(co)
+        } else {
+            near.iter().map(|&j| v[j]).sum::<f64>() / near.len() as f64
+        };
+        residual += delta(c, v[i], predicted).powi(2);
+    }
+    residual
+}
+
+/// `s² = mean_{i<j} Δ(c_i, c_j)² / 2` over the queries: the variance of column `c`
+/// (its circular counterpart for alpha).
+fn spread(queries: &[usize], v: ArrayView1<'_, f64>, c: usize) -> f64 {
+    let mut spread = 0.0;
+    let mut pairs = 0.0_f64;
+    for (a, &i) in queries.iter().enumerate() {
+        for &j in &queries[a + 1..] {
+            spread += 0.5 * delta(c, v[i], v[j]).powi(2);
+            pairs += 1.0;
+        }
+    }
+    spread / pairs.max(1.0)
+}
+
+/// `R² = 1 − residual / queries / variance` (NaN for a constant coordinate).
+fn r2(residual: f64, variance: f64, queries: usize) -> f64 {
+    if variance > 0.0 {
+        1.0 - residual / queries as f64 / variance
+    } else {
+        f64::NAN
+    }
 }
 
 /// The `k` rows of `embedding` nearest to row `i` (Euclidean), ties by index.
@@ -142,8 +182,12 @@ fn nearest(embedding: ArrayView2<'_, f64>, i: usize, k: usize) -> Vec<usize> {
 }
 
 /// The ring frame of the embedding ([`Frame::ring`]) from its first three coordinates
-/// and the centres of the probe sheets.
-fn ring_frame(embedding: ArrayView2<'_, f64>, surfaces: &[ProbeSurface]) -> Frame {
+/// and the centres of the probe sheets: the frame of Fig. 5d, of `embedding-pose` and
+/// of the interactive view (whose camera looks down its third axis, the ring's axis).
+pub(in crate::report) fn ring_frame(
+    embedding: ArrayView2<'_, f64>,
+    surfaces: &[ProbeSurface],
+) -> Frame {
     let rows = stride_sample(embedding.nrows(), MAX_SCATTER_POINTS);
     let points: Vec<V3> = rows.iter().map(|&i| point3(embedding, i)).collect();
     let centres: Vec<(V3, f64)> = surfaces
@@ -151,16 +195,6 @@ fn ring_frame(embedding: ArrayView2<'_, f64>, surfaces: &[ProbeSurface]) -> Fram
         .map(|s| (s.centre(embedding), s.alpha))
         .collect();
     Frame::ring(&points, &centres).0
-}
-
-/// The axes of the ring frame ([`Frame::ring`]) in the embedding's first three
-/// coordinates: the ring's plane is spanned by the first two, the third is its axis
-/// (the interactive view looks down it).
-pub(in crate::report) fn ring_frame_axes(
-    embedding: ArrayView2<'_, f64>,
-    surfaces: &[ProbeSurface],
-) -> [V3; 3] {
-    ring_frame(embedding, surfaces).axes()
 }
 
 /// The two ring views of Fig. 5d, `(title, camera)`: the main one along the ring's
@@ -187,30 +221,81 @@ fn candidate_views() -> [Camera; 4] {
 /// Most points the choice of a view scores (evenly spaced rows beyond that).
 const VIEW_CHOICE_POINTS: usize = 1500;
 
-/// The view in which pose column `c` shows: of [`candidate_views`], the one whose
-/// screen (the 2-D projection of `points`, frame coordinates of the rows `rows`)
-/// predicts `c` best from a point's nearest neighbours on screen (the recovery `R²`
-/// of the module docs, on the projection); ties, and a coordinate that predicts
-/// nothing anywhere, go to the first (along the ring's axis).
-fn view_for(points: &[V3], rows: &[usize], set_poses: &Array2<f64>, c: usize) -> Camera {
-    let sample = stride_sample(points.len(), VIEW_CHOICE_POINTS);
-    let poses = Array2::from_shape_fn((sample.len(), set_poses.ncols()), |(i, k)| {
-        set_poses[[rows[sample[i]], k]]
-    });
-    let views = candidate_views();
-    let mut best = (f64::NEG_INFINITY, 0);
-    for (k, camera) in views.iter().enumerate() {
-        let screen = Array2::from_shape_fn((sample.len(), 2), |(i, j)| {
-            camera.screen(points[sample[i]])[j]
+/// The 3-D views of the panels of [`EmbeddingPose`]: the ring frame and, for each
+/// coordinate drawn, the camera in which it shows. Chosen once per figure
+/// ([`PoseViews::choose`]) and read by every drawing of it: the PNG, the SVG and the
+/// layout check.
+#[derive(Debug, Clone, PartialEq)]
+pub(in crate::report) struct PoseViews {
+    frame: Frame,
+    /// One camera per coordinate of the figure, in its order.
+    cameras: Vec<Camera>,
+}
+
+impl PoseViews {
+    /// For each pose column of `coordinates`, the view in which it shows: of
+    /// [`candidate_views`], the one whose screen (the 2-D projection of the drawn
+    /// points in `frame`) predicts the column best from a point's nearest neighbours
+    /// on screen (the recovery `R²` of the module docs, on the projection); ties, and
+    /// a coordinate that predicts nothing anywhere, go to the first (along the ring's
+    /// axis). Each view's neighbours are found once and score every coordinate.
+    pub(in crate::report) fn choose(
+        embedding: ArrayView2<'_, f64>,
+        frame: Frame,
+        set_poses: &Array2<f64>,
+        coordinates: &[usize],
+    ) -> Self {
+        let rows = stride_sample(embedding.nrows(), MAX_SCATTER_POINTS);
+        let sample = stride_sample(rows.len(), VIEW_CHOICE_POINTS);
+        let points: Vec<V3> = sample
+            .iter()
+            .map(|&s| frame.coords(point3(embedding, rows[s])))
+            .collect();
+        let poses = Array2::from_shape_fn((sample.len(), set_poses.ncols()), |(i, k)| {
+            set_poses[[rows[sample[i]], k]]
         });
-        let r2 = recovery(screen.view(), &poses, &[c], |_| None)
-            .first()
-            .map_or(f64::NAN, |r| r.r2);
-        if r2 > best.0 + 1e-9 {
-            best = (r2, k);
+        let views = candidate_views();
+        let k = recovery_neighbours(sample.len());
+        if k == 0 {
+            let cameras = vec![views[0]; coordinates.len()];
+            return Self { frame, cameras };
         }
+        let queries = stride_sample(sample.len(), RECOVERY_QUERIES);
+        // The spread of a coordinate does not depend on the view.
+        let spreads: Vec<f64> = coordinates
+            .iter()
+            .map(|&c| spread(&queries, poses.column(c), c))
+            .collect();
+        let scores: Vec<Vec<f64>> = views
+            .iter()
+            .map(|camera| {
+                let screen = Array2::from_shape_fn((points.len(), 2), |(i, j)| {
+                    camera.screen(points[i])[j]
+                });
+                let near = neighbourhoods(screen.view(), &queries, k);
+                coordinates
+                    .iter()
+                    .zip(&spreads)
+                    .map(|(&c, &variance)| {
+                        let v = poses.column(c);
+                        r2(residual(&queries, &near, v, c), variance, queries.len())
+                    })
+                    .collect()
+            })
+            .collect();
+        let cameras = (0..coordinates.len())
+            .map(|n| {
+                let mut best = (f64::NEG_INFINITY, 0);
+                for (view, score) in scores.iter().enumerate() {
+                    if score[n] > best.0 + 1e-9 {
+                        best = (score[n], view);
+                    }
+                }
+                views[best.1]
+            })
+            .collect();
+        Self { frame, cameras }
     }
-    views[best.1]
 }
 
 /// A view's title, centred at the top of `area`.
@@ -279,6 +364,9 @@ fn ring_axes() -> [BoxAxis; 3] {
 pub(in crate::report) struct EmbeddingProbes<'a> {
     pub(in crate::report) embedding: ArrayView2<'a, f64>,
     pub(in crate::report) surfaces: &'a [ProbeSurface],
+    /// The ring frame ([`ring_frame`]) of a 3-D embedding; `None` draws the plane
+    /// `(q1, q2)`.
+    pub(in crate::report) frame: Option<Frame>,
     pub(in crate::report) panel: Panel,
 }
 
@@ -306,14 +394,13 @@ impl Figure for EmbeddingProbes<'_> {
         );
         let (body, strip) = legend.split(root, print);
         let (plot, bar) = with_color_bar(&body, print);
-        if self.embedding.ncols() >= 3 {
-            let frame = ring_frame(self.embedding, self.surfaces);
+        if let Some(frame) = &self.frame {
             let rows = stride_sample(self.embedding.nrows(), MAX_SCATTER_POINTS);
             let points: Vec<V3> = rows
                 .iter()
                 .map(|&i| frame.coords(point3(self.embedding, i)))
                 .collect();
-            let items = self.scene(&frame, &points);
+            let items = self.scene(frame, &points);
             let ranges = bounds(&points);
             let main_width = (f64::from(plot.dim_in_pixel().0) * 0.6).round() as u32;
             let (main, side) = plot.split_horizontally(main_width);
@@ -404,7 +491,9 @@ pub(in crate::report) struct EmbeddingPose<'a> {
     /// The pose columns drawn (0 = x, 1 = y, 2 = alpha).
     pub(in crate::report) coordinates: Vec<usize>,
     pub(in crate::report) recovery: Vec<Recovery>,
-    pub(in crate::report) surfaces: &'a [ProbeSurface],
+    /// The views of a 3-D embedding's panels; `None` draws them in the plane
+    /// `(q1, q2)` (or against the coordinate, for a 1-D embedding).
+    pub(in crate::report) views: Option<PoseViews>,
     pub(in crate::report) panel: Panel,
 }
 
@@ -427,10 +516,12 @@ impl Figure for EmbeddingPose<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Drawn {
         let rows = self.panels().div_ceil(self.columns());
         let areas = root.split_evenly((rows as usize, self.columns() as usize));
-        let frame =
-            (self.embedding.ncols() >= 3).then(|| ring_frame(self.embedding, self.surfaces));
-        for (area, &c) in areas.iter().zip(&self.coordinates) {
-            self.draw_coordinate(area, c, frame.as_ref())?;
+        for (n, (area, &c)) in areas.iter().zip(&self.coordinates).enumerate() {
+            let view = self
+                .views
+                .as_ref()
+                .map(|views| (&views.frame, views.cameras[n]));
+            self.draw_coordinate(area, c, view)?;
         }
         if let Some(area) = areas.get(self.coordinates.len()) {
             if !self.recovery.is_empty() {
@@ -442,12 +533,13 @@ impl Figure for EmbeddingPose<'_> {
 }
 
 impl EmbeddingPose<'_> {
-    /// One panel: the embedding coloured by pose column `c`.
+    /// One panel: the embedding coloured by pose column `c`, in 3-D from `view` (the
+    /// ring frame and the panel's camera) when given.
     fn draw_coordinate<DB: DrawingBackend>(
         &self,
         area: &DrawingArea<DB, Shift>,
         c: usize,
-        frame: Option<&Frame>,
+        view: Option<(&Frame, Camera)>,
     ) -> Drawn {
         let print = self.panel.print;
         let e = &self.embedding;
@@ -485,11 +577,10 @@ impl EmbeddingPose<'_> {
             return Ok(());
         }
         let (plot, bar) = with_color_bar(area, print);
-        if let Some(frame) = frame {
+        if let Some((frame, camera)) = view {
             let points: Vec<V3> = rows.iter().map(|&i| frame.coords(point3(*e, i))).collect();
             view_title(&plot, print, &title)?;
             let ranges = bounds(&points);
-            let camera = view_for(&points, &rows, self.set_poses, c);
             let projection = fit(plot.dim_in_pixel(), print, camera, &corners(&ranges));
             draw_box(&plot, &projection, &ranges, &ring_axes(), print)?;
             let items: Vec<Item> = rows
