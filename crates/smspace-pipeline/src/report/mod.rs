@@ -575,16 +575,7 @@ pub fn render_report(
     let print = plot::Print {
         dpi: f64::from(params.dpi),
     };
-    let rendered: Vec<Result<plot::Rendered, ReportError>> = planned
-        .par_iter()
-        .map(|(name, _, p)| p.render(name, params.formats, print))
-        .collect();
-    // The reviewer's check on this run's own data: texts that overlap or leave their
-    // figure are reported at the top of the report.
-    let layout: Vec<Result<Option<FigureText>, ReportError>> = planned
-        .par_iter()
-        .map(|(name, _, p)| p.record(name, print))
-        .collect();
+    let (rendered, layout) = draw_all(&planned, params.formats, print);
     let mut warnings = warnings::warnings(inputs);
     for text in layout {
         for problem in text?.iter().flat_map(FigureText::problems) {
@@ -646,6 +637,66 @@ pub fn render_report(
         },
         files,
     })
+}
+
+/// A figure's images, and its text as drawn (`None` when skipped).
+type Drawings = (
+    Vec<Result<plot::Rendered, ReportError>>,
+    Vec<Result<Option<FigureText>, ReportError>>,
+);
+
+/// Draws every image of every planned figure and records its text (the layout
+/// check), one task each, so that the largest figures keep both threads busy; each
+/// figure's images come back in the order of `formats` (PNG first).
+fn draw_all(
+    planned: &[plan::PlannedFigure<'_>],
+    formats: FigureFormats,
+    print: plot::Print,
+) -> Drawings {
+    /// One image of figure `.0`, or its text when `.1` is `None`.
+    type Task = (usize, Option<plot::ImageFormat>);
+    enum Done {
+        Image(Result<plot::Rendered, ReportError>),
+        Text(Result<Option<FigureText>, ReportError>),
+    }
+    let tasks: Vec<Task> = (0..planned.len())
+        .flat_map(|f| {
+            formats
+                .images()
+                .iter()
+                .map(move |&format| (f, Some(format)))
+                .chain(std::iter::once((f, None)))
+        })
+        .collect();
+    let done: Vec<Done> = tasks
+        .par_iter()
+        .map(|&(f, format)| {
+            let (name, _, p) = &planned[f];
+            match format {
+                Some(format) => Done::Image(p.render(name, format, print)),
+                None => Done::Text(p.record(name, print)),
+            }
+        })
+        .collect();
+    let mut rendered: Vec<Result<plot::Rendered, ReportError>> = Vec::with_capacity(planned.len());
+    let mut texts = Vec::with_capacity(planned.len());
+    let mut images = Ok(plot::Rendered::default());
+    for done in done {
+        match done {
+            Done::Image(image) => {
+                images = images.and_then(|so_far| Ok(so_far.merge(image?)));
+            }
+            Done::Text(text) => {
+                // A figure's text is its last task: its images are all in.
+                rendered.push(std::mem::replace(
+                    &mut images,
+                    Ok(plot::Rendered::default()),
+                ));
+                texts.push(text);
+            }
+        }
+    }
+    (rendered, texts)
 }
 
 /// The text of every figure [`write_report`] would draw with these inputs and

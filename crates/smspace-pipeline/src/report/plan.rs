@@ -9,7 +9,7 @@ use super::figures::{self, Panel, Recovery};
 use super::layout::{self, FigureText};
 use super::plot::{self, Print};
 use super::view3d::Frame;
-use super::{FigureFormats, InvarianceData, ReportError, ReportInputs, ReportParams};
+use super::{InvarianceData, ReportError, ReportInputs, ReportParams};
 use smspace::agent::{MotorSpace, PlanarView};
 
 /// What every figure needs besides the inputs.
@@ -60,8 +60,8 @@ pub(super) fn derive(inputs: &ReportInputs<'_>) -> Derived {
         .as_ref()
         .map(|poses| figures::probe_surfaces(inputs.probes, inputs.kept, poses))
         .unwrap_or_default();
-    let ring_frame = (inputs.embedding.ncols() >= 3)
-        .then(|| figures::ring_frame(inputs.embedding, &surfaces));
+    let ring_frame =
+        (inputs.embedding.ncols() >= 3).then(|| figures::ring_frame(inputs.embedding, &surfaces));
     Derived {
         set_poses,
         motor_unit,
@@ -121,15 +121,15 @@ macro_rules! with_figure {
 }
 
 impl Planned<'_> {
-    /// Draws the figure in memory (nothing when skipped).
+    /// Draws one image of the figure in memory (nothing when skipped).
     pub(super) fn render(
         &self,
         name: &str,
-        formats: FigureFormats,
+        format: plot::ImageFormat,
         print: Print,
     ) -> Result<plot::Rendered, ReportError> {
         with_figure!(self, Ok(plot::Rendered::default()), |f| plot::render(
-            f, name, formats, print
+            f, name, format, print
         ))
     }
 

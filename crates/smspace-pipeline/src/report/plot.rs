@@ -221,12 +221,44 @@ fn draw_error(name: &str, error: PlotError) -> ReportError {
     }
 }
 
-/// Renders `figure` as `figures/<name>.png` and/or `.svg`, in memory. The SVG states
-/// its print size in inches (`dpi` pixels per inch).
+/// One image file of a figure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum ImageFormat {
+    /// `figures/<name>.png`, through the bitmap backend.
+    Png,
+    /// `figures/<name>.svg`.
+    Svg,
+}
+
+impl FigureFormats {
+    /// The image files of each figure, in the order of a figure's files (PNG first).
+    pub(super) fn images(self) -> &'static [ImageFormat] {
+        match self {
+            FigureFormats::PngAndSvg => &[ImageFormat::Png, ImageFormat::Svg],
+            FigureFormats::Png => &[ImageFormat::Png],
+            FigureFormats::Svg => &[ImageFormat::Svg],
+        }
+    }
+}
+
+impl Rendered {
+    /// The files of `self` then those of `other` (two formats of one figure drawn
+    /// apart).
+    pub(super) fn merge(mut self, other: Rendered) -> Rendered {
+        self.files.extend(other.files);
+        self.png = self.png.or(other.png);
+        self.svg = self.svg.or(other.svg);
+        self.print_inches = self.print_inches.or(other.print_inches);
+        self
+    }
+}
+
+/// Renders `figure` as `figures/<name>.png` or `.svg`, in memory. The SVG states its
+/// print size in inches (`dpi` pixels per inch).
 pub(super) fn render<F: Figure>(
     figure: &F,
     name: &str,
-    formats: FigureFormats,
+    format: ImageFormat,
     print: Print,
 ) -> Result<Rendered, ReportError> {
     register_font();
@@ -235,40 +267,41 @@ pub(super) fn render<F: Figure>(
         print_inches: Some((f64::from(width) / print.dpi, f64::from(height) / print.dpi)),
         ..Rendered::default()
     };
-    let (want_png, want_svg) = match formats {
-        FigureFormats::PngAndSvg => (true, true),
-        FigureFormats::Png => (true, false),
-        FigureFormats::Svg => (false, true),
-    };
-    if want_png {
-        let mut pixels = vec![255_u8; width as usize * height as usize * 3];
-        {
-            let root = BitMapBackend::with_buffer(&mut pixels, (width, height)).into_drawing_area();
-            root.fill(&WHITE).map_err(|e| draw_error(name, e.into()))?;
-            figure.draw(&root).map_err(|e| draw_error(name, e))?;
-            root.present().map_err(|e| draw_error(name, e.into()))?;
-        }
-        let bytes =
-            encode_png(&pixels, width, height, print.dpi).map_err(|reason| ReportError::Draw {
-                figure: name.to_owned(),
-                reason,
+    match format {
+        ImageFormat::Png => {
+            let mut pixels = vec![255_u8; width as usize * height as usize * 3];
+            {
+                let root =
+                    BitMapBackend::with_buffer(&mut pixels, (width, height)).into_drawing_area();
+                root.fill(&WHITE).map_err(|e| draw_error(name, e.into()))?;
+                figure.draw(&root).map_err(|e| draw_error(name, e))?;
+                root.present().map_err(|e| draw_error(name, e.into()))?;
+            }
+            let bytes = encode_png(&pixels, width, height, print.dpi).map_err(|reason| {
+                ReportError::Draw {
+                    figure: name.to_owned(),
+                    reason,
+                }
             })?;
-        let relative = PathBuf::from("figures").join(format!("{name}.png"));
-        rendered.files.push(relative);
-        rendered.png = Some(bytes);
-    }
-    if want_svg {
-        let mut text = String::new();
-        {
-            let root = SVGBackend::with_string(&mut text, (width, height)).into_drawing_area();
-            root.fill(&WHITE).map_err(|e| draw_error(name, e.into()))?;
-            figure.draw(&root).map_err(|e| draw_error(name, e))?;
-            root.present().map_err(|e| draw_error(name, e.into()))?;
+            rendered
+                .files
+                .push(PathBuf::from("figures").join(format!("{name}.png")));
+            rendered.png = Some(bytes);
         }
-        let text = svg_print_size(&text, (width, height), print.dpi);
-        let relative = PathBuf::from("figures").join(format!("{name}.svg"));
-        rendered.files.push(relative);
-        rendered.svg = Some(text);
+        ImageFormat::Svg => {
+            let mut text = String::new();
+            {
+                let root = SVGBackend::with_string(&mut text, (width, height)).into_drawing_area();
+                root.fill(&WHITE).map_err(|e| draw_error(name, e.into()))?;
+                figure.draw(&root).map_err(|e| draw_error(name, e))?;
+                root.present().map_err(|e| draw_error(name, e.into()))?;
+            }
+            let text = svg_print_size(&text, (width, height), print.dpi);
+            rendered
+                .files
+                .push(PathBuf::from("figures").join(format!("{name}.svg")));
+            rendered.svg = Some(text);
+        }
     }
     Ok(rendered)
 }

@@ -73,17 +73,23 @@ pub(in crate::report) fn recovery(
     }
     let queries = stride_sample(m, RECOVERY_QUERIES);
     let near = neighbourhoods(embedding, &queries, k);
-    coordinates
-        .iter()
+    // One coordinate per thread: each sums in the same order for any thread count.
+    let scores: Vec<f64> = coordinates
+        .par_iter()
         .map(|&c| {
             let v = set_poses.column(c);
             let variance = spread(&queries, v, c);
-            Recovery {
-                coordinate: c,
-                r2: r2(residual(&queries, &near, v, c), variance, queries.len()),
-                spearman: spearman(c),
-                neighbours: k,
-            }
+            r2(residual(&queries, &near, v, c), variance, queries.len())
+        })
+        .collect();
+    coordinates
+        .iter()
+        .zip(scores)
+        .map(|(&c, r2)| Recovery {
+            coordinate: c,
+            r2,
+            spearman: spearman(c),
+            neighbours: k,
         })
         .collect()
 }
@@ -99,12 +105,30 @@ fn recovery_neighbours(m: usize) -> usize {
 /// The `k` nearest rows of `embedding` to each row of `queries` ([`nearest`]), the
 /// queries shared among the threads (each list is the same for any thread count).
 fn neighbourhoods(embedding: ArrayView2<'_, f64>, queries: &[usize], k: usize) -> Vec<Vec<usize>> {
+    let rows = embedding.as_standard_layout();
+    let points = Points {
+        coordinates: rows.as_slice().unwrap_or_default(),
+        dim: embedding.ncols(),
+        len: embedding.nrows(),
+    };
     queries
         .par_iter()
-        .map(|&i| nearest(embedding, i, k))
+        .map_init(Vec::new, |scratch, &i| nearest(&points, i, k, scratch))
         .collect()
 }
 
+/// Points of `dim` coordinates, one after the other.
+struct Points<'a> {
+    coordinates: &'a [f64],
+    dim: usize,
+    len: usize,
+}
+
+impl Points<'_> {
+    fn row(&self, j: usize) -> &[f64] {
+        &self.coordinates[j * self.dim..(j + 1) * self.dim]
+    }
+}
 /// The difference of two values of pose column `c`: wrapped into `[−π, π)` for alpha
 /// (column 2).
 fn delta(c: usize, a: f64, b: f64) -> f64 {
@@ -156,29 +180,26 @@ fn r2(residual: f64, variance: f64, queries: usize) -> f64 {
     }
 }
 
-/// The `k` rows of `embedding` nearest to row `i` (Euclidean), ties by index.
-fn nearest(embedding: ArrayView2<'_, f64>, i: usize, k: usize) -> Vec<usize> {
-    let row = embedding.row(i);
-    let mut d: Vec<(f64, usize)> = embedding
-        .outer_iter()
-        .enumerate()
-        .filter(|&(j, _)| j != i)
-        .map(|(j, r)| {
-            let s: f64 = r
-                .iter()
-                .zip(row.iter())
-                .map(|(a, b)| (a - b) * (a - b))
-                .sum();
-            (s, j)
-        })
-        .collect();
-    let k = k.min(d.len());
-    d.select_nth_unstable_by(k.saturating_sub(1), |a, b| {
+/// The `k` rows of `points` nearest to row `i` (Euclidean), ties by index; `scratch`
+/// holds the distances to every row.
+fn nearest(points: &Points<'_>, i: usize, k: usize, scratch: &mut Vec<(f64, usize)>) -> Vec<usize> {
+    let row = points.row(i);
+    scratch.clear();
+    scratch.extend((0..points.len).filter(|&j| j != i).map(|j| {
+        let s: f64 = points
+            .row(j)
+            .iter()
+            .zip(row)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum();
+        (s, j)
+    }));
+    let k = k.min(scratch.len());
+    scratch.select_nth_unstable_by(k.saturating_sub(1), |a, b| {
         a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
     });
-    // A fresh list of `k`: collecting `d` itself would reuse (and keep) its allocation
-    // of `m` entries, once per query.
-    d[..k].iter().map(|&(_, j)| j).collect()
+    // A fresh list of `k`: the report keeps one per query.
+    scratch[..k].iter().map(|&(_, j)| j).collect()
 }
 
 /// The ring frame of the embedding ([`Frame::ring`]) from its first three coordinates
@@ -263,15 +284,14 @@ impl PoseViews {
         let queries = stride_sample(sample.len(), RECOVERY_QUERIES);
         // The spread of a coordinate does not depend on the view.
         let spreads: Vec<f64> = coordinates
-            .iter()
+            .par_iter()
             .map(|&c| spread(&queries, poses.column(c), c))
             .collect();
         let scores: Vec<Vec<f64>> = views
             .iter()
             .map(|camera| {
-                let screen = Array2::from_shape_fn((points.len(), 2), |(i, j)| {
-                    camera.screen(points[i])[j]
-                });
+                let screen =
+                    Array2::from_shape_fn((points.len(), 2), |(i, j)| camera.screen(points[i])[j]);
                 let near = neighbourhoods(screen.view(), &queries, k);
                 coordinates
                     .iter()
@@ -694,12 +714,18 @@ mod tests {
         let m = 1000;
         let embedding =
             ndarray::Array2::from_shape_fn((m, 2), |(i, c)| if c == 0 { i as f64 } else { 0.0 });
-        let mut near = nearest(embedding.view(), 500, 4);
+        let points = Points {
+            coordinates: embedding.as_slice().unwrap(),
+            dim: 2,
+            len: m,
+        };
+        let mut scratch = Vec::new();
+        let mut near = nearest(&points, 500, 4, &mut scratch);
         near.sort_unstable();
         assert_eq!(near, vec![498, 499, 501, 502]);
         // One list of `k` per query: the report keeps thousands of them, so a list
         // must not hold on to the `m` distances scanned for it.
-        let near = nearest(embedding.view(), 0, 10);
+        let near = nearest(&points, 0, 10, &mut scratch);
         assert_eq!(near.len(), 10);
         assert!(near.capacity() < 2 * 10, "capacity {}", near.capacity());
     }

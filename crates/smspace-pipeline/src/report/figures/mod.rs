@@ -34,8 +34,7 @@ use ndarray::ArrayView2;
 pub(super) use arm::{Configurations, KernelSets3d, MAX_LOOPS};
 pub(super) use diagnostics::{DyDx, Invariance, PersistenceDiagram, StressTrace};
 pub(super) use embedding::{
-    recovery, ring_frame, EmbeddingPose, EmbeddingProbes, PoseViews, Recovery,
-    RECOVERY_NEIGHBOURS,
+    recovery, ring_frame, EmbeddingPose, EmbeddingProbes, PoseViews, Recovery, RECOVERY_NEIGHBOURS,
 };
 pub(super) use toys::{KernelLines, LearnedManifold, SensoryManifolds};
 
