@@ -562,7 +562,7 @@ impl Callbacks {
             out.fill(f64::NAN);
             return;
         }
-        let result = Python::attach(|py| {
+        let result = crate::host::attach(|py| {
             let mut inside = || {
                 // A call may have waited for its turn while Ctrl-C was pressed.
                 self.calls.stop_if_interrupted();
@@ -575,6 +575,9 @@ impl Callbacks {
             }
         });
         if let Err(e) = result {
+            if crate::host::attach(|py| crate::host::asks_to_stop(py, &e)) {
+                crate::host::stop_with(e);
+            }
             self.calls.keep(e);
             out.fill(f64::NAN);
         }
@@ -593,6 +596,10 @@ impl Callbacks {
         let expected = out.dim();
         let input = motors.to_owned().into_pyarray(py);
         let answer = callable.call1(py, (input,)).map_err(|e| {
+            if crate::host::asks_to_stop(py, &e) {
+                // Raised as it is (KeyboardInterrupt, SystemExit): see `call`.
+                return e;
+            }
             let error = CallbackError::new_err(format!(
                 "the {argument} callable of the {} agent raised {}",
                 self.name,
@@ -683,9 +690,10 @@ impl AgentLaw for Callbacks {
         }
     }
 
-    /// One interpreter thread state for the thread's whole life.
-    fn host_thread(&self, work: &mut (dyn FnMut() + Send)) {
-        crate::host::host_thread(work);
+    /// The engine's threads, each with one interpreter thread state for the life of
+    /// the process.
+    fn host_threads(&self) -> Option<&rayon::ThreadPool> {
+        crate::host::pool().ok()
     }
 }
 

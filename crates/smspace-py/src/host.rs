@@ -7,9 +7,12 @@
 //!   its turn with the interpreter lock released (so the one inside may release it too,
 //!   as a simulator's step does, without letting a second call in).
 //! - **Threads that keep their interpreter state.** The engine's work runs on a pool of
-//!   threads ([`pool`]) each of which holds one interpreter thread state for its whole
-//!   life, as the threads of a gathered trace do ([`host_thread`]): a callable's
-//!   `threading.local()` lasts from one call to the next on the same thread.
+//!   threads ([`pool`]) that live as long as the process, each of which holds one
+//!   interpreter thread state for its whole life ([`host_thread`]); a gathered trace's
+//!   rounds run on them too (a Python agent's `host_threads`). A callable's
+//!   `threading.local()` (a simulator's data per thread) lasts from one call and one
+//!   computation to the next on the same thread, and is never freed while a thread
+//!   state is released.
 //! - **Ctrl-C.** [`run_interruptible`] runs a computation on that pool while the
 //!   calling thread waits with the lock released and checks for signals every
 //!   [`POLL`]. On a signal (`KeyboardInterrupt`) it raises [`Interrupt`]s: every later
@@ -18,8 +21,15 @@
 //!   up to [`GRACE`] for them and raises the exception. A computation blocked inside a
 //!   user's callable (a `sense` that sleeps or waits for a device) cannot be stopped
 //!   from outside: it is abandoned, its result discarded, and it ends when the
-//!   callable returns. Outputs are written by renaming complete temporary files, so an
-//!   interrupted computation leaves no half-written file.
+//!   callable returns. The engine's threads enter the interpreter only through a gate
+//!   ([`attach`]) that `atexit` closes ([`_shutdown_engine`]), waiting for any thread
+//!   still inside a callable, as the interpreter waits for its own threads: an engine
+//!   thread never meets a finalising interpreter; a run retried at once waits for the abandoned one to release its
+//!   folder ([`wait_for_abandoned`]). Outputs are written by renaming complete
+//!   temporary files, so an interrupted computation leaves no half-written file.
+//! - **A callable that asks to stop.** A callable that raises an exception that is
+//!   not an `Exception` (`KeyboardInterrupt`, `SystemExit`) ends the computation at
+//!   once ([`stop_with`]), and the call raises that exception as it is.
 
 use std::any::Any;
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
@@ -40,11 +50,204 @@ pub(crate) const GRACE: Duration = Duration::from_secs(1);
 /// The stack of each pool thread, bytes (reserved; touched only as used). The engine's
 /// calls from Python used to run on the interpreter's main thread (8 MiB).
 const POOL_STACK_BYTES: usize = 16 << 20;
+const _: () = assert!(POOL_STACK_BYTES >= smspace::kernel::HOST_STACK_BYTES);
 
 /// The payload with which an interrupted computation unwinds (never a panic message:
 /// it is raised by [`resume_unwind`], which does not call the panic hook).
 #[derive(Debug)]
 pub(crate) struct Interrupted;
+
+/// Whether `error`, raised by a user's callable, asks the program to stop rather than
+/// reports a failure: an exception that is not an `Exception` (`KeyboardInterrupt`,
+/// `SystemExit`).
+pub(crate) fn asks_to_stop(py: Python<'_>, error: &PyErr) -> bool {
+    !error.is_instance_of::<pyo3::exceptions::PyException>(py)
+}
+
+/// The exception with which a callable asked to stop, kept for the call to raise.
+static STOPPING: Mutex<Option<PyErr>> = Mutex::new(None);
+
+/// Raised with [`STOPPING`]: every callable of every computation unwinds at its next
+/// call ([`Interrupt::stop_if_raised`]), as after Ctrl-C.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+/// Ends the computation at once: keeps `error` (the first of them) for the call to
+/// raise as it is ([`run_interruptible`]), and stops every callable at its next call.
+/// Never returns.
+pub(crate) fn stop_with(error: PyErr) -> ! {
+    STOPPING
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .get_or_insert(error);
+    STOP.store(true, Ordering::SeqCst);
+    resume_unwind(Box::new(Interrupted))
+}
+
+/// Unwinds the computation when a callable has asked to stop ([`stop_with`]), for
+/// callables that have no [`Interrupt`] of their own (a metric's).
+pub(crate) fn stop_if_asked() {
+    if STOP.load(Ordering::SeqCst) && !std::thread::panicking() {
+        resume_unwind(Box::new(Interrupted));
+    }
+}
+
+/// The engine's computations from Python: how many run, and how many of them were
+/// abandoned by their caller after Ctrl-C (a run retried at once waits for those).
+#[derive(Debug, Default)]
+struct Flights {
+    running: usize,
+    abandoned: usize,
+}
+
+static FLIGHTS: (Mutex<Flights>, Condvar) = (
+    Mutex::new(Flights {
+        running: 0,
+        abandoned: 0,
+    }),
+    Condvar::new(),
+);
+
+/// One computation in flight; counted out when dropped (when it ends, however).
+struct InFlight(Arc<AtomicBool>);
+
+impl InFlight {
+    fn enter() -> Self {
+        FLIGHTS
+            .0
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .running += 1;
+        Self(Arc::default())
+    }
+
+    /// A handle with which the caller marks the computation abandoned.
+    fn abandon_handle(&self) -> Arc<AtomicBool> {
+        self.0.clone()
+    }
+
+    /// Marks the computation of `handle` abandoned (unless it has ended).
+    fn abandon(handle: &AtomicBool) {
+        let mut flights = FLIGHTS.0.lock().unwrap_or_else(PoisonError::into_inner);
+        if !handle.swap(true, Ordering::SeqCst) {
+            flights.abandoned += 1;
+        }
+    }
+
+    /// Whether no abandoned computation runs after waiting up to `timeout`.
+    fn wait_abandoned(timeout: Duration) -> bool {
+        let flights = FLIGHTS.0.lock().unwrap_or_else(PoisonError::into_inner);
+        let (flights, _) = FLIGHTS
+            .1
+            .wait_timeout_while(flights, timeout, |f| f.abandoned > 0)
+            .unwrap_or_else(PoisonError::into_inner);
+        flights.abandoned == 0
+    }
+}
+
+impl Drop for InFlight {
+    fn drop(&mut self) {
+        let mut flights = FLIGHTS.0.lock().unwrap_or_else(PoisonError::into_inner);
+        flights.running = flights.running.saturating_sub(1);
+        // Marked ended under the lock, so that a late abandon counts nothing.
+        if self.0.swap(true, Ordering::SeqCst) {
+            flights.abandoned = flights.abandoned.saturating_sub(1);
+        }
+        FLIGHTS.1.notify_all();
+    }
+}
+
+/// The gate through which the engine's threads enter the interpreter ([`attach`]):
+/// whether the interpreter is shutting down, and how many threads are inside it.
+static GATE: (Mutex<Gate>, Condvar) = (
+    Mutex::new(Gate {
+        closed: false,
+        inside: 0,
+    }),
+    Condvar::new(),
+);
+
+#[derive(Debug)]
+struct Gate {
+    closed: bool,
+    inside: usize,
+}
+
+/// The thread inside the interpreter through the gate; leaves it when dropped.
+struct Inside;
+
+impl Drop for Inside {
+    fn drop(&mut self) {
+        let mut gate = GATE.0.lock().unwrap_or_else(PoisonError::into_inner);
+        gate.inside = gate.inside.saturating_sub(1);
+        GATE.1.notify_all();
+    }
+}
+
+/// Runs `f` with the interpreter lock, on one of the engine's threads: every call of a
+/// user's callable (and every other use of the interpreter) from the engine's threads
+/// goes through here. Once the interpreter is shutting down ([`_shutdown_engine`]) it
+/// unwinds the computation instead, so that no engine thread enters a finalising
+/// interpreter.
+pub(crate) fn attach<R>(f: impl FnOnce(Python<'_>) -> R) -> R {
+    {
+        let mut gate = GATE.0.lock().unwrap_or_else(PoisonError::into_inner);
+        if gate.closed {
+            drop(gate);
+            resume_unwind(Box::new(Interrupted));
+        }
+        gate.inside += 1;
+    }
+    let _inside = Inside;
+    Python::attach(f)
+}
+
+/// `_shutdown_engine()`, registered with `atexit` when the package is imported: closes
+/// the gate of [`attach`] (every later callable call of a computation still running
+/// unwinds it instead) and waits, with the interpreter lock released, until no engine
+/// thread is inside the interpreter (one left inside a busy callable after Ctrl-C
+/// returns from it), so that the interpreter never shuts down under an engine thread
+/// running Python; computations that call no Python are not waited for. It says so on
+/// standard error when it waits; a signal while it waits (Ctrl-C again) ends the wait.
+#[pyfunction]
+pub(crate) fn _shutdown_engine(py: Python<'_>) -> PyResult<()> {
+    let quiet = |timeout| {
+        py.detach(|| {
+            let mut gate = GATE.0.lock().unwrap_or_else(PoisonError::into_inner);
+            gate.closed = true;
+            let (gate, _) = GATE
+                .1
+                .wait_timeout_while(gate, timeout, |g| g.inside > 0)
+                .unwrap_or_else(PoisonError::into_inner);
+            gate.inside == 0
+        })
+    };
+    if quiet(GRACE) {
+        return Ok(());
+    }
+    let stderr = py.import("sys")?.getattr("stderr")?;
+    stderr.call_method1(
+        "write",
+        ("smspace: waiting for a computation interrupted inside a Python callable to return before the interpreter exits (Ctrl-C again to exit without waiting)\n",),
+    )?;
+    while !quiet(POLL) {
+        py.check_signals()?;
+    }
+    Ok(())
+}
+
+/// Waits up to `timeout`, with the interpreter lock released, for the computations
+/// abandoned after Ctrl-C to end (at their next callable call or report): a run
+/// retried at once after an interrupted one finds its folder's lock released.
+pub(crate) fn wait_for_abandoned(py: Python<'_>, timeout: Duration) -> PyResult<()> {
+    let deadline = std::time::Instant::now() + timeout;
+    while !py.detach(|| InFlight::wait_abandoned(POLL)) {
+        py.check_signals()?;
+        if std::time::Instant::now() >= deadline {
+            break;
+        }
+    }
+    Ok(())
+}
 
 /// A computation's stop flag, shared by the objects that call back into Python.
 #[derive(Debug, Clone, Default)]
@@ -61,9 +264,9 @@ impl Interrupt {
         self.0.store(true, Ordering::SeqCst);
     }
 
-    /// Whether the flag is raised.
+    /// Whether the flag is raised, or a callable asked to stop ([`stop_with`]).
     pub(crate) fn raised(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
+        self.0.load(Ordering::SeqCst) || STOP.load(Ordering::SeqCst)
     }
 
     /// Unwinds the computation when the flag is raised.
@@ -110,7 +313,7 @@ impl Turnstile {
 /// Runs `work`, the whole life of a thread, with one interpreter thread state for all
 /// of it (released while `work` runs; taken back by each callback without making a
 /// new one).
-pub(crate) fn host_thread(work: &mut (dyn FnMut() + Send)) {
+fn host_thread(work: &mut (dyn FnMut() + Send)) {
     Python::attach(|py| py.detach(work));
 }
 
@@ -161,8 +364,10 @@ pub(crate) fn pool() -> PyResult<&'static rayon::ThreadPool> {
 /// Runs `work` on the engine's pool while this thread waits with the interpreter lock
 /// released, checking for signals every [`POLL`]. A signal's exception (Ctrl-C's
 /// `KeyboardInterrupt`) raises every flag of `interrupts`, waits up to [`GRACE`] for
-/// the computation to end, and is returned; the computation is abandoned if it has
-/// not ended by then (it is blocked inside a user's callable).
+/// the computation to end (at its next progress report or callable call), and is
+/// returned; a computation that has not ended by then (it is blocked inside a user's
+/// callable), or a second signal, abandons it: it ends when that callable returns, and
+/// the interpreter waits for it at exit ([`_shutdown_engine`]).
 pub(crate) fn run_interruptible<T: Send + 'static>(
     py: Python<'_>,
     interrupts: &[Interrupt],
@@ -176,44 +381,76 @@ pub(crate) fn run_interruptible<T: Send + 'static>(
         // wait for ever.
         return catch_unwind(AssertUnwindSafe(work)).map_err(unwound);
     }
+    // A new computation from Python: a stop asked of an earlier one is over.
+    STOP.store(false, Ordering::SeqCst);
+    STOPPING
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .take();
     let (sender, receiver) = mpsc::channel::<Result<T, Box<dyn Any + Send>>>();
+    let flight = InFlight::enter();
+    let abandon = flight.abandon_handle();
     pool.spawn(move || {
+        let _flight = flight;
         let _ = sender.send(catch_unwind(AssertUnwindSafe(work)));
     });
     // Only this thread receives; the lock makes the receiver shareable with `detach`.
     let receiver = Mutex::new(receiver);
-    let wait = |timeout| {
+    let wait = || {
         py.detach(|| {
             receiver
                 .lock()
                 .unwrap_or_else(PoisonError::into_inner)
-                .recv_timeout(timeout)
+                .recv_timeout(POLL)
         })
     };
+    let mut signal: Option<(PyErr, std::time::Instant)> = None;
     loop {
-        match wait(POLL) {
-            Ok(Ok(value)) => return Ok(value),
-            Ok(Err(payload)) => return Err(unwound(payload)),
-            Err(RecvTimeoutError::Disconnected) => {
-                return Err(PyRuntimeError::new_err(
-                    "the engine's computation ended without a result",
-                ))
+        let ended = match wait() {
+            Ok(Ok(value)) => Ok(value),
+            Ok(Err(payload)) => Err(unwound(payload)),
+            Err(RecvTimeoutError::Disconnected) => Err(PyRuntimeError::new_err(
+                "the engine's computation ended without a result",
+            )),
+            Err(RecvTimeoutError::Timeout) => {
+                let again = py.check_signals().err();
+                match (signal.take(), again) {
+                    (None, Some(raised)) => {
+                        interrupts.iter().for_each(Interrupt::raise);
+                        signal = Some((raised, std::time::Instant::now()));
+                    }
+                    (Some((first, _)), Some(_)) => {
+                        InFlight::abandon(&abandon);
+                        return Err(first);
+                    }
+                    (Some((first, since)), None) if since.elapsed() >= GRACE => {
+                        InFlight::abandon(&abandon);
+                        return Err(first);
+                    }
+                    (waiting, None) => signal = waiting,
+                }
+                continue;
             }
-            Err(RecvTimeoutError::Timeout) => {}
-        }
-        if let Err(signal) = py.check_signals() {
-            interrupts.iter().for_each(Interrupt::raise);
-            let _ = wait(GRACE);
-            return Err(signal);
-        }
+        };
+        return match signal {
+            Some((signal, _)) => Err(signal),
+            None => ended,
+        };
     }
 }
 
-/// The exception for a computation that unwound: an interrupt's (only after a signal,
-/// which [`run_interruptible`] returns itself), or a bug's panic, raised again.
+/// The exception for a computation that unwound: an interrupt's (the exception a
+/// callable raised to stop it, or `KeyboardInterrupt`), or a bug's panic, raised
+/// again.
 fn unwound(payload: Box<dyn Any + Send>) -> PyErr {
     if payload.is::<Interrupted>() {
-        return pyo3::exceptions::PyKeyboardInterrupt::new_err("the computation was interrupted");
+        let asked = STOPPING
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .take();
+        return asked.unwrap_or_else(|| {
+            pyo3::exceptions::PyKeyboardInterrupt::new_err("the computation was interrupted")
+        });
     }
     resume_unwind(payload)
 }

@@ -98,5 +98,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     stages::register(m)?;
     run::register(m)?;
     metric::register(m)?;
+    // The interpreter waits for the engine's computations (one abandoned after Ctrl-C
+    // ends when the user's callable it is in returns) before it shuts down.
+    m.add_function(wrap_pyfunction!(host::_shutdown_engine, m)?)?;
+    let wait = m.getattr("_shutdown_engine")?;
+    m.py().import("atexit")?.call_method1("register", (wait,))?;
     Ok(())
 }

@@ -76,11 +76,14 @@ impl PyProgress {
             return;
         }
         // No lock is held while the GIL is taken.
-        let called = Python::attach(|py| {
+        let called = crate::host::attach(|py| {
             self.turnstile
                 .call(py, || callback.call1(py, (stage, done.min(total), total)))
         });
         if let Err(e) = called {
+            if crate::host::attach(|py| crate::host::asks_to_stop(py, &e)) {
+                crate::host::stop_with(e);
+            }
             if let Ok(mut error) = self.error.lock() {
                 error.get_or_insert(e);
             }

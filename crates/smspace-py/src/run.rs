@@ -32,7 +32,7 @@ impl Observer {
         let Some(log) = &self.log else {
             return;
         };
-        if let Err(e) = Python::attach(|py| log.call1(py, (line,))) {
+        if let Err(e) = crate::host::attach(|py| log.call1(py, (line,))) {
             if let Ok(mut first) = self.error.lock() {
                 first.get_or_insert(e);
             }
@@ -80,7 +80,7 @@ impl DistanceBackend for PythonDistances {
     ) -> smspace_pipeline::Result<DistanceMatrix> {
         // "2pi", "none" or "[2pi, none, …]", which `Periodicity::parse` reads back.
         let period = stage.period.to_string();
-        let answer = Python::attach(|py| -> PyResult<DistanceMatrix> {
+        let answer = crate::host::attach(|py| -> PyResult<DistanceMatrix> {
             let points = sets.points().to_owned().into_pyarray(py);
             let closed = sets.closure().map(|c| {
                 c.iter()
@@ -103,7 +103,7 @@ impl DistanceBackend for PythonDistances {
             DistanceMatrix::from_view(d.as_array()).map_err(to_py_err)
         });
         answer.map_err(|e| {
-            let text = Python::attach(|py| e.value(py).to_string());
+            let text = crate::host::attach(|py| e.value(py).to_string());
             if let Ok(mut first) = self.error.lock() {
                 first.get_or_insert(e);
             }
@@ -170,6 +170,8 @@ fn _run(
         error: Mutex::new(None),
     }));
     let interrupts = [observer.progress.interrupt()];
+    // A run interrupted just before still holds its folder until its threads end.
+    crate::host::wait_for_abandoned(py, ABANDONED_WAIT)?;
     let (shared, shared_backend) = (observer.clone(), backend.clone());
     let summary = run_interruptible(py, &interrupts, move || match shared_backend.as_ref() {
         Some(b) => smspace_pipeline::run_with(&plan, &options, shared.as_ref(), b),
@@ -189,6 +191,10 @@ fn _run(
         serde_json::to_string(&summary.analysis).map_err(|e| crate::value_error(e.to_string()))?;
     Ok((summary.dir, report))
 }
+
+/// How long a run waits for the computations abandoned after Ctrl-C to end (and
+/// release a run folder) before it takes its folder's lock.
+const ABANDONED_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// Adds `_run` to the module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

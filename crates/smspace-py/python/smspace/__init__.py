@@ -154,7 +154,19 @@ def _progress(progress: ProgressArg) -> Optional[Callable[[str, int, int], Any]]
 def _params(values: Mapping[str, Any]) -> str:
     """The JSON of the parameters that were given (the others keep the engine's
     defaults, which are the paper's)."""
-    return json.dumps({k: v for k, v in values.items() if v is not None})
+    given = {k: v for k, v in values.items() if v is not None}
+    for key, value in given.items():
+        _check_finite_param(key, value)
+    return json.dumps(given)
+
+
+def _check_finite_param(key: str, value: Any) -> None:
+    """Refuses a NaN or infinite number given as the keyword argument ``key`` (also
+    inside a list), naming the key and the value."""
+    values = value if isinstance(value, (list, tuple)) else [value]
+    for v in values:
+        if isinstance(v, (float, np.floating)) and not math.isfinite(v):
+            raise ValueError(f"{key}={value!r}: every number must be finite; give a finite {key}")
 
 
 # --- results ------------------------------------------------------------------------
@@ -490,6 +502,7 @@ def register_metric(
     summary: str = "a metric written in Python",
     is_metric: bool = False,
     thread_safe: bool = False,
+    version: Optional[str] = None,
 ) -> None:
     """Adds the set metric ``name`` to those every function builds by name:
     :func:`distances`, :func:`knn`, the Dask tiles, and :func:`run`'s
@@ -500,9 +513,77 @@ def register_metric(
     neighbour search then prunes with it). The engine calls ``distance`` once per pair,
     one call at a time unless ``thread_safe=True`` (then from several threads at once:
     the callable must not share unguarded state). A built-in name cannot be replaced;
-    registering a name again replaces the earlier callable."""
+    registering a name again replaces the earlier callable.
+
+    The points reach ``distance`` as they were traced, never wrapped. A callable that
+    takes a ``period`` keyword argument is given each motor's period (a float64 array
+    ``(N,)``, ``inf`` where a motor is not periodic) to wrap its differences with; for
+    one that does not, any period but ``"none"`` is refused, so that the period is never
+    silently ignored.
+
+    :func:`run` reuses the distances in a run folder only when they are the same
+    computation: a plain function is known by a hash of its code, defaults and closure
+    (a change to a global it reads is not seen: give ``version``); any other callable
+    (an object with ``__call__``, a ``functools.partial``) by its registration, so its
+    distances are reused only within the process that registered it. ``version``, when
+    given, replaces that identity: the same version is the same computation.
+
+    A ``KeyboardInterrupt`` (or ``SystemExit``) that ``distance`` raises ends the
+    computation and is raised as it is."""
+    if version is not None and not isinstance(version, str):
+        raise TypeError(f"register_metric: version must be a string, not {type(version).__name__}")
+    identity = f"version:{version}" if version is not None else _callable_identity(distance)
     _core.register_metric(
-        name, distance, summary=summary, is_metric=is_metric, thread_safe=thread_safe
+        name,
+        distance,
+        summary=summary,
+        is_metric=is_metric,
+        thread_safe=thread_safe,
+        takes_period=_takes_keyword(distance, "period"),
+        identity=identity,
+    )
+
+
+#: Registrations of callables that cannot be hashed, in this process.
+_registrations = [0]
+
+
+def _callable_identity(distance: Callable[..., float]) -> str:
+    """What tells ``distance`` from another callable: a hash of a plain function's code,
+    defaults and closure, or for any other callable (or one whose closure cannot be
+    pickled) this process and the registration's count."""
+    import hashlib
+    import marshal
+    import pickle
+
+    code = getattr(distance, "__code__", None)
+    if code is not None:
+        try:
+            closure = tuple(c.cell_contents for c in (distance.__closure__ or ()))
+            digest = hashlib.sha256(marshal.dumps(code))
+            digest.update(pickle.dumps((distance.__defaults__, distance.__kwdefaults__, closure)))
+            return f"code:{digest.hexdigest()}"
+        except Exception:
+            pass
+    _registrations[0] += 1
+    import time
+
+    return f"registration:{os.getpid()}:{time.time_ns()}:{_registrations[0]}"
+
+
+def _takes_keyword(function: Callable[..., Any], keyword: str) -> bool:
+    """Whether ``function`` accepts the keyword argument ``keyword`` (by name, or
+    through ``**kwargs``)."""
+    import inspect
+
+    try:
+        parameters = inspect.signature(function).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    return any(
+        (p.name == keyword and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY))
+        or p.kind == p.VAR_KEYWORD
+        for p in parameters
     )
 
 

@@ -228,14 +228,16 @@ pub trait Agent: Send + Sync + fmt::Debug {
         Calling::Direct
     }
 
-    /// Runs `work`, the whole life of a thread that the engine starts to call this
-    /// agent (the threads of [`Calling::Gathered`] rounds), inside what the agent's
-    /// calls need of a thread. The default runs it as it is. An agent whose calls enter
-    /// an interpreter gives the thread one interpreter thread state for its whole life,
-    /// so that the user's per-thread state (Python's `threading.local`) lasts from one
-    /// call to the next instead of being made anew at every call.
-    fn host_thread(&self, work: &mut (dyn FnMut() + Send)) {
-        work();
+    /// The long-lived threads on which the engine calls this agent when it gathers the
+    /// readings of many sets ([`Calling::Gathered`]), or `None` (the default): threads
+    /// started for each trace and ended with it. An agent whose calls enter an
+    /// interpreter gives the threads of its host, each holding one interpreter thread
+    /// state for the life of the process, so that the user's per-thread state (Python's
+    /// `threading.local()`: a simulator's data per thread) lasts from one call and one
+    /// trace to the next, and is never freed when a short-lived thread ends. Each thread's
+    /// stack holds at least [`HOST_STACK_BYTES`](crate::kernel::HOST_STACK_BYTES).
+    fn host_threads(&self) -> Option<&rayon::ThreadPool> {
+        None
     }
 
     /// The generic rank of the sensory Jacobian `∂s/∂m`, when the agent knows it: a law

@@ -267,8 +267,8 @@ impl Agent for NoisyAgent {
     fn calling(&self) -> Calling {
         Calling::Direct
     }
-    fn host_thread(&self, work: &mut (dyn FnMut() + Send)) {
-        self.inner.host_thread(work)
+    fn host_threads(&self) -> Option<&rayon::ThreadPool> {
+        self.inner.host_threads()
     }
     fn covers(&self, motors: &[f64]) -> bool {
         self.inner.covers(motors)

@@ -16,9 +16,13 @@
 //!
 //! Every call of the agent and the observer, and every progress report, is made on
 //! the group's own thread stack, never on a coroutine's: an interpreter that checks
-//! its stack depth sees an ordinary thread. Each group's thread runs its whole life
-//! inside the agent's [`Agent::host_thread`] (a Python agent: one interpreter thread
-//! state per thread, kept from call to call).
+//! its stack depth sees an ordinary thread. The groups run on the agent's
+//! [`Agent::host_threads`] when it has them (a Python agent: the threads of its host,
+//! each with one interpreter thread state for the life of the process, so that the
+//! user's per-thread objects outlive every trace), else on threads started for this
+//! call. On the host's threads a group holds at most [`MAX_HOSTED_SLOTS`] callers
+//! (their scopes nest on the thread's stack): more callers make more groups, which
+//! the host's threads run in turn.
 //!
 //! The readings of a row do not depend on the rows beside it (the `sense_batch`
 //! contract), so every set is traced exactly as with direct calls, whatever `C` and
@@ -42,6 +46,13 @@ const GROUP_STACK_BYTES: usize = 2 << 20;
 
 /// The thread stack taken by the scope of one coroutine, bytes (a generous bound).
 const SCOPE_STACK_BYTES: usize = 4 << 10;
+
+/// The least stack of each of an agent's [`Agent::host_threads`], bytes: a group of
+/// [`MAX_HOSTED_SLOTS`] callers, with room for the agent's own calls.
+pub const HOST_STACK_BYTES: usize = 8 << 20;
+
+/// The most callers of one group on an agent's host threads.
+const MAX_HOSTED_SLOTS: usize = (HOST_STACK_BYTES / 2 - GROUP_STACK_BYTES) / SCOPE_STACK_BYTES;
 
 /// The stack of each caller's coroutine, bytes (reserved, touched only as used; the
 /// tracer's deepest call chain needs a few tens of kilobytes).
@@ -114,7 +125,6 @@ pub(super) fn map_gathered<S, T: Send>(
     done: &(dyn Fn() + Sync),
 ) -> Result<Vec<T>, KernelError> {
     let callers = callers.clamp(1, count.max(1));
-    let groups = callers.min(GROUPS);
     let next = AtomicUsize::new(0);
     let group = Group {
         agent,
@@ -123,33 +133,11 @@ pub(super) fn map_gathered<S, T: Send>(
         next: &next,
         count,
     };
-    let parts: Vec<Result<Vec<(usize, T)>, KernelError>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..groups)
-            .map(|g| {
-                let (group, init, work) = (&group, &init, &work);
-                let slots = (callers - g).div_ceil(groups);
-                // The coroutines' scopes nest, a few frames each.
-                std::thread::Builder::new()
-                    .stack_size(GROUP_STACK_BYTES + slots * SCOPE_STACK_BYTES)
-                    .spawn_scoped(scope, move || {
-                        let mut part = None;
-                        agent.host_thread(&mut || part = Some(group.run(slots, init, work, done)));
-                        part.expect("the agent's host_thread runs the work it is given")
-                    })
-                    .map_err(|source| KernelError::CoroutineStack {
-                        bytes: GROUP_STACK_BYTES + slots * SCOPE_STACK_BYTES,
-                        source,
-                    })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h?.join()
-                    .unwrap_or_else(|payload| std::panic::resume_unwind(payload))
-            })
-            .collect()
-    });
+    let run = |slots: usize| group.run(slots, &init, &work, done);
+    let parts = match agent.host_threads() {
+        Some(pool) => on_host(pool, callers, &run),
+        None => on_own_threads(callers, &run)?,
+    };
     let mut results = Vec::with_capacity(count);
     for part in parts {
         results.extend(part?);
@@ -157,6 +145,63 @@ pub(super) fn map_gathered<S, T: Send>(
     results.sort_by_key(|(i, _)| *i);
     Ok(results.into_iter().map(|(_, t)| t).collect())
 }
+
+/// The callers of each group when `callers` are dealt into `groups`.
+fn slots(callers: usize, groups: usize) -> impl Iterator<Item = usize> {
+    (0..groups).map(move |g| (callers - g).div_ceil(groups))
+}
+
+/// Runs the groups on the agent's long-lived `pool`, [`GROUPS`] of them or more so that
+/// none holds over [`MAX_HOSTED_SLOTS`] callers; the calling thread waits (or, on one
+/// of the pool's threads, runs groups itself).
+fn on_host<T: Send>(
+    pool: &rayon::ThreadPool,
+    callers: usize,
+    run: &(dyn Fn(usize) -> Part<T> + Sync),
+) -> Vec<Part<T>> {
+    let groups = callers.min(GROUPS).max(callers.div_ceil(MAX_HOSTED_SLOTS));
+    let mut parts: Vec<Option<Part<T>>> = (0..groups).map(|_| None).collect();
+    pool.scope(|scope| {
+        for (part, slots) in parts.iter_mut().zip(slots(callers, groups)) {
+            scope.spawn(move |_| *part = Some(run(slots)));
+        }
+    });
+    parts
+        .into_iter()
+        .map(|part| part.expect("a scope's tasks have run when it returns"))
+        .collect()
+}
+
+/// Runs the groups on [`GROUPS`] threads started for this call.
+fn on_own_threads<T: Send>(
+    callers: usize,
+    run: &(dyn Fn(usize) -> Part<T> + Sync),
+) -> Result<Vec<Part<T>>, KernelError> {
+    let groups = callers.min(GROUPS);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = slots(callers, groups)
+            .map(|slots| {
+                // The coroutines' scopes nest, a few frames each.
+                let bytes = GROUP_STACK_BYTES + slots * SCOPE_STACK_BYTES;
+                std::thread::Builder::new()
+                    .stack_size(bytes)
+                    .spawn_scoped(scope, move || run(slots))
+                    .map_err(|source| KernelError::CoroutineStack { bytes, source })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                Ok(h?
+                    .join()
+                    .unwrap_or_else(|payload| std::panic::resume_unwind(payload)))
+            })
+            .collect()
+    })
+}
+
+/// One group's results: its items' indices and outputs.
+type Part<T> = Result<Vec<(usize, T)>, KernelError>;
 
 /// What the groups share.
 struct Group<'a> {
@@ -175,7 +220,7 @@ impl Group<'_> {
         init: &(impl Fn() -> S + Sync),
         work: &(impl Fn(&Caller<'_>, &mut S, usize) -> T + Sync),
         done: &(dyn Fn() + Sync),
-    ) -> Result<Vec<(usize, T)>, KernelError> {
+    ) -> Part<T> {
         let results = RefCell::new(Vec::new());
         let mut coroutines: Vec<Coroutine<'_>> = Vec::with_capacity(slots);
         for _ in 0..slots {
@@ -400,6 +445,93 @@ mod tests {
         map_gathered(&alone, &environment, None, 1, 30, || 0, work, &done).unwrap();
         assert_eq!(alone.calls.load(Ordering::Relaxed), asked);
         assert_eq!(alone.largest.load(Ordering::Relaxed), 3);
+    }
+
+    /// [`Counting`] on long-lived host threads, recording the threads it is called on.
+    #[derive(Debug)]
+    struct Hosted {
+        law: Counting,
+        pool: rayon::ThreadPool,
+        threads: std::sync::Mutex<std::collections::BTreeSet<String>>,
+    }
+
+    impl Hosted {
+        fn new(threads: usize) -> Self {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .thread_name(|i| format!("host-{i}"))
+                .stack_size(HOST_STACK_BYTES)
+                .build()
+                .unwrap();
+            Self {
+                law: Counting::default(),
+                pool,
+                threads: Default::default(),
+            }
+        }
+    }
+
+    impl Agent for Hosted {
+        fn motor_dim(&self) -> usize {
+            2
+        }
+        fn sensor_dim(&self) -> usize {
+            2
+        }
+        fn sense(&self, e: &Environment, m: &[f64], s: &mut [f64]) {
+            self.law.sense(e, m, s)
+        }
+        fn name(&self) -> &str {
+            "hosted"
+        }
+        fn sense_batch(&self, e: &Environment, m: ArrayView2<'_, f64>, s: ArrayViewMut2<'_, f64>) {
+            let name = std::thread::current()
+                .name()
+                .unwrap_or("unnamed")
+                .to_owned();
+            self.threads.lock().unwrap().insert(name);
+            self.law.sense_batch(e, m, s)
+        }
+        fn host_threads(&self) -> Option<&rayon::ThreadPool> {
+            Some(&self.pool)
+        }
+    }
+
+    #[test]
+    fn an_agent_with_host_threads_is_called_only_on_them() {
+        let environment = Environment::from_lights(Vec::new());
+        let work = |caller: &Caller<'_>, _: &mut (), i: usize| {
+            let motors = ndarray::array![[i as f64, 0.5]];
+            let mut sensors = ndarray::Array2::zeros((1, 2));
+            caller.sense_batch(motors.view(), sensors.view_mut());
+            sensors[[0, 0]]
+        };
+        let expected: Vec<f64> = (0..1200).map(|i| i as f64 + 1.0).collect();
+        // More callers than one group holds on a host thread: more groups, in turn.
+        for (threads, callers) in [(1, 3), (2, 7), (2, 1200)] {
+            let agent = Hosted::new(threads);
+            let results = map_gathered(
+                &agent,
+                &environment,
+                None,
+                callers,
+                1200,
+                || (),
+                work,
+                &|| {},
+            )
+            .unwrap();
+            assert_eq!(results, expected, "{threads} threads, {callers} callers");
+            let seen = agent.threads.lock().unwrap().clone();
+            assert!(
+                !seen.is_empty() && seen.iter().all(|t| t.starts_with("host-")),
+                "called on {seen:?}"
+            );
+            if callers > MAX_HOSTED_SLOTS {
+                let groups = callers.div_ceil(MAX_HOSTED_SLOTS);
+                assert!(agent.law.calls.load(Ordering::Relaxed) >= groups);
+            }
+        }
     }
 
     #[test]

@@ -109,6 +109,7 @@
 mod cover;
 mod curve;
 mod gather;
+pub use gather::HOST_STACK_BYTES;
 mod level_set;
 mod noise;
 mod noisy;
