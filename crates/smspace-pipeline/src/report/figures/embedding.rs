@@ -709,6 +709,32 @@ mod tests {
     use super::*;
 
     #[test]
+    fn each_coordinate_gets_the_view_in_which_it_shows_whatever_is_chosen_with_it() {
+        // A cylinder: alpha round the axis, x along it. Alpha shows looking down the
+        // axis, x from the side; choosing both at once (one neighbour search per view)
+        // picks what choosing each alone picks.
+        let m = 600;
+        let alpha = |i: usize| -3.0 + 6.0 * (i * 7 % m) as f64 / m as f64;
+        let x = |i: usize| -0.3 + 0.6 * (i * 13 % m) as f64 / m as f64;
+        let embedding = Array2::from_shape_fn((m, 3), |(i, k)| match k {
+            0 => alpha(i).cos(),
+            1 => alpha(i).sin(),
+            _ => x(i),
+        });
+        let set_poses =
+            Array2::from_shape_fn((m, 3), |(i, c)| [x(i), 0.1 * alpha(i).sin(), alpha(i)][c]);
+        let frame = ring_frame(embedding.view(), &[]);
+        let both = PoseViews::choose(embedding.view(), frame, &set_poses, &[0, 2]);
+        let views = candidate_views();
+        assert_eq!(both.cameras[1], views[0], "alpha not seen along the axis");
+        assert_ne!(both.cameras[0], views[0], "x seen along the axis");
+        for (n, c) in [0, 2].into_iter().enumerate() {
+            let alone = PoseViews::choose(embedding.view(), frame, &set_poses, &[c]);
+            assert_eq!(alone.cameras[0], both.cameras[n], "coordinate {c}");
+        }
+    }
+
+    #[test]
     fn nearest_rows_are_found_and_do_not_keep_the_scan() {
         // Points on a line at 0, 1, 2, …: the nearest of row 500 are 499, 501, 498, 502, …
         let m = 1000;
