@@ -1182,3 +1182,69 @@ fn the_tangent_space_of_the_arm_is_its_traced_direction() {
         assert!(cosine.abs() > 0.999, "{method:?}: cosine {cosine}");
     }
 }
+
+/// [`BlindCart`] with its sensor values multiplied by a constant.
+#[derive(Debug)]
+struct ScaledCart(f64);
+
+impl Agent for ScaledCart {
+    fn motor_dim(&self) -> usize {
+        2
+    }
+    fn sensor_dim(&self) -> usize {
+        2
+    }
+    fn sense(&self, environment: &Environment, m: &[f64], s: &mut [f64]) {
+        BlindCart.sense(environment, m, s);
+        s.iter_mut().for_each(|v| *v *= self.0);
+    }
+    fn name(&self) -> &str {
+        "scaled-cart"
+    }
+}
+
+#[test]
+fn sensors_at_a_scale_the_tracer_cannot_square_are_refused_with_the_fix() {
+    let region = LightRegion {
+        center: [0.0, 2.0],
+        half_size: [3.0, 1.0],
+        exclusion_half_size: [0.0, 0.0],
+    };
+    let env = Environment::random(4, 3, &region).unwrap();
+    let motors = ndarray::array![[0.3, 0.2], [-0.6, 0.4], [0.1, -0.2]];
+    let params = TraceParams {
+        method: TraceMethod::Sensory,
+        noise: smspace::kernel::SensorNoise::Sigma(0.0),
+        ..TraceParams::default()
+    }
+    .check()
+    .unwrap();
+    for scale in [1e-6, 1e6] {
+        let traced = trace_sets(
+            &ScaledCart(scale),
+            Some(&env),
+            motors.view(),
+            None,
+            &params,
+            &Silent,
+        )
+        .unwrap_or_else(|e| panic!("{scale}: {e}"));
+        assert_eq!(traced.kept.len(), 3, "{scale}: {:?}", traced.report.summary);
+    }
+    for scale in [1e-200, 1e160, 1e300] {
+        let err = trace_sets(
+            &ScaledCart(scale),
+            Some(&env),
+            motors.view(),
+            None,
+            &params,
+            &Silent,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(err, KernelError::SensorScale { .. }),
+            "{scale}: {err}"
+        );
+        assert!(err.to_string().contains("scale the sensor values"), "{err}");
+    }
+}

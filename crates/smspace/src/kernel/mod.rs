@@ -145,6 +145,14 @@ pub enum KernelError {
     /// Nothing to trace.
     #[error("no motor configurations to trace (the motor array has 0 rows)")]
     NoMotors,
+    /// The sensors change at a scale the tracer's linear algebra cannot hold.
+    #[error("the sensors change by at most {slope:e} per unit of motor at the {starts} starts, outside 1e-150 to 1e150: the tracer squares these changes, which then overflow or vanish; scale the sensor values towards 1 (divide the agent's readings by a constant), which changes no kernel set")]
+    SensorScale {
+        /// The largest absolute entry of the sensory Jacobian over the starts.
+        slope: f64,
+        /// The starts it was read at.
+        starts: usize,
+    },
     /// The sensory method needs an environment.
     #[error("the sensory method needs an environment (give --env FILE or --env-seed S)")]
     MissingEnvironment,

@@ -172,8 +172,9 @@ impl<'a> Tracer<'a> {
                 supported_dimension(agent, rank, jacobian)?
             }
             (None, None) => {
-                let (ranks, rows) = tracer.sensory_ranks(starts);
+                let (ranks, rows, slope) = tracer.sensory_ranks(starts);
                 tracer.rank_rows = rows;
+                check_sensor_scale(slope, starts.nrows())?;
                 let found = SensoryRank::of(&ranks, agent.motor_dim());
                 let rank = found.rank;
                 tracer.sensory_rank = Some(found);
@@ -208,10 +209,11 @@ impl<'a> Tracer<'a> {
     }
 
     /// The numerical rank of the sensory Jacobian at every start (0 where it is not
-    /// finite), and the sensor rows read at each start.
-    fn sensory_ranks(&self, starts: ArrayView2<'_, f64>) -> (Vec<usize>, Vec<u64>) {
+    /// finite), the sensor rows read at each start, and the largest absolute finite
+    /// entry of the Jacobians (`None` where none was read).
+    fn sensory_ranks(&self, starts: ArrayView2<'_, f64>) -> (Vec<usize>, Vec<u64>, Option<f64>) {
         let Some(environment) = self.environment else {
-            return (vec![0; starts.nrows()], vec![0; starts.nrows()]);
+            return (vec![0; starts.nrows()], vec![0; starts.nrows()], None);
         };
         let n = self.agent.motor_dim();
         let rows: Vec<Vec<f64>> = starts.outer_iter().map(|r| r.to_vec()).collect();
@@ -221,20 +223,23 @@ impl<'a> Tracer<'a> {
             // A singular linearisation still fills the Jacobian: its rank is what is asked.
             let _ = set.linearize(start, &mut r);
             let (jacobian, rows) = set.jacobian();
-            let rank = if jacobian.iter().all(|v| v.is_finite()) {
+            let finite = jacobian.iter().all(|v| v.is_finite());
+            let rank = if finite {
                 null_space(jacobian, rows, n, self.params.rank_tolerance).rank
             } else {
                 0
             };
-            (rank, set.sensor_rows())
+            let slope = finite.then(|| jacobian.iter().fold(0.0_f64, |a, v| a.max(v.abs())));
+            (rank, set.sensor_rows(), slope)
         };
         // A start whose coroutine could not be given a stack counts as rank 0.
         match self.map_starts(&rows, rank, &|| {}) {
             Ok(ranks) => (
                 ranks.iter().map(|r| r.0).collect(),
                 ranks.iter().map(|r| r.1).collect(),
+                ranks.iter().filter_map(|r| r.2).reduce(f64::max),
             ),
-            Err(_) => (vec![0; starts.nrows()], vec![0; starts.nrows()]),
+            Err(_) => (vec![0; starts.nrows()], vec![0; starts.nrows()], None),
         }
     }
 
@@ -1105,6 +1110,20 @@ fn tangent_space_via<'a>(
         });
     }
     Ok(null_space(jacobian, rows, n, tolerance))
+}
+
+/// The sensory Jacobian's largest absolute entry at the starts (`slope`) within the
+/// range the tracer's squared norms hold: `[1e-150, 1e150]` (a Jacobian that is zero
+/// at every start is left to the rank's own report).
+fn check_sensor_scale(slope: Option<f64>, starts: usize) -> Result<(), KernelError> {
+    const LOWEST: f64 = 1e-150;
+    const HIGHEST: f64 = 1e150;
+    match slope {
+        Some(slope) if slope > HIGHEST || (slope > 0.0 && slope < LOWEST) => {
+            Err(KernelError::SensorScale { slope, starts })
+        }
+        _ => Ok(()),
+    }
 }
 
 /// The null space of the `rows × n` matrix `jacobian` (row-major, finite) by SVD,
