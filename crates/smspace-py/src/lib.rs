@@ -12,6 +12,7 @@
 
 mod agent;
 mod host;
+mod learn;
 mod metric;
 mod progress;
 mod run;
@@ -98,6 +99,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     stages::register(m)?;
     run::register(m)?;
     metric::register(m)?;
+    learn::register(m)?;
     // The interpreter waits for the engine's computations (one abandoned after Ctrl-C
     // ends when the user's callable it is in returns) before it shuts down.
     m.add_function(wrap_pyfunction!(host::_shutdown_engine, m)?)?;

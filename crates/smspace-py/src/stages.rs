@@ -333,7 +333,24 @@ fn _trace<'py>(
     .map_err(to_py_err);
     agent.check_callbacks()?;
     progress.check()?;
-    let traced = traced?;
+    traced_outputs(py, traced?, rows)
+}
+
+/// The Python outputs of traced sets: `(sets, kept, closed, pieces, report_json)`, the
+/// report carrying the summary's warnings as `warnings`; `ValueError` when fewer than
+/// two sets of `rows` (two or more) are kept.
+#[allow(clippy::type_complexity)]
+pub(crate) fn traced_outputs(
+    py: Python<'_>,
+    traced: smspace::kernel::TracedSets,
+    rows: usize,
+) -> PyResult<(
+    Bound<'_, PyArray3<f64>>,
+    Bound<'_, PyArray1<i64>>,
+    Bound<'_, PyArray1<i64>>,
+    Bound<'_, PyArray2<i64>>,
+    String,
+)> {
     // What the summary says a user must know (noisy sensors, with their measured noise;
     // sets left out; missed pieces): in the report as `warnings`, which `smspace.trace`
     // raises as warnings, and after the error when too few sets are kept.

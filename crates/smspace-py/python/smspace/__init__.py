@@ -64,6 +64,7 @@ __all__ = [
     "run",
     "tile_plan",
     "register_metric",
+    "learn",
     "metrics",
 ]
 
@@ -204,6 +205,8 @@ class Traced:
     pieces: np.ndarray
     report: dict = field(repr=False)
     warnings: list = field(default_factory=list, repr=False)
+    #: The learned law's report (``sets.law.json``) for sets from :func:`learn`.
+    law: Optional[dict] = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return int(self.sets.shape[0])
@@ -321,6 +324,50 @@ def trace(
         warnings.warn(message, TraceWarning, stacklevel=2)
     return Traced(sets=sets, kept=kept, closed=closed, pieces=pieces, report=report,
                   warnings=messages)
+
+
+def learn(
+    motors: Any,
+    sensors: Any,
+    starts: Any,
+    *,
+    period: str = "2pi",
+    method: str = "invariants",
+    points: int = 100,
+    memory_limit_bytes: Optional[int] = None,
+    progress: ProgressArg = None,
+    **params: Any,
+) -> Traced:
+    """Kernel sets from recorded logs, as ``smspace learn``: the law ``ŝ(m)`` learned
+    from ``motors`` ``(S, N)`` and ``sensors`` ``(S, K)`` (or lists of them, one pair
+    per environment: one law whose sensors are theirs side by side), then the set
+    ``ŝ(m) = ŝ(m^i)`` traced through every row of ``starts`` ``(M, N)``. ``period``
+    declares the motors: ``"2pi"`` (hinges), ``"none"`` (bounded by the log's range),
+    a period, a range ``"LOW:HIGH"``, or a comma-separated list, one per motor.
+    ``method`` is the law (``"invariants"``, ``"local-quadratic"``, ``"local-linear"``).
+    Other keyword arguments are the law's (``invariants=9``, ``neighbours=60``,
+    ``holdout=2000``, ``seed=1``, ...) or the tracing's (``max_steps=3000``,
+    ``closure_tolerance=0.03``, ...). Learning is refused before it starts when it
+    would need more than ``memory_limit_bytes`` (default 16 GiB). The result is a
+    :class:`Traced` whose ``law`` is the law's report (``sets.law.json``: the rank and
+    its evidence, the held-out error, the measured noise, repeated samples, the
+    warnings, each also raised as a :class:`TraceWarning`)."""
+    motors = [motors] if not isinstance(motors, (list, tuple)) else list(motors)
+    sensors = [sensors] if not isinstance(sensors, (list, tuple)) else list(sensors)
+    motors = [_array(m, f"motors[{i}]", 2) for i, m in enumerate(motors)]
+    sensors = [_array(s, f"sensors[{i}]", 2) for i, s in enumerate(sensors)]
+    starts = _array(starts, "starts", 2)
+    values = dict(params, method=method, points=points)
+    sets, kept, closed, pieces, report, law = _core._learn(
+        motors, sensors, starts, period, _params(values), memory_limit_bytes, _progress(progress)
+    )
+    report = json.loads(report)
+    law = json.loads(law)
+    messages = list(law.get("warnings", [])) + report.pop("warnings", [])
+    for message in messages:
+        warnings.warn(message, TraceWarning, stacklevel=2)
+    return Traced(sets=sets, kept=kept, closed=closed, pieces=pieces, report=report,
+                  warnings=messages, law=law)
 
 
 def _sets_args(sets: Any, closed: Any, pieces: Any = None) -> tuple:

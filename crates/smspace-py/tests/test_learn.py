@@ -1,0 +1,63 @@
+"""`smspace.learn`: kernel sets from recorded logs, as `smspace learn` computes them."""
+
+import numpy as np
+import pytest
+
+import smspace
+
+
+def cart_log(samples: int, seed: int):
+    """A log of two hinges whose two sensors read x = sin m1 + sin(m2)/2 (and x²): the
+    kernels are the curves x = const."""
+    rng = np.random.default_rng(seed)
+    motors = rng.uniform(-np.pi, np.pi, size=(samples, 2))
+    x = np.sin(motors[:, 0]) + 0.5 * np.sin(motors[:, 1])
+    return motors, np.stack([x, 0.5 * x**2], axis=1)
+
+
+def test_sets_learned_from_a_log_hold_the_law():
+    motors, sensors = cart_log(20000, seed=1)
+    starts = np.array([[0.3, 0.2], [-0.6, 0.4], [0.1, -0.2], [1.0, 2.0]])
+    traced = smspace.learn(motors, sensors, starts, points=40)
+    assert len(traced) >= 3, traced.report
+    assert traced.law["rank"] == 1, traced.law
+    x = lambda p: np.sin(p[..., 0]) + 0.5 * np.sin(p[..., 1])
+    for set_points, row in zip(traced.sets, traced.kept):
+        error = np.abs(x(set_points) - x(starts[row]))
+        assert np.median(error) < 0.05, (row, np.median(error))
+
+
+def test_two_logs_are_one_law_and_the_cli_agrees(cli, tmp_path):
+    motors, sensors = cart_log(12000, seed=2)
+    starts = np.array([[0.3, 0.2], [-0.6, 0.4], [0.1, -0.2]])
+    halves = (motors[:6000], motors[6000:]), (sensors[:6000], sensors[6000:])
+    traced = smspace.learn(list(halves[0]), list(halves[1]), starts, points=30, seed=3)
+    for i in range(2):
+        np.save(tmp_path / f"m{i}.npy", halves[0][i])
+        np.save(tmp_path / f"s{i}.npy", halves[1][i])
+    np.save(tmp_path / "starts.npy", starts)
+    cli("learn", "--motors", tmp_path / "m0.npy", "--sensors", tmp_path / "s0.npy",
+        "--motors", tmp_path / "m1.npy", "--sensors", tmp_path / "s1.npy",
+        "--starts", tmp_path / "starts.npy", "--points", 30, "--seed", 3,
+        "--out", tmp_path / "sets.npy")
+    assert np.array_equal(np.load(tmp_path / "sets.npy"), traced.sets)
+    assert np.array_equal(np.load(tmp_path / "sets.kept.npy"), traced.kept)
+
+
+def test_bad_logs_and_arguments_are_named():
+    motors, sensors = cart_log(500, seed=4)
+    starts = np.zeros((2, 2))
+    with pytest.raises(ValueError, match="give one pair per log"):
+        smspace.learn([motors, motors], [sensors], starts)
+    with pytest.raises(ValueError, match="starts has 3 columns"):
+        smspace.learn(motors, sensors, np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="unknown field `no_such_key`"):
+        smspace.learn(motors, sensors, starts, no_such_key=1)
+    with pytest.raises(ValueError, match="period"):
+        smspace.learn(motors, sensors, starts, period="sideways")
+    bad = sensors.copy()
+    bad[7, 1] = np.nan
+    with pytest.raises(ValueError, match="sensors"):
+        smspace.learn(motors, bad, starts)
+    with pytest.raises(ValueError, match="rows|samples"):
+        smspace.learn(motors, sensors[:100], starts)
