@@ -136,6 +136,7 @@
 //! them (root mean square over samples and sensors, relative to the root mean square of
 //! the sensors' standard deviations) is in the [`LawReport`].
 
+pub mod budget;
 mod compare;
 mod invariants;
 mod law;
@@ -265,6 +266,24 @@ pub enum LearnError {
     /// Tracing on the learned law failed.
     #[error(transparent)]
     Kernel(#[from] crate::kernel::KernelError),
+    /// A sensor-row budget too small to learn from ([`budget::learn_from_agent`]).
+    #[error("a budget of {budget} sensor rows leaves {babble} for babbling after the {reserved} kept to verify the sets of {starts} starts, and learning the law of {motors} motors needs at least {minimum}: raise budget to at least {needed} (or lower verify_points, or trace fewer starts)")]
+    Budget {
+        /// The budget.
+        budget: u64,
+        /// Rows it leaves for babbling.
+        babble: u64,
+        /// Rows kept for verification.
+        reserved: u64,
+        /// Starts.
+        starts: usize,
+        /// Motors.
+        motors: usize,
+        /// Fewest babbled rows ([`budget::min_babble_rows`]).
+        minimum: u64,
+        /// Fewest rows in all: `minimum + reserved`.
+        needed: u64,
+    },
     /// Comparing with the truth needs the same starts.
     #[error("cannot compare the sets: {reason}")]
     Compare {

@@ -1,0 +1,264 @@
+//! Learning from an agent within a budget of sensor rows (`learn::budget`): the rows
+//! read never exceed the budget and are counted exactly, unreadable rows are left out,
+//! a budget too small is refused with its minimum, and verification drops the sets the
+//! agent's own readings contradict.
+
+use std::f64::consts::PI;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use ndarray::Array2;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use smspace::agent::{Agent, Environment};
+use smspace::learn::budget::{learn_from_agent, min_babble_rows, BudgetParams, BudgetedSets};
+use smspace::learn::{law_trace_params, LawParams, LearnError};
+use smspace::progress::Silent;
+
+/// `x = sin m1 + sin(m2)/2`: the pose of a cart on two hinges.
+fn cart_x(m: &[f64]) -> f64 {
+    m[0].sin() + 0.5 * m[1].sin()
+}
+
+/// How an agent answers, on top of the cart's sensors `s = (x, x²/2)`.
+#[derive(Debug, Clone, Copy)]
+enum Kind {
+    /// The cart's sensors.
+    Cart,
+    /// NaN where `m1 ∈ [0, 0.4)`.
+    Holey,
+    /// After `n` rows, the first sensor reads `x + 0.4 sin m2`: a sensor knocked out of
+    /// calibration between babbling and verification.
+    DriftsAfter(u64),
+    /// The first sensor jumps by 0.6 where `m2 ∈ [0, 1)`.
+    Jumps,
+}
+
+/// An agent of two hinges without ground truth that counts the rows it is read at.
+#[derive(Debug)]
+struct Counting {
+    kind: Kind,
+    rows: AtomicU64,
+}
+
+impl Counting {
+    fn new(kind: Kind) -> Self {
+        Self {
+            kind,
+            rows: AtomicU64::new(0),
+        }
+    }
+}
+
+impl Agent for Counting {
+    fn motor_dim(&self) -> usize {
+        2
+    }
+    fn sensor_dim(&self) -> usize {
+        2
+    }
+    fn sense(&self, _: &Environment, m: &[f64], s: &mut [f64]) {
+        let read = self.rows.fetch_add(1, Ordering::SeqCst);
+        let mut x = cart_x(m);
+        match self.kind {
+            Kind::Cart => {}
+            Kind::Holey if (0.0..0.4).contains(&m[0]) => x = f64::NAN,
+            Kind::Holey => {}
+            Kind::DriftsAfter(n) if read >= n => x += 0.4 * m[1].sin(),
+            Kind::DriftsAfter(_) => {}
+            Kind::Jumps if (0.0..1.0).contains(&m[1]) => {
+                s[0] = x + 0.6;
+                s[1] = x * x / 2.0;
+                return;
+            }
+            Kind::Jumps => {}
+        }
+        s[0] = x;
+        s[1] = x * x / 2.0;
+    }
+    fn name(&self) -> &str {
+        "counting-cart"
+    }
+}
+
+/// `m` seeded uniform starts on the torus.
+fn starts(m: usize) -> Array2<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    Array2::from_shape_fn((m, 2), |_| rng.random_range(-PI..PI))
+}
+
+fn run(agent: &Counting, budget: u64, starts: &Array2<f64>) -> Result<BudgetedSets, LearnError> {
+    let law = LawParams::default().check().unwrap();
+    let budget = BudgetParams::new(budget).check().unwrap();
+    let environment = Environment::from_lights(Vec::new());
+    learn_from_agent(
+        agent,
+        &environment,
+        starts.view(),
+        &budget,
+        &law,
+        &law_trace_params(),
+        None,
+        &Silent,
+    )
+}
+
+/// The largest `|x(p) − x(start)|` over each kept set.
+fn x_errors(found: &BudgetedSets, starts: &Array2<f64>) -> Vec<f64> {
+    let traced = &found.traced;
+    traced
+        .kept
+        .iter()
+        .enumerate()
+        .map(|(i, &row)| {
+            let x0 = cart_x(starts.row(row).as_slice().unwrap());
+            traced
+                .sets
+                .outer_iter()
+                .nth(i)
+                .unwrap()
+                .outer_iter()
+                .map(|p| (cart_x(&[p[0], p[1]]) - x0).abs())
+                .fold(0.0, f64::max)
+        })
+        .collect()
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+#[test]
+fn a_budget_of_twenty_thousand_rows_traces_the_carts_kernels_and_counts_every_row() {
+    let agent = Counting::new(Kind::Cart);
+    let starts = starts(12);
+    let found = run(&agent, 20_000, &starts).unwrap();
+    let rows = found.rows;
+    assert_eq!(agent.rows.load(Ordering::SeqCst), rows.total);
+    assert!(rows.total <= 20_000);
+    assert_eq!(rows.babble, 20_000 - 12 * 9);
+    assert_eq!(rows.non_finite, 0);
+    assert_eq!(rows.babble + rows.verify, rows.total);
+    assert_eq!(rows.verify, 9 * found.verification.len() as u64);
+    assert!(found.traced.kept.len() >= 8, "{:?}", found.verification);
+    let errors = x_errors(&found, &starts);
+    assert!(median(errors) < 0.05);
+    // The verified sets are the kept ones, in the starts' order.
+    let passed: Vec<usize> = found
+        .verification
+        .iter()
+        .filter(|v| v.passed)
+        .map(|v| v.index)
+        .collect();
+    assert_eq!(found.traced.kept, passed);
+    assert!(found.warnings().is_empty(), "{:?}", found.warnings());
+    // The report serialises without the sets.
+    let report = serde_json::to_value(&found).unwrap();
+    assert_eq!(report["rows"]["total"], rows.total);
+}
+
+#[test]
+fn the_same_sets_and_verdicts_on_one_thread() {
+    let starts = starts(4);
+    let many = run(&Counting::new(Kind::Cart), 12_000, &starts).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let one = pool
+        .install(|| run(&Counting::new(Kind::Cart), 12_000, &starts))
+        .unwrap();
+    assert_eq!(many.traced.sets, one.traced.sets);
+    assert_eq!(many.verification, one.verification);
+    assert_eq!(many.rows, one.rows);
+}
+
+#[test]
+fn rows_the_agent_cannot_read_are_counted_named_and_left_out() {
+    let agent = Counting::new(Kind::Holey);
+    let starts = starts(6);
+    let found = run(&agent, 20_000, &starts).unwrap();
+    let rows = found.rows;
+    assert_eq!(agent.rows.load(Ordering::SeqCst), rows.total);
+    assert!(rows.total <= 20_000);
+    // About 0.4 / 2π of the babbling.
+    let expected = 0.4 / (2.0 * PI) * rows.babble as f64;
+    assert!(
+        (rows.non_finite as f64 - expected).abs() < 0.15 * expected,
+        "{rows:?}"
+    );
+    assert_eq!(found.non_finite_motors.len(), 5);
+    assert!(found
+        .non_finite_motors
+        .iter()
+        .all(|m| (0.0..0.4).contains(&m[0])));
+    // Learned from the finite rows only.
+    assert_eq!(
+        found.law.logs[0].samples as u64,
+        rows.babble - rows.non_finite
+    );
+    assert!(found.warnings()[0].contains("not finite"));
+}
+
+#[test]
+fn a_budget_below_the_minimum_is_refused_with_it_before_any_row_is_read() {
+    let agent = Counting::new(Kind::Cart);
+    let starts = starts(10);
+    let law = LawParams::default().check().unwrap();
+    let minimum = min_babble_rows(&law, 2);
+    assert!(minimum >= 4096);
+    let err = run(&agent, 3000, &starts).unwrap_err();
+    let needed = minimum + 10 * 9;
+    assert!(
+        matches!(err, LearnError::Budget { needed: n, .. } if n == needed),
+        "{err}"
+    );
+    let message = err.to_string();
+    assert!(message.contains(&format!("at least {needed}")), "{message}");
+    assert_eq!(agent.rows.load(Ordering::SeqCst), 0);
+    assert!(BudgetParams::new(0).check().is_err());
+    let toml_like: Result<BudgetParams, _> =
+        serde_json::from_str(r#"{"budget": 10, "verify_point": 3}"#);
+    assert!(toml_like.is_err());
+}
+
+#[test]
+fn readings_that_changed_since_the_babbling_fail_verification_and_are_dropped() {
+    // The sets are traced on the law of the first sensor's calibration; the agent
+    // reads the second one when verifying: sets along which m2 changes fail.
+    let starts = starts(12);
+    let babble = 20_000 - 12 * 9;
+    let agent = Counting::new(Kind::DriftsAfter(babble));
+    let found = run(&agent, 20_000, &starts).unwrap();
+    assert_eq!(agent.rows.load(Ordering::SeqCst), found.rows.total);
+    let failed = found.failed().count();
+    assert!(failed > 0, "{:?}", found.verification);
+    assert_eq!(found.traced.kept.len() + failed, found.verification.len());
+    assert!(found.failed().all(|v| v.error > found.threshold));
+    assert!(found
+        .warnings()
+        .iter()
+        .any(|w| w.contains("failed verification")));
+}
+
+#[test]
+fn sensors_that_jump_give_sets_that_fail_verification() {
+    let starts = starts(12);
+    let agent = Counting::new(Kind::Jumps);
+    let found = run(&agent, 20_000, &starts).unwrap();
+    assert_eq!(agent.rows.load(Ordering::SeqCst), found.rows.total);
+    // The invariants of the smooth basis cannot jump: the sets are level sets of `x`,
+    // and every one that crosses the band reads the jump there.
+    let failed: Vec<_> = found.failed().collect();
+    assert!(2 * failed.len() > found.verification.len(), "{failed:?}");
+    let jump = 0.6 / found.spread[0];
+    for v in failed {
+        assert!((v.error - jump).abs() < 0.05 * jump, "{v:?} vs {jump}");
+    }
+    for (i, set) in found.traced.sets.outer_iter().enumerate() {
+        assert!(
+            set.outer_iter().all(|p| !(0.0..1.0).contains(&p[1])),
+            "kept set {i} enters the band"
+        );
+    }
+}
