@@ -14,11 +14,13 @@ use numpy::{PyArray1, PyArray2, PyArray3, PyReadonlyArray2};
 use pyo3::prelude::*;
 use serde_json::{Map, Value};
 use smspace::kernel::TraceParams;
+use smspace::learn::budget::{learn_from_agent, BudgetParams};
 use smspace::learn::{
     declared_space, gib_bytes, law_trace_params, learn_with_progress, parse_motor_declarations,
     trace_learned, LawParams, LogFiles, SensorimotorLog, DEFAULT_MEMORY_LIMIT_GIB,
 };
 
+use crate::agent::Agent;
 use crate::host::run_interruptible;
 use crate::progress::PyProgress;
 use crate::stages::{check_finite, traced_outputs};
@@ -154,8 +156,75 @@ fn _learn<'py>(
     Ok((sets, kept, closed, pieces, trace_report, law))
 }
 
-/// Adds `_learn` to the module.
+/// `_learn_agent(agent, starts, budget_json, params_json, env, memory_limit_bytes,
+/// progress)`: the kernel sets traced on the law learned from babbling `agent` within
+/// a budget of sensor rows ([`learn_from_agent`]), verified against it; `(sets, kept,
+/// closed, pieces, report_json, law_json, budget_json)`: the tracing report, the law's,
+/// and the budget's (rows spent by phase, each set's verification).
+#[pyfunction]
+#[pyo3(signature = (agent, starts, budget, params, env=None, memory_limit_bytes=None, progress=None))]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
+fn _learn_agent<'py>(
+    py: Python<'py>,
+    agent: &Agent,
+    starts: PyReadonlyArray2<'py, f64>,
+    budget: &str,
+    params: &str,
+    env: Option<&Bound<'py, PyAny>>,
+    memory_limit_bytes: Option<u64>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<(
+    Bound<'py, PyArray3<f64>>,
+    Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray2<i64>>,
+    String,
+    String,
+    String,
+)> {
+    let budget: BudgetParams = serde_json::from_str(budget)
+        .map_err(|e| value_error(format!("invalid budget parameters: {e}")))?;
+    let budget = budget.check().map_err(to_py_err)?;
+    let (law_params, trace) = split_params(params)?;
+    let law_params = law_params.check().map_err(to_py_err)?;
+    trace.check().map_err(to_py_err)?;
+    let starts = starts.as_array().to_owned();
+    check_finite(starts.iter(), "starts")?;
+    let environment = agent.environment(env)?;
+    let limit = memory_limit_bytes.unwrap_or_else(|| gib_bytes(DEFAULT_MEMORY_LIMIT_GIB));
+    let progress = Arc::new(PyProgress::new(progress));
+    let mut interrupts = agent.interrupts();
+    interrupts.push(progress.interrupt());
+    let (law, shared) = (agent.law.clone(), progress.clone());
+    let rows = starts.nrows();
+    let learned = run_interruptible(py, &interrupts, move || {
+        learn_from_agent(
+            law.as_ref(),
+            &environment,
+            starts.view(),
+            &budget,
+            &law_params,
+            &trace,
+            Some(limit),
+            shared.as_ref(),
+        )
+    })?;
+    agent.check_callbacks()?;
+    progress.check()?;
+    let budgeted = learned.map_err(to_py_err)?;
+    let law = serde_json::to_string(&budgeted.law).map_err(|e| value_error(e.to_string()))?;
+    let mut spent = serde_json::to_value(&budgeted).map_err(|e| value_error(e.to_string()))?;
+    if let Some(fields) = spent.as_object_mut() {
+        fields.remove("law");
+        fields.insert("warnings".to_owned(), Value::from(budgeted.warnings()));
+    }
+    let (sets, kept, closed, pieces, report) = traced_outputs(py, budgeted.traced, rows)?;
+    Ok((sets, kept, closed, pieces, report, law, spent.to_string()))
+}
+
+/// Adds `_learn` and `_learn_agent` to the module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_learn, m)?)?;
+    m.add_function(wrap_pyfunction!(_learn_agent, m)?)?;
     Ok(())
 }

@@ -61,3 +61,29 @@ def test_bad_logs_and_arguments_are_named():
         smspace.learn(motors, bad, starts)
     with pytest.raises(ValueError, match="rows|samples"):
         smspace.learn(motors, sensors[:100], starts)
+
+
+def test_a_python_agent_is_learned_within_a_budget_of_sensor_rows():
+    read = [0]
+
+    def sense(m):
+        read[0] += m.shape[0]
+        x = np.sin(m[:, 0]) + 0.5 * np.sin(m[:, 1])
+        return np.stack([x, 0.5 * x**2], axis=1)
+
+    agent = smspace.PythonAgent(sense=sense, n_motors=2, n_sensors=2)
+    starts = np.array([[0.3, 0.2], [-0.6, 0.4], [0.1, -0.2], [1.0, 2.0]])
+    traced = smspace.trace(agent, starts, method="learned", budget=20000, points=40)
+    spent = traced.report["budget"]["rows"]
+    assert read[0] == spent["total"] <= 20000
+    assert spent["babble"] + spent["verify"] == spent["total"]
+    assert len(traced) >= 3 and traced.law["rank"] == 1
+    x = lambda p: np.sin(p[..., 0]) + 0.5 * np.sin(p[..., 1])
+    for set_points, row in zip(traced.sets, traced.kept):
+        assert np.median(np.abs(x(set_points) - x(starts[row]))) < 0.05
+    with pytest.raises(ValueError, match="budget=ROWS"):
+        smspace.trace(agent, starts, method="learned")
+    read[0] = 0
+    with pytest.raises(ValueError, match="at least"):
+        smspace.trace(agent, starts, method="learned", budget=1000)
+    assert read[0] == 0, "a budget refused up front read the agent"

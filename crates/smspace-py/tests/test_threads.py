@@ -359,3 +359,12 @@ def test_a_nan_keyword_argument_is_named():
         smspace.trace(arm, np.zeros((2, 4)), step=float("nan"))
     with pytest.raises(ValueError, match="tolerance"):
         smspace.embed(np.ones((3, 3)) - np.eye(3), method="mds", tolerance=float("inf"))
+
+
+def test_a_run_folder_that_holds_its_experiment_is_refused(tmp_path):
+    experiment = tmp_path / "tiny.toml"
+    experiment.write_text(TINY_EXPERIMENT.replace("centroid-cache", "hausdorff"))
+    before = experiment.read_bytes()
+    with pytest.raises(ValueError, match="tiny.toml"):
+        smspace.run(experiment, tmp_path)
+    assert experiment.read_bytes() == before

@@ -305,10 +305,26 @@ def trace(
     naming the count of each status and what it suggests. What the sets' summary says
     a user must know (noisy sensors that blur or turn round the sets, with the measured
     noise; sets that miss pieces of their level set) is raised as a
-    :class:`TraceWarning` each, and listed in ``warnings``."""
+    :class:`TraceWarning` each, and listed in ``warnings``.
+
+    ``method="learned"`` pays a budget of sensor rows instead (``budget=ROWS``,
+    required): the agent is babbled over its motor space (seeded, in batches of
+    ``batch`` rows), the law is learned from what it read (the keywords of
+    :func:`learn`), the sets are traced on the law, and each is verified against the
+    agent at ``verify_points`` points along it (its readings within
+    ``verify_tolerance`` of the sensors' spread, plus the law's measured noise, of its
+    start's); sets that fail are left out. Rows the agent answers with NaN or infinity
+    are counted, named and never learned. No more than ``budget`` rows are read; a
+    budget too small to learn from is refused before any is read, with the least that
+    works. The result's ``law`` is the law's report, and ``budget`` the rows spent by
+    phase (``rows``: ``babble``, ``non_finite``, ``verify``, ``total``) and each set's
+    ``verification``. The working space does not apply: the babbling covers the motor
+    space."""
     if not isinstance(agent, Agent):
         raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
     motors = _array(motors, "motors", 2)
+    if method == "learned":
+        return _trace_learned(agent, motors, points, env, progress, params)
     values = dict(params, method=method, points=points)
     sets, kept, closed, pieces, report = _core._trace(
         agent,
@@ -324,6 +340,36 @@ def trace(
         warnings.warn(message, TraceWarning, stacklevel=2)
     return Traced(sets=sets, kept=kept, closed=closed, pieces=pieces, report=report,
                   warnings=messages)
+
+
+#: The keywords of ``trace(..., method="learned")`` that set the budget's use.
+_BUDGET_KEYS = ("budget", "verify_points", "batch", "verify_tolerance")
+
+
+def _trace_learned(agent, starts, points, env, progress, params) -> Traced:
+    """``trace(agent, starts, method="learned", budget=ROWS, ...)``."""
+    if params.get("budget") is None:
+        raise ValueError(
+            'method="learned" reads the agent within a budget: give budget=ROWS, the most '
+            "sensor rows to read in all (babbling, then verifying the sets)"
+        )
+    budget = {key: params.pop(key) for key in _BUDGET_KEYS if key in params}
+    if "seed" in params:
+        budget["seed"] = params["seed"]
+    memory = params.pop("memory_limit_bytes", None)
+    values = dict(params, points=points)
+    sets, kept, closed, pieces, report, law, spent = _core._learn_agent(
+        agent, starts, _params(budget), _params(values), env, memory, _progress(progress)
+    )
+    report = json.loads(report)
+    law = json.loads(law)
+    spent = json.loads(spent)
+    messages = list(law.get("warnings", [])) + spent.get("warnings", []) + report.pop("warnings", [])
+    for message in messages:
+        warnings.warn(message, TraceWarning, stacklevel=3)
+    report["budget"] = spent
+    return Traced(sets=sets, kept=kept, closed=closed, pieces=pieces, report=report,
+                  warnings=messages, law=law)
 
 
 def learn(

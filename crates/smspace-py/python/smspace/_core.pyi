@@ -130,6 +130,15 @@ def register_metric(
     identity: str = ...,
 ) -> None: ...
 def _shutdown_engine() -> None: ...
+def _learn_agent(
+    agent: Agent,
+    starts: F64,
+    budget: str,
+    params: str,
+    env: Any = ...,
+    memory_limit_bytes: Optional[int] = ...,
+    progress: Optional[Callable[[str, int, int], Any]] = ...,
+) -> Tuple[F64, I64, I64, I64, str, str, str]: ...
 def _learn(
     motors: Sequence[F64],
     sensors: Sequence[F64],
