@@ -48,7 +48,8 @@ const GROUP_STACK_BYTES: usize = 2 << 20;
 const SCOPE_STACK_BYTES: usize = 4 << 10;
 
 /// The least stack of each of an agent's [`Agent::host_threads`], bytes: a group of
-/// [`MAX_HOSTED_SLOTS`] callers, with room for the agent's own calls.
+/// gathered callers (at most 512 on a host thread; more make more groups), with room
+/// for the agent's own calls.
 pub const HOST_STACK_BYTES: usize = 8 << 20;
 
 /// The most callers of one group on an agent's host threads.
