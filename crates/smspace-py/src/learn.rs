@@ -17,20 +17,20 @@ use smspace::kernel::TraceParams;
 use smspace::learn::budget::{learn_from_agent, BudgetParams};
 use smspace::learn::{
     declared_space, gib_bytes, law_trace_params, learn_with_progress, parse_motor_declarations,
-    trace_learned, LawParams, LogFiles, SensorimotorLog, DEFAULT_MEMORY_LIMIT_GIB,
+    trace_learned, LawParams, LawValidParams, LogFiles, SensorimotorLog, DEFAULT_MEMORY_LIMIT_GIB,
 };
 
 use crate::agent::Agent;
 use crate::host::run_interruptible;
 use crate::progress::PyProgress;
 use crate::stages::{check_finite, traced_outputs};
-use crate::{to_py_err, value_error};
+use crate::{from_json, to_py_err, value_error};
 
-/// The law's parameters and the tracing parameters, from one JSON object of keyword
-/// arguments: the keys [`LawParams`] has go to the law, the others to the tracing.
-fn split_params(json: &str) -> PyResult<(LawParams, TraceParams)> {
-    let given: Map<String, Value> = serde_json::from_str(json)
-        .map_err(|e| value_error(format!("invalid learning parameters: {e}")))?;
+/// The law's parameters and the tracing parameters, checked, from one JSON object of
+/// keyword arguments: the keys [`LawParams`] has go to the law, the others to the
+/// tracing.
+fn split_params(json: &str) -> PyResult<(LawValidParams, TraceParams)> {
+    let given: Map<String, Value> = from_json(json, "learning parameters")?;
     let law_keys = match serde_json::to_value(LawParams::default()) {
         Ok(Value::Object(fields)) => fields,
         _ => Map::new(),
@@ -55,6 +55,8 @@ fn split_params(json: &str) -> PyResult<(LawParams, TraceParams)> {
             law_keys.keys().cloned().collect::<Vec<_>>().join(", ")
         ))
     })?;
+    let law = law.check().map_err(to_py_err)?;
+    trace.check().map_err(to_py_err)?;
     Ok((law, trace))
 }
 
@@ -124,8 +126,6 @@ fn _learn<'py>(
     String,
 )> {
     let (law_params, trace) = split_params(params)?;
-    let law_params = law_params.check().map_err(to_py_err)?;
-    trace.check().map_err(to_py_err)?;
     let (logs, space) = logs_of(&motors, &sensors, period)?;
     let starts = starts.as_array().to_owned();
     check_finite(starts.iter(), "starts")?;
@@ -182,12 +182,9 @@ fn _learn_agent<'py>(
     String,
     String,
 )> {
-    let budget: BudgetParams = serde_json::from_str(budget)
-        .map_err(|e| value_error(format!("invalid budget parameters: {e}")))?;
+    let budget: BudgetParams = from_json(budget, "budget parameters")?;
     let budget = budget.check().map_err(to_py_err)?;
     let (law_params, trace) = split_params(params)?;
-    let law_params = law_params.check().map_err(to_py_err)?;
-    trace.check().map_err(to_py_err)?;
     let starts = starts.as_array().to_owned();
     check_finite(starts.iter(), "starts")?;
     let environment = agent.environment(env)?;

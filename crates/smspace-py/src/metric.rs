@@ -23,7 +23,9 @@ use ndarray::ArrayView2;
 use numpy::IntoPyArray;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use smspace::metric::{MetricContext, MetricError, MetricRegistry, Period, Periodicity, SetMetric};
+use smspace::metric::{
+    CoordinatePeriods, MetricContext, MetricError, MetricRegistry, Period, Periodicity, SetMetric,
+};
 
 use crate::host::Turnstile;
 use crate::value_error;
@@ -107,20 +109,10 @@ impl PythonMetric {
 impl PythonMetric {
     /// Each of the `dims` coordinates' period (`inf`: not periodic).
     fn periods(&self, period: &Periodicity, dims: usize) -> Result<Vec<f64>, MetricError> {
-        match period {
-            Periodicity::Uniform(Period::TwoPi) => Ok(vec![std::f64::consts::TAU; dims]),
-            Periodicity::Uniform(Period::None) => Ok(vec![f64::INFINITY; dims]),
-            Periodicity::PerCoordinate(periods) if periods.dims() == dims => {
-                Ok((0..dims).map(|n| periods.radians(n)).collect())
-            }
-            Periodicity::PerCoordinate(periods) => Err(self.failed(format!(
-                "{} periods were given for points with {dims} coordinates; give one per coordinate",
-                periods.dims()
-            ))),
-            Periodicity::FromMotors => Err(self.failed(
-                "period \"motors\" was not resolved to the agent's motors; give the periods",
-            )),
-        }
+        let periods = period
+            .for_dims(dims)
+            .map_err(|e| self.failed(e.to_string()))?;
+        Ok((0..dims).map(|n| periods.radians(n)).collect())
     }
 }
 
