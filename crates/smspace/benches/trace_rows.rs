@@ -55,8 +55,9 @@ fn main() {
     };
     let motors = explore(agent.as_ref(), &explored).unwrap().motors;
     println!(
-        "paper arm, sensory method, {starts} starts, {} threads",
-        rayon::current_num_threads()
+        "paper arm, sensory method, {starts} starts, {} threads, SIMD {} (the metric's, for the comparisons)",
+        rayon::current_num_threads(),
+        smspace::metric::simd_level()
     );
     let mut traced = Vec::new();
     for jacobian in methods {
@@ -107,10 +108,11 @@ fn run(
         .sensor_rows
         .expect("the sensory method reads sensors");
     println!(
-        "jacobian = {}: {} of {starts} sets traced {:?}",
+        "jacobian = {}: {} of {starts} sets traced {:?}, {} with pieces the set misses",
         jacobian.name(),
         summary.traced,
-        summary.by_status
+        summary.by_status,
+        summary.with_unvisited_pieces
     );
     println!(
         "  sensor rows per start: median {}, p90 {}, max {}, mean {:.0} ({} in all)",

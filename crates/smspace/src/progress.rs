@@ -58,6 +58,9 @@ pub enum Note {
         /// Seconds expected for the other `total − done`.
         remaining_seconds: f64,
     },
+    /// Tracing noisy readings by the sensory method is about to start: what it is
+    /// forecast to cost ([`crate::kernel::NoiseForecast`]).
+    NoiseForecast(Box<crate::kernel::NoiseForecast>),
 }
 
 /// `1 h 05 min`, `3 min 20 s`, `12 s`, `0.4 s`: a duration as a reader wants it.
@@ -114,6 +117,7 @@ impl fmt::Display for Note {
                 total.saturating_sub(*done),
                 human_duration(*elapsed_seconds)
             ),
+            Note::NoiseForecast(forecast) => write!(f, "trace: {forecast}"),
         }
     }
 }

@@ -30,7 +30,8 @@ pub struct Args {
     /// Step control: auto (fixed for kinematic, adaptive for sensory), fixed or adaptive.
     #[arg(long, default_value = "auto", value_parser = parse_step_control)]
     step_control: StepControl,
-    /// Largest adaptive step.
+    /// Largest adaptive step (radians); 0 lets the level set choose (0.2 for the sensory
+    /// method on exact readings with secant Jacobians, 0.05 otherwise).
     #[arg(long, default_value_t = TraceParams::default().max_step, allow_negative_numbers = true)]
     max_step: f64,
     /// Loop-closure tolerance (torus distance).

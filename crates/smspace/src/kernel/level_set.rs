@@ -9,7 +9,10 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use ndarray::{ArrayView2, ArrayViewMut2};
 
 use super::gather::Caller;
-use super::{JacobianMethod, RowPhase, SensorRowPhases, SetNoise, TraceValidParams};
+use super::{
+    JacobianMethod, RowPhase, SensorRowPhases, SetNoise, TraceValidParams, DEFAULT_MAX_STEP,
+    EXACT_SENSORY_MAX_STEP,
+};
 use crate::agent::{wrap_angle, Agent, CoordinateKind, Environment, Observer, PoseSpace};
 
 /// `value > floor`, false for NaN (so a NaN pivot counts as singular).
@@ -94,6 +97,26 @@ pub(crate) trait LevelSet {
     /// the best estimate; exact readings: the point stays). Default `false`.
     fn final_step(&self) -> bool {
         false
+    }
+    /// The linearisation at the point the level set was last linearised at (`rows × N`,
+    /// row-major), when the tracer is to keep it for every node and restart the
+    /// resampled points' projections from it ([`restart_from`](LevelSet::restart_from));
+    /// `None` (the default) when the level set does not restart so, or its last
+    /// linearisation was singular.
+    fn node_jacobian(&self) -> Option<&[f64]> {
+        None
+    }
+    /// Takes `jacobian` (`rows × N`, from [`node_jacobian`](LevelSet::node_jacobian)
+    /// values) as the current linearisation, the next reading to be read afresh (no
+    /// secant update from the last one); `Err` when it is singular or the level set
+    /// does not restart so.
+    fn restart_from(&mut self, _jacobian: &[f64]) -> Result<(), Singular> {
+        Err(Singular)
+    }
+    /// The largest adaptive step when `max_step = 0` (automatic): the default
+    /// [`DEFAULT_MAX_STEP`].
+    fn automatic_max_step(&self) -> f64 {
+        DEFAULT_MAX_STEP
     }
     /// The uncertainty of a corrected point's position (radians) that the readings'
     /// noise leaves: corrections below a few of it are noise, and a closure needs a
@@ -1202,6 +1225,39 @@ impl LevelSet for Sensory<'_> {
 
     fn tolerance(&self) -> f64 {
         self.tolerance
+    }
+
+    /// With secant Jacobians (exact readings): the last exact linearisation, when the
+    /// set was last linearised there and it was not singular.
+    fn node_jacobian(&self) -> Option<&[f64]> {
+        let state = self.secant.as_ref()?;
+        (state.has_node && !state.node_singular && state.last_m == state.node_m)
+            .then_some(state.node_jacobian.as_slice())
+    }
+
+    /// With secant Jacobians (exact readings): `jacobian` replaces the current one, the
+    /// secant's watch restarts, and the last reading is forgotten (the next one is no
+    /// secant step).
+    fn restart_from(&mut self, jacobian: &[f64]) -> Result<(), Singular> {
+        let Some(state) = self.secant.as_mut() else {
+            return Err(Singular);
+        };
+        if jacobian.len() != self.jacobian.len() {
+            return Err(Singular);
+        }
+        state.has_last = false;
+        state.linearized_norm = f64::INFINITY;
+        self.jacobian.copy_from_slice(jacobian);
+        self.decompose()
+    }
+
+    /// [`EXACT_SENSORY_MAX_STEP`] with secant Jacobians (exact readings), else the
+    /// default.
+    fn automatic_max_step(&self) -> f64 {
+        match self.secant {
+            Some(_) => EXACT_SENSORY_MAX_STEP,
+            None => DEFAULT_MAX_STEP,
+        }
     }
 
     fn node_tolerance(&self) -> f64 {

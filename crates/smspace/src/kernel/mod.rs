@@ -44,12 +44,21 @@
 //!   linearised exactly, by one-sided differences from the corrector's last reading
 //!   there (`N` rows; error `O(h)` with `h = finite_difference_step`, a tangent off by
 //!   about `10⁻⁶` rad);
-//! - the projections of the multi-start seeds and of the resampled points start from
-//!   a secant update (one row) instead of differences, refreshed by one-sided
-//!   differences when the residual grows or the rank is lost; a resampled point's
-//!   landing place moves along the set by its distance to the set times the secant
-//!   Jacobian's error, far below the tolerances, and a point whose corrector fails is
-//!   projected again from an exact linearisation;
+//! - the projections of the multi-start seeds start from a secant update (one row)
+//!   instead of differences, refreshed by one-sided differences when the residual
+//!   grows or the rank is lost;
+//! - the exact linearisation of every node is kept with the curve, and a resampled
+//!   point's projection starts from those of its segment's two nodes interpolated
+//!   linearly to it (error `O(h²)` for nodes `h` apart, where a secant update carried
+//!   from the last resampled point is off by `O(h)`), then corrects with secant
+//!   updates; its landing place moves along the set by its distance to the set times
+//!   the Jacobian's error, far below the tolerances, and a point whose corrector fails
+//!   is projected again from a secant, then an exact, linearisation;
+//! - the steps are long ([`EXACT_SENSORY_MAX_STEP`] when `max_step = 0`, the default),
+//!   the predictor extrapolates the cubic Hermite segment of the last two nodes and
+//!   their tangents (error `O(h⁴)`, where a second-order predictor's is `O(h³)`), and
+//!   the step grows by up to 4 at a time while the corrector has almost nothing to do
+//!   (from the initial `step` to `max_step` in four steps);
 //! - the linearisation of a node is kept and restored when a rejected adaptive step
 //!   returns to it, and a reading at the point just read is reused;
 //! - a traced node is accepted at `10³` times the sensor tolerance (`10⁻⁹` of the
@@ -57,19 +66,35 @@
 //!   projected to the tolerance itself.
 //!
 //! With either method, a seed of the search for pieces stops once it settles next to
-//! a piece already found, and gives up after 8 iterations that do not halve its
-//! smallest residual (see `cover.rs`). The rows of every set are reported by phase
+//! a piece already found (within half `piece_tolerance` of the piece's Hermite curve,
+//! its segments cut into chords of at most `0.05` rad: the chords of long steps stray
+//! from the set by a few thousandths), and gives up after 8 iterations that do not
+//! halve its smallest residual (see `cover.rs`). The rows of every set are reported by phase
 //! ([`SetReport::sensor_row_phases`]: the start, following the pieces, the seeds of
 //! the search, the resampling; single readings apart from Jacobians).
 //!
 //! On the paper's arm the sets agree with those of `finite-differences` within
 //! `2·10⁻⁷` rad (the `curve` metric between the two sets through a start: median
-//! `2·10⁻¹⁰`, largest `1.4·10⁻⁷` over 100 starts), in about 3 500 sensor rows per
-//! start instead of 7 600 (`cargo bench -p smspace --bench trace_rows`): following the
-//! loop about 2 600 (1 130 readings, 1 510 Jacobian rows: about 380 nodes of the
-//! default `max_step = 0.05`), the search 390, the resampling 480. Longer steps are
-//! the largest remaining saving: `max_step = 0.2` follows the loop in about 1 400 rows,
-//! its sets within `5·10⁻⁷` rad.
+//! `2·10⁻¹⁰`, largest `1.4·10⁻⁷` over 100 starts, with the short steps of
+//! `max_step = 0.05`, in 3 500 sensor rows per start instead of 7 600). With the long
+//! steps, the Hermite predictor and the nodes' linearisations above, a start costs
+//! 1 923 sensor rows (median; mean 1 970, 90th percentile 2 456) instead of 3 551
+//! (mean 3 543, 90th percentile 4 471) at `max_step = 0.05` with a second-order
+//! predictor and secant-carried resampling, over 200 starts (`cargo bench -p smspace
+//! --bench trace_rows`, 2 threads of an Intel Xeon with AVX-512, shared): following
+//! the loop 1 311 (585 readings, 726 Jacobian rows) instead of 2 673, the
+//! search 386 as before, the resampling 272 instead of 483 (readings only:
+//! about 2.7 a point, no refresh). The sets stay within `7.1·10⁻⁷` rad of those of the
+//! earlier steps (the `curve` metric between the two sets through each start: median
+//! `1.1·10⁻⁸`, 90th percentile `5.7·10⁻⁸`; the largest distance between corresponding
+//! points `2.5·10⁻⁶`, the points moving along the set with the arc length of the Hermite
+//! curve), measured with `SMSPACE_BENCH_SAVE` on the earlier build and
+//! `SMSPACE_BENCH_COMPARE` on this one. `max_step = 0.2` alone (second-order predictor)
+//! took 2 253 rows (sets within `4.1·10⁻⁷`); growing the step up to half the
+//! largest turn instead of a quarter, 1 730 rows but sets `2.2·10⁻⁶` away. On the
+//! MuJoCo arm of `examples/python/mujoco_arm.py --sets 100` (12 rangefinders), 1 948
+//! rows per start (median; mean 1 996, 90th percentile 2 520) instead of 3 536 (mean
+//! 3 517, 90th percentile 4 405), its sets within `4.3·10⁻⁷` rad of the earlier ones.
 //!
 //! With [`StepControl::Adaptive`] the step grows up to `max_step` while the tangent
 //! turns less than `max_turn` per step and the corrector has little to do, and shrinks
@@ -97,6 +122,19 @@
 //! `σ_pos` of [`MAX_POSITION_UNCERTAINTY`] rad, or with most sets failed, the summary
 //! warns ([`TraceSummary::warnings`]); a trace that runs back over its own path is
 //! [`SetStatus::Retraced`] ([`MAX_DOUBLED`]).
+//!
+//! Noisy readings cost far more rows than exact ones, so the cost is said before it
+//! is paid: before any set is traced, the first [`FORECAST_STARTS`] starts are probed
+//! as their traces probe them (the two readings, and with noise the first
+//! regression and the target; these rows count in those sets' start phase), timed,
+//! and [`NoiseForecast`] forecasts the rows per set from the measured `σ`: one
+//! regression of `r (3N + 1)` rows per point visited, `1.5 L / max_step` points
+//! following a curve (`L` forecast as the diagonal of the motor space), `1.5 P`
+//! resampling it and 10 per seed of the piece search, plus the start's rows; the total
+//! at the agent's measured rate; and above [`LEARNED_ROUTE_ROWS`] rows per set the
+//! learned route (`method = "learned"` with a `budget`). It goes to the progress
+//! observer ([`Note::NoiseForecast`]) and into
+//! the report ([`TraceSummary::noise_forecast`], and its warnings).
 //!
 //! ## Resampling
 //!
@@ -127,7 +165,10 @@ use crate::params::{CheckParams, InvalidParameter};
 use crate::progress::{Note, Progress};
 pub use crate::sets::Closure;
 use curve::Scratch;
-pub use noise::{NoiseSummary, SensorNoise, SetNoise, MAX_DOUBLED, MAX_POSITION_UNCERTAINTY};
+pub use noise::{
+    NoiseForecast, NoiseSummary, SensorNoise, SetNoise, FORECAST_STARTS, LEARNED_ROUTE_ROWS,
+    MAX_DOUBLED, MAX_POSITION_UNCERTAINTY,
+};
 pub use spatial::{extend_along, Spatial};
 use tracer::Tracer;
 pub use tracer::{tangent_space, SensoryRank, TangentSpace};
@@ -317,7 +358,12 @@ pub struct TraceParams {
     pub step: f64,
     /// Fixed or adaptive steps. Default `auto` (fixed for kinematic, adaptive for sensory).
     pub step_control: StepControl,
-    /// Largest adaptive step. Default `0.05`.
+    /// Largest adaptive step (radians); `0` (the default) lets the level set choose:
+    /// [`EXACT_SENSORY_MAX_STEP`] for the sensory method on exact readings with
+    /// `jacobian = "secant"` (its nodes carry exact tangents and the resampled points
+    /// are projected onto the set, so long steps cost fewer sensor rows for the same
+    /// sets; see the module docs), [`DEFAULT_MAX_STEP`] otherwise (noisy readings, a
+    /// law learned from data, finite differences, the kinematic method).
     pub max_step: f64,
     /// Largest turn of the tangent per adaptive step, radians. Default `0.1`.
     pub max_turn: f64,
@@ -385,6 +431,15 @@ pub struct TraceParams {
 /// Default of [`TraceParams::spatial_samples`].
 pub const DEFAULT_SPATIAL_SAMPLES: usize = 8;
 
+/// The largest adaptive step when `max_step = 0` (automatic) for every level set but
+/// the sensory one on exact readings with secant Jacobians, radians.
+pub const DEFAULT_MAX_STEP: f64 = 0.05;
+
+/// The largest adaptive step when `max_step = 0` (automatic) for the sensory method on
+/// exact readings with `jacobian = "secant"`, radians (measured on the paper's arm,
+/// see the module docs: the sets agree with those of `0.05` within `5·10⁻⁷` rad).
+pub const EXACT_SENSORY_MAX_STEP: f64 = 0.2;
+
 fn is_default_spatial_samples(samples: &usize) -> bool {
     *samples == DEFAULT_SPATIAL_SAMPLES
 }
@@ -419,7 +474,7 @@ impl Default for TraceParams {
             method: TraceMethod::Kinematic,
             step: 1e-3,
             step_control: StepControl::Auto,
-            max_step: 0.05,
+            max_step: 0.0,
             max_turn: 0.1,
             closure_tolerance: 1e-2,
             min_steps: 50,
@@ -479,6 +534,15 @@ impl TraceValidParams {
     /// The step control in force (`auto` resolved).
     pub fn step_control(&self) -> StepControl {
         self.step_control
+    }
+    /// The largest adaptive step on a level set whose own choice is `automatic`
+    /// (`max_step` when given, see [`TraceParams::max_step`]).
+    pub(crate) fn max_step_or(&self, automatic: f64) -> f64 {
+        if self.max_step > 0.0 {
+            self.max_step
+        } else {
+            automatic
+        }
     }
     /// Points per resampled set.
     pub fn points(&self) -> usize {
@@ -585,9 +649,15 @@ impl CheckParams for TraceParams {
     type Error = KernelError;
 
     fn check_params(&self) -> Result<TraceValidParams, KernelError> {
+        if !(self.max_step.is_finite() && self.max_step >= 0.0) {
+            return Err(invalid(
+                "max_step",
+                self.max_step,
+                "must be a finite number greater than zero, or 0 to let the level set choose",
+            ));
+        }
         for (key, value) in [
             ("step", self.step),
-            ("max_step", self.max_step),
             ("max_turn", self.max_turn),
             ("closure_tolerance", self.closure_tolerance),
             ("pose_tolerance", self.pose_tolerance),
@@ -644,11 +714,17 @@ impl CheckParams for TraceParams {
             (StepControl::Auto, TraceMethod::Sensory) => StepControl::Adaptive,
             (other, _) => other,
         };
-        if step_control == StepControl::Adaptive && self.max_step < self.step {
+        // (With `max_step = 0` the smallest step a level set may choose bounds `step`.)
+        let smallest_max_step = if self.max_step > 0.0 {
+            self.max_step
+        } else {
+            DEFAULT_MAX_STEP.min(EXACT_SENSORY_MAX_STEP)
+        };
+        if step_control == StepControl::Adaptive && smallest_max_step < self.step {
             return Err(invalid(
                 "max_step",
                 self.max_step,
-                "must be at least step when the step is adaptive",
+                &format!("must be at least step when the step is adaptive (0, automatic, stands for {smallest_max_step} or more)"),
             ));
         }
         if step_control == StepControl::Fixed && self.step >= self.closure_tolerance {
@@ -995,6 +1071,10 @@ pub struct TraceSummary {
     /// over the starts; `None` for exact readings.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseSummary>,
+    /// The sensory method on readings with noise: what tracing was forecast to cost
+    /// before it started ([`NoiseForecast`]); `None` for exact readings.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_forecast: Option<NoiseForecast>,
     /// The share of the sets traced as curves that closed
     /// ([`TraceSummary::curve_closure_rate`]); `None` when no set was a curve (kernels
     /// of dimension 0 or at least 2).
@@ -1107,11 +1187,18 @@ impl TraceSummary {
             .join("; ")
     }
 
-    /// What the summary says that a user must know, one sentence each: sets whose
-    /// level set has pieces the sampled sets miss, and sets that are single points
-    /// (no redundancy). Empty when every traced set is a complete curve or covering.
+    /// What the summary says that a user must know, one sentence each: noisy readings
+    /// forecast above [`LEARNED_ROUTE_ROWS`] sensor rows per set (with the forecast
+    /// and the learned route recommended, [`NoiseForecast`]), sets whose level set has
+    /// pieces the sampled sets miss, and sets that are single points (no redundancy).
+    /// Empty when every traced set is a complete curve or covering.
     pub fn warnings(&self) -> Vec<String> {
         let mut out = Vec::new();
+        out.extend(
+            self.noise_forecast
+                .as_ref()
+                .and_then(NoiseForecast::warning),
+        );
         if self.with_unvisited_pieces > 0 {
             out.push(format!(
                 "{} of {} sets miss pieces of their level set: other motor configurations give the same sensation and are not in M^i (the multi-start search found them); the sets are incomplete, and the learned manifold can have the wrong topology. Trace with components = \"all\" (smspace trace --components all)",
@@ -1392,13 +1479,17 @@ pub fn trace_sets(
     if motors.nrows() == 0 {
         return Err(KernelError::NoMotors);
     }
-    let tracer = Tracer::new(agent, environment, motors, workspace, params)?;
+    let mut tracer = Tracer::new(agent, environment, motors, workspace, params)?;
+    let noise_forecast = tracer.forecast_noise(motors);
     progress.note(&Note::KernelDimension {
         sets: motors.nrows() as u64,
         motors: n,
         dimension: tracer.dimension(),
         covering: (tracer.dimension() >= 2).then_some((params.cover_step, params.max_cover_points)),
     });
+    if let Some(forecast) = &noise_forecast {
+        progress.note(&Note::NoiseForecast(Box::new(forecast.clone())));
+    }
     progress.start("trace", motors.nrows() as u64);
     let rows: Vec<Vec<f64>> = motors.outer_iter().map(|r| r.to_vec()).collect();
     let done = || progress.advance(1);
@@ -1470,6 +1561,7 @@ pub fn trace_sets(
     let rows: Vec<u64> = reports.iter().map(|r| r.sensor_rows).collect();
     summary.sensor_rows = SensorRows::of(&rows);
     summary.noise = NoiseSummary::of(&reports);
+    summary.noise_forecast = noise_forecast;
     radii.sort_by(f64::total_cmp);
     summary.covering_radius =
         (!radii.is_empty()).then(|| [radii[0], radii[radii.len() / 2], radii[radii.len() - 1]]);

@@ -25,10 +25,11 @@ use super::cover::{
 use super::curve::{doubled_back, resample, trace_branch, Curve, Scratch};
 use super::gather::{self, Caller};
 use super::level_set::{Kinematic, LevelSet, Linearization, Sensor, Sensory};
+use super::noise::{ForecastShape, NoiseForecast, ProbedStart, FORECAST_STARTS};
 use super::noisy::{probe, Probe};
 use super::{
-    Components, KernelError, RowPhase, SensorRowPhases, SetReport, SetStatus, TraceMethod,
-    TraceValidParams, MAX_DOUBLED,
+    Components, KernelError, RowPhase, SensorNoise, SensorRowPhases, SetReport, SetStatus,
+    TraceMethod, TraceValidParams, MAX_DOUBLED,
 };
 use crate::agent::{Agent, Calling, Environment, MotorSpace, Observer, PoseSpace, Workspace};
 
@@ -50,6 +51,9 @@ pub(super) struct Tracer<'a> {
     rank_rows: Vec<u64>,
     /// The rank estimated from the starts' sensors, when it was.
     sensory_rank: Option<SensoryRank>,
+    /// Sensor rows read at each of the first starts to forecast the cost of noisy
+    /// readings ([`Tracer::forecast_noise`]; empty when not forecast).
+    forecast_rows: Vec<u64>,
 }
 
 /// The rank of the sensory Jacobian as the starts show it, for an agent without a
@@ -160,6 +164,7 @@ impl<'a> Tracer<'a> {
             seeds: Vec::new(),
             rank_rows: Vec::new(),
             sensory_rank: None,
+            forecast_rows: Vec::new(),
         };
         tracer.seeds = piece_seeds(&tracer.space, params.piece_starts, params.piece_seed);
         tracer.dimension = match (declared, agent.sensory_rank()) {
@@ -244,13 +249,85 @@ impl<'a> Tracer<'a> {
     }
 
     /// Adds to `report` the sensor rows read at start `i` to estimate the rank of the
-    /// sensory Jacobian (none when it was not estimated), in its start phase.
+    /// sensory Jacobian and to forecast the cost of noisy readings (none when neither
+    /// was done there), in its start phase.
     pub(super) fn add_rank_rows(&self, report: &mut SetReport, i: usize) {
-        let rows = self.rank_rows.get(i).copied().unwrap_or(0);
+        let rows = self.rank_rows.get(i).copied().unwrap_or(0)
+            + self.forecast_rows.get(i).copied().unwrap_or(0);
         report.sensor_rows += rows;
         if let Some(phases) = &mut report.sensor_row_phases {
             phases.add(RowPhase::Start, false, rows);
         }
+    }
+
+    /// The sensory method on an agent's own readings (not a law learned from data,
+    /// whose readings are exact) with `noise` not 0: probes the first
+    /// [`FORECAST_STARTS`] starts as a set's trace does (two readings, and with noise
+    /// the first regression and the target, see `noisy.rs`), timing them, and
+    /// forecasts the cost of tracing `motors.nrows()` sets ([`NoiseForecast`]); `None`
+    /// when every probed start reads exactly. The rows read are added to those
+    /// starts' sets ([`add_rank_rows`](Self::add_rank_rows)).
+    pub(super) fn forecast_noise(&mut self, motors: ArrayView2<'_, f64>) -> Option<NoiseForecast> {
+        let environment = self.environment?;
+        let exact = matches!(self.params.noise, SensorNoise::Sigma(sigma) if sigma == 0.0);
+        if self.params.method != TraceMethod::Sensory
+            || exact
+            || self.agent.sensory_rank().is_some()
+            || self.covering_too_large()
+        {
+            return None;
+        }
+        let rows: Vec<Vec<f64>> = motors
+            .outer_iter()
+            .take(FORECAST_STARTS)
+            .map(|r| r.to_vec())
+            .collect();
+        let probe_start = |caller: Option<&Caller<'_>>, _: &mut Scratch, start: &[f64]| {
+            let sensor = Sensor::new(self.agent, environment, caller);
+            match probe(sensor, start, self.params, self.dimension) {
+                Probe::Exact(sensor, _) => ProbedStart {
+                    noise: None,
+                    start_rows: sensor.rows,
+                },
+                Probe::Noisy(set) => ProbedStart {
+                    noise: set.noise(),
+                    start_rows: set.sensor_rows(),
+                },
+                Probe::Failed(_, noise, sensor) => ProbedStart {
+                    noise: (noise.repeats > 0).then_some(noise),
+                    start_rows: sensor.rows,
+                },
+            }
+        };
+        let clock = std::time::Instant::now();
+        let probed = self.map_starts(&rows, probe_start, &|| {}).ok()?;
+        let seconds = clock.elapsed().as_secs_f64();
+        self.forecast_rows = probed.iter().map(|p| p.start_rows).collect();
+        let diagonal = self
+            .space
+            .motors()
+            .iter()
+            .map(|motor| {
+                let (low, high) = motor.range();
+                (high - low).powi(2)
+            })
+            .sum::<f64>()
+            .sqrt();
+        let shape = ForecastShape {
+            motors: self.agent.motor_dim(),
+            dimension: self.dimension,
+            diagonal,
+            max_step: self.params.max_step_or(super::DEFAULT_MAX_STEP),
+            points: self.params.points,
+            piece_starts: self.params.piece_starts,
+            covering_nodes: if self.dimension >= 2 {
+                forecast_nodes(&self.space, self.dimension, self.params.cover_step)
+            } else {
+                0.0
+            },
+            sets: motors.nrows(),
+        };
+        NoiseForecast::of(&probed, &shape, seconds)
     }
 
     /// `work` on every row, in the rows' order, with a scratch space per caller, and
@@ -798,12 +875,13 @@ fn orientation_reference(n: usize) -> Vec<f64> {
 
 /// A seed's projection stops next to a piece found once its undamped step is at most
 /// this fraction of `piece_tolerance` and the point it leads to is within
-/// [`SETTLED`] `piece_tolerance` of the piece: Gauss–Newton's remaining steps are a
-/// small fraction of the last one, so the seed would land within `piece_tolerance`
-/// of that piece, where it counts as found anyway.
+/// [`SETTLED`] `piece_tolerance` of the piece (the piece's Hermite curve, see
+/// [`near_curve`]): Gauss–Newton's remaining steps are a small fraction of the last
+/// one (at most half), so the seed would land within `0.75 piece_tolerance` of that
+/// piece, where it counts as found anyway.
 const SETTLE_STEP: f64 = 0.5;
 /// See [`SETTLE_STEP`].
-const SETTLED: f64 = 0.25;
+const SETTLED: f64 = 0.5;
 
 /// A projected seed within this many `cover_step`s (plus `piece_tolerance`) of a
 /// covering's node lies on its piece.
@@ -837,11 +915,18 @@ fn trace_curve(
     let curve = if let Some(image) = forward.closes_at {
         let mut nodes = forward.nodes;
         let mut tangents = forward.tangents;
+        let mut jacobians = forward.jacobians;
         nodes.extend_from_slice(&image);
         tangents.extend_from_slice(&t0);
+        // (The closing image is the start: its linearisation is the first node's.)
+        let per_node = jacobians.len() / (nodes.len() / n - 1).max(1);
+        if per_node > 0 {
+            jacobians.extend_from_within(..per_node);
+        }
         Curve {
             nodes,
             tangents,
+            jacobians,
             closed: true,
         }
     } else {
@@ -856,23 +941,38 @@ fn trace_curve(
         let mut nodes = Vec::with_capacity(forward.nodes.len() + backward.nodes.len());
         let mut tangents = Vec::with_capacity(nodes.capacity());
         let back_count = backward.nodes.len() / n;
+        let per_node = backward.jacobians.len() / back_count.max(1);
+        let mut jacobians = Vec::with_capacity(forward.jacobians.len() + backward.jacobians.len());
         for i in (1..back_count).rev() {
             nodes.extend_from_slice(&backward.nodes[i * n..(i + 1) * n]);
             tangents.extend(backward.tangents[i * n..(i + 1) * n].iter().map(|x| -x));
+            jacobians.extend_from_slice(
+                backward
+                    .jacobians
+                    .get(i * per_node..(i + 1) * per_node)
+                    .unwrap_or(&[]),
+            );
         }
         nodes.extend_from_slice(&forward.nodes);
         tangents.extend_from_slice(&forward.tangents);
+        jacobians.extend_from_slice(&forward.jacobians);
+        if jacobians.len() != per_node * (nodes.len() / n) {
+            jacobians.clear();
+        }
         for v in [
             forward.nodes,
             forward.tangents,
+            forward.jacobians,
             backward.nodes,
             backward.tangents,
+            backward.jacobians,
         ] {
             scratch.give(v);
         }
         Curve {
             nodes,
             tangents,
+            jacobians,
             closed: false,
         }
     };
@@ -976,7 +1076,7 @@ impl Found {
         if self
             .curves
             .iter()
-            .any(|c| near_polyline(space, &c.nodes, n, m, tolerance))
+            .any(|c| near_curve(space, c, n, m, tolerance))
         {
             return true;
         }
@@ -990,11 +1090,20 @@ impl Found {
     }
 }
 
-/// Whether the polyline through `nodes` (unwrapped) passes within `tolerance` of `m`
-/// (torus distance).
-fn near_polyline(space: &MotorSpace, nodes: &[f64], n: usize, m: &[f64], tolerance: f64) -> bool {
+/// Chords of a traced curve's Hermite segments are at most this long (radians) where
+/// a point is tested against the curve ([`near_curve`]): a chord of length `c` strays
+/// from an arc of curvature `κ` by `κ c² / 8`, a small fraction of `piece_tolerance`
+/// here, where the nodes of long adaptive steps (`0.2`) stray by a few thousandths.
+const NEAR_CHORD: f64 = 0.05;
+
+/// Whether the curve through `curve`'s nodes (unwrapped), each segment the cubic
+/// Hermite segment of its nodes and tangents cut into chords of at most
+/// [`NEAR_CHORD`], passes within `tolerance` of `m` (torus distance).
+fn near_curve(space: &MotorSpace, curve: &Curve, n: usize, m: &[f64], tolerance: f64) -> bool {
+    let nodes = &curve.nodes;
     let count = nodes.len() / n;
     let mut image = vec![0.0; n];
+    let (mut from, mut to) = (vec![0.0; n], vec![0.0; n]);
     for i in 0..count {
         let a = &nodes[i * n..(i + 1) * n];
         let d = space.distance(a, m);
@@ -1009,16 +1118,34 @@ fn near_polyline(space: &MotorSpace, nodes: &[f64], n: usize, m: &[f64], toleran
                 .map(|(x, y)| (x - y) * (x - y))
                 .sum::<f64>()
                 .sqrt();
+            // (A Hermite segment stays within its chord's length of its first node.)
             if d > tolerance + length {
                 continue;
             }
-            // The image of m nearest to a, then the segment's closest point.
+            // The image of m nearest to a, then the closest point of every chord.
             for ((o, &x), (&ai, motor)) in image.iter_mut().zip(m).zip(a.iter().zip(space.motors()))
             {
                 *o = ai + motor.difference(x, ai);
             }
-            if super::curve::closest_on_segment(a, b, &image).1 <= tolerance {
-                return true;
+            let chords = (length / NEAR_CHORD).ceil().max(1.0) as usize;
+            if chords == 1 || curve.tangents.len() != nodes.len() {
+                if super::curve::closest_on_segment(a, b, &image).1 <= tolerance {
+                    return true;
+                }
+                continue;
+            }
+            let (ta, tb) = (
+                &curve.tangents[i * n..(i + 1) * n],
+                &curve.tangents[(i + 1) * n..(i + 2) * n],
+            );
+            from.copy_from_slice(a);
+            for c in 1..=chords {
+                let s = c as f64 / chords as f64;
+                super::curve::hermite(a, b, ta, tb, length, s, &mut to);
+                if super::curve::closest_on_segment(&from, &to, &image).1 <= tolerance {
+                    return true;
+                }
+                std::mem::swap(&mut from, &mut to);
             }
         }
     }
