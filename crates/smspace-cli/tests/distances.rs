@@ -57,6 +57,36 @@ fn writes_the_matrix_equal_to_the_library() {
     }
 }
 
+/// `smspace distances` without `--metric` or `--period` computes the library's default
+/// `[metric]` table (`DistanceParams::default()`: `curve` under `2pi`, what
+/// `smspace.distances` and a run without `metric` compute): the same matrix, byte for
+/// byte, and not the point metric's.
+#[test]
+fn the_default_metric_is_the_library_s() {
+    use smspace::metric::{Closure, SetsView, DEFAULT_METRIC};
+    let dir = tempfile::tempdir().unwrap();
+    let sets = curves(14, 12);
+    write_npy(dir.path().join("sets.npy"), &sets).unwrap();
+    let codes: ndarray::Array1<i64> = (0..14).map(|i| i64::from(i % 3 != 0)).collect();
+    write_npy(dir.path().join("sets.closed.npy"), &codes).unwrap();
+    common::ok(
+        dir.path(),
+        &["distances", "--sets", "sets.npy", "--out", "D.npy"],
+    );
+    let d: Array2<f64> = read_npy(dir.path().join("D.npy")).unwrap();
+    let closure: Vec<Closure> = codes
+        .iter()
+        .map(|&c| Closure::from_code(c).unwrap())
+        .collect();
+    let view = || SetsView::new(sets.view()).with_closure(&closure);
+    let library = distance_matrix(view(), &DistanceParams::default(), &Silent).unwrap();
+    assert_eq!(d, library);
+    assert_eq!(DistanceParams::default().metric.as_str(), "curve");
+    assert_eq!(DEFAULT_METRIC, MetricKind::Curve);
+    let points = DistanceParams::new().metric(MetricKind::Hausdorff);
+    assert_ne!(d, distance_matrix(view(), &points, &Silent).unwrap());
+}
+
 #[test]
 fn one_period_per_motor_wraps_only_the_hinges() {
     let dir = tempfile::tempdir().unwrap();
@@ -76,6 +106,8 @@ fn one_period_per_motor_wraps_only_the_hinges() {
             "sets.npy",
             "--out",
             "D.npy",
+            "--metric",
+            "hausdorff",
             "--period",
             "2pi,2pi,2pi,none",
         ],
@@ -89,7 +121,9 @@ fn one_period_per_motor_wraps_only_the_hinges() {
         .mapv(f64::abs)
         .fold(0.0_f64, |a, &b| a.max(b));
     assert!(worst < 1e-12, "{worst}");
-    let wrapped = DistanceParams::new().period(Period::TwoPi);
+    let wrapped = DistanceParams::new()
+        .metric(MetricKind::Hausdorff)
+        .period(Period::TwoPi);
     assert_ne!(d, distance_matrix(sets.view(), &wrapped, &Silent).unwrap());
     // A list of the wrong length, a bad entry, and "motors" without an agent.
     for (period, expected) in [
@@ -105,6 +139,8 @@ fn one_period_per_motor_wraps_only_the_hinges() {
                 "sets.npy",
                 "--out",
                 "E.npy",
+                "--metric",
+                "hausdorff",
                 "--period",
                 period,
             ],
@@ -120,7 +156,15 @@ fn row_blocks_and_threads_give_the_same_numbers() {
     write_npy(dir.path().join("sets.npy"), &curves(25, 16)).unwrap();
     let out = smspace(
         dir.path(),
-        &["distances", "--sets", "sets.npy", "--out", "D.npy"],
+        &[
+            "distances",
+            "--sets",
+            "sets.npy",
+            "--out",
+            "D.npy",
+            "--metric",
+            "hausdorff",
+        ],
     );
     assert!(out.status.success(), "{}", stderr(&out));
     let full: Array2<f64> = read_npy(dir.path().join("D.npy")).unwrap();
@@ -134,6 +178,8 @@ fn row_blocks_and_threads_give_the_same_numbers() {
             "sets.npy",
             "--out",
             "B.npy",
+            "--metric",
+            "hausdorff",
             "--rows",
             "7:19",
         ],
@@ -157,6 +203,8 @@ fn knn_writes_indices_and_distances_next_to_out() {
             "sets.npy",
             "--out",
             "graph/D.npy",
+            "--metric",
+            "hausdorff",
             "--knn",
             "5",
         ],
@@ -166,7 +214,8 @@ fn knn_writes_indices_and_distances_next_to_out() {
     let indices: Array2<i64> = read_npy(dir.path().join("graph/knn_indices.npy")).unwrap();
     let distances: Array2<f64> = read_npy(dir.path().join("graph/knn_distances.npy")).unwrap();
     assert_eq!(indices.dim(), (40, 5));
-    let full = distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap();
+    let hausdorff = DistanceParams::new().metric(MetricKind::Hausdorff);
+    let full = distance_matrix(sets.view(), &hausdorff, &Silent).unwrap();
     for i in 0..40 {
         let mut row: Vec<(f64, usize)> = (0..40)
             .filter(|&j| j != i)
@@ -183,7 +232,12 @@ fn knn_writes_indices_and_distances_next_to_out() {
 #[test]
 fn bad_input_gets_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
-    let run = |args: &[&str]| fails(dir.path(), args);
+    // Under the point metric: bare sets, without a closure record.
+    let run = |args: &[&str]| {
+        let mut args = args.to_vec();
+        args.extend(["--metric", "hausdorff"]);
+        fails(dir.path(), &args)
+    };
     write_npy(dir.path().join("flat.npy"), &Array2::<f64>::zeros((10, 3))).unwrap();
     let e = run(&["distances", "--sets", "flat.npy", "--out", "D.npy"]);
     assert!(
@@ -424,6 +478,8 @@ fn curve_metric_reads_the_closed_record_or_the_flag() {
             "sets.npy",
             "--out",
             "D.npy",
+            "--metric",
+            "hausdorff",
             "--curve",
             "open",
         ],
@@ -535,6 +591,8 @@ fn tiles_merge_into_the_matrix() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     write_npy(d.join("sets.npy"), &curves(23, 12)).unwrap();
+    // The default metric (curve), every set a loop as recorded beside the sets.
+    write_npy(d.join("sets.closed.npy"), &ndarray::Array1::<i64>::ones(23)).unwrap();
     common::ok(d, &["distances", "--sets", "sets.npy", "--out", "D.npy"]);
     // Blocks 0:10, 10:20, 20:23: the tiles (a, b) with a <= b.
     let blocks = ["0:10", "10:20", "20:23"];

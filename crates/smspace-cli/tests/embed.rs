@@ -316,3 +316,128 @@ fn bad_input_gets_a_clear_error() {
         "2 connected components",
     );
 }
+
+/// `--method` is resolved through the library's embedding registry and `--param` sets
+/// any key of the method's `[embedding]` table: `--param epochs=7` is `--epochs 7`, and
+/// the library's default table gives the same coordinates as no flag at all.
+#[test]
+fn method_by_name_and_any_parameter_with_param() {
+    use smspace::embed::{EmbedParams, Embedding};
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    write_npy(p.join("D.npy"), &circle(40)).unwrap();
+    let run = |out: &str, extra: &[&str]| {
+        let mut args = vec!["embed", "--distances", "D.npy", "--out", out];
+        args.extend_from_slice(extra);
+        ok(p, &args);
+        read_npy::<_, Array2<f64>>(p.join(out)).unwrap()
+    };
+    let flag = run(
+        "flag.npy",
+        &["--method", "cca", "--epochs", "7", "--dim", "2"],
+    );
+    let param = run(
+        "param.npy",
+        &["--method", "cca", "--param", "epochs=7", "--param", "dim=2"],
+    );
+    assert_eq!(flag, param);
+    let r = report(&p.join("param.embed.json"));
+    assert_eq!(r["params"]["epochs"], 7);
+    assert_eq!(r["params"]["method"], "cca");
+    // A parameter no flag has: MDS's solver.
+    let dense = run(
+        "dense.npy",
+        &[
+            "--method",
+            "mds",
+            "--param",
+            "solver=\"dense\"",
+            "--dim",
+            "2",
+        ],
+    );
+    assert_eq!(dense.dim(), (40, 2));
+    // No flag: the library's default method and table (on a helix, which spans 3-D).
+    let helix = Array2::from_shape_fn((40, 40), |(i, j)| {
+        let point = |k: usize| {
+            let t = 0.4 * k as f64;
+            [t.cos(), t.sin(), 0.1 * t]
+        };
+        let (a, b) = (point(i), point(j));
+        (0..3).map(|c| (a[c] - b[c]).powi(2)).sum::<f64>().sqrt()
+    });
+    write_npy(p.join("H.npy"), &helix).unwrap();
+    ok(
+        p,
+        &["embed", "--distances", "H.npy", "--out", "default.npy"],
+    );
+    let default: Array2<f64> = read_npy(p.join("default.npy")).unwrap();
+    let d = smspace::metric::DistanceMatrix::new(helix).unwrap();
+    let library = EmbedParams::default()
+        .build()
+        .unwrap()
+        .fit(&d, &smspace::progress::Silent)
+        .unwrap()
+        .coordinates;
+    assert_eq!(default, library);
+    // Unknown names and keys are errors that name them.
+    fails_with(
+        p,
+        &[
+            "embed",
+            "--distances",
+            "D.npy",
+            "--method",
+            "umap",
+            "--out",
+            "X.npy",
+        ],
+        "unknown embedding method 'umap'; the registered methods are cca, isomap, mds",
+    );
+    fails_with(
+        p,
+        &[
+            "embed",
+            "--distances",
+            "D.npy",
+            "--method",
+            "mds",
+            "--param",
+            "epoch=3",
+            "--out",
+            "X.npy",
+        ],
+        "epoch",
+    );
+    fails_with(
+        p,
+        &[
+            "embed",
+            "--distances",
+            "D.npy",
+            "--epochs",
+            "3",
+            "--param",
+            "epochs=4",
+            "--out",
+            "X.npy",
+        ],
+        "--epochs and --param epochs",
+    );
+    fails_with(
+        p,
+        &[
+            "embed",
+            "--distances",
+            "D.npy",
+            "--method",
+            "isomap",
+            "--epochs",
+            "3",
+            "--out",
+            "X.npy",
+        ],
+        "--epochs applies to --method cca only",
+    );
+    assert!(!p.join("X.npy").exists());
+}

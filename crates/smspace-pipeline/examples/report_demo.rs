@@ -172,7 +172,9 @@ impl Run {
         } else {
             Period::None
         };
-        let metric = DistanceParams::new().period(period);
+        let metric = DistanceParams::new()
+            .metric(smspace::metric::MetricKind::Hausdorff)
+            .period(period);
         let distances = distance_matrix(traced.sets.view(), &metric, &Silent)?;
         laps.lap("distances");
         let embedded = CcaParams::default()

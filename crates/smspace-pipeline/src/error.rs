@@ -23,12 +23,13 @@ pub enum Error {
 }
 
 impl Error {
-    /// The parameter this error is about, when it is an [`InvalidParameter`]
-    /// ([`smspace::Error::invalid_parameter`]).
+    /// The parameter this error is about, when it is an [`InvalidParameter`]: of any
+    /// core module ([`smspace::Error::invalid_parameter`]) or of the report.
     pub fn invalid_parameter(&self) -> Option<&InvalidParameter> {
         match self {
             Error::Core(e) => e.invalid_parameter(),
-            _ => None,
+            Error::Report(ReportError::InvalidParameter(p)) => Some(p),
+            Error::Report(_) | Error::Config(_) => None,
         }
     }
 }

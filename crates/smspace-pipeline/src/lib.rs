@@ -396,11 +396,16 @@ fn resolve_embedding(
     experiment: &mut LoadedExperiment,
     embeddings: &EmbeddingRegistry,
 ) -> Result<Box<dyn smspace::embed::Embedding>, ConfigError> {
-    let (embedding, method) = experiment
-        .experiment
-        .embedding
-        .resolve(embeddings)
-        .map_err(|err| experiment.invalid_error("embedding", smspace::Error::from(err)))?;
+    let table = &experiment.experiment.embedding;
+    let (embedding, method) = table.resolve(embeddings).map_err(|err| {
+        experiment.invalid_table_error(
+            "embedding",
+            "embedding",
+            &["method"],
+            smspace::Error::from(err),
+            |document| embeddings.read_error(&table.method, document),
+        )
+    })?;
     experiment.experiment.embedding = embedding;
     Ok(method)
 }
@@ -439,10 +444,19 @@ pub fn check_with(
         .map_err(|err| {
             experiment.invalid_error("metric", smspace::Error::from(MetricError::Invalid(err)))
         })?;
-    let metric = registries
-        .metrics
-        .build(&metric_table)
-        .map_err(|err| experiment.invalid("metric", crate::Error::from(err)))?;
+    let metric = registries.metrics.build(&metric_table).map_err(|err| {
+        experiment.invalid_table_error(
+            "metric",
+            "metric.params",
+            &[],
+            crate::Error::from(err),
+            |document| {
+                registries
+                    .metrics
+                    .read_error(metric_table.metric.as_str(), document)
+            },
+        )
+    })?;
     // The resolved agent and metric tables (their defaults included) are what the run
     // records.
     let mut experiment = experiment.clone();
@@ -527,7 +541,11 @@ pub fn check_with(
         explore: ExploreStage {
             exploration: e.exploration.clone(),
         },
-        trace: TraceStage::new(e.kernel.clone(), e.analysis.compensability.as_ref()),
+        trace: TraceStage::new(
+            e.kernel.clone(),
+            e.analysis.compensability.as_ref(),
+            e.learn.as_ref(),
+        ),
         distances: DistancesStage::new(&metric)
             .with_scale(e.scale.clone(), e.analysis.mle_neighbors),
         embed: EmbedStage::new(e.embedding.clone(), Arc::from(embedding_method)).with_figures(

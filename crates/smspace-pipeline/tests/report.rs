@@ -78,7 +78,9 @@ fn run(agent: &str, babbled: usize, probes: bool, dim: usize, invariance_rows: u
     } else {
         Period::None
     };
-    let metric = DistanceParams::new().period(period);
+    let metric = DistanceParams::new()
+        .metric(smspace::metric::MetricKind::Hausdorff)
+        .period(period);
     let distances = distance_matrix(traced.sets.view(), &metric, &Silent).unwrap();
     let embedded = CcaParams::default()
         .dim(dim)

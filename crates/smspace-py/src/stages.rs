@@ -603,8 +603,31 @@ fn _analyze<'py>(
     serde_json::to_string(&report?).map_err(|e| value_error(e.to_string()))
 }
 
+/// The defaults of every stage's parameters, as the library defines them (the same
+/// that `smspace run` and the `smspace` commands fill in), as JSON: the set metric and
+/// period of `[metric]`, the `[exploration]`, `[kernel]` and `[embedding]` tables and
+/// the nearest-set search. `smspace`'s functions take their default arguments from it
+/// (`_core._DEFAULTS`), so no door restates a default.
+fn defaults() -> PyResult<String> {
+    let metric = DistanceParams::default();
+    let embedding = EmbedParams::default();
+    let value = serde_json::json!({
+        "metric": metric.metric.as_str(),
+        "period": metric.period.to_string(),
+        "exploration": ExploreParams::default(),
+        "kernel": TraceParams::default(),
+        "embedding": {
+            "method": embedding.method,
+            "params": embedding.params,
+        },
+        "knn": KnnParams::default(),
+    });
+    serde_json::to_string(&value).map_err(|e| value_error(e.to_string()))
+}
+
 /// Adds the stage functions to the module.
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("_DEFAULTS", defaults()?)?;
     m.add_function(wrap_pyfunction!(_explore, m)?)?;
     m.add_function(wrap_pyfunction!(_trace, m)?)?;
     m.add_function(wrap_pyfunction!(_distances, m)?)?;

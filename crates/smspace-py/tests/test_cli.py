@@ -62,6 +62,56 @@ def test_point_metric_equals_the_cli(cli, tmp_path):
         assert np.array_equal(D, np.load(tmp_path / "D.npy")), metric
 
 
+def _closed_curves(m, p, seed):
+    """``m`` closed curves of ``p`` points on the 4-torus, wrapped into [-pi, pi)."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0 * np.pi, p, endpoint=False)
+    centres = rng.uniform(-np.pi, np.pi, size=(m, 1, 4))
+    radii = rng.uniform(0.2, 0.8, size=(m, 1, 4))
+    phases = rng.uniform(0.0, 2.0 * np.pi, size=(m, 1, 4))
+    sets = centres + radii * np.cos(t[None, :, None] + phases)
+    return np.mod(sets + np.pi, 2.0 * np.pi) - np.pi
+
+
+def test_the_default_metric_is_the_same_behind_every_door(cli, tmp_path):
+    """``smspace distances`` and ``smspace.distances`` given no metric or period compute
+    the same matrix from one sets file: the library's default (curve under 2pi), not the
+    point metric's."""
+    sets = _closed_curves(11, 9, seed=4)
+    closed = np.array([1, 0] * 5 + [1], dtype=np.int64)
+    np.save(tmp_path / "sets.npy", sets)
+    np.save(tmp_path / "sets.closed.npy", closed)
+    cli("distances", "--sets", tmp_path / "sets.npy", "--out", tmp_path / "D.npy")
+    from_cli = np.load(tmp_path / "D.npy")
+    D = smspace.distances(sets, closed=closed)
+    assert np.array_equal(D, from_cli)
+    assert np.array_equal(D, smspace.distances(sets, metric="curve", period="2pi", closed=closed))
+    assert not np.array_equal(D, smspace.distances(sets, metric="hausdorff"))
+    indices, distances = smspace.knn(sets, 3, closed=closed)
+    cli("distances", "--sets", tmp_path / "sets.npy", "--knn", 3, "--out", tmp_path / "K.npy")
+    assert np.array_equal(indices, np.load(tmp_path / "knn_indices.npy"))
+    assert np.array_equal(distances, np.load(tmp_path / "knn_distances.npy"))
+
+
+def test_the_stage_defaults_are_the_same_behind_every_door(cli, tmp_path):
+    """The other stages' defaults agree too: exploration (n, seed), tracing (method,
+    points) and the embedding (method, dim, seed), each given no argument."""
+    agent = smspace.Agent.preset("planar-arm")
+    cli("explore", "--agent", "planar-arm", "--out-dir", tmp_path)
+    found = smspace.explore(agent)
+    assert np.array_equal(found.motors, np.load(tmp_path / "motors.npy"))
+    starts = found.motors[:12]
+    np.save(tmp_path / "starts.npy", starts)
+    cli("trace", "--agent", "planar-arm", "--motors", tmp_path / "starts.npy",
+        "--out", tmp_path / "sets.npy")
+    traced = smspace.trace(agent, starts)
+    assert np.array_equal(traced.sets, np.load(tmp_path / "sets.npy"))
+    D = smspace.distances(traced)
+    np.save(tmp_path / "D.npy", D)
+    cli("embed", "--distances", tmp_path / "D.npy", "--out", tmp_path / "Y.npy")
+    assert np.array_equal(smspace.embed(D), np.load(tmp_path / "Y.npy"))
+
+
 def test_run_equals_the_cli(cli, root, tmp_path):
     experiment = root / "experiments" / "paper-toy-redundant.toml"
     overrides = {"exploration.n": 60, "kernel.points": 12, "report.formats": "svg"}

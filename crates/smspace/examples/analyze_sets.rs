@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use smspace::analysis::{analyze, AnalysisParams};
 use smspace::io;
-use smspace::metric::{distance_matrix, DistanceParams};
+use smspace::metric::{distance_matrix, DistanceParams, MetricKind};
 use smspace::progress::Silent;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -18,7 +18,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let sets = io::read_cube(Path::new(sets), "(M, P, N)")?;
     let poses = io::read_matrix(Path::new(poses), Some(3), "(M, 3)")?;
     let start = Instant::now();
-    let distances = distance_matrix(sets.view(), &DistanceParams::new(), &Silent)?;
+    let distances = distance_matrix(
+        sets.view(),
+        &DistanceParams::new().metric(MetricKind::Hausdorff),
+        &Silent,
+    )?;
     eprintln!("distances: {:.2} s", start.elapsed().as_secs_f64());
     if let Some(out) = rest.first() {
         io::write_npy(Path::new(out), &distances)?;

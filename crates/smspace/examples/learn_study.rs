@@ -81,7 +81,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let manifold_of = |traced: &smspace::kernel::TracedSets| -> Result<serde_json::Value, Box<dyn std::error::Error>> {
         let distances = smspace::metric::distance_matrix(
             traced.sets.view(),
-            &smspace::metric::DistanceParams::new(),
+            &smspace::metric::DistanceParams::new()
+                .metric(smspace::metric::MetricKind::Hausdorff),
             &Silent,
         )?;
         let kept_poses = poses

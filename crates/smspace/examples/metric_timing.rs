@@ -50,7 +50,12 @@ fn main() {
     for _ in 0..repeats {
         let cpu0 = cpu_seconds();
         let t0 = Instant::now();
-        let d = distance_matrix(sets.view(), &DistanceParams::new(), &Silent).expect("matrix");
+        let d = distance_matrix(
+            sets.view(),
+            &DistanceParams::new().metric(smspace::metric::MetricKind::Hausdorff),
+            &Silent,
+        )
+        .expect("matrix");
         let wall = t0.elapsed().as_secs_f64();
         let cpu = cpu_seconds() - cpu0;
         let diff = reference.as_ref().map_or(f64::NAN, |r| {

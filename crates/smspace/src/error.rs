@@ -50,9 +50,12 @@ impl Error {
             Error::Agent(e) => e.invalid_parameter(),
             Error::Explore(e) => e.invalid_parameter(),
             Error::Kernel(e) => e.invalid_parameter(),
-            Error::Metric(MetricError::Invalid(p)) => Some(p),
+            Error::Metric(e) => e.invalid_parameter(),
+            Error::Embed(e) => e.invalid_parameter(),
+            Error::Analysis(e) => e.invalid_parameter(),
+            Error::Invariance(e) => e.invalid_parameter(),
             Error::Learn(e) => e.invalid_parameter(),
-            _ => None,
+            Error::Io(_) => None,
         }
     }
 }

@@ -58,10 +58,16 @@ pub trait RegistryError {
 pub type Builder<T, C, E> =
     Arc<dyn Fn(&toml::Table, &C) -> Result<(Box<T>, toml::Table), E> + Send + Sync>;
 
+/// Reads a TOML document whose every top-level table is a parameter table of one
+/// entry, as that entry's parameters: the reader's error (with the span of the key or
+/// value it refuses, in the document) or `Ok`.
+pub type TextReader = Arc<dyn Fn(&str) -> Result<(), toml::de::Error> + Send + Sync>;
+
 struct Entry<T: ?Sized, C, E> {
     summary: String,
     defaults: toml::Table,
     build: Builder<T, C, E>,
+    read: Option<TextReader>,
 }
 
 impl<T: ?Sized, C, E> Clone for Entry<T, C, E> {
@@ -70,6 +76,7 @@ impl<T: ?Sized, C, E> Clone for Entry<T, C, E> {
             summary: self.summary.clone(),
             defaults: self.defaults.clone(),
             build: self.build.clone(),
+            read: self.read.clone(),
         }
     }
 }
@@ -123,6 +130,7 @@ impl<T: ?Sized, C, E: RegistryError> Registry<T, C, E> {
                 summary: summary.into(),
                 defaults,
                 build,
+                read: None,
             },
         );
     }
@@ -151,6 +159,11 @@ impl<T: ?Sized, C, E: RegistryError> Registry<T, C, E> {
         };
         let defaults = table_of(&P::default()).unwrap_or_default();
         self.register(name, summary, defaults, Arc::new(build));
+        let read: TextReader =
+            Arc::new(|text: &str| toml::from_str::<BTreeMap<String, P>>(text).map(drop));
+        if let Some(entry) = self.entries.get_mut(name) {
+            entry.read = Some(read);
+        }
     }
 
     /// The registered names, in order.
@@ -171,6 +184,18 @@ impl<T: ?Sized, C, E: RegistryError> Registry<T, C, E> {
     /// The parameter table of an entry with every default, if registered.
     pub fn defaults(&self, name: &str) -> Option<&toml::Table> {
         self.entries.get(name).map(|e| &e.defaults)
+    }
+
+    /// Reads `document`, a TOML text whose every top-level table holds parameters of
+    /// the entry `name` (a file's table with its other lines blanked, so that lines
+    /// keep their numbers), as those parameters: the reader's error, whose span
+    /// locates the key or value it refuses, or `None` when it reads or the entry has no
+    /// parameter struct ([`register_params`](Self::register_params) gives it one).
+    /// Configuration readers use it to point at the line of a bad key, whatever the
+    /// entry.
+    pub fn read_error(&self, name: &str, document: &str) -> Option<toml::de::Error> {
+        let read = self.entries.get(name)?.read.as_ref()?;
+        read(document).err()
     }
 
     /// Builds the entry `name` from its parameter table; returns it with the resolved
@@ -244,6 +269,20 @@ mod tests {
         assert_eq!(resolved["factor"].as_float(), Some(3.0));
         let (f, resolved) = registry().make("scale", &toml::Table::new(), &0.0).unwrap();
         assert_eq!((f(2.0), resolved["factor"].as_float()), (0.0, Some(0.0)));
+    }
+
+    #[test]
+    fn a_table_s_text_is_read_with_the_line_of_a_bad_key() {
+        let r = registry();
+        let at = |text: &str| {
+            let err = r.read_error("scale", text).expect("an error");
+            let start = err.span().expect("a span").start;
+            text[..start].matches('\n').count() + 1
+        };
+        assert_eq!(at("[t]\n\nfacter = 2.0\n"), 3);
+        assert_eq!(at("[t]\nfactor = \"two\"\n"), 2);
+        assert!(r.read_error("scale", "[t]\nfactor = 2.0\n").is_none());
+        assert!(r.read_error("other", "[t]\nfacter = 2.0\n").is_none());
     }
 
     #[test]

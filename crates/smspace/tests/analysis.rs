@@ -704,7 +704,9 @@ mod learned {
         .unwrap();
         let d = distance_matrix(
             traced.sets.view(),
-            &DistanceParams::new().period(period),
+            &DistanceParams::new()
+                .metric(smspace::metric::MetricKind::Hausdorff)
+                .period(period),
             &Silent,
         )
         .unwrap();

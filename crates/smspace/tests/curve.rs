@@ -92,7 +92,9 @@ fn a_point_set_lies_on_its_own_polyline() {
     sets.index_axis_mut(Axis(0), 1).assign(&square);
     let d = distance_matrix(
         sets.view(),
-        &DistanceParams::new().period(Period::None),
+        &DistanceParams::new()
+            .metric(MetricKind::Hausdorff)
+            .period(Period::None),
         &Silent,
     )
     .unwrap();
@@ -431,13 +433,18 @@ fn bad_input_is_reported() {
     // The point metrics ignore closures.
     let d = distance_matrix(
         SetsView::new(sets.view()).with_closure(&four),
-        &DistanceParams::new(),
+        &DistanceParams::new().metric(MetricKind::Hausdorff),
         &Silent,
     )
     .unwrap();
     assert_eq!(
         d,
-        distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap()
+        distance_matrix(
+            sets.view(),
+            &DistanceParams::new().metric(MetricKind::Hausdorff),
+            &Silent
+        )
+        .unwrap()
     );
 }
 

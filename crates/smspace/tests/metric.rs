@@ -23,7 +23,10 @@ const KINDS: [MetricKind; 2] = [MetricKind::Hausdorff, MetricKind::MeanHausdorff
 const PERIODS: [Period; 2] = [Period::TwoPi, Period::None];
 
 fn params(kind: MetricKind, period: Period) -> DistanceParams {
-    DistanceParams::new().metric(kind).period(period)
+    DistanceParams::new()
+        .metric(MetricKind::Hausdorff)
+        .metric(kind)
+        .period(period)
 }
 
 /// Rows `range` of `a` (ndarray's `s!` macro is unavailable under `forbid(unsafe_code)`).
@@ -330,10 +333,15 @@ fn identical_for_any_thread_count() {
             .build()
             .unwrap()
             .install(|| {
-                let d = distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap();
+                let d = distance_matrix(
+                    sets.view(),
+                    &DistanceParams::new().metric(MetricKind::Hausdorff),
+                    &Silent,
+                )
+                .unwrap();
                 let k = knn(
                     sets.view(),
-                    &DistanceParams::new(),
+                    &DistanceParams::new().metric(MetricKind::Hausdorff),
                     &KnnParams::new().k(5),
                     0..40,
                     &Silent,
@@ -404,7 +412,7 @@ fn knn_equals_the_top_k_of_the_full_matrix() {
 
 #[test]
 fn bad_input_is_reported() {
-    let p = DistanceParams::new();
+    let p = DistanceParams::new().metric(MetricKind::Hausdorff);
     let err = |sets: Array3<f64>| distance_matrix(sets.view(), &p, &Silent).unwrap_err();
     assert!(matches!(
         err(Array3::zeros((0, 5, 4))),
@@ -502,7 +510,9 @@ fn bad_input_is_reported() {
     // Out of memory in kNN mode does not suggest kNN.
     let e = knn(
         sets.view(),
-        &DistanceParams::new().memory_limit_bytes(Some(10)),
+        &DistanceParams::new()
+            .metric(MetricKind::Hausdorff)
+            .memory_limit_bytes(Some(10)),
         &KnnParams::new().k(2),
         0..4,
         &Silent,
@@ -520,7 +530,9 @@ fn bad_input_is_reported() {
 #[test]
 fn refuses_a_matrix_larger_than_the_memory_limit() {
     let sets = arm_like_sets(50, 10, 2);
-    let p = DistanceParams::new().memory_limit_bytes(Some(10_000));
+    let p = DistanceParams::new()
+        .metric(MetricKind::Hausdorff)
+        .memory_limit_bytes(Some(10_000));
     let e = distance_matrix(sets.view(), &p, &Silent).unwrap_err();
     assert!(matches!(
         e,
@@ -537,7 +549,9 @@ fn refuses_a_matrix_larger_than_the_memory_limit() {
         "{message}"
     );
     // The matrix of the same sets fits under a generous limit.
-    let p = DistanceParams::new().memory_limit_bytes(Some(1 << 30));
+    let p = DistanceParams::new()
+        .metric(MetricKind::Hausdorff)
+        .memory_limit_bytes(Some(1 << 30));
     assert!(distance_matrix(sets.view(), &p, &Silent).is_ok());
 }
 
@@ -559,7 +573,13 @@ fn progress_counts_every_pair() {
     }
     let sets = arm_like_sets(9, 10, 4);
     let count = Count::default();
-    distance_rows(sets.view(), &DistanceParams::new(), 2..6, &count).unwrap();
+    distance_rows(
+        sets.view(),
+        &DistanceParams::new().metric(MetricKind::Hausdorff),
+        2..6,
+        &count,
+    )
+    .unwrap();
     let total = count.total.load(Ordering::SeqCst);
     assert_eq!(total, count.done.load(Ordering::SeqCst));
     // Rows 2..6 of 9 sets: 4·8 pairs, of which the 6 inside the block are shared.
@@ -596,8 +616,13 @@ fn a_user_defined_metric_goes_through_the_tiled_threaded_path() {
             .build()
             .unwrap()
             .install(|| {
-                distance_matrix_with(sets.view(), &Centroids, &DistanceParams::new(), &Silent)
-                    .unwrap()
+                distance_matrix_with(
+                    sets.view(),
+                    &Centroids,
+                    &DistanceParams::new().metric(MetricKind::Hausdorff),
+                    &Silent,
+                )
+                .unwrap()
             })
     };
     let d = run(2);
@@ -617,25 +642,37 @@ fn a_user_defined_metric_goes_through_the_tiled_threaded_path() {
         &Hausdorff {
             period: Period::TwoPi.into(),
         },
-        &DistanceParams::new(),
+        &DistanceParams::new().metric(MetricKind::Hausdorff),
         &Silent,
     )
     .unwrap();
-    let simd = distance_matrix(sets.view(), &DistanceParams::new(), &Silent).unwrap();
+    let simd = distance_matrix(
+        sets.view(),
+        &DistanceParams::new().metric(MetricKind::Hausdorff),
+        &Silent,
+    )
+    .unwrap();
     assert_matrix_eq(&generic, &simd, "generic vs SIMD Hausdorff");
     // A failing pair is reported, the first in row-major order, whatever the threads.
     let mut bad = sets.clone();
     bad[[40, 0, 0]] = 42.0;
     bad[[12, 0, 0]] = 42.0;
-    let err = distance_matrix_with(bad.view(), &Centroids, &DistanceParams::new(), &Silent)
-        .unwrap_err()
-        .to_string();
+    let err = distance_matrix_with(
+        bad.view(),
+        &Centroids,
+        &DistanceParams::new().metric(MetricKind::Hausdorff),
+        &Silent,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
         err.contains("centroids metric failed on sets 0 and 12"),
         "{err}"
     );
     // The memory check and the input checks are the built-in metrics'.
-    let small = DistanceParams::new().memory_limit_bytes(Some(1000));
+    let small = DistanceParams::new()
+        .metric(MetricKind::Hausdorff)
+        .memory_limit_bytes(Some(1000));
     assert!(matches!(
         distance_matrix_with(sets.view(), &Centroids, &small, &Silent),
         Err(MetricError::OutOfMemory { .. })
@@ -643,7 +680,12 @@ fn a_user_defined_metric_goes_through_the_tiled_threaded_path() {
     let mut nan = sets.clone();
     nan[[3, 1, 2]] = f64::NAN;
     assert!(matches!(
-        distance_matrix_with(nan.view(), &Centroids, &DistanceParams::new(), &Silent),
+        distance_matrix_with(
+            nan.view(),
+            &Centroids,
+            &DistanceParams::new().metric(MetricKind::Hausdorff),
+            &Silent
+        ),
         Err(MetricError::NonFinite {
             set: 3,
             point: 1,
@@ -681,7 +723,10 @@ fn any_tiling_merges_into_the_matrix_bit_for_bit() {
         let p = params(kind, Period::TwoPi);
         metrics.push((p.check().unwrap().set_metric(), p));
     }
-    metrics.push((Box::new(Centroids), DistanceParams::new()));
+    metrics.push((
+        Box::new(Centroids),
+        DistanceParams::new().metric(MetricKind::Hausdorff),
+    ));
     for (metric, p) in &metrics {
         let whole = match metric.kernel() {
             Some(_) => distance_matrix(view(0..45), p, &Silent).unwrap(),
@@ -785,7 +830,11 @@ fn a_tile_plan_computes_every_pair_exactly_once() {
 fn merging_refuses_missing_and_conflicting_tiles() {
     use smspace::metric::{distance_tile, Tile, TileMerge, TilePlan};
     let sets = uniform_sets(9, 3, 2, 4);
-    let metric = DistanceParams::new().check().unwrap().set_metric();
+    let metric = DistanceParams::new()
+        .metric(MetricKind::Hausdorff)
+        .check()
+        .unwrap()
+        .set_metric();
     let tile_of = |t: &Tile| {
         distance_tile(
             sets.slice_axis(Axis(0), Slice::from(t.rows.clone())),
@@ -841,8 +890,13 @@ fn knn_of_a_user_metric_is_the_top_k_of_its_matrix() {
             metric,
             ..Counting::default()
         };
-        let full =
-            distance_matrix_with(sets.view(), &counting, &DistanceParams::new(), &Silent).unwrap();
+        let full = distance_matrix_with(
+            sets.view(),
+            &counting,
+            &DistanceParams::new().metric(MetricKind::Hausdorff),
+            &Silent,
+        )
+        .unwrap();
         for (k, pivots) in [(1, 4), (7, 16), (7, 0)] {
             let (indices, distances) = top_k(&full, k);
             let calls = |c: &Counting| c.calls.load(std::sync::atomic::Ordering::Relaxed);
@@ -851,7 +905,7 @@ fn knn_of_a_user_metric_is_the_top_k_of_its_matrix() {
             let found = knn_with(
                 sets.view(),
                 &counting,
-                &DistanceParams::new(),
+                &DistanceParams::new().metric(MetricKind::Hausdorff),
                 &knn_params,
                 0..60,
                 &Silent,
@@ -870,7 +924,7 @@ fn knn_of_a_user_metric_is_the_top_k_of_its_matrix() {
             let block = knn_with(
                 sets.view(),
                 &counting,
-                &DistanceParams::new(),
+                &DistanceParams::new().metric(MetricKind::Hausdorff),
                 &knn_params,
                 10..25,
                 &Silent,
@@ -880,7 +934,7 @@ fn knn_of_a_user_metric_is_the_top_k_of_its_matrix() {
         }
     }
     // The built-in Hausdorff through knn_with runs on its kernels: the same lists as knn.
-    let p = DistanceParams::new();
+    let p = DistanceParams::new().metric(MetricKind::Hausdorff);
     let h = Hausdorff {
         period: Period::TwoPi.into(),
     };
@@ -896,7 +950,9 @@ fn knn_of_a_user_metric_is_the_top_k_of_its_matrix() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("centroids metric failed on sets"), "{err}");
-    let small = DistanceParams::new().memory_limit_bytes(Some(100));
+    let small = DistanceParams::new()
+        .metric(MetricKind::Hausdorff)
+        .memory_limit_bytes(Some(100));
     assert!(matches!(
         knn_with(sets.view(), &Centroids, &small, &knn_params, 0..60, &Silent),
         Err(MetricError::KnnOutOfMemory { .. })
@@ -917,7 +973,7 @@ fn inputs_in_any_layout_or_stride_give_the_same_numbers() {
     big.slice_axis_mut(Axis(0), Slice::new(0, None, 2))
         .assign(&sets);
     let strided = big.slice_axis(Axis(0), Slice::new(0, None, 2));
-    let p = DistanceParams::new();
+    let p = DistanceParams::new().metric(MetricKind::Hausdorff);
     let expected = distance_matrix(sets.view(), &p, &Silent).unwrap();
     let knn_params = KnnParams::new().k(3);
     let near = knn(sets.view(), &p, &knn_params, 0..21, &Silent).unwrap();
@@ -988,7 +1044,12 @@ fn every_kernel_matrix() -> Vec<Vec<u64>> {
     let sets = uniform_sets(10, 30, 3, 26);
     for period in PERIODS {
         let metric = Surface::new(SurfaceParams::default(), period.into()).unwrap();
-        let d = distance_matrix_with(sets.view(), &metric, &DistanceParams::new(), &Silent);
+        let d = distance_matrix_with(
+            sets.view(),
+            &metric,
+            &DistanceParams::new().metric(MetricKind::Hausdorff),
+            &Silent,
+        );
         out.push(bits(d.unwrap()));
     }
     out

@@ -35,11 +35,12 @@ pub struct Args {
     /// it.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
-    /// Distance between two sets: a registered metric (hausdorff, the paper's;
-    /// mean-hausdorff; curve, which reads every set as a polyline, closed or open as
-    /// recorded by `smspace trace` in SETS.closed.npy next to the sets, or as --curve
-    /// says; surface, for kernels of dimension k >= 2). An unknown name lists them.
-    #[arg(long, value_name = "NAME", default_value = "hausdorff")]
+    /// Distance between two sets: a registered metric (curve, the default, which reads
+    /// every set as a polyline, closed or open as recorded by `smspace trace` in
+    /// SETS.closed.npy next to the sets, or as --curve says; hausdorff, the paper's,
+    /// between the sampled points; mean-hausdorff; surface, for kernels of dimension
+    /// k >= 2). An unknown name lists them.
+    #[arg(long, value_name = "NAME", default_value = metric::DEFAULT_METRIC.name())]
     metric: String,
     /// A parameter of the metric, as in an experiment's [metric.params] table, the value
     /// in TOML (e.g. --param dimension=3 --param radius_scale=0.5); repeat for more.
@@ -55,7 +56,7 @@ pub struct Args {
     /// Period of every motor coordinate: 2pi (hinge joints, the paper's metric), none
     /// (plain Euclidean), or one entry per motor separated by commas, each 2pi, none or
     /// a period in radians (e.g. 2pi,2pi,none for two hinges and a bounded motor).
-    #[arg(long, value_name = "2pi|none|LIST", default_value = "2pi", value_parser = parse_period)]
+    #[arg(long, value_name = "2pi|none|LIST", default_value_t = Periodicity::default(), value_parser = parse_period)]
     period: Periodicity,
     /// Instead of the matrix, the K nearest sets of every set (self excluded, nearest
     /// first, ties by index): knn_indices.npy (M, K) int64 and knn_distances.npy (M, K)

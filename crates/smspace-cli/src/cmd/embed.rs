@@ -1,5 +1,7 @@
-//! `smspace embed`: coordinates `(M, d)` for a distance matrix, by CCA (the paper's),
-//! Isomap or classical MDS.
+//! `smspace embed`: coordinates `(M, d)` for a distance matrix, by any registered
+//! embedding method (CCA, the paper's; Isomap; classical MDS): `--method NAME` picks
+//! it from the library's `EmbeddingRegistry` and its parameters are its
+//! `[embedding]` table's, given as `--param KEY=VALUE` or by the flags below.
 //!
 //! Writes, next to `--out Y.npy`:
 //!
@@ -18,25 +20,14 @@ use clap::ValueEnum;
 use serde_json::json;
 use smspace::embed::quality::measure;
 use smspace::embed::{
-    CcaParams, EmbedFile, EmbedParams, Embedded, ExtendedPoints, IsomapParams, KnnGraph,
-    LandmarkChoice, MdsParams, Neighbourhood,
+    EmbedFile, EmbedParams, Embedded, EmbeddingRegistry, ExtendedPoints, KnnGraph, LandmarkChoice,
+    Neighbourhood,
 };
 use smspace::io::{read_matrix, write_npy};
 use smspace::metric::DistanceMatrix;
 
-use super::common::sibling;
+use super::common::{parse_param, sibling};
 use crate::ui;
-
-/// The embedding method.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Method {
-    /// Curvilinear Component Analysis (Demartines & Hérault 1997), the paper's.
-    Cca,
-    /// Isomap (exact, or landmark with --landmarks).
-    Isomap,
-    /// Classical (Torgerson) MDS.
-    Mds,
-}
 
 /// CCA's neighbourhood function.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -74,15 +65,23 @@ pub struct Args {
     /// The matching (M, K) float64 neighbour distances.
     #[arg(long, value_name = "knn_distances.npy", requires = "knn_indices")]
     pub knn_distances: Option<PathBuf>,
-    /// Embedding method.
-    #[arg(long, value_enum, default_value_t = Method::Cca)]
-    pub method: Method,
-    /// Output dimension.
-    #[arg(long, default_value_t = CcaParams::default().dim)]
-    pub dim: usize,
-    /// Seed (CCA pivot order, landmarks, eigensolver start vector, dy–dx sample).
-    #[arg(long, default_value_t = CcaParams::default().seed)]
-    pub seed: u64,
+    /// Embedding method: a registered one (cca, the paper's Curvilinear Component
+    /// Analysis; isomap, exact or landmark with --landmarks; mds, classical MDS). An
+    /// unknown name lists them.
+    #[arg(long, value_name = "NAME", default_value_t = EmbedParams::default().method)]
+    pub method: String,
+    /// A parameter of the method, as in an experiment's [embedding] table, the value
+    /// in TOML (e.g. --param epochs=80 --param alpha_start=0.3); repeat for more.
+    /// Parameters the method does not have are errors that name them.
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = parse_param)]
+    pub params: Vec<(String, toml::Value)>,
+    /// Output dimension (default: the method's, 3 for the built-in ones).
+    #[arg(long)]
+    pub dim: Option<usize>,
+    /// Seed (CCA pivot order, landmarks, eigensolver start vector, dy–dx sample;
+    /// default: the method's, 0 for the built-in ones).
+    #[arg(long)]
+    pub seed: Option<u64>,
     /// Output coordinates (M, dim) .npy; the report goes to <stem>.embed.json.
     #[arg(long, value_name = "Y.npy")]
     pub out: PathBuf,
@@ -116,62 +115,116 @@ pub struct Args {
     pub dydx_pairs: usize,
 }
 
+/// A flag's value as the TOML of its parameter (numbers, and the names the
+/// parameters' enums are written with).
+macro_rules! value {
+    ($v:expr) => {
+        toml::Value::try_from($v).unwrap_or_else(|_| toml::Value::String(String::new()))
+    };
+}
+
 impl Args {
-    /// The parameters of `--method isomap`.
-    fn isomap_params(&self) -> IsomapParams {
-        let d = IsomapParams::default();
-        IsomapParams {
-            dim: self.dim,
-            seed: self.seed,
-            k: self.k.unwrap_or(d.k),
-            landmarks: self.landmarks,
-            landmark_choice: match self.landmark_choice {
-                Some(LandmarkArg::Random) => LandmarkChoice::Random,
-                Some(LandmarkArg::Maxmin) => LandmarkChoice::MaxMin,
-                None => d.landmark_choice,
-            },
-            ..d
+    /// The method's `[embedding]` table: the `--param`s and the flags that set its
+    /// keys (a key given twice is an error), resolved through the library's registry.
+    /// A flag the method has no parameter for names the methods that have one.
+    fn params(&self, registry: &EmbeddingRegistry) -> anyhow::Result<EmbedParams> {
+        let flags: [(&str, &str, Option<toml::Value>); 8] = [
+            ("--dim", "dim", self.dim.map(|d| value!(&d))),
+            ("--seed", "seed", self.seed.map(|s| value!(&s))),
+            ("--epochs", "epochs", self.epochs.map(|e| value!(&e))),
+            (
+                "--neighbourhood",
+                "neighbourhood",
+                self.neighbourhood.map(|n| value!(&Neighbourhood::from(n))),
+            ),
+            (
+                "--lambda-end",
+                "lambda_end",
+                self.lambda_end.map(|l| value!(&l)),
+            ),
+            ("--k", "k", self.k.map(|k| value!(&k))),
+            (
+                "--landmarks",
+                "landmarks",
+                self.landmarks.map(|l| value!(&l)),
+            ),
+            (
+                "--landmark-choice",
+                "landmark_choice",
+                self.landmark_choice
+                    .map(|c| value!(&LandmarkChoice::from(c))),
+            ),
+        ];
+        let mut table: toml::Table = toml::Table::new();
+        for (key, v) in &self.params {
+            anyhow::ensure!(
+                key != "method",
+                "--param method=…: the method is --method NAME"
+            );
+            if table.insert(key.clone(), v.clone()).is_some() {
+                bail!("--param {key} is given twice");
+            }
+        }
+        anyhow::ensure!(
+            registry.contains(&self.method),
+            "unknown embedding method '{}'; the registered methods are {}",
+            self.method,
+            registry.names().collect::<Vec<_>>().join(", ")
+        );
+        for (flag, key, v) in flags {
+            let Some(v) = v else { continue };
+            if table.contains_key(key) {
+                bail!("{flag} and --param {key}=… both set {key}; give one");
+            }
+            if !accepts(registry, &self.method, key, &v) {
+                let with: Vec<&str> = registry
+                    .names()
+                    .filter(|name| accepts(registry, name, key, &v))
+                    .collect();
+                bail!(
+                    "{flag} applies to --method {} only (a method with the parameter {key}); --method {} has none",
+                    if with.is_empty() { "(none registered)".to_owned() } else { with.join(" or ") },
+                    self.method
+                );
+            }
+            table.insert(key.to_owned(), v);
+        }
+        Ok(EmbedParams {
+            method: self.method.clone(),
+            params: table,
+        })
+    }
+}
+
+/// Whether the method `name` has the parameter `key` (for a value like `value`): its
+/// own reader of a table refuses no `key` as unknown.
+fn accepts(registry: &EmbeddingRegistry, name: &str, key: &str, value: &toml::Value) -> bool {
+    let mut table = toml::Table::new();
+    table.insert(key.to_owned(), value.clone());
+    let mut document = toml::Table::new();
+    document.insert("t".to_owned(), toml::Value::Table(table));
+    let text = toml::to_string(&document).unwrap_or_default();
+    match registry.read_error(name, &text) {
+        Some(error) => !error.message().contains("unknown field"),
+        None => true,
+    }
+}
+
+impl From<NeighbourhoodArg> for Neighbourhood {
+    fn from(arg: NeighbourhoodArg) -> Self {
+        match arg {
+            NeighbourhoodArg::Step => Neighbourhood::Step,
+            NeighbourhoodArg::Exp => Neighbourhood::Exp,
         }
     }
+}
 
-    /// The method's parameters, refusing options that belong to another method.
-    fn params(&self) -> anyhow::Result<EmbedParams> {
-        let cca_only =
-            self.epochs.is_some() || self.neighbourhood.is_some() || self.lambda_end.is_some();
-        let isomap_only =
-            self.k.is_some() || self.landmarks.is_some() || self.landmark_choice.is_some();
-        if cca_only && self.method != Method::Cca {
-            bail!("--epochs, --neighbourhood and --lambda-end apply to --method cca only");
+impl From<LandmarkArg> for LandmarkChoice {
+    fn from(arg: LandmarkArg) -> Self {
+        match arg {
+            LandmarkArg::Maxmin => LandmarkChoice::MaxMin,
+            LandmarkArg::Random => LandmarkChoice::Random,
         }
-        if isomap_only && self.method != Method::Isomap {
-            bail!("--k, --landmarks and --landmark-choice apply to --method isomap only");
-        }
-        if self.knn_indices.is_some() && self.method != Method::Isomap {
-            bail!("a kNN graph (--knn-indices/--knn-distances) can only be embedded with --method isomap; give --distances for {:?}", self.method);
-        }
-        Ok(match self.method {
-            Method::Cca => {
-                let d = CcaParams::default();
-                EmbedParams::from(CcaParams {
-                    dim: self.dim,
-                    seed: self.seed,
-                    epochs: self.epochs.unwrap_or(d.epochs),
-                    neighbourhood: match self.neighbourhood {
-                        Some(NeighbourhoodArg::Exp) => Neighbourhood::Exp,
-                        Some(NeighbourhoodArg::Step) => Neighbourhood::Step,
-                        None => d.neighbourhood,
-                    },
-                    lambda_end: self.lambda_end,
-                    ..d
-                })
-            }
-            Method::Isomap => EmbedParams::from(self.isomap_params()),
-            Method::Mds => EmbedParams::from(MdsParams {
-                dim: self.dim,
-                seed: self.seed,
-                ..MdsParams::default()
-            }),
-        })
     }
 }
 
@@ -187,14 +240,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ("--extend", args.extend.as_deref()),
         ],
     )?;
-    let params = args.params()?;
+    let registry = EmbeddingRegistry::builtin();
+    let (params, method) = args
+        .params(&registry)?
+        .resolve(&registry)
+        .context("--method and its parameters")?;
     let params_json = serde_json::to_value(&params).context("cannot describe the parameters")?;
+    // The dy–dx sample's seed: --seed, else the method's.
+    let seed = args
+        .seed
+        .or_else(|| params.params.get("seed")?.as_integer()?.try_into().ok())
+        .unwrap_or_default();
     let bar = ui::Bar::new();
     let (embedded, distances, input): (Embedded, Option<_>, _) =
         match (&args.distances, &args.knn_indices, &args.knn_distances) {
             (Some(path), _, _) => {
                 let d = DistanceMatrix::load(path)?;
-                let method = params.build()?;
                 let e = method
                     .fit(&d, &bar)
                     .with_context(|| format!("cannot embed {}", path.display()))?;
@@ -202,10 +263,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
             (None, Some(ip), Some(dp)) => {
                 let graph = KnnGraph::read(ip, dp)?;
-                // Only Isomap embeds a graph (checked in Args::params).
-                let e = args
-                    .isomap_params()
-                    .check()?
+                let e = method
                     .fit_knn(&graph, &bar)
                     .with_context(|| format!("cannot embed the kNN graph {}", ip.display()))?;
                 (e, None, json!({ "knn_indices": ip, "knn_distances": dp }))
@@ -220,7 +278,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             embedded.coordinates.view(),
             args.quality_k,
             args.dydx_pairs,
-            args.seed,
+            seed,
         )?,
         None => (None, None),
     };

@@ -35,9 +35,10 @@ pub struct Args {
     /// Points per traced set.
     #[arg(long, default_value_t = smspace::kernel::TraceParams::default().points)]
     points: usize,
-    /// Distance between two sets: hausdorff, mean-hausdorff or curve (the traced loops
-    /// and segments as polylines), under the agent's own point metric.
-    #[arg(long, value_name = "NAME", default_value = "hausdorff")]
+    /// Distance between two sets: curve (the default: the traced loops and segments as
+    /// polylines), hausdorff or mean-hausdorff (between the sampled points), under the
+    /// agent's own point metric.
+    #[arg(long, value_name = "NAME", default_value = smspace::metric::DEFAULT_METRIC.name())]
     metric: String,
     #[command(flatten)]
     workspace: WorkspaceArgs,

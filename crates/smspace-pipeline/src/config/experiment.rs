@@ -114,6 +114,11 @@ pub struct Experiment {
     /// Tracing of the kernel sets.
     #[serde(default)]
     pub kernel: TraceParams,
+    /// With `[kernel] method = "learned"`: the budget of sensor rows the agent may be
+    /// read (`budget`, required), the babbling rounds, verification and the law
+    /// (`[learn.law]`) of [`smspace::learn::budget`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learn: Option<smspace::learn::budget::BudgetParams>,
     /// The metric between sets.
     #[serde(default)]
     pub metric: DistanceParams,
@@ -133,12 +138,13 @@ pub struct Experiment {
 }
 
 /// The tables of an experiment file, for error messages.
-pub const EXPERIMENT_TABLES: [&str; 10] = [
+pub const EXPERIMENT_TABLES: [&str; 11] = [
     "agent",
     "data",
     "environment",
     "exploration",
     "kernel",
+    "learn",
     "metric",
     "embedding",
     "analysis",
@@ -207,6 +213,55 @@ impl LoadedExperiment {
         }
     }
 
+    /// An [`Invalid`](ConfigError::Invalid) error for the parameter table `section` of
+    /// `table` (`embedding`, or `metric.params` in `metric`) that a registry entry
+    /// reads: located as [`invalid_error`](Self::invalid_error) does when the error
+    /// names a parameter or a `--set` gave the table a key; otherwise at the line of the
+    /// key or value that `read` refuses in the section's text (the entry's own reader,
+    /// [`smspace::registry::Registry::read_error`], given the file with every other line
+    /// blanked and the keys in `skip`, such as the `method` that picks the entry, left
+    /// out). So any registered entry's errors are located, with no code for each.
+    pub fn invalid_table_error(
+        &self,
+        table: &'static str,
+        section: &str,
+        skip: &[&str],
+        error: impl LocatedError,
+        read: impl Fn(&str) -> Option<toml::de::Error>,
+    ) -> ConfigError {
+        let overridden = self.overrides.iter().any(|o| {
+            o.split_once('=')
+                .is_some_and(|(p, _)| p.trim().starts_with(&format!("{table}.")))
+        });
+        if error.invalid_parameter().is_some() || overridden {
+            return self.invalid_error(table, error);
+        }
+        let document = section_document(&self.text, section, skip);
+        let Some(line) = read(&document)
+            .and_then(|e| e.span())
+            .map(|span| document[..span.start].matches('\n').count() + 1)
+        else {
+            return self.invalid_error(table, error);
+        };
+        let message = error.to_string();
+        let key = self
+            .text
+            .lines()
+            .nth(line - 1)
+            .and_then(|l| l.split_once('='))
+            .map(|(k, _)| k.trim().trim_matches('"').to_owned())
+            .filter(|k| !k.is_empty() && !mentions(&message, k));
+        ConfigError::Invalid {
+            path: self.path.clone(),
+            line: format!(", line {line}"),
+            table,
+            reason: match key {
+                Some(key) => format!("{key}: {message}"),
+                None => message,
+            },
+        }
+    }
+
     /// An [`Invalid`](ConfigError::Invalid) error for `table`, located at the line of the
     /// first of the table's keys that `message` names (or at the override that set it):
     /// for errors that carry no [`InvalidParameter`].
@@ -258,6 +313,43 @@ fn exact_key_line(text: &str, table: &str, key: &str) -> Option<usize> {
         }
     }
     None
+}
+
+/// The lines of the table `section` (`embedding`, `metric.params`) of `text` as a
+/// document of their own, with every other line blank so that lines keep their
+/// numbers: the section's header becomes `[section]`'s last part alone (its sub-tables
+/// follow), and the keys in `skip` are blanked.
+fn section_document(text: &str, section: &str, skip: &[&str]) -> String {
+    let own = section.rsplit('.').next().unwrap_or(section);
+    let mut inside = false;
+    text.lines()
+        .map(|line| {
+            let t = line.trim();
+            if let Some(header) = table_header(t) {
+                let rest = if header == section {
+                    Some(String::new())
+                } else {
+                    header
+                        .strip_prefix(section)
+                        .filter(|r| r.starts_with('.'))
+                        .map(str::to_owned)
+                };
+                inside = rest.is_some();
+                return match rest {
+                    Some(rest) if t.starts_with("[[") => format!("[[{own}{rest}]]"),
+                    Some(rest) => format!("[{own}{rest}]"),
+                    None => String::new(),
+                };
+            }
+            let key = t.split_once('=').map(|(k, _)| k.trim().trim_matches('"'));
+            if inside && !key.is_some_and(|k| skip.contains(&k)) {
+                line.to_owned()
+            } else {
+                String::new()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 /// The name of the table a trimmed line opens (`[table]` or `[[table]]`), if it is a
@@ -347,53 +439,12 @@ fn apply_override(root: &mut toml::Table, assignment: &str) -> Result<(), Config
     Ok(())
 }
 
-/// The `[embedding]` table is tagged by `method`, so the TOML reader reports a wrong
-/// value inside it at the table's header, without the key. This reads the table again
-/// as the named method's own parameters, with the `method` line blanked (lines keep
-/// their numbers), to give the line and key; `None` when that finds nothing wrong.
-fn embedding_detail(path: &Path, text: &str) -> Option<ConfigError> {
-    use smspace::embed::{CcaParams, IsomapParams, MdsParams};
-    #[derive(Deserialize)]
-    struct Probe<T> {
-        #[allow(dead_code, reason = "read only to find the error")]
-        embedding: T,
-    }
-    let table: toml::Table = toml::from_str(text).ok()?;
-    let method = table.get("embedding")?.get("method")?.as_str()?.to_owned();
-    let mut in_embedding = false;
-    let blanked: String = text
-        .lines()
-        .map(|line| {
-            let t = line.trim();
-            if t.starts_with('[') {
-                in_embedding =
-                    t.trim_start_matches('[').split(']').next().map(str::trim) == Some("embedding");
-            }
-            let key = t.split_once('=').map(|(k, _)| k.trim());
-            if in_embedding && key == Some("method") {
-                ""
-            } else {
-                line
-            }
-        })
-        .collect::<Vec<_>>()
-        .join("\n");
-    let result = match method.as_str() {
-        "cca" => parse_toml::<Probe<CcaParams>>(path, &blanked).map(drop),
-        "isomap" => parse_toml::<Probe<IsomapParams>>(path, &blanked).map(drop),
-        "mds" => parse_toml::<Probe<MdsParams>>(path, &blanked).map(drop),
-        _ => return None,
-    };
-    result.err()
-}
-
 /// Reads an experiment file and applies the overrides (`stage.key=value`). Syntax
 /// errors, unknown keys and wrong types name the file, line and key (or the override).
 /// Values are checked by each stage's `check` before anything runs (see the pipeline).
 pub fn load_experiment(path: &Path, overrides: &[String]) -> Result<LoadedExperiment, ConfigError> {
     let text = read_text(path)?;
-    let mut experiment: Experiment =
-        parse_toml(path, &text).map_err(|error| embedding_detail(path, &text).unwrap_or(error))?;
+    let mut experiment: Experiment = parse_toml(path, &text)?;
     if !overrides.is_empty() {
         let mut root: toml::Table = parse_toml(path, &text)?;
         for o in overrides {

@@ -288,6 +288,113 @@ mod tests {
         assert!(err.contains("(from --set kernel.points=1)"), "{err}");
     }
 
+    /// A bad value in any table of an experiment gives an error that names the file,
+    /// the line of its key, the table and the key: one case per table, each with the
+    /// key below other keys of its table so that the line is the key's own.
+    #[test]
+    fn every_table_locates_a_bad_value_at_its_key_s_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let arm = "[agent]\nkind = \"planar-arm\"\n";
+        let cases: [(&str, &str, &str); 12] = [
+            ("exploration", "seed = 3\nn = 1\n", "n"),
+            (
+                "kernel",
+                "step_control = \"adaptive\"\nstep = 0.01\nmax_step = 0.001\n",
+                "max_step",
+            ),
+            ("metric", "metric = \"curve\"\nperiod = [\"2pi\", \"none\"]\n", "period"),
+            ("embedding", "method = \"cca\"\nepochs = 5\ndim = 0\n", "dim"),
+            ("embedding", "method = \"isomap\"\ndim = 2\nk = 0\n", "k"),
+            ("embedding", "method = \"mds\"\ndim = 2\nepochs = 5\n", "epochs"),
+            ("embedding", "method = \"cca\"\ndim = 2\nepochs = \"many\"\n", "epochs"),
+            ("analysis", "max_points = 500\nmax_homology_dim = 3\n", "max_homology_dim"),
+            ("report", "seed = 2\ndpi = 10\n", "dpi"),
+            ("scale", "path = \"dense\"\nknn = 1\n", "knn"),
+            (
+                "data",
+                "law = { neighbours = 20 }\nmemory_limit_gib = -1.0\n[data.simulate]\nsamples = 100\n",
+                "memory_limit_gib",
+            ),
+            ("environment", "seed = 2\nlights = 0\n", "lights"),
+        ];
+        for (table, body, key) in cases {
+            let text = format!("{arm}\n[{table}]\n# the {table} table\n{body}");
+            let line = 1 + text
+                .lines()
+                .position(|l| l.starts_with(&format!("{key} =")))
+                .unwrap();
+            let path = write(&dir, "tables.toml", &text);
+            let err = match load_experiment(&path, &[]) {
+                Ok(loaded) => crate::check(&loaded).unwrap_err().to_string(),
+                Err(err) => err.to_string(),
+            };
+            assert!(
+                err.contains(&format!("tables.toml, line {line}")) && err.contains(key),
+                "[{table}] {key}: {err}"
+            );
+            assert!(
+                err.contains(&format!("[{table}]")),
+                "[{table}] {key}: {err}"
+            );
+        }
+    }
+
+    /// An embedding method registered by an embedder is located like the built-in
+    /// ones: a wrong key or value of its `[embedding]` table names its line, with no
+    /// code for the method in the reader.
+    #[test]
+    fn a_registered_embedding_s_bad_key_is_located() {
+        #[derive(serde::Serialize, serde::Deserialize)]
+        #[serde(deny_unknown_fields, default)]
+        struct PlainParams {
+            dim: usize,
+            gain: f64,
+        }
+        impl Default for PlainParams {
+            fn default() -> Self {
+                Self { dim: 2, gain: 1.0 }
+            }
+        }
+        let mut registries = crate::Registries::builtin();
+        registries.embeddings.register_params(
+            "plain",
+            "classical MDS under another name",
+            |p: &PlainParams, _: &()| {
+                Ok(Box::new(
+                    smspace::embed::MdsParams::default().dim(p.dim).check()?,
+                ))
+            },
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let arm = "[agent]\nkind = \"planar-arm\"\n";
+        for (body, line, key) in [
+            ("method = \"plain\"\ndim = 2\ngian = 3.0\n", 7, "gian"),
+            ("method = \"plain\"\ngain = \"high\"\ndim = 2\n", 6, "gain"),
+            ("dim = 2\nmethod = \"plain\"\ndim_ = 0\n", 7, "dim_"),
+        ] {
+            let path = write(&dir, "plain.toml", &format!("{arm}\n[embedding]\n{body}"));
+            let loaded = load_experiment(&path, &[]).unwrap();
+            let err = crate::check_with(&loaded, registries.clone())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains(&format!("plain.toml, line {line}: [embedding]")) && err.contains(key),
+                "{err}"
+            );
+        }
+        let path = write(
+            &dir,
+            "plain.toml",
+            &format!("{arm}[embedding]\nmethod = \"plain\"\n"),
+        );
+        let loaded = load_experiment(&path, &[]).unwrap();
+        let plan = crate::check_with(&loaded, registries).unwrap();
+        assert_eq!(
+            plan.experiment.experiment.embedding.params["gain"].as_float(),
+            Some(1.0)
+        );
+    }
+
     /// A stage's parameter error names its table and key, so the reader points at the
     /// key's own line even where the message names other keys too (here `max_step`'s
     /// message names `step`, written on an earlier line).

@@ -305,11 +305,13 @@ fn embedding_html(run: &RunDigest) -> String {
 /// the first folder that cannot be read, or when fewer than two runs are given.
 pub fn write_comparison(folders: &[PathBuf], out: &Path) -> Result<(), ReportError> {
     if folders.len() < 2 {
-        return Err(ReportError::InvalidParameter {
-            name: "runs",
-            value: folders.len().to_string(),
-            reason: "give at least two run folders to compare".into(),
-        });
+        return Err(smspace::params::InvalidParameter::new(
+            "compare",
+            "runs",
+            folders.len(),
+            "give at least two run folders to compare",
+        )
+        .into());
     }
     let runs = folders
         .iter()

@@ -75,16 +75,10 @@ pub enum ReportError {
         /// What is wrong, and the expected shape.
         reason: String,
     },
-    /// A parameter is out of range.
-    #[error("report parameter {name} = {value}: {reason}")]
-    InvalidParameter {
-        /// The parameter's name.
-        name: &'static str,
-        /// The value given.
-        value: String,
-        /// Why it is refused.
-        reason: String,
-    },
+    /// A parameter is out of range, named by its table and key (located at its line
+    /// in an experiment file).
+    #[error(transparent)]
+    InvalidParameter(#[from] smspace::params::InvalidParameter),
     /// A run folder to compare cannot be read ([`compare`]).
     #[error("run folder {}: {reason}", folder.display())]
     Run {
@@ -298,19 +292,23 @@ impl ReportParams {
     /// Checks the parameters.
     pub fn check(&self) -> Result<(), ReportError> {
         if self.max_sets < 100 {
-            return Err(ReportError::InvalidParameter {
-                name: "max_sets",
-                value: self.max_sets.to_string(),
-                reason: "must be at least 100 sets (the figures need that many to show a manifold)"
+            return Err(smspace::params::InvalidParameter::new(
+                "report",
+                "max_sets",
+                self.max_sets.to_string(),
+                "must be at least 100 sets (the figures need that many to show a manifold)"
                     .to_owned(),
-            });
+            )
+            .into());
         }
         if !(72..=1200).contains(&self.dpi) {
-            return Err(ReportError::InvalidParameter {
-                name: "dpi",
-                value: self.dpi.to_string(),
-                reason: "must be between 72 and 1200 pixels per inch".to_owned(),
-            });
+            return Err(smspace::params::InvalidParameter::new(
+                "report",
+                "dpi",
+                self.dpi.to_string(),
+                "must be between 72 and 1200 pixels per inch".to_owned(),
+            )
+            .into());
         }
         for (name, value, least) in [
             ("panel_width_in", self.panel_width_in, 2.0),
@@ -318,14 +316,16 @@ impl ReportParams {
         ] {
             let most = MAX_PANEL_PIXELS / f64::from(self.dpi);
             if !(value.is_finite() && value >= least && value <= most) {
-                return Err(ReportError::InvalidParameter {
+                return Err(smspace::params::InvalidParameter::new(
+                    "report",
                     name,
-                    value: value.to_string(),
-                    reason: format!(
+                    value.to_string(),
+                    format!(
                         "must be between {least} and {most:.2} inches (at most {MAX_PANEL_PIXELS} pixels at dpi = {}); figures with smaller panels cannot hold their 9-point text",
                         self.dpi
                     ),
-                });
+                )
+                .into());
             }
         }
         Ok(())

@@ -46,6 +46,11 @@ from . import mujoco  # MuJoCo models as agents (imports the mujoco package on f
 
 __version__: str = _core.__version__
 
+#: The library's defaults of every stage's parameters (the ones ``smspace run`` and the
+#: ``smspace`` commands fill in): the functions below take their default arguments
+#: from here, so that every door gives the same answer to the same words.
+_DEFAULTS: dict = json.loads(_core._DEFAULTS)
+
 __all__ = [
     "Agent",
     "PythonAgent",
@@ -254,8 +259,8 @@ class Run:
 
 def explore(
     agent: Agent,
-    n: int = 2500,
-    seed: int = 1,
+    n: int = _DEFAULTS["exploration"]["n"],
+    seed: int = _DEFAULTS["exploration"]["seed"],
     *,
     probes: bool = False,
     workspace: Any = "default",
@@ -287,8 +292,8 @@ def _workspace_arg(workspace: Any) -> Any:
 def trace(
     agent: Agent,
     motors: Any,
-    method: str = "kinematic",
-    points: int = 100,
+    method: str = _DEFAULTS["kernel"]["method"],
+    points: int = _DEFAULTS["kernel"]["points"],
     *,
     env: Any = None,
     workspace: Any = "default",
@@ -379,7 +384,7 @@ def learn(
     *,
     period: str = "2pi",
     method: str = "invariants",
-    points: int = 100,
+    points: int = _DEFAULTS["kernel"]["points"],
     memory_limit_bytes: Optional[int] = None,
     progress: ProgressArg = None,
     **params: Any,
@@ -442,8 +447,8 @@ def _pieces(pieces: Any) -> Optional[np.ndarray]:
 
 def distances(
     sets: Union[Traced, np.ndarray],
-    metric: str = "curve",
-    period: str = "2pi",
+    metric: str = _DEFAULTS["metric"],
+    period: str = _DEFAULTS["period"],
     *,
     closed: Any = None,
     pieces: Any = None,
@@ -451,8 +456,8 @@ def distances(
     memory_limit_bytes: Optional[int] = None,
     progress: ProgressArg = None,
 ) -> Any:
-    """The ``(M, M)`` matrix of ``metric`` between the kernel sets (``"curve"``: the
-    Hausdorff distance between the sets read as polylines, the pipeline's;
+    """The ``(M, M)`` matrix of ``metric`` between the kernel sets (``"curve"``, the
+    default of every door: the Hausdorff distance between the sets read as polylines;
     ``"hausdorff"``, ``"mean-hausdorff"``: between the sampled points; ``"surface"``:
     from the points of one set to the tangent disks of the other's, for kernels of
     dimension 2 sampled by points, see the README), each motor
@@ -475,8 +480,8 @@ def distances(
 def knn(
     sets: Union[Traced, np.ndarray],
     k: int,
-    metric: str = "curve",
-    period: str = "2pi",
+    metric: str = _DEFAULTS["metric"],
+    period: str = _DEFAULTS["period"],
     *,
     closed: Any = None,
     pieces: Any = None,
@@ -493,9 +498,9 @@ def knn(
 
 def embed(
     D: Any,
-    method: str = "cca",
-    dim: int = 3,
-    seed: int = 0,
+    method: str = _DEFAULTS["embedding"]["method"],
+    dim: int = _DEFAULTS["embedding"]["params"]["dim"],
+    seed: int = _DEFAULTS["embedding"]["params"]["seed"],
     *,
     report: bool = False,
     progress: ProgressArg = None,

@@ -11,6 +11,9 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+#: The library's defaults of every stage's parameters, as JSON: ``metric``, ``period``,
+#: ``exploration``, ``kernel``, ``embedding`` (``method``, ``params``), ``knn``.
+_DEFAULTS: str
 
 F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]

@@ -31,7 +31,7 @@ from typing import Any, Callable, Optional, Union
 
 import numpy as np
 
-from . import Traced, _core, _progress, _sets_args, tile_plan
+from . import _DEFAULTS, Traced, _core, _progress, _sets_args, tile_plan
 
 __all__ = ["distances", "knn", "default_tile", "WorkersDied"]
 
@@ -151,8 +151,8 @@ def _scatter(client: Any, *arrays: Optional[np.ndarray]) -> tuple:
 def distances(
     sets: Union[Traced, np.ndarray],
     client: Any,
-    metric: str = "curve",
-    period: str = "2pi",
+    metric: str = _DEFAULTS["metric"],
+    period: str = _DEFAULTS["period"],
     *,
     tile: Optional[int] = None,
     knn: Optional[int] = None,
@@ -221,8 +221,8 @@ def knn(
     sets: Union[Traced, np.ndarray],
     client: Any,
     k: int,
-    metric: str = "curve",
-    period: str = "2pi",
+    metric: str = _DEFAULTS["metric"],
+    period: str = _DEFAULTS["period"],
     *,
     rows: Optional[int] = None,
     pivots: Optional[int] = None,

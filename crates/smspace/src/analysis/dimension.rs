@@ -558,7 +558,9 @@ mod tests {
             (0..traced.kept.len()).collect()
         };
         let sets = traced.sets.select(Axis(0), &rows);
-        let metric = DistanceParams::new().period(Period::TwoPi);
+        let metric = DistanceParams::new()
+            .metric(crate::metric::MetricKind::Hausdorff)
+            .period(Period::TwoPi);
         distance_matrix(sets.view(), &metric, &Silent)
             .unwrap()
             .into_array()

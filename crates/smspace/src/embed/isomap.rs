@@ -579,6 +579,10 @@ impl Embedding for IsomapValidParams {
     fn name(&self) -> &'static str {
         "isomap"
     }
+
+    fn fit_knn(&self, graph: &KnnGraph, progress: &dyn Progress) -> Result<Embedded, EmbedError> {
+        IsomapValidParams::fit_knn(self, graph, progress)
+    }
     fn dim(&self) -> usize {
         self.0.dim
     }

@@ -208,6 +208,17 @@ pub trait Embedding: Send + Sync + std::fmt::Debug {
     /// The checked parameters, as JSON, for reports.
     fn params_json(&self) -> serde_json::Value;
 
+    /// Embeds the points of a nearest-neighbour graph instead of a distance matrix
+    /// (`smspace embed --knn-indices`), for a method that can (Isomap, from the
+    /// graph's geodesic distances). Defaults to an error naming the method.
+    fn fit_knn(&self, graph: &KnnGraph, progress: &dyn Progress) -> Result<Embedded, EmbedError> {
+        let _ = (graph, progress);
+        Err(EmbedError::Knn(format!(
+            "the {} method embeds a distance matrix, not a kNN graph; give the matrix, or a method that reads a graph (isomap)",
+            self.name()
+        )))
+    }
+
     /// Bytes the method works in to embed `points` points, besides the distance matrix
     /// it is given, for the run's memory estimate. Defaults to the size of that matrix
     /// again (one working copy).

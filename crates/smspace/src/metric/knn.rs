@@ -134,11 +134,11 @@ pub use crate::neighbours::Knn;
 /// itself left out.
 ///
 /// ```
-/// use smspace::metric::{knn, DistanceParams, KnnParams, Period};
+/// use smspace::metric::{knn, DistanceParams, KnnParams, MetricKind, Period};
 /// use smspace::progress::Silent;
-/// // Sets of one point at 0, 1, 3, 7 on a line.
+/// // Sets of one point at 0, 1, 3, 7 on a line (points: the hausdorff metric).
 /// let sets = ndarray::Array3::from_shape_fn((4, 1, 1), |(i, _, _)| [0.0, 1.0, 3.0, 7.0][i]);
-/// let params = DistanceParams::new().period(Period::None);
+/// let params = DistanceParams::new().metric(MetricKind::Hausdorff).period(Period::None);
 /// let near = knn(sets.view(), &params, &KnnParams::new().k(2), 0..4, &Silent)?;
 /// assert_eq!(near.indices.row(2).to_vec(), vec![1, 0]);
 /// assert_eq!(near.distances.row(2).to_vec(), vec![2.0, 3.0]);

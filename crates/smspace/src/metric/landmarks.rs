@@ -354,11 +354,11 @@ pub fn landmark_bytes(sets: usize, points: usize, dims: usize, params: &Landmark
 ///
 /// ```
 /// use smspace::metric::landmarks::{landmark_distances_with, LandmarkParams, LandmarkSelection};
-/// use smspace::metric::{distance_matrix, DistanceParams, Period};
+/// use smspace::metric::{distance_matrix, DistanceParams, MetricKind, Period};
 /// use smspace::progress::Silent;
-/// // Sets of one point at 0, 1, 3, 7, 8 on a line.
+/// // Sets of one point at 0, 1, 3, 7, 8 on a line (points: the hausdorff metric).
 /// let sets = ndarray::Array3::from_shape_fn((5, 1, 1), |(i, _, _)| [0.0, 1.0, 3.0, 7.0, 8.0][i]);
-/// let params = DistanceParams::new().period(Period::None);
+/// let params = DistanceParams::new().metric(MetricKind::Hausdorff).period(Period::None);
 /// let metric = params.check()?.set_metric();
 /// let chosen = LandmarkParams::new(3, LandmarkSelection::Random, 0).nearest(2).check()?;
 /// let l = landmark_distances_with(sets.view(), metric.as_ref(), &chosen, None, &Silent)?;

@@ -373,17 +373,32 @@ impl Period {
     }
 }
 
-/// Which set metric to compute.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+/// The set metric of every door when none is named: `smspace distances` and
+/// `smspace invariance` without `--metric`, `smspace.distances` and `smspace.knn`
+/// without `metric=`, and a `[metric]` table without `metric` ([`DistanceParams`]'s
+/// default). `curve`, the Hausdorff distance between the sets read as polylines, which
+/// measures the traced curves rather than where their samples fall (see the module
+/// docs); the paper's point metric is `hausdorff`.
+pub const DEFAULT_METRIC: MetricKind = MetricKind::Curve;
+
+/// Which set metric to compute. Default: [`DEFAULT_METRIC`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum MetricKind {
-    /// The symmetric Hausdorff distance `ρ` of the paper. Default.
-    #[default]
+    /// The symmetric Hausdorff distance `ρ` of the paper, between the sampled points.
     Hausdorff,
     /// The average of the two mean directed distances.
     MeanHausdorff,
-    /// The Hausdorff distance between the sets read as closed or open polylines.
+    /// The Hausdorff distance between the sets read as closed or open polylines
+    /// ([`DEFAULT_METRIC`]).
     Curve,
+}
+
+impl Default for MetricKind {
+    /// [`DEFAULT_METRIC`].
+    fn default() -> Self {
+        DEFAULT_METRIC
+    }
 }
 
 impl MetricKind {
@@ -848,9 +863,9 @@ impl MetricName {
 }
 
 impl Default for MetricName {
-    /// The paper's Hausdorff distance.
+    /// [`DEFAULT_METRIC`].
     fn default() -> Self {
-        MetricKind::default().into()
+        DEFAULT_METRIC.into()
     }
 }
 
@@ -879,7 +894,7 @@ impl std::fmt::Display for MetricName {
 #[serde(deny_unknown_fields, default)]
 pub struct DistanceParams {
     /// Set metric, by name: `hausdorff`, `mean-hausdorff`, `curve` ([`MetricKind`]),
-    /// or a registered one. Default: `hausdorff`.
+    /// or a registered one. Default: `curve` ([`DEFAULT_METRIC`]).
     pub metric: MetricName,
     /// Period of the motor coordinates: `"2pi"`, `"none"`, one entry per motor, or
     /// `"motors"` (the agent's own, resolved by the pipeline). Default: `"2pi"`
@@ -909,7 +924,8 @@ impl DistanceParams {
         Self::default()
     }
 
-    /// Sets the set metric (default Hausdorff): a [`MetricKind`] or a registered name.
+    /// Sets the set metric (default [`DEFAULT_METRIC`], `curve`): a [`MetricKind`] or a
+    /// registered name.
     pub fn metric(mut self, metric: impl Into<MetricName>) -> Self {
         self.metric = metric.into();
         self

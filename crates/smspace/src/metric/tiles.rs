@@ -29,10 +29,11 @@
 //!
 //! ```
 //! use ndarray::{Axis, Slice};
-//! use smspace::metric::{distance_matrix, distance_tile, DistanceParams, TileMerge, TilePlan};
+//! use smspace::metric::{distance_matrix, distance_tile, DistanceParams, MetricKind, TileMerge, TilePlan};
 //! use smspace::progress::Silent;
 //! let sets = ndarray::Array3::from_shape_fn((7, 5, 2), |(i, p, n)| (i * 5 + p * 2 + n) as f64 * 0.1);
-//! let metric = DistanceParams::new().check()?.set_metric();
+//! let params = DistanceParams::new().metric(MetricKind::Hausdorff);
+//! let metric = params.check()?.set_metric();
 //! let plan = TilePlan::new(7, 3)?;
 //! let mut merge = TileMerge::new(7, None)?;
 //! for tile in plan.tiles() {
@@ -42,7 +43,7 @@
 //!     let values = distance_tile(rows, cols, &tile, metric.as_ref(), &Silent)?;
 //!     merge.add(&tile, values.view())?;
 //! }
-//! let whole = distance_matrix(sets.view(), &DistanceParams::new(), &Silent)?;
+//! let whole = distance_matrix(sets.view(), &params, &Silent)?;
 //! assert_eq!(merge.finish()?, whole);
 //! # Ok::<(), smspace::metric::MetricError>(())
 //! ```
