@@ -189,6 +189,45 @@ fn learn_with_the_invariants_traces_the_lines_and_reports_the_eigenvalues() {
 }
 
 #[test]
+fn a_given_rank_is_used_reported_beside_the_estimate_and_checked() {
+    let (_guard, dir) = temp();
+    toy_log_and_starts(&dir, &[]);
+    let out = ok_owned(&dir, &learn_toy(&["--rank", "1"]));
+    let text = common::stderr(&out);
+    assert!(
+        text.contains("rank: 1 (given; kernels of dimension 1)"),
+        "{text}"
+    );
+    let law = json(&dir, "sets.law.json");
+    assert_eq!(law["rank"].as_u64(), Some(1), "{law}");
+    assert_eq!(law["rank_source"].as_str(), Some("given"), "{law}");
+    let choice = &law["rank_choice"];
+    assert_eq!(
+        (choice["given"].as_u64(), choice["estimate"].as_u64()),
+        (Some(1), Some(1)),
+        "{law}"
+    );
+    // Without it, the estimate and its reason.
+    let out = ok_owned(&dir, &learn_toy(&[]));
+    let text = common::stderr(&out);
+    assert!(text.contains("rank: 1 (the data's spectrum"), "{text}");
+    assert_eq!(
+        json(&dir, "sets.law.json")["rank_choice"]["given"],
+        serde_json::Value::Null
+    );
+    // Out of 1..=N−1 (2 motors): refused with the key and the kernel dimension.
+    for bad in ["0", "2", "7"] {
+        let args = learn_toy(&["--rank", bad]);
+        let e = fails(&dir, &args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(e.contains("rank") && e.contains(bad), "{e}");
+        assert!(e.contains("dimension"), "{e}");
+    }
+    let args = learn_toy(&["--rank", "2"]);
+    let e = fails(&dir, &args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(e.contains("1..=1 for 2 motors"), "{e}");
+}
+
+#[test]
 fn bad_logs_name_the_file_and_the_fix() {
     let (_guard, dir) = temp();
     let motors = Array2::from_shape_fn((400, 2), |(i, j)| {

@@ -22,6 +22,7 @@
 //! period = "2pi"                 # the motors: as `smspace learn --period`
 //! [data.law]                     # smspace::learn::LawParams
 //! method = "invariants"          # or "local-quadratic", "local-linear"
+//! # rank = 3                     # the rank of ∂s/∂m when known (1..=N−1): kernels of dimension N − rank
 //! ```
 //!
 //! or `[data.simulate]` (`samples`, `noise`, `seed`: [`SimulateParams`]) with an
@@ -182,6 +183,7 @@ impl RunData {
                         "a simulated log has the agent's own motors; leave period out",
                     ));
                 }
+                law_valid.check_rank(agent.motor_dim())?;
                 if simulate.samples < 2 {
                     return Err(invalid(
                         "simulate",
@@ -251,6 +253,7 @@ impl RunData {
             )?);
         }
         let space = space.ok_or(LearnError::NoLog)?;
+        law_valid.check_rank(space.dim())?;
         let sensor_dim = logs.iter().map(|l| l.sensors.ncols()).sum();
         Ok(Self::new(
             DataSource::Files {

@@ -216,8 +216,10 @@ fn logged_files_need_no_agent_and_key_the_run_by_their_contents() {
 fn a_log_constrains_the_tables_with_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let file = write(dir.path(), "simulated.toml", &simulated());
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 6] = [
         (&["kernel.method=kinematic"], "method = \"sensory\""),
+        (&["data.law.rank=0"], "rank = 0: must be at least 1"),
+        (&["data.law.rank=2"], "must be in 1..=1 for 2 motors"),
         (&["exploration.probes=grid"], "probes = \"none\""),
         (&["exploration.n=6000"], "choose 1 to 5000"),
         (

@@ -185,6 +185,10 @@ fn _learn_agent<'py>(
     let budget: BudgetParams = from_json(budget, "budget parameters")?;
     let budget = budget.check().map_err(to_py_err)?;
     let (law_params, trace) = split_params(params)?;
+    // A rank the agent's motors cannot have is refused before any row is read.
+    law_params
+        .check_rank(agent.law.motor_dim())
+        .map_err(to_py_err)?;
     let starts = starts.as_array().to_owned();
     check_finite(starts.iter(), "starts")?;
     let environment = agent.environment(env)?;

@@ -87,3 +87,35 @@ def test_a_python_agent_is_learned_within_a_budget_of_sensor_rows():
     with pytest.raises(ValueError, match="at least"):
         smspace.trace(agent, starts, method="learned", budget=1000)
     assert read[0] == 0, "a budget refused up front read the agent"
+
+
+def test_a_given_rank_is_used_reported_and_checked():
+    motors, sensors = cart_log(20000, seed=1)
+    starts = np.array([[0.3, 0.2], [-0.6, 0.4], [0.1, -0.2], [1.0, 2.0]])
+    traced = smspace.learn(motors, sensors, starts, points=40, rank=1)
+    assert traced.law["rank"] == 1 and traced.law["rank_source"] == "given", traced.law
+    choice = traced.law["rank_choice"]
+    assert choice["given"] == 1 and choice["estimate"] == 1, choice
+    assert "given" in choice["reason"], choice
+    estimated = smspace.learn(motors, sensors, starts, points=40)
+    assert "given" not in estimated.law["rank_choice"], estimated.law
+    assert np.array_equal(estimated.sets, traced.sets)
+    for bad in (0, 2):
+        with pytest.raises(ValueError, match=f"rank.*{bad}|{bad}.*rank"):
+            smspace.learn(motors, sensors, starts, rank=bad)
+    with pytest.raises(ValueError, match="1..=1 for 2 motors"):
+        smspace.learn(motors, sensors, starts, rank=2)
+
+
+def test_a_given_rank_reaches_the_law_learned_within_a_budget():
+    def sense(m):
+        x = np.sin(m[:, 0]) + 0.5 * np.sin(m[:, 1])
+        return np.stack([x, 0.5 * x**2], axis=1)
+
+    agent = smspace.PythonAgent(sense=sense, n_motors=2, n_sensors=2)
+    starts = np.array([[0.3, 0.2], [-0.6, 0.4], [0.1, -0.2], [1.0, 2.0]])
+    traced = smspace.trace(agent, starts, method="learned", budget=20000, points=40, rank=1)
+    assert traced.law["rank_source"] == "given", traced.law
+    assert traced.law["rank_choice"]["given"] == 1
+    with pytest.raises(ValueError, match="rank"):
+        smspace.trace(agent, starts, method="learned", budget=20000, rank=2)

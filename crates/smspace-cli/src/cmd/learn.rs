@@ -10,7 +10,7 @@ use smspace::io;
 use smspace::kernel::TraceParams;
 use smspace::learn::{
     declared_space, gib_bytes, law_trace_params, learn_with_progress, parse_motor_declarations,
-    trace_learned, LawMethod, LawParams, LawValidParams, LogFiles, MotorDeclaration,
+    trace_learned, LawMethod, LawParams, LawValidParams, LogFiles, MotorDeclaration, RankSource,
     SensorimotorLog, DEFAULT_MEMORY_LIMIT_GIB,
 };
 use smspace::progress::Progress;
@@ -51,6 +51,12 @@ pub struct Args {
     /// between sensory neighbours, relative to its variance (2 for unrelated values).
     #[arg(long, default_value_t = LawParams::default().invariance_threshold)]
     invariance_threshold: f64,
+    /// The rank of the sensors' Jacobian when you know it, 1 to N − 1 for N motors: the
+    /// kernels have dimension N − rank (3 on a 4-hinge arm whose sensor's pose is
+    /// (x, y, heading): curves). Used in place of the rank read from the data, which is
+    /// printed beside it (default: read from the data and the law).
+    #[arg(long, value_name = "RANK")]
+    rank: Option<usize>,
     /// Samples a typical fit holds (default 4p + 20, p the fit's coefficients).
     #[arg(long, value_name = "K")]
     neighbours: Option<usize>,
@@ -131,6 +137,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         holdout: args.holdout,
         invariants: args.invariants,
         invariance_threshold: args.invariance_threshold,
+        rank: args.rank,
         ..LawParams::default()
     }
     .check()?;
@@ -164,6 +171,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     drop(logs);
     print_law(law.report());
     let traced = trace_learned(&law, starts.view(), &trace, &bar)?;
+    // The law's report with what tracing showed (the closure rate, its warning, a rank
+    // tried again).
+    let report = match traced
+        .report
+        .law
+        .clone()
+        .map(serde_json::from_value::<smspace::learn::LawReport>)
+    {
+        Some(Ok(report)) => report,
+        _ => law.report().with_trace(&traced.report.summary),
+    };
+    if let Some(choice) = &report.rank_choice {
+        for tried in &choice.tried {
+            eprintln!(
+                "every one of the {} sets failed at rank {} ({:?}): traced again at rank {}",
+                tried.total, tried.rank, tried.by_status, choice.rank
+            );
+        }
+    }
     traced
         .report
         .summary
@@ -173,8 +199,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(path) => Some(truth_errors(&traced, path, &space)?),
         None => None,
     };
-    // The law's report with what tracing showed (the closure rate, its warning).
-    let report = law.report().with_trace(&traced.report.summary);
     // The writer of `smspace trace`, and the law's report, all together.
     let mut outputs = io::Outputs::sparing(&super::common::present(&inputs));
     traced.write_into(&mut outputs, &args.out)?;
@@ -314,6 +338,26 @@ fn print_law(report: &smspace::learn::LawReport) {
             );
         }
     }
+    if let Some(choice) = &report.rank_choice {
+        eprintln!(
+            "rank: {} ({}; kernels of dimension {}): {}",
+            choice.rank,
+            match choice.source {
+                RankSource::Given => "given",
+                RankSource::Data => "the data's spectrum",
+                RankSource::Invariants => "the invariants' Jacobian",
+                RankSource::Law => "the law's Jacobian",
+                RankSource::Retried => "retried",
+            },
+            // `rank_counts` has N + 1 entries.
+            report
+                .rank_counts
+                .len()
+                .saturating_sub(1)
+                .saturating_sub(choice.rank),
+            choice.reason
+        );
+    }
     if let Some(rank) = &report.data_rank {
         eprintln!(
             "rank of the sensors in the data: {} (slope spectrum {}; noise floor {:.1e})",
@@ -325,7 +369,7 @@ fn print_law(report: &smspace::learn::LawReport) {
                 .join(" "),
             rank.floor
         );
-        if report.rank_source == smspace::learn::RankSource::Invariants {
+        if report.rank_source == RankSource::Invariants && report.rank < rank.rank {
             let probed: usize = report.rank_counts.iter().sum();
             eprintln!(
                 "the invariants change along {} directions at {} of {probed} probed samples: the kernels are traced at rank {} (the slopes' rank {} counts the sensors' curvature across the samples' spacing, or directions the invariants miss)",

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::invariants::{InvariantModel, InvariantsReport};
 use super::memory::MemoryEstimate;
-use super::noise::{LocalRank, NoiseEstimate};
+use super::noise::{self, LocalRank, NoiseEstimate};
 use super::quality::LawQuality;
 use super::tree::{Candidates, KdTree};
 use super::{observe, LawMethod, LawValidParams, LearnError, SensorimotorLog};
@@ -711,10 +711,11 @@ pub struct LawReport {
     pub method: LawMethod,
     /// Per log: samples, fitted rows, held-out rows, bandwidth, images, error.
     pub logs: Vec<LogReport>,
-    /// The rank the tracer uses: that of `data_rank` when the data gave one, else the
-    /// generic rank of the law's Jacobian (the most frequent of `rank_counts`); for
-    /// `invariants`, the invariants' rank when it is lower than the data's at nearly
-    /// every probed sample (see `rank_source`).
+    /// The rank the tracer uses: the rank given (`rank` of [`LawParams`](super::LawParams)),
+    /// else the one the evidence reads ([`RankChoice`]: that of `data_rank`, or for
+    /// `invariants` the invariants' Jacobian's where the evidence backs it, else the
+    /// law's Jacobian's when the log is too short for the data's rank); after tracing,
+    /// the next candidate when every set failed at it (see `rank_source`).
     pub rank: usize,
     /// Where `rank` comes from.
     #[serde(default)]
@@ -726,9 +727,13 @@ pub struct LawReport {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub invariants: Option<InvariantsReport>,
     /// The rank of `∂s/∂m` seen in the first log's data, with its evidence (the
-    /// spectrum and the noise floor); when present it is the law's `rank`.
+    /// spectrum and the noise floor).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub data_rank: Option<LocalRank>,
+    /// How `rank` was chosen: the rank given, the pieces of evidence, the candidates in
+    /// the order they are tried and why ([`RankChoice`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rank_choice: Option<RankChoice>,
     /// What the data cannot support (too few samples, too much noise), with the
     /// measured noise and what would help.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -764,6 +769,276 @@ pub enum RankSource {
     Invariants,
     /// The law's Jacobian (`rank_counts`), the log being too short for a data rank.
     Law,
+    /// Given by the user (`rank` of [`LawParams`](super::LawParams)).
+    Given,
+    /// The next candidate of [`RankChoice::candidates`]: every set failed at the ranks
+    /// before it ([`RankChoice::tried`]).
+    Retried,
+}
+
+/// The least ratio `λ_{q+1} / λ_q` between the first eigenvalue left out and the last
+/// one kept for the invariants' Jacobian to count as evidence of a rank above the
+/// data's spectrum: the kept functions are far more invariant between sensory
+/// neighbours than any other function of the basis (the paper's arm: 0.02 against
+/// 0.52, a ratio of 25).
+pub const INVARIANT_GAP: f64 = 3.0;
+
+/// How far the invariants may change more between held-out sensory neighbours than
+/// between the fitted ones (`held_out_lambda ≤ HELD_OUT_SLACK × fitted_lambda +
+/// 0.01`) for their Jacobian's rank to count as evidence: functions that held-out
+/// neighbours share as well as fitted ones are functions of what the sensors tell
+/// apart.
+pub const HELD_OUT_SLACK: f64 = 2.0;
+
+/// How the law's rank was chosen (in the [`LawReport`], printed by `smspace learn` and
+/// in the Python report's `law`): the pieces of evidence, the rank they read, the
+/// candidates in the order they are tried, and why.
+///
+/// The evidence: the data's slope spectrum (`data`: the rank at its clear gap, see
+/// [`super::spectrum_rank`]); for `invariants`, the rank of the invariants' Jacobian
+/// at the probed samples (`invariants`, with the share of the probes that show it)
+/// with the gap of their eigenvalues (`invariants_gap`, `λ_{q+1} / λ_q`) and their
+/// held-out `λ`. The invariants' rank is chosen over the data's
+///
+/// - when it is lower at [`UNANIMOUS_SHARE`] of the probes: the data's affine slopes
+///   over-read the rank when the sensors curve across the samples' spacing;
+/// - when it is higher at [`UNANIMOUS_SHARE`] of the probes, the invariants stand
+///   apart (`invariants_gap ≥` [`INVARIANT_GAP`]), held-out sensory neighbours share
+///   them as the fitted ones do ([`HELD_OUT_SLACK`]) and the spectrum has a value
+///   above its noise floor at that rank: functions that sensory neighbours share are
+///   locally functions of the sensors, so `rank ∂s/∂m ≥ rank ∂z/∂m`; the spectrum's
+///   gap at a lower rank is a weak direction of change (far lights, long ranges) read
+///   as the leak of the kernel's direction.
+///
+/// Otherwise the data's rank stands. A rank given by the user is used as given; the
+/// estimate is reported beside it, with a warning when they differ. When every traced
+/// set fails at the estimated rank, the next candidate is traced (`tried`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RankChoice {
+    /// The rank used.
+    pub rank: usize,
+    /// Where it comes from.
+    pub source: RankSource,
+    /// The rank given by the user, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub given: Option<usize>,
+    /// The rank the evidence reads (the rank used unless one was given or a retry
+    /// moved on).
+    pub estimate: usize,
+    /// The rank of the data's slope spectrum (`data_rank`), absent for a short log.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data: Option<usize>,
+    /// The most frequent rank of the law's Jacobian at the probed samples (the
+    /// invariants' for `invariants`).
+    pub invariants: usize,
+    /// The share of the probed samples at that rank.
+    pub invariants_share: f64,
+    /// `invariants` only: the ratio of the first eigenvalue left out to the last one
+    /// kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub invariants_gap: Option<f64>,
+    /// The ranks to trace at, in order (`1..N−1` only; the first is `rank` unless a
+    /// rank was given): when every set fails at one, the next is tried.
+    pub candidates: Vec<usize>,
+    /// The ranks tried before `rank`, each with what its sets did.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tried: Vec<TriedRank>,
+    /// Why this rank.
+    pub reason: String,
+}
+
+/// A rank at which every traced set failed ([`RankChoice::tried`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TriedRank {
+    /// The rank.
+    pub rank: usize,
+    /// Sets traced at it, of `total`.
+    pub total: usize,
+    /// The sets' statuses and their counts.
+    pub by_status: std::collections::BTreeMap<String, usize>,
+}
+
+/// The evidence on the rank that [`choose_rank`] weighs.
+#[derive(Debug, Clone)]
+pub(crate) struct RankEvidence<'a> {
+    /// Motors `N`.
+    pub n: usize,
+    /// The law's regression.
+    pub method: LawMethod,
+    /// The rank given by the user.
+    pub given: Option<usize>,
+    /// The data's spectrum.
+    pub data: Option<&'a LocalRank>,
+    /// Counts of the law's Jacobian ranks at the probes (index = rank).
+    pub counts: &'a [usize],
+    /// The invariants' eigenproblem.
+    pub invariants: Option<&'a InvariantsReport>,
+}
+
+/// The rank of the law (see [`RankChoice`]).
+pub(crate) fn choose_rank(evidence: &RankEvidence<'_>) -> RankChoice {
+    let n = evidence.n;
+    let counts = evidence.counts;
+    let generic = (0..counts.len())
+        .max_by_key(|&r| (counts[r], r))
+        .unwrap_or(0);
+    let probed: usize = counts.iter().sum();
+    let share = counts.get(generic).copied().unwrap_or(0) as f64 / probed.max(1) as f64;
+    let nearly_all = share >= UNANIMOUS_SHARE && probed > 0;
+    let gap = evidence.invariants.and_then(|inv| {
+        let q = inv.invariants;
+        let (last, next) = (
+            inv.eigenvalues.get(q.checked_sub(1)?)?,
+            inv.eigenvalues.get(q)?,
+        );
+        Some(next / last.max(1e-12))
+    });
+    let held_out_shared = evidence.invariants.is_some_and(|inv| {
+        inv.held_out_lambda
+            .is_none_or(|h| h <= HELD_OUT_SLACK * inv.fitted_lambda + 0.01)
+    });
+    let invariants = evidence.method == LawMethod::Invariants;
+    let inner = |r: usize| (1..n).contains(&r);
+    let (estimate, source, reason) = match evidence.data {
+        Some(data) if invariants && nearly_all && inner(generic) && generic < data.rank => (
+            generic,
+            RankSource::Invariants,
+            format!(
+                "the data's slope spectrum reads rank {} but the invariants change along {generic} directions at {:.0} % of the probed samples: the affine slopes count the sensors' curvature across the samples' spacing",
+                data.rank,
+                100.0 * share
+            ),
+        ),
+        Some(data)
+            if invariants
+                && nearly_all
+                && inner(generic)
+                && generic > data.rank
+                && gap.is_some_and(|g| g >= INVARIANT_GAP)
+                && held_out_shared
+                && data
+                    .spectrum
+                    .get(generic - 1)
+                    .is_some_and(|&b| b > noise::FLOOR_SHARE * data.floor && b > 0.0) =>
+        {
+            let lambda = |i: &InvariantsReport, at: usize| i.eigenvalues.get(at).copied();
+            let (q, last, next, held) = evidence.invariants.map_or((0, 0.0, 0.0, None), |i| {
+                let q = i.invariants;
+                (
+                    q,
+                    lambda(i, q.saturating_sub(1)).unwrap_or(0.0),
+                    lambda(i, q).unwrap_or(0.0),
+                    i.held_out_lambda,
+                )
+            });
+            (
+                generic,
+                RankSource::Invariants,
+                format!(
+                    "the data's slope spectrum ({}) reads rank {}, but the {q} invariants (λ ≤ {last:.3}, the next {next:.3}: {:.0}× apart; held out λ {}) change along {generic} independent directions at {:.0} % of the probed samples; functions that sensory neighbours share are functions of the sensors, so the sensors change along at least {generic} directions (the spectrum's {:.3} at rank {generic} is a weak direction of change, not the kernel's leak)",
+                    format_spectrum(&data.spectrum),
+                    data.rank,
+                    gap.unwrap_or(0.0),
+                    held.map_or("-".to_owned(), |h| format!("{h:.3}")),
+                    100.0 * share,
+                    data.spectrum[generic - 1],
+                ),
+            )
+        }
+        Some(data) => {
+            let mut reason = format!(
+                "the data's slope spectrum ({}) reads rank {}",
+                format_spectrum(&data.spectrum),
+                data.rank
+            );
+            if generic != data.rank {
+                let why = if !invariants {
+                    "the law's Jacobian is not used against the data's rank for a local law".to_owned()
+                } else if !nearly_all {
+                    format!("only {:.0} % of the probed samples agree", 100.0 * share)
+                } else if !inner(generic) {
+                    format!("rank {generic} leaves no kernel of dimension 1 to {}", n.saturating_sub(1))
+                } else if !gap.is_some_and(|g| g >= INVARIANT_GAP) {
+                    format!(
+                        "the invariants do not stand apart from the other functions (eigenvalue gap {}, below {INVARIANT_GAP})",
+                        gap.map_or("-".to_owned(), |g| format!("{g:.1}"))
+                    )
+                } else if !held_out_shared {
+                    "held-out sensory neighbours do not share the invariants as the fitted ones do".to_owned()
+                } else {
+                    format!("the spectrum has no value above its noise floor at rank {generic}")
+                };
+                reason.push_str(&format!(
+                    "; the invariants' Jacobian has rank {generic} at {:.0} % of the probed samples, not used: {why}",
+                    100.0 * share
+                ));
+            }
+            (data.rank, RankSource::Data, reason)
+        }
+        None => (
+            generic,
+            RankSource::Law,
+            format!(
+                "the log is too short for the data's rank: the law's Jacobian has rank {generic} at {:.0} % of the probed samples",
+                100.0 * share
+            ),
+        ),
+    };
+    // The candidates: the estimate, the other readings, then the spectrum's gaps from
+    // the largest ratio down.
+    let mut candidates = vec![estimate, generic];
+    if let Some(data) = evidence.data {
+        candidates.push(data.rank);
+        let s = &data.spectrum;
+        let mut gaps: Vec<(f64, usize)> = (1..s.len())
+            .map(|r| (s[r - 1] / s[r].max(f64::MIN_POSITIVE), r))
+            .collect();
+        gaps.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        candidates.extend(gaps.into_iter().map(|(_, r)| r));
+    }
+    let mut unique = Vec::new();
+    for r in candidates {
+        if inner(r) && !unique.contains(&r) {
+            unique.push(r);
+        }
+    }
+    let (rank, source, reason) = match evidence.given {
+        Some(given) => {
+            let reason = if given == estimate {
+                format!("rank {given} given; the evidence reads the same: {reason}")
+            } else {
+                format!("rank {given} given, used in place of the estimate {estimate}: {reason}")
+            };
+            (given, RankSource::Given, reason)
+        }
+        None => (estimate, source, reason),
+    };
+    RankChoice {
+        rank,
+        source,
+        given: evidence.given,
+        estimate,
+        data: evidence.data.map(|d| d.rank),
+        invariants: generic,
+        invariants_share: share,
+        invariants_gap: gap,
+        candidates: if evidence.given.is_some() {
+            vec![rank]
+        } else {
+            unique
+        },
+        tried: Vec::new(),
+        reason,
+    }
+}
+
+/// A spectrum as `1.000 0.234 …`.
+fn format_spectrum(spectrum: &[f64]) -> String {
+    spectrum
+        .iter()
+        .map(|b| format!("{b:.3}"))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// One log's part of the [`LawReport`].
@@ -842,7 +1117,7 @@ impl LearnedLaw {
         models: Models,
         method: LawMethod,
         (logs, data_rank): (Vec<LogReport>, Option<LocalRank>),
-        (seed, progress): (u64, &dyn Progress),
+        (seed, given, progress): (u64, Option<usize>, &dyn Progress),
     ) -> Self {
         let (sensor_dim, invariants) = match &models {
             Models::Local(models) => (models.iter().map(|m| m.k).sum(), None),
@@ -861,34 +1136,55 @@ impl LearnedLaw {
                 rank_counts: Vec::new(),
                 invariants,
                 data_rank,
+                rank_choice: None,
                 warnings: Vec::new(),
                 quality: LawQuality::default(),
                 memory: None,
             },
         };
         let counts = law.rank_counts(seed, progress);
-        let generic = (0..counts.len())
-            .max_by_key(|&r| (counts[r], r))
-            .unwrap_or(0);
-        let probed: usize = counts.iter().sum();
-        let nearly_all =
-            counts.get(generic).copied().unwrap_or(0) as f64 >= UNANIMOUS_SHARE * probed as f64;
-        let (rank, source) = match &law.report.data_rank {
-            Some(data)
-                if method == LawMethod::Invariants
-                    && (1..data.rank).contains(&generic)
-                    && nearly_all =>
-            {
-                (generic, RankSource::Invariants)
-            }
-            Some(data) => (data.rank, RankSource::Data),
-            None => (generic, RankSource::Law),
-        };
-        law.report.rank_source = source;
-        law.rank = rank;
-        law.report.rank = rank;
+        let choice = choose_rank(&RankEvidence {
+            n: law.space.dim(),
+            method,
+            given,
+            data: law.report.data_rank.as_ref(),
+            counts: &counts,
+            invariants: law.report.invariants.as_ref(),
+        });
+        law.report.rank_source = choice.source;
+        law.rank = choice.rank;
+        law.report.rank = choice.rank;
         law.report.rank_counts = counts;
+        if choice.given.is_some_and(|g| g != choice.estimate) {
+            law.report.warnings.push(format!(
+                "rank {} was given and is used, but the evidence reads rank {}: {}",
+                choice.rank, choice.estimate, choice.reason
+            ));
+        } else if choice.given.is_none() && choice.data.is_some_and(|d| d != choice.rank) {
+            law.report.warnings.push(format!(
+                "the pieces of evidence on the rank disagree; rank {} is used: {}",
+                choice.rank, choice.reason
+            ));
+        }
+        law.report.rank_choice = Some(choice);
         law
+    }
+
+    /// The law's rank (the tracer's [`Agent::sensory_rank`]).
+    pub fn rank(&self) -> usize {
+        self.rank
+    }
+
+    /// Sets the rank and the candidates of the rank choice, as if the evidence had read
+    /// them (tests of the retry).
+    #[cfg(test)]
+    pub(crate) fn set_candidates(&mut self, candidates: Vec<usize>) {
+        self.rank = candidates[0];
+        self.report.rank = candidates[0];
+        if let Some(choice) = self.report.rank_choice.as_mut() {
+            choice.rank = candidates[0];
+            choice.candidates = candidates;
+        }
     }
 
     /// What learning found.
@@ -1000,6 +1296,57 @@ pub(crate) fn gap_rank(matrix: &[f64], rows: usize, n: usize) -> usize {
         .unwrap_or(n)
 }
 
+/// A [`LearnedLaw`] traced at another rank than its own (a retry of
+/// [`super::trace_learned`]): the same values and Jacobian.
+#[derive(Debug)]
+pub(crate) struct AtRank<'a> {
+    /// The law.
+    pub law: &'a LearnedLaw,
+    /// The rank the tracer uses.
+    pub rank: usize,
+}
+
+impl Agent for AtRank<'_> {
+    fn motor_dim(&self) -> usize {
+        self.law.motor_dim()
+    }
+
+    fn sensor_dim(&self) -> usize {
+        self.law.sensor_dim()
+    }
+
+    fn sense(&self, environment: &Environment, motors: &[f64], sensors: &mut [f64]) {
+        self.law.sense(environment, motors, sensors);
+    }
+
+    fn name(&self) -> &str {
+        self.law.name()
+    }
+
+    fn motor_space(&self) -> MotorSpace {
+        self.law.motor_space()
+    }
+
+    fn sensory_rank(&self) -> Option<usize> {
+        Some(self.rank)
+    }
+
+    fn sense_with_jacobian(
+        &self,
+        environment: &Environment,
+        motors: &[f64],
+        sensors: &mut [f64],
+        jacobian: &mut [f64],
+    ) -> bool {
+        self.law
+            .sense_with_jacobian(environment, motors, sensors, jacobian)
+    }
+
+    fn covers(&self, motors: &[f64]) -> bool {
+        self.law.covers(motors)
+    }
+}
+
 impl Agent for LearnedLaw {
     fn motor_dim(&self) -> usize {
         self.space.dim()
@@ -1041,5 +1388,115 @@ impl Agent for LearnedLaw {
             Models::Local(models) => models.iter().all(|m| m.covers(motors)),
             Models::Invariants(model) => model.covers(motors),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data(rank: usize, spectrum: &[f64]) -> LocalRank {
+        LocalRank {
+            rank,
+            spectrum: spectrum.to_vec(),
+            floor: 0.0,
+            probes: 4096,
+        }
+    }
+
+    /// Nine invariants whose largest `λ` is `last`, the next function's `next`.
+    fn invariants(last: f64, next: f64, held_out: f64) -> InvariantsReport {
+        let mut eigenvalues: Vec<f64> = (0..9).map(|i| last * i as f64 / 8.0).collect();
+        eigenvalues.extend([next, next * 1.02, 0.9, 1.1]);
+        InvariantsReport {
+            features: 80,
+            invariants: 9,
+            threshold: Some(0.4),
+            eigenvalues,
+            pairs: 900_000,
+            kept_pairs: 880_000,
+            fitted_lambda: last / 2.0,
+            held_out_lambda: Some(held_out),
+            held_out_aliased: Some(0.01),
+        }
+    }
+
+    fn choose(
+        given: Option<usize>,
+        data: &LocalRank,
+        counts: &[usize],
+        inv: &InvariantsReport,
+    ) -> RankChoice {
+        choose_rank(&RankEvidence {
+            n: 4,
+            method: LawMethod::Invariants,
+            given,
+            data: Some(data),
+            counts,
+            invariants: Some(inv),
+        })
+    }
+
+    #[test]
+    fn a_weak_direction_read_as_the_kernels_leak_is_outvoted_by_clear_invariants() {
+        // The retina of 8 Cauchy cells with far lights at 10⁶ samples: the spectrum's
+        // gap of 4.3 after the first value reads rank 1; the nine invariants (λ ≤
+        // 0.005, next 0.544) change along 3 directions at every probe.
+        let spectrum = data(1, &[1.0, 0.234, 0.083, 0.026]);
+        let counts = [0, 0, 0, 512, 0];
+        let choice = choose(None, &spectrum, &counts, &invariants(0.005, 0.544, 0.004));
+        assert_eq!(choice.rank, 3, "{choice:?}");
+        assert_eq!(choice.source, RankSource::Invariants);
+        assert_eq!(choice.candidates[0], 3);
+        assert!(choice.candidates.contains(&1), "{choice:?}");
+        assert!(choice.reason.contains("rank 1"), "{}", choice.reason);
+        // The lidar of 9 rays: no clear gap in the spectrum (largest ratio at 1).
+        let lidar = data(1, &[1.0, 0.386, 0.206, 0.097]);
+        let choice = choose(None, &lidar, &counts, &invariants(0.004, 0.52, 0.003));
+        assert_eq!(choice.rank, 3, "{choice:?}");
+    }
+
+    #[test]
+    fn invariants_that_do_not_stand_apart_leave_the_datas_rank() {
+        let spectrum = data(1, &[1.0, 0.234, 0.083, 0.026]);
+        let counts = [0, 0, 0, 512, 0];
+        // No gap between the kept invariants and the next function.
+        let choice = choose(None, &spectrum, &counts, &invariants(0.3, 0.45, 0.2));
+        assert_eq!(choice.rank, 1, "{choice:?}");
+        assert_eq!(choice.source, RankSource::Data);
+        assert!(
+            choice.reason.contains("do not stand apart"),
+            "{}",
+            choice.reason
+        );
+        // Held-out neighbours that do not share them.
+        let choice = choose(None, &spectrum, &counts, &invariants(0.005, 0.544, 0.3));
+        assert_eq!(choice.rank, 1, "{choice:?}");
+        // Probes that disagree.
+        let split = [0, 0, 200, 312, 0];
+        let choice = choose(None, &spectrum, &split, &invariants(0.005, 0.544, 0.004));
+        assert_eq!(choice.rank, 1, "{choice:?}");
+        // The retry still has rank 3 to try.
+        assert_eq!(choice.candidates[0], 1);
+        assert!(choice.candidates.contains(&3), "{choice:?}");
+    }
+
+    #[test]
+    fn a_lower_invariant_rank_is_kept_and_a_given_rank_wins() {
+        // The 4-link arm's case: the spectrum over-reads the rank.
+        let spectrum = data(4, &[1.0, 0.37, 0.13, 0.036]);
+        let counts = [0, 0, 0, 512, 0];
+        let choice = choose(None, &spectrum, &counts, &invariants(0.01, 0.5, 0.01));
+        assert_eq!((choice.rank, choice.source), (3, RankSource::Invariants));
+        // A given rank is used, the estimate beside it, and nothing else is tried.
+        let choice = choose(Some(2), &spectrum, &counts, &invariants(0.01, 0.5, 0.01));
+        assert_eq!((choice.rank, choice.estimate), (2, 3));
+        assert_eq!(choice.source, RankSource::Given);
+        assert_eq!(choice.candidates, vec![2]);
+        assert!(
+            choice.reason.contains("in place of the estimate 3"),
+            "{}",
+            choice.reason
+        );
     }
 }

@@ -74,6 +74,29 @@
 //! arm at 10⁶ samples: spectrum 1, 0.37, 0.13, 0.036, 0.005, rank 4, where the nine
 //! invariants change along 3 directions at all 512 probes).
 //!
+//! ## The rank: every piece of evidence ([`RankChoice`])
+//!
+//! The spectrum can also under-read the rank: a weak direction of change (far lights,
+//! long ranges) stands a ratio of 4 below the first and reads as the kernel's leak
+//! (a retina of Cauchy cells with far lights at 10⁶ samples: 1, 0.234, 0.083, 0.026,
+//! rank 1, kernels of dimension 3, while its nine invariants, `λ ≤ 0.005` and the next
+//! 0.544, change along 3 directions). Functions that sensory neighbours share are
+//! locally functions of the sensors, so `rank ∂s/∂m ≥ rank ∂z/∂m`: for `invariants`,
+//! the invariants' Jacobian rank is used over a lower data rank when it holds at
+//! [`UNANIMOUS_SHARE`] of the probes, the kept eigenvalues stand apart from the next
+//! (a ratio of at least [`INVARIANT_GAP`]), held-out sensory neighbours share the
+//! invariants as the fitted ones do (held-out `λ` at most [`HELD_OUT_SLACK`] times the
+//! fitted one, plus 0.01) and the spectrum has a value above its floor at that rank.
+//! The choice, the estimate and the reason are the report's `rank_choice`; when the
+//! pieces disagree the report's `warnings` say which rank is used and why. When every
+//! traced set fails at the chosen rank (a kernel too large to cover, or a Jacobian
+//! singular at it), [`trace_learned`] traces again at the next candidate (the other
+//! readings, then the spectrum's gaps from the largest), and says so.
+//!
+//! A user who knows the rank gives it ([`LawParams::rank`], `1..=N−1`: the kernels
+//! have dimension `N − rank`); it is used as given, with the estimate beside it and a
+//! warning when they differ, and never retried.
+//!
 //! When the data cannot support the law, the report's `warnings` say so with the
 //! measured `σ̂` and what would help: a held-out error far above the noise (the
 //! sensors change faster than the samples' spacing), noise that a fit of the samples
@@ -157,7 +180,10 @@ use crate::params::{CheckParams, InvalidParameter};
 pub use compare::{comparison_period, set_errors, SetErrors};
 use invariants::InvariantModel;
 pub use invariants::{InvariantsReport, MAX_INVARIANTS};
-pub use law::{FitSupport, LawReport, LearnedLaw, LogReport, RankSource, UNANIMOUS_SHARE};
+pub use law::{
+    FitSupport, LawReport, LearnedLaw, LogReport, RankChoice, RankSource, TriedRank,
+    HELD_OUT_SLACK, INVARIANT_GAP, UNANIMOUS_SHARE,
+};
 pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
     REPEAT_TOLERANCE,
@@ -364,6 +390,12 @@ pub struct LawParams {
     /// sensory neighbours of a kept invariant (2 for a function independent between the
     /// two samples of a pair); the count ends at the largest gap below it. Default 0.4.
     pub invariance_threshold: f64,
+    /// The rank of `∂s/∂m` (the kernels have dimension `N − rank`), when the user knows
+    /// it: `1..=N−1` (`N` motors; rank 3 on the paper's 4-hinge arm, whose kernels are
+    /// curves). Used in place of the rank the evidence reads, which is reported beside
+    /// it, with a warning when they differ ([`RankChoice`]). Default: read from the
+    /// data and the law.
+    pub rank: Option<usize>,
 }
 
 impl Default for LawParams {
@@ -378,6 +410,7 @@ impl Default for LawParams {
             seed: 1,
             invariants: None,
             invariance_threshold: 0.4,
+            rank: None,
         }
     }
 }
@@ -394,6 +427,7 @@ pub struct LawValidParams {
     pub(crate) seed: u64,
     pub(crate) invariants: Option<usize>,
     pub(crate) invariance_threshold: f64,
+    pub(crate) rank: Option<usize>,
 }
 
 fn invalid(key: &'static str, value: impl std::fmt::Display, reason: &str) -> LearnError {
@@ -439,6 +473,13 @@ impl CheckParams for LawParams {
                 ));
             }
         }
+        if self.rank == Some(0) {
+            return Err(invalid(
+                "rank",
+                0,
+                "must be at least 1 (and at most N − 1 for N motors: the kernels have dimension N − rank), or left out to read it from the data",
+            ));
+        }
         if let (Some(n), Some(c)) = (self.neighbours, self.coverage_neighbours) {
             if c > n {
                 return Err(invalid(
@@ -458,6 +499,7 @@ impl CheckParams for LawParams {
             seed: self.seed,
             invariants: self.invariants,
             invariance_threshold: self.invariance_threshold,
+            rank: self.rank,
         })
     }
 }
@@ -539,6 +581,30 @@ impl LawValidParams {
     pub fn method(&self) -> LawMethod {
         self.method
     }
+
+    /// The rank given (see [`LawParams::rank`]).
+    pub fn rank(&self) -> Option<usize> {
+        self.rank
+    }
+
+    /// Refuses a given rank outside `1..=N−1` for `n` motors ([`LawParams::rank`]).
+    pub fn check_rank(&self, n: usize) -> Result<(), LearnError> {
+        match self.rank {
+            Some(rank) if rank == 0 || rank >= n => Err(InvalidParameter::new(
+                "data",
+                "rank",
+                rank,
+                format!(
+                    "must be in 1..={} for {n} motors (the kernels have dimension {n} − rank: rank {} gives curves, rank 1 sets of dimension {}), or left out to read it from the data",
+                    n.saturating_sub(1),
+                    n.saturating_sub(1),
+                    n.saturating_sub(1)
+                ),
+            )
+            .into()),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// The noise a local fit should leave in the law's values, relative to the sensors'
@@ -588,6 +654,7 @@ pub fn learn_with_progress(
         return Err(LearnError::NoLog);
     }
     let n = space.dim();
+    params.check_rank(n)?;
     let periodic = space.motors().iter().filter(|m| m.is_periodic()).count();
     let shapes: Vec<(usize, usize)> = logs
         .iter()
@@ -648,7 +715,7 @@ pub fn learn_with_progress(
         models,
         params.method,
         (reports, data_rank),
-        (params.seed, progress),
+        (params.seed, params.rank, progress),
     );
     let mut warnings = law_warnings(law.report(), params, n);
     warnings.extend(repeat_warnings(law.report()));
@@ -838,7 +905,10 @@ pub fn law_trace_params() -> crate::kernel::TraceParams {
 /// environment, so an empty one is passed). Sets that leave the covered region have the
 /// status `left-data`. [`law_trace_params`] gives parameters suited to a learned law.
 /// The report's `law` is the law's report completed with the closure rate of the sets
-/// and its warnings ([`LawReport::with_trace`]).
+/// and its warnings ([`LawReport::with_trace`]). When every set fails at the rank the
+/// evidence read, the sets are traced again at the next of [`RankChoice::candidates`]
+/// (not when the rank was given), until one keeps a set; the report's `rank`,
+/// `rank_source` ([`RankSource::Retried`]) and `rank_choice.tried` say so.
 pub fn trace_learned(
     law: &LearnedLaw,
     starts: ndarray::ArrayView2<'_, f64>,
@@ -854,7 +924,164 @@ pub fn trace_learned(
     let unused = crate::agent::Environment::from_lights(Vec::new());
     let mut traced =
         crate::kernel::trace_sets(law, Some(&unused), starts, None, &params, progress)?;
+    let mut report = law.report().clone();
+    // Every set failed at the estimated rank: the next candidates, in order.
+    let candidates = report
+        .rank_choice
+        .as_ref()
+        .map(|c| c.candidates.clone())
+        .unwrap_or_default();
+    let mut at = candidates.iter().position(|&r| r == law.rank());
+    let given = law.report().rank_source == RankSource::Given;
+    while !given && everything_failed(&traced.report.summary) {
+        let Some(next) = at.and_then(|i| candidates.get(i + 1)).copied() else {
+            break;
+        };
+        at = at.map(|i| i + 1);
+        let failed = &traced.report.summary;
+        let tried = TriedRank {
+            rank: report.rank,
+            total: failed.total,
+            by_status: failed.by_status.clone(),
+        };
+        report.warnings.push(format!(
+            "every one of the {} sets failed at rank {} ({:?}): traced again at the next candidate rank {next} (kernels of dimension {})",
+            failed.total,
+            report.rank,
+            failed.by_status,
+            crate::agent::Agent::motor_dim(law) - next
+        ));
+        let retried = law::AtRank { law, rank: next };
+        traced =
+            crate::kernel::trace_sets(&retried, Some(&unused), starts, None, &params, progress)?;
+        report.rank = next;
+        report.rank_source = RankSource::Retried;
+        if let Some(choice) = report.rank_choice.as_mut() {
+            choice.tried.push(tried);
+            choice.rank = next;
+            choice.source = RankSource::Retried;
+        }
+    }
     // A report of numbers and names always serialises.
-    traced.report.law = serde_json::to_value(law.report().with_trace(&traced.report.summary)).ok();
+    traced.report.law = serde_json::to_value(report.with_trace(&traced.report.summary)).ok();
     Ok(traced)
+}
+
+/// Whether every one of at least one set failed.
+fn everything_failed(summary: &crate::kernel::TraceSummary) -> bool {
+    summary.total > 0 && summary.traced == 0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ndarray::Array2;
+    use rand::rngs::ChaCha8Rng;
+    use rand::{RngExt, SeedableRng};
+
+    /// A log of three hinges whose sensors read the tip of a planar 3-link chain
+    /// (rank 2: the kernels are curves), and its motor space.
+    fn chain_log(samples: usize) -> (SensorimotorLog, crate::agent::MotorSpace) {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let motors = Array2::from_shape_fn((samples, 3), |_| {
+            rng.random_range(-std::f64::consts::PI..std::f64::consts::PI)
+        });
+        let sensors = Array2::from_shape_fn((samples, 2), |(i, c)| {
+            let m = motors.row(i);
+            let (a, b) = (m[0], m[0] + m[1]);
+            let t = b + m[2];
+            match c {
+                0 => a.cos() + 0.6 * b.cos() + 0.3 * t.cos(),
+                _ => a.sin() + 0.6 * b.sin() + 0.3 * t.sin(),
+            }
+        });
+        let files = LogFiles {
+            motors: "m.npy".into(),
+            sensors: "s.npy".into(),
+        };
+        let space = declared_space(
+            &parse_motor_declarations("2pi").unwrap(),
+            motors.view(),
+            &files.motors,
+        )
+        .unwrap();
+        (
+            SensorimotorLog::new(motors, sensors, files, &space).unwrap(),
+            space,
+        )
+    }
+
+    #[test]
+    fn a_rank_at_which_every_set_fails_is_retried_at_the_next_candidate() {
+        let (log, space) = chain_log(20_000);
+        let params = LawParams::default().check().unwrap();
+        let mut law = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+        assert_eq!(law.rank(), 2, "{:?}", law.report().rank_choice);
+        let starts = log.motors.select(ndarray::Axis(0), &[0, 1, 2, 3]);
+        // Surfaces (rank 1) cannot be covered within 10 nodes: every set fails there.
+        let trace = crate::kernel::TraceParams {
+            max_cover_points: 10,
+            points: 20,
+            ..law_trace_params()
+        };
+        law.set_candidates(vec![1, 2]);
+        let traced = trace_learned(&law, starts.view(), &trace, &crate::progress::Silent).unwrap();
+        assert!(
+            traced.report.summary.traced >= 3,
+            "{:?}",
+            traced.report.summary
+        );
+        let report: LawReport = serde_json::from_value(traced.report.law.clone().unwrap()).unwrap();
+        assert_eq!((report.rank, report.rank_source), (2, RankSource::Retried));
+        let choice = report.rank_choice.unwrap();
+        assert_eq!(choice.tried.len(), 1);
+        assert_eq!(choice.tried[0].rank, 1);
+        assert!(
+            report
+                .warnings
+                .iter()
+                .any(|w| w.contains("traced again at the next candidate rank 2")),
+            "{:?}",
+            report.warnings
+        );
+        // A given rank is never retried.
+        let given = LawParams {
+            rank: Some(1),
+            ..LawParams::default()
+        }
+        .check()
+        .unwrap();
+        let law = learn(std::slice::from_ref(&log), &space, &given, None).unwrap();
+        assert_eq!(law.report().rank_source, RankSource::Given);
+        let traced = trace_learned(&law, starts.view(), &trace, &crate::progress::Silent).unwrap();
+        assert_eq!(
+            traced.report.summary.traced, 0,
+            "{:?}",
+            traced.report.summary
+        );
+        // Out of 1..=N−1: named with the motors and the kernel dimension.
+        for rank in [3, 9] {
+            let bad = LawParams {
+                rank: Some(rank),
+                ..LawParams::default()
+            }
+            .check()
+            .unwrap();
+            let e = learn(std::slice::from_ref(&log), &space, &bad, None)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("rank") && e.contains("1..=2 for 3 motors"),
+                "{e}"
+            );
+        }
+        let e = LawParams {
+            rank: Some(0),
+            ..LawParams::default()
+        }
+        .check()
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("rank = 0"), "{e}");
+    }
 }
