@@ -126,7 +126,8 @@
 //! Noisy readings cost far more rows than exact ones, so the cost is said before it
 //! is paid: before any set is traced, the first [`FORECAST_STARTS`] starts are probed
 //! as their traces probe them (the two readings, and with noise the first
-//! regression and the target; these rows count in those sets' start phase), timed,
+//! regression and the target; these rows count in those sets' start phase, and a
+//! start found exact is not read again), timed,
 //! and [`NoiseForecast`] forecasts the rows per set from the measured `σ`: one
 //! regression of `r (3N + 1)` rows per point visited, `1.5 L / max_step` points
 //! following a curve (`L` forecast as the diagonal of the motor space), `1.5 P`

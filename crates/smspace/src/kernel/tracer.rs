@@ -54,6 +54,9 @@ pub(super) struct Tracer<'a> {
     /// Sensor rows read at each of the first starts to forecast the cost of noisy
     /// readings ([`Tracer::forecast_noise`]; empty when not forecast).
     forecast_rows: Vec<u64>,
+    /// The starts the forecast found exact, with their reading: their sets start from
+    /// it instead of reading the start twice again.
+    exact_starts: Vec<(Vec<f64>, Vec<f64>)>,
 }
 
 /// The rank of the sensory Jacobian as the starts show it, for an agent without a
@@ -165,6 +168,7 @@ impl<'a> Tracer<'a> {
             rank_rows: Vec::new(),
             sensory_rank: None,
             forecast_rows: Vec::new(),
+            exact_starts: Vec::new(),
         };
         tracer.seeds = piece_seeds(&tracer.space, params.piece_starts, params.piece_seed);
         tracer.dimension = match (declared, agent.sensory_rank()) {
@@ -266,7 +270,8 @@ impl<'a> Tracer<'a> {
     /// the first regression and the target, see `noisy.rs`), timing them, and
     /// forecasts the cost of tracing `motors.nrows()` sets ([`NoiseForecast`]); `None`
     /// when every probed start reads exactly. The rows read are added to those
-    /// starts' sets ([`add_rank_rows`](Self::add_rank_rows)).
+    /// starts' sets ([`add_rank_rows`](Self::add_rank_rows)), and a start found exact
+    /// is not probed again when its set is traced.
     pub(super) fn forecast_noise(&mut self, motors: ArrayView2<'_, f64>) -> Option<NoiseForecast> {
         let environment = self.environment?;
         let exact = matches!(self.params.noise, SensorNoise::Sigma(sigma) if sigma == 0.0);
@@ -285,17 +290,20 @@ impl<'a> Tracer<'a> {
         let probe_start = |caller: Option<&Caller<'_>>, _: &mut Scratch, start: &[f64]| {
             let sensor = Sensor::new(self.agent, environment, caller);
             match probe(sensor, start, self.params, self.dimension) {
-                Probe::Exact(sensor, _) => ProbedStart {
+                Probe::Exact(sensor, reading) => ProbedStart {
                     noise: None,
                     start_rows: sensor.rows,
+                    exact_reading: reading,
                 },
                 Probe::Noisy(set) => ProbedStart {
                     noise: set.noise(),
                     start_rows: set.sensor_rows(),
+                    exact_reading: None,
                 },
                 Probe::Failed(_, noise, sensor) => ProbedStart {
                     noise: (noise.repeats > 0).then_some(noise),
                     start_rows: sensor.rows,
+                    exact_reading: None,
                 },
             }
         };
@@ -303,6 +311,11 @@ impl<'a> Tracer<'a> {
         let probed = self.map_starts(&rows, probe_start, &|| {}).ok()?;
         let seconds = clock.elapsed().as_secs_f64();
         self.forecast_rows = probed.iter().map(|p| p.start_rows).collect();
+        self.exact_starts = rows
+            .iter()
+            .zip(&probed)
+            .filter_map(|(start, p)| Some((start.clone(), p.exact_reading.clone()?)))
+            .collect();
         let diagonal = self
             .space
             .motors()
@@ -417,7 +430,18 @@ impl<'a> Tracer<'a> {
             }
             (_, _, Some(environment)) => {
                 let sensor = Sensor::new(self.agent, environment, caller);
-                match probe(sensor, start, self.params, self.dimension) {
+                // (A start the forecast found exact is not read again: its rows are
+                // the forecast's, added to the set's start phase.)
+                let known = self
+                    .exact_starts
+                    .iter()
+                    .find(|(s, _)| s.as_slice() == start)
+                    .map(|(_, reading)| reading.clone());
+                let probed = match known {
+                    Some(reading) => Probe::Exact(sensor, Some(reading)),
+                    None => probe(sensor, start, self.params, self.dimension),
+                };
+                match probed {
                     Probe::Exact(sensor, reading) => {
                         sensory = match reading {
                             Some(target) => Sensory::with_target(
