@@ -64,6 +64,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -203,18 +204,25 @@ class NoisyDepths:
 
 
 def run(sets: int = 1500, seed: int = 1, threads: bool = False, points: int = 100, out=None,
-        noise: float = 0.0) -> dict:
+        noise: float = 0.0, budget: Optional[int] = None) -> dict:
     """Every stage on ``sets`` starts, the depths read with ``noise`` metres of
     Gaussian noise; returns the figures (and saves the arrays and reports into the
-    folder ``out`` when given). With noise, the exact sets through the same starts
-    are traced too, and each noisy set's distance to its exact one is measured."""
+    folder ``out`` when given). With ``budget``, the sets are traced on the law
+    learned from at most that many sensor rows (``method="learned"``) instead of the
+    sensory route. With noise or a budget, the exact sets through the same starts are
+    traced too (by the sensory route on the exact depths), and each set's distance to
+    its exact one is measured."""
     arm = body(threads)
     if noise > 0.0:
         arm.sense = NoisyDepths(arm.sense, noise, seed)
     agent = arm.agent(name="lidar-arm")
     started = time.perf_counter()
     found = smspace.explore(agent, n=sets, seed=seed, workspace=WORKSPACE)
-    traced = smspace.trace(agent, found.motors, method="sensory", points=points)
+    if budget is None:
+        traced = smspace.trace(agent, found.motors, method="sensory", points=points)
+    else:
+        traced = smspace.trace(agent, found.motors, method="learned", points=points,
+                               budget=budget, workspace=WORKSPACE)
     trace_seconds = time.perf_counter() - started
     rows = arm.rows_sensed
     D = smspace.distances(traced, metric="curve")
@@ -239,6 +247,7 @@ def run(sets: int = 1500, seed: int = 1, threads: bool = False, points: int = 10
         "sensor_rows": rows,
         "sensor_rows_per_start": rows / sets,
         "sensor_rows_per_set": (summary.get("sensor_rows") or {}).get("median"),
+        "budget": traced.report.get("budget", {}).get("rows"),
         "eye_position_spread": spread,
         "betti": report["betti"],
         "twonn": report["intrinsic_dimension"]["twonn"],
@@ -247,7 +256,7 @@ def run(sets: int = 1500, seed: int = 1, threads: bool = False, points: int = 10
         "trace_seconds": trace_seconds,
         "seconds": seconds,
     }
-    if noise > 0.0:
+    if noise > 0.0 or budget is not None:
         exact = smspace.trace(body(threads).agent(name="lidar-arm"), found.motors,
                               method="sensory", points=points)
         errors = set_errors(traced, exact)
@@ -322,17 +331,26 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, help="a folder for the arrays and reports")
     parser.add_argument("--noise", type=float, default=0.0,
                         help="standard deviation of Gaussian noise on every depth, metres (default 0)")
+    parser.add_argument("--budget", type=int,
+                        help="learn the law from at most this many sensor rows in all and trace "
+                             "the sets on it (the learned route) instead of the sensory route")
     args = parser.parse_args(argv)
     if args.sets < 20:
         parser.error(f"--sets {args.sets}: give at least 20 starts (the analysis needs neighbours)")
     if not math.isfinite(args.noise) or args.noise < 0.0:
         parser.error(f"--noise {args.noise}: give a standard deviation of 0 or more, in metres")
-    figures = run(args.sets, args.seed, args.threads, args.points, args.out, args.noise)
+    if args.budget is not None and args.budget <= 0:
+        parser.error(f"--budget {args.budget}: give the sensor rows the arm may be read, at least a few thousand")
+    figures = run(args.sets, args.seed, args.threads, args.points, args.out, args.noise, args.budget)
     print(f"sets traced: {figures['traced']} of {figures['starts']} "
           f"({100 * figures['traced_fraction']:.1f} %); statuses {figures['statuses']}")
     print(f"sensor rows: {figures['sensor_rows']} ({figures['sensor_rows_per_start']:.0f} per start, "
           f"median {figures['sensor_rows_per_set']} per set); "
           f"eye position spread along the sets: {figures['eye_position_spread']:.1e}")
+    if figures["budget"]:
+        spent = figures["budget"]
+        print(f"learned route: {spent['total']} sensor rows in all ({spent['babble']} babbled, "
+              f"{spent['verify']} verifying the sets)")
     if figures["noise_estimated"]:
         measured = figures["noise_estimated"]
         print(f"noise: {args.noise} m given, {measured['sigma']:.4g} m measured; position "

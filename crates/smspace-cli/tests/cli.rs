@@ -785,3 +785,54 @@ fn an_output_that_names_an_input_is_refused_before_any_work() {
     let err = fails(&dir, &["run", "run/exp.toml", "--out", "run"]);
     assert!(err.contains("holds the input experiment file"), "{err}");
 }
+
+#[test]
+fn the_learned_route_reads_the_agent_within_its_budget_and_says_so() {
+    let (_guard, dir) = temp();
+    ok(&dir, &["explore", "--n", "6", "--out-dir", "."]);
+    let args = |budget: &'static str| {
+        vec![
+            "trace",
+            "--motors",
+            "motors.npy",
+            "--method",
+            "learned",
+            "--budget",
+            budget,
+            "--rounds",
+            "1",
+            "--points",
+            "20",
+            "--out",
+            "sets.npy",
+        ]
+    };
+    // Too small a budget: refused with the least that works, nothing written.
+    let message = fails(&dir, &args("3000"));
+    assert!(message.contains("raise budget to at least"), "{message}");
+    assert!(!dir.join("sets.npy").exists());
+    // No budget: the flag named.
+    let message = fails(
+        &dir,
+        &[
+            "trace",
+            "--motors",
+            "motors.npy",
+            "--method",
+            "learned",
+            "--out",
+            "sets.npy",
+        ],
+    );
+    assert!(message.contains("--budget ROWS"), "{message}");
+    // A budget: the rows spent in the report, never more than the budget.
+    let stderr = stderr(&ok(&dir, &args("60000")));
+    assert!(stderr.contains("sensor rows read in all"), "{stderr}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("sets.trace.json")).unwrap()).unwrap();
+    assert_eq!(report["method"], "learned");
+    let rows = &report["budget"]["rows"];
+    assert!(rows["total"].as_u64().unwrap() <= 60_000, "{rows}");
+    assert_eq!(rows["verify"].as_u64().unwrap() % 9, 0, "{rows}");
+    assert!(report["law"].is_object());
+}

@@ -322,7 +322,7 @@ fn bad_input_gets_a_clear_error() {
 /// the library's default table gives the same coordinates as no flag at all.
 #[test]
 fn method_by_name_and_any_parameter_with_param() {
-    use smspace::embed::{EmbedParams, Embedding};
+    use smspace::embed::EmbedParams;
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path();
     write_npy(p.join("D.npy"), &circle(40)).unwrap();

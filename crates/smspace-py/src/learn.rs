@@ -162,7 +162,7 @@ fn _learn<'py>(
 /// closed, pieces, report_json, law_json, budget_json)`: the tracing report, the law's,
 /// and the budget's (rows spent by phase, each set's verification).
 #[pyfunction]
-#[pyo3(signature = (agent, starts, budget, params, env=None, memory_limit_bytes=None, progress=None))]
+#[pyo3(signature = (agent, starts, budget, params, env=None, workspace=None, memory_limit_bytes=None, progress=None))]
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn _learn_agent<'py>(
     py: Python<'py>,
@@ -171,6 +171,7 @@ fn _learn_agent<'py>(
     budget: &str,
     params: &str,
     env: Option<&Bound<'py, PyAny>>,
+    workspace: Option<&Bound<'py, PyAny>>,
     memory_limit_bytes: Option<u64>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<(
@@ -192,6 +193,7 @@ fn _learn_agent<'py>(
     let starts = starts.as_array().to_owned();
     check_finite(starts.iter(), "starts")?;
     let environment = agent.environment(env)?;
+    let workspace = crate::stages::resolve_workspace(agent, workspace)?;
     let limit = memory_limit_bytes.unwrap_or_else(|| gib_bytes(DEFAULT_MEMORY_LIMIT_GIB));
     let progress = Arc::new(PyProgress::new(progress));
     let mut interrupts = agent.interrupts();
@@ -203,6 +205,7 @@ fn _learn_agent<'py>(
             law.as_ref(),
             &environment,
             starts.view(),
+            workspace,
             &budget,
             &law_params,
             &trace,

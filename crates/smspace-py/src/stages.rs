@@ -253,7 +253,7 @@ fn _explore<'py>(
 
 /// `"default"` (the agent's), `"none"` or `None` (the whole motor space), or
 /// `(cx, cy, depth, width)`.
-fn resolve_workspace(
+pub(crate) fn resolve_workspace(
     agent: &Agent,
     spec: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Option<Workspace>> {

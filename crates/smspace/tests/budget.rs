@@ -38,6 +38,8 @@ enum Kind {
 struct Counting {
     kind: Kind,
     rows: AtomicU64,
+    /// Rows answered with NaN.
+    nan_rows: AtomicU64,
 }
 
 impl Counting {
@@ -45,6 +47,7 @@ impl Counting {
         Self {
             kind,
             rows: AtomicU64::new(0),
+            nan_rows: AtomicU64::new(0),
         }
     }
 }
@@ -61,7 +64,10 @@ impl Agent for Counting {
         let mut x = cart_x(m);
         match self.kind {
             Kind::Cart => {}
-            Kind::Holey if (0.0..0.4).contains(&m[0]) => x = f64::NAN,
+            Kind::Holey if (0.0..0.4).contains(&m[0]) => {
+                self.nan_rows.fetch_add(1, Ordering::SeqCst);
+                x = f64::NAN;
+            }
             Kind::Holey => {}
             Kind::DriftsAfter(n) if read >= n => x += 0.4 * m[1].sin(),
             Kind::DriftsAfter(_) => {}
@@ -87,13 +93,22 @@ fn starts(m: usize) -> Array2<f64> {
 }
 
 fn run(agent: &Counting, budget: u64, starts: &Array2<f64>) -> Result<BudgetedSets, LearnError> {
+    run_with(agent, BudgetParams::new(budget), starts)
+}
+
+fn run_with(
+    agent: &Counting,
+    budget: BudgetParams,
+    starts: &Array2<f64>,
+) -> Result<BudgetedSets, LearnError> {
     let law = LawParams::default().check().unwrap();
-    let budget = BudgetParams::new(budget).check().unwrap();
+    let budget = budget.check().unwrap();
     let environment = Environment::from_lights(Vec::new());
     learn_from_agent(
         agent,
         &environment,
         starts.view(),
+        None,
         &budget,
         &law,
         &law_trace_params(),
@@ -151,7 +166,12 @@ fn a_budget_of_twenty_thousand_rows_traces_the_carts_kernels_and_counts_every_ro
         .map(|v| v.index)
         .collect();
     assert_eq!(found.traced.kept, passed);
-    assert!(found.warnings().is_empty(), "{:?}", found.warnings());
+    assert!(
+        found.warnings().is_empty(),
+        "{:?} {:?}",
+        found.warnings(),
+        found.traced.report.summary.by_status
+    );
     // The report serialises without the sets.
     let report = serde_json::to_value(&found).unwrap();
     assert_eq!(report["rows"]["total"], rows.total);
@@ -181,11 +201,34 @@ fn rows_the_agent_cannot_read_are_counted_named_and_left_out() {
     let rows = found.rows;
     assert_eq!(agent.rows.load(Ordering::SeqCst), rows.total);
     assert!(rows.total <= 20_000);
-    // About 0.4 / 2π of the babbling.
-    let expected = 0.4 / (2.0 * PI) * rows.babble as f64;
+    // Every babbled NaN counted (verification's own readings are not babbling).
+    let verify_nan = found
+        .verification
+        .iter()
+        .filter(|v| v.error.is_infinite())
+        .count();
+    assert!(rows.non_finite <= agent.nan_rows.load(Ordering::SeqCst));
+    assert!(rows.non_finite > 0);
     assert!(
-        (rows.non_finite as f64 - expected).abs() < 0.15 * expected,
+        agent.nan_rows.load(Ordering::SeqCst) - rows.non_finite <= 9 * verify_nan as u64,
         "{rows:?}"
+    );
+    // Babbled once, uniformly: about 0.4 / 2π of the rows.
+    let uniform = Counting::new(Kind::Holey);
+    let once = run_with(
+        &uniform,
+        BudgetParams {
+            rounds: 1,
+            ..BudgetParams::new(20_000)
+        },
+        &starts,
+    )
+    .unwrap();
+    let expected = 0.4 / (2.0 * PI) * once.rows.babble as f64;
+    assert!(
+        (once.rows.non_finite as f64 - expected).abs() < 0.15 * expected,
+        "{:?}",
+        once.rows
     );
     assert_eq!(found.non_finite_motors.len(), 5);
     assert!(found
@@ -260,5 +303,50 @@ fn sensors_that_jump_give_sets_that_fail_verification() {
             set.outer_iter().all(|p| !(0.0..1.0).contains(&p[1])),
             "kept set {i} enters the band"
         );
+    }
+}
+
+#[test]
+fn a_second_round_reads_around_the_sets_where_the_first_left_them_sparse() {
+    let agent = Counting::new(Kind::Cart);
+    let starts = starts(12);
+    let found = run_with(
+        &agent,
+        BudgetParams {
+            rounds: 3,
+            ..BudgetParams::new(30_000)
+        },
+        &starts,
+    )
+    .unwrap();
+    let rounds = &found.rounds;
+    assert_eq!(rounds.len(), 3);
+    // Half the babbling in the first round, the rest in equal parts.
+    let babble = found.rows.babble;
+    assert_eq!(rounds.iter().map(|r| r.rows).sum::<u64>(), babble);
+    assert_eq!(rounds[0].rows, (babble as f64 / 2.0).round() as u64);
+    // The rows go where the sets are: the spacing along them falls faster than the
+    // rows grow (uniform rows would shrink it by (3/2)^(1/2) = 1.22 in two dimensions).
+    assert!(
+        rounds[2].spacing_median < rounds[0].spacing_median / 1.4,
+        "{rounds:?}"
+    );
+    let errors = x_errors(&found, &starts);
+    assert!(median(errors) < 0.05);
+}
+
+#[test]
+fn rounds_out_of_their_domain_are_refused_with_the_key() {
+    for (rounds, first_round) in [(0, 0.5), (17, 0.5), (2, 0.0), (2, 1.5), (2, f64::NAN)] {
+        let error = BudgetParams {
+            rounds,
+            first_round,
+            ..BudgetParams::new(20_000)
+        }
+        .check()
+        .unwrap_err()
+        .to_string();
+        let key = if rounds == 2 { "first_round" } else { "rounds" };
+        assert!(error.contains(key), "{error}");
     }
 }

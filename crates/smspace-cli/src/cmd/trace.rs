@@ -4,7 +4,11 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use smspace::io;
-use smspace::kernel::{trace_sets, Components, SensorNoise, StepControl, TraceMethod, TraceParams};
+use smspace::kernel::{
+    trace_sets, Components, SensorNoise, StepControl, TraceMethod, TraceParams, TracedSets,
+};
+use smspace::learn::budget::{learn_from_agent, BudgetParams};
+use smspace::learn::LawParams;
 
 use super::common::{AgentArgs, EnvArgs, WorkspaceArgs};
 use crate::ui::Bar;
@@ -17,10 +21,30 @@ pub struct Args {
     /// Motor configurations (M, N), as written by `smspace explore`.
     #[arg(long, value_name = "FILE")]
     motors: PathBuf,
-    /// Level set to follow: kinematic (observer's pose, the paper's) or sensory (the
-    /// agent's own sensor readings; needs an environment).
+    /// Level set to follow: kinematic (observer's pose, the paper's), sensory (the
+    /// agent's own sensor readings; needs an environment) or learned (the law learned
+    /// from babbling the agent within --budget sensor rows, the sets traced on it and
+    /// verified against the agent).
     #[arg(long, default_value = "kinematic", value_parser = parse_method)]
     method: TraceMethod,
+    /// --method learned: the sensor rows the agent may be read in all (babbling and
+    /// verifying the sets).
+    #[arg(long, value_name = "ROWS")]
+    budget: Option<u64>,
+    /// --method learned: babbling rounds (the first over the working space, the later
+    /// ones around the sets traced so far).
+    #[arg(long, default_value_t = BudgetParams::new(1).rounds)]
+    rounds: usize,
+    /// --method learned: rows read along each traced set to verify it.
+    #[arg(long, default_value_t = BudgetParams::new(1).verify_points)]
+    verify_points: usize,
+    /// --method learned: seed of the babbling.
+    #[arg(long, default_value_t = BudgetParams::new(1).seed)]
+    seed: u64,
+    /// --method learned: a key of the law's parameters (as `smspace learn` takes
+    /// them: method, invariants, neighbours, holdout, ...), as KEY=VALUE; repeatable.
+    #[arg(long = "law", value_name = "KEY=VALUE")]
+    law: Vec<String>,
     /// Points per resampled set.
     #[arg(long, default_value_t = TraceParams::default().points)]
     points: usize,
@@ -101,8 +125,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     super::common::spare_inputs(&[&args.out], &inputs)?;
     io::check_output_folder(&args.out)?;
     let (spec, agent) = args.agent.load()?;
-    let params = TraceParams {
-        method: args.method,
+    let learned = args.method == TraceMethod::Learned;
+    let trace = TraceParams {
+        method: if learned {
+            TraceMethod::Sensory
+        } else {
+            args.method
+        },
         points: args.points,
         step: args.step,
         step_control: args.step_control,
@@ -113,8 +142,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cover_step: args.cover_step,
         noise: args.noise,
         ..TraceParams::default()
+    };
+    let params = trace.check()?;
+    if !learned && (args.budget.is_some() || !args.law.is_empty()) {
+        anyhow::bail!("--budget and --law apply to --method learned only");
     }
-    .check()?;
     let motors = io::read_matrix(
         &args.motors,
         Some(agent.motor_dim()),
@@ -122,10 +154,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )?;
     let environment = match args.method {
         TraceMethod::Kinematic => args.env.resolve(&spec, agent.as_ref())?,
-        TraceMethod::Sensory => {
+        TraceMethod::Sensory | TraceMethod::Learned => {
             Some(args.env.resolve(&spec, agent.as_ref())?.ok_or_else(|| {
                 anyhow::anyhow!(
-                    "--method sensory needs an environment: give --env FILE or --env-seed S"
+                    "--method {} needs an environment: give --env FILE or --env-seed S",
+                    if learned { "learned" } else { "sensory" }
                 )
             })?)
         }
@@ -138,14 +171,42 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "trace fewer motor rows per call, or lower --points",
     )?;
     let bar = Bar::new();
-    let traced = trace_sets(
-        agent.as_ref(),
-        environment.as_ref(),
-        motors.view(),
-        workspace.as_ref(),
-        &params,
-        &bar,
-    )?;
+    let traced = if learned {
+        let budget = args.budget.ok_or_else(|| {
+            anyhow::anyhow!(
+                "--method learned reads the agent within a budget: give --budget ROWS, the most sensor rows to read in all (babbling, then verifying the sets)"
+            )
+        })?;
+        let budget = BudgetParams {
+            rounds: args.rounds,
+            verify_points: args.verify_points,
+            seed: args.seed,
+            law: law_params(&args.law)?,
+            ..BudgetParams::new(budget)
+        };
+        let Some(environment) = environment.as_ref() else {
+            anyhow::bail!("--method learned needs an environment: give --env FILE or --env-seed S");
+        };
+        learned_sets(
+            agent.as_ref(),
+            environment,
+            motors.view(),
+            workspace,
+            &budget,
+            &trace,
+            args.max_memory,
+            &bar,
+        )?
+    } else {
+        trace_sets(
+            agent.as_ref(),
+            environment.as_ref(),
+            motors.view(),
+            workspace.as_ref(),
+            &params,
+            &bar,
+        )?
+    };
     // Fewer than two kept sets (of two or more) leave nothing to compare: fail here,
     // naming the statuses and what each suggests, before writing anything.
     traced
@@ -163,7 +224,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "traced {} of {} sets ({:?}, {:?} steps); {} failed{}",
         summary.traced,
         summary.total,
-        params.method(),
+        args.method,
         params.step_control(),
         summary.failed,
         if summary.failed > 0 {
@@ -177,8 +238,75 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             String::new()
         }
     );
+    if let Some(budget) = &traced.report.budget {
+        let rows = &budget["rows"];
+        eprintln!(
+            "{} sensor rows read in all ({} babbling, {} verifying the sets)",
+            rows["total"], rows["babble"], rows["verify"]
+        );
+        for warning in budget["warnings"].as_array().into_iter().flatten() {
+            eprintln!("warning: {}", warning.as_str().unwrap_or_default());
+        }
+    }
+    if let Some(law) = &traced.report.law {
+        for warning in law["warnings"].as_array().into_iter().flatten() {
+            eprintln!("warning: {}", warning.as_str().unwrap_or_default());
+        }
+    }
     for warning in summary.warnings() {
         eprintln!("warning: {warning}");
     }
     Ok(())
+}
+
+/// The law's parameters from `--law KEY=VALUE` pairs (a value read as JSON when it
+/// parses, else as a string), checked by the law's own table.
+fn law_params(pairs: &[String]) -> anyhow::Result<LawParams> {
+    let mut table = serde_json::Map::new();
+    for pair in pairs {
+        let (key, value) = pair.split_once('=').ok_or_else(|| {
+            anyhow::anyhow!("--law {pair}: give KEY=VALUE (e.g. --law invariants=9)")
+        })?;
+        let value = serde_json::from_str(value.trim())
+            .unwrap_or_else(|_| serde_json::Value::String(value.trim().to_owned()));
+        table.insert(key.trim().to_owned(), value);
+    }
+    serde_json::from_value(serde_json::Value::Object(table))
+        .map_err(|e| anyhow::anyhow!("--law: {e} (the keys of smspace learn's law)"))
+}
+
+/// `--method learned`: the law learned from babbling `agent` within the budget, the
+/// sets traced on it and verified; the report's `budget` holds the rows spent.
+#[allow(clippy::too_many_arguments)] // The stage's own parameters, each checked.
+fn learned_sets(
+    agent: &dyn smspace::agent::Agent,
+    environment: &smspace::agent::Environment,
+    motors: ndarray::ArrayView2<'_, f64>,
+    workspace: Option<smspace::agent::Workspace>,
+    budget: &BudgetParams,
+    trace: &TraceParams,
+    max_memory: Option<u64>,
+    bar: &Bar,
+) -> anyhow::Result<TracedSets> {
+    let law = budget.law.check()?;
+    let found = learn_from_agent(
+        agent,
+        environment,
+        motors,
+        workspace,
+        &budget.check()?,
+        &law,
+        trace,
+        max_memory,
+        bar,
+    )?;
+    let mut spent = serde_json::to_value(&found)?;
+    if let Some(fields) = spent.as_object_mut() {
+        fields.remove("law");
+        fields.insert("warnings".to_owned(), found.warnings().into());
+    }
+    let mut traced = found.traced;
+    traced.report.method = TraceMethod::Learned;
+    traced.report.budget = Some(spent);
+    Ok(traced)
 }

@@ -14,9 +14,10 @@ use smspace::analysis::AnalysisError;
 use smspace::explore::Exploration;
 use smspace::io::Outputs;
 use smspace::kernel::{
-    extend_along, trace_sets, KernelError, Spatial, TraceParams, TraceValidParams, TracedSets,
-    TruthErrors,
+    extend_along, trace_sets, KernelError, Spatial, TraceMethod, TraceParams, TraceValidParams,
+    TracedSets, TruthErrors,
 };
+use smspace::learn::budget::{learn_from_agent, BudgetParams};
 use smspace::learn::trace_learned;
 use smspace::params::InvalidParameter;
 
@@ -30,18 +31,92 @@ pub struct TraceStage {
     /// the sets along (none otherwise, and then not in the key).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub compensability: Option<CompensabilityParams>,
+    /// With `method = "learned"`: the `[learn]` table (the budget of sensor rows, the
+    /// babbling rounds, verification and the law); none otherwise, and then not in the
+    /// key.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub learn: Option<BudgetParams>,
 }
 
 impl TraceStage {
     /// The stage of the `[kernel]` table; `analysis` is the `[analysis.compensability]`
-    /// table (its defaults when absent), read only with `spatial = "compensable"`.
-    pub fn new(kernel: TraceParams, analysis: Option<&CompensabilityParams>) -> Self {
+    /// table (its defaults when absent), read only with `spatial = "compensable"`;
+    /// `learn` the `[learn]` table, read only with `method = "learned"`.
+    pub fn new(
+        kernel: TraceParams,
+        analysis: Option<&CompensabilityParams>,
+        learn: Option<&BudgetParams>,
+    ) -> Self {
         let compensability =
             (kernel.spatial == Spatial::Compensable).then(|| analysis.cloned().unwrap_or_default());
+        let learn = (kernel.method == TraceMethod::Learned)
+            .then(|| learn.cloned())
+            .flatten();
         Self {
             kernel,
             compensability,
+            learn,
         }
+    }
+
+    /// `method = "learned"`: the law learned from babbling the agent within the
+    /// `[learn]` budget, the starts' sets traced on it (the `[kernel]` table's
+    /// parameters) and verified against the agent; the rows spent, the rounds and the
+    /// verdicts in the report's `budget`.
+    fn learned_sets(
+        &self,
+        world: &World,
+        motors: ArrayView2<'_, f64>,
+        context: &StageContext<'_>,
+    ) -> crate::Result<TracedSets> {
+        let Some(learn) = &self.learn else {
+            return Err(KernelError::from(InvalidParameter::new(
+                "kernel",
+                "method",
+                "learned",
+                "needs a [learn] table with budget = ROWS (the sensor rows the agent may be read in all)",
+            ))
+            .into());
+        };
+        if world.data.is_some() {
+            return Err(KernelError::from(InvalidParameter::new(
+                "kernel",
+                "method",
+                "learned",
+                "babbles the agent itself; a [data] table learns from a log: keep one of the two",
+            ))
+            .into());
+        }
+        let budget = learn.check()?;
+        let law = learn.law.check()?;
+        let environment = world
+            .environments
+            .first()
+            .ok_or(KernelError::MissingEnvironment)?;
+        let trace = TraceParams {
+            method: TraceMethod::Sensory,
+            ..self.kernel.clone()
+        };
+        let found = learn_from_agent(
+            world.agent.as_ref(),
+            environment,
+            motors,
+            world.workspace,
+            &budget,
+            &law,
+            &trace,
+            context.memory_limit_bytes,
+            context.progress,
+        )?;
+        let mut spent = serde_json::to_value(&found).ok();
+        if let Some(fields) = spent.as_mut().and_then(|v| v.as_object_mut()) {
+            fields.remove("law");
+            fields.insert("warnings".to_owned(), found.warnings().into());
+        }
+        let mut traced = found.traced;
+        traced.report.method = TraceMethod::Learned;
+        traced.report.budget = spent;
+        Ok(traced)
     }
 
     /// With `spatial = "compensable"`: the non-spatial motors the compensability
@@ -141,19 +216,33 @@ fn truth_errors(
 /// The sets file in the run folder; its companions follow [`TracedSets::save`].
 const SETS_FILE: &str = "sets.npy";
 
-impl Stage for TraceStage {
-    const ID: StageId = StageId::Trace;
-    type Input<'a> = TraceInput<'a>;
-    type Output = TracedSets;
-
-    fn compute(
+impl TraceStage {
+    /// The sets of the stage (see [`Stage::compute`]).
+    fn compute_sets(
         &self,
         input: &TraceInput<'_>,
         context: &StageContext<'_>,
     ) -> crate::Result<TracedSets> {
         let world = &input.world.value;
-        let params = self.kernel.check()?;
         let motors = input.exploration.motors.view();
+        if self.kernel.method == TraceMethod::Learned {
+            let mut traced = self.learned_sets(world, motors, context)?;
+            // Against the agent's true sets (its kinematic sets, when it has a ground
+            // truth: no sensor is read for them).
+            let exact = world.agent.noiseless().unwrap_or(world.agent.as_ref());
+            if !traced.kept.is_empty() && exact.sensed_configuration().is_some() {
+                let truth = TraceParams {
+                    method: TraceMethod::Kinematic,
+                    points: self.kernel.points,
+                    ..TraceParams::default()
+                }
+                .check()?;
+                traced.report.summary.truth =
+                    truth_errors(world, exact, motors, &truth, &traced, context.progress)?;
+            }
+            return self.checked(traced, motors, world, &input.exploration.value);
+        }
+        let params = self.kernel.check()?;
         let traced = match &world.data {
             Some(data) => {
                 let law = data.law(world, context.memory_limit_bytes, context.progress)?;
@@ -190,6 +279,20 @@ impl Stage for TraceStage {
                 traced
             }
         };
+        self.checked(traced, motors, world, &input.exploration.value)
+    }
+}
+
+impl TraceStage {
+    /// Fails when fewer than two sets were kept (naming the statuses), else extends
+    /// the sets along the non-spatial motors when asked.
+    fn checked(
+        &self,
+        traced: TracedSets,
+        motors: ArrayView2<'_, f64>,
+        world: &World,
+        exploration: &Exploration,
+    ) -> crate::Result<TracedSets> {
         if traced.kept.len() < 2 {
             // Sets failed: the statuses and what each suggests.
             traced.report.summary.require(2)?;
@@ -200,7 +303,21 @@ impl Stage for TraceStage {
             }
             .into());
         }
-        self.spatial_sets(traced, world, &input.exploration.value)
+        self.spatial_sets(traced, world, exploration)
+    }
+}
+
+impl Stage for TraceStage {
+    const ID: StageId = StageId::Trace;
+    type Input<'a> = TraceInput<'a>;
+    type Output = TracedSets;
+
+    fn compute(
+        &self,
+        input: &TraceInput<'_>,
+        context: &StageContext<'_>,
+    ) -> crate::Result<TracedSets> {
+        self.compute_sets(input, context)
     }
 
     fn save(
@@ -270,6 +387,22 @@ impl Stage for TraceStage {
         }
         if let Some(rate) = s.closure_rate {
             line.push_str(&format!("; {:.0} % of the curves closed", 100.0 * rate));
+        }
+        // The learned route's budget: the rows read and the sets verification dropped.
+        if let Some(budget) = &t.report.budget {
+            let rows = &budget["rows"];
+            line.push_str(&format!(
+                "; {} sensor rows read in all ({} babbling in {} rounds, {} verifying)",
+                rows["total"],
+                rows["babble"],
+                budget["rounds"].as_array().map_or(0, Vec::len),
+                rows["verify"]
+            ));
+            for warning in budget["warnings"].as_array().into_iter().flatten() {
+                if let Some(warning) = warning.as_str() {
+                    line.push_str(&format!("; warning: {warning}"));
+                }
+            }
         }
         for warning in s.warnings() {
             line.push_str(&format!("; warning: {warning}"));

@@ -323,13 +323,16 @@ def trace(
     budget too small to learn from is refused before any is read, with the least that
     works. The result's ``law`` is the law's report, and ``budget`` the rows spent by
     phase (``rows``: ``babble``, ``non_finite``, ``verify``, ``total``) and each set's
-    ``verification``. The working space does not apply: the babbling covers the motor
-    space."""
+    ``verification``, and ``rounds`` what each babbling round read. The babbling comes in
+    ``rounds`` (default 2): the first reads ``first_round`` (default half) of the
+    babbled rows over the working space (``workspace``, drawn by the agent's pose: no
+    sensor is read for it; None: the whole motor space), each later one around the sets
+    traced on the law of the rows read so far, where the babbled rows are sparsest."""
     if not isinstance(agent, Agent):
         raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
     motors = _array(motors, "motors", 2)
     if method == "learned":
-        return _trace_learned(agent, motors, points, env, progress, params)
+        return _trace_learned(agent, motors, points, env, workspace, progress, params)
     values = dict(params, method=method, points=points)
     sets, kept, closed, pieces, report = _core._trace(
         agent,
@@ -348,10 +351,10 @@ def trace(
 
 
 #: The keywords of ``trace(..., method="learned")`` that set the budget's use.
-_BUDGET_KEYS = ("budget", "verify_points", "batch", "verify_tolerance")
+_BUDGET_KEYS = ("budget", "verify_points", "batch", "verify_tolerance", "rounds", "first_round")
 
 
-def _trace_learned(agent, starts, points, env, progress, params) -> Traced:
+def _trace_learned(agent, starts, points, env, workspace, progress, params) -> Traced:
     """``trace(agent, starts, method="learned", budget=ROWS, ...)``."""
     if params.get("budget") is None:
         raise ValueError(
@@ -364,7 +367,8 @@ def _trace_learned(agent, starts, points, env, progress, params) -> Traced:
     memory = params.pop("memory_limit_bytes", None)
     values = dict(params, points=points)
     sets, kept, closed, pieces, report, law, spent = _core._learn_agent(
-        agent, starts, _params(budget), _params(values), env, memory, _progress(progress)
+        agent, starts, _params(budget), _params(values), env, _workspace_arg(workspace), memory,
+        _progress(progress)
     )
     report = json.loads(report)
     law = json.loads(law)

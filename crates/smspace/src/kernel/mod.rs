@@ -284,6 +284,12 @@ pub enum TraceMethod {
     Kinematic,
     /// The agent's sensor values and their finite-difference Jacobian.
     Sensory,
+    /// The law learned from babbling the agent within a budget of sensor rows, the
+    /// sets traced on it (by the sensory method) and verified against the agent
+    /// (`smspace::learn::budget`). It runs through the pipeline's `trace` stage (with a
+    /// `[learn]` table), `smspace trace --method learned` and Python's `trace`; the
+    /// tracer itself refuses it.
+    Learned,
 }
 
 impl std::str::FromStr for TraceMethod {
@@ -292,8 +298,9 @@ impl std::str::FromStr for TraceMethod {
         match s {
             "kinematic" => Ok(TraceMethod::Kinematic),
             "sensory" => Ok(TraceMethod::Sensory),
+            "learned" => Ok(TraceMethod::Learned),
             other => Err(format!(
-                "unknown tracing method '{other}'; use kinematic or sensory"
+                "unknown tracing method '{other}'; use kinematic, sensory or learned"
             )),
         }
     }
@@ -650,6 +657,13 @@ impl CheckParams for TraceParams {
     type Error = KernelError;
 
     fn check_params(&self) -> Result<TraceValidParams, KernelError> {
+        if self.method == TraceMethod::Learned {
+            return Err(invalid(
+                "method",
+                "learned",
+                "traces on a law learned from the agent within a budget of sensor rows: in an experiment give a [learn] table with budget = ROWS, on the command line smspace trace --method learned --budget ROWS, in Python trace(agent, starts, method=\"learned\", budget=ROWS)",
+            ));
+        }
         if !(self.max_step.is_finite() && self.max_step >= 0.0) {
             return Err(invalid(
                 "max_step",
@@ -712,7 +726,9 @@ impl CheckParams for TraceParams {
         }
         let step_control = match (self.step_control, self.method) {
             (StepControl::Auto, TraceMethod::Kinematic) => StepControl::Fixed,
-            (StepControl::Auto, TraceMethod::Sensory) => StepControl::Adaptive,
+            (StepControl::Auto, TraceMethod::Sensory | TraceMethod::Learned) => {
+                StepControl::Adaptive
+            }
             (other, _) => other,
         };
         // (With `max_step = 0` the smallest step a level set may choose bounds `step`.)
@@ -1270,6 +1286,11 @@ pub struct TraceReport {
     /// rank; [`crate::learn::LawReport`] as JSON). `None` otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub law: Option<serde_json::Value>,
+    /// Sets traced on a law learned from the agent within a budget: the rows read by
+    /// phase, the babbling rounds and every set's verification
+    /// (`smspace::learn::budget::BudgetedSets` as JSON). `None` otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub budget: Option<serde_json::Value>,
 }
 
 /// The traced sets.
@@ -1588,6 +1609,7 @@ pub fn trace_sets(
             sets: reports,
             extended_along: Vec::new(),
             law: None,
+            budget: None,
         },
     })
 }

@@ -278,6 +278,7 @@ mod tests {
                 sets,
                 extended_along: Vec::new(),
                 law: None,
+                budget: None,
             },
         }
     }

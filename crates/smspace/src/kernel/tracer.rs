@@ -872,7 +872,7 @@ pub(super) fn check_agent_for(
     }
     let which = match params.method {
         TraceMethod::Kinematic => "the pose Jacobian",
-        TraceMethod::Sensory => "the sensory Jacobian",
+        TraceMethod::Sensory | TraceMethod::Learned => "the sensory Jacobian",
     };
     let jacobian = format!(
         "{which}, of rank {c}: the pose coordinates its ground truth says the motors change"
@@ -1244,7 +1244,7 @@ fn tangent_space_via<'a>(
             kinematic = Kinematic::new(observer, motors, params.pose_tolerance);
             (&mut kinematic, 1e-7)
         }
-        TraceMethod::Sensory => {
+        TraceMethod::Sensory | TraceMethod::Learned => {
             let environment = environment.ok_or(KernelError::MissingEnvironment)?;
             sensory = Sensory::new(agent, environment, caller, motors, params, 1);
             (&mut sensory, params.rank_tolerance)

@@ -8,13 +8,32 @@
 //!    points of its set). The rest, `B − M (V + 1)`, is the babbling; below
 //!    [`min_babble_rows`] the budget is refused before any row is read
 //!    ([`LearnError::Budget`]).
-//! 2. **Babble**: that many motor rows drawn uniformly and independently (one seeded
-//!    ChaCha8 stream) over the agent's motor space (`[−T/2, T/2)` for a periodic motor,
-//!    `[low, high)` for a bounded one), read with [`Agent::sense_batch`] `batch` rows at
-//!    a time, one call after the other. Rows with a reading that is not finite are
-//!    counted, the first [`NAMED_NON_FINITE`] named, and left out of the log.
-//! 3. **Learn** the law from the log ([`learn_with_progress`]) and trace the starts on it
-//!    ([`trace_learned`]); neither reads the agent.
+//! 2. **Babble in rounds** (`rounds = R`, default 2). The first round reads
+//!    `max(minimum, first_round · (B − M (V + 1)))` rows (`first_round` 0.5 by
+//!    default): drawn in the working space when one is given (by the agent's pose, as
+//!    exploration draws, reading no sensor), else uniformly and independently over the
+//!    agent's motor space (`[−T/2, T/2)` for a periodic motor, `[low, high)` for a
+//!    bounded one), one seeded ChaCha8 stream. The law of the rows read so far is
+//!    learned ([`learn_with_progress`]) and the starts traced on it
+//!    ([`trace_learned`]); neither reads the agent. Each later round reads an equal
+//!    share of the rest: [`SPREAD_SHARE`] of it drawn as the first round's (so that the
+//!    law's coverage keeps growing where no set was traced yet), the others where that
+//!    law is least resolved along the sets: at
+//!    [`SPACING_POINTS`] points `q` of every traced set (the start itself when no set
+//!    was traced), the spacing `d(q)` is the distance to the
+//!    [`SPACING_NEIGHBOURS`]-th nearest babbled row (a periodic motor of period `T`
+//!    read as the point `(T/2π)(cos θ, sin θ)`, whose chord equals the distance on the
+//!    circle to second order), and every row is a point `q` drawn with probability
+//!    `∝ d(q)^N` (the motor volume per babbled row there: the sparsest parts fill
+//!    first) displaced by `d(q) ξ` (`2 d(q) ξ` around a start whose set failed),
+//!    `ξ ~ N(0, I_N)` (periodic motors wrapped, bounded
+//!    ones clipped). The kernel sets through the starts lie where the starts' sensor
+//!    readings are met again, so the rows go where the sets are traced, not over the
+//!    whole motor space. Rows are read [`Agent::sense_batch`] `batch` at a time, one
+//!    call after the other. Rows with a reading that is not finite are counted, the
+//!    first [`NAMED_NON_FINITE`] named, and left out of the log. The spacing's median
+//!    and 90th percentile after each round are reported ([`RoundReport`]).
+//! 3. **Learn** the law from every row read and trace the starts on it, as above.
 //! 4. **Verify** each traced set without the truth: the agent is read at the start
 //!    `m⁰` and at `V` points `p_v` spread along the set (points `⌊(v + ½) P / V⌋` of
 //!    its `P`), and the set's error is the largest change of a reading, in units of
@@ -46,11 +65,15 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
 
+use rayon::prelude::*;
+
+use super::tree::KdTree;
 use super::{
-    learn_with_progress, trace_learned, LawMethod, LawReport, LawValidParams, LearnError, LogFiles,
-    SensorimotorLog,
+    learn_with_progress, trace_learned, LawMethod, LawParams, LawReport, LawValidParams,
+    LearnError, LogFiles, SensorimotorLog,
 };
-use crate::agent::{check_motor_count, Agent, Environment};
+use crate::agent::{check_motor_count, Agent, Environment, MotorSpace, Workspace};
+use crate::explore::{explore_in, ExploreParams};
 use crate::kernel::{TraceParams, TracedSets};
 use crate::params::{CheckParams, InvalidParameter};
 use crate::progress::Progress;
@@ -67,6 +90,13 @@ pub const MIN_BABBLE_ROWS: u64 = 4096;
 /// Rows with a reading that is not finite named in the report (their motor rows); the
 /// rest are only counted.
 pub const NAMED_NON_FINITE: usize = 5;
+
+/// The share of starts without a verified set above which the budget is said to have
+/// been spent before the law was resolved: 5 %.
+pub const UNRESOLVED_SHARE: f64 = 0.05;
+
+/// Most babbling rounds.
+pub const MAX_ROUNDS: usize = 16;
 
 /// The multiple `c` of the measured relative noise `σ̂` added to the tolerance: 6. Two
 /// noisy readings differ with the deviation `√2 σ̂`, and `6 σ̂ = 4.2 × √2 σ̂` is exceeded
@@ -99,6 +129,27 @@ pub struct BudgetParams {
     /// hinges reading a function of `sin m1 + sin(m2)/2`, 20 000 rows) reads 10⁻⁵.
     #[serde(default = "default_verify_tolerance")]
     pub verify_tolerance: f64,
+    /// Babbling rounds `R`: the first draws its rows over the working space (or the
+    /// motor space), each later one around the sets traced on the law of the rows read
+    /// so far, where they are farthest from a babbled row. Default 2; 1 babbles once.
+    #[serde(default = "default_rounds")]
+    pub rounds: usize,
+    /// Share of the babbled rows the first round reads (the later rounds share the rest
+    /// equally). Default 0.5.
+    #[serde(default = "default_first_round")]
+    pub first_round: f64,
+    /// The law's parameters (the `[learn.law]` table of an experiment; Python's
+    /// `trace(..., method="learned")` takes them as keywords). Default: the defaults
+    /// of [`LawParams`].
+    #[serde(default)]
+    pub law: LawParams,
+}
+
+fn default_rounds() -> usize {
+    2
+}
+fn default_first_round() -> f64 {
+    0.5
 }
 
 fn default_verify_points() -> usize {
@@ -123,6 +174,9 @@ impl BudgetParams {
             batch: default_batch(),
             seed: default_seed(),
             verify_tolerance: default_verify_tolerance(),
+            rounds: default_rounds(),
+            first_round: default_first_round(),
+            law: LawParams::default(),
         }
     }
 
@@ -140,6 +194,8 @@ pub struct ValidBudgetParams {
     batch: usize,
     seed: u64,
     verify_tolerance: f64,
+    rounds: usize,
+    first_round: f64,
 }
 
 impl ValidBudgetParams {
@@ -196,12 +252,28 @@ impl CheckParams for BudgetParams {
                 "must be a finite fraction ≥ 0 of the sensors' spread (0.1 by default)",
             ));
         }
+        if self.rounds == 0 || self.rounds > MAX_ROUNDS {
+            return Err(invalid(
+                "rounds",
+                self.rounds,
+                "must be in 1..=16 (2 by default: one over the working space, one around the sets)",
+            ));
+        }
+        if !(self.first_round.is_finite() && self.first_round > 0.0 && self.first_round <= 1.0) {
+            return Err(invalid(
+                "first_round",
+                self.first_round,
+                "must be a share in (0, 1] of the babbled rows (0.5 by default)",
+            ));
+        }
         Ok(ValidBudgetParams {
             budget: self.budget,
             verify_points: self.verify_points,
             batch: self.batch,
             seed: self.seed,
             verify_tolerance: self.verify_tolerance,
+            rounds: self.rounds,
+            first_round: self.first_round,
         })
     }
 }
@@ -270,6 +342,10 @@ pub struct BudgetedSets {
     pub threshold: f64,
     /// Every traced set's verification, in the order of the starts.
     pub verification: Vec<SetVerification>,
+    /// The babbling rounds, in order.
+    pub rounds: Vec<RoundReport>,
+    /// The starts traced.
+    pub starts: usize,
 }
 
 impl BudgetedSets {
@@ -292,6 +368,28 @@ impl BudgetedSets {
             .failed()
             .map(|v| format!("start {} (error {:.3})", v.index, v.error))
             .collect();
+        let verified = self.verification.iter().filter(|v| v.passed).count();
+        let missing = self.starts - verified;
+        if self.starts > 0 && missing as f64 > UNRESOLVED_SHARE * self.starts as f64 {
+            let spacing = match (self.rounds.first(), self.rounds.last()) {
+                (Some(first), Some(last)) if self.rounds.len() > 1 => format!(
+                    "the babbled rows lie a median {:.3} rad (90th percentile {:.3}) from the points of the sets, {:.3} after the first round",
+                    last.spacing_median, last.spacing_p90, first.spacing_median
+                ),
+                (_, Some(last)) => format!(
+                    "the babbled rows lie a median {:.3} rad (90th percentile {:.3}) from the points of the sets",
+                    last.spacing_median, last.spacing_p90
+                ),
+                _ => String::new(),
+            };
+            out.push(format!(
+                "the budget of {} rows was spent before the law was resolved: {} of {} starts have no verified set ({} traced on the last law); {spacing}; what was learned is kept: raise the budget (or trace fewer starts) for the rest",
+                self.rows.total,
+                missing,
+                self.starts,
+                self.rounds.last().map_or(0, |r| r.traced),
+            ));
+        }
         if !failed.is_empty() {
             out.push(format!(
                 "{} of {} traced sets failed verification (the agent's readings along them changed by more than {:.3} of the sensors' spread) and were dropped: {}; the law is wrong there: raise the budget for a finer law, or check that the agent's readings repeat",
@@ -316,6 +414,7 @@ pub fn learn_from_agent(
     agent: &dyn Agent,
     environment: &Environment,
     starts: ArrayView2<'_, f64>,
+    workspace: Option<Workspace>,
     budget: &ValidBudgetParams,
     law: &LawValidParams,
     trace: &TraceParams,
@@ -338,16 +437,71 @@ pub fn learn_from_agent(
             needed: minimum + reserved,
         });
     }
-    let log = babble_log(agent, environment, budget, babble as usize, progress)?;
     let space = agent.motor_space();
-    let learned = learn_with_progress(
-        std::slice::from_ref(&log.log),
+    let plan = round_rows(budget, babble, minimum);
+    let mut read = Readings::empty(n, agent.sensor_dim());
+    let first = spread_motors(agent, workspace, budget, 0, plan[0] as usize)?;
+    read.append(
+        read_rows(
+            agent,
+            environment,
+            first.view(),
+            budget.batch,
+            BABBLE,
+            progress,
+        ),
+        first,
+    );
+    let mut log = read.log(agent, &space)?;
+    let mut learned = learn_with_progress(
+        std::slice::from_ref(&log),
         &space,
         law,
         memory_limit,
         progress,
     )?;
-    let traced = trace_learned(&learned, starts, trace, progress)?;
+    let mut traced = trace_learned(&learned, starts, trace, progress)?;
+    let mut rounds = vec![read.round(plan[0], &traced, starts, &space)];
+    for (round, &rows) in plan.iter().enumerate().skip(1) {
+        // A share of every later round goes where the first did, so that the law's
+        // coverage keeps growing where no set was traced yet.
+        let spread = (SPREAD_SHARE * rows as f64).round() as usize;
+        let mut motors = spread_motors(agent, workspace, budget, round, spread)?;
+        let around = around_sets(
+            &read,
+            &traced,
+            starts,
+            &space,
+            budget,
+            round,
+            rows as usize - spread,
+        );
+        motors
+            .append(Axis(0), around.view())
+            .expect("rows of the same motors");
+        read.append(
+            read_rows(
+                agent,
+                environment,
+                motors.view(),
+                budget.batch,
+                BABBLE,
+                progress,
+            ),
+            motors,
+        );
+        log = read.log(agent, &space)?;
+        learned = learn_with_progress(
+            std::slice::from_ref(&log),
+            &space,
+            law,
+            memory_limit,
+            progress,
+        )?;
+        traced = trace_learned(&learned, starts, trace, progress)?;
+        rounds.push(read.round(rows, &traced, starts, &space));
+    }
+    drop(log);
     let report = learned.report().with_trace(&traced.report.summary);
     let threshold = budget.verify_tolerance + NOISE_MULTIPLE * largest_relative_noise(&report);
     let (verification, verify_rows) = verify(
@@ -355,12 +509,12 @@ pub fn learn_from_agent(
         environment,
         starts,
         &traced,
-        (budget, &log.spread, threshold),
+        (budget, &read.spread(), threshold),
         progress,
     );
     let rows = RowsSpent {
         babble,
-        non_finite: log.non_finite,
+        non_finite: read.non_finite(),
         verify: verify_rows,
         total: babble + verify_rows,
     };
@@ -369,10 +523,12 @@ pub fn learn_from_agent(
         traced: keep_passed(traced, &verification),
         law: report,
         rows,
-        non_finite_motors: log.named,
-        spread: log.spread,
+        non_finite_motors: read.named(),
+        spread: read.spread(),
         threshold,
         verification,
+        rounds,
+        starts: starts.nrows(),
     })
 }
 
@@ -387,71 +543,338 @@ fn largest_relative_noise(report: &LawReport) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The babbled log with its bookkeeping.
-struct Babbled {
-    log: SensorimotorLog,
-    non_finite: u64,
-    named: Vec<Vec<f64>>,
-    spread: Vec<f64>,
+/// The rows each babbling round reads: the first `max(minimum, first_round · babble)`
+/// (at most `babble`; all of it when there is one round), the later ones the rest in equal parts (the last one the
+/// remainder); rounds left with no row are dropped.
+fn round_rows(budget: &ValidBudgetParams, babble: u64, minimum: u64) -> Vec<u64> {
+    let share = if budget.rounds == 1 {
+        1.0
+    } else {
+        budget.first_round
+    };
+    let first = ((share * babble as f64).round() as u64)
+        .max(minimum)
+        .min(babble);
+    let rest = babble - first;
+    let later = (budget.rounds - 1) as u64;
+    let mut plan = vec![first];
+    if later > 0 && rest > 0 {
+        let each = rest / later;
+        for round in 0..later {
+            let rows = if round + 1 == later {
+                rest - each * (later - 1)
+            } else {
+                each
+            };
+            if rows > 0 {
+                plan.push(rows);
+            }
+        }
+    }
+    plan
 }
 
-/// Reads `agent` at `rows` seeded uniform motor rows, `batch` at a time, and keeps
-/// the rows whose readings are all finite.
-fn babble_log(
+/// The share of every round after the first drawn as the first round draws: 0.25.
+pub const SPREAD_SHARE: f64 = 0.25;
+
+/// Motor rows drawn as the first round's are: `rows` draws in the working space (by
+/// the agent's ground truth, as exploration draws them: no sensor is read) or,
+/// without one, uniform over the motor space (`[−T/2, T/2)` per periodic motor,
+/// `[low, high)` per bounded one), from one stream seeded by the budget's seed and the
+/// round.
+fn spread_motors(
     agent: &dyn Agent,
-    environment: &Environment,
+    workspace: Option<Workspace>,
     budget: &ValidBudgetParams,
+    round: usize,
     rows: usize,
-    progress: &dyn Progress,
-) -> Result<Babbled, LearnError> {
-    let space = agent.motor_space();
-    let (n, k) = (agent.motor_dim(), agent.sensor_dim());
-    let mut rng = ChaCha8Rng::seed_from_u64(budget.seed ^ 0x6261_6262_6c65);
-    let ranges: Vec<(f64, f64)> = space.motors().iter().map(|m| m.range()).collect();
-    let motors = Array2::from_shape_fn((rows, n), |(_, j)| {
-        let (low, high) = ranges[j];
-        rng.random_range(low..high)
-    });
-    let sensors = read_rows(
-        agent,
-        environment,
-        motors.view(),
-        budget.batch,
-        BABBLE,
-        progress,
-    );
-    let finite: Vec<usize> = (0..rows)
-        .filter(|&i| sensors.row(i).iter().all(|v| v.is_finite()))
+) -> Result<Array2<f64>, LearnError> {
+    if rows == 0 {
+        return Ok(Array2::zeros((0, agent.motor_dim())));
+    }
+    let seed = budget.seed ^ 0x6261_6262_6c65 ^ ((round as u64) << 48);
+    if workspace.is_some() {
+        let params = ExploreParams {
+            n: rows,
+            seed,
+            ..ExploreParams::default()
+        };
+        return Ok(explore_in(agent, &params, workspace)?.motors);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let ranges: Vec<(f64, f64)> = agent
+        .motor_space()
+        .motors()
+        .iter()
+        .map(|m| m.range())
         .collect();
-    let non_finite = (rows - finite.len()) as u64;
-    let named = (0..rows)
-        .filter(|&i| !sensors.row(i).iter().all(|v| v.is_finite()))
-        .take(NAMED_NON_FINITE)
-        .map(|i| motors.row(i).to_vec())
+    Ok(Array2::from_shape_fn(
+        (rows, agent.motor_dim()),
+        |(_, j)| {
+            let (low, high) = ranges[j];
+            rng.random_range(low..high)
+        },
+    ))
+}
+
+/// Points of a set at which the spacing of the babbled rows is measured (later rounds):
+/// this many, evenly spread over its points.
+pub const SPACING_POINTS: usize = 16;
+
+/// The babbled row that counts for the spacing: the 8th nearest.
+pub const SPACING_NEIGHBOURS: usize = 8;
+
+/// Every row read babbling so far, and the bookkeeping of those that were not finite.
+struct Readings {
+    motors: Array2<f64>,
+    sensors: Array2<f64>,
+    non_finite: u64,
+    named: Vec<Vec<f64>>,
+}
+
+impl Readings {
+    fn empty(n: usize, k: usize) -> Self {
+        Self {
+            motors: Array2::zeros((0, n)),
+            sensors: Array2::zeros((0, k)),
+            non_finite: 0,
+            named: Vec::new(),
+        }
+    }
+
+    /// Keeps the rows of `motors` whose `sensors` are all finite; counts (and names the
+    /// first [`NAMED_NON_FINITE`] of) the others.
+    fn append(&mut self, sensors: Array2<f64>, motors: Array2<f64>) {
+        let finite: Vec<usize> = (0..motors.nrows())
+            .filter(|&i| sensors.row(i).iter().all(|v| v.is_finite()))
+            .collect();
+        for i in (0..motors.nrows()).filter(|&i| !sensors.row(i).iter().all(|v| v.is_finite())) {
+            self.non_finite += 1;
+            if self.named.len() < NAMED_NON_FINITE {
+                self.named.push(motors.row(i).to_vec());
+            }
+        }
+        let motors = motors.select(Axis(0), &finite);
+        let sensors = sensors.select(Axis(0), &finite);
+        self.motors
+            .append(Axis(0), motors.view())
+            .expect("rows of the same motors");
+        self.sensors
+            .append(Axis(0), sensors.view())
+            .expect("rows of the same sensors");
+    }
+
+    fn non_finite(&self) -> u64 {
+        self.non_finite
+    }
+
+    fn named(&self) -> Vec<Vec<f64>> {
+        self.named.clone()
+    }
+
+    /// The sensors' spread `σ_k` over the finite readings (standard deviations).
+    fn spread(&self) -> Vec<f64> {
+        self.sensors
+            .columns()
+            .into_iter()
+            .map(|c| c.std(0.0))
+            .collect()
+    }
+
+    /// The log of every finite reading so far.
+    fn log(&self, agent: &dyn Agent, space: &MotorSpace) -> Result<SensorimotorLog, LearnError> {
+        let name = agent.name();
+        let files = LogFiles {
+            motors: PathBuf::from(format!("the motor rows babbled by {name}")),
+            sensors: PathBuf::from(format!("the sensor rows read from {name}")),
+        };
+        SensorimotorLog::new(self.motors.clone(), self.sensors.clone(), files, space)
+    }
+
+    /// The k-d tree of the babbled motor rows, each periodic motor of period `T` as
+    /// the point `(T/2π)(cos θ, sin θ)` of its circle (a chord, equal to the distance
+    /// on the torus to second order), each bounded one as it is.
+    fn tree(&self, space: &MotorSpace) -> KdTree {
+        let dim = embedded_dim(space);
+        let mut points = Vec::with_capacity(self.motors.nrows() * dim);
+        for row in self.motors.outer_iter() {
+            embed_motors(space, row.as_slice().expect("C order"), &mut points);
+        }
+        KdTree::new(dim, points, (0..self.motors.nrows() as u32).collect())
+    }
+
+    /// What a round that read `rows` left: the spacing of the babbled rows along the
+    /// sets traced on its law.
+    fn round(
+        &self,
+        rows: u64,
+        traced: &TracedSets,
+        starts: ArrayView2<'_, f64>,
+        space: &MotorSpace,
+    ) -> RoundReport {
+        let spacing = candidate_spacing(&self.tree(space), traced, starts, space);
+        let mut sorted: Vec<f64> = spacing.iter().map(|c| c.1).collect();
+        sorted.sort_by(f64::total_cmp);
+        let quantile = |q: f64| {
+            sorted
+                .get(((sorted.len() as f64 - 1.0) * q).round() as usize)
+                .copied()
+                .unwrap_or(f64::NAN)
+        };
+        RoundReport {
+            rows,
+            traced: traced.kept.len(),
+            spacing_median: quantile(0.5),
+            spacing_p90: quantile(0.9),
+        }
+    }
+}
+
+/// Coordinates of the tree of babbled rows: two per periodic motor, one per bounded.
+fn embedded_dim(space: &MotorSpace) -> usize {
+    space
+        .motors()
+        .iter()
+        .map(|m| if m.period().is_some() { 2 } else { 1 })
+        .sum()
+}
+
+/// Appends the tree coordinates of the motor row `m` to `out` (see [`Readings::tree`]).
+fn embed_motors(space: &MotorSpace, m: &[f64], out: &mut Vec<f64>) {
+    for (motor, &value) in space.motors().iter().zip(m) {
+        match motor.period() {
+            Some(period) => {
+                let radius = period / std::f64::consts::TAU;
+                let angle = value / radius;
+                out.push(radius * angle.cos());
+                out.push(radius * angle.sin());
+            }
+            None => out.push(value),
+        }
+    }
+}
+
+/// Every start's candidate points (its set's [`SPACING_POINTS`] points, or the start
+/// itself when no set was kept) with the distance from each to its
+/// [`SPACING_NEIGHBOURS`]-th nearest babbled row, and whether it is a start whose set
+/// failed.
+fn candidate_spacing(
+    tree: &KdTree,
+    traced: &TracedSets,
+    starts: ArrayView2<'_, f64>,
+    space: &MotorSpace,
+) -> Vec<(Vec<f64>, f64, bool)> {
+    let points = traced.sets.dim().1;
+    let mut candidates: Vec<Vec<f64>> = Vec::new();
+    let mut kept = traced.kept.iter().enumerate().peekable();
+    for row in 0..starts.nrows() {
+        match kept.peek() {
+            Some(&(set, &index)) if index == row => {
+                kept.next();
+                let take = SPACING_POINTS.min(points).max(1);
+                for j in 0..take {
+                    let at = (j * points) / take;
+                    candidates.push(traced.sets.index_axis(Axis(0), set).row(at).to_vec());
+                }
+            }
+            _ => candidates.push(starts.row(row).to_vec()),
+        }
+    }
+    let mut failed = vec![false; candidates.len()];
+    let mut at = 0;
+    let mut kept = traced.kept.iter().peekable();
+    for row in 0..starts.nrows() {
+        if kept.peek() == Some(&&row) {
+            kept.next();
+            at += SPACING_POINTS.min(points).max(1);
+        } else {
+            failed[at] = true;
+            at += 1;
+        }
+    }
+    candidates
+        .into_par_iter()
+        .zip(failed)
+        .map(|(m, failed)| {
+            let mut query = Vec::with_capacity(tree.dim());
+            embed_motors(space, &m, &mut query);
+            let distance = tree.kth_distance(&query, SPACING_NEIGHBOURS);
+            (m, distance, failed)
+        })
+        .collect()
+}
+
+/// The motor rows of a later round: `rows` draws around the candidate points of the
+/// sets traced on the last law (see [`candidate_spacing`]), each point drawn with a
+/// probability proportional to `d^N` (`d` its spacing, `N` the motors: the volume of
+/// motor space per babbled row there, so that the rows fill the sparsest parts first)
+/// and displaced by a normal draw of deviation `d` in every motor (periodic motors
+/// wrapped, bounded ones clipped to their range). Seeded by the budget's seed and
+/// the round.
+fn around_sets(
+    read: &Readings,
+    traced: &TracedSets,
+    starts: ArrayView2<'_, f64>,
+    space: &MotorSpace,
+    budget: &ValidBudgetParams,
+    round: usize,
+    rows: usize,
+) -> Array2<f64> {
+    let n = space.dim();
+    let spacing = candidate_spacing(&read.tree(space), traced, starts, space);
+    let weights: Vec<f64> = spacing
+        .iter()
+        .map(|(_, d, _)| if d.is_finite() { d.powi(n as i32) } else { 0.0 })
         .collect();
-    let (motors, sensors) = if non_finite > 0 {
-        (
-            motors.select(Axis(0), &finite),
-            sensors.select(Axis(0), &finite),
-        )
-    } else {
-        (motors, sensors)
-    };
-    let spread = (0..k)
-        .map(|c| sensors.column(c).std(0.0))
-        .collect::<Vec<f64>>();
-    let name = agent.name();
-    let files = LogFiles {
-        motors: PathBuf::from(format!("the motor rows babbled by {name}")),
-        sensors: PathBuf::from(format!("the sensor rows read from {name}")),
-    };
-    let log = SensorimotorLog::new(motors, sensors, files, &space)?;
-    Ok(Babbled {
-        log,
-        non_finite,
-        named,
-        spread,
-    })
+    let total: f64 = weights.iter().sum();
+    let mut cumulative = Vec::with_capacity(weights.len());
+    let mut sum = 0.0;
+    for w in &weights {
+        sum += w;
+        cumulative.push(sum);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(budget.seed ^ 0x0072_6f75_6e64 ^ round as u64);
+    let mut motors = Array2::<f64>::zeros((rows, n));
+    for mut row in motors.outer_iter_mut() {
+        let at = if total > 0.0 {
+            let u = rng.random::<f64>() * total;
+            cumulative
+                .partition_point(|&c| c <= u)
+                .min(spacing.len() - 1)
+        } else {
+            rng.random_range(0..spacing.len())
+        };
+        let (point, d, failed) = &spacing[at];
+        let d = if d.is_finite() { *d } else { 0.0 } * if *failed { 2.0 } else { 1.0 };
+        for (j, motor) in space.motors().iter().enumerate() {
+            let u1: f64 = 1.0 - rng.random::<f64>();
+            let u2: f64 = rng.random();
+            let normal = (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos();
+            let (low, high) = motor.range();
+            let value = point[j] + d * normal;
+            row[j] = match motor.period() {
+                Some(period) => low + (value - low).rem_euclid(period),
+                None => value.clamp(low, high),
+            };
+        }
+    }
+    motors
+}
+
+/// One babbling round.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RoundReport {
+    /// Rows the round read.
+    pub rows: u64,
+    /// Sets traced on the law of every row read up to this round.
+    pub traced: usize,
+    /// The median, over the points of those sets (16 per set; a start whose set failed
+    /// counts as a point), of the distance to the 8th nearest babbled row (radians of
+    /// motor space; chords for periodic motors): how finely the law is sampled where
+    /// it is traced.
+    pub spacing_median: f64,
+    /// The 90th percentile of that distance.
+    pub spacing_p90: f64,
 }
 
 /// The readings of `motors`, `batch` rows per [`Agent::sense_batch`] call, one call
