@@ -59,8 +59,9 @@ pub enum Note {
         remaining_seconds: f64,
     },
     /// Tracing noisy readings by the sensory method is about to start: what it is
-    /// forecast to cost ([`crate::kernel::NoiseForecast`]).
-    NoiseForecast(Box<crate::kernel::NoiseForecast>),
+    /// forecast to cost, as a sentence (the trace summary's `noise_forecast` holds
+    /// the figures).
+    NoiseForecast(String),
 }
 
 /// `1 h 05 min`, `3 min 20 s`, `12 s`, `0.4 s`: a duration as a reader wants it.

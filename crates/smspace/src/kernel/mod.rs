@@ -1510,7 +1510,7 @@ pub fn trace_sets(
         covering: (tracer.dimension() >= 2).then_some((params.cover_step, params.max_cover_points)),
     });
     if let Some(forecast) = &noise_forecast {
-        progress.note(&Note::NoiseForecast(Box::new(forecast.clone())));
+        progress.note(&Note::NoiseForecast(forecast.to_string()));
     }
     progress.start("trace", motors.nrows() as u64);
     let rows: Vec<Vec<f64>> = motors.outer_iter().map(|r| r.to_vec()).collect();

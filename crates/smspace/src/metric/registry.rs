@@ -198,6 +198,6 @@ mod tests {
         let mut params = DistanceParams::new();
         params.params.insert("scale".into(), 2.into());
         let err = registry.build(&params).unwrap_err().to_string();
-        assert!(err.contains("hausdorff") && err.contains("scale"), "{err}");
+        assert!(err.contains("curve") && err.contains("scale"), "{err}");
     }
 }
