@@ -300,13 +300,5 @@ fn learned_sets(
         max_memory,
         bar,
     )?;
-    let mut spent = serde_json::to_value(&found)?;
-    if let Some(fields) = spent.as_object_mut() {
-        fields.remove("law");
-        fields.insert("warnings".to_owned(), found.warnings().into());
-    }
-    let mut traced = found.traced;
-    traced.report.method = TraceMethod::Learned;
-    traced.report.budget = Some(spent);
-    Ok(traced)
+    Ok(found.into_traced())
 }

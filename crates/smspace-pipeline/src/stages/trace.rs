@@ -108,15 +108,7 @@ impl TraceStage {
             context.memory_limit_bytes,
             context.progress,
         )?;
-        let mut spent = serde_json::to_value(&found).ok();
-        if let Some(fields) = spent.as_mut().and_then(|v| v.as_object_mut()) {
-            fields.remove("law");
-            fields.insert("warnings".to_owned(), found.warnings().into());
-        }
-        let mut traced = found.traced;
-        traced.report.method = TraceMethod::Learned;
-        traced.report.budget = spent;
-        Ok(traced)
+        Ok(found.into_traced())
     }
 
     /// With `spatial = "compensable"`: the non-spatial motors the compensability

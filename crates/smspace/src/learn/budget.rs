@@ -354,6 +354,21 @@ impl BudgetedSets {
         self.verification.iter().filter(|v| !v.passed)
     }
 
+    /// The verified sets as a trace of the learned route: `method = learned`, and the
+    /// report's `budget` this value as JSON (the law's report left to its own `law`)
+    /// with its [`warnings`](Self::warnings).
+    pub fn into_traced(self) -> TracedSets {
+        let mut spent = serde_json::to_value(&self).ok();
+        if let Some(fields) = spent.as_mut().and_then(|v| v.as_object_mut()) {
+            fields.remove("law");
+            fields.insert("warnings".to_owned(), self.warnings().into());
+        }
+        let mut traced = self.traced;
+        traced.report.method = crate::kernel::TraceMethod::Learned;
+        traced.report.budget = spent;
+        traced
+    }
+
     /// What a user must know, one sentence each: rows left out for readings that are
     /// not finite, and sets dropped by verification.
     pub fn warnings(&self) -> Vec<String> {
