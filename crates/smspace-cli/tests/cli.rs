@@ -837,6 +837,6 @@ fn the_learned_route_reads_the_agent_within_its_budget_and_says_so() {
     assert_eq!(report["method"], "learned");
     let rows = &report["budget"]["rows"];
     assert!(rows["total"].as_u64().unwrap() <= 60_000, "{rows}");
-    assert_eq!(rows["verify"].as_u64().unwrap() % 9, 0, "{rows}");
+    assert_eq!(rows["verify"].as_u64().unwrap() % 10, 0, "{rows}");
     assert!(report["law"].is_object());
 }

@@ -31,6 +31,21 @@ enum Kind {
     DriftsAfter(u64),
     /// The first sensor jumps by 0.6 where `m2 ∈ [0, 1)`.
     Jumps,
+    /// Gaussian noise of this deviation on both sensors, a new draw at every reading.
+    Noisy(f64),
+}
+
+/// A standard normal draw from the `n`-th reading (splitmix64 and Box–Muller).
+fn normal(n: u64) -> f64 {
+    let mix = |mut z: u64| {
+        z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    };
+    let u1 = ((mix(2 * n) >> 11) as f64 + 0.5) / (1u64 << 53) as f64;
+    let u2 = (mix(2 * n + 1) >> 11) as f64 / (1u64 << 53) as f64;
+    (-2.0 * u1.ln()).sqrt() * (2.0 * PI * u2).cos()
 }
 
 /// An agent of two hinges without ground truth that counts the rows it is read at.
@@ -77,6 +92,11 @@ impl Agent for Counting {
                 return;
             }
             Kind::Jumps => {}
+            Kind::Noisy(sigma) => {
+                s[0] = x + sigma * normal(2 * read);
+                s[1] = x * x / 2.0 + sigma * normal(2 * read + 1);
+                return;
+            }
         }
         s[0] = x;
         s[1] = x * x / 2.0;
@@ -151,10 +171,10 @@ fn a_budget_of_twenty_thousand_rows_traces_the_carts_kernels_and_counts_every_ro
     let rows = found.rows;
     assert_eq!(agent.rows.load(Ordering::SeqCst), rows.total);
     assert!(rows.total <= 20_000);
-    assert_eq!(rows.babble, 20_000 - 12 * 9);
+    assert_eq!(rows.babble, 20_000 - 12 * 10);
     assert_eq!(rows.non_finite, 0);
     assert_eq!(rows.babble + rows.verify, rows.total);
-    assert_eq!(rows.verify, 9 * found.verification.len() as u64);
+    assert_eq!(rows.verify, 10 * found.verification.len() as u64);
     assert!(found.traced.kept.len() >= 8, "{:?}", found.verification);
     let errors = x_errors(&found, &starts);
     assert!(median(errors) < 0.05);
@@ -210,7 +230,7 @@ fn rows_the_agent_cannot_read_are_counted_named_and_left_out() {
     assert!(rows.non_finite <= agent.nan_rows.load(Ordering::SeqCst));
     assert!(rows.non_finite > 0);
     assert!(
-        agent.nan_rows.load(Ordering::SeqCst) - rows.non_finite <= 9 * verify_nan as u64,
+        agent.nan_rows.load(Ordering::SeqCst) - rows.non_finite <= 10 * verify_nan as u64,
         "{rows:?}"
     );
     // Babbled once, uniformly: about 0.4 / 2π of the rows.
@@ -251,7 +271,7 @@ fn a_budget_below_the_minimum_is_refused_with_it_before_any_row_is_read() {
     let minimum = min_babble_rows(&law, 2);
     assert!(minimum >= 4096);
     let err = run(&agent, 3000, &starts).unwrap_err();
-    let needed = minimum + 10 * 9;
+    let needed = minimum + 10 * 10;
     assert!(
         matches!(err, LearnError::Budget { needed: n, .. } if n == needed),
         "{err}"
@@ -270,7 +290,7 @@ fn readings_that_changed_since_the_babbling_fail_verification_and_are_dropped() 
     // The sets are traced on the law of the first sensor's calibration; the agent
     // reads the second one when verifying: sets along which m2 changes fail.
     let starts = starts(12);
-    let babble = 20_000 - 12 * 9;
+    let babble = 20_000 - 12 * 10;
     let agent = Counting::new(Kind::DriftsAfter(babble));
     let found = run(&agent, 20_000, &starts).unwrap();
     assert_eq!(agent.rows.load(Ordering::SeqCst), found.rows.total);
@@ -349,4 +369,41 @@ fn rounds_out_of_their_domain_are_refused_with_the_key() {
         let key = if rounds == 2 { "first_round" } else { "rounds" };
         assert!(error.contains(key), "{error}");
     }
+}
+
+#[test]
+fn the_two_readings_of_each_start_measure_the_noise_that_sets_the_threshold() {
+    // Exact sensors: the two readings agree, no noise allowance.
+    let exact = run(&Counting::new(Kind::Cart), 12_000, &starts(4)).unwrap();
+    assert_eq!(exact.noise, vec![0.0, 0.0]);
+    assert_eq!(exact.threshold, BudgetParams::new(1).verify_tolerance);
+    // Noise of 0.04 on both sensors: measured from the pairs, relative to the spread.
+    let sigma = 0.04;
+    let starts = starts(40);
+    let found = run(&Counting::new(Kind::Noisy(sigma)), 30_000, &starts).unwrap();
+    for (k, (&noise, &spread)) in found.noise.iter().zip(&found.spread).enumerate() {
+        let truth = sigma / spread;
+        assert!(
+            (noise - truth).abs() < 0.4 * truth,
+            "sensor {k}: measured {noise}, true {truth}"
+        );
+    }
+    let tolerance = BudgetParams::new(1).verify_tolerance;
+    assert!(found.threshold > tolerance + 3.0 * sigma / found.spread[0]);
+    // Sets on the kernel pass, though their readings change by more than the tolerance
+    // alone allows.
+    assert!(
+        found.traced.kept.len() as f64 >= 0.9 * starts.nrows() as f64,
+        "{:?}",
+        found.verification
+    );
+    assert!(
+        found
+            .verification
+            .iter()
+            .any(|v| v.passed && v.error > tolerance),
+        "{:?}",
+        found.verification
+    );
+    assert!(median(x_errors(&found, &starts)) < 0.05);
 }

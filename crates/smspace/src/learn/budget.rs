@@ -34,22 +34,30 @@
 //!    first [`NAMED_NON_FINITE`] named, and left out of the log. The spacing's median
 //!    and 90th percentile after each round are reported ([`RoundReport`]).
 //! 3. **Learn** the law from every row read and trace the starts on it, as above.
-//! 4. **Verify** each traced set without the truth: the agent is read at the start
-//!    `m⁰` and at `V` points `p_v` spread along the set (points `⌊(v + ½) P / V⌋` of
-//!    its `P`), and the set's error is the largest change of a reading, in units of
+//! 4. **Verify** each traced set without the truth: the agent is read twice at the
+//!    start `m⁰` (readings `a`, `b`) and once at each of `V` points `p_v` spread along
+//!    the set (points `⌊(v + ½) P / V⌋` of its `P`). Readings are measured in units of
 //!    the sensors' spread `σ_k` (the standard deviation of sensor `k` over the babbled
-//!    readings):
+//!    readings). The two readings of every start measure the agent's own noise, the
+//!    law aside: over the `S` sets traced,
 //!
 //!    ```text
-//!    e = max_{v, k} |s_k(p_v) − s_k(m⁰)| / σ_k,        kept  ⇔  e ≤ τ + c σ̂,
+//!    σ̂_k = 1.4826 · median_i |a_ik − b_ik| / (√2 σ_k),        σ̂ = max_k σ̂_k,
 //!    ```
 //!
-//!    `τ = verify_tolerance`, `σ̂` the largest relative sensor noise the law measured
-//!    ([`NoiseEstimate::relative`](super::NoiseEstimate), 0 when it is not measurable)
-//!    and `c =` [`NOISE_MULTIPLE`]: on a true kernel set the readings change only by
-//!    the noise, whose difference between two readings has the deviation `√2 σ̂`.
-//!    Sets whose error exceeds that (or whose readings are not finite) are dropped and
-//!    listed with their error.
+//!    (the median absolute difference of two readings, scaled to a Gaussian's deviation
+//!    and robust to the few starts whose readings jump). The set's error is the largest
+//!    change of a reading from the start's mean reading `s̄ = (a + b)/2`:
+//!
+//!    ```text
+//!    e = max_{v, k} |s_k(p_v) − s̄_k| / σ_k,        kept  ⇔  e ≤ τ + c σ̂,
+//!    ```
+//!
+//!    `τ = verify_tolerance` and `c =` [`NOISE_MULTIPLE`]: on a true kernel set the
+//!    readings change only by the noise, and `s_k(p_v) − s̄_k` has the deviation
+//!    `√1.5 σ̂_k`. Sets whose error exceeds that (or whose readings are not finite) are
+//!    dropped and listed with their error. A sensor that reads the same everywhere
+//!    (`σ_k = 0`) fails a set only where its reading changes.
 //!
 //! Verification tells whether the points of a set read as its start (the set lies on
 //! the kernel), not whether the set is the whole kernel: a loop traced on part of its
@@ -95,13 +103,20 @@ pub const NAMED_NON_FINITE: usize = 5;
 /// been spent before the law was resolved: 5 %.
 pub const UNRESOLVED_SHARE: f64 = 0.05;
 
+/// The deviation of a Gaussian per median absolute value: `1 / Φ⁻¹(3/4) ≈ 1.4826`.
+const MAD_TO_DEVIATION: f64 = 1.482_602_218_505_602;
+
+/// Readings of each start when verifying: 2, whose difference measures the noise.
+pub const VERIFY_START_READS: u64 = 2;
+
 /// Most babbling rounds.
 pub const MAX_ROUNDS: usize = 16;
 
-/// The multiple `c` of the measured relative noise `σ̂` added to the tolerance: 6. Two
-/// noisy readings differ with the deviation `√2 σ̂`, and `6 σ̂ = 4.2 × √2 σ̂` is exceeded
-/// by one of the `V K` changes of a true kernel set (64 for 8 points of 8 sensors) with
-/// a probability under 0.2 %.
+/// The multiple `c` of the measured relative noise `σ̂` added to the tolerance: 6. A
+/// reading differs from the mean of two others with the deviation `√1.5 σ̂`, and
+/// `6 σ̂ = 4.9 × √1.5 σ̂` is exceeded by one of the `V K` changes of a true kernel set
+/// (96 for 8 points of 12 sensors) with a probability under 0.01 % when the noise is
+/// Gaussian.
 pub const NOISE_MULTIPLE: f64 = 6.0;
 
 /// Parameters of learning from an agent within a budget of sensor rows (a value out
@@ -110,7 +125,7 @@ pub const NOISE_MULTIPLE: f64 = 6.0;
 #[serde(deny_unknown_fields)]
 pub struct BudgetParams {
     /// Sensor rows in all: babbling and verification together. Required, at least the
-    /// verification's `M (V + 1)` plus [`min_babble_rows`].
+    /// verification's `M (V + 2)` plus [`min_babble_rows`].
     pub budget: u64,
     /// Rows read along each traced set to verify it, `V`. Default 8.
     #[serde(default = "default_verify_points")]
@@ -209,9 +224,10 @@ impl ValidBudgetParams {
         self.verify_points
     }
 
-    /// Rows reserved for verifying the sets of `starts` starts: `starts (V + 1)`.
+    /// Rows reserved for verifying the sets of `starts` starts: `starts (V + 2)` (each
+    /// start read twice, and `V` points of its set).
     pub fn reserved(&self, starts: usize) -> u64 {
-        (starts as u64).saturating_mul(self.verify_points as u64 + 1)
+        (starts as u64).saturating_mul(self.verify_points as u64 + VERIFY_START_READS)
     }
 }
 
@@ -303,7 +319,7 @@ pub struct RowsSpent {
     pub babble: u64,
     /// Of those, rows with a reading that is not finite (left out of the log).
     pub non_finite: u64,
-    /// Rows read verifying the traced sets (their starts and points).
+    /// Rows read verifying the traced sets (each start twice, and its set's points).
     pub verify: u64,
     /// `babble + verify`: every row read, at most the budget.
     pub total: u64,
@@ -338,6 +354,9 @@ pub struct BudgetedSets {
     pub non_finite_motors: Vec<Vec<f64>>,
     /// The sensors' spread `σ_k` over the babbled readings (standard deviations).
     pub spread: Vec<f64>,
+    /// The sensors' noise `σ̂_k` measured from the two readings of every verified
+    /// start, relative to their spread (0 for exact sensors, and when no set was traced).
+    pub noise: Vec<f64>,
     /// The error above which a set is dropped, `τ + c σ̂`.
     pub threshold: f64,
     /// Every traced set's verification, in the order of the starts.
@@ -518,15 +537,15 @@ pub fn learn_from_agent(
     }
     drop(log);
     let report = learned.report().with_trace(&traced.report.summary);
-    let threshold = budget.verify_tolerance + NOISE_MULTIPLE * largest_relative_noise(&report);
-    let (verification, verify_rows) = verify(
+    let verified = verify(
         agent,
         environment,
         starts,
         &traced,
-        (budget, &read.spread(), threshold),
+        (budget, &read.spread()),
         progress,
     );
+    let (verification, verify_rows) = (verified.sets, verified.rows);
     let rows = RowsSpent {
         babble,
         non_finite: read.non_finite(),
@@ -540,22 +559,12 @@ pub fn learn_from_agent(
         rows,
         non_finite_motors: read.named(),
         spread: read.spread(),
-        threshold,
+        noise: verified.noise,
+        threshold: verified.threshold,
         verification,
         rounds,
         starts: starts.nrows(),
     })
-}
-
-/// The largest relative noise per sensor the law measured, 0 when not measurable.
-fn largest_relative_noise(report: &LawReport) -> f64 {
-    report
-        .logs
-        .iter()
-        .filter_map(|log| log.noise.as_ref())
-        .filter(|noise| noise.measurable())
-        .flat_map(|noise| noise.relative.iter().copied())
-        .fold(0.0, f64::max)
 }
 
 /// The rows each babbling round reads: the first `max(minimum, first_round · babble)`
@@ -915,25 +924,55 @@ fn read_rows(
     sensors
 }
 
-/// Reads every kept set of `traced` at its start and at `V` points along it, and
-/// measures its error (see the module docs); returns the verdicts and the rows read.
+/// What verification found: every set's verdict, the noise measured at the starts,
+/// the threshold it set and the rows read.
+struct Verified {
+    sets: Vec<SetVerification>,
+    noise: Vec<f64>,
+    threshold: f64,
+    rows: u64,
+}
+
+/// The change of a reading `a` from `b` in units of the sensor's spread `sd`: infinite
+/// when a reading is not finite, or when a sensor that reads the same everywhere
+/// (`sd = 0`) changed.
+fn relative_change(a: f64, b: f64, sd: f64) -> f64 {
+    let change = (a - b).abs();
+    if change.is_nan() {
+        f64::INFINITY
+    } else if sd > 0.0 {
+        change / sd
+    } else if change == 0.0 {
+        0.0
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Reads every kept set of `traced` at its start (twice) and at `V` points along it,
+/// measures the noise from the starts' two readings and each set's error (see the
+/// module docs).
 fn verify(
     agent: &dyn Agent,
     environment: &Environment,
     starts: ArrayView2<'_, f64>,
     traced: &TracedSets,
-    (budget, spread, threshold): (&ValidBudgetParams, &[f64], f64),
+    (budget, spread): (&ValidBudgetParams, &[f64]),
     progress: &dyn Progress,
-) -> (Vec<SetVerification>, u64) {
+) -> Verified {
     let v = budget.verify_points;
+    let r = VERIFY_START_READS as usize;
+    let per_set = v + r;
     let (sets, p, n) = traced.sets.dim();
-    let mut motors = Array2::<f64>::zeros((sets * (v + 1), n));
+    let mut motors = Array2::<f64>::zeros((sets * per_set, n));
     for (i, &row) in traced.kept.iter().enumerate() {
-        motors.row_mut(i * (v + 1)).assign(&starts.row(row));
+        for read in 0..r {
+            motors.row_mut(i * per_set + read).assign(&starts.row(row));
+        }
         for j in 0..v {
             let at = (((2 * j + 1) * p) / (2 * v)).min(p.saturating_sub(1));
             motors
-                .row_mut(i * (v + 1) + 1 + j)
+                .row_mut(i * per_set + r + j)
                 .assign(&traced.sets.index_axis(Axis(0), i).row(at));
         }
     }
@@ -945,23 +984,41 @@ fn verify(
         VERIFY,
         progress,
     );
+    // The noise of each sensor from the pairs of readings at the starts, those that
+    // are finite.
+    let noise: Vec<f64> = spread
+        .iter()
+        .enumerate()
+        .map(|(k, &sd)| {
+            let mut pairs: Vec<f64> = (0..sets)
+                .map(|i| {
+                    relative_change(sensors[[i * per_set, k]], sensors[[i * per_set + 1, k]], sd)
+                })
+                .filter(|d| d.is_finite())
+                .collect();
+            if pairs.is_empty() {
+                return 0.0;
+            }
+            let mid = pairs.len() / 2;
+            let (_, median, _) = pairs.select_nth_unstable_by(mid, f64::total_cmp);
+            MAD_TO_DEVIATION * *median / std::f64::consts::SQRT_2
+        })
+        .collect();
+    let threshold =
+        budget.verify_tolerance + NOISE_MULTIPLE * noise.iter().copied().fold(0.0, f64::max);
     let verification = traced
         .kept
         .iter()
         .enumerate()
         .map(|(i, &index)| {
-            let start = sensors.row(i * (v + 1));
+            let a = sensors.row(i * per_set);
+            let b = sensors.row(i * per_set + 1);
             let mut error: f64 = 0.0;
             for j in 0..v {
-                let point = sensors.row(i * (v + 1) + 1 + j);
-                for ((a, b), sd) in point.iter().zip(start.iter()).zip(spread) {
-                    let change = (a - b).abs() / sd;
-                    // A reading that is not finite fails the set.
-                    error = if change.is_nan() {
-                        f64::INFINITY
-                    } else {
-                        error.max(change)
-                    };
+                let point = sensors.row(i * per_set + r + j);
+                for k in 0..spread.len() {
+                    let mean = 0.5 * (a[k] + b[k]);
+                    error = error.max(relative_change(point[k], mean, spread[k]));
                 }
             }
             SetVerification {
@@ -971,7 +1028,12 @@ fn verify(
             }
         })
         .collect();
-    (verification, motors.nrows() as u64)
+    Verified {
+        sets: verification,
+        noise,
+        threshold,
+        rows: motors.nrows() as u64,
+    }
 }
 
 /// `traced` with only the sets that passed.
