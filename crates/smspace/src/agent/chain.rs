@@ -46,6 +46,10 @@
 //! angle) are `Rᵀ a_j`. In the plane this is `∂(x, y)/∂m_j = σ_j (−Σ_{k≥j} c_k^y,
 //! Σ_{k≥j} c_k^x)` with `c_k = R_k link_k`, and `∂alpha/∂m_j = σ_j`.
 //!
+//! **Camera.** `[agent.camera]` instead of `[agent.retina]` puts a pinhole camera at
+//! the end of the chain ([`super::Camera`]: its sensors are the pixels of an image of
+//! the environment's scene); the kinematics and the ground truth are the chain's.
+//!
 //! **Pupil.** `[agent.retina] aperture = [low, high]` adds the aperture motor of
 //! [`super::Pupil`], the last, after the joints.
 //!
@@ -69,9 +73,9 @@ use nalgebra::{Unit, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::{
-    wrap_angle, Agent, AgentBuilder, AgentError, ArmParams, Environment, Falloff, LightRegion,
-    LightSpace, Motor, MotorSpace, Observer, PlanarArm, PoseSpace, RetinaLaw, Tuning, Workspace,
-    MAX_LINKS, MAX_RETINA_CELLS,
+    wrap_angle, Agent, AgentBuilder, AgentError, ArmParams, Camera, CameraParams, Environment,
+    Falloff, LightRegion, LightSpace, Motor, MotorSpace, Observer, PlanarArm, PoseSpace, RetinaLaw,
+    Tuning, Workspace, MAX_LINKS, MAX_RETINA_CELLS,
 };
 use crate::params::{CheckParams, InvalidParameter};
 
@@ -194,6 +198,10 @@ pub struct ChainParams {
     /// The working space. Default: derived from the chain's reach (module docs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub workspace: Option<ChainWorkspace>,
+    /// A pinhole camera at the end of the last link instead of the retina
+    /// ([`Camera`]). Default: none (the retina).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<CameraParams>,
 }
 
 impl ChainParams {
@@ -444,10 +452,12 @@ pub struct Chain {
     arm: Option<PlanarArm>,
 }
 
-/// The frame of the retina in the world.
-struct Frames {
-    rotation: UnitQuaternion<f64>,
-    position: Vector3<f64>,
+/// The frame of the retina (or camera) in the world.
+pub(super) struct Frames {
+    /// The orientation `R`.
+    pub(super) rotation: UnitQuaternion<f64>,
+    /// The position `p`.
+    pub(super) position: Vector3<f64>,
 }
 
 impl Chain {
@@ -550,7 +560,7 @@ impl Chain {
     }
 
     /// The retina's frame for motors `m` (unit quaternion and position).
-    fn frames(&self, motors: &[f64]) -> Frames {
+    pub(super) fn frames(&self, motors: &[f64]) -> Frames {
         let mut rotation = UnitQuaternion::identity();
         let mut position = Vector3::zeros();
         for ((axis, link), &m) in self.axes.iter().zip(&self.links).zip(motors) {
@@ -841,6 +851,9 @@ impl Observer for Chain {
 pub(super) fn builder() -> AgentBuilder {
     Arc::new(|table: &toml::Table, _: &()| {
         let params = ChainParams::from_table(table)?;
+        if let Some(camera) = &params.camera {
+            return camera_builder(table, &params, camera);
+        }
         let chain = Chain::new(&params)?;
         let agent: Box<dyn Agent> = match params.retina.aperture {
             None => Box::new(chain),
@@ -852,4 +865,27 @@ pub(super) fn builder() -> AgentBuilder {
         };
         Ok((agent, resolved))
     })
+}
+
+/// A chain with `[agent.camera]`: no `[agent.retina]`, and the resolved table without
+/// one.
+fn camera_builder(
+    table: &toml::Table,
+    params: &ChainParams,
+    camera: &CameraParams,
+) -> Result<(Box<dyn Agent>, toml::Table), AgentError> {
+    if table.contains_key("retina") {
+        return Err(invalid(
+            "camera",
+            format!("{camera:?}"),
+            "a chain ends in a retina ([agent.retina]) or a camera ([agent.camera]), not both; remove one table",
+        ));
+    }
+    let agent = Box::new(Camera::new(Chain::new(params)?, camera)?);
+    let mut resolved = match toml::Value::try_from(params) {
+        Ok(toml::Value::Table(t)) => t,
+        _ => table.clone(),
+    };
+    resolved.remove("retina");
+    Ok((agent, resolved))
 }

@@ -26,6 +26,11 @@
 //! translation of every light) and [`Environment::scaled`] (a common scaling of all
 //! intensities, a change of luminance); [`Environment::with_intensities`] sets each
 //! light's own.
+//!
+//! **Scenes.** An environment may also hold a [`Scene`] (JSON key `scene`, module
+//! [`Scene`]'s docs): textured walls, boxes, spheres and discs, what a camera
+//! ([`Stimulus::Scene`]) looks at. An environment with a scene may have no lights
+//! (`lights` is then optional in the file).
 
 use std::path::Path;
 
@@ -33,7 +38,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use super::{Agent, AgentError};
+use super::{Agent, AgentError, Motor, Scene};
 use crate::io::{self, IoError};
 use crate::params::InvalidParameter;
 
@@ -107,7 +112,17 @@ impl LightSpace {
     }
 }
 
-/// The environment `E`: a set of point lights.
+/// What an agent senses in its environment ([`Agent::stimulus`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stimulus {
+    /// The point lights (every retina).
+    Lights,
+    /// The scene (a camera).
+    Scene,
+}
+
+/// The environment `E`: a set of point lights, and optionally a scene.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "EnvironmentFile", into = "EnvironmentFile")]
 pub struct Environment {
@@ -120,17 +135,22 @@ pub struct Environment {
     /// Each light's intensity (a factor on its contribution to every sensor); empty:
     /// all `1` (the paper's lights).
     pub intensities: Vec<f64>,
+    /// The scene a camera looks at; none by default.
+    pub scene: Option<Scene>,
 }
 
 /// The JSON form of an [`Environment`]: 2 or 3 coordinates per light.
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct EnvironmentFile {
+    #[serde(default)]
     lights: Vec<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     seed: Option<u64>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     intensities: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    scene: Option<Scene>,
 }
 
 impl TryFrom<EnvironmentFile> for Environment {
@@ -168,6 +188,7 @@ impl TryFrom<EnvironmentFile> for Environment {
             space,
             seed: file.seed,
             intensities: file.intensities,
+            scene: file.scene,
         })
     }
 }
@@ -179,6 +200,7 @@ impl From<Environment> for EnvironmentFile {
             lights: env.lights.iter().map(|l| l[..width].to_vec()).collect(),
             seed: env.seed,
             intensities: env.intensities,
+            scene: env.scene,
         }
     }
 }
@@ -191,6 +213,15 @@ impl Environment {
             space: LightSpace::Plane,
             seed: None,
             intensities: Vec::new(),
+            scene: None,
+        }
+    }
+
+    /// An environment of a scene and no lights (what a camera looks at).
+    pub fn from_scene(scene: Scene) -> Self {
+        Self {
+            scene: Some(scene),
+            ..Self::from_lights(Vec::new())
         }
     }
 
@@ -201,6 +232,7 @@ impl Environment {
             space: LightSpace::Volume,
             seed: None,
             intensities: Vec::new(),
+            scene: None,
         }
     }
 
@@ -295,6 +327,7 @@ impl Environment {
             },
             seed: Some(seed),
             intensities: Vec::new(),
+            scene: None,
         })
     }
 
@@ -370,9 +403,13 @@ impl Environment {
         io::write_json(path, self)
     }
 
-    /// Checks that there is a light and that every light position is finite.
+    /// Checks that there is a light or a scene, that every light position is finite,
+    /// and the scene's values ([`Scene::check`]).
     pub fn check(&self) -> Result<(), AgentError> {
-        if self.lights.is_empty() {
+        if let Some(scene) = &self.scene {
+            scene.check()?;
+        }
+        if self.lights.is_empty() && self.scene.is_none() {
             return Err(AgentError::InvalidEnvironment {
                 reason: "no lights: an environment without lights gives constant sensors; give at least one light".into(),
             });
@@ -406,8 +443,15 @@ impl Environment {
     /// Checks the environment ([`Environment::check`]: at least one light, finite
     /// values) and that the lights live where `agent` senses them
     /// ([`Agent::light_space`]): `[x, y]` for a planar agent, `[x, y, z]` for one in 3-D.
+    ///
+    /// An agent that senses a scene ([`Stimulus::Scene`], a camera) needs one, and must
+    /// see something of it: its sensors at the home pose (every motor at 0, or at the
+    /// middle of its range) must not all be equal.
     pub fn check_for(&self, agent: &dyn Agent) -> Result<(), AgentError> {
         self.check()?;
+        if agent.stimulus() == Stimulus::Scene {
+            return self.check_scene_for(agent);
+        }
         let wanted = agent.light_space();
         if self.space == wanted {
             return Ok(());
@@ -423,6 +467,42 @@ impl Environment {
             ),
         };
         Err(AgentError::InvalidEnvironment { reason })
+    }
+}
+
+impl Environment {
+    /// The checks of [`check_for`](Self::check_for) for an agent that senses a scene.
+    fn check_scene_for(&self, agent: &dyn Agent) -> Result<(), AgentError> {
+        if self.scene.is_none() {
+            return Err(AgentError::InvalidEnvironment {
+                reason: format!(
+                    "the {} agent has a camera, which looks at a scene, but the environment has none; give the environment a \"scene\" (textured walls, boxes, spheres and discs)",
+                    agent.name()
+                ),
+            });
+        }
+        let home: Vec<f64> = agent
+            .motor_space()
+            .motors()
+            .iter()
+            .map(|m| match *m {
+                Motor::Bounded { low, high } => 0.5 * (low + high),
+                Motor::Periodic { .. } => 0.0,
+            })
+            .collect();
+        let mut sensors = vec![0.0; agent.sensor_dim()];
+        agent.sense(self, &home, &mut sensors);
+        let first = sensors.first().copied().unwrap_or(0.0);
+        if sensors.iter().all(|&v| v == first) {
+            return Err(AgentError::InvalidEnvironment {
+                reason: format!(
+                    "the {} agent's camera sees nothing at its home pose (motors {home:?}): all {} sensors read {first}; place primitives in its view (or a textured room around it)",
+                    agent.name(),
+                    sensors.len()
+                ),
+            });
+        }
+        Ok(())
     }
 }
 

@@ -19,6 +19,10 @@
 //! | [`PlanarArm`] `planar-arm` | 3.1 | links + 1 hinges | `retina_cells` | retina `(x, y, alpha)` |
 //! | [`Chain`] `chain` | 3.1, generalised | one per joint (hinge, or bounded by its `range`) | retina cells | `(x, y, alpha)` planar, `(x, y, z, qw, qx, qy, qz)` in 3-D |
 //!
+//! A chain may carry a pinhole [`Camera`] instead of its retina (`[agent.camera]`): its
+//! sensors are the pixels of an image of the environment's [`Scene`] (textured walls,
+//! boxes, spheres and discs), its ground truth the camera's pose.
+//!
 //! Either of the last two may have a pupil ([`Pupil`], `[agent.retina] aperture =
 //! [low, high]`, the paper's conclusion): one more motor, the last, bounded, scaling
 //! every cell's input; the pose stays the retina's.
@@ -29,6 +33,7 @@
 //! [`AgentRegistry`].
 
 mod arm;
+mod camera;
 mod chain;
 mod environment;
 mod ground_truth;
@@ -36,6 +41,7 @@ mod motor_space;
 mod noisy;
 mod pupil;
 mod registry;
+mod scene;
 mod toy;
 mod workspace;
 
@@ -49,11 +55,13 @@ pub use arm::{
     ArmParams, ArmRetinaParams, ArmValidParams, Falloff, PlanarArm, RetinaLaw, Tuning, MAX_LINKS,
     MAX_RETINA_CELLS,
 };
+pub use camera::{Camera, CameraParams, ColorMode, MAX_CAMERA_SENSORS};
 pub use chain::{
     Chain, ChainParams, ChainValidParams, ChainWorkspace, JointParams, RetinaCells, RetinaParams,
 };
 pub use environment::{
-    Environment, EnvironmentConfig, LightRegion, LightSpace, MAX_DRAWS_PER_LIGHT, MAX_RANDOM_LIGHTS,
+    Environment, EnvironmentConfig, LightRegion, LightSpace, Stimulus, MAX_DRAWS_PER_LIGHT,
+    MAX_RANDOM_LIGHTS,
 };
 pub use ground_truth::{
     CoordinateKind, GroundTruth, GroundTruthView, Observer, PlanarView, Pose, PoseComponent,
@@ -63,6 +71,10 @@ pub use motor_space::{wrap_period, Motor, MotorSpace};
 pub use noisy::{NoiseParams, NoisyAgent, STD_SAMPLE_ROWS, STD_SAMPLE_SEED};
 pub use pupil::Pupil;
 pub use registry::{AgentBuilder, AgentRegistry, BuiltAgent};
+pub use scene::{
+    Amplitude, BoxShape, Disc, Primitive, RandomTexture, Scene, Sphere, Texture, Wall, Wave,
+    MAX_SCENE_PRIMITIVES, MAX_TEXTURE_WAVES,
+};
 pub use toy::{ToyAgent, ToyKind, ToyParams, ToyValidParams};
 pub use workspace::Workspace;
 
@@ -333,6 +345,13 @@ pub trait Agent: Send + Sync + fmt::Debug {
     /// ([`Environment::check_for`]).
     fn light_space(&self) -> LightSpace {
         LightSpace::Plane
+    }
+
+    /// What the agent senses in its environment: point lights (the default) or a
+    /// [`Scene`] of textured primitives (a [`Camera`]). An environment without what the
+    /// agent senses is refused ([`Environment::check_for`]).
+    fn stimulus(&self) -> Stimulus {
+        Stimulus::Lights
     }
 
     /// The interval `[low, high]` of heights `z` random lights are drawn from when the

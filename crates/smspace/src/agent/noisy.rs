@@ -297,6 +297,9 @@ impl Agent for NoisyAgent {
     fn light_space(&self) -> LightSpace {
         self.inner.light_space()
     }
+    fn stimulus(&self) -> super::Stimulus {
+        self.inner.stimulus()
+    }
     fn default_light_heights(&self) -> [f64; 2] {
         self.inner.default_light_heights()
     }

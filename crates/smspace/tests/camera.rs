@@ -1,0 +1,325 @@
+//! The camera body and its scene: analytic images, shifts, smoothness, bad input and
+//! determinism across thread counts.
+
+use std::f64::consts::PI;
+
+use approx::assert_abs_diff_eq;
+use smspace::agent::{
+    sense_rows, Agent, AgentConfig, Amplitude, Environment, Primitive, Scene, Sphere, Texture,
+    Wall, Wave,
+};
+
+/// A chain from its TOML body (`kind = "chain"` added).
+fn chain(body: &str) -> Box<dyn Agent> {
+    let config: AgentConfig = toml::from_str(&format!("kind = \"chain\"\n{body}")).unwrap();
+    config.build().unwrap()
+}
+
+/// A planar strip camera on one `z` hinge with a unit link: at `m = 0` it sits at
+/// `(1, 0, 0)` and looks along `+x`.
+fn strip(width: usize, fov: f64) -> Box<dyn Agent> {
+    chain(&format!(
+        "joints = [{{ axis = [0, 0, 1], link = [1.0, 0, 0] }}]\n[camera]\nwidth = {width}\nfov = {fov}"
+    ))
+}
+
+/// A 3-D camera (a `z` hinge, then a `y` hinge with a range) of `width × height` pixels.
+fn camera_3d(width: usize, height: usize, color: &str) -> Box<dyn Agent> {
+    chain(&format!(
+        "joints = [{{ axis = [0, 0, 1], link = [0.5, 0, 0] }}, {{ axis = [0, 1, 0], link = [0.5, 0, 0], range = [-1.0, 1.0] }}]\n\
+         [camera]\nwidth = {width}\nheight = {height}\nfov = 1.2\ncolor = \"{color}\""
+    ))
+}
+
+/// A wall `x = 5` of colour `color`, with `waves`.
+fn wall_scene(color: [f64; 3], waves: Vec<Wave>) -> Scene {
+    Scene {
+        primitives: vec![Primitive::Wall(Wall {
+            point: [5.0, 0.0, 0.0],
+            normal: [1.0, 0.0, 0.0],
+            color,
+            texture: (!waves.is_empty()).then_some(Texture::Waves(waves)),
+        })],
+        background: [0.0; 3],
+    }
+}
+
+fn room() -> Environment {
+    Environment::from_scene(Scene::textured_room([6.0, 6.0, 4.0], 7))
+}
+
+#[test]
+fn a_camera_facing_a_uniform_wall_sees_a_uniform_image() {
+    let color = [0.2, 0.4, 0.6];
+    let environment = Environment::from_scene(wall_scene(color, Vec::new()));
+    let grey = 0.2126 * 0.2 + 0.7152 * 0.4 + 0.0722 * 0.6;
+    let camera = strip(16, 1.0);
+    let mut image = vec![0.0; camera.sensor_dim()];
+    camera.sense(&environment, &[0.3], &mut image);
+    for v in &image {
+        assert_abs_diff_eq!(*v, grey, epsilon = 1e-12);
+    }
+    let rgb = camera_3d(4, 3, "rgb");
+    let mut image = vec![0.0; rgb.sensor_dim()];
+    rgb.sense(&environment, &[0.0, 0.2], &mut image);
+    for pixel in image.chunks_exact(3) {
+        for (v, c) in pixel.iter().zip(color) {
+            assert_abs_diff_eq!(*v, c, epsilon = 1e-12);
+        }
+    }
+    // A camera that sees a uniform image sees nothing it could learn from.
+    let err = environment
+        .check_for(camera.as_ref())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("sees nothing") && err.contains("chain"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_sinusoidal_texture_matches_its_filtered_formula() {
+    let (wavelength, amplitude, phase) = (2.0, 0.1, 0.3);
+    let wave = Wave {
+        direction: [0.0, 1.0, 0.0],
+        wavelength,
+        amplitude: Amplitude::Grey(amplitude),
+        phase,
+    };
+    let environment = Environment::from_scene(wall_scene([0.5; 3], vec![wave]));
+    let (width, fov) = (24, 1.0);
+    let camera = strip(width, fov);
+    environment.check_for(camera.as_ref()).unwrap();
+    let mut image = vec![0.0; width];
+    camera.sense(&environment, &[0.0], &mut image);
+    let pitch = 2.0 * (fov / 2.0_f64).tan() / width as f64;
+    let k = 2.0 * PI / wavelength;
+    for (c, v) in image.iter().enumerate() {
+        let a = (c as f64 + 0.5 - width as f64 / 2.0) * pitch;
+        // The ray (1, −a, 0) reaches the wall x = 5 at forward depth 4.
+        let y = -4.0 * a;
+        let sigma = 0.5 * pitch * 4.0;
+        let expected =
+            0.5 + amplitude * (-0.5 * k * k * sigma * sigma).exp() * (k * y + phase).sin();
+        assert_abs_diff_eq!(*v, expected, epsilon = 1e-12);
+    }
+}
+
+#[test]
+fn rotating_the_last_hinge_shifts_a_strip_image() {
+    let camera = chain(
+        "joints = [{ axis = [0, 0, 1], link = [1.0, 0, 0] }, { axis = [0, 0, 1], link = [0, 0, 0] }]\n\
+         [camera]\nwidth = 64\nfov = 0.4",
+    );
+    let environment = room();
+    environment.check_for(camera.as_ref()).unwrap();
+    let (width, fov, shift) = (64, 0.4_f64, 5);
+    let pitch = 2.0 * (fov / 2.0).tan() / width as f64;
+    let a = |c: usize| (c as f64 + 0.5 - width as f64 / 2.0) * pitch;
+    // The angle between the rays of the two pixels around the centre `shift` apart.
+    let centre = width / 2;
+    let angle = a(centre).atan() - a(centre - shift).atan();
+    let mut before = vec![0.0; width];
+    let mut after = vec![0.0; width];
+    camera.sense(&environment, &[0.4, 0.0], &mut before);
+    camera.sense(&environment, &[0.4, angle], &mut after);
+    let range = before.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
+        - before.iter().cloned().fold(f64::INFINITY, f64::min);
+    assert!(range > 1e-3, "a textured room has contrast: {range}");
+    let (mut shifted, mut unshifted) = (0.0_f64, 0.0_f64);
+    for c in shift + 4..width - 4 {
+        shifted = shifted.max((after[c] - before[c - shift]).abs());
+        unshifted = unshifted.max((after[c] - before[c]).abs());
+    }
+    // The pinhole's rays are not equally spaced in angle (tan), so the shift is exact
+    // at the centre only: allow a small part of the image's range elsewhere.
+    assert!(shifted < 0.05 * range, "{shifted} vs range {range}");
+    assert!(unshifted > 4.0 * shifted, "{unshifted} vs {shifted}");
+    let c = centre;
+    assert_abs_diff_eq!(after[c], before[c - shift], epsilon = 1e-3 * range);
+}
+
+#[test]
+fn finite_differences_of_a_pixel_converge() {
+    let camera = camera_3d(16, 12, "grey");
+    let mut scene = Scene::textured_room([6.0, 6.0, 4.0], 7);
+    // A textured sphere in the room, away from the camera's path.
+    scene.primitives.push(Primitive::Sphere(Sphere {
+        center: [2.0, 1.0, 0.2],
+        radius: 0.6,
+        color: [0.9, 0.3, 0.1],
+        texture: Some(Texture::Waves(vec![Wave {
+            direction: [1.0, 1.0, 0.0],
+            wavelength: 0.4,
+            amplitude: Amplitude::Rgb([0.05, 0.1, 0.0]),
+            phase: 0.0,
+        }])),
+    }));
+    let environment = Environment::from_scene(scene);
+    environment.check_for(camera.as_ref()).unwrap();
+    let m0 = [0.35, 0.15];
+    let k = camera.sensor_dim();
+    let sense = |m: &[f64]| {
+        let mut s = vec![0.0; k];
+        camera.sense(&environment, m, &mut s);
+        s
+    };
+    let derivative = |motor: usize, h: f64| {
+        let (mut plus, mut minus) = (m0, m0);
+        plus[motor] += h;
+        minus[motor] -= h;
+        let (a, b) = (sense(&plus), sense(&minus));
+        a.iter()
+            .zip(&b)
+            .map(|(a, b)| (a - b) / (2.0 * h))
+            .collect::<Vec<_>>()
+    };
+    let mut checked = 0;
+    for motor in 0..2 {
+        let d = [1e-2, 1e-3, 1e-4].map(|h| derivative(motor, h));
+        for pixel in 0..k {
+            let (coarse, fine) = (
+                (d[0][pixel] - d[1][pixel]).abs(),
+                (d[1][pixel] - d[2][pixel]).abs(),
+            );
+            // Central differences converge as h²: each tenfold step cuts the change a
+            // hundredfold where the image is smooth. A pixel whose footprint crosses a
+            // corner of the room within 1e-2 rad may not: count the others.
+            if fine <= 0.05 * coarse + 1e-8 {
+                checked += 1;
+            }
+            assert!(d[2][pixel].is_finite());
+        }
+    }
+    assert!(
+        checked as f64 >= 0.9 * (2 * k) as f64,
+        "{checked} of {} converge",
+        2 * k
+    );
+}
+
+#[test]
+fn bad_scenes_are_named_with_their_key_and_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("environment.json");
+    let load = |text: &str| {
+        std::fs::write(&path, text).unwrap();
+        Environment::load(&path).map_err(|e| e.to_string())
+    };
+    let err =
+        load(r#"{"scene": {"primitives": [{"kind": "cone", "color": [1, 1, 1]}]}}"#).unwrap_err();
+    assert!(
+        err.contains("kind = \"cone\"") && err.contains("wall, box, sphere, disc"),
+        "{err}"
+    );
+    let err = load(
+        r#"{"scene": {"primitives": [{"kind": "sphere", "center": [1, 0, 0], "radius": -0.5, "color": [1, 1, 1]}]}}"#,
+    )
+    .unwrap_err();
+    assert!(
+        err.contains("scene.primitives") && err.contains("radius = -0.5"),
+        "{err}"
+    );
+    let err = load(
+        r#"{"scene": {"primitives": [{"kind": "disc", "center": [1, 0, 0], "normal": [0, 0, 0], "radius": 1, "color": [1, 1, 1]}]}}"#,
+    )
+    .unwrap_err();
+    assert!(
+        err.contains("normal = [0.0, 0.0, 0.0]") && err.contains("disc"),
+        "{err}"
+    );
+    let err = load(
+        r#"{"scene": {"primitives": [{"kind": "wall", "point": [1, 0, 0], "normal": [1, 0, 0], "color": [1, 1, 1], "colour": 2}]}}"#,
+    )
+    .unwrap_err();
+    assert!(err.contains("colour"), "{err}");
+    let err = load(r#"{"lights": []}"#).unwrap_err();
+    assert!(err.contains("no lights"), "{err}");
+    // A scene without lights is an environment, and it round-trips.
+    let environment = room();
+    environment.save(&path).unwrap();
+    assert_eq!(Environment::load(&path).unwrap(), environment);
+    // Old files without a scene keep working.
+    let lights = load(r#"{"lights": [[1.0, 2.0]]}"#).unwrap();
+    assert!(lights.scene.is_none());
+}
+
+#[test]
+fn a_camera_needs_a_scene_and_a_valid_body() {
+    let camera = camera_3d(8, 6, "grey");
+    let lights = Environment::from_lights_3d(vec![[1.0, 2.0, 3.0]]);
+    let err = lights.check_for(camera.as_ref()).unwrap_err().to_string();
+    assert!(err.contains("camera") && err.contains("has none"), "{err}");
+    let build = |body: &str| {
+        toml::from_str::<AgentConfig>(&format!("kind = \"chain\"\n{body}"))
+            .unwrap()
+            .build()
+            .unwrap_err()
+            .to_string()
+    };
+    let planar = "joints = [{ axis = [0, 0, 1], link = [1.0, 0, 0] }]\n";
+    let err = build(&format!("{planar}[camera]\nheight = 8"));
+    assert!(
+        err.contains("camera.height = 8") && err.contains("planar"),
+        "{err}"
+    );
+    let err = build(&format!("{planar}[camera]\nfov = 3.5"));
+    assert!(err.contains("camera.fov = 3.5"), "{err}");
+    let err = build(&format!("{planar}[camera]\nwidth = 1000000000"));
+    assert!(err.contains("width = 1000000000"), "{err}");
+    let err = build(&format!("{planar}[camera]\ncolor = \"infrared\""));
+    assert!(err.contains("infrared"), "{err}");
+    let err = build(&format!("{planar}[camera]\nwidth = 8\n[retina]\ncells = 4"));
+    assert!(err.contains("not both"), "{err}");
+}
+
+#[test]
+fn the_ground_truth_is_the_chains_pose_and_the_resolved_table_has_no_retina() {
+    let config: AgentConfig = toml::from_str(
+        "kind = \"chain\"\njoints = [{ axis = [0, 0, 1], link = [1.0, 0, 0] }, { axis = [0, 1, 0], link = [0.5, 0, 0] }]\n[camera]\nwidth = 8\nheight = 4",
+    )
+    .unwrap();
+    let built = smspace::agent::AgentRegistry::builtin()
+        .build(&config)
+        .unwrap();
+    assert!(built.config.params.contains_key("camera"));
+    assert!(!built.config.params.contains_key("retina"));
+    let retina: AgentConfig = toml::from_str(
+        "kind = \"chain\"\njoints = [{ axis = [0, 0, 1], link = [1.0, 0, 0] }, { axis = [0, 1, 0], link = [0.5, 0, 0] }]\n[retina]\ncells = [2, 2]",
+    )
+    .unwrap();
+    let retina = retina.build().unwrap();
+    let m = [0.3, -0.4];
+    let (mut a, mut b) = ([0.0; 7], [0.0; 7]);
+    built.agent.ground_truth().unwrap().pose(&m, &mut a);
+    retina.ground_truth().unwrap().pose(&m, &mut b);
+    assert_eq!(a, b);
+}
+
+#[test]
+fn images_are_identical_for_any_number_of_threads() {
+    let camera = camera_3d(32, 24, "rgb");
+    let environment = room();
+    let motors = ndarray::Array2::from_shape_fn((40, 2), |(i, j)| {
+        0.05 * i as f64 * if j == 0 { 1.0 } else { -0.3 }
+    });
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| sense_rows(camera.as_ref(), &environment, motors.view()).unwrap());
+    let many = sense_rows(camera.as_ref(), &environment, motors.view()).unwrap();
+    assert_eq!(one, many);
+    // The batch is the frames one by one, also from a transposed (strided) array.
+    let mut single = vec![0.0; camera.sensor_dim()];
+    for (m, row) in motors.outer_iter().zip(many.outer_iter()) {
+        camera.sense(&environment, m.as_slice().unwrap(), &mut single);
+        assert_eq!(row.as_slice().unwrap(), &single[..]);
+    }
+    let transposed = motors.t().to_owned();
+    assert_eq!(
+        sense_rows(camera.as_ref(), &environment, transposed.t()).unwrap(),
+        many
+    );
+}
