@@ -480,7 +480,17 @@ pub fn check_with(
         .check(agent.as_ref())
         .map_err(|err| invalid("exploration")(err.into()))?;
     check_set_count(&e.exploration).map_err(|err| invalid("exploration")(err.into()))?;
-    e.kernel
+    check_learn_table(experiment, data.is_some())?;
+    // The learned route traces on its law by the sensory method: its [kernel] table is
+    // checked as that method's.
+    let trace_kernel = match e.kernel.method {
+        TraceMethod::Learned => TraceParams {
+            method: TraceMethod::Sensory,
+            ..e.kernel.clone()
+        },
+        _ => e.kernel.clone(),
+    };
+    trace_kernel
         .check()
         .and_then(|kernel| kernel.check_for(agent.as_ref()))
         .map_err(|err| invalid("kernel")(err.into()))?;
@@ -509,8 +519,7 @@ pub fn check_with(
     } else {
         None
     };
-    if let Ok(Some(k)) = e
-        .kernel
+    if let Ok(Some(k)) = trace_kernel
         .check()
         .and_then(|p| p.dimension_for(agent.as_ref()))
     {
@@ -564,6 +573,50 @@ pub fn check_with(
             report: e.report.clone(),
         },
     })
+}
+
+/// The `[learn]` table and `[kernel] method = "learned"` go together, and the learned
+/// route babbles the agent itself (no `[data]` log); the table's values are checked
+/// before anything runs.
+fn check_learn_table(experiment: &LoadedExperiment, has_data: bool) -> Result<(), ConfigError> {
+    let e = &experiment.experiment;
+    let learned = e.kernel.method == TraceMethod::Learned;
+    let refusal = match (&e.learn, learned) {
+        (Some(_), false) => Some(
+            "the [learn] table (a budget of sensor rows for babbling the agent) is read only with method = \"learned\": set it, or remove the [learn] table"
+                .to_owned(),
+        ),
+        (None, true) => Some(
+            "needs a [learn] table with budget = ROWS (the sensor rows the agent may be read in all)"
+                .to_owned(),
+        ),
+        (Some(_), true) if has_data => Some(
+            "babbles the agent itself, and a [data] table learns from a log: keep one of the two"
+                .to_owned(),
+        ),
+        (Some(learn), true) => {
+            learn
+                .check()
+                .map(|_| ())
+                .and_then(|()| learn.law.check().map(|_| ()))
+                .map_err(|err| experiment.invalid_error("learn", smspace::Error::from(err)))?;
+            None
+        }
+        (None, false) => None,
+    };
+    match refusal {
+        Some(reason) => Err(experiment.invalid_parameter(&InvalidParameter::new(
+            "kernel",
+            "method",
+            match e.kernel.method {
+                TraceMethod::Kinematic => "\"kinematic\"",
+                TraceMethod::Sensory => "\"sensory\"",
+                TraceMethod::Learned => "\"learned\"",
+            },
+            reason,
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// The agent, its resolved table and the run's data: the `[agent]` table's agent, or,

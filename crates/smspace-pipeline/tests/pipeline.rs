@@ -1415,3 +1415,57 @@ fn every_stage_is_held_to_the_memory_limit_before_it_starts() {
     }
     assert!(!refused.is_empty(), "no limit was too small");
 }
+
+/// `[kernel] method = "learned"` with a `[learn]` budget: the toy's sets learned from
+/// babbling it, the rows spent within the budget and reported; the table and the method
+/// go together, and a value out of its domain is named with its table before anything
+/// runs.
+#[test]
+fn the_learned_route_runs_within_its_budget_and_its_table_goes_with_the_method() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = experiment(dir.path());
+    let refused = |overrides: &[&str]| {
+        let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+        let loaded = smspace_pipeline::config::load_experiment(&file, &overrides).unwrap();
+        smspace_pipeline::check(&loaded).unwrap_err().to_string()
+    };
+    let message = refused(&["kernel.method=\"learned\""]);
+    assert!(message.contains("needs a [learn] table"), "{message}");
+    let message = refused(&["learn.budget=20000"]);
+    assert!(message.contains("read only with method"), "{message}");
+    let message = refused(&[
+        "kernel.method=\"learned\"",
+        "learn.budget=20000",
+        "learn.rounds=0",
+    ]);
+    assert!(
+        message.contains("learn") && message.contains("rounds"),
+        "{message}"
+    );
+
+    let out = dir.path().join("run");
+    let summary = run(
+        &file,
+        &out,
+        &["kernel.method=\"learned\"", "learn.budget=20000"],
+    );
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("sets.trace.json")).unwrap())
+            .unwrap();
+    assert_eq!(report["method"], "learned");
+    let rows = &report["budget"]["rows"];
+    assert!(rows["total"].as_u64().unwrap() <= 60_000, "{rows}");
+    assert!(rows["verify"].as_u64().unwrap() > 0, "{rows}");
+    let sets: Array3<f64> = read_npy(out.join("sets.npy")).unwrap();
+    let starts = report["budget"]["starts"].as_u64().unwrap() as usize;
+    assert!(
+        sets.shape()[0] as f64 >= 0.9 * starts as f64,
+        "{} of {starts} sets kept: {}",
+        sets.shape()[0],
+        report["budget"]["warnings"]
+    );
+    // The learned kernel lines give the toy's manifold: one component, one dimension.
+    assert_eq!(summary.analysis.betti.first(), Some(&1));
+    let twonn = summary.analysis.intrinsic_dimension.twonn;
+    assert!((0.7..1.4).contains(&twonn), "TwoNN {twonn}");
+}

@@ -119,3 +119,35 @@ def test_a_given_rank_reaches_the_law_learned_within_a_budget():
     assert traced.law["rank_choice"]["given"] == 1
     with pytest.raises(ValueError, match="rank"):
         smspace.trace(agent, starts, method="learned", budget=20000, rank=2)
+
+
+def test_the_first_round_of_babbling_stays_in_the_working_space():
+    read = []
+
+    def x_of(m):
+        return np.sin(m[:, 0]) + 0.5 * np.sin(m[:, 1])
+
+    def sense(m):
+        read.append(np.array(m))
+        x = x_of(m)
+        return np.stack([x, 0.5 * x**2], axis=1)
+
+    def pose(m):
+        return np.stack([x_of(m), np.zeros(len(m)), np.zeros(len(m))], axis=1)
+
+    agent = smspace.PythonAgent(sense=sense, n_motors=2, n_sensors=2, pose=pose)
+    starts = np.array([[0.3, 0.2], [0.6, -0.4], [0.2, 0.5]])
+    traced = smspace.trace(agent, starts, method="learned", budget=20000, points=40,
+                           workspace=(0.5, 0.0, 1.0, 1.0))
+    rounds = traced.report["budget"]["rounds"]
+    first = np.concatenate(read)[: rounds[0]["rows"]]
+    assert len(first) == rounds[0]["rows"] > 0
+    # The poses drawn in the box x ∈ [0, 1] (a few 1e-9 of slack for the pose's rounding).
+    assert np.all((x_of(first) >= -1e-9) & (x_of(first) <= 1 + 1e-9)), x_of(first).min()
+    # Without a working space, the first round covers the motor space.
+    read.clear()
+    anywhere = smspace.trace(agent, starts, method="learned", budget=20000, points=40,
+                             workspace=None)
+    first = np.concatenate(read)[: anywhere.report["budget"]["rounds"][0]["rows"]]
+    assert x_of(first).min() < -1.0
+    assert len(traced) >= 2 and len(anywhere) >= 2

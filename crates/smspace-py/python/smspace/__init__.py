@@ -317,8 +317,9 @@ def trace(
     ``batch`` rows), the law is learned from what it read (the keywords of
     :func:`learn`), the sets are traced on the law, and each is verified against the
     agent at ``verify_points`` points along it (its readings within
-    ``verify_tolerance`` of the sensors' spread, plus the law's measured noise, of its
-    start's); sets that fail are left out. Rows the agent answers with NaN or infinity
+    ``verify_tolerance`` of the sensors' spread, plus six deviations of the noise
+    measured from two readings of every start, of its start's); sets that fail are left
+    out. Rows the agent answers with NaN or infinity
     are counted, named and never learned. No more than ``budget`` rows are read; a
     budget too small to learn from is refused before any is read, with the least that
     works. The result's ``law`` is the law's report, and ``budget`` the rows spent by

@@ -119,8 +119,8 @@ pub const MAX_ROUNDS: usize = 16;
 /// Gaussian.
 pub const NOISE_MULTIPLE: f64 = 6.0;
 
-/// Parameters of learning from an agent within a budget of sensor rows (a value out
-/// of its domain is named as the `budget` table's).
+/// Parameters of learning from an agent within a budget of sensor rows: an
+/// experiment's `[learn]` table (a value out of its domain is named as that table's).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BudgetParams {
@@ -232,7 +232,7 @@ impl ValidBudgetParams {
 }
 
 fn invalid(key: &'static str, value: impl std::fmt::Display, reason: &str) -> LearnError {
-    InvalidParameter::new("budget", key, value, reason).into()
+    InvalidParameter::new("learn", key, value, reason).into()
 }
 
 impl CheckParams for BudgetParams {

@@ -512,7 +512,11 @@ impl LocalModel {
 
 /// Whether at least `min_count` points of `tree` (fitted samples with their periodic
 /// images) lie within `bandwidth` of `m` (wrapped into `space`): the coverage of a law
-/// (see [`crate::learn`]).
+/// (see [`crate::learn`]). Within `h` of a bounded motor's limit, part of the ball is
+/// outside the motor space and holds no sample however dense the babbling: the count
+/// asked for is `min_count` times the share of the ball inside,
+/// `Π_j (1 + min(d_j / h, 1)) / 2` over the bounded motors (`d_j` the distance to the
+/// nearer limit), at least 1.
 pub(super) fn covered(
     space: &MotorSpace,
     tree: &KdTree,
@@ -525,9 +529,20 @@ pub(super) fn covered(
         .enumerate()
         .map(|(j, &x)| space.motor(j).wrap(x))
         .collect();
+    let inside: f64 = query
+        .iter()
+        .enumerate()
+        .filter(|(j, _)| !space.motor(*j).is_periodic())
+        .map(|(j, &x)| {
+            let (low, high) = space.motor(j).range();
+            let d = (x - low).min(high - x).max(0.0);
+            0.5 * (1.0 + (d / bandwidth).min(1.0))
+        })
+        .product();
+    let needed = ((min_count as f64 * inside).ceil() as usize).clamp(1, min_count.max(1));
     let mut count = 0;
     within_cached(tree, &query, bandwidth, |_, _, _| count += 1);
-    count >= min_count
+    count >= needed
 }
 
 /// The bandwidth `h` of a log's fitted rows (`bandwidth_factor` times the median
@@ -1394,6 +1409,31 @@ impl Agent for LearnedLaw {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn coverage_at_a_bounded_motors_limit_asks_for_the_share_of_the_ball_inside() {
+        // Samples on a grid 0.01 apart over [0, 1]²: a ball of radius 0.05 holds about
+        // 80 of them inside the square, 40 on an edge and 20 at a corner.
+        let space = MotorSpace::bounded(2, 0.0, 1.0).unwrap();
+        let mut points = Vec::new();
+        for i in 0..=100 {
+            for j in 0..=100 {
+                points.extend([i as f64 * 0.01, j as f64 * 0.01]);
+            }
+        }
+        let tree = KdTree::new(2, points, (0..101 * 101).collect());
+        let (h, min_count) = (0.05, 60);
+        for m in [[0.5, 0.5], [0.5, 0.0], [1.0, 0.3], [0.0, 0.0], [1.0, 1.0]] {
+            assert!(covered(&space, &tree, h, min_count, &m), "{m:?}");
+        }
+        // Outside the samples, and with too few of them, it is not covered.
+        assert!(!covered(&space, &tree, h, min_count, &[0.5, 1.2]));
+        assert!(!covered(&space, &tree, h, 200, &[0.5, 0.5]));
+        assert!(!covered(&space, &tree, h, 100, &[0.5, 0.0]));
+        // Hinges have no limit: the whole count is asked for.
+        let hinges = MotorSpace::hinges(2);
+        assert!(!covered(&hinges, &tree, h, min_count, &[0.5, 0.0]));
+    }
 
     fn data(rank: usize, spectrum: &[f64]) -> LocalRank {
         LocalRank {
