@@ -753,6 +753,58 @@ impl Shape {
     }
 }
 
+/// `sin x`, to a few units in the last place for `|x| < 2²⁰ π/2` (fdlibm's reduction
+/// by `π/2` in two parts and its kernels on `[−π/4, π/4]`; `f64::sin` beyond), in
+/// plain arithmetic: the same value on every thread and machine, several times faster
+/// than the C library's (textures call it once per wave and pixel).
+#[inline]
+fn sine(x: f64) -> f64 {
+    const TWO_OVER_PI: f64 = std::f64::consts::FRAC_2_PI;
+    // π/2 = PIO2_1 + PIO2_1T, PIO2_1 with 33 significant bits (n · PIO2_1 exact).
+    const PIO2_1: f64 = 1.570_796_326_734_125_614_17;
+    const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
+    const S: [f64; 6] = [
+        -1.666_666_666_666_663_243_48e-1,
+        8.333_333_333_322_489_461_24e-3,
+        -1.984_126_982_985_794_931_34e-4,
+        2.755_731_370_707_006_767_89e-6,
+        -2.505_076_025_340_686_341_95e-8,
+        1.589_690_995_211_550_102_21e-10,
+    ];
+    const C: [f64; 6] = [
+        4.166_666_666_666_660_190_37e-2,
+        -1.388_888_888_887_410_957_49e-3,
+        2.480_158_728_947_672_941_78e-5,
+        -2.755_731_435_139_066_330_35e-7,
+        2.087_572_321_298_174_827_90e-9,
+        -1.135_964_755_778_819_482_65e-11,
+    ];
+    if !(x.abs() < 1.0e6) {
+        return x.sin();
+    }
+    let n = (x * TWO_OVER_PI).round();
+    let r = (x - n * PIO2_1) - n * PIO2_1T;
+    let z = r * r;
+    let quadrant = (n as i64) & 3;
+    if quadrant & 1 == 0 {
+        let poly = S[0] + z * (S[1] + z * (S[2] + z * (S[3] + z * (S[4] + z * S[5]))));
+        let s = r + r * z * poly;
+        if quadrant == 0 {
+            s
+        } else {
+            -s
+        }
+    } else {
+        let poly = C[0] + z * (C[1] + z * (C[2] + z * (C[3] + z * (C[4] + z * C[5]))));
+        let c = 1.0 - 0.5 * z + z * z * poly;
+        if quadrant == 1 {
+            c
+        } else {
+            -c
+        }
+    }
+}
+
 impl Compiled {
     /// The texture at `p` filtered by a Gaussian of standard deviation `sigma`.
     #[inline]
@@ -764,7 +816,7 @@ impl Compiled {
             if exponent > NEGLIGIBLE_EXPONENT {
                 continue;
             }
-            let v = (-exponent).exp() * (dot(w.k, p) + w.phase).sin();
+            let v = (-exponent).exp() * sine(dot(w.k, p) + w.phase);
             c[0] += w.amplitude[0] * v;
             c[1] += w.amplitude[1] * v;
             c[2] += w.amplitude[2] * v;
@@ -896,6 +948,20 @@ mod tests {
         });
         let err = room.check().unwrap_err().to_string();
         assert!(err.contains("1 to 64 waves"), "{err}");
+    }
+
+    #[test]
+    fn sine_matches_the_library_sine() {
+        let mut worst: f64 = 0.0;
+        for i in -200_000..=200_000 {
+            let x = i as f64 * 1.0e-3 + 1.0e-7 * (i % 7) as f64;
+            worst = worst.max((sine(x) - x.sin()).abs());
+        }
+        assert!(worst < 1e-15, "{worst}");
+        for x in [0.0, -0.0, 1e-300, 1e7, -3e8, f64::NAN, f64::INFINITY] {
+            let (a, b) = (sine(x), x.sin());
+            assert!(a == b || (a.is_nan() && b.is_nan()), "{x}: {a} vs {b}");
+        }
     }
 
     #[test]
