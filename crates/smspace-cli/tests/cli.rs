@@ -839,4 +839,49 @@ fn the_learned_route_reads_the_agent_within_its_budget_and_says_so() {
     assert!(rows["total"].as_u64().unwrap() <= 60_000, "{rows}");
     assert_eq!(rows["verify"].as_u64().unwrap() % 10, 0, "{rows}");
     assert!(report["law"].is_object());
+    // A [learn] key without a flag, as learn.KEY: read by the table, its domain named.
+    let mut bad = args("60000");
+    bad.extend(["--param", "learn.first_round=2"]);
+    let message = fails(&dir, &bad);
+    assert!(message.contains("first_round"), "{message}");
+}
+
+#[test]
+fn every_kernel_key_is_reachable_as_a_param_and_a_flag_keeps_its_key() {
+    let (_guard, dir) = temp();
+    ok(&dir, &["explore", "--n", "6", "--out-dir", "."]);
+    let trace = |extra: &[&'static str]| {
+        let mut args = vec!["trace", "--motors", "motors.npy", "--out", "sets.npy"];
+        args.extend_from_slice(extra);
+        args
+    };
+    // Three steps are too few to close a loop: no set is kept, and the run says why.
+    let message = fails(&dir, &trace(&["--param", "max_steps=3"]));
+    assert!(
+        message.contains("max-steps") || message.contains("0 of 6"),
+        "{message}"
+    );
+    assert!(!dir.join("sets.npy").exists());
+    ok(
+        &dir,
+        &trace(&[
+            "--param",
+            "max_steps=20000",
+            "--param",
+            "jacobian=\"secant\"",
+        ]),
+    );
+    for (param, expected) in [
+        ("no_such_key=1", "no_such_key"),
+        ("points=5", "--points"),
+        ("max_steps=3", "given twice"),
+        ("learn.first_round=0.3", "--method learned only"),
+    ] {
+        let mut args = trace(&["--param", param]);
+        if expected == "given twice" {
+            args.extend(["--param", "max_steps=4"]);
+        }
+        let message = fails(&dir, &args);
+        assert!(message.contains(expected), "{param}: {message}");
+    }
 }

@@ -41,6 +41,12 @@ pub struct Args {
     /// --method learned: seed of the babbling.
     #[arg(long, default_value_t = BudgetParams::new(1).seed)]
     seed: u64,
+    /// A parameter of the [kernel] table that has no flag of its own (max_steps,
+    /// pose_tolerance, sensor_tolerance, jacobian, piece_seed, ...), or of the
+    /// [learn] table as learn.KEY (learn.first_round, learn.verify_tolerance,
+    /// learn.batch), the value in TOML; repeatable.
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = super::common::parse_param)]
+    params: Vec<(String, toml::Value)>,
     /// --method learned: a key of the law's parameters (as `smspace learn` takes
     /// them: method, invariants, neighbours, holdout, ...), as KEY=VALUE; repeatable.
     #[arg(long = "law", value_name = "KEY=VALUE")]
@@ -143,9 +149,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         noise: args.noise,
         ..TraceParams::default()
     };
+    let (trace, learn_params) = with_params(trace, &args.params)?;
     let params = trace.check()?;
-    if !learned && (args.budget.is_some() || !args.law.is_empty()) {
-        anyhow::bail!("--budget and --law apply to --method learned only");
+    if !learned && (args.budget.is_some() || !args.law.is_empty() || !learn_params.is_empty()) {
+        anyhow::bail!("--budget, --law and --param learn.KEY apply to --method learned only");
     }
     let motors = io::read_matrix(
         &args.motors,
@@ -177,13 +184,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "--method learned reads the agent within a budget: give --budget ROWS, the most sensor rows to read in all (babbling, then verifying the sets)"
             )
         })?;
-        let budget = BudgetParams {
-            rounds: args.rounds,
-            verify_points: args.verify_points,
-            seed: args.seed,
-            law: law_params(&args.law)?,
-            ..BudgetParams::new(budget)
-        };
+        let budget = budget_params(
+            BudgetParams {
+                rounds: args.rounds,
+                verify_points: args.verify_points,
+                seed: args.seed,
+                law: law_params(&args.law)?,
+                ..BudgetParams::new(budget)
+            },
+            learn_params,
+        )?;
         let Some(environment) = environment.as_ref() else {
             anyhow::bail!("--method learned needs an environment: give --env FILE or --env-seed S");
         };
@@ -257,6 +267,82 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {warning}");
     }
     Ok(())
+}
+
+/// The [kernel] keys that have a flag of their own.
+const KERNEL_FLAGS: [&str; 10] = [
+    "method",
+    "points",
+    "step",
+    "step_control",
+    "max_step",
+    "closure_tolerance",
+    "components",
+    "piece_starts",
+    "noise",
+    "cover_step",
+];
+
+/// [learn] keys that have a flag of their own.
+const LEARN_FLAGS: [&str; 5] = ["budget", "rounds", "verify_points", "seed", "law"];
+
+/// `trace` with the `--param` keys of the [kernel] table set (read by the table's own
+/// reader, which names an unknown key), and the `learn.KEY` ones set aside.
+fn with_params(
+    trace: TraceParams,
+    params: &[(String, toml::Value)],
+) -> anyhow::Result<(TraceParams, toml::Table)> {
+    let mut table = match toml::Value::try_from(&trace)? {
+        toml::Value::Table(table) => table,
+        _ => unreachable!("the [kernel] table serialises as a table"),
+    };
+    let mut learn = toml::Table::new();
+    for (i, (key, value)) in params.iter().enumerate() {
+        if params[..i].iter().any(|(k, _)| k == key) {
+            anyhow::bail!("--param {key} is given twice");
+        }
+        let (target, name, flags) = match key.strip_prefix("learn.") {
+            Some(name) => (&mut learn, name, &LEARN_FLAGS[..]),
+            None => (&mut table, key.as_str(), &KERNEL_FLAGS[..]),
+        };
+        if flags.contains(&name) {
+            anyhow::bail!(
+                "--param {key}=…: {name} has its flag, --{}",
+                name.replace('_', "-")
+            );
+        }
+        target.insert(name.to_owned(), value.clone());
+    }
+    let trace = toml::Value::Table(table)
+        .try_into::<TraceParams>()
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "--param: {} (the keys of the [kernel] table)",
+                e.to_string().trim_end()
+            )
+        })?;
+    Ok((trace, learn))
+}
+
+/// `budget` with the `--param learn.KEY` values set (read by the [learn] table's own
+/// reader, which names an unknown key).
+fn budget_params(budget: BudgetParams, learn: toml::Table) -> anyhow::Result<BudgetParams> {
+    if learn.is_empty() {
+        return Ok(budget);
+    }
+    let mut table = match toml::Value::try_from(&budget)? {
+        toml::Value::Table(table) => table,
+        _ => unreachable!("the [learn] table serialises as a table"),
+    };
+    table.extend(learn);
+    toml::Value::Table(table)
+        .try_into::<BudgetParams>()
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "--param learn.…: {} (the keys of the [learn] table)",
+                e.to_string().trim_end()
+            )
+        })
 }
 
 /// The law's parameters from `--law KEY=VALUE` pairs (a value read as JSON when it
