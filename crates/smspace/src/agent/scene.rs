@@ -782,27 +782,22 @@ fn sine(x: f64) -> f64 {
     if !(x.abs() < 1.0e6) {
         return x.sin();
     }
-    let n = (x * TWO_OVER_PI).round();
+    // Rounding to the nearest integer by adding and subtracting 1.5 · 2⁵² (no call
+    // to the library's `round`), exact for these magnitudes.
+    const ROUND: f64 = 6_755_399_441_055_744.0;
+    let n = (x * TWO_OVER_PI + ROUND) - ROUND;
     let r = (x - n * PIO2_1) - n * PIO2_1T;
     let z = r * r;
     let quadrant = (n as i64) & 3;
-    if quadrant & 1 == 0 {
-        let poly = S[0] + z * (S[1] + z * (S[2] + z * (S[3] + z * (S[4] + z * S[5]))));
-        let s = r + r * z * poly;
-        if quadrant == 0 {
-            s
-        } else {
-            -s
-        }
-    } else {
-        let poly = C[0] + z * (C[1] + z * (C[2] + z * (C[3] + z * (C[4] + z * C[5]))));
-        let c = 1.0 - 0.5 * z + z * z * poly;
-        if quadrant == 1 {
-            c
-        } else {
-            -c
-        }
-    }
+    // Both kernels, then a selection: quadrants change from pixel to pixel, and a
+    // branch on them would be mispredicted.
+    let sin_poly = S[0] + z * (S[1] + z * (S[2] + z * (S[3] + z * (S[4] + z * S[5]))));
+    let cos_poly = C[0] + z * (C[1] + z * (C[2] + z * (C[3] + z * (C[4] + z * C[5]))));
+    let s = r + r * z * sin_poly;
+    let c = 1.0 - 0.5 * z + z * z * cos_poly;
+    let value = if quadrant & 1 == 0 { s } else { c };
+    let sign = if quadrant & 2 == 0 { 1.0 } else { -1.0 };
+    sign * value
 }
 
 impl Compiled {
