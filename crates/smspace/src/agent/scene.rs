@@ -758,6 +758,10 @@ impl Shape {
 /// plain arithmetic: the same value on every thread and machine, several times faster
 /// than the C library's (textures call it once per wave and pixel).
 #[inline]
+#[allow(
+    clippy::excessive_precision,
+    reason = "fdlibm's constants, written as published"
+)]
 fn sine(x: f64) -> f64 {
     const TWO_OVER_PI: f64 = std::f64::consts::FRAC_2_PI;
     // π/2 = PIO2_1 + PIO2_1T, PIO2_1 with 33 significant bits (n · PIO2_1 exact).
@@ -779,7 +783,7 @@ fn sine(x: f64) -> f64 {
         2.087_572_321_298_174_827_90e-9,
         -1.135_964_755_778_819_482_65e-11,
     ];
-    if !(x.abs() < 1.0e6) {
+    if x.is_nan() || x.abs() >= 1.0e6 {
         return x.sin();
     }
     // Rounding to the nearest integer by adding and subtracting 1.5 · 2⁵² (no call
