@@ -16,7 +16,7 @@ fn main() -> Result<(), smspace::Error> {
     let environment = EnvironmentConfig {
         seed: env_seed,
         lights,
-        region: None,
+        ..EnvironmentConfig::default()
     }
     .build(agent.as_ref())?;
     let e = explore(

@@ -323,3 +323,50 @@ fn images_are_identical_for_any_number_of_threads() {
         many
     );
 }
+
+#[test]
+fn an_environment_table_gives_a_camera_its_textured_room_and_a_retina_its_lights() {
+    use smspace::agent::EnvironmentConfig;
+    let camera = strip(32, 1.2);
+    // By default: a room around the agent's light region, seeded, that the camera sees.
+    let built = EnvironmentConfig::default().build(camera.as_ref()).unwrap();
+    assert!(built.scene.is_some() && built.lights.is_empty());
+    built.check_for(camera.as_ref()).unwrap();
+    let again = EnvironmentConfig::default().build(camera.as_ref()).unwrap();
+    assert_eq!(built, again);
+    let other = EnvironmentConfig {
+        seed: 2,
+        ..EnvironmentConfig::default()
+    }
+    .build(camera.as_ref())
+    .unwrap();
+    assert_ne!(built.scene, other.scene);
+    // A room of the size given; a size that is not positive is named.
+    let sized = EnvironmentConfig {
+        room: Some([6.0, 6.0, 4.0]),
+        ..EnvironmentConfig::default()
+    }
+    .build(camera.as_ref())
+    .unwrap();
+    assert_eq!(sized.scene, Some(Scene::textured_room([6.0, 6.0, 4.0], 1)));
+    let error = EnvironmentConfig {
+        room: Some([6.0, -1.0, 4.0]),
+        ..EnvironmentConfig::default()
+    }
+    .build(camera.as_ref())
+    .unwrap_err()
+    .to_string();
+    assert!(error.contains("room") && error.contains("-1"), "{error}");
+    // A retina's environment is lights; a room there is refused.
+    let retina = chain("joints = [{ axis = [0, 0, 1], link = [1.0, 0, 0] }]\n[retina]\ncells = 4");
+    let lights = EnvironmentConfig::default().build(retina.as_ref()).unwrap();
+    assert!(lights.scene.is_none() && !lights.lights.is_empty());
+    let error = EnvironmentConfig {
+        room: Some([6.0, 6.0, 4.0]),
+        ..EnvironmentConfig::default()
+    }
+    .build(retina.as_ref())
+    .unwrap_err()
+    .to_string();
+    assert!(error.contains("room"), "{error}");
+}

@@ -38,6 +38,11 @@ pub struct ExperimentEnvironment {
     pub seed: u64,
     /// Where the lights are drawn (default: the agent's region).
     pub region: Option<LightRegion>,
+    /// For an agent with a camera: the extents `[x, y, z]` of the textured room it
+    /// looks at, seeded by `seed` (default: around the agent's light region; see
+    /// [`EnvironmentConfig::room`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub room: Option<[f64; 3]>,
     /// Further environments (`[[environment.compare]]` tables with `lights`, `seed`,
     /// `region`). Default none.
     pub compare: Vec<EnvironmentConfig>,
@@ -50,6 +55,7 @@ impl Default for ExperimentEnvironment {
             lights: base.lights,
             seed: base.seed,
             region: base.region,
+            room: base.room,
             compare: Vec::new(),
         }
     }
@@ -62,6 +68,7 @@ impl ExperimentEnvironment {
             lights: self.lights,
             seed: self.seed,
             region: self.region,
+            room: self.room,
         };
         std::iter::once(main)
             .chain(self.compare.iter().cloned())

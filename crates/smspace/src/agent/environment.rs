@@ -516,6 +516,12 @@ pub struct EnvironmentConfig {
     pub seed: u64,
     /// Where the lights are drawn (default: the agent's region, around its working space).
     pub region: Option<LightRegion>,
+    /// For an agent with a camera: the extents `[x, y, z]` of the textured room around
+    /// the origin it looks at ([`Scene::textured_room`], its texture seeded by `seed`).
+    /// Default: the agent's light region's outer rectangle, widened to be centred on
+    /// the origin (`2 (|c_x| + h_x)` by `2 (|c_y| + h_y)`), as tall as it is narrow.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub room: Option<[f64; 3]>,
 }
 
 impl Default for EnvironmentConfig {
@@ -524,6 +530,7 @@ impl Default for EnvironmentConfig {
             lights: None,
             seed: 1,
             region: None,
+            room: None,
         }
     }
 }
@@ -532,6 +539,21 @@ impl EnvironmentConfig {
     /// Draws the environment for `agent`.
     pub fn build(&self, agent: &dyn Agent) -> Result<Environment, AgentError> {
         let region = self.region.unwrap_or_else(|| agent.default_light_region());
+        if agent.stimulus() == Stimulus::Scene {
+            return self.room_for(agent, &region);
+        }
+        if let Some(room) = self.room {
+            return Err(InvalidParameter::new(
+                "environment",
+                "room",
+                format!("{room:?}"),
+                format!(
+                    "a room is what a camera looks at, and the {} agent senses lights: leave room out",
+                    agent.name()
+                ),
+            )
+            .into());
+        }
         let count = self.lights.unwrap_or_else(|| agent.default_light_count());
         if count == 0 {
             return Err(InvalidParameter::new(
@@ -548,6 +570,32 @@ impl EnvironmentConfig {
                 Environment::random_volume(count, self.seed, &region, agent.default_light_heights())
             }
         }
+    }
+}
+
+impl EnvironmentConfig {
+    /// The textured room of an agent with a camera (see [`room`](Self::room)).
+    fn room_for(&self, agent: &dyn Agent, region: &LightRegion) -> Result<Environment, AgentError> {
+        let room = self.room.unwrap_or_else(|| {
+            let x = 2.0 * (region.center[0].abs() + region.half_size[0]);
+            let y = 2.0 * (region.center[1].abs() + region.half_size[1]);
+            [x, y, x.min(y)]
+        });
+        if !room.iter().all(|v| v.is_finite() && *v > 0.0) {
+            return Err(InvalidParameter::new(
+                "environment",
+                "room",
+                format!("{room:?}"),
+                "give the room's three extents [x, y, z], finite and positive",
+            )
+            .into());
+        }
+        let environment = Environment {
+            seed: Some(self.seed),
+            ..Environment::from_scene(Scene::textured_room(room, self.seed))
+        };
+        environment.check_for(agent)?;
+        Ok(environment)
     }
 }
 
