@@ -525,15 +525,7 @@ impl Chain {
     /// The default working space (module docs): a box at `7/12` of the reach along the
     /// home direction.
     fn reach_workspace(&self) -> Workspace {
-        let home: Vec<f64> = self
-            .motors
-            .motors()
-            .iter()
-            .map(|m| match *m {
-                Motor::Bounded { low, high } => 0.5 * (low + high),
-                Motor::Periodic { .. } => 0.0,
-            })
-            .collect();
+        let home = self.motors.home();
         let p = self.frames(&home).position;
         let r = self.reach;
         let u = if p.norm() > 1e-9 * r {

@@ -38,7 +38,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
 
-use super::{Agent, AgentError, Motor, Scene};
+use super::{Agent, AgentError, Scene};
 use crate::io::{self, IoError};
 use crate::params::InvalidParameter;
 
@@ -481,15 +481,7 @@ impl Environment {
                 ),
             });
         }
-        let home: Vec<f64> = agent
-            .motor_space()
-            .motors()
-            .iter()
-            .map(|m| match *m {
-                Motor::Bounded { low, high } => 0.5 * (low + high),
-                Motor::Periodic { .. } => 0.0,
-            })
-            .collect();
+        let home = agent.motor_space().home();
         let mut sensors = vec![0.0; agent.sensor_dim()];
         agent.sense(self, &home, &mut sensors);
         let first = sensors.first().copied().unwrap_or(0.0);

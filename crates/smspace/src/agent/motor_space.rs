@@ -203,6 +203,18 @@ impl MotorSpace {
         self.motors.iter().map(|m| m.period()).collect()
     }
 
+    /// The home configuration: every periodic motor at 0, every bounded one at the
+    /// middle of its range.
+    pub fn home(&self) -> Vec<f64> {
+        self.motors
+            .iter()
+            .map(|m| match *m {
+                Motor::Bounded { low, high } => 0.5 * (low + high),
+                Motor::Periodic { .. } => 0.0,
+            })
+            .collect()
+    }
+
     /// Whether every motor is a hinge (periodic with period `2π`).
     pub fn is_hinges(&self) -> bool {
         self.motors.iter().all(|&m| m == Motor::HINGE)

@@ -78,7 +78,7 @@ use rayon::prelude::*;
 use super::tree::KdTree;
 use super::{
     learn_with_progress, trace_learned, LawMethod, LawParams, LawReport, LawValidParams,
-    LearnError, LogFiles, SensorimotorLog,
+    LearnError, LearnedLaw, LogFiles, SensorimotorLog,
 };
 use crate::agent::{check_motor_count, Agent, Environment, MotorSpace, Workspace};
 use crate::explore::{explore_in, ExploreParams};
@@ -486,15 +486,19 @@ pub fn learn_from_agent(
         ),
         first,
     );
-    let mut log = read.log(agent, &space)?;
-    let mut learned = learn_with_progress(
-        std::slice::from_ref(&log),
-        &space,
-        law,
-        memory_limit,
-        progress,
-    )?;
-    let mut traced = trace_learned(&learned, starts, trace, progress)?;
+    let learn_and_trace = |read: &Readings| -> Result<(LearnedLaw, TracedSets), LearnError> {
+        let log = read.log(agent, &space)?;
+        let learned = learn_with_progress(
+            std::slice::from_ref(&log),
+            &space,
+            law,
+            memory_limit,
+            progress,
+        )?;
+        let traced = trace_learned(&learned, starts, trace, progress)?;
+        Ok((learned, traced))
+    };
+    let (mut learned, mut traced) = learn_and_trace(&read)?;
     let mut rounds = vec![read.round(plan[0], &traced, starts, &space)];
     for (round, &rows) in plan.iter().enumerate().skip(1) {
         // A share of every later round goes where the first did, so that the law's
@@ -524,18 +528,9 @@ pub fn learn_from_agent(
             ),
             motors,
         );
-        log = read.log(agent, &space)?;
-        learned = learn_with_progress(
-            std::slice::from_ref(&log),
-            &space,
-            law,
-            memory_limit,
-            progress,
-        )?;
-        traced = trace_learned(&learned, starts, trace, progress)?;
+        (learned, traced) = learn_and_trace(&read)?;
         rounds.push(read.round(rows, &traced, starts, &space));
     }
-    drop(log);
     let report = learned.report().with_trace(&traced.report.summary);
     let verified = verify(
         agent,
