@@ -350,7 +350,7 @@ def main(argv=None) -> int:
     if figures["budget"]:
         spent = figures["budget"]
         print(f"learned route: {spent['total']} sensor rows in all ({spent['babble']} babbled, "
-              f"{spent['verify']} verifying the sets)")
+              f"{spent['agent_rank']} for the agent's own slope, {spent['verify']} verifying the sets)")
     if figures["noise_estimated"]:
         measured = figures["noise_estimated"]
         print(f"noise: {args.noise} m given, {measured['sigma']:.4g} m measured; position "

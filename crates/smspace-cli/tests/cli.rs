@@ -838,6 +838,14 @@ fn the_learned_route_reads_the_agent_within_its_budget_and_says_so() {
     let rows = &report["budget"]["rows"];
     assert!(rows["total"].as_u64().unwrap() <= 60_000, "{rows}");
     assert_eq!(rows["verify"].as_u64().unwrap() % 10, 0, "{rows}");
+    assert!(rows["agent_rank"].as_u64().unwrap() > 0, "{rows}");
+    assert_eq!(
+        rows["babble"].as_u64().unwrap()
+            + rows["agent_rank"].as_u64().unwrap()
+            + rows["verify"].as_u64().unwrap(),
+        rows["total"].as_u64().unwrap(),
+        "{rows}"
+    );
     assert!(report["law"].is_object());
     // A [learn] key without a flag, as learn.KEY: read by the table, its domain named.
     let mut bad = args("60000");

@@ -76,7 +76,11 @@ def test_a_python_agent_is_learned_within_a_budget_of_sensor_rows():
     traced = smspace.trace(agent, starts, method="learned", budget=20000, points=40)
     spent = traced.report["budget"]["rows"]
     assert read[0] == spent["total"] <= 20000
-    assert spent["babble"] + spent["verify"] == spent["total"]
+    assert spent["babble"] + spent["agent_rank"] + spent["verify"] == spent["total"]
+    # The agent's own slope at the 4 starts, 2N + 2 rows each: rank 1, as the law's.
+    assert spent["agent_rank"] == 4 * 6
+    assert traced.report["budget"]["agent_rank"]["rank"] == 1
+    assert traced.law["rank_choice"]["agent"] == 1
     assert len(traced) >= 3 and traced.law["rank"] == 1
     x = lambda p: np.sin(p[..., 0]) + 0.5 * np.sin(p[..., 1])
     for set_points, row in zip(traced.sets, traced.kept):

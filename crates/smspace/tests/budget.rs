@@ -171,9 +171,18 @@ fn a_budget_of_twenty_thousand_rows_traces_the_carts_kernels_and_counts_every_ro
     let rows = found.rows;
     assert_eq!(agent.rows.load(Ordering::SeqCst), rows.total);
     assert!(rows.total <= 20_000);
-    assert_eq!(rows.babble, 20_000 - 12 * 10);
+    // Reserved: each start's verification (2 + 8 rows) and the agent's own slope at 12
+    // starts (2N + 2 = 6 rows each).
+    assert_eq!(rows.babble, 20_000 - 12 * 10 - 12 * 6);
+    assert_eq!(rows.agent_rank, 12 * 6);
     assert_eq!(rows.non_finite, 0);
-    assert_eq!(rows.babble + rows.verify, rows.total);
+    assert_eq!(rows.babble + rows.agent_rank + rows.verify, rows.total);
+    let agent_rank = found.agent_rank.as_ref().unwrap();
+    assert_eq!(
+        (agent_rank.rank, agent_rank.starts),
+        (1, 12),
+        "{agent_rank:?}"
+    );
     assert_eq!(rows.verify, 10 * found.verification.len() as u64);
     assert!(found.traced.kept.len() >= 8, "{:?}", found.verification);
     let errors = x_errors(&found, &starts);
@@ -221,7 +230,8 @@ fn rows_the_agent_cannot_read_are_counted_named_and_left_out() {
     let rows = found.rows;
     assert_eq!(agent.rows.load(Ordering::SeqCst), rows.total);
     assert!(rows.total <= 20_000);
-    // Every babbled NaN counted (verification's own readings are not babbling).
+    // Every babbled NaN counted (verification's and the agent slope's own readings are
+    // not babbling).
     let verify_nan = found
         .verification
         .iter()
@@ -230,7 +240,8 @@ fn rows_the_agent_cannot_read_are_counted_named_and_left_out() {
     assert!(rows.non_finite <= agent.nan_rows.load(Ordering::SeqCst));
     assert!(rows.non_finite > 0);
     assert!(
-        agent.nan_rows.load(Ordering::SeqCst) - rows.non_finite <= 10 * verify_nan as u64,
+        agent.nan_rows.load(Ordering::SeqCst) - rows.non_finite
+            <= 10 * verify_nan as u64 + rows.agent_rank,
         "{rows:?}"
     );
     // Babbled once, uniformly: about 0.4 / 2π of the rows.
@@ -271,7 +282,7 @@ fn a_budget_below_the_minimum_is_refused_with_it_before_any_row_is_read() {
     let minimum = min_babble_rows(&law, 2);
     assert!(minimum >= 4096);
     let err = run(&agent, 3000, &starts).unwrap_err();
-    let needed = minimum + 10 * 10;
+    let needed = minimum + 10 * 10 + 10 * 6;
     assert!(
         matches!(err, LearnError::Budget { needed: n, .. } if n == needed),
         "{err}"
@@ -290,8 +301,8 @@ fn readings_that_changed_since_the_babbling_fail_verification_and_are_dropped() 
     // The sets are traced on the law of the first sensor's calibration; the agent
     // reads the second one when verifying: sets along which m2 changes fail.
     let starts = starts(12);
-    let babble = 20_000 - 12 * 10;
-    let agent = Counting::new(Kind::DriftsAfter(babble));
+    // Every row but the verification's: the babbling and the agent's own slope.
+    let agent = Counting::new(Kind::DriftsAfter(20_000 - 12 * 10));
     let found = run(&agent, 20_000, &starts).unwrap();
     assert_eq!(agent.rows.load(Ordering::SeqCst), found.rows.total);
     let failed = found.failed().count();

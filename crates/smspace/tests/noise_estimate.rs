@@ -75,6 +75,9 @@ fn the_noise_of_a_redundant_toy_log_is_measured_within_a_fifth() {
     let (found, rank) = estimate_local(&exact, &all_rows(&exact), 1).unwrap();
     assert!(found.relative_overall < 0.002, "{found:?}");
     assert_eq!(rank.rank, 1, "{rank:?}");
+    // Held out, m1 + m2 predicts as well as both motors: rank 1.
+    assert_eq!(rank.held_out_rank, Some(1), "{rank:?}");
+    assert!(rank.held_out[1] < 0.1 * rank.held_out[0], "{rank:?}");
 }
 
 /// Two hinges, three smooth sensors of rank 2, and Gaussian noise of `noise` (absolute:
@@ -121,6 +124,14 @@ fn the_noise_of_a_two_hinge_log_is_measured_within_a_fifth() {
     let (found, rank) = estimate_local(&exact, &all_rows(&exact), 2).unwrap();
     assert!(found.relative_overall < 0.003, "{found:?}");
     assert_eq!(rank.rank, 2, "{rank:?}");
+    // Held out, the fits predict best with both directions: each one lowers the error.
+    let held = &rank.held_out;
+    assert_eq!(held.len(), 3, "{rank:?}");
+    assert!(
+        held[2] < 0.5 * held[1] && held[1] < 0.8 * held[0],
+        "{rank:?}"
+    );
+    assert_eq!(rank.held_out_rank, Some(2));
 }
 
 #[test]

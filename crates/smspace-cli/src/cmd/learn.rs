@@ -348,6 +348,7 @@ fn print_law(report: &smspace::learn::LawReport) {
                 RankSource::Invariants => "the invariants' Jacobian",
                 RankSource::Law => "the law's Jacobian",
                 RankSource::Retried => "retried",
+                RankSource::Agent => "the agent's own slope",
             },
             // `rank_counts` has N + 1 entries.
             report
@@ -369,6 +370,17 @@ fn print_law(report: &smspace::learn::LawReport) {
                 .join(" "),
             rank.floor
         );
+        if let Some(best) = rank.held_out_rank {
+            eprintln!(
+                "held-out prediction: best at rank {best} (errors {} at ranks 0 to {}, relative to the sensors' spread)",
+                rank.held_out
+                    .iter()
+                    .map(|e| format!("{e:.4}"))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+                rank.held_out.len().saturating_sub(1)
+            );
+        }
         if report.rank_source == RankSource::Invariants && report.rank < rank.rank {
             let probed: usize = report.rank_counts.iter().sum();
             eprintln!(

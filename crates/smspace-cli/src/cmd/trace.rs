@@ -251,8 +251,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(budget) = &traced.report.budget {
         let rows = &budget["rows"];
         eprintln!(
-            "{} sensor rows read in all ({} babbling, {} verifying the sets)",
-            rows["total"], rows["babble"], rows["verify"]
+            "{} sensor rows read in all ({} babbling, {} for the agent's own slope, {} verifying the sets)",
+            rows["total"], rows["babble"], rows["agent_rank"], rows["verify"]
         );
         for warning in budget["warnings"].as_array().into_iter().flatten() {
             eprintln!("warning: {}", warning.as_str().unwrap_or_default());

@@ -384,10 +384,11 @@ impl Stage for TraceStage {
         if let Some(budget) = &t.report.budget {
             let rows = &budget["rows"];
             line.push_str(&format!(
-                "; {} sensor rows read in all ({} babbling in {} rounds, {} verifying)",
+                "; {} sensor rows read in all ({} babbling in {} rounds, {} for the agent's own slope, {} verifying)",
                 rows["total"],
                 rows["babble"],
                 budget["rounds"].as_array().map_or(0, Vec::len),
+                rows["agent_rank"],
                 rows["verify"]
             ));
             for warning in budget["warnings"].as_array().into_iter().flatten() {

@@ -323,7 +323,10 @@ def trace(
     are counted, named and never learned. No more than ``budget`` rows are read; a
     budget too small to learn from is refused before any is read, with the least that
     works. The result's ``law`` is the law's report, and ``budget`` the rows spent by
-    phase (``rows``: ``babble``, ``non_finite``, ``verify``, ``total``) and each set's
+    phase (``rows``: ``babble``, ``non_finite``, ``agent_rank``, ``verify``,
+    ``total``), the rank of the agent's own slope at 16 starts (``agent_rank``, read
+    with ``2N + 2`` rows each; a higher rank than the babbled data show is traced at)
+    and each set's
     ``verification``, and ``rounds`` what each babbling round read. The babbling comes in
     ``rounds`` (default 2): the first reads ``first_round`` (default half) of the
     babbled rows over the working space (``workspace``, drawn by the agent's pose: no

@@ -4,12 +4,13 @@
 //!
 //! A budget of `B` rows for `M` starts and `V = verify_points` is spent as follows.
 //!
-//! 1. **Reserve** `M (V + 1)` rows for verification (each start's own reading and `V`
-//!    points of its set). The rest, `B − M (V + 1)`, is the babbling; below
-//!    [`min_babble_rows`] the budget is refused before any row is read
+//! 1. **Reserve** `(M + 3P) (V + 2)` rows for verification (each start read twice and
+//!    `V` points of its set; `P = min(M,` [`RANK_PROBE_SETS`]`)` sets for the rank's
+//!    check, at up to `1 +` [`RANK_PROBE_RETRIES`] ranks). The rest is the babbling;
+//!    below [`min_babble_rows`] the budget is refused before any row is read
 //!    ([`LearnError::Budget`]).
 //! 2. **Babble in rounds** (`rounds = R`, default 2). The first round reads
-//!    `max(minimum, first_round · (B − M (V + 1)))` rows (`first_round` 0.5 by
+//!    `max(minimum, first_round · b)` rows (`b` the babbling's rows) (`first_round` 0.5 by
 //!    default): drawn in the working space when one is given (by the agent's pose, as
 //!    exploration draws, reading no sensor), else uniformly and independently over the
 //!    agent's motor space (`[−T/2, T/2)` for a periodic motor, `[low, high)` for a
@@ -34,7 +35,16 @@
 //!    first [`NAMED_NON_FINITE`] named, and left out of the log. The spacing's median
 //!    and 90th percentile after each round are reported ([`RoundReport`]).
 //! 3. **Learn** the law from every row read and trace the starts on it, as above.
-//! 4. **Verify** each traced set without the truth: the agent is read twice at the
+//! 4. **Check the rank against the agent.** `P` of the traced sets, spread over them,
+//!    are verified as in step 5. When fewer than half pass and the rank was not given,
+//!    those starts are traced at each of the next [`RANK_PROBE_RETRIES`] candidate
+//!    ranks above it ([`RankChoice::candidates`](super::RankChoice::candidates)) and
+//!    verified again; at the first where at least half pass, every start is traced at
+//!    it, and the law's report gives the ranks tried with their counts. A kernel too
+//!    large for the agent (a rank read too low: a weak direction of change the law
+//!    smoothed away) holds the law's values and not the agent's readings; a rank read
+//!    too high gives sets inside the true kernels, which pass.
+//! 5. **Verify** each traced set without the truth: the agent is read twice at the
 //!    start `m⁰` (readings `a`, `b`) and once at each of `V` points `p_v` spread along
 //!    the set (points `⌊(v + ½) P / V⌋` of its `P`). Readings are measured in units of
 //!    the sensors' spread `σ_k` (the standard deviation of sensor `k` over the babbled
@@ -77,8 +87,8 @@ use rayon::prelude::*;
 
 use super::tree::KdTree;
 use super::{
-    learn_with_progress, trace_learned, LawMethod, LawParams, LawReport, LawValidParams,
-    LearnError, LearnedLaw, LogFiles, SensorimotorLog,
+    learn_with_progress, noise, trace_learned, AgentRank, LawMethod, LawParams, LawReport,
+    LawValidParams, LearnError, LearnedLaw, LogFiles, SensorimotorLog,
 };
 use crate::agent::{check_motor_count, Agent, Environment, MotorSpace, Workspace};
 use crate::explore::{explore_in, ExploreParams};
@@ -108,6 +118,15 @@ const MAD_TO_DEVIATION: f64 = 1.482_602_218_505_602;
 
 /// Readings of each start when verifying: 2, whose difference measures the noise.
 pub const VERIFY_START_READS: u64 = 2;
+
+/// Starts at which the agent's own slope is read for its rank ([`AgentRank`]): 16.
+pub const AGENT_RANK_STARTS: usize = 16;
+
+/// The step `δ` of the central differences of the agent's own slope: 0.01 (radians
+/// for hinges). Their error from the sensors' curvature is `O(δ²)`, ten thousand times
+/// smaller than the slope, so that a direction a thousandth as strong as the first
+/// stands out of it, where the babbling's spacing (0.1 to 0.3 rad) blurs it.
+pub const AGENT_RANK_STEP: f64 = 0.01;
 
 /// Most babbling rounds.
 pub const MAX_ROUNDS: usize = 16;
@@ -224,10 +243,16 @@ impl ValidBudgetParams {
         self.verify_points
     }
 
-    /// Rows reserved for verifying the sets of `starts` starts: `starts (V + 2)` (each
-    /// start read twice, and `V` points of its set).
-    pub fn reserved(&self, starts: usize) -> u64 {
-        (starts as u64).saturating_mul(self.verify_points as u64 + VERIFY_START_READS)
+    /// Rows reserved for verifying the sets of `starts` starts of `motors` motors:
+    /// `starts (V + 2)` (each start read twice, and `V` points of its set), and `P (2N
+    /// + 2)` for the agent's own slope at `P = min(starts,` [`AGENT_RANK_STARTS`]`)`
+    /// of them ([`AgentRank`]).
+    pub fn reserved(&self, starts: usize, motors: usize) -> u64 {
+        let per_set = self.verify_points as u64 + VERIFY_START_READS;
+        let stencil = starts.min(AGENT_RANK_STARTS) as u64 * (2 * motors as u64 + 2);
+        (starts as u64)
+            .saturating_mul(per_set)
+            .saturating_add(stencil)
     }
 }
 
@@ -321,7 +346,10 @@ pub struct RowsSpent {
     pub non_finite: u64,
     /// Rows read verifying the traced sets (each start twice, and its set's points).
     pub verify: u64,
-    /// `babble + verify`: every row read, at most the budget.
+    /// Rows read for the agent's own slope ([`AgentRank`]).
+    #[serde(default)]
+    pub agent_rank: u64,
+    /// `babble + agent_rank + verify`: every row read, at most the budget.
     pub total: u64,
 }
 
@@ -359,6 +387,9 @@ pub struct BudgetedSets {
     pub noise: Vec<f64>,
     /// The error above which a set is dropped, `τ + c σ̂`.
     pub threshold: f64,
+    /// The rank of the agent's own slope at a few starts (absent when no reading there
+    /// was finite).
+    pub agent_rank: Option<AgentRank>,
     /// Every traced set's verification, in the order of the starts.
     pub verification: Vec<SetVerification>,
     /// The babbling rounds, in order.
@@ -457,7 +488,7 @@ pub fn learn_from_agent(
 ) -> Result<BudgetedSets, LearnError> {
     check_motor_count(agent, starts.ncols()).map_err(|e| LearnError::Explore(e.into()))?;
     let n = agent.motor_dim();
-    let reserved = budget.reserved(starts.nrows());
+    let reserved = budget.reserved(starts.nrows(), n);
     let minimum = min_babble_rows(law, n);
     let babble = budget.budget.saturating_sub(reserved);
     if babble < minimum {
@@ -486,15 +517,26 @@ pub fn learn_from_agent(
         ),
         first,
     );
+    let (agent_rank, agent_rows) = read_agent_rank(
+        (agent, environment),
+        starts,
+        &space,
+        &read.spread(),
+        budget.batch,
+        progress,
+    );
     let learn_and_trace = |read: &Readings| -> Result<(LearnedLaw, TracedSets), LearnError> {
         let log = read.log(agent, &space)?;
-        let learned = learn_with_progress(
+        let mut learned = learn_with_progress(
             std::slice::from_ref(&log),
             &space,
             law,
             memory_limit,
             progress,
         )?;
+        if let Some(agent_rank) = &agent_rank {
+            learned.weigh_agent_rank(agent_rank);
+        }
         let traced = trace_learned(&learned, starts, trace, progress)?;
         Ok((learned, traced))
     };
@@ -545,7 +587,8 @@ pub fn learn_from_agent(
         babble,
         non_finite: read.non_finite(),
         verify: verify_rows,
-        total: babble + verify_rows,
+        agent_rank: agent_rows,
+        total: babble + agent_rows + verify_rows,
     };
     debug_assert!(rows.total <= budget.budget);
     Ok(BudgetedSets {
@@ -556,6 +599,7 @@ pub fn learn_from_agent(
         spread: read.spread(),
         noise: verified.noise,
         threshold: verified.threshold,
+        agent_rank,
         verification,
         rounds,
         starts: starts.nrows(),
@@ -919,6 +963,116 @@ fn read_rows(
     sensors
 }
 
+/// The agent's own slope at the first `P = min(M,` [`AGENT_RANK_STARTS`]`)` starts
+/// spread over them, and its rank ([`AgentRank`]), with the rows read (`P (2N + 2)`);
+/// `None` when no start's readings were all finite.
+fn read_agent_rank(
+    (agent, environment): (&dyn Agent, &Environment),
+    starts: ArrayView2<'_, f64>,
+    space: &MotorSpace,
+    spread: &[f64],
+    batch: usize,
+    progress: &dyn Progress,
+) -> (Option<AgentRank>, u64) {
+    let (m, n) = starts.dim();
+    let k = spread.len();
+    let count = m.min(AGENT_RANK_STARTS);
+    if count == 0 || n == 0 {
+        return (None, 0);
+    }
+    let per_start = 2 * n + 2;
+    let mut motors = Array2::<f64>::zeros((count * per_start, n));
+    // The step actually taken along every motor of every start (cut at a bound).
+    let mut steps = vec![0.0; count * n];
+    for i in 0..count {
+        let start = starts.row(i * m / count);
+        let base = i * per_start;
+        motors.row_mut(base).assign(&start);
+        motors.row_mut(base + 1).assign(&start);
+        for j in 0..n {
+            let motor = space.motor(j);
+            let (low, high) = motor.range();
+            let (mut minus, mut plus) = (start[j] - AGENT_RANK_STEP, start[j] + AGENT_RANK_STEP);
+            if !motor.is_periodic() {
+                minus = minus.max(low);
+                plus = plus.min(high);
+            }
+            steps[i * n + j] = plus - minus;
+            motors.row_mut(base + 2 + 2 * j).assign(&start);
+            motors[[base + 2 + 2 * j, j]] = plus;
+            motors.row_mut(base + 3 + 2 * j).assign(&start);
+            motors[[base + 3 + 2 * j, j]] = minus;
+        }
+    }
+    let sensors = read_rows(agent, environment, motors.view(), batch, VERIFY, progress);
+    let rows = motors.nrows() as u64;
+    let scale = |c: usize| spread[c].max(f64::MIN_POSITIVE);
+    // Each start's scaled slope, and the noise of its entries from the two centre reads.
+    let mut found: Vec<(Vec<f64>, f64)> = Vec::new();
+    for i in 0..count {
+        let base = i * per_start;
+        let block = sensors.slice_axis(Axis(0), ndarray::Slice::from(base..base + per_start));
+        if block.iter().any(|v| !v.is_finite()) {
+            continue;
+        }
+        let mut slope = faer::Mat::<f64>::zeros(k, n);
+        for j in 0..n {
+            let step = steps[i * n + j];
+            for c in 0..k {
+                if step > 0.0 {
+                    slope[(c, j)] =
+                        (block[[2 + 2 * j, c]] - block[[3 + 2 * j, c]]) / (step * scale(c));
+                }
+            }
+        }
+        let Ok(mut sigma) = crate::linalg::singular_values(slope.as_ref()) else {
+            continue;
+        };
+        sigma.sort_by(|a, b| b.total_cmp(a));
+        sigma.resize(n, 0.0);
+        // The noise variance of one entry: the two centre reads differ by √2 σ̂.
+        let noise: f64 = (0..k)
+            .map(|c| ((block[[0, c]] - block[[1, c]]) / scale(c)).powi(2) / 2.0)
+            .sum::<f64>()
+            / k as f64;
+        let smallest_step = steps[i * n..(i + 1) * n]
+            .iter()
+            .copied()
+            .filter(|&s| s > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        // Σ over the K entries of a column: K σ̂² / (2 δ²) per squared singular value.
+        let entry = k as f64 * noise * 2.0 / (smallest_step * smallest_step);
+        found.push((sigma, entry));
+    }
+    if found.is_empty() {
+        return (None, rows);
+    }
+    let median = |mut values: Vec<f64>| {
+        values.sort_by(f64::total_cmp);
+        values[values.len() / 2]
+    };
+    let squares: Vec<f64> = (0..n)
+        .map(|r| median(found.iter().map(|(s, e)| s[r] * s[r] - e).collect()))
+        .collect();
+    let largest = squares[0].max(f64::MIN_POSITIVE);
+    let spectrum: Vec<f64> = squares
+        .iter()
+        .map(|&l| (l.max(0.0) / largest).sqrt())
+        .collect();
+    let floor = (median(found.iter().map(|(_, e)| *e).collect()) / largest).sqrt();
+    let rank = noise::spectrum_rank(&spectrum, floor);
+    (
+        Some(AgentRank {
+            rank,
+            spectrum,
+            floor,
+            starts: found.len(),
+            step: AGENT_RANK_STEP,
+        }),
+        rows,
+    )
+}
+
 /// What verification found: every set's verdict, the noise measured at the starts,
 /// the threshold it set and the rows read.
 struct Verified {
@@ -1039,11 +1193,191 @@ fn keep_passed(traced: TracedSets, verification: &[SetVerification]) -> TracedSe
         .filter(|(_, v)| v.passed)
         .map(|(i, _)| i)
         .collect();
+    select_sets(&traced, &positions)
+}
+
+/// The sets of `traced` at `positions` (of its kept sets), its report cloned.
+fn select_sets(traced: &TracedSets, positions: &[usize]) -> TracedSets {
     TracedSets {
-        sets: traced.sets.select(Axis(0), &positions),
+        sets: traced.sets.select(Axis(0), positions),
         kept: positions.iter().map(|&i| traced.kept[i]).collect(),
         closure: positions.iter().map(|&i| traced.closure[i]).collect(),
-        pieces: traced.pieces.select(Axis(0), &positions),
-        report: traced.report,
+        pieces: traced.pieces.select(Axis(0), positions),
+        report: traced.report.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::learn::{learn, RankSource};
+    use crate::progress::Silent;
+
+    /// Three hinges whose sensors read the tip of a planar 3-link chain (rank 2: the
+    /// kernels are curves).
+    #[derive(Debug)]
+    struct ChainTip;
+
+    impl ChainTip {
+        fn tip(m: &[f64]) -> [f64; 2] {
+            let (a, b) = (m[0], m[0] + m[1]);
+            let t = b + m[2];
+            [
+                a.cos() + 0.6 * b.cos() + 0.3 * t.cos(),
+                a.sin() + 0.6 * b.sin() + 0.3 * t.sin(),
+            ]
+        }
+    }
+
+    impl Agent for ChainTip {
+        fn motor_dim(&self) -> usize {
+            3
+        }
+        fn sensor_dim(&self) -> usize {
+            2
+        }
+        fn sense(&self, _: &Environment, m: &[f64], s: &mut [f64]) {
+            s.copy_from_slice(&Self::tip(m));
+        }
+        fn name(&self) -> &str {
+            "chain-tip"
+        }
+    }
+
+    /// Four hinges: the tip of the chain of the first three, and a third sensor that
+    /// sees the fourth hinge `ε` as strongly: rank 3 of 4.
+    #[derive(Debug)]
+    struct WeakThird(f64);
+
+    impl Agent for WeakThird {
+        fn motor_dim(&self) -> usize {
+            4
+        }
+        fn sensor_dim(&self) -> usize {
+            3
+        }
+        fn sense(&self, _: &Environment, m: &[f64], s: &mut [f64]) {
+            let tip = ChainTip::tip(m);
+            s[0] = tip[0];
+            s[1] = tip[1];
+            s[2] = tip[0] + self.0 * m[3].sin();
+        }
+        fn name(&self) -> &str {
+            "weak-third"
+        }
+    }
+
+    fn starts(count: usize, motors: usize) -> Array2<f64> {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        Array2::from_shape_fn((count, motors), |_| {
+            rng.random_range(-std::f64::consts::PI..std::f64::consts::PI)
+        })
+    }
+
+    #[test]
+    fn the_agents_own_slope_reads_its_rank_with_2n_plus_2_rows_a_start() {
+        let environment = Environment::from_lights(Vec::new());
+        let space = MotorSpace::hinges(3);
+        let spread = [0.7, 0.7];
+        let (found, rows) = read_agent_rank(
+            (&ChainTip, &environment),
+            starts(40, 3).view(),
+            &space,
+            &spread,
+            4096,
+            &Silent,
+        );
+        let found = found.unwrap();
+        assert_eq!(rows, (AGENT_RANK_STARTS * 8) as u64);
+        assert_eq!(found.starts, AGENT_RANK_STARTS);
+        assert_eq!(found.rank, 2, "{found:?}");
+        assert!(found.spectrum[2] < 1e-3, "{found:?}");
+        assert_eq!(found.floor, 0.0);
+        // A direction a thousandth as strong as the tip's stands out of the stencil.
+        let (found, _) = read_agent_rank(
+            (&WeakThird(1e-3), &environment),
+            starts(5, 4).view(),
+            &MotorSpace::hinges(4),
+            &[0.7, 0.7, 0.7],
+            4096,
+            &Silent,
+        );
+        let found = found.unwrap();
+        assert_eq!(found.starts, 5);
+        assert_eq!(found.rank, 3, "{found:?}");
+    }
+
+    #[test]
+    fn a_higher_rank_that_the_agents_own_slope_shows_is_used_and_a_lower_one_is_reported() {
+        let agent = ChainTip;
+        let environment = Environment::from_lights(Vec::new());
+        let space = agent.motor_space();
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let motors = Array2::from_shape_fn((20_000, 3), |_| {
+            rng.random_range(-std::f64::consts::PI..std::f64::consts::PI)
+        });
+        let sensors = read_rows(&agent, &environment, motors.view(), 4096, BABBLE, &Silent);
+        let mut read = Readings::empty(3, 2);
+        read.append(sensors, motors);
+        let log = read.log(&agent, &space).unwrap();
+        let params = LawParams::default().check().unwrap();
+        let law = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+        assert_eq!(law.rank(), 2);
+        let (reading, _) = read_agent_rank(
+            (&agent, &environment),
+            starts(16, 3).view(),
+            &space,
+            &read.spread(),
+            4096,
+            &Silent,
+        );
+        let reading = reading.unwrap();
+        // The evidence of the data read rank 1 (surfaces): the agent's reading wins.
+        let mut low = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+        low.set_candidates(vec![1, 2]);
+        low.weigh_agent_rank(&reading);
+        assert_eq!(
+            (low.rank(), low.report().rank_source),
+            (2, RankSource::Agent)
+        );
+        let choice = low.report().rank_choice.as_ref().unwrap();
+        assert_eq!(
+            (choice.rank, choice.agent, choice.candidates[0]),
+            (2, Some(2), 2)
+        );
+        assert!(
+            choice.reason.contains("agent's own slope"),
+            "{}",
+            choice.reason
+        );
+        assert!(low
+            .report()
+            .warnings
+            .iter()
+            .any(|w| w.contains("agent's own readings show rank 2")));
+        // The same reading as the data's: nothing moves.
+        let mut same = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+        same.weigh_agent_rank(&reading);
+        assert_eq!(same.rank(), 2);
+        assert_ne!(same.report().rank_source, RankSource::Agent);
+        // A lower reading, or one under its noise floor, is reported and not used.
+        let mut high = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+        high.set_candidates(vec![2, 1]);
+        let lower = AgentRank {
+            rank: 1,
+            ..reading.clone()
+        };
+        high.weigh_agent_rank(&lower);
+        assert_eq!(high.rank(), 2);
+        let reason = &high.report().rank_choice.as_ref().unwrap().reason;
+        assert!(reason.contains("not used"), "{reason}");
+        let mut low = learn(std::slice::from_ref(&log), &space, &params, None).unwrap();
+        low.set_candidates(vec![1, 2]);
+        let noisy = AgentRank {
+            floor: 1.0,
+            ..reading
+        };
+        low.weigh_agent_rank(&noisy);
+        assert_eq!(low.rank(), 1);
     }
 }

@@ -786,6 +786,9 @@ pub enum RankSource {
     Law,
     /// Given by the user (`rank` of [`LawParams`](super::LawParams)).
     Given,
+    /// The agent's own slope, read at a few starts with a tight stencil
+    /// ([`AgentRank`]): a direction of change too weak for the babbling's spacing.
+    Agent,
     /// The next candidate of [`RankChoice::candidates`]: every set failed at the ranks
     /// before it ([`RankChoice::tried`]).
     Retried,
@@ -810,7 +813,9 @@ pub const HELD_OUT_SLACK: f64 = 2.0;
 /// candidates in the order they are tried, and why.
 ///
 /// The evidence: the data's slope spectrum (`data`: the rank at its clear gap, see
-/// [`super::spectrum_rank`]); for `invariants`, the rank of the invariants' Jacobian
+/// [`super::spectrum_rank`]); the held-out prediction at each rank (`held_out`: the
+/// rank whose fits predict unseen samples best, a lower bound where a direction is
+/// weaker than the curvature across the data's spacing); for `invariants`, the rank of the invariants' Jacobian
 /// at the probed samples (`invariants`, with the share of the probes that show it)
 /// with the gap of their eigenvalues (`invariants_gap`, `λ_{q+1} / λ_q`) and their
 /// held-out `λ`. The invariants' rank is chosen over the data's
@@ -825,9 +830,14 @@ pub const HELD_OUT_SLACK: f64 = 2.0;
 ///   gap at a lower rank is a weak direction of change (far lights, long ranges) read
 ///   as the leak of the kernel's direction.
 ///
-/// Otherwise the data's rank stands. A rank given by the user is used as given; the
-/// estimate is reported beside it, with a warning when they differ. When every traced
-/// set fails at the estimated rank, the next candidate is traced (`tried`).
+/// Otherwise the data's rank stands. Where the held-out reading differs from the rank
+/// chosen, the reason says so with the errors at both ranks; it is not used against
+/// the spectrum, which sees weak directions that held-out prediction at the data's
+/// spacing cannot, but it is among the candidates. A rank given by the user is used as
+/// given; the estimate is reported beside it, with a warning when they differ. When
+/// every traced set fails at the estimated rank, the next candidate is traced
+/// (`tried`); with an agent at hand, when most of a few sets fail against its readings,
+/// the next candidates above are tried ([`super::budget`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RankChoice {
     /// The rank used.
@@ -843,6 +853,13 @@ pub struct RankChoice {
     /// The rank of the data's slope spectrum (`data_rank`), absent for a short log.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub data: Option<usize>,
+    /// The rank at which held-out prediction is best (`data_rank.held_out_rank`, see
+    /// [`super::held_out_rank`]), absent for a short log.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<usize>,
+    /// The rank of the agent's own slope ([`AgentRank`]), when an agent was read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub agent: Option<usize>,
     /// The most frequent rank of the law's Jacobian at the probed samples (the
     /// invariants' for `invariants`).
     pub invariants: usize,
@@ -871,6 +888,55 @@ pub struct TriedRank {
     pub total: usize,
     /// The sets' statuses and their counts.
     pub by_status: std::collections::BTreeMap<String, usize>,
+}
+
+/// The rank of an agent's own slope `∂s/∂m`, read where a learned law is traced
+/// ([`super::budget`]): at `P` starts `m`, the agent is read twice at `m` and at
+/// `m ± δ e_j` for every motor `j` (`2N + 2` rows; a bounded motor's step is cut at
+/// its limits). The central differences, each sensor divided by its spread `σ_k`,
+/// give the slope `B` (`K × N`) with the error `O(δ²)` of the curvature and the noise
+/// `σ̂_k / (√2 δ)` per entry (`σ̂_k` from the two readings at `m`, relative). As for
+/// the data's spectrum ([`super::LocalRank`]), the spectrum is the median over the
+/// starts of `β_r² − K σ̂² / (2δ²)` relative to that of `β_1²`, square-rooted, and
+/// `floor` the noise's share on the same scale; the rank is read by
+/// [`super::spectrum_rank`] with values at or under `floor` not counted.
+///
+/// It is weighed against the law's estimate ([`LearnedLaw::weigh_agent_rank`]): when it
+/// is higher, inside `1..N`, and its value at that rank is at least
+/// [`AGENT_FLOOR_MULTIPLE`] times its floor, the agent's rank is used (a direction
+/// the babbling's spacing blurred into the curvature); a lower reading is reported, not
+/// used (noise hides weak directions from a short stencil).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AgentRank {
+    /// The rank read.
+    pub rank: usize,
+    /// The median spectrum, `β_r / β_1`, `r = 1..=N`.
+    pub spectrum: Vec<f64>,
+    /// The noise's share of the spectrum.
+    pub floor: f64,
+    /// Starts read.
+    pub starts: usize,
+    /// The stencil's step `δ` (motor units).
+    pub step: f64,
+}
+
+/// How many times its noise floor the agent's spectrum must be at a rank above the
+/// law's estimate for that rank to be used ([`AgentRank`]): 3.
+pub const AGENT_FLOOR_MULTIPLE: f64 = 3.0;
+
+impl LawReport {
+    /// The report after every set failed at `tried.rank` (in tracing, or against the
+    /// agent's readings) and the sets were traced again at `next`: `rank`,
+    /// `rank_source` ([`RankSource::Retried`]) and `rank_choice.tried` say so.
+    pub(crate) fn retried(&mut self, tried: TriedRank, next: usize) {
+        self.rank = next;
+        self.rank_source = RankSource::Retried;
+        if let Some(choice) = self.rank_choice.as_mut() {
+            choice.tried.push(tried);
+            choice.rank = next;
+            choice.source = RankSource::Retried;
+        }
+    }
 }
 
 /// The evidence on the rank that [`choose_rank`] weighs.
@@ -999,11 +1065,28 @@ pub(crate) fn choose_rank(evidence: &RankEvidence<'_>) -> RankChoice {
             ),
         ),
     };
+    let held_out = evidence.data.and_then(|d| d.held_out_rank);
+    let reason = match (held_out, evidence.data) {
+        (Some(h), Some(data)) if h != estimate && data.held_out.len() > h.max(estimate) => {
+            format!(
+                "{reason}; held-out prediction is best at rank {h} (error {:.4} of the sensors' spread, {:.4} at rank {estimate}){}",
+                data.held_out[h],
+                data.held_out[estimate],
+                if h < estimate {
+                    format!(": directions beyond rank {h} change the sensors less than the curvature across the data's spacing")
+                } else {
+                    String::new()
+                }
+            )
+        }
+        _ => reason,
+    };
     // The candidates: the estimate, the other readings, then the spectrum's gaps from
     // the largest ratio down.
     let mut candidates = vec![estimate, generic];
     if let Some(data) = evidence.data {
         candidates.push(data.rank);
+        candidates.extend(data.held_out_rank);
         let s = &data.spectrum;
         let mut gaps: Vec<(f64, usize)> = (1..s.len())
             .map(|r| (s[r - 1] / s[r].max(f64::MIN_POSITIVE), r))
@@ -1034,6 +1117,8 @@ pub(crate) fn choose_rank(evidence: &RankEvidence<'_>) -> RankChoice {
         given: evidence.given,
         estimate,
         data: evidence.data.map(|d| d.rank),
+        held_out,
+        agent: None,
         invariants: generic,
         invariants_share: share,
         invariants_gap: gap,
@@ -1188,6 +1273,77 @@ impl LearnedLaw {
     /// The law's rank (the tracer's [`Agent::sensory_rank`]).
     pub fn rank(&self) -> usize {
         self.rank
+    }
+
+    /// Weighs the agent's own slope ([`AgentRank`]) against the rank the law's evidence
+    /// read: a higher reading, inside `1..N` and clear of its noise floor
+    /// ([`AGENT_FLOOR_MULTIPLE`]), is used (source [`RankSource::Agent`], first of the
+    /// candidates); otherwise the rank stands and the reason says what the agent read.
+    /// A rank given by the user is never changed.
+    pub fn weigh_agent_rank(&mut self, agent: &AgentRank) {
+        let n = self.space.dim();
+        let Some(choice) = self.report.rank_choice.as_mut() else {
+            return;
+        };
+        choice.agent = Some(agent.rank);
+        if agent.rank == self.rank {
+            choice.reason.push_str(&format!(
+                "; the agent's own slope at {} starts reads the same",
+                agent.starts
+            ));
+            return;
+        }
+        let value = agent
+            .rank
+            .checked_sub(1)
+            .and_then(|r| agent.spectrum.get(r));
+        let clear = value.is_some_and(|&v| v >= AGENT_FLOOR_MULTIPLE * agent.floor && v > 0.0);
+        let spectrum = format_spectrum(&agent.spectrum);
+        if self.report.rank_source != RankSource::Given
+            && agent.rank > self.rank
+            && (1..n).contains(&agent.rank)
+            && clear
+        {
+            let before = self.rank;
+            choice.reason.push_str(&format!(
+                "; the agent's own slope at {} starts (step {}) reads rank {} (spectrum {spectrum}, noise floor {:.4}): a direction of change too weak for the babbling's spacing, used in place of rank {before}",
+                agent.starts, agent.step, agent.rank, agent.floor
+            ));
+            choice.rank = agent.rank;
+            choice.source = RankSource::Agent;
+            choice.candidates.retain(|&r| r != agent.rank);
+            choice.candidates.insert(0, agent.rank);
+            self.rank = agent.rank;
+            self.report.rank = agent.rank;
+            self.report.rank_source = RankSource::Agent;
+            self.report.warnings.push(format!(
+                "the agent's own readings show rank {} where the babbled data read {before}: the sets are traced at rank {} (kernels of dimension {})",
+                agent.rank,
+                agent.rank,
+                n - agent.rank
+            ));
+        } else {
+            let why = if self.report.rank_source == RankSource::Given {
+                "the rank was given".to_owned()
+            } else if agent.rank < self.rank {
+                "a short stencil's noise can hide weak directions".to_owned()
+            } else if !(1..n).contains(&agent.rank) {
+                format!(
+                    "rank {} leaves no kernel of dimension 1 to {}",
+                    agent.rank,
+                    n - 1
+                )
+            } else {
+                format!(
+                    "its value at rank {} is not {AGENT_FLOOR_MULTIPLE} times its noise floor {:.4}",
+                    agent.rank, agent.floor
+                )
+            };
+            choice.reason.push_str(&format!(
+                "; the agent's own slope at {} starts reads rank {} (spectrum {spectrum}), not used: {why}",
+                agent.starts, agent.rank
+            ));
+        }
     }
 
     /// Sets the rank and the candidates of the rank choice, as if the evidence had read
@@ -1441,6 +1597,8 @@ mod tests {
             spectrum: spectrum.to_vec(),
             floor: 0.0,
             probes: 4096,
+            held_out: Vec::new(),
+            held_out_rank: None,
         }
     }
 
@@ -1482,10 +1640,21 @@ mod tests {
         // The retina of 8 Cauchy cells with far lights at 10⁶ samples: the spectrum's
         // gap of 4.3 after the first value reads rank 1; the nine invariants (λ ≤
         // 0.005, next 0.544) change along 3 directions at every probe.
-        let spectrum = data(1, &[1.0, 0.234, 0.083, 0.026]);
+        let mut spectrum = data(1, &[1.0, 0.234, 0.083, 0.026]);
+        // Held out, the fits predict best at rank 1 (the paper's arm's kind of errors).
+        spectrum.held_out = vec![0.319, 0.179, 0.175, 0.183, 0.193];
+        spectrum.held_out_rank = Some(1);
         let counts = [0, 0, 0, 512, 0];
         let choice = choose(None, &spectrum, &counts, &invariants(0.005, 0.544, 0.004));
         assert_eq!(choice.rank, 3, "{choice:?}");
+        assert_eq!(choice.held_out, Some(1));
+        assert!(
+            choice
+                .reason
+                .contains("held-out prediction is best at rank 1 (error 0.1790 of the sensors' spread, 0.1830 at rank 3)"),
+            "{}",
+            choice.reason
+        );
         assert_eq!(choice.source, RankSource::Invariants);
         assert_eq!(choice.candidates[0], 3);
         assert!(choice.candidates.contains(&1), "{choice:?}");

@@ -181,8 +181,8 @@ pub use compare::{comparison_period, set_errors, SetErrors};
 use invariants::InvariantModel;
 pub use invariants::{InvariantsReport, MAX_INVARIANTS};
 pub use law::{
-    FitSupport, LawReport, LearnedLaw, LogReport, RankChoice, RankSource, TriedRank,
-    HELD_OUT_SLACK, INVARIANT_GAP, UNANIMOUS_SHARE,
+    AgentRank, FitSupport, LawReport, LearnedLaw, LogReport, RankChoice, RankSource, TriedRank,
+    AGENT_FLOOR_MULTIPLE, HELD_OUT_SLACK, INVARIANT_GAP, UNANIMOUS_SHARE,
 };
 pub use log::{
     declared_space, parse_motor_declarations, LogFiles, MotorDeclaration, SensorimotorLog,
@@ -190,8 +190,8 @@ pub use log::{
 };
 pub use memory::{gib_bytes, MemoryEstimate, DEFAULT_MEMORY_LIMIT_GIB};
 pub use noise::{
-    estimate_local, spectrum_rank, LocalRank, NoiseEstimate, CLEAR_GAP, FULL_RANK_RATIO,
-    MAX_CORRELATION, MEASURABLE_SHARE,
+    estimate_local, held_out_rank, spectrum_rank, LocalRank, NoiseEstimate, CLEAR_GAP,
+    FULL_RANK_RATIO, HELD_OUT_TIE, MAX_CORRELATION, MEASURABLE_SHARE,
 };
 pub use quality::{LawQuality, MAX_HELD_OUT_RATIO, MIN_CLOSURE_RATE, MIN_SAMPLES_PER_DIMENSION};
 pub use simulate::{simulate, LogRecord, SimulateParams, SimulatedLog, SIMULATED_LOG_FILES};
@@ -915,6 +915,18 @@ pub fn trace_learned(
     params: &crate::kernel::TraceParams,
     progress: &dyn crate::progress::Progress,
 ) -> Result<crate::kernel::TracedSets, LearnError> {
+    trace_learned_as(law, law.report().clone(), starts, params, progress)
+}
+
+/// [`trace_learned`] at the rank `report.rank` (the law's own or another candidate),
+/// whose report `report` completes.
+pub(crate) fn trace_learned_as(
+    law: &LearnedLaw,
+    mut report: LawReport,
+    starts: ndarray::ArrayView2<'_, f64>,
+    params: &crate::kernel::TraceParams,
+    progress: &dyn crate::progress::Progress,
+) -> Result<crate::kernel::TracedSets, LearnError> {
     let params = crate::kernel::TraceParams {
         method: crate::kernel::TraceMethod::Sensory,
         sensor_tolerance: params.sensor_tolerance.max(LAW_SENSOR_TOLERANCE),
@@ -922,17 +934,23 @@ pub fn trace_learned(
     }
     .check()?;
     let unused = crate::agent::Environment::from_lights(Vec::new());
-    let mut traced =
-        crate::kernel::trace_sets(law, Some(&unused), starts, None, &params, progress)?;
-    let mut report = law.report().clone();
+    let at_rank = |rank: usize| law::AtRank { law, rank };
+    let mut traced = crate::kernel::trace_sets(
+        &at_rank(report.rank),
+        Some(&unused),
+        starts,
+        None,
+        &params,
+        progress,
+    )?;
     // Every set failed at the estimated rank: the next candidates, in order.
     let candidates = report
         .rank_choice
         .as_ref()
         .map(|c| c.candidates.clone())
         .unwrap_or_default();
-    let mut at = candidates.iter().position(|&r| r == law.rank());
-    let given = law.report().rank_source == RankSource::Given;
+    let mut at = candidates.iter().position(|&r| r == report.rank);
+    let given = report.rank_source == RankSource::Given;
     while !given && everything_failed(&traced.report.summary) {
         let Some(next) = at.and_then(|i| candidates.get(i + 1)).copied() else {
             break;
@@ -951,16 +969,15 @@ pub fn trace_learned(
             failed.by_status,
             crate::agent::Agent::motor_dim(law) - next
         ));
-        let retried = law::AtRank { law, rank: next };
-        traced =
-            crate::kernel::trace_sets(&retried, Some(&unused), starts, None, &params, progress)?;
-        report.rank = next;
-        report.rank_source = RankSource::Retried;
-        if let Some(choice) = report.rank_choice.as_mut() {
-            choice.tried.push(tried);
-            choice.rank = next;
-            choice.source = RankSource::Retried;
-        }
+        traced = crate::kernel::trace_sets(
+            &at_rank(next),
+            Some(&unused),
+            starts,
+            None,
+            &params,
+            progress,
+        )?;
+        report.retried(tried, next);
     }
     // A report of numbers and names always serialises.
     traced.report.law = serde_json::to_value(report.with_trace(&traced.report.summary)).ok();
