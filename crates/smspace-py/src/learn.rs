@@ -217,11 +217,9 @@ fn _learn_agent<'py>(
     progress.check()?;
     let budgeted = learned.map_err(to_py_err)?;
     let law = serde_json::to_string(&budgeted.law).map_err(|e| value_error(e.to_string()))?;
-    let mut spent = serde_json::to_value(&budgeted).map_err(|e| value_error(e.to_string()))?;
-    if let Some(fields) = spent.as_object_mut() {
-        fields.remove("law");
-        fields.insert("warnings".to_owned(), Value::from(budgeted.warnings()));
-    }
+    let spent = budgeted
+        .spent_report()
+        .ok_or_else(|| value_error("the budget's report did not serialise".to_owned()))?;
     let (sets, kept, closed, pieces, report) = traced_outputs(py, budgeted.traced, rows)?;
     Ok((sets, kept, closed, pieces, report, law, spent.to_string()))
 }

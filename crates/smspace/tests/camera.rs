@@ -259,11 +259,6 @@ fn a_camera_needs_a_scene_and_a_valid_body() {
             .to_string()
     };
     let planar = "joints = [{ axis = [0, 0, 1], link = [1.0, 0, 0] }]\n";
-    let err = build(&format!("{planar}[camera]\nheight = 8"));
-    assert!(
-        err.contains("camera.height = 8") && err.contains("planar"),
-        "{err}"
-    );
     let err = build(&format!("{planar}[camera]\nfov = 3.5"));
     assert!(err.contains("camera.fov = 3.5"), "{err}");
     let err = build(&format!("{planar}[camera]\nwidth = 1000000000"));
@@ -369,4 +364,49 @@ fn an_environment_table_gives_a_camera_its_textured_room_and_a_retina_its_lights
     .unwrap_err()
     .to_string();
     assert!(error.contains("room"), "{error}");
+}
+
+#[test]
+fn a_planar_arms_image_has_rows_and_depends_on_the_cameras_pose_in_the_plane_only() {
+    // The paper's arm as a chain (3 unit links on z hinges, the camera's hinge) with a
+    // 32 × 24 image: its rows look above and below the arm's plane.
+    let arm = chain(
+        "joints = [{ axis = [0, 0, 1], link = [1.0, 0, 0] }, { axis = [0, 0, 1], link = [1.0, 0, 0] }, \
+         { axis = [0, 0, 1], link = [1.0, 0, 0] }, { axis = [0, 0, 1], link = [0, 0, 0] }]\n\
+         [camera]\nwidth = 32\nheight = 24\nfov = 1.2",
+    );
+    assert_eq!(arm.sensor_dim(), 32 * 24);
+    let environment = Environment::from_scene(Scene::textured_room([8.0, 8.0, 4.0], 3));
+    environment.check_for(arm.as_ref()).unwrap();
+    let image = |m: &[f64]| {
+        let mut s = vec![0.0; arm.sensor_dim()];
+        arm.sense(&environment, m, &mut s);
+        s
+    };
+    let m = [0.4, 0.9, -0.7, 0.3];
+    let seen = image(&m);
+    let row = |r: usize| &seen[r * 32..(r + 1) * 32];
+    let change: f64 = row(0).iter().zip(row(23)).map(|(a, b)| (a - b).abs()).sum();
+    assert!(change > 0.1, "the top and bottom rows differ: {change}");
+    // The other elbow of the first two links reaches the same wrist; the third link
+    // keeps its direction: the same pose, the same image.
+    let (l1, l2) = (1.0_f64, 1.0_f64);
+    let flipped1 = m[0] + 2.0 * (l2 * m[1].sin()).atan2(l1 + l2 * m[1].cos());
+    let flipped = [flipped1, -m[1], m[0] + m[1] + m[2] - flipped1 + m[1], m[3]];
+    let pose = |m: &[f64]| {
+        let mut p = [0.0; 3];
+        arm.ground_truth().unwrap().pose(m, &mut p);
+        p
+    };
+    let (a, b) = (pose(&m), pose(&flipped));
+    for (x, y) in a.iter().zip(&b) {
+        assert_abs_diff_eq!(x, y, epsilon = 1e-12);
+    }
+    let other = image(&flipped);
+    for (x, y) in seen.iter().zip(&other) {
+        assert_abs_diff_eq!(x, y, epsilon = 1e-9);
+    }
+    // A different pose, a different image.
+    let moved = image(&[0.5, 0.9, -0.7, 0.3]);
+    assert!(seen.iter().zip(&moved).any(|(x, y)| (x - y).abs() > 1e-3));
 }

@@ -16,8 +16,10 @@
 //!
 //! (the retina's sign convention: an image coordinate `a` sees the direction with
 //! `ŷ·d / x̂·d = −a`; `+y` of the frame is to the left, `+z` up). `height = 1` is a
-//! strip of `W` pixels in the frame's `xy` plane: the only camera a planar chain (all
-//! axes along `±z`) may carry, since its image then stays in the plane of the chain.
+//! strip of `W` pixels in the frame's `xy` plane. A planar chain (all axes along `±z`)
+//! may carry an image of any height: its rows look above and below the chain's plane
+//! into the 3-D scene, and the image changes with the camera's pose in the plane
+//! `(x, y, α)` only, so its rank is at most 3, as the retina's.
 //!
 //! **Pixel values.** The ray of pixel `(r, c)` starts at `p` with the footprint
 //! `σ(t) = ς_{r,c} t`, `ς_{r,c} = ½ δ (x̂·d̂_{r,c})` (half a pixel's pitch at the
@@ -134,9 +136,8 @@ impl Default for CameraParams {
 }
 
 impl CameraParams {
-    /// Checks the image's size and field of view; `planar` says whether the chain
-    /// moves in a plane (then the image is one row).
-    fn check(&self, planar: bool) -> Result<(), AgentError> {
+    /// Checks the image's size and field of view.
+    fn check(&self) -> Result<(), AgentError> {
         let sensors = self
             .width
             .checked_mul(self.height)
@@ -164,15 +165,6 @@ impl CameraParams {
             )
             .into());
         }
-        if planar && self.height != 1 {
-            return Err(InvalidParameter::new(
-                "agent",
-                "camera.height",
-                self.height,
-                "a planar chain (every axis along ±z) carries a strip camera of height = 1, whose image stays in its plane; give height = 1, or a joint with another axis",
-            )
-            .into());
-        }
         Ok(())
     }
 }
@@ -191,7 +183,7 @@ pub struct Camera {
 impl Camera {
     /// A camera of `params` at the end of `chain`.
     pub fn new(chain: Chain, params: &CameraParams) -> Result<Self, AgentError> {
-        params.check(chain.is_planar())?;
+        params.check()?;
         let (w, h) = (params.width, params.height);
         let pitch = 2.0 * (0.5 * params.fov).tan() / w as f64;
         let mut rays = Vec::with_capacity(w * h);

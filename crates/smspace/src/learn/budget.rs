@@ -408,15 +408,22 @@ impl BudgetedSets {
     /// report's `budget` this value as JSON (the law's report left to its own `law`)
     /// with its [`warnings`](Self::warnings).
     pub fn into_traced(self) -> TracedSets {
-        let mut spent = serde_json::to_value(&self).ok();
-        if let Some(fields) = spent.as_mut().and_then(|v| v.as_object_mut()) {
-            fields.remove("law");
-            fields.insert("warnings".to_owned(), self.warnings().into());
-        }
+        let spent = self.spent_report();
         let mut traced = self.traced;
         traced.report.method = crate::kernel::TraceMethod::Learned;
         traced.report.budget = spent;
         traced
+    }
+
+    /// The report of how the budget was spent (the trace report's `budget`, Python's
+    /// `report["budget"]`): this value as JSON without the law's report, which has its
+    /// own place, and with its [`warnings`](Self::warnings).
+    pub fn spent_report(&self) -> Option<serde_json::Value> {
+        let mut spent = serde_json::to_value(self).ok()?;
+        let fields = spent.as_object_mut()?;
+        fields.remove("law");
+        fields.insert("warnings".to_owned(), self.warnings().into());
+        Some(spent)
     }
 
     /// What a user must know, one sentence each: rows left out for readings that are
