@@ -155,3 +155,23 @@ def test_the_first_round_of_babbling_stays_in_the_working_space():
     first = np.concatenate(read)[: anywhere.report["budget"]["rounds"][0]["rows"]]
     assert x_of(first).min() < -1.0
     assert len(traced) >= 2 and len(anywhere) >= 2
+
+
+def test_camera_frames_are_learned_as_rows_of_pixels():
+    motors, sensors = cart_log(20000, seed=2)
+    x = sensors[:, 0]
+    # A 3 × 4 grey "camera" whose pixels are smooth functions of x: frames (S, H, W).
+    rows, cols = np.meshgrid(np.arange(3), np.arange(4), indexing="ij")
+    frames = np.sin(x[:, None, None] * (1 + 0.3 * cols) + 0.5 * rows)
+    starts = np.array([[0.3, 0.2], [-0.6, 0.4], [0.1, -0.2]])
+    from_frames = smspace.learn(motors, frames, starts, points=30)
+    from_rows = smspace.learn(motors, frames.reshape(len(frames), -1), starts, points=30)
+    assert from_frames.law["rank"] == 1
+    assert np.array_equal(from_frames.sets, from_rows.sets)
+    # Colour frames (S, H, W, C) are rows of H W C sensors, channels last.
+    colour = np.stack([frames, 0.5 * frames, frames**2], axis=-1)
+    assert len(smspace.learn(motors, colour, starts, points=30)) >= 2
+    with pytest.raises(ValueError, match="no pixels"):
+        smspace.learn(motors, frames[:, :0], starts)
+    with pytest.raises(ValueError, match=r"camera frames \(S, H, W\)"):
+        smspace.learn(motors, x, starts)

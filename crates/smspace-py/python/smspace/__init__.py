@@ -101,6 +101,23 @@ def _array(value: Any, name: str, ndim: int) -> np.ndarray:
     return array
 
 
+def _rows(value: Any, name: str) -> np.ndarray:
+    """Sensor readings as rows ``(S, K)``: a 2-D array as it is, camera frames
+    ``(S, H, W)`` or ``(S, H, W, C)`` flattened per frame (row-major, channels last;
+    a view when the frames are contiguous)."""
+    array = np.asarray(value)
+    if array.ndim in (3, 4):
+        if array.shape[0] == 0 or 0 in array.shape[1:]:
+            raise ValueError(f"{name}: frames of shape {array.shape} have no pixels")
+        array = array.reshape(array.shape[0], -1)
+    elif array.ndim != 2:
+        raise ValueError(
+            f"{name} must be rows (S, K) or camera frames (S, H, W) or (S, H, W, C), "
+            f"got shape {array.shape}"
+        )
+    return _array(array, name, 2)
+
+
 def _closed_codes(closed: Any, sets: int) -> Optional[np.ndarray]:
     """The closed/open code of every set (1: closed loop, 0: open polyline)."""
     if closed is None:
@@ -410,11 +427,14 @@ def learn(
     would need more than ``memory_limit_bytes`` (default 16 GiB). The result is a
     :class:`Traced` whose ``law`` is the law's report (``sets.law.json``: the rank and
     its evidence, the held-out error, the measured noise, repeated samples, the
-    warnings, each also raised as a :class:`TraceWarning`)."""
+    warnings, each also raised as a :class:`TraceWarning`). Camera frames may be given
+    as they are recorded, ``(S, H, W)`` grey or ``(S, H, W, C)`` colour: each frame is
+    one row of ``K = H W C`` sensors, row-major and channels last, as the built-in
+    camera writes them."""
     motors = [motors] if not isinstance(motors, (list, tuple)) else list(motors)
     sensors = [sensors] if not isinstance(sensors, (list, tuple)) else list(sensors)
     motors = [_array(m, f"motors[{i}]", 2) for i, m in enumerate(motors)]
-    sensors = [_array(s, f"sensors[{i}]", 2) for i, s in enumerate(sensors)]
+    sensors = [_rows(s, f"sensors[{i}]") for i, s in enumerate(sensors)]
     starts = _array(starts, "starts", 2)
     values = dict(params, method=method, points=points)
     sets, kept, closed, pieces, report, law = _core._learn(

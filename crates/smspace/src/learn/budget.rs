@@ -4,10 +4,10 @@
 //!
 //! A budget of `B` rows for `M` starts and `V = verify_points` is spent as follows.
 //!
-//! 1. **Reserve** `(M + 3P) (V + 2)` rows for verification (each start read twice and
-//!    `V` points of its set; `P = min(M,` [`RANK_PROBE_SETS`]`)` sets for the rank's
-//!    check, at up to `1 +` [`RANK_PROBE_RETRIES`] ranks). The rest is the babbling;
-//!    below [`min_babble_rows`] the budget is refused before any row is read
+//! 1. **Reserve** `M (V + 2)` rows for verification (each start read twice and `V`
+//!    points of its set) and `P (2N + 2)` for the agent's own slope (step 3,
+//!    `P = min(M,` [`AGENT_RANK_STARTS`]`)`). The rest is the babbling; below
+//!    [`min_babble_rows`] the budget is refused before any row is read
 //!    ([`LearnError::Budget`]).
 //! 2. **Babble in rounds** (`rounds = R`, default 2). The first round reads
 //!    `max(minimum, first_round · b)` rows (`b` the babbling's rows) (`first_round` 0.5 by
@@ -34,16 +34,13 @@
 //!    call after the other. Rows with a reading that is not finite are counted, the
 //!    first [`NAMED_NON_FINITE`] named, and left out of the log. The spacing's median
 //!    and 90th percentile after each round are reported ([`RoundReport`]).
-//! 3. **Learn** the law from every row read and trace the starts on it, as above.
-//! 4. **Check the rank against the agent.** `P` of the traced sets, spread over them,
-//!    are verified as in step 5. When fewer than half pass and the rank was not given,
-//!    those starts are traced at each of the next [`RANK_PROBE_RETRIES`] candidate
-//!    ranks above it ([`RankChoice::candidates`](super::RankChoice::candidates)) and
-//!    verified again; at the first where at least half pass, every start is traced at
-//!    it, and the law's report gives the ranks tried with their counts. A kernel too
-//!    large for the agent (a rank read too low: a weak direction of change the law
-//!    smoothed away) holds the law's values and not the agent's readings; a rank read
-//!    too high gives sets inside the true kernels, which pass.
+//! 3. **Read the agent's own slope** after the first round, at `P` of the starts
+//!    spread over them: twice at the start and at `± δ` along each motor
+//!    ([`AGENT_RANK_STEP`]), so its rank is read without the babbling's spacing
+//!    ([`AgentRank`]). Every law learned is weighed against it
+//!    ([`LearnedLaw::weigh_agent_rank`]): a higher rank, clear of the stencil's noise,
+//!    is traced at.
+//! 4. **Learn** the law from every row read and trace the starts on it, as above.
 //! 5. **Verify** each traced set without the truth: the agent is read twice at the
 //!    start `m⁰` (readings `a`, `b`) and once at each of `V` points `p_v` spread along
 //!    the set (points `⌊(v + ½) P / V⌋` of its `P`). Readings are measured in units of
