@@ -547,22 +547,12 @@ pub fn learn_from_agent(
     let (mut learned, mut traced) = learn_and_trace(&read)?;
     let mut rounds = vec![read.round(plan[0], &traced, starts, &space)];
     for (round, &rows) in plan.iter().enumerate().skip(1) {
-        // A share of every later round goes where the first did, so that the law's
-        // coverage keeps growing where no set was traced yet.
-        let spread = (SPREAD_SHARE * rows as f64).round() as usize;
-        let mut motors = spread_motors(agent, workspace, budget, round, spread)?;
-        let around = around_sets(
-            &read,
-            &traced,
-            starts,
-            &space,
-            budget,
+        let motors = later_round_motors(
+            (agent, workspace, budget),
+            (&read, &traced, starts),
             round,
-            rows as usize - spread,
-        );
-        motors
-            .append(Axis(0), around.view())
-            .expect("rows of the same motors");
+            rows,
+        )?;
         read.append(
             read_rows(
                 agent,
@@ -608,6 +598,33 @@ pub fn learn_from_agent(
         rounds,
         starts: starts.nrows(),
     })
+}
+
+/// The motor rows of later babbling round `round` (`rows` of them): a share
+/// ([`SPREAD_SHARE`]) drawn as the first round's, so that the law's coverage keeps
+/// growing where no set was traced yet, the rest around the sets `traced` on the law of
+/// the rows `read` so far (see the module docs).
+fn later_round_motors(
+    (agent, workspace, budget): (&dyn Agent, Option<Workspace>, &ValidBudgetParams),
+    (read, traced, starts): (&Readings, &TracedSets, ArrayView2<'_, f64>),
+    round: usize,
+    rows: u64,
+) -> Result<Array2<f64>, LearnError> {
+    let spread = (SPREAD_SHARE * rows as f64).round() as usize;
+    let mut motors = spread_motors(agent, workspace, budget, round, spread)?;
+    let around = around_sets(
+        read,
+        traced,
+        starts,
+        &agent.motor_space(),
+        budget,
+        round,
+        rows as usize - spread,
+    );
+    motors
+        .append(Axis(0), around.view())
+        .expect("rows of the same motors");
+    Ok(motors)
 }
 
 /// The rows each babbling round reads: the first `max(minimum, first_round · babble)`
