@@ -1068,19 +1068,7 @@ fn read_agent_rank(
     if found.is_empty() {
         return (None, rows);
     }
-    let median = |mut values: Vec<f64>| {
-        values.sort_by(f64::total_cmp);
-        values[values.len() / 2]
-    };
-    let squares: Vec<f64> = (0..n)
-        .map(|r| median(found.iter().map(|(s, e)| s[r] * s[r] - e).collect()))
-        .collect();
-    let largest = squares[0].max(f64::MIN_POSITIVE);
-    let spectrum: Vec<f64> = squares
-        .iter()
-        .map(|&l| (l.max(0.0) / largest).sqrt())
-        .collect();
-    let floor = (median(found.iter().map(|(_, e)| *e).collect()) / largest).sqrt();
+    let (spectrum, floor) = noise::debiased_spectrum(&found, n);
     let rank = noise::spectrum_rank(&spectrum, floor);
     (
         Some(AgentRank {
@@ -1214,17 +1202,12 @@ fn keep_passed(traced: TracedSets, verification: &[SetVerification]) -> TracedSe
         .filter(|(_, v)| v.passed)
         .map(|(i, _)| i)
         .collect();
-    select_sets(&traced, &positions)
-}
-
-/// The sets of `traced` at `positions` (of its kept sets), its report cloned.
-fn select_sets(traced: &TracedSets, positions: &[usize]) -> TracedSets {
     TracedSets {
-        sets: traced.sets.select(Axis(0), positions),
+        sets: traced.sets.select(Axis(0), &positions),
         kept: positions.iter().map(|&i| traced.kept[i]).collect(),
         closure: positions.iter().map(|&i| traced.closure[i]).collect(),
-        pieces: traced.pieces.select(Axis(0), positions),
-        report: traced.report.clone(),
+        pieces: traced.pieces.select(Axis(0), &positions),
+        report: traced.report,
     }
 }
 

@@ -915,18 +915,7 @@ pub fn trace_learned(
     params: &crate::kernel::TraceParams,
     progress: &dyn crate::progress::Progress,
 ) -> Result<crate::kernel::TracedSets, LearnError> {
-    trace_learned_as(law, law.report().clone(), starts, params, progress)
-}
-
-/// [`trace_learned`] at the rank `report.rank` (the law's own or another candidate),
-/// whose report `report` completes.
-pub(crate) fn trace_learned_as(
-    law: &LearnedLaw,
-    mut report: LawReport,
-    starts: ndarray::ArrayView2<'_, f64>,
-    params: &crate::kernel::TraceParams,
-    progress: &dyn crate::progress::Progress,
-) -> Result<crate::kernel::TracedSets, LearnError> {
+    let mut report = law.report().clone();
     let params = crate::kernel::TraceParams {
         method: crate::kernel::TraceMethod::Sensory,
         sensor_tolerance: params.sensor_tolerance.max(LAW_SENSOR_TOLERANCE),
@@ -934,15 +923,17 @@ pub(crate) fn trace_learned_as(
     }
     .check()?;
     let unused = crate::agent::Environment::from_lights(Vec::new());
-    let at_rank = |rank: usize| law::AtRank { law, rank };
-    let mut traced = crate::kernel::trace_sets(
-        &at_rank(report.rank),
-        Some(&unused),
-        starts,
-        None,
-        &params,
-        progress,
-    )?;
+    let trace_at = |rank: usize| {
+        crate::kernel::trace_sets(
+            &law::AtRank { law, rank },
+            Some(&unused),
+            starts,
+            None,
+            &params,
+            progress,
+        )
+    };
+    let mut traced = trace_at(report.rank)?;
     // Every set failed at the estimated rank: the next candidates, in order.
     let candidates = report
         .rank_choice
@@ -969,14 +960,7 @@ pub(crate) fn trace_learned_as(
             failed.by_status,
             crate::agent::Agent::motor_dim(law) - next
         ));
-        traced = crate::kernel::trace_sets(
-            &at_rank(next),
-            Some(&unused),
-            starts,
-            None,
-            &params,
-            progress,
-        )?;
+        traced = trace_at(next)?;
         report.retried(tried, next);
     }
     // A report of numbers and names always serialises.

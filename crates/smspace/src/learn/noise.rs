@@ -290,26 +290,30 @@ fn median(mut values: Vec<f64>) -> f64 {
     values[values.len() / 2]
 }
 
+/// The median spectrum of slopes whose squared singular values `β_r²` each carry the
+/// noise's bias `b` (`(β, b)` per slope, `β` descending, at least `n` values): the
+/// median over the slopes of `β_r² − b` relative to that of `β_1² − b`, square-rooted
+/// (negative medians read 0), and the floor `sqrt(median(b) / median(β_1² − b))` (see
+/// the noise module's docs). `slopes` is not empty.
+pub(super) fn debiased_spectrum(slopes: &[(Vec<f64>, f64)], n: usize) -> (Vec<f64>, f64) {
+    let squares: Vec<f64> = (0..n)
+        .map(|r| median(slopes.iter().map(|(s, b)| s[r] * s[r] - b).collect()))
+        .collect();
+    let largest = squares[0].max(f64::MIN_POSITIVE);
+    let spectrum = squares
+        .iter()
+        .map(|&l| (l.max(0.0) / largest).sqrt())
+        .collect();
+    let floor = (median(slopes.iter().map(|(_, b)| *b).collect()) / largest).sqrt();
+    (spectrum, floor)
+}
+
 /// The rank from the probes' slope spectra (see the noise module's docs).
 fn local_rank(slopes: &[(Vec<f64>, f64)], relative_noise: f64, n: usize, k: usize) -> LocalRank {
     // What noise alone adds to every squared singular value of a probe's slope.
     let noise = |q: f64| k as f64 * (relative_noise * q).powi(2);
-    let squares: Vec<f64> = (0..n)
-        .map(|r| {
-            median(
-                slopes
-                    .iter()
-                    .map(|(s, q)| s[r] * s[r] - noise(*q))
-                    .collect(),
-            )
-        })
-        .collect();
-    let largest = squares[0].max(f64::MIN_POSITIVE);
-    let spectrum: Vec<f64> = squares
-        .iter()
-        .map(|&l| (l.max(0.0) / largest).sqrt())
-        .collect();
-    let floor = (median(slopes.iter().map(|(_, q)| noise(*q)).collect()) / largest).sqrt();
+    let biased: Vec<(Vec<f64>, f64)> = slopes.iter().map(|(s, q)| (s.clone(), noise(*q))).collect();
+    let (spectrum, floor) = debiased_spectrum(&biased, n);
     LocalRank {
         rank: spectrum_rank(&spectrum, FLOOR_SHARE * floor),
         spectrum,
