@@ -66,6 +66,54 @@ fn analyze_a_circle_writes_the_contract_keys() {
     assert!(report["agreement"]["spearman"].as_f64().unwrap() > 0.999);
     let twonn = report["intrinsic_dimension"]["twonn"].as_f64().unwrap();
     assert!((twonn - 1.0).abs() < 0.3, "{twonn}");
+    // The loop as a number: the circular coordinate of every point beside the report,
+    // which gives the angle back.
+    let rho = report["circle"]["agreement"]["alpha"]["circular_correlation"]
+        .as_f64()
+        .unwrap();
+    assert!(rho > 0.99, "{rho}");
+    assert!(stderr.contains("circular correlation"), "{stderr}");
+    let values: ndarray::Array1<f64> =
+        ndarray_npy::read_npy(dir.path().join("circle.npy")).unwrap();
+    assert_eq!(values.len(), 120);
+    assert!(values.iter().all(|v| (0.0..TAU).contains(v)));
+
+    // Positions read off a representation: the poses' own (x, y) plus a constant
+    // column are an affine image of them (the circle's poses are all at the origin,
+    // so positions come from a second file).
+    let positions = Array2::from_shape_fn((120, 3), |(i, c)| match c {
+        0 => (i % 12) as f64,
+        1 => (i / 12) as f64,
+        _ => poses[[i, 2]],
+    });
+    write_npy(dir.path().join("grid-poses.npy"), &positions).unwrap();
+    let representation = Array2::from_shape_fn((120, 2), |(i, c)| {
+        if c == 0 {
+            2.0 * positions[[i, 0]] + 1.0
+        } else {
+            positions[[i, 1]] - positions[[i, 0]]
+        }
+    });
+    write_npy(dir.path().join("H.npy"), &representation).unwrap();
+    let out = ok(
+        dir.path(),
+        &[
+            "analyze",
+            "--distances",
+            "D.npy",
+            "--poses",
+            "grid-poses.npy",
+            "--representation",
+            "H.npy",
+        ],
+    );
+    let printed: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let affine = &printed["affine"];
+    assert!(affine["metric_error"].as_f64().unwrap() < 1e-9, "{affine}");
+    assert!(
+        (affine["r_squared"].as_f64().unwrap() - 1.0).abs() < 1e-9,
+        "{affine}"
+    );
 
     // Without --out the report goes to standard output, identical; without poses the
     // agreement is null.
@@ -139,6 +187,75 @@ fn analyze_rejects_bad_input_naming_the_file() {
         ],
     );
     assert!(err.contains("neighbors"), "{err}");
+    // A representation is fitted to the poses' positions; it needs the poses and the
+    // same rows.
+    let err = fails(
+        p,
+        &[
+            "analyze",
+            "--distances",
+            "D.npy",
+            "--representation",
+            "poses40.npy",
+        ],
+    );
+    assert!(err.contains("--poses"), "{err}");
+    let err = fails(
+        p,
+        &[
+            "analyze",
+            "--distances",
+            "D.npy",
+            "--poses",
+            "poses40.npy",
+            "--representation",
+            "rect.npy",
+        ],
+    );
+    assert!(err.contains("rect.npy") && err.contains("4 rows"), "{err}");
+    // --param reaches the keys without a flag and refuses the others by name.
+    let err = fails(
+        p,
+        &[
+            "analyze",
+            "--distances",
+            "D.npy",
+            "--param",
+            "circle_scale=1.5",
+        ],
+    );
+    assert!(err.contains("circle_scale") && err.contains("1.5"), "{err}");
+    let err = fails(
+        p,
+        &["analyze", "--distances", "D.npy", "--param", "max_points=5"],
+    );
+    assert!(err.contains("--max-points"), "{err}");
+    let err = fails(
+        p,
+        &[
+            "analyze",
+            "--distances",
+            "D.npy",
+            "--param",
+            "circle_marks=5",
+        ],
+    );
+    assert!(
+        err.contains("circle_marks") && err.contains("circle_landmarks"),
+        "{err}"
+    );
+    let out = ok(
+        p,
+        &[
+            "analyze",
+            "--distances",
+            "D.npy",
+            "--param",
+            "circle_landmarks=0",
+        ],
+    );
+    let printed: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(printed.get("circle").is_none(), "{printed}");
 }
 
 #[test]

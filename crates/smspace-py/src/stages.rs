@@ -15,6 +15,7 @@ use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3,
 };
 use pyo3::prelude::*;
+use smspace::analysis::affine::affine_errors;
 use smspace::analysis::{analyze, AnalysisParams};
 use smspace::embed::EmbedParams;
 use smspace::explore::{default_workspace, explore_with, ExploreParams, Workspace};
@@ -564,15 +565,17 @@ fn _embed<'py>(
 }
 
 /// `_analyze(D, poses, params_json, progress)`: the report's JSON (Betti numbers,
-/// persistence, intrinsic dimension, agreement with the planar poses `(M, 3)`).
+/// persistence, intrinsic dimension, agreement with the planar poses `(M, 3)`, the
+/// circular coordinate with its `values`).
 #[pyfunction]
-#[pyo3(signature = (distances, poses, params, progress=None))]
+#[pyo3(signature = (distances, poses, params, progress=None, representation=None))]
 fn _analyze<'py>(
     py: Python<'py>,
     distances: PyReadonlyArray2<'py, f64>,
     poses: Option<PyReadonlyArray2<'py, f64>>,
     params: &str,
     progress: Option<Py<PyAny>>,
+    representation: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<String> {
     let params: AnalysisParams = from_json(params, "analysis parameters")?;
     let params = params.check().map_err(to_py_err)?;
@@ -588,19 +591,45 @@ fn _analyze<'py>(
             )));
         }
     }
+    let representation = representation.map(|h| h.as_array().to_owned());
+    if let Some(h) = &representation {
+        if poses.is_none() {
+            return Err(value_error(
+                "representation needs poses: the measures fit the poses' positions (x, y)",
+            ));
+        }
+        if h.nrows() != d.len() {
+            return Err(value_error(format!(
+                "representation has {} rows but D has {} points; it must be that of the same sets",
+                h.nrows(),
+                d.len()
+            )));
+        }
+    }
     let (progress, interrupts) = reporter(progress, None);
     let shared = progress.clone();
     let report = run_interruptible(py, &interrupts, move || {
-        analyze(
+        let mut report = analyze(
             &d,
             poses.as_ref().map(|p| p.view()),
             &params,
             shared.as_ref(),
-        )
+        )?;
+        if let (Some(h), Some(p)) = (&representation, &poses) {
+            let positions = p.slice_axis(ndarray::Axis(1), ndarray::Slice::from(0..2));
+            report.affine = Some(affine_errors(h.view(), positions)?);
+        }
+        Ok::<_, smspace::analysis::AnalysisError>(report)
     })?
     .map_err(to_py_err);
     progress.check()?;
-    serde_json::to_string(&report?).map_err(|e| value_error(e.to_string()))
+    let report = report?;
+    let mut value = serde_json::to_value(&report).map_err(|e| value_error(e.to_string()))?;
+    // The circular coordinates, which `analysis.json` leaves to `circle.npy`.
+    if let (Some(circle), Some(object)) = (&report.circle, value.get_mut("circle")) {
+        object["values"] = serde_json::json!(circle.values);
+    }
+    serde_json::to_string(&value).map_err(|e| value_error(e.to_string()))
 }
 
 /// The defaults of every stage's parameters, as the library defines them (the same

@@ -140,6 +140,32 @@ def test_the_gil_is_released_while_a_matrix_is_computed():
     assert len(during) >= 10, (len(during), end - start)
 
 
+def test_analyze_gives_the_loop_as_a_circular_coordinate():
+    rng = np.random.default_rng(3)
+    alpha = rng.uniform(-np.pi, np.pi, 150)
+    D = 2.0 * np.abs(np.sin(0.5 * (alpha[:, None] - alpha[None, :])))
+    poses = np.column_stack([np.zeros(150), np.zeros(150), alpha])
+    report = smspace.analyze(D, poses)
+    circle = report["circle"]
+    assert circle["classes"] == 1
+    assert circle["values"].shape == (150,) and circle["values"].dtype == np.float64
+    assert np.all((circle["values"] >= 0.0) & (circle["values"] < 2.0 * np.pi))
+    assert circle["agreement"]["alpha"]["circular_correlation"] > 0.99
+    off = smspace.analyze(D, circle_landmarks=0)
+    assert "circle" not in off
+    with pytest.raises(ValueError, match="circle_scale"):
+        smspace.analyze(D, circle_scale=2.0)
+    # Positions read off a representation by one affine map.
+    grid = np.column_stack([np.arange(150) % 15, np.arange(150) // 15, alpha]).astype(float)
+    H = np.column_stack([2.0 * grid[:, 0] + 1.0, grid[:, 1] - grid[:, 0]])
+    fitted = smspace.analyze(D, grid, representation=H, circle_landmarks=0)["affine"]
+    assert fitted["metric_error"] < 1e-9 and abs(fitted["r_squared"] - 1.0) < 1e-9
+    with pytest.raises(ValueError, match="needs poses"):
+        smspace.analyze(D, representation=H)
+    with pytest.raises(ValueError, match="3 rows"):
+        smspace.analyze(D, grid, representation=H[:3])
+
+
 def test_analyze_and_embed_reports(arm_sets):
     D = smspace.distances(arm_sets)
     fit = smspace.embed(D, method="isomap", dim=2, k=6, report=True)

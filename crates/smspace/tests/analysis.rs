@@ -727,6 +727,9 @@ mod learned {
         assert_abs_diff_eq!(dim.mle, 1.0, epsilon = 0.2);
         let agreement = report.agreement.unwrap();
         assert!(agreement.spearman > 0.9, "{agreement:?}");
+        // A segment has no loop, so no circle, and the report says why.
+        assert!(report.circle.is_none(), "{:?}", report.circle);
+        assert!(report.circle_missing.is_some());
     }
 
     #[test]
@@ -742,6 +745,23 @@ mod learned {
         assert!((2.5..4.0).contains(&dim.mle), "{dim:?}");
         let agreement = report.agreement.unwrap();
         assert!(agreement.trustworthiness > 0.9, "{agreement:?}");
+        // The loop as a number: one class, and the coordinate follows the orientation
+        // measured from the bearing seen from the base (the circular module's docs say
+        // why not the world's alpha as closely).
+        let circle = report
+            .circle
+            .expect("the arm's loop gives a circular coordinate");
+        assert_eq!(circle.classes, 1);
+        assert_eq!(circle.largest_integer, 1);
+        assert_eq!(circle.values.len(), report.points);
+        let relative = circle.agreement[smspace::analysis::circular::BEARING_RELATIVE];
+        assert!(
+            relative.circular_correlation > 0.95,
+            "{:?}",
+            circle.agreement
+        );
+        let world = circle.agreement["alpha"];
+        assert!(world.circular_correlation > 0.7, "{:?}", circle.agreement);
     }
 }
 

@@ -5,7 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
-use smspace::agent::{GroundTruthView, PoseSpace};
+use smspace::agent::{CoordinateKind, GroundTruthView, PoseSpace};
+use smspace::analysis::affine::affine_errors;
 use smspace::analysis::{analyze_on, AnalysisParams};
 use smspace::io;
 use smspace::metric::DistanceMatrix;
@@ -23,6 +24,11 @@ pub struct Args {
     /// 3-D one (as `poses.npy` of a run).
     #[arg(long, value_name = "FILE")]
     poses: Option<PathBuf>,
+    /// A learned representation of the same rows (M, q), e.g. the embedding `Y.npy`:
+    /// the affine fit of the poses' positions from it and its metric and topology
+    /// errors (needs --poses).
+    #[arg(long, value_name = "FILE")]
+    representation: Option<PathBuf>,
     /// Highest homology dimension (0, 1 or 2).
     #[arg(long, default_value_t = AnalysisParams::default().max_homology_dim)]
     max_dim: usize,
@@ -38,10 +44,32 @@ pub struct Args {
     /// Neighbours of the Levina–Bickel dimension estimate.
     #[arg(long, default_value_t = AnalysisParams::default().mle_neighbors)]
     mle_neighbors: usize,
-    /// Report (JSON); printed to standard output when not given.
+    /// A key of the [analysis] table that has no flag of its own (circle_landmarks,
+    /// circle_scale, gap_ratio, noise_fraction, twonn_discard, …), the value read as
+    /// TOML (repeatable).
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = super::common::parse_param)]
+    params: Vec<(String, toml::Value)>,
+    /// Report (JSON, with `circle.npy` beside it when there is a circular coordinate);
+    /// printed to standard output when not given.
     #[arg(long, value_name = "FILE")]
     out: Option<PathBuf>,
 }
+
+/// The representation's file, for messages.
+fn h_name(args: &Args) -> String {
+    args.representation
+        .as_deref()
+        .map_or_else(String::new, |p| p.display().to_string())
+}
+
+/// [analysis] keys that have a flag of their own.
+const ANALYSIS_FLAGS: [(&str, &str); 5] = [
+    ("max_homology_dim", "max-dim"),
+    ("threshold", "threshold"),
+    ("max_points", "max-points"),
+    ("neighbors", "neighbors"),
+    ("mle_neighbors", "mle-neighbors"),
+];
 
 /// Runs `smspace analyze`.
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -61,8 +89,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         neighbors: args.neighbors,
         mle_neighbors: args.mle_neighbors,
         ..AnalysisParams::default()
-    }
-    .check()?;
+    };
+    let params =
+        super::common::with_table_params(&params, &args.params, &ANALYSIS_FLAGS, "analysis")?
+            .check()?;
     let distances = DistanceMatrix::load(&args.distances)?;
     let poses = match &args.poses {
         Some(path) => Some(read_poses(path, distances.len(), &args.distances)?),
@@ -72,9 +102,44 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some((space, poses)) => Some(GroundTruthView::new(space, poses.view())?),
         None => None,
     };
+    let representation = match &args.representation {
+        Some(path) => {
+            anyhow::ensure!(
+                truth.is_some(),
+                "--representation {} needs --poses: the measures fit the poses' positions",
+                path.display()
+            );
+            let h = io::read_matrix(path, None, "(M, q)")?;
+            anyhow::ensure!(
+                h.nrows() == distances.len(),
+                "{} has {} rows but {} has {} points; the representation must be that of the same sets",
+                path.display(),
+                h.nrows(),
+                args.distances.display(),
+                distances.len()
+            );
+            Some(h)
+        }
+        None => None,
+    };
     let bar = Bar::new();
-    let report = analyze_on(&distances, truth, None, &params, &bar)
+    let mut report = analyze_on(&distances, truth, None, &params, &bar)
         .with_context(|| format!("analysing {}", args.distances.display()))?;
+    if let (Some(h), Some(truth)) = (&representation, truth) {
+        let linear: Vec<usize> = truth
+            .space()
+            .coordinates()
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.kind == CoordinateKind::Linear)
+            .map(|(i, _)| i)
+            .collect();
+        let positions = truth.poses().select(ndarray::Axis(1), &linear);
+        report.affine = Some(
+            affine_errors(h.view(), positions.view())
+                .with_context(|| format!("fitting the positions from {}", h_name(&args)))?,
+        );
+    }
     match &args.out {
         // The analyze stage's writer.
         Some(path) => report.save(path)?,
@@ -104,6 +169,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => String::new(),
         }
     );
+    if let Some(a) = &report.affine {
+        eprintln!(
+            "positions from the representation ({} columns): R² {:.3}, metric error {:.4}, topology error {:.4} (positions), {:.4} (representation)",
+            a.representation_dim,
+            a.r_squared,
+            a.metric_error,
+            a.topology_error_positions,
+            a.topology_error_representation
+        );
+    }
+    if let Some(c) = &report.circle {
+        let scores: Vec<String> = c
+            .agreement
+            .iter()
+            .map(|(name, g)| format!("{:.3} with {name}", g.circular_correlation))
+            .collect();
+        eprintln!(
+            "circular coordinate from the loop [{:.3}, {:.3}) on {} landmarks ({} class{}){}",
+            c.bar[0],
+            c.bar[1],
+            c.landmarks,
+            c.classes,
+            if c.classes == 1 { "" } else { "es" },
+            if scores.is_empty() {
+                String::new()
+            } else {
+                format!("; circular correlation {}", scores.join(", "))
+            }
+        );
+    } else if let Some(why) = &report.circle_missing {
+        eprintln!("no circular coordinate: {why}");
+    }
     Ok(())
 }
 

@@ -198,3 +198,36 @@ pub fn parse_param(text: &str) -> Result<(String, toml::Value), String> {
     };
     Ok((key.to_owned(), value))
 }
+
+/// `value`, a parameter table, with the `--param KEY=VALUE` keys set: read back by the
+/// table's own reader, which names an unknown key or a bad value. A key in `flags`
+/// (`(key, flag)`) has a flag of its own and is refused here; a key given twice too.
+pub fn with_table_params<T>(
+    value: &T,
+    params: &[(String, toml::Value)],
+    flags: &[(&str, &str)],
+    table: &str,
+) -> anyhow::Result<T>
+where
+    T: serde::Serialize + serde::de::DeserializeOwned,
+{
+    let mut keys = match toml::Value::try_from(value)? {
+        toml::Value::Table(keys) => keys,
+        _ => anyhow::bail!("the [{table}] table does not serialise as a table"),
+    };
+    for (i, (key, v)) in params.iter().enumerate() {
+        if params[..i].iter().any(|(k, _)| k == key) {
+            anyhow::bail!("--param {key} is given twice");
+        }
+        if let Some((_, flag)) = flags.iter().find(|(k, _)| k == key) {
+            anyhow::bail!("--param {key}=…: {key} has its flag, --{flag}");
+        }
+        keys.insert(key.clone(), v.clone());
+    }
+    toml::Value::Table(keys).try_into::<T>().map_err(|e| {
+        anyhow::anyhow!(
+            "--param: {} (the keys of the [{table}] table)",
+            e.to_string().trim_end()
+        )
+    })
+}

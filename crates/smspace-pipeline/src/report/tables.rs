@@ -501,8 +501,69 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
         t.note = Some(POSE_AGREEMENT_NOTE.to_owned());
         out.push(t);
     }
+    if let Some(f) = &a.affine {
+        let mut t = Table::key_value("Positions read off the representation by one affine map");
+        t.push("states", f.states.to_string());
+        t.push("R² of the fit", num(f.r_squared));
+        t.push("metric error", num(f.metric_error));
+        t.push(
+            "topology error in the positions",
+            num(f.topology_error_positions),
+        );
+        t.push(
+            "topology error in the representation",
+            num(f.topology_error_representation),
+        );
+        t.note = Some("The measures of Laflaquière & Garcia Ortiz (NeurIPS 2019): the mean error of the pairwise distances between the fitted and the true positions over the largest distance, the same weighted toward small distances (exp(-10 d/d_max)), and the spread of the representation among states close in space (exp(-50 d/d_max)); all 0 for an affine image of the positions.".to_owned());
+        out.push(t);
+    }
+    out.extend(a.circle.as_ref().map(circle_table));
+    if let Some(why) = &a.circle_missing {
+        let mut t = Table::key_value("Circular coordinate");
+        t.push("not computed", why.clone());
+        out.push(t);
+    }
     out.extend(a.compensability.as_ref().map(compensability_table));
     out
+}
+
+/// The note under the circular coordinate: what it is and what its agreement compares.
+pub(super) const CIRCLE_NOTE: &str = "The circular coordinate gives every set a number on the circle from the manifold's longest loop: an integer cocycle of the landmarks' Rips complex at a scale inside the loop's bar, smoothed to its harmonic representative (persistent cohomology, as in DREiMac). Its agreement with an angle of the pose is the Fisher-Lee circular correlation |rho| (1 for the same angle up to a rotation or a reflection of the circle) and the mean resultant length of their difference. The class is fixed by the manifold but the coordinate only up to a function of the plane: the learned metric is a distance between motor configurations, in which turning the arm about its base is cheap, so the coordinate follows the orientation measured from the bearing of the sensor seen from the base (alpha - atan2(y, x)) more closely than the world's alpha.";
+
+/// The circular coordinate: how it was found and its agreement with the pose's angles.
+fn circle_table(c: &smspace::analysis::circular::CircleCoordinate) -> Table {
+    let mut t = Table::key_value("Circular coordinate of the loop");
+    t.push(
+        "landmarks (covering radius)",
+        format!("{} ({})", c.landmarks, num(c.covering_radius)),
+    );
+    t.push(
+        "longest loop, [birth, death)",
+        format!("[{}, {})", num(c.bar[0]), num(c.bar[1])),
+    );
+    t.push(
+        "complex at scale",
+        format!(
+            "{} ({} edges, {} triangles)",
+            num(c.scale),
+            c.edges,
+            c.triangles
+        ),
+    );
+    t.push("classes of H1 at that scale", c.classes.to_string());
+    for (name, g) in &c.agreement {
+        t.push(
+            format!("circular correlation with {name}"),
+            format!(
+                "{}{} (resultant {})",
+                num(g.circular_correlation),
+                if g.reversed { ", reversed" } else { "" },
+                num(g.resultant)
+            ),
+        );
+    }
+    t.note = Some(CIRCLE_NOTE.to_owned());
+    t
 }
 
 /// The compensability analysis: `d` and its spread over the base points.

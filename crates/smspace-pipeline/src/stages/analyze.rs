@@ -17,9 +17,9 @@ use smspace::agent::GroundTruth;
 use smspace::analysis::compensability::compensability;
 use smspace::analysis::dimension::{mle_neighbours, twonn_neighbours};
 use smspace::analysis::{
-    agreement, analyze_on, rips_persistence, AnalysisError, AnalysisParams, AnalysisReport,
-    AnalysisValidParams, DimensionSets, HomologySummary, IntrinsicDimension, ScaleSummary,
-    Subsampling,
+    agreement, analyze_on, circle_of, rips_persistence, AnalysisError, AnalysisParams,
+    AnalysisReport, AnalysisValidParams, DimensionSets, HomologySummary, IntrinsicDimension,
+    ScaleSummary, Subsampling,
 };
 use smspace::explore::Exploration;
 use smspace::io::Outputs;
@@ -168,8 +168,20 @@ impl Stage for AnalyzeStage {
                 c.base_points
             )
         });
+        let circle = a.circle.as_ref().map_or_else(String::new, |c| {
+            let scores: Vec<String> = c
+                .agreement
+                .iter()
+                .map(|(name, g)| format!("{:.3} with {name}", g.circular_correlation))
+                .collect();
+            if scores.is_empty() {
+                ", a circular coordinate".to_owned()
+            } else {
+                format!(", circle coordinate {}", scores.join(", "))
+            }
+        });
         format!(
-            "betti {:?}, TwoNN {:.2}, MLE {:.2}{agreement}{compensable}{on}",
+            "betti {:?}, TwoNN {:.2}, MLE {:.2}{agreement}{circle}{compensable}{on}",
             a.betti, a.intrinsic_dimension.twonn, a.intrinsic_dimension.mle
         )
     }
@@ -203,23 +215,23 @@ fn analyze_landmarks(
     progress.finish();
     // On the landmarks by increasing set index: with every set a landmark, the dense
     // path's pairs in its order (ties in ranks go to the smaller index alike).
+    let mut order: Vec<usize> = (0..l.len()).collect();
+    order.sort_unstable_by_key(|&a| l.rows[a]);
+    let sorted = l
+        .landmarks
+        .view()
+        .select(Axis(0), &order)
+        .select(Axis(1), &order);
     let agreement = match truth {
-        Some(t) => {
-            let mut order: Vec<usize> = (0..l.len()).collect();
-            order.sort_unstable_by_key(|&a| l.rows[a]);
-            let sorted = l
-                .landmarks
-                .view()
-                .select(Axis(0), &order)
-                .select(Axis(1), &order);
-            Some(agreement::agreement_of(
-                sorted.view(),
-                t.view(),
-                p.neighbors,
-            )?)
-        }
+        Some(t) => Some(agreement::agreement_of(
+            sorted.view(),
+            t.view(),
+            p.neighbors,
+        )?),
         None => None,
     };
+    // The circle on the landmarks, in the same order as their poses.
+    let (circle, circle_missing) = circle_of(sorted.view(), truth.map(|t| t.view()), p, progress)?;
     let rule = params.betti_rule();
     let all = graph.knn_sets.len() == l.sets();
     Ok(AnalysisReport {
@@ -260,6 +272,9 @@ fn analyze_landmarks(
             sets_used: graph.knn_sets.len(),
         },
         agreement,
+        circle,
+        circle_missing,
+        affine: None,
         compensability: None,
         scale: Some(ScaleSummary {
             sets: l.sets(),

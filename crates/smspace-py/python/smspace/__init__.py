@@ -548,16 +548,30 @@ def analyze(
     D: Any,
     poses: Any = None,
     *,
+    representation: Any = None,
     progress: ProgressArg = None,
     **params: Any,
 ) -> dict:
     """Betti numbers and persistence, intrinsic dimension (TwoNN, MLE) and, with the
     planar ``poses`` (M, 3) of the sets, the agreement of the learned neighbourhoods
-    with them; a dict as ``analysis.json``. Other keys of the ``[analysis]`` table as
-    keyword arguments (``max_points=1000``, ...)."""
+    with them; a dict as ``analysis.json``. When the manifold has a loop,
+    ``report["circle"]["values"]`` is the circular coordinate of every set (radians,
+    ``(M,)``, as ``circle.npy``) and ``report["circle"]["agreement"]`` its circular
+    correlation with the poses' angles. With a ``representation`` (M, q) of the same
+    sets (an embedding ``Y``), ``report["affine"]`` says how well one affine map reads
+    the positions (x, y) of ``poses`` off it (``r_squared``, ``metric_error``,
+    ``topology_error_positions``, ``topology_error_representation``). Other keys of
+    the ``[analysis]`` table as keyword arguments (``max_points=1000``,
+    ``circle_landmarks=0``, ...)."""
     D = _array(D, "D", 2)
     poses = None if poses is None else _array(poses, "poses", 2)
-    return json.loads(_core._analyze(D, poses, _params(params), _progress(progress)))
+    representation = None if representation is None else _array(representation, "representation", 2)
+    report = json.loads(
+        _core._analyze(D, poses, _params(params), _progress(progress), representation)
+    )
+    if report.get("circle") is not None:
+        report["circle"]["values"] = np.asarray(report["circle"]["values"], dtype=np.float64)
+    return report
 
 
 def _toml_value(value: Any) -> str:

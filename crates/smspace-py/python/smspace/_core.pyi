@@ -165,7 +165,13 @@ def _knn(
     pieces: Optional[I64] = None,
 ) -> Tuple[I64, F64]: ...
 def _embed(distances: F64, params: str, progress: Progress = None) -> Tuple[F64, str]: ...
-def _analyze(distances: F64, poses: Optional[F64], params: str, progress: Progress = None) -> str: ...
+def _analyze(
+    distances: F64,
+    poses: Optional[F64],
+    params: str,
+    progress: Progress = None,
+    representation: Optional[F64] = None,
+) -> str: ...
 def _run(
     path: Union[str, PathLike[str]],
     out: Optional[Union[str, PathLike[str]]] = None,

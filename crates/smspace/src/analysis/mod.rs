@@ -11,7 +11,12 @@
 //! - [`homology`]: Vietoris–Rips persistence `H0`, `H1` (and `H2`), and Betti numbers
 //!   read off by a stated gap rule ([`BettiRule`]); the arm should give `b = [1, 1]`;
 //! - [`dimension`]: TwoNN and Levina–Bickel estimates (the arm: 3, the redundant toy: 1);
-//! - [`agreement`]: Spearman, trustworthiness and continuity against the poses.
+//! - [`agreement`]: Spearman, trustworthiness and continuity against the poses;
+//! - [`affine`]: how well one affine map reads the sensor's positions off a learned
+//!   representation (an embedding), the measures of the paper's best known follow-up;
+//! - [`circular`]: a circular coordinate for every set from the longest loop (a
+//!   cocycle of persistent cohomology, smoothed), scored by its circular correlation
+//!   with the pose's angles: "circle × plane" with the circle as a number.
 //!
 //! [`analyze`] runs the first three and returns an [`AnalysisReport`], whose JSON keys
 //! (`betti`, `persistence`, `intrinsic_dimension.twonn`, `intrinsic_dimension.mle`,
@@ -25,7 +30,9 @@
 //! paper's arm sets takes about 0.6 s on the default 800 landmarks and 4.5 s on 1500
 //! (2 cores); the long-lived classes of a sampled manifold cost time roughly like `M⁴`.
 
+pub mod affine;
 pub mod agreement;
+pub mod circular;
 pub mod compensability;
 pub mod dimension;
 pub mod homology;
@@ -136,6 +143,12 @@ pub struct AnalysisParams {
     /// environment): how many babbled starts are traced with the `sensory` method in
     /// every environment and compared ([`crate::invariance`]). `0` turns it off. Default 300.
     pub invariance_starts: usize,
+    /// The circular coordinate ([`circular`]): max–min landmarks of its complex;
+    /// `0` turns it off. Default 300.
+    pub circle_landmarks: usize,
+    /// The circular coordinate: where its balls' radius lies in the loop's bar,
+    /// `(0, 1)`. Default 0.5.
+    pub circle_scale: f64,
     /// The compensability analysis (`[analysis.compensability]`,
     /// [`compensability`]): run by `smspace run` on the babbled configurations when
     /// the table is given. Default: not run.
@@ -155,6 +168,8 @@ impl Default for AnalysisParams {
             mle_neighbors: 20,
             neighbors: 10,
             invariance_starts: 300,
+            circle_landmarks: 300,
+            circle_scale: 0.5,
             compensability: None,
         }
     }
@@ -240,7 +255,21 @@ impl AnalysisParams {
         if p.neighbors == 0 {
             return Err(invalid("neighbors", p.neighbors, "must be at least 1"));
         }
+        if let Some(circle) = self.circle() {
+            circle.check()?;
+        }
         Ok(AnalysisValidParams { params: p.clone() })
+    }
+}
+
+impl AnalysisParams {
+    /// The circular coordinate's parameters, `None` when it is off
+    /// (`circle_landmarks = 0`).
+    pub fn circle(&self) -> Option<circular::CircleParams> {
+        (self.circle_landmarks > 0).then_some(circular::CircleParams {
+            landmarks: self.circle_landmarks,
+            scale: self.circle_scale,
+        })
     }
 }
 
@@ -377,6 +406,18 @@ pub struct AnalysisReport {
     pub intrinsic_dimension: IntrinsicDimension,
     /// Agreement with the poses; `null` when no poses were given.
     pub agreement: Option<Agreement>,
+    /// The circular coordinate of every set ([`circular`]), when asked for and the
+    /// manifold has a loop.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub circle: Option<circular::CircleCoordinate>,
+    /// Why there is no circular coordinate although one was asked for (no loop, a
+    /// loop the landmarks do not resolve, no integer class).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub circle_missing: Option<String>,
+    /// The affine-fit measures of a representation against the positions
+    /// ([`affine`]), when one was given (`smspace analyze --representation`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub affine: Option<affine::AffineErrors>,
     /// The compensability analysis (`compensability.dimension`, its histogram, the
     /// ambiguous base points), when `[analysis.compensability]` asks for it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -425,13 +466,31 @@ impl AnalysisReport {
         outputs: &mut crate::io::Outputs,
         path: &std::path::Path,
     ) -> Result<(), crate::io::IoError> {
-        outputs.json(path, self)
+        outputs.json(path, self)?;
+        if let Some(circle) = &self.circle {
+            let values = ndarray::ArrayView1::from(&circle.values[..]);
+            outputs.npy(&circle_path(path), &values)?;
+        }
+        Ok(())
     }
 
-    /// Reads a report written by [`save`](AnalysisReport::save).
+    /// Reads a report written by [`save`](AnalysisReport::save), with its circular
+    /// coordinates when it has them.
     pub fn load(path: &std::path::Path) -> Result<Self, crate::io::IoError> {
-        crate::io::read_json(path, "analysis report")
+        let mut report: Self = crate::io::read_json(path, "analysis report")?;
+        if let Some(circle) = &mut report.circle {
+            let file = circle_path(path);
+            if file.is_file() {
+                circle.values = crate::io::read_f64(&file)?.iter().copied().collect();
+            }
+        }
+        Ok(report)
     }
+}
+
+/// The circular coordinates beside the report at `path`: `circle.npy` (`M`, radians).
+pub fn circle_path(path: &std::path::Path) -> std::path::PathBuf {
+    path.with_file_name("circle.npy")
 }
 
 /// Topology, dimension and (with `poses`, `M × 3` `(x, y, alpha)`, the planar ground
@@ -505,6 +564,7 @@ pub fn analyze_on(
         Some(truth) => Some(agreement::agreement_of(distances, truth, p.neighbors)?),
         None => None,
     };
+    let (circle, circle_missing) = circle_of(distances, poses, p, progress)?;
     let rule = params.betti_rule();
     Ok(AnalysisReport {
         points: distances.nrows(),
@@ -514,9 +574,46 @@ pub fn analyze_on(
         homology: HomologySummary::of(&persistence, p, subsampling, rule),
         intrinsic_dimension,
         agreement,
+        circle,
+        circle_missing,
+        affine: None,
         compensability: None,
         scale: None,
     })
+}
+
+/// The circular coordinate ([`circular`]) when asked for (`circle_landmarks > 0`,
+/// `max_homology_dim ≥ 1`), or why there is none: no loop, a loop the landmarks do not
+/// resolve, no integer class (the rest of the analysis stands).
+pub fn circle_of(
+    distances: ArrayView2<'_, f64>,
+    poses: Option<GroundTruthView<'_>>,
+    p: &AnalysisParams,
+    progress: &dyn Progress,
+) -> Result<(Option<circular::CircleCoordinate>, Option<String>), AnalysisError> {
+    let Some(circle) = p.circle().filter(|_| p.max_homology_dim >= 1) else {
+        return Ok((None, None));
+    };
+    let circle = circular::CircleParams {
+        landmarks: circle.landmarks.min(distances.nrows()),
+        ..circle
+    };
+    if circle.landmarks < 3 {
+        return Ok((None, Some("fewer than 3 sets".to_owned())));
+    }
+    progress.start("circular coordinate", 1);
+    let found = match circular::circle_coordinate(distances, poses, &circle) {
+        Ok(Some(found)) => (Some(found), None),
+        Ok(None) => (
+            None,
+            Some("the landmarks have no loop (no H1 bar)".to_owned()),
+        ),
+        Err(e @ AnalysisError::Degenerate { .. }) => (None, Some(e.to_string())),
+        Err(e) => return Err(e),
+    };
+    progress.advance(1);
+    progress.finish();
+    Ok(found)
 }
 
 /// At least 3 points, and poses `(M, d)` if given.
