@@ -72,6 +72,7 @@ pub(super) fn tables(inputs: &ReportInputs<'_>) -> Vec<Table> {
     if let Some(analysis) = inputs.analysis {
         out.extend(analysis_tables(analysis));
     }
+    out.extend(affine_table(inputs));
     if let Some(inv) = inputs.invariance {
         out.extend(invariance_tables(&inv.report));
     }
@@ -501,22 +502,6 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
         t.note = Some(POSE_AGREEMENT_NOTE.to_owned());
         out.push(t);
     }
-    if let Some(f) = &a.affine {
-        let mut t = Table::key_value("Positions read off the representation by one affine map");
-        t.push("states", f.states.to_string());
-        t.push("R² of the fit", num(f.r_squared));
-        t.push("metric error", num(f.metric_error));
-        t.push(
-            "topology error in the positions",
-            num(f.topology_error_positions),
-        );
-        t.push(
-            "topology error in the representation",
-            num(f.topology_error_representation),
-        );
-        t.note = Some("The measures of Laflaquière & Garcia Ortiz (NeurIPS 2019): the mean error of the pairwise distances between the fitted and the true positions over the largest distance, the same weighted toward small distances (exp(-10 d/d_max)), and the spread of the representation among states close in space (exp(-50 d/d_max)); all 0 for an affine image of the positions.".to_owned());
-        out.push(t);
-    }
     out.extend(a.circle.as_ref().map(circle_table));
     if let Some(why) = &a.circle_missing {
         let mut t = Table::key_value("Circular coordinate");
@@ -526,6 +511,63 @@ fn analysis_tables(a: &AnalysisReport) -> Vec<Table> {
     out.extend(a.compensability.as_ref().map(compensability_table));
     out
 }
+
+/// The most sets the affine-fit measures take from the babbled ones (evenly spaced):
+/// their cost grows like the square.
+const AFFINE_SETS: usize = 4000;
+
+/// The positions `(x, y)` read off the embedding by one affine map
+/// ([`smspace::analysis::affine`]), on the probe grid's sets when there is one (the
+/// measures' source evaluates them on a regular grid), else on at most
+/// [`AFFINE_SETS`] sets; none without poses. The analysis does not depend on the
+/// embedding (a drawing), so the report computes these from the two.
+fn affine_table(inputs: &ReportInputs<'_>) -> Option<Table> {
+    let poses = inputs.poses?;
+    let kept = inputs.kept;
+    let y = inputs.embedding;
+    if y.nrows() != kept.len() || kept.iter().any(|&r| r >= poses.nrows()) {
+        return None;
+    }
+    let grid: Vec<usize> = (0..kept.len())
+        .filter(|&i| inputs.probes.get([kept[i], 0]).is_some_and(|&p| p >= 0))
+        .collect();
+    let (rows, on) = if grid.len() >= 3 {
+        (grid, "the probe grid's sets")
+    } else {
+        let step = kept.len().div_ceil(AFFINE_SETS).max(1);
+        ((0..kept.len()).step_by(step).collect(), "the sets")
+    };
+    if rows.len() < 3 {
+        return None;
+    }
+    let explored: Vec<usize> = rows.iter().map(|&i| kept[i]).collect();
+    let positions = poses
+        .select(ndarray::Axis(0), &explored)
+        .select(ndarray::Axis(1), &[0, 1]);
+    let representation = y.select(ndarray::Axis(0), &rows);
+    let mut t = Table::key_value("Positions (x, y) read off the embedding by one affine map");
+    match smspace::analysis::affine::affine_errors(representation.view(), positions.view()) {
+        Ok(f) => {
+            t.push("states", format!("{} ({on})", f.states));
+            t.push("R² of the fit", num(f.r_squared));
+            t.push("metric error", num(f.metric_error));
+            t.push(
+                "topology error in the positions",
+                num(f.topology_error_positions),
+            );
+            t.push(
+                "topology error in the embedding",
+                num(f.topology_error_representation),
+            );
+        }
+        Err(e) => t.push("not computed", e.to_string()),
+    }
+    t.note = Some(AFFINE_NOTE.to_owned());
+    Some(t)
+}
+
+/// The note under the affine-fit measures.
+pub(super) const AFFINE_NOTE: &str = "The measures of Laflaquière & Garcia Ortiz (NeurIPS 2019), for comparison with that work: the mean error of the pairwise distances between the fitted and the true positions over the largest distance (metric error), the same weighted toward small distances by exp(-10 d/d_max) (topology error in the positions), and the spread of the embedding among states close in space, weighted by exp(-50 d/d_max) (topology error in the embedding); all 0 for an affine image of the positions. They ask whether position is linearly readable from the drawing; a circle x plane drawn in 3-D is not, so a low R² here does not contradict the topology above.";
 
 /// The note under the circular coordinate: what it is and what its agreement compares.
 pub(super) const CIRCLE_NOTE: &str = "The circular coordinate gives every set a number on the circle from the manifold's longest loop: an integer cocycle of the landmarks' Rips complex at a scale inside the loop's bar, smoothed to its harmonic representative (persistent cohomology, as in DREiMac). Its agreement with an angle of the pose is the Fisher-Lee circular correlation |rho| (1 for the same angle up to a rotation or a reflection of the circle) and the mean resultant length of their difference. The class is fixed by the manifold but the coordinate only up to a function of the plane: the learned metric is a distance between motor configurations, in which turning the arm about its base is cheap, so the coordinate follows the orientation measured from the bearing of the sensor seen from the base (alpha - atan2(y, x)) more closely than the world's alpha.";

@@ -47,6 +47,10 @@ pub struct AffineErrors {
     pub topology_error_positions: f64,
     /// The representation's spread among states close in space.
     pub topology_error_representation: f64,
+    /// Which states they are (`all the states`, or as the caller says, e.g. the probe
+    /// grid's sets).
+    #[serde(default)]
+    pub sets: String,
 }
 
 /// The measures of `representation` (`M × q`) against `positions` (`M × d`), same rows
@@ -152,6 +156,7 @@ pub fn affine_errors(
         metric_error: e0 / pairs,
         topology_error_positions: e10 / pairs,
         topology_error_representation: eh / pairs,
+        sets: "all the states".to_owned(),
     })
 }
 
