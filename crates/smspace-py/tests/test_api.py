@@ -1,6 +1,7 @@
 """The stage API: SciPy's directed Hausdorff, layouts and strides, tiles, kNN,
 progress, and the GIL released during a computation."""
 
+import json
 import threading
 import time
 
@@ -148,8 +149,10 @@ def test_analyze_gives_the_loop_as_a_circular_coordinate():
     report = smspace.analyze(D, poses)
     circle = report["circle"]
     assert circle["classes"] == 1
-    assert circle["values"].shape == (150,) and circle["values"].dtype == np.float64
-    assert np.all((circle["values"] >= 0.0) & (circle["values"] < 2.0 * np.pi))
+    values = np.asarray(circle["values"])
+    assert values.shape == (150,) and values.dtype == np.float64
+    assert np.all((values >= 0.0) & (values < 2.0 * np.pi))
+    json.dumps(report)  # the report stays plain JSON
     assert circle["agreement"]["alpha"]["circular_correlation"] > 0.99
     off = smspace.analyze(D, circle_landmarks=0)
     assert "circle" not in off

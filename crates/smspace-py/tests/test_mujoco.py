@@ -1,11 +1,18 @@
 """smspace.mujoco: a MuJoCo model as an agent (skipped where the mujoco package is not
 installed), and the example of examples/python/mujoco_arm.py in its small size."""
 
+import ctypes.util
 import importlib.util
 import math
+import os
 
 import numpy as np
 import pytest
+
+# Headless rendering for the camera's tests: EGL where its library is installed (the
+# backend is chosen when mujoco is imported); elsewhere those tests skip and say why.
+if "MUJOCO_GL" not in os.environ and ctypes.util.find_library("EGL"):
+    os.environ["MUJOCO_GL"] = "egl"
 
 mujoco = pytest.importorskip(
     "mujoco", reason="the mujoco package is not installed (pip install mujoco): its tests are skipped"
@@ -236,3 +243,70 @@ def test_what_a_trace_warns_of_is_raised_and_named_in_the_error(example):
     found = smspace.explore(example.body().agent(), n=2, seed=2, workspace=example.WORKSPACE)
     with pytest.raises(ValueError, match=r"only 0 of 2 sets(.|\n)*the sensors are noisy \(σ = 2\.9"):
         smspace.trace(body.agent(), found.motors, method="sensory", points=20)
+
+
+# A two-hinge arm carrying a camera inside a room of coloured walls.
+CAMERA_XML = """
+<mujoco model="camera-arm">
+  <visual><quality offsamples="8"/></visual>
+  <worldbody>
+    <light pos="0 0 4" dir="0 0 -1" directional="true"/>
+    <geom type="box" pos="3 0 0" size="0.1 3 2" rgba="0.9 0.2 0.2 1"/>
+    <geom type="box" pos="-3 0 0" size="0.1 3 2" rgba="0.2 0.9 0.2 1"/>
+    <geom type="box" pos="0 3 0" size="3 0.1 2" rgba="0.2 0.2 0.9 1"/>
+    <geom type="box" pos="0 -3 0" size="3 0.1 2" rgba="0.9 0.9 0.2 1"/>
+    <body name="upper">
+      <joint name="shoulder" type="hinge" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 1 0 0" size="0.05"/>
+      <body name="lower" pos="1 0 0">
+        <joint name="eye" type="hinge" axis="0 0 1"/>
+        <geom type="sphere" size="0.04"/>
+        <site name="lens" pos="0.1 0 0"/>
+        <camera name="eye" pos="0.1 0 0" xyaxes="0 -1 0 0 0 1" fovy="60"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def camera_body():
+    model = mujoco.MjModel.from_xml_string(CAMERA_XML)
+    try:
+        return smspace.mujoco.Body(model, ["shoulder", "eye"], None, "lens", camera="eye", size=(32, 24))
+    except RuntimeError as error:
+        pytest.skip(f"no OpenGL backend for MuJoCo's renderer here: {error}")
+
+
+def test_a_mujoco_camera_is_read_as_rows_of_pixels(camera_body):
+    body = camera_body
+    assert body.image_shape == (24, 32, 3) and body.n_sensors == 24 * 32 * 3
+    rows = np.array([[0.0, 0.0], [0.0, 0.5], [1.0, -2.0], [0.0, 0.0]])
+    images = body.sense(rows)
+    assert images.shape == (4, 24 * 32 * 3)
+    assert np.all((images >= 0.0) & (images <= 1.0))
+    # Deterministic, and a turn of the camera changes what it sees.
+    assert np.array_equal(images[0], images[3])
+    assert np.abs(images[0] - images[1]).max() > 0.1
+    # Looking along +x at the red wall; turned by pi, at the green one.
+    frame = images[0].reshape(24, 32, 3)
+    turned = body.sense(np.array([[0.0, math.pi]]))[0].reshape(24, 32, 3)
+    assert frame[12, 16, 0] > frame[12, 16, 1] and turned[12, 16, 1] > turned[12, 16, 0]
+    agent = body.agent()
+    assert agent.n_sensors == 24 * 32 * 3
+    model = body.model
+    grey = smspace.mujoco.Body(model, ["shoulder", "eye"], camera="eye", size=(16, 12), color="grey")
+    assert grey.image_shape == (12, 16, 1) and grey.sense(rows[:1]).shape == (1, 192)
+
+
+def test_a_mujoco_camera_refuses_what_it_cannot_render(camera_body):
+    model = camera_body.model
+    with pytest.raises(ValueError, match="no camera named 'nose'.*'eye'"):
+        smspace.mujoco.Body(model, ["shoulder", "eye"], camera="nose")
+    with pytest.raises(ValueError, match="offscreen buffer"):
+        smspace.mujoco.Body(model, ["shoulder", "eye"], camera="eye", size=(4000, 30))
+    with pytest.raises(ValueError, match="threads=False"):
+        smspace.mujoco.Body(model, ["shoulder", "eye"], camera="eye", threads=True)
+    with pytest.raises(ValueError, match="'rgb' or 'grey'"):
+        smspace.mujoco.Body(model, ["shoulder", "eye"], camera="eye", color="depth")

@@ -33,6 +33,20 @@ An ``MjModel`` is wrapped as a :class:`smspace.PythonAgent` by names::
   ``[-π, π)``); ``"spatial"`` gives ``(x, y, z, qw, qx, qy, qz)``, the site's
   position and orientation as a unit quaternion with ``qw ≥ 0``.
 
+- **A camera is a sensor too.** ``camera=NAME`` renders the model's camera of that
+  name through ``mujoco.Renderer`` at ``size=(W, H)`` pixels and appends its image to
+  the sensors (with ``camera`` given, ``sensors=None`` means no other sensor): ``H W C``
+  values a row, row-major, channels last, in ``[0, 1]`` (``color="rgb"``, ``C = 3``) or
+  the mean of the three channels (``"grey"``, ``C = 1``), as the built-in camera and
+  :func:`smspace.learn` lay frames out. Rendering needs an OpenGL backend: headless,
+  ``MUJOCO_GL=egl`` (a GPU or Mesa's EGL) or ``MUJOCO_GL=osmesa``; where none loads, the
+  body says so when it is built. The image must fit the model's offscreen buffer
+  (``<visual><global offwidth offheight>``, 640 × 480 by default). MuJoCo renders
+  with ``<visual><quality offsamples>`` multisampling (4 by default): raise it for an
+  image that changes more smoothly with the motors, which the sensory tracer's
+  differences need. A camera renders through one OpenGL context, so a body with a
+  camera is not threaded (``threads=False``).
+
 **Threads.** One ``MjData`` holds one posture at a time, so its calls must not
 interleave. By default (``threads=False``) the agent keeps one ``MjData`` shared by
 ``sense`` and ``pose`` and is declared not thread-safe: the engine never calls it
@@ -154,6 +168,8 @@ class Body:
     pose is the ground truth (None: no ground truth). ``pose_space``: ``"planar"``
     ``(x, y, alpha)`` or ``"spatial"`` ``(x, y, z, qw, qx, qy, qz)``. ``threads``:
     one ``MjData`` per calling thread (True) or one shared behind a lock (False).
+    ``camera``: the name of a camera whose image is read too, at ``size=(W, H)``, in
+    ``color="rgb"`` or ``"grey"`` (module docs).
 
     A name the model lacks is a ValueError naming it and listing the model's names of
     that kind; a joint that is not one coordinate (ball, free), a slide joint without
@@ -169,9 +185,16 @@ class Body:
         *,
         pose_space: str = "planar",
         threads: bool = False,
+        camera: Optional[str] = None,
+        size: Tuple[int, int] = (32, 24),
+        color: str = "rgb",
     ) -> None:
         mujoco = _mujoco()
         self.model = _load(model)
+        self.camera = camera
+        self._camera = None if camera is None else self._camera_check(camera, size, color, threads)
+        self.size = (int(size[0]), int(size[1]))
+        self.color = color
         if pose_space not in ("planar", "spatial"):
             raise ValueError(
                 f"pose_space {pose_space!r} must be 'planar' (x, y, alpha) or 'spatial' (x, y, z, qw, qx, qy, qz)"
@@ -179,11 +202,16 @@ class Body:
         self.pose_space = pose_space
         self.threads = bool(threads)
         self.joints, self.motor_space, self._qpos = self._motors(mujoco, joints)
-        self.sensors, self.columns, self._sensor_columns = self._sensor_map(mujoco, sensors)
+        if camera is not None and sensors is None:
+            self.sensors, self.columns, self._sensor_columns = [], [], np.empty(0, dtype=np.intp)
+            self._sensor_ids = []
+        else:
+            self.sensors, self.columns, self._sensor_columns = self._sensor_map(mujoco, sensors)
         self.site = site
         self._site = None if site is None else _lookup(self.model, "site", site, self.model.nsite)
         self._steps = self._computation(mujoco)
         self._shared = None if self.threads else mujoco.MjData(self.model)
+        self._renderer = None if camera is None else self._make_renderer(mujoco)
         self._lock = threading.Lock()
         # One MjData per calling thread, kept by the body (not in a threading.local,
         # whose values are freed with the thread's Python state: an engine thread may
@@ -260,8 +288,55 @@ class Body:
         self._sensor_ids = ids
         return [names[s] for s in ids], columns, np.array(index, dtype=np.intp)
 
+    def _camera_check(self, camera: str, size: Any, color: str, threads: bool) -> int:
+        """The camera's id, after the checks of its arguments."""
+        model = self.model
+        if color not in ("rgb", "grey"):
+            raise ValueError(f"color {color!r} must be 'rgb' or 'grey'")
+        try:
+            width, height = (int(v) for v in size)
+        except (TypeError, ValueError):
+            raise ValueError(f"size must be (W, H) in pixels, got {size!r}") from None
+        if width < 1 or height < 1:
+            raise ValueError(f"size (W, H) = {size!r} must be at least one pixel each way")
+        offwidth, offheight = int(model.vis.global_.offwidth), int(model.vis.global_.offheight)
+        if width > offwidth or height > offheight:
+            raise ValueError(
+                f"size (W, H) = ({width}, {height}) does not fit the model's offscreen buffer "
+                f"{offwidth} x {offheight}: raise <visual><global offwidth offheight> in the model"
+            )
+        if threads:
+            raise ValueError(
+                "a camera renders through one OpenGL context: build the body with threads=False"
+            )
+        return _lookup(model, "camera", camera, model.ncam)
+
+    def _make_renderer(self, mujoco: Any) -> Any:
+        """The camera's renderer, or a RuntimeError saying why there is none."""
+        width, height = self.size
+        try:
+            return mujoco.Renderer(self.model, height, width)
+        except Exception as error:  # the backends fail in many ways
+            backend = os.environ.get("MUJOCO_GL", "the default")
+            raise RuntimeError(
+                f"MuJoCo cannot render the camera {self.camera!r} here: no OpenGL context "
+                f"with MUJOCO_GL={backend} ({type(error).__name__}: {error}); headless, set "
+                "MUJOCO_GL=egl (a GPU or Mesa's EGL) or MUJOCO_GL=osmesa before importing mujoco"
+            ) from error
+
+    @property
+    def image_shape(self) -> Optional[Tuple[int, int, int]]:
+        """``(H, W, C)`` of the camera's image, or None without a camera."""
+        if self.camera is None:
+            return None
+        width, height = self.size
+        return (height, width, 3 if self.color == "rgb" else 1)
+
     def _computation(self, mujoco: Any) -> List[Callable[[Any, Any], None]]:
-        """The MuJoCo calls that put one posture's sensors in ``sensordata``."""
+        """The MuJoCo calls that put one posture's sensors in ``sensordata`` (and the
+        cameras' frames, for a body with a camera)."""
+        if not self._sensor_ids:
+            return [mujoco.mj_kinematics, mujoco.mj_camlight]
         model = self.model
         chosen = {int(model.sensor_type[s]) for s in self._sensor_ids}
         known = set().union(
@@ -283,6 +358,8 @@ class Body:
             steps.append(mujoco.mj_tendon)
         if chosen & _types(mujoco, _NEEDS_TRANSMISSION):
             steps.append(mujoco.mj_transmission)
+        if self.camera is not None and mujoco.mj_camlight not in steps:
+            steps.append(mujoco.mj_camlight)
         steps.append(mujoco.mj_sensorPos)
         return steps
 
@@ -295,8 +372,10 @@ class Body:
 
     @property
     def n_sensors(self) -> int:
-        """``K``: the number of sensor values (a sensor of dimension 3 gives 3)."""
-        return len(self.columns)
+        """``K``: the number of sensor values (a sensor of dimension 3 gives 3, a
+        camera ``H W C``)."""
+        shape = self.image_shape
+        return len(self.columns) + (0 if shape is None else shape[0] * shape[1] * shape[2])
 
     @property
     def pose_dim(self) -> int:
@@ -342,9 +421,16 @@ class Body:
 
     def _sense_into(self, data: Any, motors: np.ndarray, out: np.ndarray) -> None:
         columns = self._sensor_columns
+        k = len(columns)
         for i, row in enumerate(motors):
             self._posture(data, row)
-            np.take(data.sensordata, columns, out=out[i])
+            np.take(data.sensordata, columns, out=out[i, :k])
+            if self._renderer is not None:
+                self._renderer.update_scene(data, camera=self._camera)
+                image = self._renderer.render()
+                if self.color == "grey":
+                    image = image.mean(axis=2)
+                out[i, k:] = np.ravel(image) / 255.0
 
     def pose(self, motors: Any) -> np.ndarray:
         """The site's poses ``(B, 3)`` (planar) or ``(B, 7)`` (spatial) of the motor
@@ -392,9 +478,10 @@ class Body:
         return PythonAgent(**arguments, thread_safe=self.threads)
 
     def __repr__(self) -> str:
+        camera = "" if self.camera is None else f", camera={self.camera!r} {self.size} {self.color}"
         return (
             f"smspace.mujoco.Body(joints={self.joints}, sensors={len(self.sensors)} ({self.n_sensors} values), "
-            f"site={self.site!r}, pose_space={self.pose_space!r}, threads={self.threads})"
+            f"site={self.site!r}, pose_space={self.pose_space!r}, threads={self.threads}{camera})"
         )
 
 
@@ -427,6 +514,9 @@ def agent(
     threads: bool = False,
     name: Optional[str] = None,
     concurrent_sets: int = 256,
+    camera: Optional[str] = None,
+    size: Tuple[int, int] = (32, 24),
+    color: str = "rgb",
 ) -> PythonAgent:
     """A :class:`smspace.PythonAgent` whose body is the MuJoCo ``model``: its motors
     are the named ``joints`` (None: every hinge and slide joint), its sensors the
@@ -444,6 +534,11 @@ def agent(
     :class:`smspace.PythonAgent`. See :class:`Body` for the mapping and the errors
     (a missing joint, sensor or site is a ValueError naming it and listing the
     model's names); ``Body(...).agent()`` is the same agent with its body at hand
-    (e.g. to read :attr:`Body.rows_sensed`)."""
-    body = Body(model, joints, sensors, site, pose_space=pose_space, threads=threads)
+    (e.g. to read :attr:`Body.rows_sensed`). ``camera``: the name of a camera whose
+    image, ``size=(W, H)`` pixels in ``color="rgb"`` or ``"grey"``, is read as ``H W C``
+    more sensors (module docs; it needs an OpenGL backend, e.g. ``MUJOCO_GL=egl``)."""
+    body = Body(
+        model, joints, sensors, site, pose_space=pose_space, threads=threads,
+        camera=camera, size=size, color=color,
+    )
     return body.agent(name=name, concurrent_sets=concurrent_sets)

@@ -584,7 +584,8 @@ pub fn analyze_on(
 
 /// The circular coordinate ([`circular`]) when asked for (`circle_landmarks > 0`,
 /// `max_homology_dim ≥ 1`), or why there is none: no loop, a loop the landmarks do not
-/// resolve, no integer class (the rest of the analysis stands).
+/// resolve, no integer class, a complex too tangled (the rest of the analysis stands;
+/// only a parameter out of its domain is an error).
 pub fn circle_of(
     distances: ArrayView2<'_, f64>,
     poses: Option<GroundTruthView<'_>>,
@@ -608,8 +609,10 @@ pub fn circle_of(
             None,
             Some("the landmarks have no loop (no H1 bar)".to_owned()),
         ),
-        Err(e @ AnalysisError::Degenerate { .. }) => (None, Some(e.to_string())),
-        Err(e) => return Err(e),
+        // A bad parameter is the user's to fix; anything else the data do (no integer
+        // class, a complex too tangled) leaves the rest of the analysis standing.
+        Err(e @ AnalysisError::Invalid(_)) => return Err(e),
+        Err(e) => (None, Some(e.to_string())),
     };
     progress.advance(1);
     progress.finish();
