@@ -1,6 +1,7 @@
 """Shared fixtures: the command-line tool (to compare with), the repository's files,
 and the NumPy arm of examples/python."""
 
+import ctypes.util
 import importlib.util
 import os
 import shutil
@@ -11,6 +12,12 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[3]
+
+# Headless rendering for the MuJoCo camera's tests: EGL where its library is installed.
+# MuJoCo chooses its OpenGL backend when it is first imported, so this is set before any
+# test module imports it; without EGL those tests skip and say why.
+if "MUJOCO_GL" not in os.environ and ctypes.util.find_library("EGL"):
+    os.environ["MUJOCO_GL"] = "egl"
 
 
 def _cli() -> str:

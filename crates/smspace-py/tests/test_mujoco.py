@@ -1,19 +1,13 @@
 """smspace.mujoco: a MuJoCo model as an agent (skipped where the mujoco package is not
 installed), and the example of examples/python/mujoco_arm.py in its small size."""
 
-import ctypes.util
 import importlib.util
 import math
-import os
 
 import numpy as np
 import pytest
 
-# Headless rendering for the camera's tests: EGL where its library is installed (the
-# backend is chosen when mujoco is imported); elsewhere those tests skip and say why.
-if "MUJOCO_GL" not in os.environ and ctypes.util.find_library("EGL"):
-    os.environ["MUJOCO_GL"] = "egl"
-
+# conftest.py asks MuJoCo for headless EGL rendering where it can (the camera's tests).
 mujoco = pytest.importorskip(
     "mujoco", reason="the mujoco package is not installed (pip install mujoco): its tests are skipped"
 )
