@@ -244,11 +244,20 @@ def read(
             f"max_bytes = {max_bytes}; read fewer episodes or columns, or raise max_bytes"
         )
     parts_m, parts_s, parts_e, parts_f = [], [], [], []
+    needed = ["episode_index", "frame_index"] + sorted(
+        {c.feature for c in motor_columns + sensor_columns}
+    )
     for path in files:
-        table = pq.read_table(path)
-        for key in ("episode_index", "frame_index"):
-            if key not in table.column_names:
-                raise ValueError(f"{path} has no {key!r} column: not a LeRobot data table")
+        present = set(pq.ParquetFile(path).schema_arrow.names)
+        for key in needed:
+            if key not in present:
+                raise ValueError(
+                    f"{path} has no column {key!r}"
+                    + ("" if key.endswith("_index") else " although meta/info.json lists it")
+                    + ("" if not key.endswith("_index") else ": not a LeRobot data table")
+                )
+        # Only the columns asked for (a table may hold images that are not).
+        table = pq.read_table(path, columns=needed)
         episode = np.asarray(table.column("episode_index").to_pylist(), dtype=np.int64)
         frame = np.asarray(table.column("frame_index").to_pylist(), dtype=np.int64)
         keep = np.ones(len(episode), dtype=bool) if wanted is None else np.isin(episode, list(wanted))
