@@ -762,6 +762,9 @@ mod learned {
         );
         let world = circle.agreement["alpha"];
         assert!(world.circular_correlation > 0.7, "{:?}", circle.agreement);
+        // At fixed circle coordinate, the plane's two coordinates carry the position.
+        let plane = circle.plane.expect("the arm's poses have x and y");
+        assert!(plane.r_squared > 0.8, "{plane:?}");
     }
 }
 

@@ -198,6 +198,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 format!("; circular correlation {}", scores.join(", "))
             }
         );
+        if let Some(plane) = &c.plane {
+            eprintln!(
+                "the plane at fixed circle coordinate: positions fitted from its two coordinates with R² {:.3} (median of {} slices, least {:.3})",
+                plane.r_squared, plane.slices, plane.r_squared_min
+            );
+        }
     } else if let Some(why) = &report.circle_missing {
         eprintln!("no circular coordinate: {why}");
     }

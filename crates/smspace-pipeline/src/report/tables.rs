@@ -604,6 +604,18 @@ fn circle_table(c: &smspace::analysis::circular::CircleCoordinate) -> Table {
             ),
         );
     }
+    if let Some(plane) = &c.plane {
+        t.push(
+            "positions from the plane at fixed circle coordinate, R² (median, least)",
+            format!(
+                "{}, {} ({} slices of about {} sets)",
+                num(plane.r_squared),
+                num(plane.r_squared_min),
+                plane.slices,
+                plane.sets_per_slice
+            ),
+        );
+    }
     t.note = Some(CIRCLE_NOTE.to_owned());
     t
 }

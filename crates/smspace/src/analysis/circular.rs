@@ -51,6 +51,13 @@
 //! `α ∓ β`, `R = max_± |mean e^{i(α ∓ β)}|`, which is 1 when the two agree up to a
 //! rotation (and reflection) of the circle.
 //!
+//! **The plane.** With the circle a number, the rest of "circle × plane" is scored in
+//! slices of it: the sets whose coordinate lies in one of 12 arcs of `2π/12` are laid
+//! out in two dimensions by classical scaling of their distances (`B = −½ J D² J`, its
+//! two leading eigenvectors scaled by `√λ`), and the observer's positions (the first
+//! two linear coordinates of the pose) are fitted affinely from them; the median `R²`
+//! over the slices says how much of the position the plane's two coordinates carry.
+//!
 //! **Which orientation.** The class of the loop is fixed by the manifold, but a circular
 //! coordinate is not: `θ + g` is one too, for any function `g` of the plane. The
 //! harmonic one is the smoothest *in the learned metric*, and the learned metric is a
@@ -134,6 +141,27 @@ pub struct CircleAgreement {
     pub resultant: f64,
 }
 
+/// How well the sets at (nearly) one circle coordinate lay out their positions: the
+/// plane's two coordinates, scored (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PlaneAgreement {
+    /// Slices of the circle scored (of [`PLANE_SLICES`]; a slice needs
+    /// [`PLANE_MIN_SETS`] sets).
+    pub slices: usize,
+    /// The median number of sets in a scored slice.
+    pub sets_per_slice: usize,
+    /// The median over the slices of `R²`, the positions fitted affinely from the
+    /// slice's two classical-scaling coordinates.
+    pub r_squared: f64,
+    /// The least `R²` of a slice.
+    pub r_squared_min: f64,
+}
+
+/// Slices of the circle the plane is scored in.
+pub const PLANE_SLICES: usize = 12;
+/// The fewest sets a slice is scored with.
+pub const PLANE_MIN_SETS: usize = 10;
+
 /// The circular coordinate of every set and how it was found.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CircleCoordinate {
@@ -159,6 +187,10 @@ pub struct CircleCoordinate {
     /// Per angular coordinate of the pose (by name), the agreement; empty without a
     /// ground truth or an angle.
     pub agreement: BTreeMap<String, CircleAgreement>,
+    /// The plane at fixed circle coordinate, scored against the positions (module
+    /// docs); `None` without a ground truth of two linear coordinates or too few sets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plane: Option<PlaneAgreement>,
     /// The coordinate of every set, radians in `[0, 2π)` (written as its own array,
     /// not in the report).
     #[serde(skip)]
@@ -236,7 +268,21 @@ pub fn circle_coordinate(
         })
         .collect();
     let mut agreement = BTreeMap::new();
+    let mut plane = None;
     if let Some(truth) = truth {
+        let linear: Vec<usize> = truth
+            .space()
+            .coordinates()
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.kind == CoordinateKind::Linear)
+            .map(|(i, _)| i)
+            .take(2)
+            .collect();
+        if linear.len() == 2 {
+            let positions = truth.poses().select(Axis(1), &linear);
+            plane = plane_agreement(distances, &values, positions.view());
+        }
         let poses = truth.poses();
         for c in truth.space().components() {
             if c.kind == CoordinateKind::Angle {
@@ -264,8 +310,72 @@ pub fn circle_coordinate(
         classes: cocycle.classes,
         largest_integer: cocycle.values.iter().map(|z| z.abs()).max().unwrap_or(0),
         agreement,
+        plane,
         values,
     }))
+}
+
+/// The plane at fixed circle coordinate (module docs): in each of [`PLANE_SLICES`]
+/// slices of `theta` holding at least [`PLANE_MIN_SETS`] sets, the two leading
+/// classical-scaling coordinates of the slice's distances, the `R²` of the positions
+/// fitted affinely from them; the median and least over the slices.
+fn plane_agreement(
+    distances: ArrayView2<'_, f64>,
+    theta: &[f64],
+    positions: ArrayView2<'_, f64>,
+) -> Option<PlaneAgreement> {
+    let mut scores = Vec::new();
+    let mut sizes = Vec::new();
+    for slice in 0..PLANE_SLICES {
+        let (low, high) = (
+            slice as f64 * std::f64::consts::TAU / PLANE_SLICES as f64,
+            (slice + 1) as f64 * std::f64::consts::TAU / PLANE_SLICES as f64,
+        );
+        let rows: Vec<usize> = (0..theta.len())
+            .filter(|&i| theta[i] >= low && theta[i] < high)
+            .collect();
+        let k = rows.len();
+        if k < PLANE_MIN_SETS {
+            continue;
+        }
+        // B = −½ J D² J, its two leading eigenvectors scaled by √λ.
+        let d2 = distances
+            .select(Axis(0), &rows)
+            .select(Axis(1), &rows)
+            .mapv(|d| d * d);
+        let row_means: Vec<f64> = d2.rows().into_iter().map(|r| r.sum() / k as f64).collect();
+        let all = row_means.iter().sum::<f64>() / k as f64;
+        let b = faer::Mat::<f64>::from_fn(k, k, |i, j| {
+            -0.5 * (d2[[i, j]] - row_means[i] - row_means[j] + all)
+        });
+        let Ok((values, vectors)) = crate::linalg::self_adjoint_eigen(b.as_ref()) else {
+            continue;
+        };
+        let coordinates = ndarray::Array2::from_shape_fn((k, 2), |(i, c)| {
+            let column = k - 1 - c;
+            vectors[(i, column)] * values[column].max(0.0).sqrt()
+        });
+        let slice_positions = positions.select(Axis(0), &rows);
+        if let Ok(fit) = super::affine::affine_errors(coordinates.view(), slice_positions.view()) {
+            scores.push(fit.r_squared);
+            sizes.push(k);
+        }
+    }
+    if scores.is_empty() {
+        return None;
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let least = scores.iter().copied().fold(f64::INFINITY, f64::min);
+    sizes.sort_unstable();
+    Some(PlaneAgreement {
+        slices: scores.len(),
+        sets_per_slice: sizes[sizes.len() / 2],
+        r_squared: median(&mut scores),
+        r_squared_min: least,
+    })
 }
 
 /// Circular correlation and resultant of `alpha` and `beta` (module docs).
