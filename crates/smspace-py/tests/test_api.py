@@ -146,7 +146,8 @@ def test_analyze_gives_the_loop_as_a_circular_coordinate():
     alpha = rng.uniform(-np.pi, np.pi, 150)
     D = 2.0 * np.abs(np.sin(0.5 * (alpha[:, None] - alpha[None, :])))
     poses = np.column_stack([np.zeros(150), np.zeros(150), alpha])
-    report = smspace.analyze(D, poses)
+    report = smspace.analyze(D, poses, circle_values=True)
+    assert "values" not in smspace.analyze(D, poses)["circle"]
     circle = report["circle"]
     assert circle["classes"] == 1
     values = np.asarray(circle["values"])

@@ -549,15 +549,17 @@ def analyze(
     poses: Any = None,
     *,
     representation: Any = None,
+    circle_values: bool = False,
     progress: ProgressArg = None,
     **params: Any,
 ) -> dict:
     """Betti numbers and persistence, intrinsic dimension (TwoNN, MLE) and, with the
     planar ``poses`` (M, 3) of the sets, the agreement of the learned neighbourhoods
-    with them; a dict as ``analysis.json`` (plain JSON values). When the manifold has a
-    loop, ``report["circle"]["values"]`` is the circular coordinate of every set (a list
-    of ``M`` radians, as ``circle.npy``: ``np.asarray`` it) and
-    ``report["circle"]["agreement"]`` its circular correlation with the poses' angles. With a ``representation`` (M, q) of the same
+    with them; a dict equal to ``analysis.json`` (plain JSON values). When the manifold
+    has a loop, ``report["circle"]["agreement"]`` is its circular coordinate's circular
+    correlation with the poses' angles; with ``circle_values=True``,
+    ``report["circle"]["values"]`` is the coordinate of every set (a list of ``M``
+    radians, as ``circle.npy``: ``np.asarray`` it). With a ``representation`` (M, q) of the same
     sets (an embedding ``Y``), ``report["affine"]`` says how well one affine map reads
     the positions (x, y) of ``poses`` off it (``r_squared``, ``metric_error``,
     ``topology_error_positions``, ``topology_error_representation``). Other keys of
@@ -566,9 +568,12 @@ def analyze(
     D = _array(D, "D", 2)
     poses = None if poses is None else _array(poses, "poses", 2)
     representation = None if representation is None else _array(representation, "representation", 2)
-    return json.loads(
+    report = json.loads(
         _core._analyze(D, poses, _params(params), _progress(progress), representation)
     )
+    if not circle_values and isinstance(report.get("circle"), dict):
+        report["circle"].pop("values", None)
+    return report
 
 
 def _toml_value(value: Any) -> str:
