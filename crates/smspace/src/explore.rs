@@ -18,7 +18,7 @@
 //!
 //! [`MotorSpace`]: crate::agent::MotorSpace
 
-use ndarray::Array2;
+use ndarray::{Array2, ArrayView1, ArrayView2};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
@@ -367,10 +367,29 @@ pub struct Exploration {
 pub const EXPLORATION_FILES: [&str; 4] =
     ["motors.npy", "poses.npy", "probes.npy", "exploration.json"];
 
+/// Whether a row of [`Exploration::probes`] labels a babbled configuration
+/// (`(-1, -1, -1)`) rather than a probe grid cell (`(orientation, x, y)` indices, all
+/// `≥ 0`).
+pub fn is_babbled(label: ArrayView1<'_, i64>) -> bool {
+    label.first().is_none_or(|&orientation| orientation < 0)
+}
+
+/// The babbled rows of a `(M, 3)` probe label array ([`Exploration::probes`]), in order.
+pub fn babbled_rows(probes: ArrayView2<'_, i64>) -> Vec<usize> {
+    (0..probes.nrows())
+        .filter(|&row| is_babbled(probes.row(row)))
+        .collect()
+}
+
 impl Exploration {
     /// How many rows are probe grid cells.
     pub fn probe_count(&self) -> usize {
-        self.probes.column(0).iter().filter(|&&o| o >= 0).count()
+        self.probes.nrows() - self.babbled_rows().len()
+    }
+
+    /// The babbled rows, in order ([`babbled_rows`]).
+    pub fn babbled_rows(&self) -> Vec<usize> {
+        babbled_rows(self.probes.view())
     }
 
     /// The poses as `(M, 3)` `(x, y, alpha)` when the agent's ground truth is the

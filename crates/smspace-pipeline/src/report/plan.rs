@@ -314,9 +314,7 @@ impl<'a: 'b, 'b> Planner<'a, 'b> {
     fn configurations(&self, params: &ReportParams) -> PlannedFigure<'b> {
         let inputs = &self.inputs;
         let agent = inputs.agent;
-        let babbled: Vec<usize> = (0..inputs.motors.nrows())
-            .filter(|&r| inputs.probes[[r, 0]] < 0)
-            .collect();
+        let babbled = smspace::explore::babbled_rows(inputs.probes.view());
         let picked = sample(babbled.len(), params.sample_configurations, params.seed, 1);
         let skeletons: Vec<Vec<[f64; 2]>> = picked
             .iter()

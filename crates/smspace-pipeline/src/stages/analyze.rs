@@ -21,7 +21,7 @@ use smspace::analysis::{
     AnalysisReport, AnalysisValidParams, DimensionSets, HomologySummary, IntrinsicDimension,
     ScaleSummary, Subsampling,
 };
-use smspace::explore::Exploration;
+use smspace::explore::{is_babbled, Exploration};
 use smspace::io::Outputs;
 use smspace::kernel::TracedSets;
 use smspace::progress::Progress;
@@ -78,7 +78,7 @@ impl Stage for AnalyzeStage {
         let babbled: Vec<usize> = kept
             .iter()
             .enumerate()
-            .filter(|&(_, &row)| exploration.probes[[row, 0]] < 0)
+            .filter(|&(_, &row)| is_babbled(exploration.probes.row(row)))
             .map(|(i, _)| i)
             .collect();
         // Without a ground truth there is no agreement to measure (the summary says so).
@@ -114,9 +114,7 @@ impl Stage for AnalyzeStage {
                 .environments
                 .first()
                 .ok_or(smspace::kernel::KernelError::MissingEnvironment)?;
-            let starts: Vec<usize> = (0..exploration.motors.nrows())
-                .filter(|&row| exploration.probes[[row, 0]] < 0)
-                .collect();
+            let starts = exploration.babbled_rows();
             let motors = exploration.motors.select(ndarray::Axis(0), &starts);
             let mut found = compensability(
                 world.value.agent.as_ref(),

@@ -407,7 +407,7 @@ impl DistancesStage {
         let params = self.scale.check(self.mle_neighbors)?;
         let probes = &input.exploration.value.probes;
         let knn_sets: Vec<usize> = (0..traced.kept.len())
-            .filter(|&i| probes[[traced.kept[i], 0]] < 0)
+            .filter(|&i| smspace::explore::is_babbled(probes.row(traced.kept[i])))
             .collect();
         let (landmarks, knn) = landmarks_and_knn_with(
             sets,

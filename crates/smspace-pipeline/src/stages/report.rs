@@ -108,7 +108,7 @@ impl Stage for ReportStage {
         let pick = |a: ndarray::ArrayView2<'_, f64>, rows: &[usize]| a.select(Axis(0), rows);
         let sampled = sample.as_ref().map(|rows| {
             let probes = exploration.probes.select(Axis(0), &motor_rows);
-            let babbled = probes.rows().into_iter().filter(|p| p[0] < 0).count();
+            let babbled = smspace::explore::babbled_rows(probes.view()).len();
             (
                 pick(exploration.motors.view(), &motor_rows),
                 planar
@@ -246,7 +246,7 @@ fn sample_rows(
 ) -> Vec<usize> {
     use rand::SeedableRng;
     let (grid, babbled): (Vec<usize>, Vec<usize>) =
-        (0..kept.len()).partition(|&r| probes[[kept[r], 0]] >= 0);
+        (0..kept.len()).partition(|&r| !smspace::explore::is_babbled(probes.row(kept[r])));
     let room = most.saturating_sub(grid.len()).min(babbled.len());
     let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
     let mut rows = grid;

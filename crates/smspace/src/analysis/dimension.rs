@@ -552,7 +552,7 @@ mod tests {
         .unwrap();
         let rows: Vec<usize> = if probes {
             (0..traced.kept.len())
-                .filter(|&i| found.probes[[traced.kept[i], 0]] >= 0)
+                .filter(|&i| !crate::explore::is_babbled(found.probes.row(traced.kept[i])))
                 .collect()
         } else {
             (0..traced.kept.len()).collect()

@@ -239,7 +239,7 @@ pub(super) fn probe_surfaces(
     let mut by: BTreeMap<i64, Accumulated> = BTreeMap::new();
     for (set, &row) in kept.iter().enumerate() {
         let label = probes.row(row);
-        if label[0] < 0 {
+        if smspace::explore::is_babbled(label) {
             continue;
         }
         let entry = by.entry(label[0]).or_default();
