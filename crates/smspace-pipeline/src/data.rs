@@ -44,8 +44,8 @@ use rand::seq::index::sample;
 use rand::SeedableRng;
 use serde::{Deserialize, Serialize};
 
-use super::stages::World;
 use smspace::agent::{Agent, Environment, MotorSpace, Observer};
+use smspace::explore::Workspace;
 use smspace::learn::{
     declared_space, gib_bytes, learn_with_progress, parse_motor_declarations, simulate, LawParams,
     LawValidParams, LearnError, LearnedLaw, LogFiles, SensorimotorLog, SimulateParams,
@@ -138,6 +138,18 @@ fn invalid(
     reason: impl Into<String>,
 ) -> LearnError {
     InvalidParameter::new("data", key, value, reason.into()).into()
+}
+
+/// What a simulated log (`[data.simulate]`) is drawn from: the run's agent, its main
+/// environment (none: an empty one) and its working space.
+#[derive(Clone, Copy)]
+pub struct Simulator<'a> {
+    /// The agent.
+    pub agent: &'a dyn Agent,
+    /// The main environment.
+    pub environment: Option<&'a Environment>,
+    /// The working space.
+    pub workspace: Option<Workspace>,
 }
 
 impl RunData {
@@ -345,7 +357,7 @@ impl RunData {
 
     /// The logs: read at [`check`](Self::check), or simulated from the world's agent
     /// in its main environment and working space on first use.
-    pub fn logs(&self, world: &World) -> Result<Arc<Vec<SensorimotorLog>>, LearnError> {
+    pub fn logs(&self, world: Simulator<'_>) -> Result<Arc<Vec<SensorimotorLog>>, LearnError> {
         let mut logs = self.logs.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(logs) = logs.as_ref() {
             return Ok(logs.clone());
@@ -354,8 +366,8 @@ impl RunData {
             return Err(LearnError::NoLog);
         };
         let unused = Environment::from_lights(Vec::new());
-        let environment = world.environments.first().unwrap_or(&unused);
-        let log = simulate(world.agent.as_ref(), environment, world.workspace, params)?;
+        let environment = world.environment.unwrap_or(&unused);
+        let log = simulate(world.agent, environment, world.workspace, params)?;
         let files = LogFiles {
             motors: PathBuf::from("(simulated motors)"),
             sensors: PathBuf::from("(simulated sensors)"),
@@ -375,7 +387,7 @@ impl RunData {
     /// memory_limit_gib` is checked before it is built.
     pub fn law(
         &self,
-        world: &World,
+        world: Simulator<'_>,
         memory_limit: Option<u64>,
         progress: &dyn smspace::progress::Progress,
     ) -> Result<Arc<LearnedLaw>, LearnError> {
@@ -399,7 +411,12 @@ impl RunData {
 
     /// `n` distinct reference rows of the first log, drawn with `seed`, in the order
     /// drawn: their motor commands `(n, N)`.
-    pub fn pick(&self, world: &World, n: usize, seed: u64) -> Result<Array2<f64>, LearnError> {
+    pub fn pick(
+        &self,
+        world: Simulator<'_>,
+        n: usize,
+        seed: u64,
+    ) -> Result<Array2<f64>, LearnError> {
         let logs = self.logs(world)?;
         let first = logs.first().ok_or(LearnError::NoLog)?;
         let samples = first.samples();

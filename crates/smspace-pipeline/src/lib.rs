@@ -89,9 +89,11 @@
 pub mod config;
 pub mod data;
 mod error;
+pub mod front;
 pub mod lock;
 pub mod manifest;
 mod memory;
+mod plan;
 pub mod report;
 mod runner;
 pub mod scale;
@@ -99,7 +101,13 @@ pub mod stages;
 
 pub use error::{Error, Result};
 
-use std::path::{Path, PathBuf};
+/// The architecture page (`docs/ARCHITECTURE.md`): its Rust listings are compiled with
+/// the doc tests, so they follow the code.
+#[cfg(doctest)]
+#[doc = include_str!("../../../docs/ARCHITECTURE.md")]
+pub struct ArchitecturePage;
+
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -107,222 +115,20 @@ use crate::config::{ConfigError, LoadedExperiment};
 pub use lock::BusyFolder;
 use lock::FolderLock;
 pub use manifest::StageId;
-use manifest::{hash_parts, Manifest, RunStatus, Seeds, StageRecord, SMSPACE_VERSION};
+use manifest::{hash_parts, Manifest, RunStatus, Seeds, SMSPACE_VERSION};
+pub use plan::{PipelineError, Plan, Recompute, RunObserver, RunOptions, RunSummary};
 use runner::Runner;
 use smspace::agent::{Agent, AgentRegistry};
-use smspace::analysis::AnalysisReport;
 use smspace::embed::EmbeddingRegistry;
-use smspace::io::IoError;
 use smspace::kernel::{TraceMethod, TraceParams};
 use smspace::metric::{DistanceParams, KernelShape, MetricError, MetricRegistry, Periodicity};
 use smspace::params::InvalidParameter;
-use smspace::progress::Progress;
 use stages::{
     AnalyzeInput, AnalyzeStage, DistancesInput, DistancesStage, EmbedInput, EmbedStage,
-    ExploreInput, ExploreStage, InvarianceInput, InvarianceStage, Keyed, ReportInput, ReportStage,
+    ExploreInput, ExploreStage, InvarianceInput, InvarianceStage, ReportInput, ReportStage,
     TraceInput, TraceStage, World, DYDX_PAIRS, QUALITY_NEIGHBOURS,
 };
 pub use stages::{DistanceBackend, LocalDistances};
-
-/// Errors of a run.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum PipelineError {
-    /// The experiment is invalid; nothing ran.
-    #[error(transparent)]
-    Config(#[from] ConfigError),
-    /// The output folder cannot be made.
-    #[error("cannot create the output folder {path}: {reason}")]
-    CreateDir {
-        /// The folder.
-        path: PathBuf,
-        /// The operating system's reason.
-        reason: std::io::Error,
-    },
-    /// A stage failed; the earlier stages' outputs are intact.
-    #[error("stage `{stage}` failed: {reason}\n(the outputs of the stages before it are intact in {dir}; see manifest.json)")]
-    Stage {
-        /// The stage.
-        stage: &'static str,
-        /// The run folder.
-        dir: PathBuf,
-        /// Why it failed.
-        reason: Box<crate::Error>,
-    },
-    /// Writing the manifest or the resolved configuration failed.
-    #[error(transparent)]
-    Io(#[from] IoError),
-    /// Another process is writing the run folder (and [`BusyFolder::Refuse`]).
-    #[error("another smspace run is writing {dir} (it holds {lock}); wait for it to end, pass --wait to queue behind it, or choose another --out folder")]
-    Busy {
-        /// The run folder.
-        dir: PathBuf,
-        /// Its lock file.
-        lock: PathBuf,
-    },
-    /// A stage's estimated peak memory (or, before anything runs, the explored
-    /// configurations or their kernel sets) exceeds the run's limit; the stage did
-    /// not start.
-    #[error("{what}: about {} needed, but the limit is {} (the memory available, or --max-memory); {fix}", smspace::metric::human_bytes(*needed), smspace::metric::human_bytes(*available))]
-    OutOfMemory {
-        /// What would not fit, with its size (e.g. `kernel sets (3500 × 100 × 4)`).
-        what: String,
-        /// Bytes needed.
-        needed: u64,
-        /// Bytes available.
-        available: u64,
-        /// Which keys to lower.
-        fix: &'static str,
-    },
-    /// The run folder cannot be written (a read-only folder or file system) and the run
-    /// would have to write it; nothing was written.
-    #[error("{dir} cannot be written, and {what}: a read-only run folder can only be reused as it is (the same experiment and settings, every stage finished); run it into a writable folder with --out{}", reason.as_ref().map(|r| format!(" ({r})")).unwrap_or_default())]
-    ReadOnly {
-        /// The run folder.
-        dir: PathBuf,
-        /// Why the run must write (e.g. "stage `embed` must be computed").
-        what: String,
-        /// The operating system's reason, when a write was tried.
-        reason: Option<std::io::Error>,
-    },
-    /// The lock file of the run folder cannot be opened or locked.
-    #[error("cannot lock the run folder through {path}: {reason}")]
-    Lock {
-        /// The lock file.
-        path: PathBuf,
-        /// The operating system's reason.
-        reason: std::io::Error,
-    },
-}
-
-/// Which stages run again.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Recompute {
-    /// Only stages whose parameters or inputs changed, or whose outputs are missing or
-    /// were modified (default).
-    #[default]
-    Changed,
-    /// Every stage (`--force`).
-    All,
-}
-
-/// Options of a run that are not part of the experiment.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RunOptions {
-    /// The run folder.
-    pub out_dir: PathBuf,
-    /// Which stages run again.
-    pub recompute: Recompute,
-    /// The run's memory limit in bytes (the command-line tool passes `--max-memory`,
-    /// by default the memory available): every stage's estimated peak is checked
-    /// against it before the stage starts, and the distance matrix against the
-    /// smaller of it and the experiment's `[metric] memory_limit_bytes`. `None`: no
-    /// limit but the experiment's.
-    pub memory_limit_bytes: Option<u64>,
-    /// What to do when another process is writing the run folder ([`lock`]).
-    pub busy: BusyFolder,
-}
-
-/// Receives the run's events; the command-line tool prints them. All methods but
-/// [`progress`](RunObserver::progress) default to doing nothing.
-pub trait RunObserver: Sync {
-    /// The observer of long loops inside stages.
-    fn progress(&self) -> &dyn Progress;
-    /// A stage starts.
-    fn stage_started(&self, _stage: StageId) {}
-    /// A stage ended (computed or reused); `summary` is one line on what it produced.
-    fn stage_finished(&self, _stage: StageId, _record: &StageRecord, _summary: &str) {}
-    /// What a stage says before it is computed ([`Stage::forecast`](stages::Stage::forecast)):
-    /// e.g. that it will take long.
-    fn stage_note(&self, _stage: StageId, _note: &str) {}
-    /// A stage is skipped because the experiment does not need it.
-    fn stage_skipped(&self, _stage: StageId, _why: &str) {}
-    /// Another process holds the run folder and [`BusyFolder::Wait`] waits for it.
-    fn waiting_for_folder(&self, _lock: &Path) {}
-}
-
-/// What [`run`] produced.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RunSummary {
-    /// The run folder.
-    pub dir: PathBuf,
-    /// The manifest written.
-    pub manifest: Manifest,
-    /// The analysis report.
-    pub analysis: AnalysisReport,
-}
-
-/// The experiment with every table checked, as one typed stage per table: what [`run`]
-/// executes.
-#[derive(Debug)]
-pub struct Plan {
-    experiment: LoadedExperiment,
-    world: Keyed<World>,
-    explore: ExploreStage,
-    trace: TraceStage,
-    distances: DistancesStage,
-    embed: EmbedStage,
-    analyze: AnalyzeStage,
-    /// `None`: one environment, or no starts to compare.
-    invariance: Option<InvarianceStage>,
-    report: ReportStage,
-}
-
-impl Plan {
-    /// The experiment.
-    pub fn experiment(&self) -> &LoadedExperiment {
-        &self.experiment
-    }
-
-    /// The files the run reads: the experiment file and, with a `[data]` table of
-    /// files, every log's motors and sensors; no output of the run may replace them
-    /// ([`smspace::io::check_folder_spares_inputs`]).
-    pub fn input_files(&self) -> Vec<(&'static str, PathBuf)> {
-        let mut files = vec![("experiment file", self.experiment.path.clone())];
-        if let Some(data) = &self.world.data {
-            if let data::DataSource::Files { logs, .. } = &data.source {
-                for (motors, _, sensors, _) in logs {
-                    files.push(("[data] motors", motors.clone()));
-                    files.push(("[data] sensors", sensors.clone()));
-                }
-            }
-        }
-        files
-    }
-
-    /// The agent.
-    pub fn agent(&self) -> &dyn Agent {
-        self.world.agent.as_ref()
-    }
-
-    /// What the cache compares besides the keys of the inputs: every stage's struct as
-    /// JSON (the parameters its computation reads) and its parameter key (the hash of
-    /// its name and that JSON, [`Stage::parameter_key`](stages::Stage::parameter_key)),
-    /// in order; the invariance stage only when it runs. The world's key is
-    /// [`Plan::world_key`].
-    pub fn parameter_keys(&self) -> Vec<(StageId, String, serde_json::Value)> {
-        use stages::Stage;
-        fn entry<S: Stage>(stage: &S) -> (StageId, String, serde_json::Value) {
-            let json = serde_json::to_value(stage).unwrap_or_default();
-            (S::ID, stage.parameter_key(), json)
-        }
-        let mut keys = vec![
-            entry(&self.explore),
-            entry(&self.trace),
-            entry(&self.distances),
-            entry(&self.embed),
-            entry(&self.analyze),
-        ];
-        keys.extend(self.invariance.as_ref().map(entry));
-        keys.push(entry(&self.report));
-        keys
-    }
-
-    /// The key of the agent, its environments and its working space.
-    pub fn world_key(&self) -> &str {
-        &self.world.key
-    }
-}
 
 /// The kinds a run can build by name: agents (`[agent] kind`) and set metrics
 /// (`[metric] metric`) and embedding methods (`[embedding] method`). An embedder adds

@@ -19,7 +19,27 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::PipelineError;
+/// A run folder that cannot be taken.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LockError {
+    /// Another process is writing the run folder (and [`BusyFolder::Refuse`]).
+    #[error("another smspace run is writing {dir} (it holds {lock}); wait for it to end, pass --wait to queue behind it, or choose another --out folder")]
+    Busy {
+        /// The run folder.
+        dir: PathBuf,
+        /// Its lock file.
+        lock: PathBuf,
+    },
+    /// The lock file of the run folder cannot be opened or locked.
+    #[error("cannot lock the run folder through {path}: {reason}")]
+    Lock {
+        /// The lock file.
+        path: PathBuf,
+        /// The operating system's reason.
+        reason: std::io::Error,
+    },
+}
 
 /// Name of the lock file inside a run folder.
 pub const LOCK_FILE: &str = ".smspace.lock";
@@ -28,7 +48,7 @@ pub const LOCK_FILE: &str = ".smspace.lock";
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum BusyFolder {
-    /// Fail at once with [`PipelineError::Busy`] (the default).
+    /// Fail at once with [`LockError::Busy`] (the default).
     #[default]
     Refuse,
     /// Wait until the other run ends, then run.
@@ -60,9 +80,9 @@ impl FolderLock {
         dir: &Path,
         busy: BusyFolder,
         waiting: impl FnOnce(&Path),
-    ) -> Result<Self, PipelineError> {
+    ) -> Result<Self, LockError> {
         let path = lock_path(dir);
-        let lock_error = |reason| PipelineError::Lock {
+        let lock_error = |reason| LockError::Lock {
             path: path.clone(),
             reason,
         };
@@ -93,7 +113,7 @@ impl FolderLock {
             Ok(()) => {}
             Err(TryLockError::WouldBlock) => match busy {
                 BusyFolder::Refuse => {
-                    return Err(PipelineError::Busy {
+                    return Err(LockError::Busy {
                         dir: dir.to_owned(),
                         lock: path,
                     })
@@ -183,7 +203,7 @@ mod tests {
         let first = FolderLock::acquire(dir.path(), BusyFolder::Refuse, |_| {}).unwrap();
         let second = FolderLock::acquire(dir.path(), BusyFolder::Refuse, |_| {});
         match second {
-            Err(PipelineError::Busy { dir: busy, lock }) => {
+            Err(LockError::Busy { dir: busy, lock }) => {
                 assert_eq!(busy, dir.path());
                 assert_eq!(lock, lock_path(dir.path()));
             }
@@ -205,7 +225,7 @@ mod tests {
         let first = shared().unwrap();
         let second = shared().expect("readers share the folder");
         let writer = FolderLock::acquire(dir.path(), BusyFolder::Refuse, |_| {});
-        assert!(matches!(writer, Err(PipelineError::Busy { .. })));
+        assert!(matches!(writer, Err(LockError::Busy { .. })));
         drop((first, second));
         let writer = FolderLock::acquire(dir.path(), BusyFolder::Refuse, |_| {}).unwrap();
         assert_eq!(writer.access(), Access::Write);

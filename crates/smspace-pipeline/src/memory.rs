@@ -24,8 +24,8 @@
 //! `analyze` the agreement on the `L` landmarks (`≈ 5 · 8 L²`) and the persistence of
 //! `min(L, max_points)` of them.
 
-use super::scale::ChosenPath;
-use super::Plan;
+use crate::plan::Plan;
+use crate::scale::ChosenPath;
 
 /// Bytes of one float64.
 const F64: u64 = 8;

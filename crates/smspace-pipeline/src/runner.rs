@@ -24,7 +24,7 @@ use super::lock::{Access, FolderLock};
 use super::manifest::{hash_parts, Manifest, RunStatus, StageRecord};
 use super::memory::Peak;
 use super::stages::{DistanceBackend, Keyed, Stage, StageContext};
-use super::{PipelineError, Recompute, RunObserver, RunOptions};
+use crate::plan::{PipelineError, Recompute, RunObserver, RunOptions};
 use crate::report::StageTiming;
 use smspace::io::{IoError, Outputs};
 

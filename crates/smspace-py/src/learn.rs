@@ -16,8 +16,8 @@ use serde_json::{Map, Value};
 use smspace::kernel::TraceParams;
 use smspace::learn::budget::{learn_from_agent, BudgetParams};
 use smspace::learn::{
-    declared_space, gib_bytes, law_trace_params, learn_with_progress, parse_motor_declarations,
-    trace_learned, LawParams, LawValidParams, LogFiles, SensorimotorLog, DEFAULT_MEMORY_LIMIT_GIB,
+    declared_space, law_trace_params, learn_with_progress, parse_motor_declarations, trace_learned,
+    LawParams, LawValidParams, LogFiles, SensorimotorLog,
 };
 
 use crate::agent::Agent;
@@ -137,7 +137,7 @@ fn _learn<'py>(
             space.dim()
         )));
     }
-    let limit = memory_limit_bytes.unwrap_or_else(|| gib_bytes(DEFAULT_MEMORY_LIMIT_GIB));
+    let limit = smspace_pipeline::front::learn_memory_limit(memory_limit_bytes);
     let progress = Arc::new(PyProgress::new(progress));
     let interrupts = [progress.interrupt()];
     let shared = progress.clone();
@@ -194,7 +194,7 @@ fn _learn_agent<'py>(
     check_finite(starts.iter(), "starts")?;
     let environment = agent.environment(env)?;
     let workspace = crate::stages::resolve_workspace(agent, workspace)?;
-    let limit = memory_limit_bytes.unwrap_or_else(|| gib_bytes(DEFAULT_MEMORY_LIMIT_GIB));
+    let limit = smspace_pipeline::front::learn_memory_limit(memory_limit_bytes);
     let progress = Arc::new(PyProgress::new(progress));
     let mut interrupts = agent.interrupts();
     interrupts.push(progress.interrupt());

@@ -10,7 +10,10 @@ use pyo3::prelude::*;
 use smspace::metric::{DistanceMatrix, MetricError, SetsView};
 use smspace::progress::Progress;
 use smspace_pipeline::config::load_experiment;
-use smspace_pipeline::manifest::{hash_parts, StageRecord};
+use smspace_pipeline::front::{
+    default_run_dir, memory_limit, own_folder_line, stage_line, waiting_line, StageEvent,
+};
+use smspace_pipeline::manifest::StageRecord;
 use smspace_pipeline::stages::DistancesStage;
 use smspace_pipeline::{
     self, BusyFolder, DistanceBackend, Recompute, RunObserver, RunOptions, StageId,
@@ -46,25 +49,26 @@ impl RunObserver for Observer {
     }
 
     fn stage_finished(&self, stage: StageId, record: &StageRecord, summary: &str) {
-        let how = if record.cached {
-            format!("reused (computed in {:.2} s)", record.compute_seconds)
-        } else {
-            format!("{:.2} s", record.seconds)
-        };
-        self.say(format!("[smspace] {:<10} {how}: {summary}", stage.name()));
+        self.say(stage_line(stage, StageEvent::Finished { record, summary }));
     }
 
     fn stage_note(&self, stage: StageId, note: &str) {
-        self.say(format!("[smspace] {:<10} note: {note}", stage.name()));
+        self.say(stage_line(stage, StageEvent::Note(note)));
     }
 
     fn stage_skipped(&self, stage: StageId, why: &str) {
-        self.say(format!("[smspace] {:<10} skipped: {why}", stage.name()));
+        self.say(stage_line(stage, StageEvent::Skipped(why)));
+    }
+
+    fn waiting_for_folder(&self, lock: &std::path::Path) {
+        self.say(waiting_line(lock));
     }
 }
 
-/// The distance stage computed by `callable(sets, closed, metric, period, pieces) -> (M, M)`
-/// (`pieces`: the piece of every point, `(M, P)` int64, or `None`).
+/// The distance stage computed by
+/// `callable(sets, closed, metric, period, pieces, params) -> (M, M)` (`pieces`: the
+/// piece of every point, `(M, P)` int64, or `None`; `params`: the JSON of the
+/// `[metric.params]` table, or `None` when it is empty).
 struct PythonDistances {
     callable: Py<PyAny>,
     error: Mutex<Option<PyErr>>,
@@ -80,6 +84,16 @@ impl DistanceBackend for PythonDistances {
     ) -> smspace_pipeline::Result<DistanceMatrix> {
         // "2pi", "none" or "[2pi, none, …]", which `Periodicity::parse` reads back.
         let period = stage.period.to_string();
+        let params = if stage.params.is_empty() {
+            None
+        } else {
+            Some(
+                serde_json::to_string(&stage.params).map_err(|e| MetricError::Backend {
+                    backend: self.remote().unwrap_or_default(),
+                    reason: format!("the [metric.params] table does not convert to JSON: {e}"),
+                })?,
+            )
+        };
         let answer = crate::host::attach(|py| -> PyResult<DistanceMatrix> {
             let points = sets.points().to_owned().into_pyarray(py);
             let closed = sets.closure().map(|c| {
@@ -97,6 +111,7 @@ impl DistanceBackend for PythonDistances {
                     stage.metric.as_str(),
                     period.as_str(),
                     pieces,
+                    params,
                 ),
             )?;
             let d: PyReadonlyArray2<'_, f64> = d.bind(py).extract()?;
@@ -120,17 +135,6 @@ impl DistanceBackend for PythonDistances {
     }
 }
 
-/// The run folder when `out` is not given, as `smspace run` names it: `runs/<name>`,
-/// and with overrides `runs/<name>-<8 hex digits of the overrides' hash>`.
-fn default_out_dir(name: &str, overrides: &[String]) -> PathBuf {
-    let runs = PathBuf::from("runs");
-    if overrides.is_empty() {
-        return runs.join(name);
-    }
-    let parts: Vec<&[u8]> = overrides.iter().map(|o| o.as_bytes()).collect();
-    runs.join(format!("{name}-{}", &hash_parts(&parts)[..8]))
-}
-
 /// `_run(path, out, overrides, force, max_memory, distances, log, progress)`: runs the
 /// experiment; returns `(run folder, analysis report JSON)`.
 #[pyfunction]
@@ -150,21 +154,28 @@ fn _run(
     let loaded = load_experiment(&path, &overrides).map_err(to_py_err)?;
     let metrics = crate::metric::registry();
     let plan = smspace_pipeline::check_with(&loaded, &metrics).map_err(to_py_err)?;
-    let options = RunOptions {
-        out_dir: out.unwrap_or_else(|| default_out_dir(&loaded.name, &overrides)),
-        recompute: if force {
-            Recompute::All
-        } else {
-            Recompute::Changed
-        },
-        memory_limit_bytes: max_memory,
-        busy: BusyFolder::Refuse,
-    };
     let observer = Arc::new(Observer {
         progress: PyProgress::new(progress),
         log,
         error: Mutex::new(None),
     });
+    let out_dir = out.unwrap_or_else(|| {
+        let dir = default_run_dir(&loaded.name, &overrides);
+        if !overrides.is_empty() {
+            observer.say(own_folder_line(&dir, &loaded.name, "overrides", "out="));
+        }
+        dir
+    });
+    let options = RunOptions {
+        out_dir,
+        recompute: if force {
+            Recompute::All
+        } else {
+            Recompute::Changed
+        },
+        memory_limit_bytes: memory_limit(max_memory),
+        busy: BusyFolder::Refuse,
+    };
     let backend = Arc::new(distances.map(|callable| PythonDistances {
         callable,
         error: Mutex::new(None),

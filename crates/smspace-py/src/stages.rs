@@ -19,11 +19,12 @@ use smspace::analysis::affine::affine_errors;
 use smspace::analysis::{analyze, AnalysisParams};
 use smspace::embed::EmbedParams;
 use smspace::explore::{default_workspace, explore_with, ExploreParams, Workspace};
-use smspace::kernel::{trace_sets, Closure, TraceParams};
+use smspace::kernel::{trace_sets, Closure, TraceParams, TraceReport};
 use smspace::metric::{
     distance_matrix_with, fill_tile, knn_with, BuiltMetric, DistanceMatrix, DistanceParams,
     KnnParams, SetsView, Tile, TileMerge,
 };
+use smspace_pipeline::front::{self, MetricRequest};
 
 use crate::agent::Agent;
 use crate::host::{run_interruptible, Interrupt};
@@ -83,17 +84,74 @@ fn closures(
         .map(Some)
 }
 
-/// The metric `name` with `period` (`"2pi"`, `"none"`, or one entry per motor:
-/// `"2pi,2pi,none"`), from the registry of this process (built-in metrics and those
-/// registered from Python).
-fn metric(name: &str, period: &str, memory_limit_bytes: Option<u64>) -> PyResult<BuiltMetric> {
-    let period = smspace::metric::Periodicity::parse(period)
-        .map_err(|e| value_error(format!("period: {e}")))?;
-    let params = DistanceParams::new()
-        .metric(name)
-        .period(period)
-        .memory_limit_bytes(memory_limit_bytes);
-    crate::metric::registry().build(&params).map_err(to_py_err)
+/// What names a metric in a Python call: its name, `period` (`"2pi"`, `"none"`, or one
+/// entry per motor: `"2pi,2pi,none"`), its parameters (the JSON of a dict, the
+/// `[metric.params]` table) and the trace report of the sets when they come from
+/// `trace` (its JSON: the kernels' shape, which a parameter may follow and the metric
+/// checks).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct MetricArgs {
+    name: String,
+    period: String,
+    params: Option<String>,
+    report: Option<String>,
+}
+
+impl MetricArgs {
+    /// The trace report, when given.
+    fn report(&self) -> PyResult<Option<TraceReport>> {
+        self.report
+            .as_deref()
+            .map(|json| from_json(json, "trace report"))
+            .transpose()
+    }
+
+    /// The metric, from the registry of this process (built-in metrics and those
+    /// registered from Python), checked against the kernels of the trace report.
+    fn build(&self, memory_limit_bytes: Option<u64>) -> PyResult<BuiltMetric> {
+        let period = smspace::metric::Periodicity::parse(&self.period)
+            .map_err(|e| value_error(format!("period: {e}")))?;
+        let params = match self.params.as_deref() {
+            None => toml::Table::new(),
+            Some(json) => {
+                let value: serde_json::Value = from_json(json, "metric parameters")?;
+                toml::Table::try_from(value).map_err(|e| {
+                    value_error(format!(
+                        "metric parameters: {e} (give a dict of numbers, strings, booleans and lists)"
+                    ))
+                })?
+            }
+        };
+        let kernels = self.report()?.map(|r| r.kernel_shape());
+        let request = MetricRequest {
+            name: &self.name,
+            period,
+            params,
+            memory_limit_bytes: front::memory_limit(memory_limit_bytes),
+            kernels,
+        };
+        let built = front::metric(&crate::metric::registry(), request).map_err(to_py_err)?;
+        if let Some(shape) = kernels {
+            built
+                .metric
+                .check_kernels(shape)
+                .map_err(|e| value_error(format!("sets: {}", crate::message(&e))))?;
+        }
+        Ok(built)
+    }
+
+    /// Checks `sets` against the trace report (sets extended along motors must be
+    /// recorded as slices for a metric that reads pieces).
+    fn check_sets(&self, built: &BuiltMetric, sets: &SetsView<'_>) -> PyResult<()> {
+        if let Some(report) = self.report()? {
+            built
+                .metric
+                .check_sets(sets, &report.extended_along)
+                .map_err(|e| value_error(format!("sets: {}", crate::message(&e))))?;
+        }
+        Ok(())
+    }
 }
 
 /// The piece of every point `(M, P)` int64 (`smspace.trace(..., components="all")`):
@@ -382,25 +440,24 @@ pub(crate) fn traced_outputs(
     ))
 }
 
-/// `_distances(sets, closed, metric, period, memory_limit_bytes, progress, pieces)`:
-/// the `(M, M)` matrix.
+/// `_distances(sets, closed, metric, memory_limit_bytes, progress, pieces)`: the
+/// `(M, M)` matrix (`metric`: the dict of [`MetricArgs`]).
 #[pyfunction]
-#[pyo3(signature = (sets, closed, metric, period, memory_limit_bytes=None, progress=None, pieces=None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (sets, closed, metric, memory_limit_bytes=None, progress=None, pieces=None))]
 fn _distances<'py>(
     py: Python<'py>,
     sets: PyReadonlyArray3<'py, f64>,
     closed: Option<PyReadonlyArray1<'py, i64>>,
-    metric: &str,
-    period: &str,
+    metric: MetricArgs,
     memory_limit_bytes: Option<u64>,
     progress: Option<Py<PyAny>>,
     pieces: Option<PyReadonlyArray2<'py, i64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
     let points = sets.as_array();
     check_finite(points.iter(), "sets")?;
-    let built = metric_for(metric, period, memory_limit_bytes)?;
+    let built = metric.build(memory_limit_bytes)?;
     let sets = OwnedSets::new(points, closed, pieces.as_ref(), "pieces", &built)?;
+    metric.check_sets(&built, &sets.view()?)?;
     let (progress, interrupts) = reporter(progress, None);
     let shared = progress.clone();
     let d = run_interruptible(py, &interrupts, move || {
@@ -416,16 +473,12 @@ fn _distances<'py>(
     Ok(d?.into_array().into_pyarray(py))
 }
 
-fn metric_for(name: &str, period: &str, limit: Option<u64>) -> PyResult<BuiltMetric> {
-    metric(name, period, limit)
-}
-
-/// `_distance_tile(rows, rows_closed, cols, cols_closed, tile, metric, period,
-/// rows_pieces, cols_pieces)`: the block `D[r0:r1, c0:c1]` from the sets of its rows
+/// `_distance_tile(rows, rows_closed, cols, cols_closed, tile, metric, rows_pieces,
+/// cols_pieces)`: the block `D[r0:r1, c0:c1]` from the sets of its rows
 /// and of its columns only, bit for bit the block of the whole matrix (what a
 /// cluster's task computes).
 #[pyfunction]
-#[pyo3(signature = (rows, rows_closed, cols, cols_closed, tile, metric, period, rows_pieces=None, cols_pieces=None))]
+#[pyo3(signature = (rows, rows_closed, cols, cols_closed, tile, metric, rows_pieces=None, cols_pieces=None))]
 #[allow(clippy::too_many_arguments)]
 fn _distance_tile<'py>(
     py: Python<'py>,
@@ -434,12 +487,11 @@ fn _distance_tile<'py>(
     cols: PyReadonlyArray3<'py, f64>,
     cols_closed: Option<PyReadonlyArray1<'py, i64>>,
     tile: Bounds,
-    metric: &str,
-    period: &str,
+    metric: MetricArgs,
     rows_pieces: Option<PyReadonlyArray2<'py, i64>>,
     cols_pieces: Option<PyReadonlyArray2<'py, i64>>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let built = metric_for(metric, period, None)?;
+    let built = metric.build(None)?;
     let rows = OwnedSets::new(
         rows.as_array(),
         rows_closed,
@@ -492,17 +544,16 @@ fn _merge_tiles<'py>(
     Ok(d.into_array().into_pyarray(py))
 }
 
-/// `_knn(sets, closed, metric, period, k, pivots, rows, progress, pieces)`: the `k`
+/// `_knn(sets, closed, metric, k, pivots, rows, progress, pieces)`: the `k`
 /// nearest sets of the rows `r0:r1`, `(indices (R, k) int64, distances (R, k))`.
 #[pyfunction]
-#[pyo3(signature = (sets, closed, metric, period, k, pivots, rows, progress=None, pieces=None))]
+#[pyo3(signature = (sets, closed, metric, k, pivots, rows, progress=None, pieces=None))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn _knn<'py>(
     py: Python<'py>,
     sets: PyReadonlyArray3<'py, f64>,
     closed: Option<PyReadonlyArray1<'py, i64>>,
-    metric: &str,
-    period: &str,
+    metric: MetricArgs,
     k: usize,
     pivots: Option<usize>,
     rows: (usize, usize),
@@ -511,8 +562,9 @@ fn _knn<'py>(
 ) -> PyResult<(Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<f64>>)> {
     let points = sets.as_array();
     check_finite(points.iter(), "sets")?;
-    let built = metric_for(metric, period, None)?;
+    let built = metric.build(None)?;
     let sets = OwnedSets::new(points, closed, pieces.as_ref(), "pieces", &built)?;
+    metric.check_sets(&built, &sets.view()?)?;
     let mut params = KnnParams::new().k(k);
     if let Some(p) = pivots {
         params = params.pivots(p);

@@ -74,7 +74,8 @@ def test_tiles_merge_into_the_matrix_bit_for_bit(arm_sets):
     assert len(pairs) == m * (m - 1) // 2
     tiles = [
         (b, smspace._core._distance_tile(points[b[0]:b[1]], codes[b[0]:b[1]],
-                                         points[b[2]:b[3]], codes[b[2]:b[3]], b, "curve", "2pi"))
+                                         points[b[2]:b[3]], codes[b[2]:b[3]], b,
+                                         smspace._metric_spec("curve", "2pi")))
         for b in plan
     ]
     assert np.array_equal(smspace._core._merge_tiles(m, tiles), D)

@@ -132,3 +132,30 @@ def test_run_equals_the_cli(cli, root, tmp_path):
     assert np.array_equal(again.D, run.D)
     stages = [line for line in lines if "skipped" not in line]
     assert len(stages) == 6 and all("reused" in line for line in stages), lines
+
+
+def test_metric_parameters_reach_the_metric_behind_both_doors(cli, tmp_path):
+    """``params=`` of :func:`smspace.distances` and :func:`smspace.knn` is the metric's
+    ``[metric.params]`` table, as ``smspace distances --param`` sets it: the same
+    matrix from the same words, and the same refusals."""
+    rng = np.random.default_rng(5)
+    grid = np.stack(np.meshgrid(np.arange(5), np.arange(5), indexing="ij"), -1).reshape(-1, 2) * 0.3
+    sets = np.empty((7, 25, 3))
+    for s in range(7):
+        sets[s, :, :2] = grid + rng.uniform(-0.05, 0.05, size=(25, 2))
+        sets[s, :, 2] = np.sin(0.4 * s) + 0.02 * rng.standard_normal(25)
+    np.save(tmp_path / "planes.npy", sets)
+    cli("distances", "--sets", tmp_path / "planes.npy", "--metric", "surface", "--period", "none",
+        "--param", "radius_scale=0.5", "--param", "neighbours=6", "--out", tmp_path / "D.npy")
+    params = {"radius_scale": 0.5, "neighbours": 6}
+    D = smspace.distances(sets, metric="surface", period="none", params=params)
+    assert np.array_equal(D, np.load(tmp_path / "D.npy"))
+    assert not np.array_equal(D, smspace.distances(sets, metric="surface", period="none"))
+    indices, near = smspace.knn(sets, 2, metric="surface", period="none", params=params)
+    assert np.array_equal(near[:, 0], np.sort(D + np.diag(np.full(7, np.inf)), axis=1)[:, 0])
+    with pytest.raises(ValueError, match="dimension"):
+        smspace.distances(sets, metric="hausdorff", period="none", params={"dimension": 2})
+    with pytest.raises(ValueError, match="radius_scale"):
+        smspace.distances(sets, metric="surface", period="none", params={"radius_scale": -1.0})
+    with pytest.raises(TypeError, match="dict"):
+        smspace.distances(sets, metric="surface", period="none", params=[("radius_scale", 1.0)])

@@ -132,7 +132,7 @@ def _run_with_backend(path, out, backend):
 
 
 def test_a_backend_returning_the_wrong_shape_fails_at_the_distances_stage(small_run, tmp_path):
-    def three_by_three(points, codes, metric, period, pieces=None):
+    def three_by_three(points, codes, metric, period, pieces=None, params=None):
         return np.zeros((3, 3))
 
     with pytest.raises(ValueError, match=r"distance backend .* returned a 3 × 3 matrix for \d+ kernel sets"):
@@ -143,7 +143,7 @@ def test_a_backend_returning_the_wrong_shape_fails_at_the_distances_stage(small_
 
 
 def test_a_backend_failure_names_the_backend_not_the_metric_table(small_run, tmp_path):
-    def failing(points, codes, metric, period, pieces=None):
+    def failing(points, codes, metric, period, pieces=None, params=None):
         raise RuntimeError("the cluster is gone")
 
     with pytest.raises(RuntimeError, match="the cluster is gone"):

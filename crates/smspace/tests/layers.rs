@@ -11,7 +11,7 @@ mod layers;
 
 use std::path::Path;
 
-use layers::{code, imports, violations, Floors};
+use layers::{code, imports, imports_from, violations, Floors};
 
 /// The floors (docs/ARCHITECTURE.md draws them).
 const FLOORS: Floors<'static> = Floors {
@@ -55,4 +55,17 @@ fn no_module_imports_its_own_floor_or_above() {
 fn the_reader_finds_imports_and_skips_comments_and_tests() {
     let text = "use crate::{metric::X, io};\n// crate::agent\nfn f() { crate::kernel::g() }\n#[cfg(test)]\nmod tests {\n    use crate::analysis::Y;\n}\n";
     assert_eq!(imports(&code(text)), ["metric", "io", "kernel"]);
+}
+
+#[test]
+fn the_reader_resolves_super_paths_from_the_modules_own_path() {
+    let text =
+        "use super::World;\nuse super::{kernel, io::X};\nfn f() { super::super::metric::g() }\n";
+    let top = vec!["data".to_owned()];
+    assert_eq!(imports_from(text, &top), ["World", "kernel", "io"]);
+    let nested = vec!["stages".to_owned(), "trace".to_owned()];
+    assert_eq!(
+        imports_from(text, &nested),
+        ["stages", "stages", "stages", "metric"]
+    );
 }

@@ -7,6 +7,7 @@ use clap::Args;
 use smspace::agent::{Agent, Environment, EnvironmentConfig};
 use smspace::explore::{default_workspace, Workspace};
 use smspace_pipeline::config::{load_agent, AgentSpec};
+use smspace_pipeline::front;
 
 /// `--agent NAME|FILE`.
 #[derive(Debug, Clone, Args)]
@@ -159,9 +160,9 @@ pub fn sibling(out: &Path, suffix: &str) -> PathBuf {
 }
 
 /// Refuses to start when `what` needs more than `limit` bytes (default: the memory
-/// available), naming the sizes and `fix`.
+/// available, [`smspace_pipeline::front::memory_limit`]), naming the sizes and `fix`.
 pub fn check_memory(what: &str, needed: u64, limit: Option<u64>, fix: &str) -> anyhow::Result<()> {
-    if let Some(available) = limit.or_else(memory_available) {
+    if let Some(available) = front::memory_limit(limit) {
         anyhow::ensure!(
             needed <= available,
             "the {what} need {} but only {} is available (--max-memory); {fix}",
@@ -172,36 +173,17 @@ pub fn check_memory(what: &str, needed: u64, limit: Option<u64>, fix: &str) -> a
     Ok(())
 }
 
-/// Bytes of memory available now (MemAvailable), when the system says.
-pub fn memory_available() -> Option<u64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
-}
-
-/// `--param KEY=VALUE`: a metric's parameter, the value read as TOML (a bare word that
-/// is not TOML is a string).
+/// `--param KEY=VALUE`: a parameter, the value read as TOML (a bare word that is not
+/// TOML is a string); [`front::parse_param`].
 pub fn parse_param(text: &str) -> Result<(String, toml::Value), String> {
-    let (key, value) = text
-        .split_once('=')
-        .ok_or_else(|| format!("expected KEY=VALUE, e.g. dimension=3, got {text:?}"))?;
-    let key = key.trim();
-    if key.is_empty() {
-        return Err(format!("no key before '=' in {text:?}"));
-    }
-    let value = match toml::from_str::<toml::Table>(&format!("v = {}", value.trim())) {
-        Ok(mut table) => table
-            .remove("v")
-            .unwrap_or(toml::Value::String(value.into())),
-        Err(_) => toml::Value::String(value.trim().to_owned()),
-    };
-    Ok((key.to_owned(), value))
+    front::parse_param(text).map_err(|e| e.to_string())
 }
 
 /// `value`, a parameter table, with the `--param KEY=VALUE` keys set: read back by the
-/// table's own reader, which names an unknown key or a bad value. A key in `flags`
-/// (`(key, flag)`) has a flag of its own and is refused here; a key given twice too.
+/// table's own reader, which names an unknown key or a bad value
+/// ([`front::with_params`]). A key in `flags` (`(key, flag)`, the flag without its
+/// dashes) has a flag of its own and is refused here, naming the flag; a key given
+/// twice too.
 pub fn with_table_params<T>(
     value: &T,
     params: &[(String, toml::Value)],
@@ -211,23 +193,7 @@ pub fn with_table_params<T>(
 where
     T: serde::Serialize + serde::de::DeserializeOwned,
 {
-    let mut keys = match toml::Value::try_from(value)? {
-        toml::Value::Table(keys) => keys,
-        _ => anyhow::bail!("the [{table}] table does not serialise as a table"),
-    };
-    for (i, (key, v)) in params.iter().enumerate() {
-        if params[..i].iter().any(|(k, _)| k == key) {
-            anyhow::bail!("--param {key} is given twice");
-        }
-        if let Some((_, flag)) = flags.iter().find(|(k, _)| k == key) {
-            anyhow::bail!("--param {key}=…: {key} has its flag, --{flag}");
-        }
-        keys.insert(key.clone(), v.clone());
-    }
-    toml::Value::Table(keys).try_into::<T>().map_err(|e| {
-        anyhow::anyhow!(
-            "--param: {} (the keys of the [{table}] table)",
-            e.to_string().trim_end()
-        )
-    })
+    let flags: Vec<(&str, String)> = flags.iter().map(|&(k, f)| (k, format!("--{f}"))).collect();
+    let arguments: Vec<(&str, &str)> = flags.iter().map(|(k, f)| (*k, f.as_str())).collect();
+    front::with_params(value, params, &arguments, table).context("--param")
 }

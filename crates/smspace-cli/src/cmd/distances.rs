@@ -20,6 +20,7 @@ use smspace::metric::{
 };
 
 use super::common::{parse_param, sibling};
+use smspace_pipeline::front::{self, MetricRequest};
 
 use crate::ui;
 
@@ -178,15 +179,16 @@ fn build_metric(
     path: &Path,
     report: Option<&(PathBuf, TraceReport)>,
 ) -> anyhow::Result<BuiltMetric> {
-    let mut params = DistanceParams::new()
-        .metric(args.metric.as_str())
-        .period(&args.period)
-        .memory_limit_bytes(args.max_memory.or_else(super::common::memory_available));
-    params.params = args.params.iter().cloned().collect();
     let shape = report.map(|(_, r)| r.kernel_shape());
-    let built = MetricRegistry::builtin()
-        .build_for(&params, shape)
-        .context("--metric and --param")?;
+    let request = MetricRequest {
+        name: &args.metric,
+        period: args.period.clone(),
+        params: args.params.iter().cloned().collect(),
+        memory_limit_bytes: front::memory_limit(args.max_memory),
+        kernels: shape,
+    };
+    let built =
+        front::metric(&MetricRegistry::builtin(), request).context("--metric and --param")?;
     if let (Some(shape), Some((record, _))) = (shape, report) {
         built
             .metric
@@ -391,7 +393,7 @@ fn merge(args: &Args, started: Instant) -> anyhow::Result<()> {
     for path in &args.merge {
         let (record, values) = metric::load_tile(path)?;
         if merged.is_none() {
-            let limit = args.max_memory.or_else(super::common::memory_available);
+            let limit = front::memory_limit(args.max_memory);
             let merge = TileMerge::new(record.sets, limit)
                 .with_context(|| format!("cannot merge the tiles of {}", path.display()))?;
             merged = Some((record.clone(), merge));

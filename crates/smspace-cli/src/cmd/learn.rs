@@ -9,9 +9,8 @@ use clap::Args as ClapArgs;
 use smspace::io;
 use smspace::kernel::TraceParams;
 use smspace::learn::{
-    declared_space, gib_bytes, law_trace_params, learn_with_progress, parse_motor_declarations,
-    trace_learned, LawMethod, LawParams, LawValidParams, LogFiles, MotorDeclaration, RankSource,
-    SensorimotorLog, DEFAULT_MEMORY_LIMIT_GIB,
+    declared_space, law_trace_params, learn_with_progress, parse_motor_declarations, trace_learned,
+    LawMethod, LawParams, LawValidParams, LogFiles, MotorDeclaration, RankSource, SensorimotorLog,
 };
 use smspace::progress::Progress;
 
@@ -148,10 +147,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..law_trace_params()
     };
     trace.check()?;
-    let limit = args.max_memory.unwrap_or_else(|| {
-        let default = gib_bytes(DEFAULT_MEMORY_LIMIT_GIB);
-        super::common::memory_available().map_or(default, |a| a.min(default))
-    });
+    let limit = smspace_pipeline::front::learn_memory_limit(args.max_memory);
     let bar = if args.verbose {
         Bar::with_timings()
     } else {

@@ -10,8 +10,10 @@ use smspace_pipeline::{
     self, manifest::StageRecord, BusyFolder, Recompute, RunObserver, RunOptions, StageId,
 };
 
-use super::common::memory_available;
 use crate::ui::Bar;
+use smspace_pipeline::front::{
+    default_run_dir, memory_limit, own_folder_line, stage_line, waiting_line, StageEvent,
+};
 
 /// Arguments of `smspace run`.
 #[derive(Debug, ClapArgs)]
@@ -41,18 +43,6 @@ pub struct Args {
     max_memory: Option<u64>,
 }
 
-/// The run folder when `--out` is not given: `runs/<name>`, and with overrides
-/// `runs/<name>-<first 8 hex digits of the BLAKE3 hash of the overrides, in order>`.
-fn default_out_dir(name: &str, overrides: &[String]) -> PathBuf {
-    let runs = PathBuf::from("runs");
-    if overrides.is_empty() {
-        return runs.join(name);
-    }
-    let parts: Vec<&[u8]> = overrides.iter().map(|o| o.as_bytes()).collect();
-    let hash = smspace_pipeline::manifest::hash_parts(&parts);
-    runs.join(format!("{name}-{}", &hash[..8]))
-}
-
 /// Prints one line per stage on stderr, with progress bars when it is a terminal.
 struct StageLog {
     bar: Bar,
@@ -66,32 +56,27 @@ impl RunObserver for StageLog {
 
     fn stage_started(&self, stage: StageId) {
         if !self.terminal {
-            eprintln!("[smspace] {}: started", stage.name());
+            eprintln!("{}", stage_line(stage, StageEvent::Started));
         }
     }
 
     fn stage_finished(&self, stage: StageId, record: &StageRecord, summary: &str) {
-        let how = if record.cached {
-            format!("reused (computed in {:.2} s)", record.compute_seconds)
-        } else {
-            format!("{:.2} s", record.seconds)
-        };
-        eprintln!("[smspace] {:<10} {how}: {summary}", stage.name());
+        eprintln!(
+            "{}",
+            stage_line(stage, StageEvent::Finished { record, summary })
+        );
     }
 
     fn stage_note(&self, stage: StageId, note: &str) {
-        eprintln!("[smspace] {:<10} note: {note}", stage.name());
+        eprintln!("{}", stage_line(stage, StageEvent::Note(note)));
     }
 
     fn stage_skipped(&self, stage: StageId, why: &str) {
-        eprintln!("[smspace] {:<10} skipped: {why}", stage.name());
+        eprintln!("{}", stage_line(stage, StageEvent::Skipped(why)));
     }
 
     fn waiting_for_folder(&self, lock: &std::path::Path) {
-        eprintln!(
-            "[smspace] another run is writing this folder ({} is locked); waiting for it to end",
-            lock.display()
-        );
+        eprintln!("{}", waiting_line(lock));
     }
 }
 
@@ -102,13 +87,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let out_dir = match args.out {
         Some(dir) => dir,
         None => {
-            let dir = default_out_dir(&loaded.name, &args.overrides);
+            let dir = default_run_dir(&loaded.name, &args.overrides);
             if !args.overrides.is_empty() {
-                eprintln!(
-                    "[smspace] with --set, the run goes to its own folder {} (runs/{} stays the unmodified experiment's; --out chooses another)",
-                    dir.display(),
-                    loaded.name
-                );
+                eprintln!("{}", own_folder_line(&dir, &loaded.name, "--set", "--out"));
             }
             dir
         }
@@ -120,7 +101,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         } else {
             Recompute::Changed
         },
-        memory_limit_bytes: args.max_memory.or_else(memory_available),
+        memory_limit_bytes: memory_limit(args.max_memory),
         busy: if args.wait {
             BusyFolder::Wait
         } else {

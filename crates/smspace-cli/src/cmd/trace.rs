@@ -10,7 +10,7 @@ use smspace::kernel::{
 use smspace::learn::budget::{learn_from_agent, BudgetParams};
 use smspace::learn::LawParams;
 
-use super::common::{AgentArgs, EnvArgs, WorkspaceArgs};
+use super::common::{with_table_params, AgentArgs, EnvArgs, WorkspaceArgs};
 use crate::ui::Bar;
 
 /// Arguments of `smspace trace`.
@@ -286,63 +286,40 @@ const KERNEL_FLAGS: [&str; 10] = [
 /// [learn] keys that have a flag of their own.
 const LEARN_FLAGS: [&str; 5] = ["budget", "rounds", "verify_points", "seed", "law"];
 
+/// `(key, flag)` for keys that have a flag of their own (`max_step`: `max-step`).
+fn flags(keys: &[&'static str]) -> Vec<(&'static str, String)> {
+    keys.iter().map(|&k| (k, k.replace('_', "-"))).collect()
+}
+
 /// `trace` with the `--param` keys of the [kernel] table set (read by the table's own
 /// reader, which names an unknown key), and the `learn.KEY` ones set aside.
 fn with_params(
     trace: TraceParams,
     params: &[(String, toml::Value)],
-) -> anyhow::Result<(TraceParams, toml::Table)> {
-    let mut table = match toml::Value::try_from(&trace)? {
-        toml::Value::Table(table) => table,
-        _ => unreachable!("the [kernel] table serialises as a table"),
-    };
-    let mut learn = toml::Table::new();
-    for (i, (key, value)) in params.iter().enumerate() {
-        if params[..i].iter().any(|(k, _)| k == key) {
-            anyhow::bail!("--param {key} is given twice");
-        }
-        let (target, name, flags) = match key.strip_prefix("learn.") {
-            Some(name) => (&mut learn, name, &LEARN_FLAGS[..]),
-            None => (&mut table, key.as_str(), &KERNEL_FLAGS[..]),
-        };
-        if flags.contains(&name) {
-            anyhow::bail!(
-                "--param {key}=…: {name} has its flag, --{}",
-                name.replace('_', "-")
-            );
-        }
-        target.insert(name.to_owned(), value.clone());
-    }
-    let trace = toml::Value::Table(table)
-        .try_into::<TraceParams>()
-        .map_err(|e| {
-            anyhow::anyhow!(
-                "--param: {} (the keys of the [kernel] table)",
-                e.to_string().trim_end()
-            )
-        })?;
+) -> anyhow::Result<(TraceParams, Vec<(String, toml::Value)>)> {
+    let (learn, kernel): (Vec<_>, Vec<_>) = params
+        .iter()
+        .cloned()
+        .partition(|(key, _)| key.starts_with("learn."));
+    let learn = learn
+        .into_iter()
+        .map(|(key, value)| (key["learn.".len()..].to_owned(), value))
+        .collect();
+    let flags = flags(&KERNEL_FLAGS);
+    let flags: Vec<(&str, &str)> = flags.iter().map(|(k, f)| (*k, f.as_str())).collect();
+    let trace = with_table_params(&trace, &kernel, &flags, "kernel")?;
     Ok((trace, learn))
 }
 
 /// `budget` with the `--param learn.KEY` values set (read by the [learn] table's own
 /// reader, which names an unknown key).
-fn budget_params(budget: BudgetParams, learn: toml::Table) -> anyhow::Result<BudgetParams> {
-    if learn.is_empty() {
-        return Ok(budget);
-    }
-    let mut table = match toml::Value::try_from(&budget)? {
-        toml::Value::Table(table) => table,
-        _ => unreachable!("the [learn] table serialises as a table"),
-    };
-    table.extend(learn);
-    toml::Value::Table(table)
-        .try_into::<BudgetParams>()
-        .map_err(|e| {
-            anyhow::anyhow!(
-                "--param learn.…: {} (the keys of the [learn] table)",
-                e.to_string().trim_end()
-            )
-        })
+fn budget_params(
+    budget: BudgetParams,
+    learn: Vec<(String, toml::Value)>,
+) -> anyhow::Result<BudgetParams> {
+    let flags = flags(&LEARN_FLAGS);
+    let flags: Vec<(&str, &str)> = flags.iter().map(|(k, f)| (*k, f.as_str())).collect();
+    with_table_params(&budget, &learn, &flags, "learn")
 }
 
 /// The law's parameters from `--law KEY=VALUE` pairs (a value read as JSON when it

@@ -41,7 +41,7 @@ fn pick_references(
     data: &RunData,
     exploration: &ExploreParams,
 ) -> crate::Result<Exploration> {
-    let motors = data.pick(world, exploration.n, exploration.seed)?;
+    let motors = data.pick(world.simulator(), exploration.n, exploration.seed)?;
     let ground_truth = world
         .agent
         .ground_truth()

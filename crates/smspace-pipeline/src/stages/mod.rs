@@ -177,6 +177,16 @@ pub struct World {
 }
 
 impl World {
+    /// What a simulated log is drawn from: the agent, the main environment, the
+    /// working space.
+    pub fn simulator(&self) -> crate::data::Simulator<'_> {
+        crate::data::Simulator {
+            agent: self.agent.as_ref(),
+            environment: self.environments.first(),
+            workspace: self.workspace,
+        }
+    }
+
     /// The world with its key: the agent's description, the environments' lights and
     /// the working space, and with `[data]` the log's source (files by content) and the
     /// law's parameters.

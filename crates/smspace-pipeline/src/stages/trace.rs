@@ -126,9 +126,7 @@ impl TraceStage {
             .environments
             .first()
             .ok_or(KernelError::MissingEnvironment)?;
-        let babbled: Vec<usize> = (0..exploration.motors.nrows())
-            .filter(|&row| exploration.probes[[row, 0]] < 0)
-            .collect();
+        let babbled = exploration.babbled_rows();
         let starts = exploration.motors.select(ndarray::Axis(0), &babbled);
         let report = compensability(
             world.agent.as_ref(),
@@ -237,7 +235,11 @@ impl TraceStage {
         let params = self.kernel.check()?;
         let traced = match &world.data {
             Some(data) => {
-                let law = data.law(world, context.memory_limit_bytes, context.progress)?;
+                let law = data.law(
+                    world.simulator(),
+                    context.memory_limit_bytes,
+                    context.progress,
+                )?;
                 // Its report's `law`: the law's, with the closure rate and warnings.
                 let mut traced = trace_learned(&law, motors, &self.kernel, context.progress)?;
                 if matches!(data.source, DataSource::Simulate(_)) && !traced.kept.is_empty() {

@@ -460,6 +460,22 @@ def _sets_args(sets: Any, closed: Any, pieces: Any = None) -> tuple:
     return points, _closed_codes(closed, points.shape[0]), _pieces(pieces)
 
 
+def _metric_spec(metric: str, period: str, params: Optional[dict] = None, sets: Any = None) -> dict:
+    """The engine's description of a metric: its name, the period of the motor
+    coordinates, its parameters (the ``[metric.params]`` table of an experiment, as a
+    dict) and, when ``sets`` comes from :func:`trace`, its trace report (the kernels'
+    shape, which a parameter such as the surface metric's ``dimension`` follows)."""
+    if params is not None and not isinstance(params, dict):
+        raise TypeError(f"params must be a dict of the metric's parameters, got {type(params).__name__}")
+    report = sets.report if isinstance(sets, Traced) else None
+    return {
+        "name": str(metric),
+        "period": str(period),
+        "params": None if params is None else json.dumps(params),
+        "report": None if report is None else json.dumps(report),
+    }
+
+
 def _pieces(pieces: Any) -> Optional[np.ndarray]:
     """The piece of every point, ``(M, P)`` int64, or None; None too when every set is
     one piece (the engine's default)."""
@@ -478,6 +494,7 @@ def distances(
     metric: str = _DEFAULTS["metric"],
     period: str = _DEFAULTS["period"],
     *,
+    params: Optional[dict] = None,
     closed: Any = None,
     pieces: Any = None,
     knn: Optional[int] = None,
@@ -493,16 +510,19 @@ def distances(
     :func:`trace` or an array ``(M, P, N)`` (then ``closed=`` says which sets are
     closed loops for ``curve``: an array of 1/0 or ``"closed"``/``"open"``, and
     ``pieces=`` the piece of every point, (M, P), for sets traced with
-    ``components="all"``). With ``knn=K``, the ``K`` nearest sets of every set instead:
+    ``components="all"``). ``params`` sets the metric's own parameters, as the
+    ``[metric.params]`` table of an experiment and ``smspace distances --param`` do
+    (e.g. ``{"dimension": 2}``). ``memory_limit_bytes`` defaults to the memory
+    available. With ``knn=K``, the ``K`` nearest sets of every set instead:
     ``(indices, distances)``, each ``(M, K)``."""
     if knn is not None:
         return globals()["knn"](
-            sets, knn, metric=metric, period=period, closed=closed, pieces=pieces, progress=progress
+            sets, knn, metric=metric, period=period, params=params, closed=closed,
+            pieces=pieces, progress=progress,
         )
+    spec = _metric_spec(metric, period, params, sets)
     points, codes, pieces = _sets_args(sets, closed, pieces)
-    return _core._distances(
-        points, codes, metric, period, memory_limit_bytes, _progress(progress), pieces
-    )
+    return _core._distances(points, codes, spec, memory_limit_bytes, _progress(progress), pieces)
 
 
 def knn(
@@ -511,17 +531,20 @@ def knn(
     metric: str = _DEFAULTS["metric"],
     period: str = _DEFAULTS["period"],
     *,
+    params: Optional[dict] = None,
     closed: Any = None,
     pieces: Any = None,
     rows: Optional[tuple] = None,
     pivots: Optional[int] = None,
     progress: ProgressArg = None,
 ) -> tuple:
-    """The ``k`` nearest sets of every set (or of ``rows=(i0, i1)``) under ``metric``:
-    ``(indices (R, k) int64, distances (R, k))``, nearest first, without the matrix."""
+    """The ``k`` nearest sets of every set (or of ``rows=(i0, i1)``) under ``metric``
+    (with its ``params``, as :func:`distances`): ``(indices (R, k) int64, distances
+    (R, k))``, nearest first, without the matrix."""
+    spec = _metric_spec(metric, period, params, sets)
     points, codes, pieces = _sets_args(sets, closed, pieces)
     rows = (0, points.shape[0]) if rows is None else tuple(rows)
-    return _core._knn(points, codes, metric, period, int(k), pivots, rows, _progress(progress), pieces)
+    return _core._knn(points, codes, spec, int(k), pivots, rows, _progress(progress), pieces)
 
 
 def embed(

@@ -5,7 +5,7 @@ the underscored functions below take the engine's parameter structs as JSON.
 """
 
 from os import PathLike
-from typing import Any, Callable, List, Literal, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -19,6 +19,9 @@ F64 = npt.NDArray[np.float64]
 I64 = npt.NDArray[np.int64]
 Progress = Optional[Callable[[str, int, int], Any]]
 Bounds = Tuple[int, int, int, int]
+# The engine's description of a metric (smspace._metric_spec): name, period, and the
+# JSON of its parameters and of the sets' trace report (each or None).
+MetricSpec = Dict[str, Optional[str]]
 MotorSpec = Union[str, Tuple[str, float], Tuple[str, float, float]]
 
 class CallbackError(RuntimeError):
@@ -105,8 +108,7 @@ def _trace(
 def _distances(
     sets: npt.NDArray[np.float64],
     closed: Optional[I64],
-    metric: str,
-    period: str,
+    metric: MetricSpec,
     memory_limit_bytes: Optional[int] = None,
     progress: Progress = None,
     pieces: Optional[I64] = None,
@@ -117,8 +119,7 @@ def _distance_tile(
     cols: npt.NDArray[np.float64],
     cols_closed: Optional[I64],
     tile: Bounds,
-    metric: str,
-    period: str,
+    metric: MetricSpec,
     rows_pieces: Optional[I64] = None,
     cols_pieces: Optional[I64] = None,
 ) -> F64: ...
@@ -156,8 +157,7 @@ def _merge_tiles(m: int, tiles: Sequence[Tuple[Bounds, F64]]) -> F64: ...
 def _knn(
     sets: npt.NDArray[np.float64],
     closed: Optional[I64],
-    metric: str,
-    period: str,
+    metric: MetricSpec,
     k: int,
     pivots: Optional[int],
     rows: Tuple[int, int],

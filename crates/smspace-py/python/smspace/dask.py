@@ -26,12 +26,13 @@ broadcast=True)``; 8 MB for the paper's 2500 × 100 × 4). The client holds the 
 
 from __future__ import annotations
 
+import json
 import math
 from typing import Any, Callable, Optional, Union
 
 import numpy as np
 
-from . import _DEFAULTS, Traced, _core, _progress, _sets_args, tile_plan
+from . import _DEFAULTS, Traced, _core, _metric_spec, _progress, _sets_args, tile_plan
 
 __all__ = ["distances", "knn", "default_tile", "WorkersDied"]
 
@@ -88,8 +89,7 @@ def _tile_task(
     codes: Optional[np.ndarray],
     pieces: Optional[np.ndarray],
     bounds: tuple,
-    metric: str,
-    period: str,
+    metric: dict,
 ) -> np.ndarray:
     """One task: the block ``D[r0:r1, c0:c1]`` (runs on a worker)."""
     from smspace import _core as core
@@ -109,7 +109,6 @@ def _tile_task(
         part(codes, c0, c1),
         bounds,
         metric,
-        period,
         part(pieces, r0, r1),
         part(pieces, c0, c1),
     )
@@ -120,8 +119,7 @@ def _knn_task(
     codes: Optional[np.ndarray],
     pieces: Optional[np.ndarray],
     rows: tuple,
-    metric: str,
-    period: str,
+    metric: dict,
     k: int,
     pivots: Optional[int],
 ) -> tuple:
@@ -131,7 +129,19 @@ def _knn_task(
     points = _aligned(points)
     codes = None if codes is None else _aligned(codes)
     pieces = None if pieces is None else _aligned(pieces)
-    return core._knn(points, codes, metric, period, k, pivots, rows, None, pieces)
+    return core._knn(points, codes, metric, k, pivots, rows, None, pieces)
+
+
+def _checked_spec(
+    spec: dict, points: np.ndarray, codes: Optional[np.ndarray], pieces: Optional[np.ndarray]
+) -> dict:
+    """``spec`` without its trace report, after the engine's checks (an unknown metric
+    or parameter, curve without closures, kernels the metric does not take) on the
+    first two sets, before anything is sent to the cluster."""
+    if points.shape[0] >= 2:
+        _core._distances(points[:2], None if codes is None else codes[:2], spec, None, None,
+                         None if pieces is None else pieces[:2])
+    return dict(spec, report=None)
 
 
 def _scatter(client: Any, *arrays: Optional[np.ndarray]) -> tuple:
@@ -154,6 +164,7 @@ def distances(
     metric: str = _DEFAULTS["metric"],
     period: str = _DEFAULTS["period"],
     *,
+    params: Optional[dict] = None,
     tile: Optional[int] = None,
     knn: Optional[int] = None,
     closed: Any = None,
@@ -170,6 +181,7 @@ def distances(
             knn,
             metric=metric,
             period=period,
+            params=params,
             rows=tile,
             closed=closed,
             pieces=pieces,
@@ -178,10 +190,8 @@ def distances(
     from distributed import as_completed
 
     points, codes, pieces = _sets_args(sets, closed, pieces)
+    spec = _checked_spec(_metric_spec(metric, period, params, sets), points, codes, pieces)
     m = points.shape[0]
-    if metric == "curve" and codes is None:
-        # The engine's error, before anything is sent.
-        _core._distances(points[:2], None, metric, period, None, None)
     size = tile or default_tile(m, _workers(client))
     plan = tile_plan(m, size)
     points_future, codes_future, pieces_future = _scatter(client, points, codes, pieces)
@@ -192,8 +202,7 @@ def distances(
             codes_future,
             pieces_future,
             bounds,
-            metric,
-            period,
+            spec,
             pure=False,
         ): bounds
         for bounds in plan
@@ -224,6 +233,7 @@ def knn(
     metric: str = _DEFAULTS["metric"],
     period: str = _DEFAULTS["period"],
     *,
+    params: Optional[dict] = None,
     rows: Optional[int] = None,
     pivots: Optional[int] = None,
     closed: Any = None,
@@ -234,6 +244,7 @@ def knn(
     ``rows`` query rows each (every task reads all the sets, sent once per worker):
     ``(indices (M, k) int64, distances (M, k))``, equal to the local search."""
     points, codes, pieces = _sets_args(sets, closed, pieces)
+    spec = _checked_spec(_metric_spec(metric, period, params, sets), points, codes, pieces)
     m = points.shape[0]
     size = rows or default_tile(m, _workers(client))
     blocks = [(start, min(start + size, m)) for start in range(0, m, size)]
@@ -245,8 +256,7 @@ def knn(
             codes_future,
             pieces_future,
             block,
-            metric,
-            period,
+            spec,
             int(k),
             pivots,
             pure=False,
@@ -268,7 +278,8 @@ def knn(
 def _stage_backend(client: Any, tile: Optional[int]) -> Callable[..., np.ndarray]:
     """The pipeline's distance stage on ``client`` (``smspace.run(..., client=)``):
     called by the engine with the traced sets, their closed/open codes, the metric's
-    name, the period and the piece of every point (or None)."""
+    name, the period, the piece of every point (or None) and the metric's parameters
+    (the JSON of the ``[metric.params]`` table)."""
 
     def compute(
         points: np.ndarray,
@@ -276,7 +287,10 @@ def _stage_backend(client: Any, tile: Optional[int]) -> Callable[..., np.ndarray
         metric: str,
         period: str,
         pieces: Optional[np.ndarray] = None,
+        params: Optional[str] = None,
     ) -> np.ndarray:
-        return distances(points, client, metric, period, tile=tile, closed=codes, pieces=pieces)
+        table = None if params is None else json.loads(params)
+        return distances(points, client, metric, period, params=table, tile=tile, closed=codes,
+                         pieces=pieces)
 
     return compute

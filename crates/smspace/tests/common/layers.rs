@@ -77,31 +77,79 @@ pub fn code(text: &str) -> String {
     kept
 }
 
+/// The first names after a path prefix: `m` of `m::…`, or each `m` of `{m, …}`.
+fn names_after(rest: &str) -> Vec<String> {
+    let ident = |text: &str| -> String {
+        text.trim()
+            .chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect()
+    };
+    match rest.strip_prefix('{') {
+        Some(group) => {
+            let end = group.find('}').unwrap_or(group.len());
+            group[..end].split(',').map(ident).collect()
+        }
+        None => vec![ident(rest)],
+    }
+}
+
 /// The modules of the crate `code` imports: `crate::m` and the `m` of `use crate::{m, …}`.
 pub fn imports(code: &str) -> Vec<String> {
     let mut found = Vec::new();
     let mut rest = code;
     while let Some(at) = rest.find("crate::") {
         rest = &rest[at + "crate::".len()..];
-        if let Some(group) = rest.strip_prefix('{') {
-            let end = group.find('}').unwrap_or(group.len());
-            for part in group[..end].split(',') {
-                let name: String = part
-                    .trim()
-                    .chars()
-                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-                    .collect();
-                found.push(name);
+        found.extend(names_after(rest));
+    }
+    found
+}
+
+/// The top-level modules (or crate-root items) that the code of the module at
+/// `module_path` (`["stages", "trace"]` for `src/stages/trace.rs`, `["data"]` for
+/// `src/data.rs`) imports by every path form: `crate::m`, and `super::…` chains
+/// resolved from the module's own path (`super::World` in `src/data.rs` is the crate
+/// root's `World`; `super::x` in `src/stages/trace.rs` is the module's own `stages`).
+pub fn imports_from(code: &str, module_path: &[String]) -> Vec<String> {
+    let mut found = imports(code);
+    let mut rest = code;
+    while let Some(at) = rest.find("super::") {
+        let mut depth = 0;
+        let mut tail = &rest[at..];
+        while let Some(after) = tail.strip_prefix("super::") {
+            depth += 1;
+            tail = after;
+        }
+        rest = tail;
+        if depth > module_path.len() {
+            continue;
+        }
+        let base = &module_path[..module_path.len() - depth];
+        for name in names_after(tail) {
+            match base.first() {
+                Some(top) => found.push(top.clone()),
+                None => found.push(name),
             }
-        } else {
-            found.push(
-                rest.chars()
-                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-                    .collect(),
-            );
         }
     }
     found
+}
+
+/// The module path of a source file relative to `src` (`stages/mod.rs`: `["stages"]`).
+fn module_path(relative: &Path) -> Vec<String> {
+    let mut path: Vec<String> = relative
+        .components()
+        .map(|c| {
+            c.as_os_str()
+                .to_string_lossy()
+                .trim_end_matches(".rs")
+                .to_owned()
+        })
+        .collect();
+    if path.last().is_some_and(|last| last == "mod") {
+        path.pop();
+    }
+    path
 }
 
 /// The imports under `root` (a crate's `src`) that run up a floor, by file.
@@ -134,7 +182,9 @@ pub fn violations(root: &Path, floors: &Floors<'_>) -> BTreeMap<String, Vec<Stri
                 relative.display()
             )
         });
-        for imported in imports(&code(&std::fs::read_to_string(file).unwrap())) {
+        let path = module_path(relative);
+        let text = code(&std::fs::read_to_string(file).unwrap());
+        for imported in imports_from(&text, &path) {
             if imported == module {
                 continue;
             }
