@@ -384,6 +384,20 @@ fn invariance_of_the_redundant_toy() {
     assert!(err.contains("lights = 0"), "{err}");
     let err = fails(p, &args("1,x", "5"));
     assert!(err.contains("x"), "{err}");
+    // The metric is built as smspace distances builds it: any registered name, its
+    // parameters, and the period resolved against the agent as a run resolves it.
+    let with = |extra: &[&'static str]| {
+        let mut all = args("1,2", "5");
+        all.extend_from_slice(extra);
+        all
+    };
+    ok(p, &with(&["--metric", "hausdorff", "--period", "motors"]));
+    let err = fails(p, &with(&["--metric", "hausdorf"]));
+    assert!(err.contains("hausdorf") && err.contains("curve"), "{err}");
+    let err = fails(p, &with(&["--period", "2pi,2pi,2pi"]));
+    assert!(err.contains("period") && err.contains("motors"), "{err}");
+    let err = fails(p, &with(&["--metric", "curve", "--param", "dimension=2"]));
+    assert!(err.contains("dimension"), "{err}");
     let err = fails(
         p,
         &[

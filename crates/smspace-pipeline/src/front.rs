@@ -8,6 +8,8 @@
 //! * the **memory limit** a stage is held to when the user gives none
 //!   ([`memory_limit`]: the memory available now, `MemAvailable`; for learning a law,
 //!   [`learn_memory_limit`]: that and at most [`DEFAULT_MEMORY_LIMIT_GIB`] GiB);
+//! * the **period** a metric measures an agent's sets under ([`resolve_period`]:
+//!   `"motors"` is the agent's own);
 //! * the **run folder** of an experiment given no output folder ([`default_run_dir`]:
 //!   `runs/<name>`, or `runs/<name>-<h>` with overrides, `h` the first 8 hex digits of
 //!   their BLAKE3 hash, so that a modified run never overwrites the experiment's own);
@@ -22,9 +24,11 @@
 
 use std::path::{Path, PathBuf};
 
+use smspace::agent::Agent;
 use smspace::learn::{gib_bytes, DEFAULT_MEMORY_LIMIT_GIB};
 use smspace::metric::Periodicity;
 use smspace::metric::{BuiltMetric, DistanceParams, KernelShape, MetricError, MetricRegistry};
+use smspace::params::InvalidParameter;
 
 use crate::manifest::{StageId, StageRecord};
 
@@ -143,6 +147,40 @@ pub fn metric(
         .memory_limit_bytes(request.memory_limit_bytes);
     params.params = request.params;
     registry.build_for(&params, request.kernels)
+}
+
+/// The period of the motor coordinates a metric measures `agent`'s sets under:
+/// `"motors"` becomes the periods of the agent's motors (hinges wrap with their
+/// period, bounded motors do not: [`smspace::invariance::motor_periodicity`]), written
+/// as `"2pi"` or `"none"` when all motors are alike, so that a run of hinges records and
+/// keys the same table either way. A uniform period is refused when the motors are not
+/// all alike (it would wrap a bounded motor or leave a hinge unwrapped), and a
+/// per-motor list must have one entry per motor; the refusal is on the `[metric]
+/// period` key and names the agent's own.
+pub fn resolve_period(
+    agent: &dyn Agent,
+    period: &Periodicity,
+) -> Result<Periodicity, InvalidParameter> {
+    let space = agent.motor_space();
+    let own = smspace::invariance::motor_periodicity(&space);
+    let refuse = |why: String| InvalidParameter::new("metric", "period", period.to_string(), why);
+    match period {
+        Periodicity::FromMotors => Ok(own),
+        Periodicity::Uniform(_) if space.is_hinges() || space.is_bounded() => Ok(period.clone()),
+        Periodicity::Uniform(_) => Err(refuse(format!(
+            "the {} agent's motors are {space}; a uniform period cannot describe them: set period = \"motors\" (the agent's own: {own}) or one entry per motor",
+            agent.name()
+        ))),
+        Periodicity::PerCoordinate(periods) if periods.dims() != space.dim() => {
+            Err(refuse(format!(
+                "{} entries for the {} agent's {} motors; give one per motor, or period = \"motors\" ({own})",
+                periods.dims(),
+                agent.name(),
+                space.dim()
+            )))
+        }
+        Periodicity::PerCoordinate(_) => Ok(period.clone()),
+    }
 }
 
 /// `KEY=VALUE`: a parameter, the value read as TOML (a bare word that is not TOML is a

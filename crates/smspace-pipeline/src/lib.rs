@@ -121,7 +121,7 @@ use runner::Runner;
 use smspace::agent::{Agent, AgentRegistry};
 use smspace::embed::EmbeddingRegistry;
 use smspace::kernel::{TraceMethod, TraceParams};
-use smspace::metric::{DistanceParams, KernelShape, MetricError, MetricRegistry, Periodicity};
+use smspace::metric::{DistanceParams, KernelShape, MetricError, MetricRegistry};
 use smspace::params::InvalidParameter;
 use stages::{
     AnalyzeInput, AnalyzeStage, DistancesInput, DistancesStage, EmbedInput, EmbedStage,
@@ -308,19 +308,10 @@ pub fn check_with(
         kernel
             .check()
             .map_err(|err| invalid("kernel")(err.into()))?;
-        // A built-in metric measures the sets under the agent's own point metric.
-        let set_metric = match metric.metric.kernel() {
-            Some(kernel) => Arc::from(smspace::invariance::agent_metric(
-                kernel.kind,
-                agent.as_ref(),
-            )),
-            None => metric.metric.clone(),
-        };
         Some(InvarianceStage::new(
             kernel,
             e.analysis.invariance_starts,
-            metric.params.metric.clone(),
-            set_metric,
+            &metric,
         ))
     } else {
         None
@@ -522,42 +513,13 @@ fn check_data_tables(experiment: &LoadedExperiment) -> Result<(), ConfigError> {
     Ok(())
 }
 
-/// The `[metric]` table with its period resolved for `agent`: `"motors"` becomes the
-/// periods of the agent's motors (hinges wrap with their period, bounded motors do
-/// not: [`smspace::invariance::motor_periodicity`]), written as `"2pi"` or `"none"` when
-/// all motors are alike, so that a run of hinges records and keys the same table either
-/// way. A uniform period is refused when the motors are not all alike (a uniform
-/// period would wrap a bounded motor or leave a hinge unwrapped), and a per-motor list
-/// must have one entry per motor.
+/// The `[metric]` table with its period resolved for `agent` ([`front::resolve_period`]).
 fn resolve_metric_period(
     agent: &dyn Agent,
     table: &DistanceParams,
 ) -> Result<DistanceParams, InvalidParameter> {
-    let space = agent.motor_space();
-    let own = smspace::invariance::motor_periodicity(&space);
-    let refuse =
-        |why: String| InvalidParameter::new("metric", "period", table.period.to_string(), why);
-    let period = match &table.period {
-        Periodicity::FromMotors => own,
-        Periodicity::Uniform(_) if space.is_hinges() || space.is_bounded() => table.period.clone(),
-        Periodicity::Uniform(_) => {
-            return Err(refuse(format!(
-                "the {} agent's motors are {space}; a uniform period cannot describe them: set period = \"motors\" (the agent's own: {own}) or one entry per motor",
-                agent.name()
-            )))
-        }
-        Periodicity::PerCoordinate(periods) if periods.dims() != space.dim() => {
-            return Err(refuse(format!(
-                "{} entries for the {} agent's {} motors; give one per motor, or period = \"motors\" ({own})",
-                periods.dims(),
-                agent.name(),
-                space.dim()
-            )))
-        }
-        Periodicity::PerCoordinate(_) => table.period.clone(),
-    };
     Ok(DistanceParams {
-        period,
+        period: front::resolve_period(agent, &table.period)?,
         ..table.clone()
     })
 }

@@ -110,8 +110,22 @@ impl MetricArgs {
     /// The metric, from the registry of this process (built-in metrics and those
     /// registered from Python), checked against the kernels of the trace report.
     fn build(&self, memory_limit_bytes: Option<u64>) -> PyResult<BuiltMetric> {
-        let period = smspace::metric::Periodicity::parse(&self.period)
+        self.build_for(None, memory_limit_bytes)
+    }
+
+    /// [`build`](Self::build), with the period resolved for `agent` when given
+    /// ([`front::resolve_period`]: `"motors"` is the agent's own).
+    fn build_for(
+        &self,
+        agent: Option<&dyn smspace::agent::Agent>,
+        memory_limit_bytes: Option<u64>,
+    ) -> PyResult<BuiltMetric> {
+        let mut period = smspace::metric::Periodicity::parse(&self.period)
             .map_err(|e| value_error(format!("period: {e}")))?;
+        if let Some(agent) = agent {
+            period = front::resolve_period(agent, &period)
+                .map_err(|e| value_error(format!("period: {}", crate::message(&e))))?;
+        }
         let params = match self.params.as_deref() {
             None => toml::Table::new(),
             Some(json) => {
@@ -707,6 +721,86 @@ fn defaults() -> PyResult<String> {
 }
 
 /// Adds the stage functions to the module.
+/// `_invariance(agent, motors, params_json, envs, metric, workspace, progress)`: the
+/// starts `motors` traced with the sensory method (the `[kernel]` parameters of
+/// `params_json`) in every environment of `envs` (each as `env` of `_trace`) and
+/// compared under `metric` (the dict of [`MetricArgs`], its period resolved for the
+/// agent): `(report JSON, common rows, one (C, C) matrix and one (C, K) sensor array
+/// per environment)`, what `smspace invariance` writes.
+#[pyfunction]
+#[pyo3(signature = (agent, motors, params, envs, metric, workspace=None, progress=None))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn _invariance<'py>(
+    py: Python<'py>,
+    agent: &Agent,
+    motors: PyReadonlyArray2<'py, f64>,
+    params: &str,
+    envs: Vec<Bound<'py, PyAny>>,
+    metric: MetricArgs,
+    workspace: Option<&Bound<'py, PyAny>>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<(
+    String,
+    Bound<'py, PyArray1<i64>>,
+    Vec<Bound<'py, PyArray2<f64>>>,
+    Vec<Bound<'py, PyArray2<f64>>>,
+)> {
+    let params: TraceParams = from_json(params, "tracing parameters")?;
+    let params = TraceParams {
+        method: smspace::kernel::TraceMethod::Sensory,
+        ..params
+    }
+    .check()
+    .map_err(to_py_err)?;
+    if agent.calls.is_some() {
+        return Err(value_error(
+            "a PythonAgent senses its own world, so there are no environments to compare; invariance needs an agent built by smspace (a preset or a TOML file) whose lights it places",
+        ));
+    }
+    let motors = motors.as_array().to_owned();
+    check_finite(motors.iter(), "motors")?;
+    let environments = envs
+        .iter()
+        .map(|env| agent.environment(Some(env)))
+        .collect::<PyResult<Vec<_>>>()?;
+    let built = metric.build_for(Some(agent.law.as_ref()), None)?;
+    let workspace = resolve_workspace(agent, workspace)?;
+    let (progress, interrupts) = reporter(progress, Some(agent));
+    let (law, shared) = (agent.law.clone(), progress.clone());
+    let measured = run_interruptible(py, &interrupts, move || {
+        smspace::invariance::invariance_measured(
+            law.as_ref(),
+            motors.view(),
+            &environments,
+            workspace.as_ref(),
+            &params,
+            built.metric.as_ref(),
+            shared.as_ref(),
+        )
+    })?
+    .map_err(to_py_err);
+    agent.check_callbacks()?;
+    progress.check()?;
+    let measured = measured?;
+    let report =
+        serde_json::to_string(&measured.report).map_err(|e| value_error(e.to_string()))?;
+    let rows: Vec<i64> = measured.common_rows.iter().map(|&r| r as i64).collect();
+    Ok((
+        report,
+        rows.into_pyarray(py),
+        measured
+            .set_distances
+            .into_iter()
+            .map(|d| d.into_pyarray(py))
+            .collect(),
+        measured
+            .sensors
+            .into_iter()
+            .map(|s| s.into_pyarray(py))
+            .collect(),
+    ))
+}
+
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("_DEFAULTS", defaults()?)?;
     m.add_function(wrap_pyfunction!(_explore, m)?)?;
@@ -717,6 +811,7 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_knn, m)?)?;
     m.add_function(wrap_pyfunction!(_embed, m)?)?;
     m.add_function(wrap_pyfunction!(_analyze, m)?)?;
+    m.add_function(wrap_pyfunction!(_invariance, m)?)?;
     m.add(
         "CallbackError",
         m.py().get_type::<crate::agent::CallbackError>(),

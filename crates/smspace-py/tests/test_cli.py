@@ -159,3 +159,34 @@ def test_metric_parameters_reach_the_metric_behind_both_doors(cli, tmp_path):
         smspace.distances(sets, metric="surface", period="none", params={"radius_scale": -1.0})
     with pytest.raises(TypeError, match="dict"):
         smspace.distances(sets, metric="surface", period="none", params=[("radius_scale", 1.0)])
+
+
+def test_invariance_equals_the_cli(cli, tmp_path):
+    """``smspace.invariance`` and ``smspace invariance`` on the same starts and
+    environments: the same report and arrays; bad input refused."""
+    x = -2.0 + 0.35 * np.arange(12)
+    motors = np.stack([0.6 * x, 0.4 * x], axis=1)
+    np.save(tmp_path / "motors.npy", motors)
+    cli("invariance", "--agent", "toy-redundant", "--motors", tmp_path / "motors.npy",
+        "--env-seeds", "1,2,3", "--points", 20, "--metric", "hausdorff", "--period", "motors",
+        "--out", tmp_path / "invariance.json")
+    agent = smspace.Agent.preset("toy-redundant")
+    found = smspace.invariance(agent, motors, [1, 2, 3], points=20, metric="hausdorff",
+                               period="motors")
+    assert found.report == json.loads((tmp_path / "invariance.json").read_text())
+    for e in range(3):
+        assert np.array_equal(found.distances[e], np.load(tmp_path / f"invariance-D-{e + 1}.npy"))
+        assert np.array_equal(found.sensors[e], np.load(tmp_path / f"invariance-sensors-{e + 1}.npy"))
+    assert found.report["max_set_distance_relative"] < 1e-6
+    assert len(found.rows) == found.report["common_sets"]
+    five = smspace.invariance(agent, motors, [1, 2], points=20, starts=5)
+    assert five.report["starts"] == 5
+    with pytest.raises(ValueError, match="at least two"):
+        smspace.invariance(agent, motors, [1])
+    with pytest.raises(ValueError, match="starts=0"):
+        smspace.invariance(agent, motors, [1, 2], starts=0)
+    with pytest.raises(ValueError, match="period"):
+        smspace.invariance(agent, motors, [1, 2], period="2pi,none,none")
+    python_agent = smspace.PythonAgent(sense=lambda m: np.sin(m), n_motors=2, n_sensors=2)
+    with pytest.raises(ValueError, match="own world"):
+        smspace.invariance(python_agent, motors, [1, 2])

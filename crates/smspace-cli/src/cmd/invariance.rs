@@ -6,9 +6,12 @@ use std::path::PathBuf;
 
 use clap::Args as ClapArgs;
 use smspace::agent::EnvironmentConfig;
-use smspace::invariance::{agent_metric, invariance_measured};
+use smspace::invariance::invariance_measured;
 use smspace::io;
 use smspace::kernel::{TraceMethod, TraceParams};
+
+use smspace::metric::{MetricRegistry, Periodicity};
+use smspace_pipeline::front::{self, MetricRequest};
 
 use super::common::{AgentArgs, WorkspaceArgs};
 use crate::ui::Bar;
@@ -35,11 +38,20 @@ pub struct Args {
     /// Points per traced set.
     #[arg(long, default_value_t = smspace::kernel::TraceParams::default().points)]
     points: usize,
-    /// Distance between two sets: curve (the default: the traced loops and segments as
-    /// polylines), hausdorff or mean-hausdorff (between the sampled points), under the
-    /// agent's own point metric.
+    /// Distance between two sets: a registered metric, as in `smspace distances` (curve,
+    /// the default: the traced loops and segments as polylines; hausdorff or
+    /// mean-hausdorff, between the sampled points). An unknown name lists them.
     #[arg(long, value_name = "NAME", default_value = smspace::metric::DEFAULT_METRIC.name())]
     metric: String,
+    /// A parameter of the metric, as in an experiment's [metric.params] table
+    /// (e.g. --param radius_scale=0.5); repeatable.
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = super::common::parse_param)]
+    params: Vec<(String, toml::Value)>,
+    /// Period of the motor coordinates, as an experiment's [metric] period: 2pi,
+    /// none, motors (the agent's own: hinges 2pi, bounded motors none) or one entry per
+    /// motor separated by commas.
+    #[arg(long, value_name = "2pi|none|motors|LIST", default_value_t = Periodicity::default(), value_parser = parse_period)]
+    period: Periodicity,
     #[command(flatten)]
     workspace: WorkspaceArgs,
     /// Report (JSON); beside it, for environment e (from 1), OUT_STEM-D-e.npy (the
@@ -47,6 +59,11 @@ pub struct Args {
     /// `smspace run` writes them.
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
+}
+
+/// `--period`: as `Periodicity::parse` reads it (`motors` resolved against the agent).
+fn parse_period(text: &str) -> Result<Periodicity, String> {
+    Periodicity::parse(text).map_err(|e| e.to_string())
 }
 
 /// Runs `smspace invariance`.
@@ -107,14 +124,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<Result<Vec<_>, _>>()?;
     let workspace = args.workspace.resolve(agent.as_ref())?;
     let bar = Bar::new();
-    let built = smspace::metric::MetricRegistry::builtin()
-        .build(&smspace::metric::DistanceParams::new().metric(args.metric.as_str()))
-        .context("--metric")?;
-    let kernel = built.metric.kernel().with_context(|| format!(
-        "smspace invariance compares the sets under hausdorff, mean-hausdorff or curve; --metric {} is available in smspace distances and in an experiment's [metric] table",
-        args.metric
-    ))?;
-    let metric = agent_metric(kernel.kind, agent.as_ref());
+    let period = front::resolve_period(agent.as_ref(), &args.period).context("--period")?;
+    let request = MetricRequest {
+        params: args.params.iter().cloned().collect(),
+        ..MetricRequest::new(&args.metric, period)
+    };
+    let built =
+        front::metric(&MetricRegistry::builtin(), request).context("--metric and --param")?;
+    let metric = built.metric;
     let measured = invariance_measured(
         agent.as_ref(),
         motors,

@@ -14,12 +14,12 @@ use smspace::explore::Exploration;
 use smspace::invariance::{invariance_measured, read_invariance, stage_invariance};
 use smspace::io::Outputs;
 use smspace::kernel::TraceParams;
-use smspace::metric::{MetricName, SetMetric};
+use smspace::metric::{BuiltMetric, MetricName, Periodicity, SetMetric};
 
 /// The `invariance` stage: the `[kernel]` table traced with the sensory method, the
-/// number of starts (`[analysis] invariance_starts`) and the metric (a built-in one
-/// under the agent's point metric, [`smspace::invariance::agent_metric`], or the
-/// registered one the `[metric]` table builds).
+/// number of starts (`[analysis] invariance_starts`) and the metric the `[metric]`
+/// table builds (built-in or registered, under its resolved period), the same as the
+/// distances stage's.
 #[derive(Clone, Serialize)]
 pub struct InvarianceStage {
     /// Tracing parameters (the method is `sensory`).
@@ -28,25 +28,26 @@ pub struct InvarianceStage {
     pub starts: usize,
     /// The set metric's name.
     pub metric: MetricName,
+    /// The period of the motor coordinates it measures under.
+    pub period: Periodicity,
+    /// The metric's own parameters (`[metric.params]`, resolved).
+    pub params: toml::Table,
     /// The metric.
     #[serde(skip)]
     set_metric: Arc<dyn SetMetric>,
 }
 
 impl InvarianceStage {
-    /// The stage comparing `starts` starts traced with `kernel` under `set_metric`
-    /// (called `metric`).
-    pub fn new(
-        kernel: TraceParams,
-        starts: usize,
-        metric: MetricName,
-        set_metric: Arc<dyn SetMetric>,
-    ) -> Self {
+    /// The stage comparing `starts` starts traced with `kernel` under the metric
+    /// `built`.
+    pub fn new(kernel: TraceParams, starts: usize, built: &BuiltMetric) -> Self {
         Self {
             kernel,
             starts,
-            metric,
-            set_metric,
+            metric: built.params.metric.clone(),
+            period: built.params.period.clone(),
+            params: built.params.params.clone(),
+            set_metric: built.metric.clone(),
         }
     }
 }
@@ -57,6 +58,8 @@ impl std::fmt::Debug for InvarianceStage {
             .field("kernel", &self.kernel)
             .field("starts", &self.starts)
             .field("metric", &self.metric)
+            .field("period", &self.period)
+            .field("params", &self.params)
             .finish()
     }
 }

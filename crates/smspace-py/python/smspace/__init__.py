@@ -60,12 +60,14 @@ __all__ = [
     "Traced",
     "Embedded",
     "Run",
+    "Invariance",
     "explore",
     "trace",
     "distances",
     "knn",
     "embed",
     "analyze",
+    "invariance",
     "run",
     "tile_plan",
     "register_metric",
@@ -240,6 +242,20 @@ class Embedded:
 
     Y: np.ndarray
     report: dict = field(repr=False)
+
+
+@dataclass
+class Invariance:
+    """The same starts traced in several environments and compared: the ``report``
+    (dict, ``invariance.json``: the largest set difference, the Mantel correlations of
+    the set metric and of the raw sensors, per pair of environments), the ``rows`` of
+    the starts traced in every environment (C,) int64, and per environment the ``(C,
+    C)`` matrix of their ``distances`` and their ``sensors`` ``(C, K)``."""
+
+    report: dict = field(repr=False)
+    rows: np.ndarray
+    distances: list = field(repr=False)
+    sensors: list = field(repr=False)
 
 
 @dataclass
@@ -597,6 +613,51 @@ def analyze(
     if not circle_values and isinstance(report.get("circle"), dict):
         report["circle"].pop("values", None)
     return report
+
+
+def invariance(
+    agent: Agent,
+    motors: Any,
+    envs: Sequence[Any],
+    points: int = _DEFAULTS["kernel"]["points"],
+    *,
+    metric: str = _DEFAULTS["metric"],
+    period: str = _DEFAULTS["period"],
+    params: Optional[dict] = None,
+    starts: Optional[int] = None,
+    workspace: Any = "default",
+    progress: ProgressArg = None,
+    **kernel: Any,
+) -> Invariance:
+    """Traces the starts ``motors`` (M, N) (the first ``starts`` rows, default all)
+    with the sensory method in every environment of ``envs`` (at least two; each an int
+    seed or lights ``(L, 2)``/``(L, 3)``, as ``env`` of :func:`trace`) and compares the
+    sets: they should not depend on the environment (paper section 3.3), while the raw
+    sensor values do. ``metric``, ``period`` (``"motors"``: the agent's own) and
+    ``params`` as in :func:`distances`; other keys of the ``[kernel]`` table as keyword
+    arguments. The same numbers and arrays as ``smspace invariance`` writes."""
+    if not isinstance(agent, Agent):
+        raise TypeError(f"agent must be a smspace.Agent, got {type(agent).__name__}")
+    motors = _array(motors, "motors", 2)
+    envs = list(envs)
+    if len(envs) < 2:
+        raise ValueError(f"envs has {len(envs)} environment(s); give at least two to compare, e.g. envs=[1, 2, 3]")
+    if starts is not None:
+        if int(starts) < 1:
+            raise ValueError(f"starts={starts}: give at least one start (or None to trace every row)")
+        motors = motors[: int(starts)]
+    values = dict(kernel, points=points)
+    report, rows, matrices, sensors = _core._invariance(
+        agent,
+        motors,
+        _params(values),
+        envs,
+        _metric_spec(metric, period, params),
+        _workspace_arg(workspace),
+        _progress(progress),
+    )
+    return Invariance(report=json.loads(report), rows=rows, distances=list(matrices),
+                      sensors=list(sensors))
 
 
 def _toml_value(value: Any) -> str:

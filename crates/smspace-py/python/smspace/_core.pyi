@@ -164,6 +164,15 @@ def _knn(
     progress: Progress = None,
     pieces: Optional[I64] = None,
 ) -> Tuple[I64, F64]: ...
+def _invariance(
+    agent: Agent,
+    motors: F64,
+    params: str,
+    envs: Sequence[Any],
+    metric: MetricSpec,
+    workspace: Any = None,
+    progress: Progress = None,
+) -> Tuple[str, I64, List[F64], List[F64]]: ...
 def _embed(distances: F64, params: str, progress: Progress = None) -> Tuple[F64, str]: ...
 def _analyze(
     distances: F64,
