@@ -372,15 +372,37 @@ fn bad_inputs_give_clear_errors() {
         ),
         (
             vec![
-                "trace", "--noise", "loud", "--motors", "good.npy", "--out", "s.npy",
+                "trace",
+                "--sensor-sigma",
+                "loud",
+                "--motors",
+                "good.npy",
+                "--out",
+                "s.npy",
             ],
-            "invalid noise 'loud'; use \"auto\" or a standard deviation",
+            "invalid sensor_sigma 'loud'; use \"auto\" or a standard deviation",
         ),
         (
             vec![
-                "trace", "--noise", "-0.1", "--motors", "good.npy", "--out", "s.npy",
+                "trace",
+                "--sensor-sigma",
+                "-0.1",
+                "--motors",
+                "good.npy",
+                "--out",
+                "s.npy",
             ],
-            "noise = -0.1",
+            "sensor_sigma = -0.1",
+        ),
+        (
+            vec![
+                "trace", "--noise", "0.1", "--motors", "good.npy", "--out", "s.npy",
+            ],
+            "--noise is now --sensor-sigma",
+        ),
+        (
+            vec!["simulate", "--noise", "0.01", "--out-dir", "log"],
+            "write --relative-noise 0.01",
         ),
         (
             vec![

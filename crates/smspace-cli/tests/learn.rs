@@ -78,7 +78,7 @@ fn json(dir: &std::path::Path, name: &str) -> serde_json::Value {
 #[test]
 fn simulate_then_learn_writes_the_files_of_trace() {
     let (_guard, dir) = temp();
-    let starts = toy_log_and_starts(&dir, &["--noise", "0.001"]);
+    let starts = toy_log_and_starts(&dir, &["--relative-noise", "0.001"]);
     let motors: Array2<f64> = read_npy(dir.join("log/motors.npy")).unwrap();
     let sensors: Array2<f64> = read_npy(dir.join("log/sensors.npy")).unwrap();
     let poses: Array2<f64> = read_npy(dir.join("log/poses.npy")).unwrap();

@@ -25,7 +25,7 @@
 //! # rank = 3                     # the rank of ∂s/∂m when known (1..=N−1): kernels of dimension N − rank
 //! ```
 //!
-//! or `[data.simulate]` (`samples`, `noise`, `seed`: [`SimulateParams`]) with an
+//! or `[data.simulate]` (`samples`, `relative_noise`, `seed`: [`SimulateParams`]) with an
 //! `[agent]`: the log is babbled in the working space of `[exploration]` and sensed in
 //! the main environment. With files there is no agent: `[agent]` may be left out, and
 //! the run has no ground truth (no poses: the analysis reports what it can without
@@ -196,6 +196,7 @@ impl RunData {
                     ));
                 }
                 law_valid.check_rank(agent.motor_dim())?;
+                simulate.check()?;
                 if simulate.samples < 2 {
                     return Err(invalid(
                         "simulate",

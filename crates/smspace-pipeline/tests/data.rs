@@ -27,7 +27,7 @@ seed = 1
 
 [data.simulate]
 samples = 5000
-noise = 0.0
+relative_noise = 0.0
 seed = 4
 "#;
 

@@ -782,8 +782,7 @@ fn _invariance<'py>(
     agent.check_callbacks()?;
     progress.check()?;
     let measured = measured?;
-    let report =
-        serde_json::to_string(&measured.report).map_err(|e| value_error(e.to_string()))?;
+    let report = serde_json::to_string(&measured.report).map_err(|e| value_error(e.to_string()))?;
     let rows: Vec<i64> = measured.common_rows.iter().map(|&r| r as i64).collect();
     Ok((
         report,

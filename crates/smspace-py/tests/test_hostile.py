@@ -313,3 +313,10 @@ def test_hostile_arguments_give_clean_exceptions(arm, seed):
         _check_finite(result)
     # The pools are hostile: calls are refused (and the others returned finite values).
     assert outcomes["refused"] > 0, outcomes
+
+
+def test_the_old_name_of_sensor_sigma_is_refused_with_the_new_one():
+    agent = smspace.Agent.preset("planar-arm")
+    found = smspace.explore(agent, n=2, seed=1)
+    with pytest.raises(ValueError, match="sensor_sigma = 0.01"):
+        smspace.trace(agent, found.motors, method="sensory", env=1, noise=0.01)

@@ -40,6 +40,53 @@ impl InvalidParameter {
     }
 }
 
+/// A key a parameter table once had under another name: it is read (any value) only so
+/// that the table's check can refuse it with the new name, at the old key's line.
+///
+/// ```
+/// use smspace::params::Renamed;
+/// #[derive(serde::Deserialize, Default)]
+/// #[serde(deny_unknown_fields, default)]
+/// struct Table {
+///     relative_noise: f64,
+///     #[serde(rename = "noise")]
+///     old_noise: Renamed,
+/// }
+/// let t: Table = toml::from_str("noise = 0.1").unwrap();
+/// let err = t.old_noise.refuse("data", "noise", "relative_noise").unwrap_err();
+/// assert!(err.to_string().contains("relative_noise = 0.1"), "{err}");
+/// ```
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Renamed(Option<String>);
+
+impl<'de> serde::Deserialize<'de> for Renamed {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let value = toml::Value::deserialize(deserializer)?;
+        Ok(Self(Some(value.to_string())))
+    }
+}
+
+impl Renamed {
+    /// An error when the old key `table.old` was given, naming the key to write
+    /// instead (`new`) with the value given.
+    pub fn refuse(
+        &self,
+        table: &'static str,
+        old: &'static str,
+        new: &str,
+    ) -> Result<(), InvalidParameter> {
+        match &self.0 {
+            None => Ok(()),
+            Some(value) => Err(InvalidParameter::new(
+                table,
+                old,
+                value,
+                format!("the key is now {new}: write {new} = {value}"),
+            )),
+        }
+    }
+}
+
 /// The one checked-parameter pattern of the crate (after linfa): a serde parameter
 /// struct `XParams` with documented defaults is checked into `XValidParams`, the only
 /// form an algorithm runs, before any work starts. Every failed check is an

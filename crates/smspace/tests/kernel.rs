@@ -771,7 +771,10 @@ fn a_declared_noise_below_the_readings_rounding_is_exact_and_an_absurd_one_is_re
         }
     }
     let err = with(1e300).check().unwrap_err().to_string();
-    assert!(err.contains("noise") && err.contains("overflows"), "{err}");
+    assert!(
+        err.contains("sensor_sigma") && err.contains("overflows"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -9,6 +9,7 @@ use smspace::explore::{explore, ExploreParams};
 use smspace::kernel::{
     trace_sets, SensorNoise, SetStatus, TraceMethod, TraceParams, TracedSets, MAX_DOUBLED,
 };
+use smspace::learn::{simulate, SimulateParams};
 use smspace::metric::Period;
 use smspace::progress::Silent;
 
@@ -189,16 +190,36 @@ fn exact_readings_trace_as_before_with_one_row_more() {
 
 #[test]
 fn bad_noise_values_name_their_key() {
-    let err = toml::from_str::<TraceParams>("noise = \"foo\"")
+    let err = toml::from_str::<TraceParams>("sensor_sigma = \"foo\"")
         .unwrap_err()
         .to_string();
-    assert!(err.contains("noise") && err.contains("auto"), "{err}");
-    let p: TraceParams = toml::from_str("noise = -1").unwrap();
+    assert!(
+        err.contains("sensor_sigma") && err.contains("auto"),
+        "{err}"
+    );
+    let p: TraceParams = toml::from_str("sensor_sigma = -1").unwrap();
     let err = p.check().unwrap_err().to_string();
-    assert!(err.contains("noise"), "{err}");
-    let p: TraceParams = toml::from_str("noise = 0.02").unwrap();
+    assert!(err.contains("sensor_sigma"), "{err}");
+    let p: TraceParams = toml::from_str("sensor_sigma = 0.02").unwrap();
     assert_eq!(p.noise, SensorNoise::Sigma(0.02));
     assert!(p.check().is_ok());
+    // The key's old name is refused, naming the new one with the value given.
+    let p: TraceParams = toml::from_str("noise = 0.02").unwrap();
+    let err = p.check().unwrap_err().to_string();
+    assert!(
+        err.contains("kernel parameter noise") && err.contains("sensor_sigma = 0.02"),
+        "{err}"
+    );
+    let p: SimulateParams = toml::from_str("noise = 0.01").unwrap();
+    let err = simulate(
+        arm().as_ref(),
+        &Environment::from_lights(Vec::new()),
+        None,
+        &p,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("relative_noise = 0.01"), "{err}");
     let build = |text: &str| toml::from_str::<AgentConfig>(text).unwrap().build();
     let err = build("kind = \"planar-arm\"\nnoise = { relative = -1.0 }").unwrap_err();
     assert!(err.to_string().contains("relative"), "{err}");

@@ -17,10 +17,14 @@ pub struct Args {
     /// Samples S of the log.
     #[arg(long, default_value_t = SimulateParams::default().samples)]
     n: usize,
-    /// Sensor noise: standard deviation as a fraction of each sensor's spread (its
-    /// standard deviation over the log), e.g. 0.01 for 1 %.
+    /// The Gaussian noise added to every sensor value: its standard deviation as a
+    /// fraction of each sensor's spread (its standard deviation over the log), e.g. 0.01
+    /// for 1 %. The [data.simulate] key relative_noise.
     #[arg(long, default_value_t = 0.0)]
-    noise: f64,
+    relative_noise: f64,
+    /// The old name of --relative-noise: refused with the new one.
+    #[arg(long = "noise", hide = true, allow_hyphen_values = true)]
+    old_noise: Option<String>,
     /// Seed of the babbling and of the noise.
     #[arg(long, default_value_t = SimulateParams::default().seed)]
     seed: u64,
@@ -40,6 +44,11 @@ pub struct Args {
 
 /// Runs `smspace simulate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(value) = &args.old_noise {
+        anyhow::bail!(
+            "--noise is now --relative-noise (the noise added, as a fraction of each sensor's spread): write --relative-noise {value}"
+        );
+    }
     let written: Vec<PathBuf> = smspace::learn::SIMULATED_LOG_FILES
         .iter()
         .map(|f| args.out_dir.join(f))
@@ -64,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )?;
     let params = SimulateParams {
         samples: args.n,
-        noise: args.noise,
+        noise: args.relative_noise,
         seed: args.seed,
     };
     let log = simulate(agent.as_ref(), &environment, workspace, &params)?;
@@ -88,7 +97,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         agent.name(),
         agent.motor_dim(),
         agent.sensor_dim(),
-        args.noise,
+        args.relative_noise,
         args.out_dir.display()
     );
     Ok(())

@@ -74,12 +74,16 @@ pub struct Args {
     /// Seeds of the multi-start search for pieces per set (0: no search, no check).
     #[arg(long, default_value_t = TraceParams::default().piece_starts)]
     piece_starts: usize,
-    /// Sensory method: the sensors' noise, `auto` (read every start twice: readings
-    /// that differ beyond the corrector's tolerance are noisy, their noise measured at
-    /// the start and the set traced on the level set of their mean) or a standard
-    /// deviation in sensor units (0: exact readings).
+    /// Sensory method: the standard deviation of one reading, `auto` (read every start
+    /// twice: readings that differ beyond the corrector's tolerance are noisy, their
+    /// noise measured at the start and the set traced on the level set of their mean)
+    /// or a standard deviation in sensor units (0: exact readings). The [kernel] key
+    /// sensor_sigma.
     #[arg(long, value_name = "auto|SIGMA", default_value = "auto", value_parser = parse_noise, allow_negative_numbers = true)]
-    noise: SensorNoise,
+    sensor_sigma: SensorNoise,
+    /// The old name of --sensor-sigma: refused with the new one.
+    #[arg(long = "noise", hide = true, allow_hyphen_values = true)]
+    old_noise: Option<String>,
     /// Kernels of dimension k ≥ 2: the tangent step of the dense covering (radians).
     #[arg(long, default_value_t = TraceParams::default().cover_step, allow_negative_numbers = true)]
     cover_step: f64,
@@ -131,6 +135,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     super::common::spare_inputs(&[&args.out], &inputs)?;
     io::check_output_folder(&args.out)?;
     let (spec, agent) = args.agent.load()?;
+    if let Some(value) = &args.old_noise {
+        anyhow::bail!(
+            "--noise is now --sensor-sigma (the standard deviation of one reading, in sensor units, or auto): write --sensor-sigma {value}"
+        );
+    }
     let learned = args.method == TraceMethod::Learned;
     let trace = TraceParams {
         method: if learned {
@@ -146,7 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         components: args.components,
         piece_starts: args.piece_starts,
         cover_step: args.cover_step,
-        noise: args.noise,
+        noise: args.sensor_sigma,
         ..TraceParams::default()
     };
     let (trace, learn_params) = with_params(trace, &args.params)?;
@@ -279,7 +288,7 @@ const KERNEL_FLAGS: [&str; 10] = [
     "closure_tolerance",
     "components",
     "piece_starts",
-    "noise",
+    "sensor_sigma",
     "cover_step",
 ];
 

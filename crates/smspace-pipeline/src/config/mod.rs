@@ -339,6 +339,51 @@ mod tests {
         }
     }
 
+    /// A renamed key (`[kernel] noise`, now `sensor_sigma`; `[data.simulate] noise`,
+    /// now `relative_noise`) is refused at its line, with the new name and the value.
+    #[test]
+    fn a_renamed_key_is_refused_with_its_new_name_at_its_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let cases = [
+            (
+                "[agent]\nkind = \"planar-arm\"\n[kernel]\nmethod = \"sensory\"\nnoise = \"auto\"\n",
+                5,
+                "sensor_sigma = \"auto\"",
+            ),
+            (
+                "[agent]\nkind = \"toy-redundant\"\n[data]\nlaw = { neighbours = 20 }\n[data.simulate]\nsamples = 500\nnoise = 0.01\n",
+                7,
+                "relative_noise = 0.01",
+            ),
+        ];
+        for (text, line, new) in cases {
+            let path = write(&dir, "renamed.toml", text);
+            let err = match load_experiment(&path, &[]) {
+                Ok(loaded) => match crate::check(&loaded) {
+                    Ok(plan) => {
+                        let options = crate::RunOptions {
+                            out_dir: dir.path().join("run"),
+                            recompute: crate::Recompute::All,
+                            memory_limit_bytes: None,
+                            busy: crate::BusyFolder::Refuse,
+                        };
+                        struct Quiet;
+                        impl crate::RunObserver for Quiet {
+                            fn progress(&self) -> &dyn smspace::progress::Progress {
+                                &smspace::progress::Silent
+                            }
+                        }
+                        crate::run(&plan, &options, &Quiet).unwrap_err().to_string()
+                    }
+                    Err(err) => err.to_string(),
+                },
+                Err(err) => err.to_string(),
+            };
+            assert!(err.contains(new), "{err}");
+            assert!(err.contains(&format!("renamed.toml, line {line}")), "{err}");
+        }
+    }
+
     /// An embedding method registered by an embedder is located like the built-in
     /// ones: a wrong key or value of its `[embedding]` table names its line, with no
     /// code for the method in the reader.

@@ -109,7 +109,7 @@
 //!
 //! Readings that change between two calls at the same motors (a robot, a simulator
 //! with noise, [`crate::agent::NoisyAgent`]) cannot meet a tolerance of `10⁻¹²`, nor
-//! give a Jacobian by differences `10⁻⁶` rad apart. With `[kernel] noise = "auto"`
+//! give a Jacobian by differences `10⁻⁶` rad apart. With `[kernel] sensor_sigma = "auto"`
 //! (the default) every start is read twice in one batch: readings equal to within the
 //! exact corrector's own tolerance are exact and the set is traced as above (one sensor
 //! row more per set). Otherwise the set is the level set of the sensors' mean law,
@@ -162,7 +162,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::agent::Workspace;
 use crate::agent::{Agent, Environment};
-use crate::params::{CheckParams, InvalidParameter};
+use crate::params::{CheckParams, InvalidParameter, Renamed};
 use crate::progress::{Note, Progress};
 pub use crate::sets::Closure;
 use curve::Scratch;
@@ -401,11 +401,16 @@ pub struct TraceParams {
     /// Sensory method: a set is singular where `σ_{N−1}/σ_max` of the sensory Jacobian
     /// falls below this (too few lights in view). Default `1e-4`.
     pub rank_tolerance: f64,
-    /// Sensory method: the standard deviation of the sensors' noise, in sensor units
-    /// ([`SensorNoise`]): `"auto"` (measured at every start from repeated readings),
-    /// or a number (`0`: exact readings). Default `"auto"`.
-    #[serde(skip_serializing_if = "SensorNoise::is_auto")]
+    /// Sensory method, the key `sensor_sigma`: the standard deviation the tracer takes
+    /// for one reading, in sensor units ([`SensorNoise`]): `"auto"` (measured at every
+    /// start from repeated readings), or a number (`0`: exact readings). Default
+    /// `"auto"`. (Noise *added* to an agent is its `[agent.noise]` table; to a
+    /// simulated log, `[data.simulate] relative_noise`.)
+    #[serde(rename = "sensor_sigma", skip_serializing_if = "SensorNoise::is_auto")]
     pub noise: SensorNoise,
+    /// The old name of `sensor_sigma`, refused by the check with the new one.
+    #[serde(rename = "noise", skip_serializing)]
+    pub old_noise: Renamed,
     /// Which pieces of a level set make the set `M^i`: `connected` (the paper's: the
     /// piece through `m^i`) or `all` (every configuration with the sensation of
     /// `m^i`). Default `connected`.
@@ -495,6 +500,7 @@ impl Default for TraceParams {
             jacobian: JacobianMethod::Secant,
             rank_tolerance: 1e-4,
             noise: SensorNoise::Auto,
+            old_noise: Renamed::default(),
             components: Components::Connected,
             piece_starts: 16,
             piece_seed: 0,
@@ -657,6 +663,7 @@ impl CheckParams for TraceParams {
     type Error = KernelError;
 
     fn check_params(&self) -> Result<TraceValidParams, KernelError> {
+        self.old_noise.refuse("kernel", "noise", "sensor_sigma")?;
         if self.method == TraceMethod::Learned {
             return Err(invalid(
                 "method",
@@ -694,7 +701,7 @@ impl CheckParams for TraceParams {
             // A σ whose square overflows leaves every regression's weights infinite.
             if !(sigma.is_finite() && sigma >= 0.0 && (sigma * sigma).is_finite()) {
                 return Err(invalid(
-                    "noise",
+                    "sensor_sigma",
                     sigma,
                     "must be \"auto\" or a finite standard deviation ≥ 0 of one reading in sensor units (0: exact readings); one whose square overflows (above about 1e154) is no sensor's noise",
                 ));

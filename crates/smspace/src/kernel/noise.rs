@@ -1,4 +1,4 @@
-//! The noise of the sensors the `sensory` method reads: the `[kernel] noise` parameter
+//! The noise of the sensors the `sensory` method reads: the `[kernel] sensor_sigma` parameter
 //! and what is reported of the noise, per set and over the starts (the level set of
 //! noisy readings is in `noisy.rs`; the maths in the module docs of [`super`],
 //! "Noisy sensors").
@@ -7,17 +7,20 @@ use serde::{Deserialize, Serialize};
 
 use super::SetReport;
 
-/// The noise of the sensors the `sensory` method reads (`[kernel] noise`): `"auto"` or
-/// a standard deviation in sensor units. Noisy readings are traced on the level set of
-/// their mean (see the module docs, "Noisy sensors").
+/// The noise of the sensors the `sensory` method reads (`[kernel] sensor_sigma`):
+/// `"auto"` or a standard deviation in sensor units. Noisy readings are traced on the
+/// level set of their mean (see the module docs, "Noisy sensors").
 ///
 /// ```
 /// use smspace::kernel::{SensorNoise, TraceParams};
-/// let p: TraceParams = toml::from_str("noise = 0.02").unwrap();
+/// let p: TraceParams = toml::from_str("sensor_sigma = 0.02").unwrap();
 /// assert_eq!(p.noise, SensorNoise::Sigma(0.02));
-/// let p: TraceParams = toml::from_str("noise = \"auto\"").unwrap();
+/// let p: TraceParams = toml::from_str("sensor_sigma = \"auto\"").unwrap();
 /// assert_eq!(p.noise, SensorNoise::Auto);
-/// assert!(toml::from_str::<TraceParams>("noise = \"foo\"").unwrap_err().to_string().contains("noise"));
+/// assert!(toml::from_str::<TraceParams>("sensor_sigma = \"foo\"").unwrap_err().to_string().contains("auto"));
+/// // The key's old name is refused with the new one.
+/// let old: TraceParams = toml::from_str("noise = 0.02").unwrap();
+/// assert!(old.check().unwrap_err().to_string().contains("sensor_sigma = 0.02"));
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum SensorNoise {
@@ -78,7 +81,7 @@ impl std::str::FromStr for SensorNoise {
         match s.trim() {
             "auto" => Ok(SensorNoise::Auto),
             other => other.parse::<f64>().map(SensorNoise::Sigma).map_err(|_| {
-                format!("invalid noise '{other}'; use \"auto\" or a standard deviation ≥ 0 in sensor units (0: exact readings)")
+                format!("invalid sensor_sigma '{other}'; use \"auto\" or a standard deviation ≥ 0 in sensor units (0: exact readings)")
             }),
         }
     }
@@ -89,8 +92,8 @@ impl std::str::FromStr for SensorNoise {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct SetNoise {
     /// The standard deviation `σ` of a reading, pooled over the sensors (sensor
-    /// units): measured from repeated readings at the start with `noise = "auto"`, or
-    /// the `noise` given.
+    /// units): measured from repeated readings at the start with `sensor_sigma = "auto"`, or
+    /// the `sensor_sigma` given.
     pub sigma: f64,
     /// The position uncertainty `σ_pos` of a traced point (radians): `σ` over the
     /// smallest singular value `g` of the sensory Jacobian's `N − k` at the start and

@@ -3,7 +3,7 @@
 //!
 //! Readings that change between two calls at the same motors (a robot, a simulator
 //! with noise, [`crate::agent::NoisyAgent`]) cannot meet a tolerance of `10⁻¹²`, nor
-//! give a Jacobian by differences `10⁻⁶` rad apart. With `[kernel] noise = "auto"`
+//! give a Jacobian by differences `10⁻⁶` rad apart. With `[kernel] sensor_sigma = "auto"`
 //! (the default) every start is read twice in one batch: readings equal to within the
 //! exact corrector's own tolerance (`|s₁ − s₂| ≤ sensor_tolerance · max |s₁|` in every
 //! sensor: rounding, from a simulator that is not bit-reproducible, is no noise) are
@@ -15,7 +15,7 @@
 //! `(s̄₊ − s̄₋)/2ρ` its Jacobian; the corrector is Gauss–Newton with minimum-norm steps
 //! and a fresh regression at every iterate. The noise's standard deviation `σ` is
 //! measured at the start from 16 repeats of a first regression (pooled over the rows
-//! and sensors), or given (`noise = σ` in sensor units; `0`: exact, no extra row).
+//! and sensors), or given (`sensor_sigma = σ` in sensor units; `0`: exact, no extra row).
 //! With `g` the smallest of the `N − k` largest singular values of the slope, `ρ`
 //! and `r` aim at a slope error of 2 % (`ρ ∈ [10⁻³, 0.1]` rad, `r ≤ 64`), and a
 //! point's position is uncertain by `σ_pos = σ / (g √(r (N + 1)))`. Every tolerance
@@ -84,7 +84,7 @@
 //! seed that only came close to the set, where the mean readings approach the start's
 //! without reaching them, leaves hundreds).
 //!
-//! `σ` is `[kernel] noise` when given, otherwise measured at the start: the pooled
+//! `σ` is `[kernel] sensor_sigma` when given, otherwise measured at the start: the pooled
 //! standard deviation of the [`ESTIMATE_REPEATS`] repeats of every row of a first
 //! regression (`(r − 1)` degrees of freedom per row and sensor).
 //!
@@ -164,7 +164,7 @@ fn within(value: f64, limit: f64) -> bool {
 
 /// What the two readings of a start say ([`probe`]).
 pub(crate) enum Probe<'a> {
-    /// Equal readings, to within the exact corrector's tolerance (or `noise = 0`): the exact level set, with the sensor and the
+    /// Equal readings, to within the exact corrector's tolerance (or `sensor_sigma = 0`): the exact level set, with the sensor and the
     /// start's reading when one was taken.
     Exact(Sensor<'a>, Option<Vec<f64>>),
     /// Readings with noise: the level set of their mean.
@@ -207,9 +207,9 @@ pub(crate) struct NoisySensory<'a> {
     torn: usize,
 }
 
-/// Reads the start twice in one batch (`noise = "auto"`) and decides how to trace:
+/// Reads the start twice in one batch (`sensor_sigma = "auto"`) and decides how to trace:
 /// exactly when the readings are equal to within the exact corrector's tolerance
-/// ([`repeats_exactly`]; or `noise = 0`), otherwise on the level set of
+/// ([`repeats_exactly`]; or `sensor_sigma = 0`), otherwise on the level set of
 /// the mean law, `σ` measured or given.
 pub(crate) fn probe<'a>(
     mut sensor: Sensor<'a>,

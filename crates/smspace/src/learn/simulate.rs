@@ -1,7 +1,7 @@
 //! A log simulated from an agent, so that learning can be tried (and measured against
 //! the truth) without a robot: babbling as in [`crate::explore`] (seeded, in the working
 //! space when there is one), the agent's sensor values in one environment, and optional
-//! Gaussian sensor noise of `noise` times each sensor's standard deviation. The poses
+//! Gaussian sensor noise of `relative_noise` times each sensor's standard deviation. The poses
 //! are kept aside, for evaluation only (`poses.npy`).
 
 use std::path::{Path, PathBuf};
@@ -16,7 +16,7 @@ use super::LearnError;
 use crate::agent::{Agent, AgentConfig, Environment, GroundTruth, Workspace};
 use crate::explore::{explore_in, ExploreParams};
 use crate::io;
-use crate::params::InvalidParameter;
+use crate::params::{InvalidParameter, Renamed};
 
 /// Parameters of a simulated log.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -24,9 +24,14 @@ use crate::params::InvalidParameter;
 pub struct SimulateParams {
     /// Samples `S`. Default 100 000.
     pub samples: usize,
-    /// Sensor noise: standard deviation as a fraction of each sensor's standard
-    /// deviation over the log (`0.01`: 1 % of the signal's spread). Default 0.
+    /// The key `relative_noise`: the standard deviation of the Gaussian noise added to
+    /// every sensor value, as a fraction of that sensor's standard deviation over the
+    /// log (`0.01`: 1 % of the signal's spread). Default 0.
+    #[serde(rename = "relative_noise")]
     pub noise: f64,
+    /// The old name of `relative_noise`, refused with the new one.
+    #[serde(rename = "noise", skip_serializing)]
+    pub old_noise: Renamed,
     /// Seed of the babbling and of the noise. Default 1.
     pub seed: u64,
 }
@@ -36,8 +41,26 @@ impl Default for SimulateParams {
         Self {
             samples: 100_000,
             noise: 0.0,
+            old_noise: Renamed::default(),
             seed: 1,
         }
+    }
+}
+
+impl SimulateParams {
+    /// Checks the parameters: the old key `noise` is refused with its new name
+    /// (`relative_noise`), and the noise must be a finite fraction ≥ 0.
+    pub fn check(&self) -> Result<(), InvalidParameter> {
+        self.old_noise.refuse("data", "noise", "relative_noise")?;
+        if !(self.noise.is_finite() && self.noise >= 0.0) {
+            return Err(InvalidParameter::new(
+                "data",
+                "relative_noise",
+                self.noise,
+                "must be a finite fraction ≥ 0 of each sensor's spread (0.01 for 1 %)",
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -63,15 +86,7 @@ pub fn simulate(
     workspace: Option<Workspace>,
     params: &SimulateParams,
 ) -> Result<SimulatedLog, LearnError> {
-    if !(params.noise.is_finite() && params.noise >= 0.0) {
-        return Err(InvalidParameter::new(
-            "data",
-            "noise",
-            params.noise,
-            "must be a finite fraction ≥ 0 of each sensor's spread (0.01 for 1 %)",
-        )
-        .into());
-    }
+    params.check()?;
     let explore = ExploreParams {
         n: params.samples,
         seed: params.seed,
