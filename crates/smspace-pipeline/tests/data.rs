@@ -180,6 +180,7 @@ fn logged_files_need_no_agent_and_key_the_run_by_their_contents() {
         samples: 5000,
         noise: 0.0,
         seed: 4,
+        ..SimulateParams::default()
     };
     let environment = EnvironmentConfig::default().build(agent.as_ref()).unwrap();
     let log = simulate(agent.as_ref(), &environment, None, &params).unwrap();

@@ -37,6 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             samples,
             noise,
             seed: 1,
+            ..SimulateParams::default()
         },
     )?;
     let simulated = clock.elapsed().as_secs_f64();

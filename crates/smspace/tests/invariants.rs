@@ -192,6 +192,7 @@ fn learned_from_simulated(
         samples: 50_000,
         noise: 0.0,
         seed: 1,
+        ..SimulateParams::default()
     };
     let simulated = simulate(arm, &environment, arm.default_workspace(), &params).unwrap();
     let space = arm.motor_space();
@@ -345,6 +346,7 @@ fn aliased_sensory_pairs_are_set_aside_and_the_pose_functions_stand_out() {
             samples: 60_000,
             noise: 0.0,
             seed: 3,
+            ..SimulateParams::default()
         },
     )
     .unwrap();

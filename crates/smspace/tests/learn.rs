@@ -288,6 +288,7 @@ fn a_simulated_arm_log_is_seeded_and_its_law_has_rank_3() {
         samples: 20_000,
         noise: 0.0,
         seed: 1,
+        ..SimulateParams::default()
     };
     let log = simulate(arm.as_ref(), &environment, arm.default_workspace(), &params).unwrap();
     assert_eq!(log.motors.dim(), (20_000, 4));
@@ -482,6 +483,7 @@ fn a_noisy_log_traces_level_sets_of_the_range_held_at_the_start() {
         samples: 20_000,
         noise: 0.01,
         seed: 1,
+        ..SimulateParams::default()
     };
     let log = simulate(toy.as_ref(), &environment, None, &params).unwrap();
     let starts = first_rows(&log.motors, 60);

@@ -36,6 +36,7 @@ fn log_of(agent: &dyn Agent, samples: usize, noise: f64) -> SensorimotorLog {
             samples,
             noise,
             seed: 3,
+            ..SimulateParams::default()
         },
     )
     .unwrap();

@@ -75,6 +75,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         samples: args.n,
         noise: args.relative_noise,
         seed: args.seed,
+        ..SimulateParams::default()
     };
     let log = simulate(agent.as_ref(), &environment, workspace, &params)?;
     std::fs::create_dir_all(&args.out_dir)
