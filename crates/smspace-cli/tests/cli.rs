@@ -915,3 +915,33 @@ fn every_kernel_key_is_reachable_as_a_param_and_a_flag_keeps_its_key() {
         assert!(message.contains(expected), "{param}: {message}");
     }
 }
+
+#[test]
+fn every_exploration_key_is_reachable_as_a_param() {
+    let (_guard, dir) = temp();
+    ok(
+        &dir,
+        &[
+            "explore",
+            "--n",
+            "6",
+            "--param",
+            "max_draws_per_kept=500",
+            "--out-dir",
+            ".",
+        ],
+    );
+    let exploration: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("exploration.json")).unwrap())
+            .unwrap();
+    assert!(exploration.to_string().contains("500"), "{exploration}");
+    for (param, expected) in [
+        ("max_draws_per_kept=0", "max_draws_per_kept"),
+        ("n=3", "--n"),
+        ("workspace_size=[1.0, 1.0]", "--workspace"),
+        ("no_such_key=1", "no_such_key"),
+    ] {
+        let message = fails(&dir, &["explore", "--param", param, "--out-dir", "."]);
+        assert!(message.contains(expected), "{param}: {message}");
+    }
+}

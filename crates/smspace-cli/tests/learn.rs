@@ -340,3 +340,25 @@ fn bad_logs_name_the_file_and_the_fix() {
     assert!(e.contains("--max-memory"), "{e}");
     assert!(!dir.join("sets.npy").exists());
 }
+
+#[test]
+fn every_law_and_kernel_key_is_reachable_as_a_param() {
+    let (_guard, dir) = temp();
+    toy_log_and_starts(&dir, &[]);
+    let with = |extra: &[&str]| learn_toy(extra);
+    ok_owned(
+        &dir,
+        &with(&["--param", "ridge=1e-6", "--param", "kernel.step=0.002"]),
+    );
+    for (params, expected) in [
+        (vec!["--param", "rigde=1e-6"], "rigde"),
+        (vec!["--param", "ridge=-1.0"], "ridge"),
+        (vec!["--param", "neighbours=30"], "--neighbours"),
+        (vec!["--param", "kernel.points=5"], "--points"),
+        (vec!["--param", "kernel.no_such_key=1"], "no_such_key"),
+    ] {
+        let args = with(&params);
+        let message = fails(&dir, &args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(message.contains(expected), "{params:?}: {message}");
+    }
+}

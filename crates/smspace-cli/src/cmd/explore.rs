@@ -28,6 +28,10 @@ pub struct Args {
     /// Probe orientations, evenly spaced from 0.
     #[arg(long, default_value_t = ExploreParams::default().probe_orientations, requires = "probes")]
     probe_orientations: usize,
+    /// A key of the [exploration] table that has no flag of its own
+    /// (max_draws_per_kept), the value in TOML; repeatable.
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = super::common::parse_param)]
+    params: Vec<(String, toml::Value)>,
     #[command(flatten)]
     workspace: WorkspaceArgs,
     /// Folder for motors.npy, poses.npy (when the agent has a ground truth), probes.npy
@@ -39,6 +43,17 @@ pub struct Args {
     #[arg(long, value_name = "BYTES")]
     max_memory: Option<u64>,
 }
+
+/// [exploration] keys that have a flag of their own (the working space's: --workspace).
+const EXPLORATION_FLAGS: [(&str, &str); 7] = [
+    ("n", "n"),
+    ("seed", "seed"),
+    ("probes", "probes"),
+    ("probe_positions", "probe-positions"),
+    ("probe_orientations", "probe-orientations"),
+    ("workspace_center", "workspace"),
+    ("workspace_size", "workspace"),
+];
 
 /// Runs `smspace explore`.
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -64,6 +79,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         probe_orientations: args.probe_orientations,
         ..ExploreParams::default()
     };
+    let params =
+        super::common::with_table_params(&params, &args.params, &EXPLORATION_FLAGS, "exploration")?;
     let pose_dim = agent.ground_truth().map_or(0, |o| o.pose_space().dim());
     super::common::check_memory(
         "explored configurations",

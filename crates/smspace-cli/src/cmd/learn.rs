@@ -14,6 +14,7 @@ use smspace::learn::{
 };
 use smspace::progress::Progress;
 
+use super::common::with_table_params;
 use crate::ui::Bar;
 
 /// Arguments of `smspace learn`.
@@ -63,12 +64,17 @@ pub struct Args {
     #[arg(long, default_value_t = LawParams::default().bandwidth_factor)]
     bandwidth_factor: f64,
     /// Step budget of one set (a set on a poor law may wander: it fails as not-closed).
-    #[arg(long, default_value_t = 3000)]
+    #[arg(long, default_value_t = law_trace_params().max_steps)]
     max_steps: usize,
     /// Loop-closure tolerance (torus distance); looser than the simulator's 1e-2, as the
     /// law's own error is larger.
-    #[arg(long, default_value_t = 0.03)]
+    #[arg(long, default_value_t = law_trace_params().closure_tolerance)]
     closure_tolerance: f64,
+    /// A key of the law's parameters that has no flag of its own (ridge,
+    /// coverage_neighbours), or of the [kernel] table as kernel.KEY (kernel.step,
+    /// kernel.max_step, …), the value in TOML; repeatable.
+    #[arg(long = "param", value_name = "KEY=VALUE", value_parser = super::common::parse_param)]
+    params: Vec<(String, toml::Value)>,
     /// Seed of the held-out samples.
     #[arg(long, default_value_t = LawParams::default().seed)]
     seed: u64,
@@ -96,6 +102,25 @@ pub struct Args {
     #[arg(long)]
     verbose: bool,
 }
+
+/// Keys of the law's parameters that have a flag of their own.
+const LAW_FLAGS: [(&str, &str); 8] = [
+    ("method", "method"),
+    ("neighbours", "neighbours"),
+    ("bandwidth_factor", "bandwidth-factor"),
+    ("seed", "seed"),
+    ("holdout", "holdout"),
+    ("invariants", "invariants"),
+    ("invariance_threshold", "invariance-threshold"),
+    ("rank", "rank"),
+];
+
+/// [kernel] keys that have a flag of their own.
+const KERNEL_FLAGS: [(&str, &str); 3] = [
+    ("points", "points"),
+    ("max_steps", "max-steps"),
+    ("closure_tolerance", "closure-tolerance"),
+];
 
 fn parse_method(s: &str) -> Result<LawMethod, String> {
     s.parse()
@@ -138,14 +163,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         invariance_threshold: args.invariance_threshold,
         rank: args.rank,
         ..LawParams::default()
-    }
-    .check()?;
+    };
+    let (kernel_params, law_params): (Vec<_>, Vec<_>) = args
+        .params
+        .iter()
+        .cloned()
+        .partition(|(key, _)| key.starts_with("kernel."));
+    let params = with_table_params(&params, &law_params, &LAW_FLAGS, "law")?.check()?;
     let trace = TraceParams {
         points: args.points,
         max_steps: args.max_steps,
         closure_tolerance: args.closure_tolerance,
         ..law_trace_params()
     };
+    let kernel_params: Vec<_> = kernel_params
+        .into_iter()
+        .map(|(key, value)| (key["kernel.".len()..].to_owned(), value))
+        .collect();
+    let trace = with_table_params(&trace, &kernel_params, &KERNEL_FLAGS, "kernel")?;
     trace.check()?;
     let limit = smspace_pipeline::front::learn_memory_limit(args.max_memory);
     let bar = if args.verbose {
