@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args as ClapArgs;
-use smspace::agent::{CoordinateKind, GroundTruthView, PoseSpace};
+use smspace::agent::{GroundTruthView, PoseSpace};
 use smspace::analysis::affine::affine_errors;
 use smspace::analysis::{analyze_on, AnalysisParams};
 use smspace::io;
@@ -126,14 +126,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut report = analyze_on(&distances, truth, None, &params, &bar)
         .with_context(|| format!("analysing {}", args.distances.display()))?;
     if let (Some(h), Some(truth)) = (&representation, truth) {
-        let linear: Vec<usize> = truth
-            .space()
-            .coordinates()
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| c.kind == CoordinateKind::Linear)
-            .map(|(i, _)| i)
-            .collect();
+        let linear = truth.space().linear_columns();
         let positions = truth.poses().select(ndarray::Axis(1), &linear);
         report.affine = Some(
             affine_errors(h.view(), positions.view())

@@ -249,6 +249,22 @@ impl PoseSpace {
         &self.coordinates
     }
 
+    /// The columns of the linear coordinates (the position), in order.
+    ///
+    /// ```
+    /// use smspace::agent::PoseSpace;
+    /// assert_eq!(PoseSpace::planar().linear_columns(), [0, 1]);
+    /// assert_eq!(PoseSpace::spatial().linear_columns(), [0, 1, 2]);
+    /// ```
+    pub fn linear_columns(&self) -> Vec<usize> {
+        self.coordinates
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.kind == CoordinateKind::Linear)
+            .map(|(i, _)| i)
+            .collect()
+    }
+
     /// The compared parts of a pose: one per linear or angle coordinate, one per
     /// quaternion block.
     pub fn components(&self) -> Vec<PoseComponent> {

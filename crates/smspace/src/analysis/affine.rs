@@ -186,25 +186,15 @@ fn affine_fit(
     for r in 0..=q {
         a[(r, r)] += 1e-12 * trace;
     }
-    if !crate::linalg::cholesky_in_place(a.as_mut()) {
+    let mut coefficients = faer::Mat::<f64>::from_fn(q + 1, d, |r, k| b[r][k]);
+    if !crate::linalg::cholesky_solve(a.as_mut(), coefficients.as_mut()) {
         return Err(AnalysisError::Degenerate {
             what: "the affine fit",
             reason: "the representation's normal matrix is not positive definite".to_owned(),
         });
     }
-    // L y = b, then Lᵀ x = y, for every position column.
-    for k in 0..d {
-        for r in 0..=q {
-            let s: f64 = (0..r).map(|c| a[(r, c)] * b[c][k]).sum();
-            b[r][k] = (b[r][k] - s) / a[(r, r)];
-        }
-        for r in (0..=q).rev() {
-            let s: f64 = (r + 1..=q).map(|c| a[(c, r)] * b[c][k]).sum();
-            b[r][k] = (b[r][k] - s) / a[(r, r)];
-        }
-    }
     Ok(Array2::from_shape_fn((m, d), |(i, k)| {
-        (0..=q).map(|r| column(i, r) * b[r][k]).sum()
+        (0..=q).map(|r| column(i, r) * coefficients[(r, k)]).sum()
     }))
 }
 

@@ -270,17 +270,9 @@ pub fn circle_coordinate(
     let mut agreement = BTreeMap::new();
     let mut plane = None;
     if let Some(truth) = truth {
-        let linear: Vec<usize> = truth
-            .space()
-            .coordinates()
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| c.kind == CoordinateKind::Linear)
-            .map(|(i, _)| i)
-            .take(2)
-            .collect();
-        if linear.len() == 2 {
-            let positions = truth.poses().select(Axis(1), &linear);
+        let linear = truth.space().linear_columns();
+        if linear.len() >= 2 {
+            let positions = truth.poses().select(Axis(1), &linear[..2]);
             plane = plane_agreement(distances, &values, positions.view());
         }
         let poses = truth.poses();
@@ -808,22 +800,14 @@ fn harmonic_coordinate(
         b[k] += w * z[e];
         b[i] -= w * z[e];
     }
-    if !crate::linalg::cholesky_in_place(a.as_mut()) {
+    let mut rhs = faer::Mat::<f64>::from_fn(l, 1, |i, _| b[i]);
+    if !crate::linalg::cholesky_solve(a.as_mut(), rhs.as_mut()) {
         return Err(AnalysisError::Degenerate {
             what: "the circular coordinate",
             reason: "the landmarks' graph Laplacian is singular".to_owned(),
         });
     }
-    // L y = b, then Lᵀ f = y.
-    for i in 0..l {
-        let s: f64 = (0..i).map(|k| a[(i, k)] * b[k]).sum();
-        b[i] = (b[i] - s) / a[(i, i)];
-    }
-    for i in (0..l).rev() {
-        let s: f64 = (i + 1..l).map(|k| a[(k, i)] * b[k]).sum();
-        b[i] = (b[i] - s) / a[(i, i)];
-    }
-    let f = b;
+    let f: Vec<f64> = (0..l).map(|i| rhs[(i, 0)]).collect();
     let harmonic = complex
         .edges
         .iter()
