@@ -559,17 +559,12 @@ struct IntegerCocycle {
     classes: usize,
 }
 
-/// Module docs, step 3.
-fn integer_cocycle(complex: &Complex) -> Result<IntegerCocycle, AnalysisError> {
-    let degenerate = |reason: String| AnalysisError::Degenerate {
-        what: "the circular coordinate",
-        reason,
-    };
-    let l = complex.l;
-    let m = complex.edges.len();
-    // A spanning tree by breadth-first search from landmark 0; its edges are 0.
-    let mut forms: Vec<Option<Form>> = vec![None; m];
-    let mut seen = vec![false; l];
+/// A spanning tree of the landmarks' 1-skeleton, by breadth-first search from landmark
+/// 0: its edges get the zero form, in the order found; an error when the complex is
+/// not connected.
+fn spanning_tree(complex: &Complex) -> Result<(Vec<Option<Form>>, Vec<usize>), AnalysisError> {
+    let mut forms: Vec<Option<Form>> = vec![None; complex.edges.len()];
+    let mut seen = vec![false; complex.l];
     let mut queue = std::collections::VecDeque::from([0usize]);
     seen[0] = true;
     let mut order = Vec::new();
@@ -586,11 +581,35 @@ fn integer_cocycle(complex: &Complex) -> Result<IntegerCocycle, AnalysisError> {
         }
     }
     if let Some(apart) = seen.iter().position(|s| !s) {
-        return Err(degenerate(format!(
-            "the landmarks' complex at this scale is not connected (landmark {apart} is apart); take more landmarks (circle_landmarks) or a larger circle_scale"
-        )));
+        return Err(AnalysisError::Degenerate {
+            what: "the circular coordinate",
+            reason: format!(
+                "the landmarks' complex at this scale is not connected (landmark {apart} is apart); take more landmarks (circle_landmarks) or a larger circle_scale"
+            ),
+        });
     }
-    // Propagation through the triangles: `z_ij + z_jk − z_ik = 0`.
+    Ok((forms, order))
+}
+
+/// What the triangles say of the edges once the tree is known: every edge's value as
+/// a form in the free parameters, their count, and the constraints left (forms that
+/// must vanish).
+struct Propagated {
+    forms: Vec<Form>,
+    parameters: usize,
+    constraints: Vec<Form>,
+}
+
+/// Propagates the tree's zeros through the triangles (`z_ij + z_jk − z_ik = 0`): an
+/// edge that is the last unknown of a triangle gets the form the other two give; when
+/// none is, the first unknown edge becomes a free parameter. A triangle whose three
+/// edges are known gives a constraint, checked once (when the last of them is popped).
+fn propagate(
+    complex: &Complex,
+    mut forms: Vec<Option<Form>>,
+    order: Vec<usize>,
+) -> Result<Propagated, AnalysisError> {
+    let m = complex.edges.len();
     let mut popped = vec![false; m];
     let mut pending: std::collections::VecDeque<usize> = order.into();
     let mut parameters = 0usize;
@@ -615,7 +634,6 @@ fn integer_cocycle(complex: &Complex) -> Result<IntegerCocycle, AnalysisError> {
                 let ik = complex.edge(i, k).expect("triangle edge");
                 let unknown = [ij, jk, ik].iter().filter(|&&x| forms[x].is_none()).count();
                 match unknown {
-                    // Checked once: when the last of its three edges is popped.
                     0 if popped[ij] && popped[jk] && popped[ik] => {
                         let (fij, fjk, fik) = (
                             forms[ij].as_ref().expect("known"),
@@ -661,10 +679,22 @@ fn integer_cocycle(complex: &Complex) -> Result<IntegerCocycle, AnalysisError> {
         pending.push_back(next_unknown);
         parameters += 1;
     }
-    // The null space of the constraints, by reduced row echelon form over Z/p.
+    Ok(Propagated {
+        forms: forms
+            .into_iter()
+            .map(|f| f.expect("every edge is known"))
+            .collect(),
+        parameters,
+        constraints,
+    })
+}
+
+/// The reduced row echelon form over `Z/p` of `constraints` (forms in `parameters`
+/// unknowns): its rows and their pivot columns.
+fn row_echelon(constraints: &[Form], parameters: usize) -> (Vec<Vec<u64>>, Vec<usize>) {
     let mut rows: Vec<Vec<u64>> = Vec::new();
     let mut pivots: Vec<usize> = Vec::new();
-    for c in &constraints {
+    for c in constraints {
         let mut row = vec![0u64; parameters];
         for &(p, v) in c {
             row[p as usize] = v;
@@ -695,14 +725,32 @@ fn integer_cocycle(complex: &Complex) -> Result<IntegerCocycle, AnalysisError> {
         rows.push(row);
         pivots.push(p);
     }
+    (rows, pivots)
+}
+
+/// Module docs, step 3: the tree, the propagation, the null space of the constraints
+/// (one class per free column), and each class (up to 8) lifted to the integers and
+/// smoothed; the one of least harmonic energy.
+fn integer_cocycle(complex: &Complex) -> Result<IntegerCocycle, AnalysisError> {
+    let degenerate = |reason: String| AnalysisError::Degenerate {
+        what: "the circular coordinate",
+        reason,
+    };
+    let (tree, order) = spanning_tree(complex)?;
+    let Propagated {
+        forms,
+        parameters,
+        constraints,
+    } = propagate(complex, tree, order)?;
+    let (rows, pivots) = row_echelon(&constraints, parameters);
     let free: Vec<usize> = (0..parameters).filter(|p| !pivots.contains(p)).collect();
     if free.is_empty() {
         return Err(degenerate(format!(
-            "the landmarks' complex at scale has no loop in H1 (its {m} edges are all filled); take a smaller circle_scale"
+            "the landmarks' complex at scale has no loop in H1 (its {} edges are all filled); take a smaller circle_scale",
+            complex.edges.len()
         )));
     }
     let classes = free.len();
-    // Each class, lifted to the integers; the one of least harmonic energy.
     let mut best: Option<(f64, IntegerCocycle)> = None;
     for &f in free.iter().take(8) {
         let mut x = vec![0u64; parameters];
@@ -713,9 +761,7 @@ fn integer_cocycle(complex: &Complex) -> Result<IntegerCocycle, AnalysisError> {
         let values: Vec<u64> = forms
             .iter()
             .map(|form| {
-                form.as_ref()
-                    .expect("every edge is known")
-                    .iter()
+                form.iter()
                     .fold(0, |s, &(p, v)| (s + mul(v, x[p as usize])) % PRIME)
             })
             .collect();
