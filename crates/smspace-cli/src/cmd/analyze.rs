@@ -103,23 +103,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let representation = match &args.representation {
-        Some(path) => {
-            anyhow::ensure!(
-                truth.is_some(),
-                "--representation {} needs --poses: the measures fit the poses' positions",
-                path.display()
-            );
-            let h = io::read_matrix(path, None, "(M, q)")?;
-            anyhow::ensure!(
-                h.nrows() == distances.len(),
-                "{} has {} rows but {} has {} points; the representation must be that of the same sets",
-                path.display(),
-                h.nrows(),
-                args.distances.display(),
-                distances.len()
-            );
-            Some(h)
-        }
+        Some(path) => Some(read_representation(
+            &args,
+            path,
+            truth.is_some(),
+            distances.len(),
+        )?),
         None => None,
     };
     let bar = Bar::new();
@@ -138,6 +127,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(path) => report.save(path)?,
         None => println!("{}", serde_json::to_string_pretty(&report)?),
     }
+    print_summary(&report);
+    Ok(())
+}
+
+/// The representation `--representation` names, `(M, q)`: it needs `--poses` (the
+/// measures fit their positions) and one row per set of `--distances`.
+fn read_representation(
+    args: &Args,
+    path: &std::path::Path,
+    has_poses: bool,
+    sets: usize,
+) -> anyhow::Result<ndarray::Array2<f64>> {
+    anyhow::ensure!(
+        has_poses,
+        "--representation {} needs --poses: the measures fit the poses' positions",
+        path.display()
+    );
+    let h = io::read_matrix(path, None, "(M, q)")?;
+    anyhow::ensure!(
+        h.nrows() == sets,
+        "{} has {} rows but {} has {sets} points; the representation must be that of the same sets",
+        path.display(),
+        h.nrows(),
+        args.distances.display(),
+    );
+    Ok(h)
+}
+
+/// The report in a few lines on stderr: topology and dimension, the agreement, the
+/// affine fit, the circle and the plane.
+fn print_summary(report: &smspace::analysis::AnalysisReport) {
     let dimension = &report.intrinsic_dimension;
     let sub = &report.homology.subsampling;
     eprintln!(
@@ -200,7 +220,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else if let Some(why) = &report.circle_missing {
         eprintln!("no circular coordinate: {why}");
     }
-    Ok(())
 }
 
 /// The poses of `path` with their layout, read off the column count: 3 planar, 7 3-D.
