@@ -392,6 +392,7 @@ fn invariance_of_the_redundant_toy() {
         all
     };
     ok(p, &with(&["--metric", "hausdorff", "--period", "motors"]));
+    std::fs::remove_file(p.join("x.json")).unwrap();
     let err = fails(p, &with(&["--metric", "hausdorf"]));
     assert!(err.contains("hausdorf") && err.contains("curve"), "{err}");
     let err = fails(p, &with(&["--period", "2pi,2pi,2pi"]));
