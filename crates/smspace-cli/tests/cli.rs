@@ -441,6 +441,10 @@ fn bad_inputs_give_clear_errors() {
             "CX,CY,DEPTH,WIDTH",
         ),
         (
+            vec!["explore", "--workspace", "1,2,0,1", "--out-dir", "x"],
+            "greater than zero",
+        ),
+        (
             vec![
                 "explore",
                 "--workspace",

@@ -10,6 +10,8 @@
 //!   [`learn_memory_limit`]: that and at most [`DEFAULT_MEMORY_LIMIT_GIB`] GiB);
 //! * the **period** a metric measures an agent's sets under ([`resolve_period`]:
 //!   `"motors"` is the agent's own);
+//! * the **working space** a door names ([`WorkspaceSpec`]: `default`, `none` or a
+//!   box);
 //! * the **run folder** of an experiment given no output folder ([`default_run_dir`]:
 //!   `runs/<name>`, or `runs/<name>-<h>` with overrides, `h` the first 8 hex digits of
 //!   their BLAKE3 hash, so that a modified run never overwrites the experiment's own);
@@ -25,6 +27,7 @@
 use std::path::{Path, PathBuf};
 
 use smspace::agent::Agent;
+use smspace::explore::Workspace;
 use smspace::learn::{gib_bytes, DEFAULT_MEMORY_LIMIT_GIB};
 use smspace::metric::Periodicity;
 use smspace::metric::{BuiltMetric, DistanceParams, KernelShape, MetricError, MetricRegistry};
@@ -64,6 +67,84 @@ pub enum FrontError {
         /// Its reader's message, naming the key.
         reason: String,
     },
+    /// A working space that is none of `default`, `none` or a box.
+    #[error("workspace {spec}: {reason}")]
+    Workspace {
+        /// What was given.
+        spec: String,
+        /// What a valid one looks like.
+        reason: String,
+    },
+}
+
+/// A working space as a door names it: the agent's own (`default`: the paper's for
+/// the arm, none for the toys), none (the whole motor space), or a box of the sensor's
+/// position: its centre `(cx, cy)` and full extents `(depth, width)` along x and y.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WorkspaceSpec {
+    /// The agent's own ([`smspace::explore::default_workspace`]).
+    Default,
+    /// The whole motor space.
+    None,
+    /// `[cx, cy, depth, width]`.
+    Box([f64; 4]),
+}
+
+impl WorkspaceSpec {
+    /// `default`, `none` or four numbers `CX,CY,DEPTH,WIDTH`.
+    ///
+    /// ```
+    /// use smspace_pipeline::front::WorkspaceSpec;
+    /// assert_eq!(WorkspaceSpec::parse("none").unwrap(), WorkspaceSpec::None);
+    /// assert_eq!(
+    ///     WorkspaceSpec::parse("1.75, 0, 1.5, 3").unwrap(),
+    ///     WorkspaceSpec::Box([1.75, 0.0, 1.5, 3.0])
+    /// );
+    /// assert!(WorkspaceSpec::parse("1, 2").is_err());
+    /// ```
+    pub fn parse(text: &str) -> Result<Self, FrontError> {
+        match text.trim() {
+            "default" => Ok(Self::Default),
+            "none" => Ok(Self::None),
+            spec => {
+                let values: Option<Vec<f64>> = spec
+                    .split(',')
+                    .map(|v| v.trim().parse::<f64>().ok())
+                    .collect();
+                match values.as_deref() {
+                    Some(&[cx, cy, depth, width]) => Ok(Self::Box([cx, cy, depth, width])),
+                    _ => Err(FrontError::Workspace {
+                        spec: spec.to_owned(),
+                        reason: "give default, none, or four numbers CX,CY,DEPTH,WIDTH".to_owned(),
+                    }),
+                }
+            }
+        }
+    }
+
+    /// The working space of `agent` this names; a box must be finite with a depth and
+    /// a width greater than zero.
+    pub fn resolve(self, agent: &dyn Agent) -> Result<Option<Workspace>, FrontError> {
+        match self {
+            Self::Default => Ok(smspace::explore::default_workspace(agent)),
+            Self::None => Ok(None),
+            Self::Box(values @ [cx, cy, depth, width]) => {
+                if !values.iter().all(|v| v.is_finite()) || depth <= 0.0 || width <= 0.0 {
+                    return Err(FrontError::Workspace {
+                        spec: format!("({cx}, {cy}, {depth}, {width})"),
+                        reason:
+                            "the centre must be finite and the depth and width greater than zero"
+                                .to_owned(),
+                    });
+                }
+                Ok(Some(Workspace {
+                    center: [cx, cy],
+                    size: [depth, width],
+                    z_range: None,
+                }))
+            }
+        }
+    }
 }
 
 /// Bytes of memory available now (`MemAvailable` of `/proc/meminfo`), when the system
@@ -391,6 +472,29 @@ mod tests {
             .params
             .insert("nope".into(), toml::Value::Integer(1));
         assert!(metric(&registry, request).is_err());
+    }
+
+    #[test]
+    fn a_working_space_is_the_agents_none_or_a_valid_box() {
+        let arm = smspace::agent::AgentConfig::preset("planar-arm")
+            .unwrap()
+            .build()
+            .unwrap();
+        let default = WorkspaceSpec::parse("default")
+            .unwrap()
+            .resolve(arm.as_ref());
+        assert_eq!(
+            default.unwrap(),
+            smspace::explore::default_workspace(arm.as_ref())
+        );
+        assert_eq!(WorkspaceSpec::None.resolve(arm.as_ref()).unwrap(), None);
+        let boxed = WorkspaceSpec::Box([1.75, 0.0, 1.5, 3.0]).resolve(arm.as_ref());
+        assert_eq!(boxed.unwrap().unwrap().size, [1.5, 3.0]);
+        for bad in [[0.0, 0.0, 0.0, 1.0], [f64::NAN, 0.0, 1.0, 1.0]] {
+            let err = WorkspaceSpec::Box(bad).resolve(arm.as_ref()).unwrap_err();
+            assert!(err.to_string().contains("greater than zero"), "{err}");
+        }
+        assert!(WorkspaceSpec::parse("a,b,c,d").is_err());
     }
 
     #[test]

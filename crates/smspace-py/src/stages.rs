@@ -18,7 +18,7 @@ use pyo3::prelude::*;
 use smspace::analysis::affine::affine_errors;
 use smspace::analysis::{analyze, AnalysisParams};
 use smspace::embed::EmbedParams;
-use smspace::explore::{default_workspace, explore_with, ExploreParams, Workspace};
+use smspace::explore::{explore_with, ExploreParams, Workspace};
 use smspace::kernel::{trace_sets, Closure, TraceParams, TraceReport};
 use smspace::metric::{
     distance_matrix_with, fill_tile, knn_with, BuiltMetric, DistanceMatrix, DistanceParams,
@@ -333,28 +333,23 @@ pub(crate) fn resolve_workspace(
     let Some(spec) = spec else {
         return Ok(None);
     };
-    if let Ok(text) = spec.extract::<String>() {
-        return match text.as_str() {
-            "default" => Ok(default_workspace(agent.law.as_ref())),
-            "none" => Ok(None),
-            other => Err(value_error(format!(
-                "workspace '{other}' must be 'default', None, or four numbers (cx, cy, depth, width)"
-            ))),
-        };
-    }
-    let (cx, cy, depth, width): (f64, f64, f64, f64) = spec.extract().map_err(|_| {
-        value_error("workspace must be 'default', None, or four numbers (cx, cy, depth, width)")
-    })?;
-    if ![cx, cy, depth, width].iter().all(|v| v.is_finite()) || depth <= 0.0 || width <= 0.0 {
-        return Err(value_error(
-            "workspace: the centre must be finite and depth and width greater than zero",
-        ));
-    }
-    Ok(Some(Workspace {
-        center: [cx, cy],
-        size: [depth, width],
-        z_range: None,
-    }))
+    let spec = if let Ok(text) = spec.extract::<String>() {
+        match text.as_str() {
+            "default" => front::WorkspaceSpec::Default,
+            "none" => front::WorkspaceSpec::None,
+            other => {
+                return Err(value_error(format!(
+                    "workspace '{other}' must be 'default', None, or four numbers (cx, cy, depth, width)"
+                )))
+            }
+        }
+    } else {
+        let (cx, cy, depth, width): (f64, f64, f64, f64) = spec.extract().map_err(|_| {
+            value_error("workspace must be 'default', None, or four numbers (cx, cy, depth, width)")
+        })?;
+        front::WorkspaceSpec::Box([cx, cy, depth, width])
+    };
+    spec.resolve(agent.law.as_ref()).map_err(to_py_err)
 }
 
 /// `_trace(agent, motors, params_json, env, workspace, progress)`: the kernel sets,

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Args;
 use smspace::agent::{Agent, Environment, EnvironmentConfig};
-use smspace::explore::{default_workspace, Workspace};
+use smspace::explore::Workspace;
 use smspace_pipeline::config::{load_agent, AgentSpec};
 use smspace_pipeline::front;
 
@@ -103,32 +103,10 @@ pub struct WorkspaceArgs {
 }
 
 impl WorkspaceArgs {
-    /// Parses the specification.
+    /// The working space `--workspace` names ([`front::WorkspaceSpec`]).
     pub fn resolve(&self, agent: &dyn Agent) -> anyhow::Result<Option<Workspace>> {
-        match self.workspace.as_str() {
-            "default" => Ok(default_workspace(agent)),
-            "none" => Ok(None),
-            spec => {
-                let values: Vec<f64> = spec
-                    .split(',')
-                    .map(|v| v.trim().parse::<f64>())
-                    .collect::<Result<_, _>>()
-                    .ok()
-                    .filter(|v: &Vec<f64>| v.len() == 4 && v.iter().all(|x| x.is_finite()))
-                    .with_context(|| {
-                        format!("--workspace '{spec}' must be default, none, or four numbers CX,CY,DEPTH,WIDTH")
-                    })?;
-                anyhow::ensure!(
-                    values[2] > 0.0 && values[3] > 0.0,
-                    "--workspace '{spec}': DEPTH and WIDTH must be greater than zero"
-                );
-                Ok(Some(Workspace {
-                    center: [values[0], values[1]],
-                    size: [values[2], values[3]],
-                    z_range: None,
-                }))
-            }
-        }
+        let spec = front::WorkspaceSpec::parse(&self.workspace).context("--workspace")?;
+        spec.resolve(agent).context("--workspace")
     }
 }
 
