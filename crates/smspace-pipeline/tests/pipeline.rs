@@ -392,8 +392,8 @@ fn config_path(stage: smspace_pipeline::StageId, leaf: &[String]) -> Option<Vec<
             path(&[]).map(|p: Vec<String>| leaf[..1].iter().cloned().chain(p).collect())
         }
         (Distances, "metric") | (Invariance, "metric") => path(&["metric", "metric"]),
-        (Distances, "period") => path(&["metric", "period"]),
-        (Distances, "params") => path(&["metric", "params"]),
+        (Distances | Invariance, "period") => path(&["metric", "period"]),
+        (Distances | Invariance, "params") => path(&["metric", "params"]),
         (Embed, "dydx_seed") => path(&["report", "seed"]),
         (Invariance, "starts") => path(&["analysis", "invariance_starts"]),
         (Report, "name") => path(&["name"]),
