@@ -153,35 +153,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     io::check_output_folder(&args.out)?;
     let declarations = parse_motor_declarations(&args.period)
         .map_err(|reason| anyhow::anyhow!("--period {}: {reason}", args.period))?;
-    let params = LawParams {
-        method: args.method,
-        neighbours: args.neighbours,
-        bandwidth_factor: args.bandwidth_factor,
-        seed: args.seed,
-        holdout: args.holdout,
-        invariants: args.invariants,
-        invariance_threshold: args.invariance_threshold,
-        rank: args.rank,
-        ..LawParams::default()
-    };
-    let (kernel_params, law_params): (Vec<_>, Vec<_>) = args
-        .params
-        .iter()
-        .cloned()
-        .partition(|(key, _)| key.starts_with("kernel."));
-    let params = with_table_params(&params, &law_params, &LAW_FLAGS, "law")?.check()?;
-    let trace = TraceParams {
-        points: args.points,
-        max_steps: args.max_steps,
-        closure_tolerance: args.closure_tolerance,
-        ..law_trace_params()
-    };
-    let kernel_params: Vec<_> = kernel_params
-        .into_iter()
-        .map(|(key, value)| (key["kernel.".len()..].to_owned(), value))
-        .collect();
-    let trace = with_table_params(&trace, &kernel_params, &KERNEL_FLAGS, "kernel")?;
-    trace.check()?;
+    let (params, trace) = tables(&args)?;
     let limit = smspace_pipeline::front::learn_memory_limit(args.max_memory);
     let bar = if args.verbose {
         Bar::with_timings()
@@ -244,6 +216,52 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             errors.compared, errors.median, errors.p90
         );
     }
+    print_traced(&traced, &report, law.report().warnings.len());
+    Ok(())
+}
+
+/// The law's parameters and the `[kernel]` table the flags and `--param`s give
+/// (`kernel.KEY` for the latter), both checked.
+fn tables(args: &Args) -> anyhow::Result<(LawValidParams, TraceParams)> {
+    let params = LawParams {
+        method: args.method,
+        neighbours: args.neighbours,
+        bandwidth_factor: args.bandwidth_factor,
+        seed: args.seed,
+        holdout: args.holdout,
+        invariants: args.invariants,
+        invariance_threshold: args.invariance_threshold,
+        rank: args.rank,
+        ..LawParams::default()
+    };
+    let (kernel_params, law_params): (Vec<_>, Vec<_>) = args
+        .params
+        .iter()
+        .cloned()
+        .partition(|(key, _)| key.starts_with("kernel."));
+    let params = with_table_params(&params, &law_params, &LAW_FLAGS, "law")?.check()?;
+    let trace = TraceParams {
+        points: args.points,
+        max_steps: args.max_steps,
+        closure_tolerance: args.closure_tolerance,
+        ..law_trace_params()
+    };
+    let kernel_params: Vec<_> = kernel_params
+        .into_iter()
+        .map(|(key, value)| (key["kernel.".len()..].to_owned(), value))
+        .collect();
+    let trace = with_table_params(&trace, &kernel_params, &KERNEL_FLAGS, "kernel")?;
+    trace.check()?;
+    Ok((params, trace))
+}
+
+/// What tracing on the law gave, on stderr, and the warnings it added to the law's own
+/// (the first `law_warnings` were printed with the law).
+fn print_traced(
+    traced: &smspace::kernel::TracedSets,
+    report: &smspace::learn::LawReport,
+    law_warnings: usize,
+) {
     let summary = &traced.report.summary;
     eprintln!(
         "traced {} of {} sets on the learned law (rank {}); {} failed {:?}{}",
@@ -261,10 +279,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ))
     );
     // Only the warnings tracing added: the law's own were printed before it.
-    for warning in report.warnings.iter().skip(law.report().warnings.len()) {
+    for warning in report.warnings.iter().skip(law_warnings) {
         eprintln!("warning: {warning}");
     }
-    Ok(())
 }
 
 /// The memory learning and tracing need, from the shapes the files' headers announce

@@ -135,30 +135,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     super::common::spare_inputs(&[&args.out], &inputs)?;
     io::check_output_folder(&args.out)?;
     let (spec, agent) = args.agent.load()?;
-    if let Some(value) = &args.old_noise {
-        anyhow::bail!(
-            "--noise is now --sensor-sigma (the standard deviation of one reading, in sensor units, or auto): write --sensor-sigma {value}"
-        );
-    }
     let learned = args.method == TraceMethod::Learned;
-    let trace = TraceParams {
-        method: if learned {
-            TraceMethod::Sensory
-        } else {
-            args.method
-        },
-        points: args.points,
-        step: args.step,
-        step_control: args.step_control,
-        max_step: args.max_step,
-        closure_tolerance: args.closure_tolerance,
-        components: args.components,
-        piece_starts: args.piece_starts,
-        cover_step: args.cover_step,
-        noise: args.sensor_sigma,
-        ..TraceParams::default()
-    };
-    let (trace, learn_params) = with_params(trace, &args.params)?;
+    let (trace, learn_params) = kernel_table(&args)?;
     let params = trace.check()?;
     if !learned && (args.budget.is_some() || !args.law.is_empty() || !learn_params.is_empty()) {
         anyhow::bail!("--budget, --law and --param learn.KEY apply to --method learned only");
@@ -238,6 +216,47 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut outputs = io::Outputs::sparing(&super::common::present(&inputs));
     let [_, kept_path, _, _, report_path] = traced.write_into(&mut outputs, &args.out)?;
     outputs.commit()?;
+    print_summary(&args, &traced, &params, &report_path, &kept_path);
+    Ok(())
+}
+
+/// The `[kernel]` table the flags and `--param`s give (the learned route traces with
+/// the sensory method on its law), and the `--param learn.KEY` entries set aside.
+fn kernel_table(args: &Args) -> anyhow::Result<(TraceParams, Vec<(String, toml::Value)>)> {
+    if let Some(value) = &args.old_noise {
+        anyhow::bail!(
+            "--noise is now --sensor-sigma (the standard deviation of one reading, in sensor units, or auto): write --sensor-sigma {value}"
+        );
+    }
+    let trace = TraceParams {
+        method: if args.method == TraceMethod::Learned {
+            TraceMethod::Sensory
+        } else {
+            args.method
+        },
+        points: args.points,
+        step: args.step,
+        step_control: args.step_control,
+        max_step: args.max_step,
+        closure_tolerance: args.closure_tolerance,
+        components: args.components,
+        piece_starts: args.piece_starts,
+        cover_step: args.cover_step,
+        noise: args.sensor_sigma,
+        ..TraceParams::default()
+    };
+    with_params(trace, &args.params)
+}
+
+/// What was traced, on stderr: the counts, the rows a budget spent, and every warning
+/// (the law's, the budget's, the sets').
+fn print_summary(
+    args: &Args,
+    traced: &smspace::kernel::TracedSets,
+    params: &smspace::kernel::TraceValidParams,
+    report_path: &std::path::Path,
+    kept_path: &std::path::Path,
+) {
     let summary = &traced.report.summary;
     eprintln!(
         "traced {} of {} sets ({:?}, {:?} steps); {} failed{}",
@@ -275,7 +294,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for warning in summary.warnings() {
         eprintln!("warning: {warning}");
     }
-    Ok(())
 }
 
 /// The [kernel] keys that have a flag of their own.
