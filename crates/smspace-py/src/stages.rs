@@ -87,26 +87,27 @@ fn closures(
 /// What names a metric in a Python call: its name, `period` (`"2pi"`, `"none"`, or one
 /// entry per motor: `"2pi,2pi,none"`), its parameters (the JSON of a dict, the
 /// `[metric.params]` table) and the trace report of the sets when they come from
-/// `trace` (its JSON: the kernels' shape, which a parameter may follow and the metric
-/// checks).
+/// `trace` (its JSON, read once: the kernels' shape, which a parameter may follow and
+/// the metric checks).
 #[derive(FromPyObject)]
 #[pyo3(from_item_all)]
 struct MetricArgs {
     name: String,
     period: String,
     params: Option<String>,
-    report: Option<String>,
+    #[pyo3(from_py_with = trace_report)]
+    report: Option<TraceReport>,
+}
+
+/// The trace report of [`MetricArgs`], from its JSON (or `None`).
+fn trace_report(value: &Bound<'_, PyAny>) -> PyResult<Option<TraceReport>> {
+    let json: Option<String> = value.extract()?;
+    json.as_deref()
+        .map(|json| from_json(json, "trace report"))
+        .transpose()
 }
 
 impl MetricArgs {
-    /// The trace report, when given.
-    fn report(&self) -> PyResult<Option<TraceReport>> {
-        self.report
-            .as_deref()
-            .map(|json| from_json(json, "trace report"))
-            .transpose()
-    }
-
     /// The metric, from the registry of this process (built-in metrics and those
     /// registered from Python), checked against the kernels of the trace report.
     fn build(&self, memory_limit_bytes: Option<u64>) -> PyResult<BuiltMetric> {
@@ -137,7 +138,7 @@ impl MetricArgs {
                 })?
             }
         };
-        let kernels = self.report()?.map(|r| r.kernel_shape());
+        let kernels = self.report.as_ref().map(TraceReport::kernel_shape);
         let request = MetricRequest {
             name: &self.name,
             period,
@@ -158,7 +159,7 @@ impl MetricArgs {
     /// Checks `sets` against the trace report (sets extended along motors must be
     /// recorded as slices for a metric that reads pieces).
     fn check_sets(&self, built: &BuiltMetric, sets: &SetsView<'_>) -> PyResult<()> {
-        if let Some(report) = self.report()? {
+        if let Some(report) = &self.report {
             built
                 .metric
                 .check_sets(sets, &report.extended_along)

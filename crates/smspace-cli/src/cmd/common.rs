@@ -157,6 +157,23 @@ pub fn parse_param(text: &str) -> Result<(String, toml::Value), String> {
     front::parse_param(text).map_err(|e| e.to_string())
 }
 
+/// `--param KEY=VALUE` entries, in the order given.
+pub type Params = Vec<(String, toml::Value)>;
+
+/// The `--param` entries whose key starts with `prefix` (`learn.`), the prefix taken
+/// off, and the others, each in the order given.
+pub fn split_params(params: &[(String, toml::Value)], prefix: &str) -> (Params, Params) {
+    let mut prefixed = Vec::new();
+    let mut rest = Vec::new();
+    for (key, value) in params {
+        match key.strip_prefix(prefix) {
+            Some(key) => prefixed.push((key.to_owned(), value.clone())),
+            None => rest.push((key.clone(), value.clone())),
+        }
+    }
+    (prefixed, rest)
+}
+
 /// `value`, a parameter table, with the `--param KEY=VALUE` keys set: read back by the
 /// table's own reader, which names an unknown key or a bad value
 /// ([`front::with_params`]). A key in `flags` (`(key, flag)`, the flag without its

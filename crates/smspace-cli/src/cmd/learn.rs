@@ -14,7 +14,7 @@ use smspace::learn::{
 };
 use smspace::progress::Progress;
 
-use super::common::with_table_params;
+use super::common::{split_params, with_table_params};
 use crate::ui::Bar;
 
 /// Arguments of `smspace learn`.
@@ -234,11 +234,7 @@ fn tables(args: &Args) -> anyhow::Result<(LawValidParams, TraceParams)> {
         rank: args.rank,
         ..LawParams::default()
     };
-    let (kernel_params, law_params): (Vec<_>, Vec<_>) = args
-        .params
-        .iter()
-        .cloned()
-        .partition(|(key, _)| key.starts_with("kernel."));
+    let (kernel_params, law_params) = split_params(&args.params, "kernel.");
     let params = with_table_params(&params, &law_params, &LAW_FLAGS, "law")?.check()?;
     let trace = TraceParams {
         points: args.points,
@@ -246,10 +242,6 @@ fn tables(args: &Args) -> anyhow::Result<(LawValidParams, TraceParams)> {
         closure_tolerance: args.closure_tolerance,
         ..law_trace_params()
     };
-    let kernel_params: Vec<_> = kernel_params
-        .into_iter()
-        .map(|(key, value)| (key["kernel.".len()..].to_owned(), value))
-        .collect();
     let trace = with_table_params(&trace, &kernel_params, &KERNEL_FLAGS, "kernel")?;
     trace.check()?;
     Ok((params, trace))

@@ -10,7 +10,7 @@ use smspace::kernel::{
 use smspace::learn::budget::{learn_from_agent, BudgetParams};
 use smspace::learn::LawParams;
 
-use super::common::{with_table_params, AgentArgs, EnvArgs, WorkspaceArgs};
+use super::common::{split_params, with_table_params, AgentArgs, EnvArgs, WorkspaceArgs};
 use crate::ui::Bar;
 
 /// Arguments of `smspace trace`.
@@ -297,26 +297,27 @@ fn print_summary(
 }
 
 /// The [kernel] keys that have a flag of their own.
-const KERNEL_FLAGS: [&str; 10] = [
-    "method",
-    "points",
-    "step",
-    "step_control",
-    "max_step",
-    "closure_tolerance",
-    "components",
-    "piece_starts",
-    "sensor_sigma",
-    "cover_step",
+const KERNEL_FLAGS: [(&str, &str); 10] = [
+    ("method", "method"),
+    ("points", "points"),
+    ("step", "step"),
+    ("step_control", "step-control"),
+    ("max_step", "max-step"),
+    ("closure_tolerance", "closure-tolerance"),
+    ("components", "components"),
+    ("piece_starts", "piece-starts"),
+    ("sensor_sigma", "sensor-sigma"),
+    ("cover_step", "cover-step"),
 ];
 
 /// [learn] keys that have a flag of their own.
-const LEARN_FLAGS: [&str; 5] = ["budget", "rounds", "verify_points", "seed", "law"];
-
-/// `(key, flag)` for keys that have a flag of their own (`max_step`: `max-step`).
-fn flags(keys: &[&'static str]) -> Vec<(&'static str, String)> {
-    keys.iter().map(|&k| (k, k.replace('_', "-"))).collect()
-}
+const LEARN_FLAGS: [(&str, &str); 5] = [
+    ("budget", "budget"),
+    ("rounds", "rounds"),
+    ("verify_points", "verify-points"),
+    ("seed", "seed"),
+    ("law", "law"),
+];
 
 /// `trace` with the `--param` keys of the [kernel] table set (read by the table's own
 /// reader, which names an unknown key), and the `learn.KEY` ones set aside.
@@ -324,17 +325,8 @@ fn with_params(
     trace: TraceParams,
     params: &[(String, toml::Value)],
 ) -> anyhow::Result<(TraceParams, Vec<(String, toml::Value)>)> {
-    let (learn, kernel): (Vec<_>, Vec<_>) = params
-        .iter()
-        .cloned()
-        .partition(|(key, _)| key.starts_with("learn."));
-    let learn = learn
-        .into_iter()
-        .map(|(key, value)| (key["learn.".len()..].to_owned(), value))
-        .collect();
-    let flags = flags(&KERNEL_FLAGS);
-    let flags: Vec<(&str, &str)> = flags.iter().map(|(k, f)| (*k, f.as_str())).collect();
-    let trace = with_table_params(&trace, &kernel, &flags, "kernel")?;
+    let (learn, kernel) = split_params(params, "learn.");
+    let trace = with_table_params(&trace, &kernel, &KERNEL_FLAGS, "kernel")?;
     Ok((trace, learn))
 }
 
@@ -344,9 +336,7 @@ fn budget_params(
     budget: BudgetParams,
     learn: Vec<(String, toml::Value)>,
 ) -> anyhow::Result<BudgetParams> {
-    let flags = flags(&LEARN_FLAGS);
-    let flags: Vec<(&str, &str)> = flags.iter().map(|(k, f)| (*k, f.as_str())).collect();
-    with_table_params(&budget, &learn, &flags, "learn")
+    with_table_params(&budget, &learn, &LEARN_FLAGS, "learn")
 }
 
 /// The law's parameters from `--law KEY=VALUE` pairs (a value read as JSON when it
