@@ -132,6 +132,67 @@ fn the_rows_reported_are_the_rows_the_agent_sensed() {
 }
 
 #[test]
+fn a_set_stops_at_its_row_cap_and_a_cap_it_never_reaches_changes_nothing() {
+    let env = EnvironmentConfig::default().build(arm().as_ref()).unwrap();
+    let motors = arm_starts(4, 7);
+    let free = trace(
+        arm().as_ref(),
+        &env,
+        motors.view(),
+        sensory(JacobianMethod::Secant, 20),
+    );
+    let most = free
+        .report
+        .sets
+        .iter()
+        .map(|s| s.sensor_rows)
+        .max()
+        .unwrap();
+    let least = free
+        .report
+        .sets
+        .iter()
+        .map(|s| s.sensor_rows)
+        .min()
+        .unwrap();
+    assert!(least > 400, "{least} rows: too few to cap");
+    // A cap above every set's cost: the same sets, bit for bit.
+    let above = TraceParams {
+        max_rows: most + 1,
+        ..sensory(JacobianMethod::Secant, 20)
+    };
+    let same = trace(arm().as_ref(), &env, motors.view(), above);
+    assert_eq!(same.sets, free.sets);
+    assert_eq!(same.report.sets, free.report.sets);
+    // A cap below every set's cost: each stops there, having read the cap and at most
+    // one step's rows more, and the summary says which key to raise.
+    let cap = least / 2;
+    let below = TraceParams {
+        max_rows: cap,
+        ..sensory(JacobianMethod::Secant, 20)
+    };
+    let capped = trace(arm().as_ref(), &env, motors.view(), below);
+    for line in &capped.report.sets {
+        assert_eq!(line.status, SetStatus::RowBudget);
+        assert!(
+            (cap..cap + 100).contains(&line.sensor_rows),
+            "{} rows against a cap of {cap}",
+            line.sensor_rows
+        );
+    }
+    assert!(capped.kept.is_empty());
+    let message = capped.report.summary.require(1).unwrap_err().to_string();
+    assert!(
+        message.contains("4 row-budget") && message.contains("max_rows"),
+        "{message}"
+    );
+    // The cap is part of the table only when set (the pipeline's cache keys of runs
+    // without one stay as they were).
+    let table = toml::to_string(&sensory(JacobianMethod::Secant, 20)).unwrap();
+    assert!(!table.contains("max_rows"), "{table}");
+}
+
+#[test]
 fn secant_sets_stay_within_a_micro_radian_of_finite_differences_in_fewer_rows() {
     let arm = arm();
     let env = EnvironmentConfig::default().build(arm.as_ref()).unwrap();

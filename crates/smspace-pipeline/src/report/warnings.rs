@@ -96,6 +96,9 @@ fn trace_warnings(inputs: &ReportInputs<'_>) -> Vec<Warning> {
             "cover-budget" => format!(
                 "{sets} were left out because the dense covering of their k-dimensional kernel needed more than max_cover_points nodes (raise cover_step or max_cover_points)"
             ),
+            "row-budget" => format!(
+                "{sets} were left out because they read [kernel] max_rows sensor rows before their trace ended (raise max_rows)"
+            ),
             "retraced" => format!(
                 "{sets} were left out because their noisy traces ran back over their own path"
             ),

@@ -239,13 +239,16 @@ pub(crate) struct CoverSettings {
     pub max_nodes: usize,
     /// Corrector iterations per node.
     pub max_iterations: usize,
+    /// Most sensor rows of one set (0: no cap).
+    pub max_rows: u64,
     /// Kernel dimension `k`.
     pub dimension: usize,
 }
 
 /// Adds the piece through `start` (a point on the level set) to `covering`,
 /// breadth first from `start` (see the module docs). Fails with
-/// [`SetStatus::CoverBudget`] beyond `max_nodes` nodes.
+/// [`SetStatus::CoverBudget`] beyond `max_nodes` nodes, and with
+/// [`SetStatus::RowBudget`] once the set has read `max_rows` sensor rows.
 pub(crate) fn cover_piece(
     set: &mut dyn LevelSet,
     start: &[f64],
@@ -317,6 +320,9 @@ pub(crate) fn cover_piece(
             let index = covering.nodes.len() / n;
             if index >= settings.max_nodes {
                 return Err(SetStatus::CoverBudget);
+            }
+            if settings.max_rows > 0 && set.sensor_rows() >= settings.max_rows {
+                return Err(SetStatus::RowBudget);
             }
             grid.insert(index, &candidate);
             covering.nodes.extend_from_slice(&candidate);

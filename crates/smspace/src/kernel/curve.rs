@@ -292,6 +292,9 @@ fn follow(
         if branch.steps >= params.max_steps {
             return Err(SetStatus::NotClosed);
         }
+        if params.rows_spent(set.sensor_rows()) {
+            return Err(SetStatus::RowBudget);
+        }
         let chord = distance(&m, &previous);
         if cubic && chord > 0.0 {
             hermite(

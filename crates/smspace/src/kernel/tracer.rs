@@ -634,6 +634,7 @@ impl<'a> Tracer<'a> {
                 let settings = CoverSettings {
                     step: self.params.cover_step,
                     max_nodes: self.params.max_cover_points,
+                    max_rows: self.params.max_rows,
                     max_iterations: self.params.max_corrector_iterations,
                     dimension: k,
                 };
