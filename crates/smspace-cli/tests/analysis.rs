@@ -114,6 +114,36 @@ fn analyze_a_circle_writes_the_contract_keys() {
         (affine["r_squared"].as_f64().unwrap() - 1.0).abs() < 1e-9,
         "{affine}"
     );
+    // The positions alone, (x, y) of a sensor whose orientation is fixed: the same fit,
+    // and the agreement names the two coordinates only.
+    let xy = Array2::from_shape_fn((120, 2), |(i, c)| positions[[i, c]]);
+    write_npy(dir.path().join("xy.npy"), &xy).unwrap();
+    let out = ok(
+        dir.path(),
+        &[
+            "analyze",
+            "--distances",
+            "D.npy",
+            "--poses",
+            "xy.npy",
+            "--representation",
+            "H.npy",
+        ],
+    );
+    let alone: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(alone["affine"], printed["affine"]);
+    let coordinates = alone["agreement"]["coordinates"].as_object().unwrap();
+    assert_eq!(coordinates.keys().collect::<Vec<_>>(), ["x", "y"]);
+    let four = Array2::<f64>::zeros((120, 4));
+    write_npy(dir.path().join("four.npy"), &four).unwrap();
+    let err = fails(
+        dir.path(),
+        &["analyze", "--distances", "D.npy", "--poses", "four.npy"],
+    );
+    assert!(
+        err.contains("four.npy has 4 columns") && err.contains("(M, 2) (x, y)"),
+        "{err}"
+    );
 
     // Without --out the report goes to standard output, identical; without poses the
     // agreement is null.

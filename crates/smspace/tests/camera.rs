@@ -410,3 +410,123 @@ fn a_planar_arms_image_has_rows_and_depends_on_the_cameras_pose_in_the_plane_onl
     let moved = image(&[0.5, 0.9, -0.7, 0.3]);
     assert!(seen.iter().zip(&moved).any(|(x, y)| (x - y).abs() > 1e-3));
 }
+
+#[test]
+fn a_camera_that_keeps_its_direction_sees_its_position_only() {
+    // Two links and the camera's hinge (no link): turning the last hinge turns a camera
+    // carried by the chain, and leaves one that keeps its world direction as it was.
+    let joints = "joints = [{ axis = [0, 0, 1], link = [1.0, 0, 0] }, { axis = [0, 0, 1], link = [1.0, 0, 0] }, \
+                  { axis = [0, 0, 1], link = [0, 0, 0] }]\n";
+    let camera = "[camera]\nwidth = 16\nheight = 16\nfov = 0.785\ncolor = \"rgb\"\n";
+    let fixed = chain(&format!("{joints}{camera}direction = [0.8139, 0, -0.5810]"));
+    let carried = chain(&format!("{joints}{camera}"));
+    let environment =
+        Environment::from_scene(Scene::furnished_room([7.0, 7.0, 3.2], 16, 1).unwrap());
+    environment.check_for(fixed.as_ref()).unwrap();
+    let image = |agent: &dyn Agent, m: &[f64]| {
+        let mut s = vec![0.0; agent.sensor_dim()];
+        agent.sense(&environment, m, &mut s);
+        s
+    };
+    let (m, turned) = ([0.3, 0.8, -0.2], [0.3, 0.8, 1.1]);
+    assert_eq!(image(fixed.as_ref(), &m), image(fixed.as_ref(), &turned));
+    let (a, b) = (
+        image(carried.as_ref(), &m),
+        image(carried.as_ref(), &turned),
+    );
+    assert!(a.iter().zip(&b).any(|(x, y)| (x - y).abs() > 1e-2));
+    let moved = image(fixed.as_ref(), &[0.4, 0.8, -0.2]);
+    assert!(image(fixed.as_ref(), &m)
+        .iter()
+        .zip(&moved)
+        .any(|(x, y)| (x - y).abs() > 1e-2));
+    // Looking along +x with the image upright is the carried camera at orientation 0.
+    let level = chain(&format!("{joints}{camera}direction = [2, 0, 0]"));
+    let home = [0.5, -1.0, 0.5];
+    for (x, y) in image(level.as_ref(), &home)
+        .iter()
+        .zip(&image(carried.as_ref(), &home))
+    {
+        assert_abs_diff_eq!(x, y, epsilon = 1e-9);
+    }
+    // The pose is the position (x, y); its Jacobian the chain's first two rows.
+    let truth = fixed.ground_truth().unwrap();
+    let names: Vec<_> = truth
+        .pose_space()
+        .coordinates()
+        .iter()
+        .map(|c| c.name.clone())
+        .collect();
+    assert_eq!(names, ["x", "y"]);
+    assert_eq!(truth.configuration_dim(), 2);
+    let (mut jacobian, mut pose) = (vec![0.0; 2 * 3], [0.0; 2]);
+    truth.pose_jacobian(&m, &mut jacobian, &mut pose);
+    let (x, y) = (0.3_f64.cos() + 1.1_f64.cos(), 0.3_f64.sin() + 1.1_f64.sin());
+    assert_abs_diff_eq!(pose[0], x, epsilon = 1e-12);
+    assert_abs_diff_eq!(pose[1], y, epsilon = 1e-12);
+    let expected = [-y, -(1.1_f64.sin()), 0.0, x, 1.1_f64.cos(), 0.0];
+    for (j, e) in jacobian.iter().zip(expected) {
+        assert_abs_diff_eq!(*j, e, epsilon = 1e-12);
+    }
+    // A vertical or zero direction has no upright image.
+    for bad in ["[0, 0, -1]", "[0, 0, 0]"] {
+        let config: AgentConfig = toml::from_str(&format!(
+            "kind = \"chain\"\n{joints}{camera}direction = {bad}"
+        ))
+        .unwrap();
+        let err = config.build().unwrap_err().to_string();
+        assert!(
+            err.contains("camera.direction") && err.contains("vertical"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn a_furnished_room_is_seeded_with_objects_apart_on_its_floor() {
+    let size = [7.0, 7.0, 3.2];
+    let scene = Scene::furnished_room(size, 16, 4).unwrap();
+    assert_eq!(scene, Scene::furnished_room(size, 16, 4).unwrap());
+    assert_ne!(scene, Scene::furnished_room(size, 16, 5).unwrap());
+    assert_eq!(scene.primitives.len(), 17);
+    scene.check().unwrap();
+    assert_eq!(
+        Scene::furnished_room(size, 0, 4).unwrap(),
+        Scene::textured_room(size, 4)
+    );
+    // Each object's footprint on the floor: centre and half side.
+    let footprints: Vec<([f64; 2], f64)> = scene.primitives[1..]
+        .iter()
+        .map(|p| match p {
+            Primitive::Box(b) => {
+                assert_abs_diff_eq!(b.center[2] - 0.5 * b.size[2], -1.6, epsilon = 1e-12);
+                ([b.center[0], b.center[1]], 0.5 * b.size[0])
+            }
+            Primitive::Sphere(s) => {
+                assert_abs_diff_eq!(s.center[2] - s.radius, -1.6, epsilon = 1e-12);
+                ([s.center[0], s.center[1]], s.radius)
+            }
+            other => panic!("unexpected {}", other.kind()),
+        })
+        .collect();
+    for (i, (c, r)) in footprints.iter().enumerate() {
+        assert!(c[0].abs() + r < 3.5 && c[1].abs() + r < 3.5);
+        assert_abs_diff_eq!(*r, 0.5 * 0.51 * 2.0 * 0.356 * 7.0 / 3.0, epsilon = 1e-12);
+        for (d, s) in &footprints[i + 1..] {
+            let gap = (c[0] - d[0]).abs().max((c[1] - d[1]).abs()) - r - s;
+            assert!(gap > 0.1, "objects {c:?} and {d:?} {gap} apart");
+        }
+    }
+    let err = Scene::furnished_room(size, 1000, 1)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("objects = 1000"), "{err}");
+    // Objects stand in a camera's room only.
+    let lights: smspace::agent::EnvironmentConfig = toml::from_str("objects = 3").unwrap();
+    let arm = AgentConfig::preset("planar-arm").unwrap().build().unwrap();
+    let err = lights.build(arm.as_ref()).unwrap_err().to_string();
+    assert!(
+        err.contains("objects = 3") && err.contains("lights"),
+        "{err}"
+    );
+}

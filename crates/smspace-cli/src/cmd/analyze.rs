@@ -222,20 +222,20 @@ fn print_summary(report: &smspace::analysis::AnalysisReport) {
     }
 }
 
-/// The poses of `path` with their layout, read off the column count: 3 planar, 7 3-D.
+/// The poses of `path` with their layout, read off the column count
+/// ([`PoseSpace::from_columns`]: 2 a planar position, 3 planar, 7 3-D).
 fn read_poses(
     path: &std::path::Path,
     sets: usize,
     distances: &std::path::Path,
 ) -> anyhow::Result<(PoseSpace, ndarray::Array2<f64>)> {
-    let poses = io::read_matrix(path, None, "(M, 3) or (M, 7)")?;
-    let space = match poses.ncols() {
-        3 => PoseSpace::planar(),
-        7 => PoseSpace::spatial(),
-        columns => anyhow::bail!(
-            "{} has {columns} columns; poses are (M, 3) (x, y, alpha) of a planar agent or (M, 7) (x, y, z, qw, qx, qy, qz) of a 3-D one",
-            path.display()
-        ),
+    let poses = io::read_matrix(path, None, "(M, 2), (M, 3) or (M, 7)")?;
+    let Some(space) = PoseSpace::from_columns(poses.ncols()) else {
+        anyhow::bail!(
+            "{} has {} columns; poses are (M, 3) (x, y, alpha) of a planar agent, (M, 7) (x, y, z, qw, qx, qy, qz) of a 3-D one, or (M, 2) (x, y) of a sensor whose orientation is fixed",
+            path.display(),
+            poses.ncols()
+        )
     };
     anyhow::ensure!(
         poses.nrows() == sets,

@@ -43,6 +43,10 @@ pub struct ExperimentEnvironment {
     /// [`EnvironmentConfig::room`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub room: Option<[f64; 3]>,
+    /// For an agent with a camera: objects standing on the room's floor, seeded by
+    /// `seed` (see [`EnvironmentConfig::objects`]). Default 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub objects: usize,
     /// Further environments (`[[environment.compare]]` tables with `lights`, `seed`,
     /// `region`). Default none.
     pub compare: Vec<EnvironmentConfig>,
@@ -56,9 +60,14 @@ impl Default for ExperimentEnvironment {
             seed: base.seed,
             region: base.region,
             room: base.room,
+            objects: base.objects,
             compare: Vec::new(),
         }
     }
+}
+
+fn is_zero(value: &usize) -> bool {
+    *value == 0
 }
 
 impl ExperimentEnvironment {
@@ -69,6 +78,7 @@ impl ExperimentEnvironment {
             seed: self.seed,
             region: self.region,
             room: self.room,
+            objects: self.objects,
         };
         std::iter::once(main)
             .chain(self.compare.iter().cloned())

@@ -593,7 +593,8 @@ def analyze(
     **params: Any,
 ) -> dict:
     """Betti numbers and persistence, intrinsic dimension (TwoNN, MLE) and, with the
-    planar ``poses`` (M, 3) of the sets, the agreement of the learned neighbourhoods
+    ``poses`` of the sets ((M, 3) ``(x, y, alpha)`` of a planar agent, (M, 7) of a 3-D
+    one, or (M, 2) ``(x, y)`` of a sensor whose orientation is fixed), the agreement of the learned neighbourhoods
     with them; a dict equal to ``analysis.json`` (plain JSON values). When the manifold
     has a loop, ``report["circle"]["agreement"]`` is its circular coordinate's circular
     correlation with the poses' angles; with ``circle_values=True``,

@@ -21,6 +21,15 @@
 //! into the 3-D scene, and the image changes with the camera's pose in the plane
 //! `(x, y, α)` only, so its rank is at most 3, as the retina's.
 //!
+//! **A camera that keeps its world orientation** (`direction = [x, y, z]`, as the
+//! camera of Laflaquière & Garcia Ortiz's arm in a room, NeurIPS 2019): the camera
+//! sits at the chain's last frame's position `p` but looks along the fixed world
+//! direction `f̂ = direction / ‖direction‖` whatever the chain's orientation, its image
+//! upright: `R = [f̂, l̂, û]` with `l̂ = (ẑ × f̂) / ‖ẑ × f̂‖` (left) and `û = f̂ × l̂` (up),
+//! so `direction` may not be vertical. The image then depends on the position `p`
+//! alone, and the sensor's pose (the ground truth) is that position: `(x, y)` for a
+//! planar chain, `(x, y, z)` otherwise.
+//!
 //! **Pixel values.** The ray of pixel `(r, c)` starts at `p` with the footprint
 //! `σ(t) = ς_{r,c} t`, `ς_{r,c} = ½ δ (x̂·d̂_{r,c})` (half a pixel's pitch at the
 //! forward depth `t x̂·d̂`), and its colour `v_{r,c} ∈ ℝ³` is the scene's filtered,
@@ -45,7 +54,8 @@
 //! primitives cut through each other. The tracer's finite differences see a smooth
 //! image in a room with separate objects in it.
 //!
-//! **Ground truth**: the chain's, the pose of the camera's frame.
+//! **Ground truth**: the chain's, the pose of the camera's frame (its position alone for
+//! a camera with a fixed `direction`).
 //!
 //! **Determinism.** Every pixel is computed from the motors alone, in a fixed order of
 //! operations, with no sum across threads: the image is bit-identical for any number
@@ -80,8 +90,8 @@ use serde::{Deserialize, Serialize};
 
 use super::scene::{CompiledScene, Hit};
 use super::{
-    Agent, AgentError, Chain, Environment, LightRegion, LightSpace, MotorSpace, Observer, Stimulus,
-    Workspace,
+    Agent, AgentError, Chain, Environment, LightRegion, LightSpace, MotorSpace, Observer,
+    PoseSpace, Stimulus, Workspace,
 };
 use crate::params::InvalidParameter;
 
@@ -122,6 +132,11 @@ pub struct CameraParams {
     pub fov: f64,
     /// `grey` (one value per pixel) or `rgb` (three). Default `grey`.
     pub color: ColorMode,
+    /// The world direction `[x, y, z]` the camera looks along whatever the chain's
+    /// orientation, not vertical (module docs); the sensor's pose is then its position
+    /// only. Default: none (the camera turns with the chain's last frame).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub direction: Option<[f64; 3]>,
 }
 
 impl Default for CameraParams {
@@ -131,6 +146,7 @@ impl Default for CameraParams {
             height: 1,
             fov: std::f64::consts::FRAC_PI_2,
             color: ColorMode::Grey,
+            direction: None,
         }
     }
 }
@@ -165,7 +181,90 @@ impl CameraParams {
             )
             .into());
         }
+        if let Some(direction) = self.direction {
+            if world_from_camera(direction).is_none() {
+                return Err(InvalidParameter::new(
+                    "agent",
+                    "camera.direction",
+                    format!("{direction:?}"),
+                    "the direction a camera keeps is a finite, non-zero vector [x, y, z] that is not vertical (its image's up is the world's +z)",
+                )
+                .into());
+            }
+        }
         Ok(())
+    }
+}
+
+/// The rotation `[f̂, l̂, û]` (columns, row-major) of a camera that looks along the world
+/// `direction` with its image upright (module docs); `None` for a direction that is not
+/// finite, zero or within `10⁻⁶` of vertical.
+fn world_from_camera(direction: [f64; 3]) -> Option<[[f64; 3]; 3]> {
+    let norm = direction.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if !(norm.is_finite() && norm > 0.0) {
+        return None;
+    }
+    let f = direction.map(|v| v / norm);
+    // ẑ × f̂ = (−f_y, f_x, 0).
+    let across = (f[0] * f[0] + f[1] * f[1]).sqrt();
+    if across < 1e-6 {
+        return None;
+    }
+    let l = [-f[1] / across, f[0] / across, 0.0];
+    let u = [
+        f[1] * l[2] - f[2] * l[1],
+        f[2] * l[0] - f[0] * l[2],
+        f[0] * l[1] - f[1] * l[0],
+    ];
+    Some([[f[0], l[0], u[0]], [f[1], l[1], u[1]], [f[2], l[2], u[2]]])
+}
+
+/// The position of a chain's last frame, `(x, y)` for a planar chain and `(x, y, z)`
+/// otherwise: the pose of a camera that keeps its world orientation (module docs).
+#[derive(Debug, Clone)]
+struct ChainPosition {
+    chain: Chain,
+    space: PoseSpace,
+}
+
+impl ChainPosition {
+    fn new(chain: Chain) -> Self {
+        let space = if chain.is_planar() {
+            PoseSpace::planar_position()
+        } else {
+            PoseSpace::spatial_position()
+        };
+        Self { chain, space }
+    }
+}
+
+/// The chain's pose, of which the position's coordinates come first (and its tangent
+/// rows first in the pose Jacobian).
+impl Observer for ChainPosition {
+    fn pose_space(&self) -> PoseSpace {
+        self.space.clone()
+    }
+
+    fn pose(&self, motors: &[f64], pose: &mut [f64]) {
+        let mut full = vec![0.0; self.chain.pose_space().dim()];
+        self.chain.pose(motors, &mut full);
+        pose.copy_from_slice(&full[..self.space.dim()]);
+    }
+
+    fn configuration_dim(&self) -> usize {
+        self.space.dim()
+    }
+
+    fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64], pose: &mut [f64]) {
+        let full_space = self.chain.pose_space();
+        let n = motors.len();
+        let mut full_jacobian = vec![0.0; full_space.tangent_dim() * n];
+        let mut full = vec![0.0; full_space.dim()];
+        self.chain
+            .pose_jacobian(motors, &mut full_jacobian, &mut full);
+        let d = self.space.dim();
+        jacobian.copy_from_slice(&full_jacobian[..d * n]);
+        pose.copy_from_slice(&full[..d]);
     }
 }
 
@@ -178,6 +277,9 @@ pub struct Camera {
     rays: Vec<[f64; 3]>,
     /// Every pixel's footprint standard deviation per unit length `ς`.
     spreads: Vec<f64>,
+    /// With `direction`: the camera's fixed rotation in the world, and its pose (the
+    /// chain's position).
+    fixed: Option<([[f64; 3]; 3], ChainPosition)>,
 }
 
 impl Camera {
@@ -197,11 +299,16 @@ impl Camera {
                 spreads.push(0.5 * pitch / length);
             }
         }
+        let fixed = params
+            .direction
+            .and_then(world_from_camera)
+            .map(|rotation| (rotation, ChainPosition::new(chain.clone())));
         Ok(Self {
             chain,
             params: params.clone(),
             rays,
             spreads,
+            fixed,
         })
     }
 
@@ -224,13 +331,18 @@ impl Camera {
         hits: &mut Vec<Hit>,
     ) {
         let frame = self.chain.frames(motors);
-        let rotation = frame.rotation.to_rotation_matrix();
-        let m = rotation.matrix();
-        let r = [
-            [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-            [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-            [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-        ];
+        let r = match &self.fixed {
+            Some((rotation, _)) => *rotation,
+            None => {
+                let rotation = frame.rotation.to_rotation_matrix();
+                let m = rotation.matrix();
+                [
+                    [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+                    [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+                    [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+                ]
+            }
+        };
         let origin = [frame.position.x, frame.position.y, frame.position.z];
         let rotate = |d: &[f64; 3]| {
             [
@@ -328,8 +440,13 @@ impl Agent for Camera {
         }
     }
 
+    /// The chain's pose, or its position alone for a camera that keeps its world
+    /// orientation.
     fn ground_truth(&self) -> Option<&dyn Observer> {
-        Some(&self.chain)
+        match &self.fixed {
+            Some((_, position)) => Some(position),
+            None => Some(&self.chain),
+        }
     }
 
     fn default_workspace(&self) -> Option<Workspace> {

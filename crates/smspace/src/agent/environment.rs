@@ -514,6 +514,15 @@ pub struct EnvironmentConfig {
     /// the origin (`2 (|c_x| + h_x)` by `2 (|c_y| + h_y)`), as tall as it is narrow.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub room: Option<[f64; 3]>,
+    /// For an agent with a camera: how many objects (cubes and spheres of random
+    /// colours, seeded by `seed`) stand on the room's floor
+    /// ([`Scene::furnished_room`]). Default 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub objects: usize,
+}
+
+fn is_zero(value: &usize) -> bool {
+    *value == 0
 }
 
 impl Default for EnvironmentConfig {
@@ -523,6 +532,7 @@ impl Default for EnvironmentConfig {
             seed: 1,
             region: None,
             room: None,
+            objects: 0,
         }
     }
 }
@@ -533,6 +543,18 @@ impl EnvironmentConfig {
         let region = self.region.unwrap_or_else(|| agent.default_light_region());
         if agent.stimulus() == Stimulus::Scene {
             return self.room_for(agent, &region);
+        }
+        if self.objects > 0 {
+            return Err(InvalidParameter::new(
+                "environment",
+                "objects",
+                self.objects,
+                format!(
+                    "objects stand in a camera's room, and the {} agent senses lights: leave objects out",
+                    agent.name()
+                ),
+            )
+            .into());
         }
         if let Some(room) = self.room {
             return Err(InvalidParameter::new(
@@ -584,7 +606,7 @@ impl EnvironmentConfig {
         }
         let environment = Environment {
             seed: Some(self.seed),
-            ..Environment::from_scene(Scene::textured_room(room, self.seed))
+            ..Environment::from_scene(Scene::furnished_room(room, self.objects, self.seed)?)
         };
         environment.check_for(agent)?;
         Ok(environment)

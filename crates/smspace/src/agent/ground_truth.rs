@@ -209,6 +209,45 @@ impl PoseSpace {
         }
     }
 
+    /// The position in the plane `(x, y)` alone: the pose of a sensor whose orientation
+    /// is fixed (a camera that keeps its world direction).
+    pub fn planar_position() -> Self {
+        Self {
+            coordinates: ["x", "y"]
+                .iter()
+                .map(|name| PoseCoordinate::new(name, CoordinateKind::Linear))
+                .collect(),
+        }
+    }
+
+    /// The position in space `(x, y, z)` alone (a sensor whose orientation is fixed).
+    pub fn spatial_position() -> Self {
+        Self {
+            coordinates: ["x", "y", "z"]
+                .iter()
+                .map(|name| PoseCoordinate::new(name, CoordinateKind::Linear))
+                .collect(),
+        }
+    }
+
+    /// The layout of poses files read off their column count: 2 the planar position
+    /// `(x, y)`, 3 the planar pose `(x, y, alpha)`, 7 the 3-D pose; `None` otherwise.
+    ///
+    /// ```
+    /// use smspace::agent::PoseSpace;
+    /// assert_eq!(PoseSpace::from_columns(3), Some(PoseSpace::planar()));
+    /// assert_eq!(PoseSpace::from_columns(2), Some(PoseSpace::planar_position()));
+    /// assert_eq!(PoseSpace::from_columns(4), None);
+    /// ```
+    pub fn from_columns(columns: usize) -> Option<Self> {
+        match columns {
+            2 => Some(Self::planar_position()),
+            3 => Some(Self::planar()),
+            7 => Some(Self::spatial()),
+            _ => None,
+        }
+    }
+
     /// Whether this is the planar pose `(x, y, alpha)`.
     pub fn is_planar(&self) -> bool {
         *self == Self::planar()

@@ -315,6 +315,21 @@ fn unit(v: [f64; 3]) -> [f64; 3] {
     [v[0] / n, v[1] / n, v[2] / n]
 }
 
+/// The RGB colour of hue `h ∈ [0, 1)`, saturation `s` and value `v`.
+fn hsv_to_rgb(h: f64, s: f64, v: f64) -> [f64; 3] {
+    let sector = (h * 6.0).floor();
+    let f = h * 6.0 - sector;
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    match sector as u32 % 6 {
+        0 => [v, t, p],
+        1 => [q, v, p],
+        2 => [p, v, t],
+        3 => [p, q, v],
+        4 => [t, p, v],
+        _ => [v, p, q],
+    }
+}
+
 impl Primitive {
     /// The kind, as JSON names it.
     pub fn kind(&self) -> &'static str {
@@ -545,6 +560,91 @@ impl Scene {
             })],
             background: [0.0; 3],
         }
+    }
+
+    /// [`textured_room`](Self::textured_room) with `objects` on its floor, in the manner
+    /// of Laflaquière & Garcia Ortiz's room (NeurIPS 2019: 16 objects on a jittered
+    /// 4 × 4 grid of a 7 × 7 room), all drawn from `seed` (ChaCha8):
+    ///
+    /// - the sites: a `g × g` grid, `g = ⌈√objects⌉`, spanning `±0.356` of the room's
+    ///   `x` and `y` extents (`±2.49` in a room of 7), spaced `δ_x` and `δ_y` apart,
+    ///   of which `objects` are taken in a random order, each moved by up to
+    ///   `±0.18 δ` along each axis (`±0.3` for 16 objects in 7);
+    /// - the shapes: a cube of side `a = 0.51 min(δ_x, δ_y)` (0.85 for 16 objects in 7;
+    ///   a single object: `0.121 min(x, y)`) or a sphere of diameter `a`, either with
+    ///   probability ½, standing on the floor `z = −size_z/2`;
+    /// - the colours: one of 12 hues, saturation and value 0.9, with a random texture
+    ///   of 4 waves of wavelengths between `a/4` and `2a`, amplitude up to 0.05.
+    ///
+    /// Neighbours stay at least `0.13 δ` apart and every object touches the floor only
+    /// along its base, so the image is smooth but for silhouettes ([`Scene`]'s docs).
+    /// At most [`MAX_SCENE_PRIMITIVES`] − 1 objects: more are refused, naming the
+    /// key `objects`.
+    pub fn furnished_room(size: [f64; 3], objects: usize, seed: u64) -> Result<Scene, AgentError> {
+        if objects >= MAX_SCENE_PRIMITIVES {
+            return Err(InvalidParameter::new(
+                "environment",
+                "objects",
+                objects,
+                format!("a room holds at most {} objects (a scene has at most {MAX_SCENE_PRIMITIVES} primitives, the room one of them)", MAX_SCENE_PRIMITIVES - 1),
+            )
+            .into());
+        }
+        let mut scene = Scene::textured_room(size, seed);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x006f_626a_6563_7473);
+        let side = (objects as f64).sqrt().ceil() as usize;
+        let reach = [0.356 * size[0], 0.356 * size[1]];
+        let spacing = reach.map(|r| 2.0 * r / side.saturating_sub(1).max(1) as f64);
+        let (a, jitter) = if side < 2 {
+            (
+                0.121 * size[0].min(size[1]),
+                [0.043 * size[0], 0.043 * size[1]],
+            )
+        } else {
+            (0.51 * spacing[0].min(spacing[1]), spacing.map(|d| 0.18 * d))
+        };
+        let site = |i: usize, axis: usize| {
+            if side < 2 {
+                0.0
+            } else {
+                -reach[axis] + spacing[axis] * i as f64
+            }
+        };
+        let mut sites: Vec<usize> = (0..side * side).collect();
+        for i in (1..sites.len()).rev() {
+            let j = rng.random_range(0..=i);
+            sites.swap(i, j);
+        }
+        let floor = -0.5 * size[2];
+        for (k, &cell) in sites.iter().take(objects).enumerate() {
+            let x = site(cell % side, 0) + rng.random_range(-jitter[0]..=jitter[0]);
+            let y = site(cell / side, 1) + rng.random_range(-jitter[1]..=jitter[1]);
+            let hue = rng.random_range(0..12) as f64 / 12.0;
+            let color = hsv_to_rgb(hue, 0.9, 0.9);
+            let texture = Some(Texture::Random(RandomTexture {
+                seed: seed.wrapping_add(1 + k as u64),
+                waves: 4,
+                wavelength: [a / 4.0, 2.0 * a],
+                amplitude: 0.05,
+            }));
+            let primitive = if rng.random_bool(0.5) {
+                Primitive::Box(BoxShape {
+                    center: [x, y, floor + 0.5 * a],
+                    size: [a; 3],
+                    color,
+                    texture,
+                })
+            } else {
+                Primitive::Sphere(Sphere {
+                    center: [x, y, floor + 0.5 * a],
+                    radius: 0.5 * a,
+                    color,
+                    texture,
+                })
+            };
+            scene.primitives.push(primitive);
+        }
+        Ok(scene)
     }
 
     /// Checks every value: at most [`MAX_SCENE_PRIMITIVES`] primitives, finite

@@ -493,9 +493,10 @@ pub fn circle_path(path: &std::path::Path) -> std::path::PathBuf {
     path.with_file_name("circle.npy")
 }
 
-/// Topology, dimension and (with `poses`, `M × 3` `(x, y, alpha)`, the planar ground
-/// truth, any strides) agreement of the distance matrix `distances` (`M × M`, `M ≥ 3`).
-/// [`analyze_on`] takes poses of any layout.
+/// Topology, dimension and (with `poses`, any strides, their layout read off the column
+/// count by [`PoseSpace::from_columns`](crate::agent::PoseSpace::from_columns): `M × 3`
+/// `(x, y, alpha)`, `M × 2` `(x, y)` or `M × 7` the 3-D pose) agreement of the distance
+/// matrix `distances` (`M × M`, `M ≥ 3`). [`analyze_on`] takes poses of any layout.
 ///
 /// ```
 /// use smspace::analysis::{analyze, AnalysisParams};
@@ -518,18 +519,19 @@ pub fn analyze(
     params: &AnalysisValidParams,
     progress: &dyn Progress,
 ) -> Result<AnalysisReport, AnalysisError> {
-    let planar = crate::agent::PoseSpace::planar();
+    let space = poses
+        .as_ref()
+        .and_then(|p| crate::agent::PoseSpace::from_columns(p.ncols()))
+        .unwrap_or_else(crate::agent::PoseSpace::planar);
     let truth = match poses {
-        Some(poses) => Some(
-            GroundTruthView::new(&planar, poses.reborrow()).map_err(|_| {
-                AnalysisError::PosesShape {
-                    rows: poses.nrows(),
-                    columns: poses.ncols(),
-                    expected: distances.len(),
-                    coordinates: 3,
-                }
-            })?,
-        ),
+        Some(poses) => Some(GroundTruthView::new(&space, poses.reborrow()).map_err(|_| {
+            AnalysisError::PosesShape {
+                rows: poses.nrows(),
+                columns: poses.ncols(),
+                expected: distances.len(),
+                coordinates: space.dim(),
+            }
+        })?),
         None => None,
     };
     analyze_on(distances, truth, None, params, progress)
