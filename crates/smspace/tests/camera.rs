@@ -530,3 +530,69 @@ fn a_furnished_room_is_seeded_with_objects_apart_on_its_floor() {
         "{err}"
     );
 }
+
+#[test]
+fn the_piece_search_through_images_is_seen_to_miss_pieces() {
+    // Three segments of 0.5 and a camera that keeps its direction: within 0.5 of the
+    // base the arm reaches a position in two loops (elbow up and down). From images the
+    // projections of the search rarely land on the second: the landings on the pieces
+    // found estimate how often it is missed, and the summary says so.
+    use smspace::kernel::{trace_sets, Components, TraceMethod, TraceParams};
+    let arm = chain(
+        "joints = [{ axis = [0, 0, 1], link = [0.5, 0, 0] }, { axis = [0, 0, 1], link = [0.5, 0, 0] }, \
+         { axis = [0, 0, 1], link = [0.5, 0, 0] }]\n\
+         [camera]\nwidth = 12\nheight = 12\nfov = 0.7854\ndirection = [0.8139, 0.0, -0.5810]",
+    );
+    let environment =
+        Environment::from_scene(Scene::furnished_room([7.0, 7.0, 3.2], 16, 1).unwrap());
+    let count = 40;
+    let motors = ndarray::Array2::from_shape_fn((count, 3), |(i, j)| {
+        // The end at distance r and bearing b, the first segment at angle a.
+        let (r, b, a) = (
+            0.1 + 0.3 * i as f64 / count as f64,
+            0.9 * i as f64,
+            2.1 * i as f64,
+        );
+        let (px, py) = (r * b.cos() - 0.5 * a.cos(), r * b.sin() - 0.5 * a.sin());
+        let d = (px * px + py * py).sqrt();
+        let elbow = ((d * d - 0.5) / 0.5).clamp(-1.0, 1.0).acos();
+        let second = py.atan2(px) - (0.5 * elbow.sin()).atan2(0.5 + 0.5 * elbow.cos());
+        [a, second - a, elbow][j]
+    });
+    let params = TraceParams {
+        method: TraceMethod::Sensory,
+        components: Components::All,
+        piece_starts: 24,
+        points: 20,
+        ..TraceParams::default()
+    };
+    let traced = trace_sets(
+        arm.as_ref(),
+        Some(&environment),
+        motors.view(),
+        None,
+        &params.check().unwrap(),
+        &smspace::progress::Silent,
+    )
+    .unwrap();
+    let summary = &traced.report.summary;
+    let missed = 1.0 - summary.with_several_pieces as f64 / summary.traced as f64;
+    let search = summary.piece_search.unwrap();
+    eprintln!(
+        "{} traced, missed {missed}, estimated {search:?}",
+        summary.traced
+    );
+    assert!(summary.traced >= count - 2);
+    assert!(missed > 0.3, "{missed}");
+    assert!(
+        search.miss_probability >= missed - 0.15,
+        "estimated {search:?} against {missed}"
+    );
+    let warnings = summary.warnings();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("piece_starts") && w.contains("break into parts")),
+        "{warnings:?}"
+    );
+}

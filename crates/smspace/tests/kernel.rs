@@ -1021,6 +1021,15 @@ fn the_paper_arm_has_two_pieces_inside_one_link_and_one_outside() {
             Components::All => {
                 assert_eq!(summary.with_several_pieces, near);
                 assert_eq!(summary.with_unvisited_pieces, 0);
+                // The second pieces drew many of the 16 seeds: the search is reliable.
+                for line in &traced.report.sets {
+                    assert_eq!(line.piece_landings.len(), line.pieces - 1);
+                    assert!(line.piece_landings.iter().all(|&h| h >= 1));
+                }
+                let search = summary.piece_search.unwrap();
+                assert_eq!((search.pieces, search.seeds), (near, 16));
+                assert!(search.miss_probability < 0.05, "{search:?}");
+                assert!(summary.warnings().is_empty(), "{:?}", summary.warnings());
                 // The points are shared between the pieces, each a run; every point
                 // keeps the start's pose.
                 for (s, row) in traced.pieces.outer_iter().enumerate() {

@@ -153,11 +153,13 @@ mod level_set;
 mod noise;
 mod noisy;
 mod params;
+mod pieces;
 pub use params::{
     Components, JacobianMethod, StepControl, TraceMethod, TraceParams, TraceValidParams,
     DEFAULT_MAX_STEP, DEFAULT_SPATIAL_SAMPLES, EXACT_SENSORY_MAX_STEP, MAX_PIECE_STARTS,
     MAX_POINTS,
 };
+pub use pieces::{PieceSearch, MAX_PIECE_MISS};
 pub mod spatial;
 mod tracer;
 
@@ -476,6 +478,11 @@ pub struct SetReport {
     /// sensation.
     #[serde(default)]
     pub unvisited_pieces: usize,
+    /// Curves and points: the seeds of the multi-start search that landed on each
+    /// further piece found (not the start's), in the order found ([`PieceSearch`]).
+    /// Empty when the search found none, and for kernels of dimension k ≥ 2.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub piece_landings: Vec<u32>,
     /// Kernels of dimension k ≥ 2: the covering radius of the sample, the largest
     /// distance from a node of the dense covering to its nearest sampled point
     /// (radians, torus distance; the kernel is within this plus about `cover_step`
@@ -579,6 +586,11 @@ pub struct TraceSummary {
     /// Traced sets of more than one piece found.
     #[serde(default)]
     pub with_several_pieces: usize,
+    /// With `components = "all"`: how many seeds landed on the further pieces found,
+    /// and the estimated share of such pieces the search misses ([`PieceSearch`]);
+    /// `None` when it found none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub piece_search: Option<PieceSearch>,
     /// Kernels of dimension k ≥ 2: the covering radii of the traced sets (smallest,
     /// median, largest), radians.
     #[serde(default)]
@@ -730,6 +742,7 @@ impl TraceSummary {
                 self.with_unvisited_pieces, self.total
             ));
         }
+        out.extend(self.piece_search.as_ref().and_then(PieceSearch::warning));
         if let Some(noise) = &self.noise {
             let blurred = noise.position > MAX_POSITION_UNCERTAINTY;
             if blurred || (noise.sets > 0 && 2 * self.failed > self.total) {
@@ -1073,6 +1086,7 @@ pub fn trace_sets(
         ..TraceSummary::default()
     };
     let mut radii = Vec::new();
+    let mut landings = Vec::new();
     for result in results {
         let report = result.report;
         if let Some(points) = result.points {
@@ -1082,6 +1096,7 @@ pub fn trace_sets(
             closure.push(report.status.closure().expect("a kept set was traced"));
             summary.with_several_pieces += usize::from(report.pieces > 1);
             radii.extend(report.covering_radius);
+            landings.extend_from_slice(&report.piece_landings);
         }
         summary.with_unvisited_pieces += usize::from(report.unvisited_pieces > 0);
         let name = report.status.name();
@@ -1096,6 +1111,9 @@ pub fn trace_sets(
     summary.covering_radius =
         (!radii.is_empty()).then(|| [radii[0], radii[radii.len() / 2], radii[radii.len() - 1]]);
     summary.traced = kept.len();
+    if params.components() == Components::All {
+        summary.piece_search = PieceSearch::of(&landings, params.piece_starts);
+    }
     summary.closure_rate = closure_rate(&summary, &reports);
     summary.failed = summary.total - summary.traced;
     summary.sensory_rank = tracer.sensory_rank();

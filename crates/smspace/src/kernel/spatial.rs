@@ -242,6 +242,7 @@ mod tests {
             dimension: 1,
             pieces: 1,
             unvisited_pieces: 0,
+            piece_landings: Vec::new(),
             covering_radius: None,
             sensor_rows: 0,
             sensor_row_phases: None,

@@ -396,6 +396,7 @@ impl<'a> Tracer<'a> {
             dimension: self.dimension,
             pieces: 0,
             unvisited_pieces: 0,
+            piece_landings: Vec::new(),
             covering_radius: None,
             sensor_rows: 0,
             sensor_row_phases: (self.params.method == TraceMethod::Sensory)
@@ -521,6 +522,7 @@ impl<'a> Tracer<'a> {
             }
         }
         report.pieces = found.count();
+        report.piece_landings = found.landings.clone();
         report.unvisited_pieces = found.failed
             + match self.params.components {
                 Components::Connected => found.count() - 1,
@@ -587,11 +589,15 @@ impl<'a> Tracer<'a> {
             );
             set.set_phase(RowPhase::Trace);
             let _ = set.set_linearization(Linearization::Exact);
+            if landing == Landing::Known {
+                found.count_landing(&self.space, &m, SETTLED * tolerance);
+            }
             if landing != Landing::OnSet {
                 continue;
             }
             self.space.wrap_points(&mut m);
             if found.contains(&self.space, &m, self.params, tolerance) {
+                found.count_landing(&self.space, &m, tolerance);
                 continue;
             }
             set.set_phase(RowPhase::Search);
@@ -604,6 +610,8 @@ impl<'a> Tracer<'a> {
                 // A piece that cannot be traced is still a piece: remember where.
                 found.failed += 1;
                 found.failed_points.extend_from_slice(&m);
+            } else if self.dimension <= 1 {
+                found.landings.push(1);
             }
         }
         Ok(found)
@@ -1052,6 +1060,8 @@ struct Found {
     /// Pieces found that could not be traced, and a point of each (wrapped).
     failed: usize,
     failed_points: Vec<f64>,
+    /// Points and curves: the seeds that landed on each piece after the first.
+    landings: Vec<u32>,
     steps: usize,
     max_residual: f64,
     n: usize,
@@ -1067,9 +1077,30 @@ impl Found {
             covering_pieces: 0,
             failed: 0,
             failed_points: Vec::new(),
+            landings: Vec::new(),
             steps: 0,
             max_residual: 0.0,
             n: space.dim(),
+        }
+    }
+
+    /// Counts a seed that landed at `m` (wrapped) on the point or curve piece after the
+    /// first that it lies within `tolerance` of, if any (the first such piece).
+    fn count_landing(&mut self, space: &MotorSpace, m: &[f64], tolerance: f64) {
+        let n = self.n;
+        let piece = if self.curves.is_empty() {
+            self.points
+                .chunks_exact(n)
+                .position(|p| space.distance(p, m) <= tolerance)
+        } else {
+            self.curves
+                .iter()
+                .position(|c| near_curve(space, c, n, m, tolerance))
+        };
+        if let Some(later) = piece.and_then(|p| p.checked_sub(1)) {
+            if let Some(count) = self.landings.get_mut(later) {
+                *count += 1;
+            }
         }
     }
 
