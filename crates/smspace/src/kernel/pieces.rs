@@ -96,7 +96,7 @@ impl PieceSearch {
 fn landing_probability(mean: f64, seeds: usize) -> f64 {
     let s = seeds as f64;
     let f = |q: f64| s * q / -(s * (-q).ln_1p()).exp_m1();
-    if !(mean > 1.0) {
+    if mean.is_nan() || mean <= 1.0 {
         return 0.0;
     }
     if mean >= s {
@@ -123,9 +123,9 @@ mod tests {
     #[test]
     fn the_truncated_mean_is_inverted() {
         for seeds in [2, 16, 128] {
-            for q in [0.001, 0.05, 0.3, 0.9] {
+            for q in [0.001_f64, 0.05, 0.3, 0.9] {
                 let s = seeds as f64;
-                let mean = s * q / (1.0 - (1.0 - q as f64).powi(seeds));
+                let mean = s * q / (1.0 - (1.0 - q).powi(seeds));
                 let back = landing_probability(mean, seeds as usize);
                 assert!((back - q).abs() < 1e-9, "{seeds} seeds, q {q}: {back}");
             }
