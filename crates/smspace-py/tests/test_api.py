@@ -169,6 +169,10 @@ def test_analyze_gives_the_loop_as_a_circular_coordinate():
         smspace.analyze(D, representation=H)
     with pytest.raises(ValueError, match="3 rows"):
         smspace.analyze(D, grid, representation=H[:3])
+    # The positions alone (a sensor of fixed orientation): the same fit.
+    alone = smspace.analyze(D, grid[:, :2], representation=H, circle_landmarks=0)
+    assert alone["affine"] == fitted
+    assert list(alone["agreement"]["coordinates"]) == ["x", "y"]
 
 
 def test_analyze_and_embed_reports(arm_sets):
