@@ -287,44 +287,7 @@ pub fn check_with(
         .map_err(|err| invalid("exploration")(err.into()))?;
     check_set_count(&e.exploration).map_err(|err| invalid("exploration")(err.into()))?;
     check_learn_table(experiment, data.is_some())?;
-    // The learned route traces on its law by the sensory method: its [kernel] table is
-    // checked as that method's.
-    let trace_kernel = match e.kernel.method {
-        TraceMethod::Learned => TraceParams {
-            method: TraceMethod::Sensory,
-            ..e.kernel.clone()
-        },
-        _ => e.kernel.clone(),
-    };
-    trace_kernel
-        .check()
-        .and_then(|kernel| kernel.check_for(agent.as_ref()))
-        .map_err(|err| invalid("kernel")(err.into()))?;
-    let invariance = if environments.len() > 1 && e.analysis.invariance_starts > 0 {
-        let kernel = TraceParams {
-            method: TraceMethod::Sensory,
-            ..e.kernel.clone()
-        };
-        kernel
-            .check()
-            .map_err(|err| invalid("kernel")(err.into()))?;
-        Some(InvarianceStage::new(
-            kernel,
-            e.analysis.invariance_starts,
-            &metric,
-        ))
-    } else {
-        None
-    };
-    if let Ok(Some(k)) = trace_kernel
-        .check()
-        .and_then(|p| p.dimension_for(agent.as_ref()))
-    {
-        metric
-            .metric
-            .check_kernels(KernelShape::of_dimension(k))
-            .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
-    }
+    let invariance = check_kernel_table(experiment, agent.as_ref(), environments.len(), &metric)?;
     e.analysis
         .check()
         .map_err(|err| invalid("analysis")(err.into()))?;
@@ -370,6 +333,56 @@ pub fn check_with(
             report: e.report.clone(),
         },
     })
+}
+
+/// Checks the `[kernel]` table against the agent (the learned route's as the sensory
+/// method's, which traces on its law) and against the metric (the kernels' dimension
+/// it reads), and makes the invariance stage when there are `environments` > 1 to
+/// compare.
+fn check_kernel_table(
+    experiment: &LoadedExperiment,
+    agent: &dyn Agent,
+    environments: usize,
+    metric: &smspace::metric::BuiltMetric,
+) -> Result<Option<InvarianceStage>, ConfigError> {
+    let e = &experiment.experiment;
+    let invalid = |table| move |err: crate::Error| experiment.invalid_error(table, err);
+    // The learned route traces on its law by the sensory method: its [kernel] table is
+    // checked as that method's.
+    let trace_kernel = match e.kernel.method {
+        TraceMethod::Learned => TraceParams {
+            method: TraceMethod::Sensory,
+            ..e.kernel.clone()
+        },
+        _ => e.kernel.clone(),
+    };
+    trace_kernel
+        .check()
+        .and_then(|kernel| kernel.check_for(agent))
+        .map_err(|err| invalid("kernel")(err.into()))?;
+    let invariance = if environments > 1 && e.analysis.invariance_starts > 0 {
+        let kernel = TraceParams {
+            method: TraceMethod::Sensory,
+            ..e.kernel.clone()
+        };
+        kernel
+            .check()
+            .map_err(|err| invalid("kernel")(err.into()))?;
+        Some(InvarianceStage::new(
+            kernel,
+            e.analysis.invariance_starts,
+            metric,
+        ))
+    } else {
+        None
+    };
+    if let Ok(Some(k)) = trace_kernel.check().and_then(|p| p.dimension_for(agent)) {
+        metric
+            .metric
+            .check_kernels(KernelShape::of_dimension(k))
+            .map_err(|err| invalid("metric")(MetricError::Invalid(err).into()))?;
+    }
+    Ok(invariance)
 }
 
 /// The `[learn]` table and `[kernel] method = "learned"` go together, and the learned

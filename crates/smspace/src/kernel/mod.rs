@@ -1063,6 +1063,20 @@ pub fn trace_sets(
         |caller, scratch, start| tracer.trace(start, caller, scratch),
         &done,
     )?);
+    progress.finish();
+    Ok(assemble(agent, params, &tracer, results, noise_forecast))
+}
+
+/// The traced sets and their report from every start's result, in the starts' order:
+/// the kept sets' points, pieces and closures, and the summary over all of them.
+fn assemble(
+    agent: &dyn Agent,
+    params: &TraceValidParams,
+    tracer: &Tracer<'_>,
+    results: Vec<tracer::SetResult>,
+    noise_forecast: Option<NoiseForecast>,
+) -> TracedSets {
+    let n = agent.motor_dim();
     // The kept sets' exact sizes, so that the arrays hold no growth slack (up to as much
     // again as the sets, which the memory estimates of the later stages do not count).
     let (values, labels) = results
@@ -1074,7 +1088,6 @@ pub fn trace_sets(
         tracer.add_rank_rows(&mut result.report, index);
         result
     });
-    progress.finish();
     let p = params.points;
     let mut data = Vec::with_capacity(values);
     let mut pieces = Vec::with_capacity(labels);
@@ -1121,7 +1134,7 @@ pub fn trace_sets(
         .expect("every kept set has a piece for each of its P points");
     let sets =
         Array3::from_shape_vec((kept.len(), p, n), data).expect("every kept set has P × N values");
-    Ok(TracedSets {
+    TracedSets {
         sets,
         kept,
         closure,
@@ -1137,5 +1150,5 @@ pub fn trace_sets(
             law: None,
             budget: None,
         },
-    })
+    }
 }

@@ -408,6 +408,38 @@ impl TraceParams {
     }
 }
 
+impl TraceParams {
+    /// The checks of the counts: at least 1 point, step, corrector iteration and
+    /// covering node, and at most [`MAX_POINTS`] points and [`MAX_PIECE_STARTS`] seeds.
+    fn check_counts(&self) -> Result<(), KernelError> {
+        for (key, value) in [
+            ("points", self.points),
+            ("max_steps", self.max_steps),
+            ("max_corrector_iterations", self.max_corrector_iterations),
+            ("max_cover_points", self.max_cover_points),
+        ] {
+            if value == 0 {
+                return Err(invalid(key, 0, "must be at least 1"));
+            }
+        }
+        if self.points > MAX_POINTS {
+            return Err(invalid(
+                "points",
+                self.points,
+                "must be at most 100000 points per set (the paper uses 100)",
+            ));
+        }
+        if self.piece_starts > MAX_PIECE_STARTS {
+            return Err(invalid(
+                "piece_starts",
+                self.piece_starts,
+                &format!("must be at most {MAX_PIECE_STARTS} seeds per set (each costs a projection onto every set's level set; the default is 16, 0 turns the search off)"),
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl CheckParams for TraceParams {
     type Valid = TraceValidParams;
     type Error = KernelError;
@@ -457,30 +489,7 @@ impl CheckParams for TraceParams {
                 ));
             }
         }
-        for (key, value) in [
-            ("points", self.points),
-            ("max_steps", self.max_steps),
-            ("max_corrector_iterations", self.max_corrector_iterations),
-            ("max_cover_points", self.max_cover_points),
-        ] {
-            if value == 0 {
-                return Err(invalid(key, 0, "must be at least 1"));
-            }
-        }
-        if self.points > MAX_POINTS {
-            return Err(invalid(
-                "points",
-                self.points,
-                "must be at most 100000 points per set (the paper uses 100)",
-            ));
-        }
-        if self.piece_starts > MAX_PIECE_STARTS {
-            return Err(invalid(
-                "piece_starts",
-                self.piece_starts,
-                &format!("must be at most {MAX_PIECE_STARTS} seeds per set (each costs a projection onto every set's level set; the default is 16, 0 turns the search off)"),
-            ));
-        }
+        self.check_counts()?;
         let step_control = match (self.step_control, self.method) {
             (StepControl::Auto, TraceMethod::Kinematic) => StepControl::Fixed,
             (StepControl::Auto, TraceMethod::Sensory | TraceMethod::Learned) => {
