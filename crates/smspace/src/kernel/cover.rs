@@ -54,6 +54,7 @@ use rand::{RngExt, SeedableRng};
 
 use super::curve::{correct, Convergence, Scratch};
 use super::level_set::LevelSet;
+use super::params::rows_spent;
 use super::SetStatus;
 use crate::agent::{Motor, MotorSpace};
 
@@ -321,7 +322,7 @@ pub(crate) fn cover_piece(
             if index >= settings.max_nodes {
                 return Err(SetStatus::CoverBudget);
             }
-            if settings.max_rows > 0 && set.sensor_rows() >= settings.max_rows {
+            if rows_spent(settings.max_rows, set.sensor_rows()) {
                 return Err(SetStatus::RowBudget);
             }
             grid.insert(index, &candidate);

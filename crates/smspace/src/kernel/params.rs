@@ -192,6 +192,12 @@ pub const DEFAULT_MAX_STEP: f64 = 0.05;
 /// see the module docs: the sets agree with those of `0.05` within `5·10⁻⁷` rad).
 pub const EXACT_SENSORY_MAX_STEP: f64 = 0.2;
 
+/// Whether a set that has read `rows` sensor rows has spent a cap of `max_rows`
+/// ([`TraceParams::max_rows`]: 0 is no cap).
+pub(crate) fn rows_spent(max_rows: u64, rows: u64) -> bool {
+    max_rows > 0 && rows >= max_rows
+}
+
 fn is_zero(value: &u64) -> bool {
     *value == 0
 }
@@ -306,7 +312,7 @@ impl TraceValidParams {
     /// Whether a set that has read `rows` sensor rows has spent its
     /// [`max_rows`](TraceParams::max_rows).
     pub(crate) fn rows_spent(&self, rows: u64) -> bool {
-        self.max_rows > 0 && rows >= self.max_rows
+        rows_spent(self.max_rows, rows)
     }
     /// Points per resampled set.
     pub fn points(&self) -> usize {
