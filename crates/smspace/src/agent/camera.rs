@@ -225,6 +225,9 @@ fn world_from_camera(direction: [f64; 3]) -> Option<[[f64; 3]; 3]> {
 struct ChainPosition {
     chain: Chain,
     space: PoseSpace,
+    /// The chain's own pose: its coordinates and tangent coordinates.
+    full_dim: usize,
+    full_tangent_dim: usize,
 }
 
 impl ChainPosition {
@@ -234,7 +237,13 @@ impl ChainPosition {
         } else {
             PoseSpace::spatial_position()
         };
-        Self { chain, space }
+        let full = chain.pose_space();
+        Self {
+            full_dim: full.dim(),
+            full_tangent_dim: full.tangent_dim(),
+            chain,
+            space,
+        }
     }
 }
 
@@ -246,7 +255,7 @@ impl Observer for ChainPosition {
     }
 
     fn pose(&self, motors: &[f64], pose: &mut [f64]) {
-        let mut full = vec![0.0; self.chain.pose_space().dim()];
+        let mut full = vec![0.0; self.full_dim];
         self.chain.pose(motors, &mut full);
         pose.copy_from_slice(&full[..self.space.dim()]);
     }
@@ -256,10 +265,9 @@ impl Observer for ChainPosition {
     }
 
     fn pose_jacobian(&self, motors: &[f64], jacobian: &mut [f64], pose: &mut [f64]) {
-        let full_space = self.chain.pose_space();
         let n = motors.len();
-        let mut full_jacobian = vec![0.0; full_space.tangent_dim() * n];
-        let mut full = vec![0.0; full_space.dim()];
+        let mut full_jacobian = vec![0.0; self.full_tangent_dim * n];
+        let mut full = vec![0.0; self.full_dim];
         self.chain
             .pose_jacobian(motors, &mut full_jacobian, &mut full);
         let d = self.space.dim();
